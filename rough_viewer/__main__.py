@@ -1,0 +1,7 @@
+"""``python -m rough_viewer`` runs the command line."""
+
+import sys
+
+from rough_viewer.cli import main
+
+sys.exit(main())

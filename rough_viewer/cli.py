@@ -1,0 +1,65 @@
+"""Command-line front end: ``rough-viewer <command> ...``.
+
+Each command lives in its own module under :mod:`rough_viewer.commands` and
+exposes ``register(subparsers)``, which adds its parser and sets ``func`` (a
+callable taking the parsed namespace and returning an exit status). Modules are
+found automatically, so adding a command touches no other file.
+
+Problems the user can fix raise :class:`rough_viewer.errors.InputError`; they are
+printed as one line on stderr and exit with status 2, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from rough_viewer import __version__, commands
+from rough_viewer.errors import InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse parser whose usage errors are one line and exit 2."""
+
+    def error(self, message: str) -> None:  # noqa: D401
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser, with every command module found in ``rough_viewer.commands``."""
+    parser = _Parser(
+        prog="rough-viewer",
+        description="Surface roughness of scanned rock faces.",
+    )
+    parser.add_argument("--version", action="version", version=f"rough-viewer {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rough-viewer`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"rough-viewer: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rough-viewer: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

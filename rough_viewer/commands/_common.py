@@ -1,0 +1,58 @@
+"""Helpers shared by the commands: option parsing and safe output files."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from rough_viewer.errors import InputError
+
+
+def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
+    """Parse ``"X,Y,Z"`` into three floats, or raise InputError naming the option."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(v == v and abs(v) != float("inf") for v in values):
+        raise InputError(f"{option} expects three finite numbers X,Y,Z, got {text!r}")
+    return values  # type: ignore[return-value]
+
+
+def check_output_path(path: str | os.PathLike[str], *, force: bool) -> Path:
+    """Check that ``path`` can be written: its folder exists and, unless ``force``,
+    the file does not. Call before any work so nothing is computed in vain."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"output folder does not exist: {parent} (for {p})")
+    if p.is_dir():
+        raise InputError(f"output path is a folder: {p}")
+    if p.exists() and not force:
+        raise InputError(f"output file exists: {p} (use --force to overwrite)")
+    return p
+
+
+def write_atomic(path: str | os.PathLike[str], write: Callable[[object], None], *, mode: str = "w") -> None:
+    """Write a file through a temporary file in the same folder, then rename it,
+    so an error or interrupt never leaves a half-written output.
+
+    ``write`` receives the open file object.
+    """
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=parent)
+    try:
+        kwargs = {"newline": ""} if "b" not in mode else {}
+        with os.fdopen(fd, mode, **kwargs) as fh:
+            write(fh)
+        os.replace(tmp, p)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
