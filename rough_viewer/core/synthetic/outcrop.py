@@ -42,6 +42,7 @@ Everything is drawn from ``spec.seed``; the same spec always gives the same poin
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,7 +115,7 @@ class OutcropSpec:
     """Scanner position (m); the face foot runs along y = 0 from x = 0."""
     angular_step_rad: float = 6.0e-4
     """Angular step of the scanner's ray grid (radians); 6e-4 rad is 1.2 cm at 20 m."""
-    range_noise_m: float = 0.003
+    range_noise_m: float = 0.002
     """Standard deviation of the Gaussian range noise (m)."""
     oversampling: float = 0.7
     """Surface sample spacing as a fraction of the smallest ray spacing on the face."""
@@ -137,7 +138,7 @@ OUTCROP_SMALL = OutcropSpec(
     bend_length_m=4.0,
     height_m=7.0,
     scanner=(5.0, -10.0, 1.6),
-    angular_step_rad=2.6e-3,
+    angular_step_rad=2.3e-3,
     buttresses=((3.5, 1.0, 0.5, 5.5),),
     seed=2012,
 )
@@ -203,7 +204,7 @@ def _groove(d: np.ndarray, aperture: np.ndarray) -> tuple[np.ndarray, np.ndarray
     line, and whether the point is inside the fracture's damaged zone."""
     half = aperture / 2
     bevel = 0.3 * aperture + 0.01
-    depth = np.minimum(0.04 + 2.0 * aperture, 0.3)
+    depth = np.minimum(0.06 + 2.5 * aperture, 0.4)
     t = np.clip((d - half) / bevel, 0.0, 1.0)
     return -depth * (1 - t) ** 2, d < half + bevel
 
@@ -313,7 +314,7 @@ class _Geology:
         self.spec = spec
         self.undulation = FractalNoise2D(rng, ext, (7.0, 3.0), (0.12, 0.05))
         self.fine = FractalNoise2D(
-            rng, ext, (0.5, 0.25, 0.12, 0.06, 0.03), (0.003, 0.0018, 0.0011, 0.0007, 0.0004)
+            rng, ext, (0.5, 0.25, 0.12, 0.06, 0.03), (0.003, 0.0016, 0.0008, 0.0005, 0.0003)
         )
         self.rough = FractalNoise2D(rng, ext, (0.12, 0.06, 0.03), (0.012, 0.007, 0.004))
         self.warp_s = ValueNoise2D(rng, ext, 2.5)
@@ -357,6 +358,16 @@ class _Geology:
             w = ws * wz
             out += proud * w * w * (3 - 2 * w)
         return out
+
+
+def outcrop_relief(spec: OutcropSpec) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The surface model of ``spec``: ``relief(s, z) -> (h, truth)`` in face coordinates.
+
+    ``h`` (m) is the offset of the rock surface from the face trace along its outward
+    normal (:func:`face_trace`); ``truth`` the class at that spot. This is the exact
+    surface that :func:`generate_outcrop` samples, for checks of the scan against it.
+    """
+    return _Geology(spec).relief
 
 
 # --- scanning --------------------------------------------------------------------------
