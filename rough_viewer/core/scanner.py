@@ -28,17 +28,7 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-try:  # TEMPORARY until main's planes.py is merged
-    from rough_viewer.core.planes import fit_plane
-except ImportError:  # pragma: no cover
-    from types import SimpleNamespace
-
-    def fit_plane(xyz: np.ndarray) -> SimpleNamespace:  # type: ignore[misc]
-        pts = np.asarray(xyz, dtype=np.float64)
-        c = pts.mean(axis=0)
-        d = pts - c
-        w, v = np.linalg.eigh(d.T @ d / pts.shape[0])
-        return SimpleNamespace(centroid=c, normal=v[:, 0].copy(), eigenvalues=w[::-1].copy())
+from rough_viewer.core.planes import fit_plane
 
 Residual = Literal["absolute", "signed"]
 ClassMethod = Literal["kmeans", "kmeans-3sigma"]
