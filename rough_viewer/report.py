@@ -128,7 +128,15 @@ def _section(
         norm = normalise(values)
         summaries[name] = summarise(result, name)
         histograms[name] = histogram(norm, HISTOGRAM_BIN)
-        variograms[name] = semivariogram(result.ijk, values, g)
+        try:
+            variograms[name] = semivariogram(result.ijk, values, g)
+        except MemoryError:
+            shape = tuple(int(v) for v in np.ptp(result.ijk, axis=0) + 1)
+            return GridSection(
+                grid_size=g, result=result,
+                error=(f"not enough memory for the semivariogram of the occupied box "
+                       f"{shape[0]} x {shape[1]} x {shape[2]} cells; use a larger grid size"),
+            ), result.whole_normal
         maps[name] = face_maps(raster, norm, threshold=threshold)
         tick()
     tick()

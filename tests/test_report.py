@@ -123,6 +123,15 @@ def test_html_holds_every_figure_and_the_input_facts(report):
     assert "too few cells" in bad and "data-figure" not in bad
 
 
+def test_every_grid_too_coarse_still_reports(cloud):
+    rep = build_report(cloud, [TOO_COARSE, 50.0])
+    assert [s.error is not None for s in rep.sections] == [True, True]
+    assert rep.axis == "y" and rep.n_points == 20_000
+    data = report_json(rep)
+    assert all("too few cells" in g["error"] for g in data["grids"])
+    assert report_html(rep).count("too few cells") == 2
+
+
 def test_progress_reaches_the_end(cloud):
     calls = []
     build_report(cloud, [0.5, TOO_COARSE], progress=lambda d, t: calls.append((d, t)))
