@@ -47,7 +47,9 @@ VARIOGRAM_FIGURE_MAPS = ("odr", "ols", "e_ols")
 """Maps overlaid in the semivariogram figure (2011 Fig. 4); the numbers cover all maps."""
 FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 """Panel order of the face-map figures (2011 Fig. 2: A = OLS, B = ODR)."""
-STEPS_PER_GRID = 3 + len(MAPS)
+ROUGHNESS_STAGES = 4
+"""Progress stages reported by ``grid_roughness``."""
+STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 1
 
 
 @dataclass(frozen=True)
@@ -105,12 +107,13 @@ def _section(
     min_points: int,
     centroid: np.ndarray,
     tick: Callable[[], None],
+    stage: ProgressFn,
 ) -> tuple[GridSection, np.ndarray | None]:
     try:
-        result = grid_roughness(cloud, g, min_points=min_points, axis=axis)  # type: ignore[arg-type]
+        result = grid_roughness(cloud, g, min_points=min_points, axis=axis,  # type: ignore[arg-type]
+                                progress=stage)
     except InputError as exc:
         return GridSection(grid_size=g, error=str(exc)), None
-    tick()
     n_valid = int(np.count_nonzero(np.isfinite(result.theta_odr)))
     if n_valid < MIN_CELLS:
         return GridSection(
@@ -180,28 +183,41 @@ def build_report(
         raise InputError(f"need at least 3 points, got {cloud.n} ({cloud.source or 'cloud'})")
     sizes = list(dict.fromkeys(float(g) for g in grid_sizes))
     total = STEPS_PER_GRID * len(sizes)
-    done = 0
+    done = base = 0
+    shown = -1
+
+    def show(value: int) -> None:
+        nonlocal shown
+        value = min(value, total)
+        if progress is not None and value > shown:
+            shown = value
+            progress(value, total)
 
     def tick() -> None:
         nonlocal done
         done += 1
-        if progress is not None:
-            progress(min(done, total), total)
+        show(done)
 
-    if progress is not None:
-        progress(0, total)
+    def stage(stage_done: int, stage_total: int) -> None:
+        # grid_roughness's own stages, mapped onto the first steps of this grid size
+        if stage_total > 0:
+            show(base + round(ROUGHNESS_STAGES * min(stage_done, stage_total) / stage_total))
+
+    show(0)
     centroid = _cloud_centroid(cloud)
     sections = []
     whole_normal = None
     for i, g in enumerate(sizes):
+        base = STEPS_PER_GRID * i
+        done = base + ROUGHNESS_STAGES
         section, normal = _section(cloud, g, axis=axis, threshold=threshold,
-                                   min_points=min_points, centroid=centroid, tick=tick)
+                                   min_points=min_points, centroid=centroid, tick=tick,
+                                   stage=stage)
         sections.append(section)
         if whole_normal is None and normal is not None:
             whole_normal = normal
         done = STEPS_PER_GRID * (i + 1)
-        if progress is not None:
-            progress(done, total)
+        show(done)
     used_axis = next((s.result.axis for s in sections if s.result is not None), None)
     if whole_normal is None or used_axis is None:
         from rough_viewer.core.planes import fit_plane
