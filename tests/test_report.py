@@ -183,6 +183,34 @@ def test_png_without_kaleido_is_a_one_line_error(cloud_file, tmp_path, capsys):
     assert not out.exists()  # checked before any work
 
 
+def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
+    """The export logic, with kaleido's renderer replaced by a stub."""
+    import plotly.graph_objects as go
+
+    import rough_viewer.report as report_module
+
+    rendered = []
+
+    def fake_to_image(fig, format="png", scale=1):
+        rendered.append(fig.layout.title.text)
+        return b"\x89PNG fake"
+
+    monkeypatch.setattr(report_module, "check_png_export", lambda: None)
+    monkeypatch.setattr(go.Figure, "to_image", fake_to_image)
+    png = tmp_path / "png"
+    rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),
+               "--out", str(tmp_path / "r.html"), "--png", str(png), "--quiet"])
+    assert rc == 0
+    assert sorted(p.name for p in png.iterdir()) == sorted(f"g0.5_{f}.png" for f in FIGURE_NAMES)
+    assert (png / "g0.5_histogram.png").read_bytes() == b"\x89PNG fake"
+    assert all("grid 0.5 m" in t for t in rendered)
+    # existing PNGs are refused before any work, unless --force
+    (tmp_path / "r.html").unlink()
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(tmp_path / "r.html"),
+                 "--png", str(png), "--quiet"]) == 2
+    assert not (tmp_path / "r.html").exists()
+
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update"]
