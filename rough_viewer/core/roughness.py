@@ -207,7 +207,8 @@ def grid_roughness(
         ``"absolute"``: std of absolute distances (SCIENCE.md); ``"signed"``: RMS of
         signed distances.
     progress : callable, optional
-        ``progress(done, total)`` over the four stages.
+        ``progress(done, total)`` over the five stages (cell keys, moments, plane
+        fits, distances, assembly).
 
     Returns
     -------
@@ -233,11 +234,11 @@ def grid_roughness(
     lo = np.array([x.min(), y.min(), z.min()])
     hi = np.array([x.max(), y.max(), z.max()])
     grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
-    tick(0, 4)
+    tick(0, 5)
     index = index_points(x, y, z, grid)
-    tick(1, 4)
+    tick(1, 5)
     mom = cell_moments(x, y, z, index)
-    tick(2, 4)
+    tick(2, 5)
 
     m_cells = index.n_cells
     counts = index.counts
@@ -264,13 +265,14 @@ def grid_roughness(
         w_ols, valid_ols = ols_from_covariance(cov, used_axis)
         valid_ols &= enough
 
+    tick(3, 5)
     vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if need_odr:
         vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
     if w_ols is not None:
         vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
     sums = distance_sums(x, y, z, index, vectors)
-    tick(3, 4)
+    tick(4, 5)
 
     n_f = counts.astype(np.float64)
     signed = residual == "signed"
@@ -293,7 +295,7 @@ def grid_roughness(
     centre = grid.centres(index.ijk)
     centroid = centre + mean_local
     centroid[~enough] = np.nan
-    tick(4, 4)
+    tick(5, 5)
     return GridRoughness(
         grid=grid,
         axis=used_axis,
