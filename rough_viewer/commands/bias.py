@@ -142,6 +142,9 @@ def _write_las_atomic(path: Path, xyz: np.ndarray, extra: dict) -> None:
     os.close(fd)
     try:
         write_las(tmp, PointCloud.from_xyz(xyz), extra=extra)
+        umask = os.umask(0)  # mkstemp made it private (0600): give the usual permissions
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
