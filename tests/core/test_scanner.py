@@ -266,3 +266,14 @@ def test_classify_population_separates_raised_points():
         c = classify_population(pts, noise_sigma=NOISE / 4, scanner=scanner)
         sc = classification_scores(asp, c.asperity)
         assert sc.x_score > 99.0 and sc.y_score < 1.0
+
+
+def test_kmeans_1d_agrees_with_lloyd_iterations():
+    from scipy.cluster.vq import kmeans2
+
+    rng = np.random.default_rng(12)
+    v = np.concatenate((rng.normal(0.0, 0.0016, 5_000), rng.uniform(0.002, 0.019, 800)))
+    thr, lo, hi = kmeans_1d(v)
+    cent, lab = kmeans2(v.reshape(-1, 1), np.array([[v.min()], [v.max()]]), minit="matrix")
+    assert sorted(cent[:, 0]) == pytest.approx([lo, hi], rel=1e-6)
+    assert np.array_equal(lab == int(np.argmax(cent[:, 0])), v > thr)
