@@ -608,7 +608,8 @@ def classify_population(
                 sigma = float(noise_sigma)
             if not sigma >= 0:
                 raise ValueError(f"noise sigma must be >= 0, got {noise_sigma}")
-            up = bg[rb > n_sigma * sigma]
+            # A floor of 1 nm keeps rounding error of a noise-free board in place.
+            up = bg[rb > max(n_sigma * sigma, 1e-9)]
             asperity[up] = True
             moved = int(up.size)
     return Classification(asperity=asperity, residual=r, threshold=threshold,

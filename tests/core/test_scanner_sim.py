@@ -148,3 +148,14 @@ def test_kmeans_3sigma_normalisation_close_to_known_classes():
     assert 0.0 < found.roughness / known.roughness - 1.0 < 0.02
     # Without a noise sigma it is estimated from the background (~1.6 mm).
     assert classify_population(xyz).noise_sigma == pytest.approx(NOISE, rel=0.05)
+
+
+def test_classification_of_a_noise_free_target_is_exact():
+    sim = simulate_target(paper_target("A"), spacing_m=0.002)
+    xyz, truth = sim.xyz(), sim.labels()
+    c = classify_population(xyz, noise_sigma=0.0)
+    sc = classification_scores(truth, c.asperity)
+    # Every raised point lies above the background plane; nothing else moves.
+    assert sc.x_score == 100.0 and sc.y_score == 0.0
+    # An estimated sigma is tiny (the background cluster holds the asperities' feet).
+    assert classify_population(xyz).noise_sigma < 1e-4
