@@ -225,3 +225,23 @@ def test_summary_normalise_binary_histogram_against_plain_numpy():
         lo, hi = h.edges[k], h.edges[k + 1]
         expected = np.count_nonzero((vals >= lo) & ((vals < hi) if k < 19 else (vals <= hi)))
         assert h.counts[k] == expected
+
+
+@pytest.mark.parametrize("factor", [2, 4, 8])
+def test_coarsened_grid_equals_direct_computation(factor):
+    from rough_viewer.core.roughness import coarsen_prepared, prepare_grid
+
+    xyz = rough_surface(30_000, seed=21, size=3.0) @ random_rotation(3).T + [4.5e5, 5.1e6, 300.0]
+    cloud = PointCloud.from_xyz(xyz)
+    fine = prepare_grid(cloud, 0.125)
+    coarse = coarsen_prepared(fine, factor)
+    g = 0.125 * factor
+    direct = grid_roughness(cloud, g)
+    res = grid_roughness(cloud, g, prepared=coarse)
+    assert res.grid.cell_size == g
+    np.testing.assert_array_equal(res.ijk, direct.ijk)
+    np.testing.assert_array_equal(res.n_points, direct.n_points)
+    np.testing.assert_array_equal(res.point_cell, direct.point_cell)
+    for name in ("odr", "ols", "hybrid", "e_ols"):
+        np.testing.assert_allclose(res.values(name), direct.values(name), rtol=1e-9, atol=ATOL)
+    np.testing.assert_allclose(res.centroid, direct.centroid, rtol=0, atol=1e-9)
