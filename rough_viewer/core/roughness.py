@@ -1,0 +1,427 @@
+"""Per-cell surface roughness: ODR, OLS and hybrid models, e_ols, summaries.
+
+Definitions (SCIENCE.md section 1; 2011 paper Eqs. 3-5, 2012 paper Table 1):
+
+==========  ==================================  ======================================
+model       reference plane                     distance ``D_i`` of a point
+==========  ==================================  ======================================
+``odr``     ODR plane (centroid, min-eigvec)    ``|n . (p_i - c)|``
+``ols``     OLS along dependent axis ``a``      ``|residual along a|``
+``hybrid``  ODR plane                           ``|n . (p_i - c)| / |n_a|``
+==========  ==================================  ======================================
+
+Roughness of a cell: ``theta = sqrt(mean(D^2) - mean(D)^2)``, the population
+standard deviation of the ABSOLUTE distances. With ``residual="signed"`` it is the
+RMS of the signed distances instead (an option, not the default).
+
+Implementation: one pass over the points for cell keys, one for cell-local moment
+sums, planes fitted per cell from the 3x3 covariances (batched), and one pass for
+the sums of absolute distances. ``mean(D^2)`` comes from the moments in closed form
+(``n^T C n`` for ODR, ``w^T C w`` for OLS), so the last pass only sums ``|D|``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from rough_viewer.core.grid import (
+    CellIndex,
+    CellMoments,
+    GridSpec,
+    abs_distance_sums,
+    cell_moments,
+    index_points,
+    make_grid,
+)
+from rough_viewer.core.io import PointCloud
+from rough_viewer.core.planes import (
+    AXES,
+    Axis,
+    axis_index,
+    dominant_axis,
+    odr_from_covariance,
+    ols_from_covariance,
+)
+from rough_viewer.errors import InputError
+from rough_viewer.progress import ProgressFn
+
+Model = Literal["odr", "ols", "hybrid"]
+MapName = Literal["odr", "ols", "hybrid", "e_ols"]
+AxisChoice = Literal["auto", "x", "y", "z"]
+Residual = Literal["absolute", "signed"]
+MODELS: tuple[Model, ...] = ("odr", "ols", "hybrid")
+MAPS: tuple[MapName, ...] = ("odr", "ols", "hybrid", "e_ols")
+
+#: A hybrid distance along axis ``a`` is undefined when the ODR normal is
+#: (numerically) perpendicular to ``a``.
+HYBRID_MIN_COMPONENT = 1e-9
+
+
+@dataclass(frozen=True)
+class GridRoughness:
+    """Roughness maps of one cloud on one grid. Cell arrays have one row per occupied
+    cell; values are NaN where a cell has no value (too few points, degenerate
+    plane, model not asked for)."""
+
+    grid: GridSpec
+    """The grid (origin, cell size in metres)."""
+    axis: Axis
+    """Dependent axis actually used by OLS and hybrid."""
+    axis_requested: AxisChoice
+    """Axis option as given (``"auto"`` picks the axis closest to the whole-cloud normal)."""
+    whole_normal: np.ndarray
+    """(3,) unit normal of the whole cloud's ODR plane."""
+    min_points: int
+    """Cells with fewer points get no value."""
+    residual: Residual
+    """``"absolute"`` (SCIENCE.md default) or ``"signed"`` (RMS of signed distances)."""
+    models: tuple[Model, ...]
+    """Models computed."""
+    ijk: np.ndarray
+    """(M, 3) int64 cell indices."""
+    centre: np.ndarray
+    """(M, 3) cell centres, metres, the file's frame."""
+    n_points: np.ndarray
+    """(M,) int64 points per cell."""
+    centroid: np.ndarray
+    """(M, 3) point centroid per cell, metres (NaN below ``min_points``)."""
+    normal: np.ndarray
+    """(M, 3) ODR unit normal per cell (NaN where no plane)."""
+    theta_odr: np.ndarray
+    """(M,) ODR roughness, metres."""
+    theta_ols: np.ndarray
+    """(M,) OLS roughness along the dependent axis, metres."""
+    theta_hybrid: np.ndarray
+    """(M,) hybrid roughness, metres."""
+    e_ols: np.ndarray
+    """(M,) OLS error ``|theta_ols - theta_odr|``, metres."""
+    point_cell: np.ndarray
+    """(N,) int64 row of the cell arrays for every input point."""
+    n_points_total: int
+    """Number of points used."""
+
+    @property
+    def n_cells(self) -> int:
+        """Number of occupied cells."""
+        return int(self.n_points.shape[0])
+
+    def values(self, name: MapName) -> np.ndarray:
+        """The (M,) map ``"odr"``, ``"ols"``, ``"hybrid"`` or ``"e_ols"``, metres."""
+        if name == "e_ols":
+            return self.e_ols
+        if name in MODELS:
+            return getattr(self, f"theta_{name}")
+        raise ValueError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+
+    def point_values(self, name: MapName) -> np.ndarray:
+        """(N,) the map's value of each point's cell (NaN where the cell has none)."""
+        return self.values(name)[self.point_cell]
+
+    def cell_report(self, name: MapName) -> dict[str, int]:
+        """Counts of cells: occupied, below ``min_points``, degenerate, with a value."""
+        v = self.values(name)
+        below = int(np.count_nonzero(self.n_points < self.min_points))
+        valued = int(np.count_nonzero(np.isfinite(v)))
+        return {
+            "occupied": self.n_cells,
+            "below_min_points": below,
+            "degenerate": self.n_cells - below - valued,
+            "with_value": valued,
+        }
+
+
+def _as_columns(cloud: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if isinstance(cloud, PointCloud):
+        return cloud.x, cloud.y, cloud.z
+    arr = np.asarray(cloud, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError("points must be a PointCloud or an (N, 3) array")
+    return (
+        np.ascontiguousarray(arr[:, 0]),
+        np.ascontiguousarray(arr[:, 1]),
+        np.ascontiguousarray(arr[:, 2]),
+    )
+
+
+def whole_cloud_normal_from_moments(grid: GridSpec, index: CellIndex, mom: CellMoments) -> np.ndarray:
+    """Unit normal of the whole cloud's ODR plane, combined from per-cell moments.
+
+    Cell means are taken relative to the grid origin, so no precision is lost on
+    large coordinates.
+    """
+    n = mom.counts.astype(np.float64)
+    total = n.sum()
+    mean_c = (index.ijk - index.grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
+    mean_all = (n[:, None] * mean_c).sum(axis=0) / total
+    d = mean_c - mean_all
+    cov_cells = mom.covariance()
+    scatter = np.einsum("m,mij->ij", n, cov_cells) + np.einsum("m,mi,mj->ij", n, d, d)
+    w, v = np.linalg.eigh(scatter / total)
+    return v[:, 0]
+
+
+def whole_cloud_axis(cloud: PointCloud | np.ndarray) -> Axis:
+    """The coordinate axis closest to the normal of the whole cloud's ODR plane."""
+    x, y, z = _as_columns(cloud)
+    c = np.array([x.mean(), y.mean(), z.mean()])
+    cols = (x - c[0], y - c[1], z - c[2])
+    cov = np.array([[np.dot(a, b) for b in cols] for a in cols]) / x.shape[0]
+    return dominant_axis(np.linalg.eigh(cov)[1][:, 0])
+
+
+def grid_roughness(
+    cloud: PointCloud | np.ndarray,
+    cell_size: float,
+    *,
+    origin: np.ndarray | None = None,
+    min_points: int = 3,
+    axis: AxisChoice = "auto",
+    models: Iterable[Model] = MODELS,
+    residual: Residual = "absolute",
+    progress: ProgressFn | None = None,
+) -> GridRoughness:
+    """Roughness of every grid cell of a cloud.
+
+    Parameters
+    ----------
+    cloud : PointCloud or (N, 3) array
+        Points, metres.
+    cell_size : float
+        Grid cell edge ``g``, metres.
+    origin : (3,) array_like, optional
+        Grid origin, metres; default the bounding-box minimum.
+    min_points : int
+        Cells with fewer points get no value (default 3, the fewest that fix a plane).
+    axis : {"auto", "x", "y", "z"}
+        Dependent axis of OLS and hybrid; ``"auto"`` = axis closest to the normal of
+        the whole cloud's ODR plane.
+    models : iterable of {"odr", "ols", "hybrid"}
+        Models to compute (``e_ols`` is filled when both odr and ols are).
+    residual : {"absolute", "signed"}
+        ``"absolute"``: std of absolute distances (SCIENCE.md); ``"signed"``: RMS of
+        signed distances.
+    progress : callable, optional
+        ``progress(done, total)`` over the four stages.
+
+    Returns
+    -------
+    GridRoughness
+    """
+    models_t = tuple(dict.fromkeys(models))
+    for m in models_t:
+        if m not in MODELS:
+            raise InputError(f"unknown method {m!r}; expected odr, ols or hybrid")
+    if axis not in ("auto", *AXES):
+        raise InputError(f"unknown axis {axis!r}; expected auto, x, y or z")
+    if residual not in ("absolute", "signed"):
+        raise InputError(f"unknown residual {residual!r}; expected absolute or signed")
+    if int(min_points) < 3:
+        raise InputError(f"min points must be at least 3 (a plane needs 3), got {min_points}")
+    min_points = int(min_points)
+    x, y, z = _as_columns(cloud)
+    n_total = int(x.shape[0])
+    if n_total < 3:
+        raise InputError(f"need at least 3 points, got {n_total}")
+    tick = progress or (lambda done, total: None)
+
+    lo = np.array([x.min(), y.min(), z.min()])
+    hi = np.array([x.max(), y.max(), z.max()])
+    grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
+    tick(0, 4)
+    index = index_points(x, y, z, grid)
+    tick(1, 4)
+    mom = cell_moments(x, y, z, index)
+    tick(2, 4)
+
+    m_cells = index.n_cells
+    counts = index.counts
+    enough = counts >= min_points
+    cov = mom.covariance()
+    mean_local = mom.mean_local()
+    whole_normal = whole_cloud_normal_from_moments(grid, index, mom)
+    used_axis: Axis = dominant_axis(whole_normal) if axis == "auto" else axis
+    a = axis_index(used_axis)
+
+    if whole_normal[int(np.argmax(np.abs(whole_normal)))] < 0:
+        whole_normal = -whole_normal
+    normal, eig, valid_odr = odr_from_covariance(cov)
+    valid_odr &= enough
+    # Eigenvectors have arbitrary sign: orient every cell normal like the whole face's.
+    normal *= np.where(normal @ whole_normal < 0, -1.0, 1.0)[:, None]
+    normal[~valid_odr] = np.nan
+    nan = np.full(m_cells, np.nan)
+    theta = {"odr": nan.copy(), "ols": nan.copy(), "hybrid": nan.copy()}
+
+    need_odr = any(m in models_t for m in ("odr", "hybrid"))
+    w_ols = valid_ols = None
+    if "ols" in models_t:
+        w_ols, valid_ols = ols_from_covariance(cov, used_axis)
+        valid_ols &= enough
+
+    vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if residual == "absolute":
+        if need_odr:
+            vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
+        if w_ols is not None:
+            vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
+    sums = abs_distance_sums(x, y, z, index, vectors) if vectors else {}
+    tick(3, 4)
+
+    n_f = counts.astype(np.float64)
+    if need_odr:
+        msq = np.clip(eig[:, 2], 0.0, None)  # mean squared orthogonal distance
+        t = _theta(msq, sums.get("odr"), n_f)
+        t[~valid_odr] = np.nan
+        if "odr" in models_t:
+            theta["odr"] = t
+        if "hybrid" in models_t:
+            na = np.abs(normal[:, a])
+            ok = valid_odr & (na > HYBRID_MIN_COMPONENT)
+            th = np.full(m_cells, np.nan)
+            th[ok] = t[ok] / na[ok]
+            theta["hybrid"] = th
+    if w_ols is not None:
+        wc = np.where(valid_ols[:, None], w_ols, 0.0)
+        msq = np.clip(np.einsum("mi,mij,mj->m", wc, cov, wc), 0.0, None)
+        t = _theta(msq, sums.get("ols"), n_f)
+        t[~valid_ols] = np.nan
+        theta["ols"] = t
+    e_ols = np.abs(theta["ols"] - theta["odr"])
+    centre = grid.centres(index.ijk)
+    centroid = centre + mean_local
+    centroid[~enough] = np.nan
+    tick(4, 4)
+    return GridRoughness(
+        grid=grid,
+        axis=used_axis,
+        axis_requested=axis,
+        whole_normal=whole_normal,
+        min_points=min_points,
+        residual=residual,
+        models=models_t,
+        ijk=index.ijk,
+        centre=centre,
+        n_points=counts,
+        centroid=centroid,
+        normal=normal,
+        theta_odr=theta["odr"],
+        theta_ols=theta["ols"],
+        theta_hybrid=theta["hybrid"],
+        e_ols=e_ols,
+        point_cell=index.point_cell,
+        n_points_total=n_total,
+    )
+
+
+def _theta(mean_sq: np.ndarray, abs_sum: np.ndarray | None, n: np.ndarray) -> np.ndarray:
+    """Std of absolute distances from mean(D^2) and sum|D|; RMS when abs_sum is None."""
+    if abs_sum is None:
+        return np.sqrt(mean_sq)
+    mean_abs = abs_sum / n
+    return np.sqrt(np.clip(mean_sq - mean_abs * mean_abs, 0.0, None))
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The 2011 paper's Table 1 for one map: population statistics over its cells."""
+
+    cells: int
+    """Number of cells with a value."""
+    mean_points: float
+    """Mean number of points per such cell."""
+    min: float
+    """Smallest value, metres."""
+    max: float
+    """Largest value, metres."""
+    mean: float
+    """Mean, metres."""
+    variance: float
+    """Population variance (divide by the number of cells), square metres."""
+    std: float
+    """Population standard deviation, metres."""
+
+    def as_dict(self) -> dict[str, float | int]:
+        """Plain dict, for JSON."""
+        return {
+            "cells": self.cells,
+            "mean_points": self.mean_points,
+            "min": self.min,
+            "max": self.max,
+            "mean": self.mean,
+            "variance": self.variance,
+            "std": self.std,
+        }
+
+
+def summarise(result: GridRoughness, name: MapName) -> Summary:
+    """Table-1 summary of one map of ``result`` (NaN statistics when no cell has a value)."""
+    v = result.values(name)
+    ok = np.isfinite(v)
+    vals = v[ok]
+    if vals.size == 0:
+        return Summary(0, float("nan"), *(float("nan"),) * 5)
+    mean = float(vals.mean())
+    var = float(np.mean((vals - mean) ** 2))
+    return Summary(
+        cells=int(vals.size),
+        mean_points=float(result.n_points[ok].mean()),
+        min=float(vals.min()),
+        max=float(vals.max()),
+        mean=mean,
+        variance=var,
+        std=float(np.sqrt(var)),
+    )
+
+
+def normalise(values: np.ndarray) -> np.ndarray:
+    """Min-max normalisation over the finite values: ``(v - min) / (max - min)``.
+
+    NaN stays NaN; if all finite values are equal they map to 0.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    ok = np.isfinite(v)
+    out = np.full(v.shape, np.nan)
+    if not ok.any():
+        return out
+    lo = v[ok].min()
+    span = v[ok].max() - lo
+    out[ok] = (v[ok] - lo) / span if span > 0 else 0.0
+    return out
+
+
+def binary(normalised: np.ndarray, threshold: float = 0.05) -> np.ndarray:
+    """Binary transform: ``normalised >= threshold`` (NaN -> False)."""
+    v = np.asarray(normalised, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(v) & (v >= threshold)
+
+
+@dataclass(frozen=True)
+class Histogram:
+    """Histogram of normalised roughness on [0, 1]."""
+
+    edges: np.ndarray
+    """(K + 1,) bin edges (the last bin includes 1)."""
+    counts: np.ndarray
+    """(K,) cells per bin."""
+    fractions: np.ndarray
+    """(K,) share of cells per bin (sums to 1 when any cell has a value)."""
+
+
+def histogram(normalised: np.ndarray, bin_width: float = 0.05) -> Histogram:
+    """Histogram of normalised values in bins of ``bin_width`` on [0, 1]."""
+    k = int(round(1.0 / bin_width))
+    if k < 1 or abs(k * bin_width - 1.0) > 1e-9:
+        raise ValueError(f"bin width must divide 1, got {bin_width}")
+    v = np.asarray(normalised, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    edges = np.linspace(0.0, 1.0, k + 1)
+    # Bin membership is decided against the edges (last bin closed), as np.histogram does.
+    counts, _ = np.histogram(v, bins=edges)
+    total = counts.sum()
+    fractions = counts / total if total else np.zeros(k)
+    return Histogram(edges=edges, counts=counts, fractions=fractions)
