@@ -24,7 +24,8 @@ Steps, with every choice the paper leaves open fixed here:
    last bin mean.
 
 Defaults from the local point spacing ``point_spacing`` = the median distance from the
-patch points to their 4th nearest neighbour (about the grid step of a regular scan,
+patch points to their 4th nearest neighbour, measured in the patch plane (along and
+across coordinates, so range noise does not inflate it; about the grid step of a regular scan,
 ``1.08 / sqrt(density)`` for randomly placed points): ``spacing = point_spacing`` and
 ``band_half_width = point_spacing``.
 """
@@ -83,7 +84,8 @@ class Profile:
     max_gap: float
     """Longest stretch without points that is interpolated across, metres."""
     point_spacing: float
-    """Estimated local point spacing (median 4th-neighbour distance), metres."""
+    """Estimated local point spacing (median 4th-neighbour distance in the patch
+    plane), metres."""
     n_points: int
     """Number of points in the band (used for the profile)."""
     point_index: np.ndarray
@@ -143,7 +145,8 @@ def segment_distance(xyz: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.
 
 
 def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
-    """Median distance from the points to their ``k``-th nearest neighbour, metres.
+    """Median distance from the points (N, 2 or 3) to their ``k``-th nearest neighbour,
+    metres.
 
     At most 20000 evenly strided points are queried (against all points).
     """
@@ -282,14 +285,14 @@ def extract_profile(
         )
     patch = xyz[patch_index]
     frame = local_frame(patch, p0, p1, radius)
-    spacing_est = point_spacing(patch)
+    rel = patch - p0
+    along = rel @ frame.along
+    across = rel @ frame.across
+    spacing_est = point_spacing(np.column_stack([along, across]))
     step = spacing_est if step is None else step
     band = spacing_est if band is None else band
     gap = DEFAULT_MAX_GAP_SPACINGS * step if gap is None else gap
 
-    rel = patch - p0
-    along = rel @ frame.along
-    across = rel @ frame.across
     height = (patch - frame.origin) @ frame.normal
     length = float((p1 - p0) @ frame.along)
     n_samples = int(np.floor(length / step + 1e-9)) + 1
@@ -324,3 +327,56 @@ def extract_profile(
         frame=frame,
         plane=np.asarray(plane, dtype=float),
     )
+
+
+def regular_samples(
+    distance: np.ndarray,
+    heights: np.ndarray,
+    *,
+    spacing: float | None = None,
+    max_gap: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...]]:
+    """Put a measured profile (e.g. from a profile gauge) on a regular spacing.
+
+    Parameters
+    ----------
+    distance
+        (K,) strictly increasing distances along the profile, metres.
+    heights
+        (K,) heights, metres; rows with NaN heights are dropped.
+    spacing
+        Output spacing, metres; default the median step of ``distance``.
+    max_gap
+        Longest step interpolated across, metres; default 3 spacings.
+
+    Returns
+    -------
+    (distance, heights, gaps)
+        A profile already regular at ``spacing`` (every step within 1e-6 relative) is
+        returned unchanged; otherwise it is resampled exactly like an extracted
+        profile (nearest-sample bins, linear interpolation, NaN and a listed gap where
+        a step exceeds ``max_gap``), starting at the first distance.
+    """
+    d = np.asarray(distance, dtype=float).ravel()
+    h = np.asarray(heights, dtype=float).ravel()
+    if d.shape != h.shape:
+        raise ValueError("distance and heights differ in length")
+    if not np.all(np.isfinite(d)):
+        raise ValueError("distances must be finite")
+    keep = np.isfinite(h)
+    d, h = d[keep], h[keep]
+    if d.size < 2:
+        raise ValueError("a profile needs at least 2 samples with a finite height")
+    steps = np.diff(d)
+    if np.any(steps <= 0):
+        raise ValueError("distances must be strictly increasing")
+    step = _positive(spacing, "spacing") or float(np.median(steps))
+    gap = _positive(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
+    if keep.all() and np.all(np.abs(steps - step) <= 1e-6 * step):
+        return d, h, ()
+    rel = d - d[0]
+    n_samples = int(np.floor(rel[-1] / step + 1e-9)) + 1
+    inside = np.rint(rel / step) <= n_samples - 1
+    out, _, gaps = _resample(rel[inside], h[inside], n_samples, step, gap)
+    shifted = tuple((a + d[0], b + d[0]) for a, b in gaps)
+    return d[0] + np.arange(n_samples) * step, out, shifted
