@@ -88,10 +88,16 @@ def _window_samples(
 
 
 def _fit(
-    m: np.ndarray, s: np.ndarray, counts: np.ndarray, spacing: float, ndim: Literal[1, 2]
+    m: np.ndarray,
+    s: np.ndarray,
+    counts: np.ndarray,
+    spacing: float,
+    ndim: Literal[1, 2],
+    scale: float,
 ) -> RoughnessLength:
     w = (m - 1) * spacing
-    ok = (counts > 0) & np.isfinite(s) & (s > 0)
+    # s below round-off of the input's magnitude counts as zero (e.g. a straight line)
+    ok = (counts > 0) & np.isfinite(s) & (s > 1e-12 * scale)
     if ok.sum() < 2:
         raise ValueError("fewer than 2 window sizes with a positive s(w): cannot fit s = A w^H")
     x = np.log(w[ok])
@@ -113,6 +119,11 @@ def _fit(
         spacing=float(spacing),
         ndim=ndim,
     )
+
+
+def _scale(a: np.ndarray) -> float:
+    finite = a[np.isfinite(a)]
+    return float(np.max(np.abs(finite))) if finite.size else 0.0
 
 
 def _check_spacing(spacing: float) -> float:
@@ -203,7 +214,7 @@ def roughness_length(
         counts[k] = int(valid.sum())
         if counts[k]:
             s[k] = float(std[valid].mean())
-    return _fit(m_all, s, counts, spacing, 1)
+    return _fit(m_all, s, counts, spacing, 1, _scale(h))
 
 
 # ----------------------------------------------------------------------------- 2-D
@@ -292,4 +303,4 @@ def roughness_length_2d(
         counts[k] = int(valid.sum())
         if counts[k]:
             s[k] = float(std[valid].mean())
-    return _fit(m_all, s, counts, spacing, 2)
+    return _fit(m_all, s, counts, spacing, 2, _scale(z))
