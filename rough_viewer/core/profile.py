@@ -13,13 +13,19 @@ Steps, with every choice the paper leaves open fixed here:
    line rounds to a sample (``-spacing/2 <= along < L + spacing/2``, L = projected line
    length). Their number is ``n_points``.
 4. Plane removal: a least-squares plane ``h = c0 + c1 along + c2 across`` is fitted to
-   the band points in the local frame and subtracted; the residuals are the heights.
-5. Resampling at ``distance = 0, spacing, 2 spacing, ... <= L``: the band points are
+   the patch points in the local frame (not to the band alone: a band a few points
+   wide cannot fix the across slope, the roughness itself would leak into it) and
+   subtracted; the residuals of the band points are the heights. (In the principal
+   frame this plane is zero up to round-off, as the PCA already removed the patch's
+   ODR plane: the heights are distances from that plane along its normal.)
+5. Resampling at ``distance = 0, spacing, 2 spacing, ...`` up to the sample nearest
+   to the end point (``round(L / spacing) + 1`` samples): the band points are
    binned to their nearest sample; each occupied bin gives its mean distance and mean
    residual height; the samples are linearly interpolated between consecutive bin
    means. A stretch between bin means longer than ``max_gap`` (default 3 spacings) is
    NOT interpolated: its samples are NaN (except within half a spacing of a bin mean,
-   which take that bin's height) and the data-free interval is listed in ``gaps``;
+   which take that bin's height; at the two ends of the data, the line through the two
+   outermost bin means) and the data-free interval is listed in ``gaps``;
    so are the ends of the line that lie more than half a spacing beyond the first or
    last bin mean.
 
@@ -39,7 +45,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 _SPACING_NEIGHBOUR = 4
-_SPACING_SAMPLE = 20000
+_SPACING_SAMPLE = 5000
 DEFAULT_MAX_GAP_SPACINGS = 3.0
 
 
@@ -101,7 +107,8 @@ class Profile:
     frame: LocalFrame
     """Local principal axes used."""
     plane: np.ndarray
-    """(3,) removed plane ``c0 + c1 along + c2 across`` in the local frame (c0 metres)."""
+    """(3,) removed plane ``c0 + c1 along + c2 across`` (fitted to the patch in the local
+    frame; c0 metres, along from ``start``, across from the line)."""
 
     @property
     def n_gap_samples(self) -> int:
@@ -148,7 +155,7 @@ def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
     """Median distance from the points (N, 2 or 3) to their ``k``-th nearest neighbour,
     metres.
 
-    At most 20000 evenly strided points are queried (against all points).
+    At most 5000 evenly strided points are queried (against all points).
     """
     if xyz.shape[0] <= k:
         raise ValueError(f"need more than {k} points to estimate the point spacing")
@@ -171,8 +178,12 @@ def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: f
     d = end - start
     along = d - (d @ normal) * normal
     norm = float(np.linalg.norm(along))
-    if norm <= 1e-9 * float(np.linalg.norm(d)):
-        raise ValueError("the line is perpendicular to the local surface: no profile along it")
+    if norm < 0.1 * float(np.linalg.norm(d)):
+        angle = np.degrees(np.arccos(min(1.0, norm / float(np.linalg.norm(d)))))
+        raise ValueError(
+            f"the line is nearly perpendicular to the local surface ({angle:.0f} degrees "
+            "from it): no profile along it"
+        )
     along = along / norm
     across = np.cross(normal, along)
     return LocalFrame(
@@ -205,7 +216,17 @@ def _resample(
     bridged |= (j == mean_a.size) & (s == mean_a[-1])
     nearest = np.where(np.abs(s - mean_a[jl]) <= np.abs(mean_a[jr] - s), jl, jr)
     near = np.abs(s - mean_a[nearest]) <= 0.5 * spacing
-    out = np.where(bridged, out, np.where(near, mean_h[nearest], np.nan))
+    # beyond the first / last bin mean (by at most half a spacing): extend the line
+    # through the two outermost bin means when they are close enough, else hold the value
+    held = mean_h[nearest]
+    if mean_a.size >= 2:
+        for i, k in ((0, 1), (-1, -2)):
+            run = mean_a[k] - mean_a[i]
+            if abs(run) <= max_gap:
+                side = (s < mean_a[0]) if i == 0 else (s > mean_a[-1])
+                slope = (mean_h[k] - mean_h[i]) / run
+                held = np.where(side, mean_h[i] + slope * (s - mean_a[i]), held)
+    out = np.where(bridged, out, np.where(near, held, np.nan))
     gaps: list[tuple[float, float]] = []
     if not (np.isfinite(out[0])):
         gaps.append((0.0, float(mean_a[0])))
@@ -295,7 +316,7 @@ def extract_profile(
 
     height = (patch - frame.origin) @ frame.normal
     length = float((p1 - p0) @ frame.along)
-    n_samples = int(np.floor(length / step + 1e-9)) + 1
+    n_samples = int(np.rint(length / step)) + 1
     if n_samples < 2:
         raise ValueError(f"line ({length:.4g} m) shorter than one sample spacing ({step:.4g} m)")
     in_band = (np.abs(across) <= band) & (along >= -0.5 * step)
@@ -305,10 +326,12 @@ def extract_profile(
             f"only {np.count_nonzero(in_band)} points within {band:.4g} m of the line: "
             "widen the band"
         )
-    a, c, h = along[in_band], across[in_band], height[in_band]
-    design = np.column_stack([np.ones(a.size), a, c])
-    plane, *_ = np.linalg.lstsq(design, h, rcond=None)
-    resid = h - design @ plane
+    # plane removal: least squares over the whole patch (a band a few points wide
+    # cannot fix the across slope: the roughness itself would leak into it)
+    design = np.column_stack([np.ones(along.size), along, across])
+    plane, *_ = np.linalg.lstsq(design, height, rcond=None)
+    a = along[in_band]
+    resid = (height - design @ plane)[in_band]
     heights, counts, gaps = _resample(a, resid, n_samples, step, gap)
     return Profile(
         distance=np.arange(n_samples) * step,
@@ -375,7 +398,7 @@ def regular_samples(
     if keep.all() and np.all(np.abs(steps - step) <= 1e-6 * step):
         return d, h, ()
     rel = d - d[0]
-    n_samples = int(np.floor(rel[-1] / step + 1e-9)) + 1
+    n_samples = int(np.rint(rel[-1] / step)) + 1
     inside = np.rint(rel / step) <= n_samples - 1
     out, _, gaps = _resample(rel[inside], h[inside], n_samples, step, gap)
     shifted = tuple((a + d[0], b + d[0]) for a, b in gaps)
