@@ -91,7 +91,7 @@ def make_grid(
     index_min = np.floor(first)
     index_max = np.floor(span)
     counts = index_max - index_min + 1
-    total = float(np.prod(counts))
+    total = float(counts[0]) * float(counts[1]) * float(counts[2])  # inf, not a warning, on overflow
     if total > MAX_GRID_CELLS or np.any(np.abs(index_max) > 2**53) or np.any(np.abs(index_min) > 2**53):
         raise InputError(
             f"grid size {g:g} m would take {total:.3g} cells over the cloud's extent; "
@@ -277,14 +277,14 @@ def cell_moments(
     return CellMoments(counts=index.counts, s1=s1, s2=s2)
 
 
-def abs_distance_sums(
+def distance_sums(
     x: np.ndarray,
     y: np.ndarray,
     z: np.ndarray,
     index: CellIndex,
     vectors: dict[str, tuple[np.ndarray, np.ndarray]],
-) -> dict[str, np.ndarray]:
-    """Per-cell sums of ``|v . (p - c)|`` for one or more per-cell vectors.
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
 
     Parameters
     ----------
@@ -293,18 +293,18 @@ def abs_distance_sums(
     index : CellIndex
         Cell membership.
     vectors : dict
-        name -> (v, c_local): ``v`` (M, 3) per-cell vector (NaN rows are skipped:
-        their sums are NaN), ``c_local`` (M, 3) the reference point relative to the
-        cell centre, metres.
+        name -> (v, c_local): ``v`` (M, 3) per-cell vector, ``c_local`` (M, 3) the
+        reference point relative to the cell centre, metres.
 
     Returns
     -------
     dict
-        name -> (M,) sums of absolute distances (units of ``v`` times metres).
+        name -> (sum of ``|D|``, sum of ``D^2``), each (M,), in units of ``v`` times
+        metres (squared).
     """
     m_cells = index.n_cells
     centre = index.grid.centres(index.ijk)
-    out = {name: np.zeros(m_cells) for name in vectors}
+    out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
@@ -317,6 +317,8 @@ def abs_distance_sums(
             d += local[1] * v[:, 1][pc]
             d += local[2] * v[:, 2][pc]
             d -= off[pc]
+            abs_sum, sq_sum = out[name]
+            sq_sum += np.bincount(pc, weights=d * d, minlength=m_cells)
             np.abs(d, out=d)
-            out[name] += np.bincount(pc, weights=d, minlength=m_cells)
+            abs_sum += np.bincount(pc, weights=d, minlength=m_cells)
     return out

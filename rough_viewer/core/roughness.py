@@ -16,8 +16,10 @@ RMS of the signed distances instead (an option, not the default).
 
 Implementation: one pass over the points for cell keys, one for cell-local moment
 sums, planes fitted per cell from the 3x3 covariances (batched), and one pass for
-the sums of absolute distances. ``mean(D^2)`` comes from the moments in closed form
-(``n^T C n`` for ODR, ``w^T C w`` for OLS), so the last pass only sums ``|D|``.
+the sums of ``|D|`` and ``D^2``. (``mean(D^2)`` is also ``n^T C n`` from the moments,
+but that closed form loses ``sqrt(eps) g`` of absolute precision where a cell is
+nearly flat, so both sums come from the points.) The hybrid model needs no pass of
+its own: its distances are the ODR ones divided by ``|n_a|``, constant per cell.
 """
 
 from __future__ import annotations
@@ -32,8 +34,8 @@ from rough_viewer.core.grid import (
     CellIndex,
     CellMoments,
     GridSpec,
-    abs_distance_sums,
     cell_moments,
+    distance_sums,
     index_points,
     make_grid,
 )
@@ -263,18 +265,17 @@ def grid_roughness(
         valid_ols &= enough
 
     vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    if residual == "absolute":
-        if need_odr:
-            vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
-        if w_ols is not None:
-            vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
-    sums = abs_distance_sums(x, y, z, index, vectors) if vectors else {}
+    if need_odr:
+        vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
+    if w_ols is not None:
+        vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
+    sums = distance_sums(x, y, z, index, vectors)
     tick(3, 4)
 
     n_f = counts.astype(np.float64)
+    signed = residual == "signed"
     if need_odr:
-        msq = np.clip(eig[:, 2], 0.0, None)  # mean squared orthogonal distance
-        t = _theta(msq, sums.get("odr"), n_f)
+        t = _theta(*sums["odr"], n_f, signed=signed)
         t[~valid_odr] = np.nan
         if "odr" in models_t:
             theta["odr"] = t
@@ -285,9 +286,7 @@ def grid_roughness(
             th[ok] = t[ok] / na[ok]
             theta["hybrid"] = th
     if w_ols is not None:
-        wc = np.where(valid_ols[:, None], w_ols, 0.0)
-        msq = np.clip(np.einsum("mi,mij,mj->m", wc, cov, wc), 0.0, None)
-        t = _theta(msq, sums.get("ols"), n_f)
+        t = _theta(*sums["ols"], n_f, signed=signed)
         t[~valid_ols] = np.nan
         theta["ols"] = t
     e_ols = np.abs(theta["ols"] - theta["odr"])
@@ -317,9 +316,10 @@ def grid_roughness(
     )
 
 
-def _theta(mean_sq: np.ndarray, abs_sum: np.ndarray | None, n: np.ndarray) -> np.ndarray:
-    """Std of absolute distances from mean(D^2) and sum|D|; RMS when abs_sum is None."""
-    if abs_sum is None:
+def _theta(abs_sum: np.ndarray, sq_sum: np.ndarray, n: np.ndarray, *, signed: bool) -> np.ndarray:
+    """Std of absolute distances from their sums; RMS of signed ones when ``signed``."""
+    mean_sq = sq_sum / n
+    if signed:
         return np.sqrt(mean_sq)
     mean_abs = abs_sum / n
     return np.sqrt(np.clip(mean_sq - mean_abs * mean_abs, 0.0, None))
