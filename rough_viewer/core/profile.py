@@ -110,6 +110,25 @@ class Profile:
     """(3,) removed plane ``c0 + c1 along + c2 across`` (fitted to the patch in the local
     frame; c0 metres, along from ``start``, across from the line)."""
 
+    def sample_xyz(self, heights: np.ndarray | None = None) -> np.ndarray:
+        """(K, 3) file-frame positions of the samples on the surface, metres.
+
+        ``heights`` (K,) replaces the profile's residual heights (e.g. a de-noised
+        version); NaN heights give NaN rows. Inverse of the extraction's mapping: the
+        point at ``distance`` on the line, across offset 0, at the plane plus height.
+        """
+        h = self.heights if heights is None else np.asarray(heights, dtype=float)
+        if h.shape != self.distance.shape:
+            raise ValueError(f"heights must have shape {self.distance.shape}, got {h.shape}")
+        f = self.frame
+        level = h + self.plane[0] + self.plane[1] * self.distance
+        offset = float((self.start - f.origin) @ f.normal)
+        return (
+            self.start
+            + self.distance[:, None] * f.along
+            + (level - offset)[:, None] * f.normal
+        )
+
     @property
     def n_gap_samples(self) -> int:
         """Number of NaN samples."""

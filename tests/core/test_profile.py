@@ -73,6 +73,11 @@ def test_tilted_rough_plane_returns_known_heights(seed, angles) -> None:
     assert p.frame.n_points == xyz.shape[0]
     assert np.max(np.abs(err)) < 80e-6
     assert np.sqrt(np.mean(err**2)) < 15e-6
+    # samples mapped back to 3-D lie on the true surface (to the same tolerance)
+    back = (p.sample_xyz() - T) @ rot
+    np.testing.assert_allclose(back[:, 0], p.distance, atol=2e-5)
+    np.testing.assert_allclose(back[:, 1], 0.0, atol=2e-5)
+    assert np.max(np.abs(back[:, 2] - g(back[:, 0]))) < 80e-6
     # the band: every point used lies within 2 mm of the line in the surface frame
     local = (xyz[p.point_index] - T) @ rot
     assert np.all(np.abs(local[:, 1]) <= 0.002 + 1e-5)
