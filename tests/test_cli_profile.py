@@ -138,3 +138,19 @@ def test_bad_input_exits_2_with_one_line(scene, capsys, make_args, needle) -> No
     assert cap.out == ""
     lines = cap.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("rough-viewer: error:") and needle in lines[0]
+
+
+def test_text_clouds_and_two_column_detection(scene, capsys, tmp_path: Path) -> None:
+    cloud_txt = tmp_path / "cloud.xyz"
+    np.savetxt(cloud_txt, scene["xyz"], fmt="%.6f")
+    assert main(["profile", str(cloud_txt), *line_args(scene), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["source"] == "cloud" and data["points"] > 1000
+    two = tmp_path / "two.csv"
+    two.write_text("distance,height\n" + "".join(f"{i * 0.001},{np.sin(i / 7) * 1e-3}\n"
+                                                 for i in range(300)))
+    assert main(["profile", str(two), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["source"] == "profile-file" and data["samples"] == 300
+    code = main(["profile", str(two), *line_args(scene)])
+    assert code == 2 and "profile file" in capsys.readouterr().err

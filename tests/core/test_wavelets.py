@@ -211,3 +211,18 @@ def test_errors() -> None:
         W.denoise(np.ones(100), decomposition="swt")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="level"):
         W.denoise(np.ones(100), level=0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_threshold_ordering(seed: int) -> None:
+    """Penalized thresholds rise with alpha (a larger alpha adds an increasing linear
+    term to the criterion, so t* can only move to larger coefficients), and the
+    wavelet-packet fixed form exceeds the DWT one (d ln d / ln 2 > d for d > 2) - the
+    ordering behind the paper's tables."""
+    h = blocky(seed) + np.random.default_rng(seed).normal(0, 1e-3, X.size)
+    for dec in W.DECOMPOSITIONS:
+        low, med, high = (W.threshold_value(h, decomposition=dec, threshold=r)
+                          for r in ("penalized-low", "penalized-medium", "penalized-high"))
+        assert low <= med <= high
+        assert low < high
+    assert W.threshold_value(h, decomposition="wp") > W.threshold_value(h, decomposition="dwt")
