@@ -49,8 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("input", help="point cloud (.las .laz .xyz .txt .csv .pts .npy .ply .stl) "
                    "or a two-column profile file (distance height)")
-    p.add_argument("--from", dest="start", metavar="X,Y,Z", help="line start (cloud input)")
-    p.add_argument("--to", dest="end", metavar="X,Y,Z", help="line end (cloud input)")
+    p.add_argument("--from", dest="start", metavar="X,Y,Z", help="line start (cloud input); write --from=-1,2,3 when X is negative")
+    p.add_argument("--to", dest="end", metavar="X,Y,Z", help="line end (cloud input); --to=-1,2,3 when X is negative")
     p.add_argument("--band", type=float, metavar="M",
                    help="band half-width around the line, metres (default: local point spacing)")
     p.add_argument("--spacing", type=float, metavar="M",
