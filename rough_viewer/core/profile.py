@@ -12,12 +12,12 @@ Steps, with every choice the paper leaves open fixed here:
 3. Band: the patch points with ``|across| <= band_half_width`` whose distance along the
    line rounds to a sample (``-spacing/2 <= along < L + spacing/2``, L = projected line
    length). Their number is ``n_points``.
-4. Plane removal: a least-squares plane ``h = c0 + c1 along + c2 across`` is fitted to
-   the patch points in the local frame (not to the band alone: a band a few points
-   wide cannot fix the across slope, the roughness itself would leak into it) and
-   subtracted; the residuals of the band points are the heights. (In the principal
-   frame this plane is zero up to round-off, as the PCA already removed the patch's
-   ODR plane: the heights are distances from that plane along its normal.)
+4. Plane removal: the heights are the signed distances of the band points from the
+   patch's ODR plane (through the patch centroid, along ``normal``). That is the
+   plane the principal axes define; a least-squares plane refitted to the patch in
+   this frame is zero up to round-off, and one fitted to the band alone would be
+   worse: a band a few points wide cannot fix the across slope, the roughness itself
+   would leak into it.
 5. Resampling at ``distance = 0, spacing, 2 spacing, ...`` up to the sample nearest
    to the end point (``round(L / spacing) + 1`` samples): the band points are
    binned to their nearest sample; each occupied bin gives its mean distance and mean
@@ -31,7 +31,8 @@ Steps, with every choice the paper leaves open fixed here:
 
 Defaults from the local point spacing ``point_spacing`` = the median distance from the
 patch points to their 4th nearest neighbour, measured in the patch plane (along and
-across coordinates, so range noise does not inflate it; about the grid step of a regular scan,
+across coordinates, so range noise does not inflate it; for large patches, among the
+50000 points closest to the line; about the grid step of a regular scan,
 ``1.08 / sqrt(density)`` for randomly placed points): ``spacing = point_spacing`` and
 ``band_half_width = point_spacing``.
 """
@@ -46,6 +47,7 @@ from scipy.spatial import cKDTree
 
 _SPACING_NEIGHBOUR = 4
 _SPACING_SAMPLE = 5000
+_STRIP_POINTS = 50000
 DEFAULT_MAX_GAP_SPACINGS = 3.0
 
 
@@ -105,29 +107,22 @@ class Profile:
     length: float
     """Length of the line projected into the patch plane, metres."""
     frame: LocalFrame
-    """Local principal axes used."""
-    plane: np.ndarray
-    """(3,) removed plane ``c0 + c1 along + c2 across`` (fitted to the patch in the local
-    frame; c0 metres, along from ``start``, across from the line)."""
+    """Local principal axes used; heights are measured from the plane through
+    ``frame.origin`` with normal ``frame.normal``."""
 
     def sample_xyz(self, heights: np.ndarray | None = None) -> np.ndarray:
         """(K, 3) file-frame positions of the samples on the surface, metres.
 
         ``heights`` (K,) replaces the profile's residual heights (e.g. a de-noised
         version); NaN heights give NaN rows. Inverse of the extraction's mapping: the
-        point at ``distance`` on the line, across offset 0, at the plane plus height.
+        point at ``distance`` on the line, across offset 0, ``height`` above the plane.
         """
         h = self.heights if heights is None else np.asarray(heights, dtype=float)
         if h.shape != self.distance.shape:
             raise ValueError(f"heights must have shape {self.distance.shape}, got {h.shape}")
         f = self.frame
-        level = h + self.plane[0] + self.plane[1] * self.distance
         offset = float((self.start - f.origin) @ f.normal)
-        return (
-            self.start
-            + self.distance[:, None] * f.along
-            + (level - offset)[:, None] * f.normal
-        )
+        return self.start + self.distance[:, None] * f.along + (h - offset)[:, None] * f.normal
 
     @property
     def n_gap_samples(self) -> int:
@@ -182,6 +177,25 @@ def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
     step = max(1, xyz.shape[0] // _SPACING_SAMPLE)
     dist, _ = tree.query(xyz[::step], k=k + 1)
     value = float(np.median(dist[:, k]))
+    if not value > 0:
+        raise ValueError("points are coincident: cannot estimate the point spacing")
+    return value
+
+
+def _strip_spacing(along: np.ndarray, across: np.ndarray) -> float:
+    """Point spacing near the line: with more than 50000 patch points, the neighbour
+    search uses the 50000 closest to the line (a strip tens of spacings wide) and
+    queries the inner half of them, so the cost does not grow with the patch."""
+    xy = np.column_stack([along, across])
+    if xy.shape[0] <= _STRIP_POINTS:
+        return point_spacing(xy)
+    dist = np.abs(across)
+    strip = np.argpartition(dist, _STRIP_POINTS - 1)[:_STRIP_POINTS]
+    tree = cKDTree(xy[strip])
+    inner = strip[dist[strip] <= np.median(dist[strip])]
+    step = max(1, inner.size // _SPACING_SAMPLE)
+    d, _ = tree.query(xy[inner[::step]], k=_SPACING_NEIGHBOUR + 1)
+    value = float(np.median(d[:, _SPACING_NEIGHBOUR]))
     if not value > 0:
         raise ValueError("points are coincident: cannot estimate the point spacing")
     return value
@@ -328,7 +342,7 @@ def extract_profile(
     rel = patch - p0
     along = rel @ frame.along
     across = rel @ frame.across
-    spacing_est = point_spacing(np.column_stack([along, across]))
+    spacing_est = _strip_spacing(along, across)
     step = spacing_est if step is None else step
     band = spacing_est if band is None else band
     gap = DEFAULT_MAX_GAP_SPACINGS * step if gap is None else gap
@@ -345,12 +359,8 @@ def extract_profile(
             f"only {np.count_nonzero(in_band)} points within {band:.4g} m of the line: "
             "widen the band"
         )
-    # plane removal: least squares over the whole patch (a band a few points wide
-    # cannot fix the across slope: the roughness itself would leak into it)
-    design = np.column_stack([np.ones(along.size), along, across])
-    plane, *_ = np.linalg.lstsq(design, height, rcond=None)
     a = along[in_band]
-    resid = (height - design @ plane)[in_band]
+    resid = height[in_band]  # distance from the patch's ODR plane: the plane removed
     heights, counts, gaps = _resample(a, resid, n_samples, step, gap)
     return Profile(
         distance=np.arange(n_samples) * step,
@@ -367,7 +377,6 @@ def extract_profile(
         end=p1,
         length=length,
         frame=frame,
-        plane=np.asarray(plane, dtype=float),
     )
 
 
