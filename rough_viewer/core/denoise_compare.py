@@ -55,7 +55,7 @@ class Comparison:
     wavelet: str
     level: int
     sigma: float
-    """Noise sigma (MAD of level-1 DWT details), metres."""
+    """Noise sigma (MAD of level-1 DWT details) the thresholds used, metres."""
     raw: RoughnessLength
     variants: tuple[Variant, ...]
     """In the order decomposition (dwt, wp) x mode (soft, hard) x threshold rule
@@ -108,7 +108,6 @@ def compare_denoising(
     """
     h = np.asarray(heights, dtype=float)
     raw = roughness_length(h, spacing, windows=windows)
-    sigma = noise_sigma(h, wavelet=wavelet)
     variants = []
     for dec in decompositions:
         for mode in modes:
@@ -124,6 +123,9 @@ def compare_denoising(
                 diff = diff[np.isfinite(diff)]
                 rms = float(np.sqrt(np.mean(diff**2))) if diff.size else float("nan")
                 variants.append(Variant(dec, rule, mode, res, fit, rms))
+    # the sigma the thresholds used (pooled over the runs that were decomposed; equal
+    # to noise_sigma(heights) for a profile without NaN gaps)
+    sigma = variants[0].denoised.sigma if variants else noise_sigma(h, wavelet=wavelet)
     return Comparison(
         spacing=float(spacing),
         wavelet=variants[0].denoised.wavelet if variants else wavelet,

@@ -226,3 +226,4 @@ def test_threshold_ordering(seed: int) -> None:
         assert low <= med <= high
         assert low < high
     assert W.threshold_value(h, decomposition="wp") > W.threshold_value(h, decomposition="dwt")
+
