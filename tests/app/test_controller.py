@@ -1,0 +1,33 @@
+import threading
+
+from rough_viewer.app.controller import LatestWorker
+
+
+def test_latest_request_wins_and_errors_do_not_kill_the_worker():
+    seen, errors = [], []
+    gate = threading.Event()
+
+    def handler(req, is_stale):
+        if req == "block":
+            gate.wait(5)
+            seen.append(("block", is_stale()))
+            return
+        if req == "boom":
+            raise RuntimeError("boom")
+        seen.append(req)
+
+    w = LatestWorker(handler, on_error=errors.append)
+    w.submit("block")
+    while not w.busy or not w._busy:  # wait until the worker holds "block"
+        pass
+    for i in range(20):  # a slider drag while busy
+        w.submit(i)
+    gate.set()
+    assert w.wait_idle(5)
+    assert seen == [("block", True), 19]
+    w.submit("boom")
+    assert w.wait_idle(5)
+    w.submit("after")
+    assert w.wait_idle(5)
+    assert [str(e) for e in errors] == ["boom"] and seen[-1] == "after"
+    w.stop()
