@@ -98,7 +98,7 @@ def build_gui(
     status = gui.add_markdown("Loading…")
     error = gui.add_markdown("", visible=False)
     progress = gui.add_progress_bar(0.0, visible=False, animated=True)
-    colour_bar = gui.add_plotly(_empty_figure("colour bar"), aspect=3.2)
+    colour_bar = gui.add_plotly(_empty_figure("colour bar"), aspect=0.34)  # viser 1.1: height = width * aspect
 
     tabs = gui.add_tab_group()
     with tabs.add_tab("Map"):
@@ -131,9 +131,9 @@ def build_gui(
                                     step=point_size / 10, initial_value=point_size)
         pick = gui.add_markdown("Click a point to see its cell.")
     with tabs.add_tab("Panels"):
-        histogram = gui.add_plotly(_empty_figure("histogram"), aspect=1.3)
-        variogram = gui.add_plotly(_empty_figure("semivariogram"), aspect=1.3)
-        summary = gui.add_plotly(_empty_figure("summary"), aspect=1.6)
+        histogram = gui.add_plotly(_empty_figure("histogram"), aspect=0.95)
+        variogram = gui.add_plotly(_empty_figure("semivariogram"), aspect=0.95)
+        summary = gui.add_plotly(_empty_figure("summary"), aspect=0.75)
     with tabs.add_tab("File"):
         path = gui.add_text(L_PATH, source)
         load = gui.add_button(L_LOAD)

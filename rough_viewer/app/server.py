@@ -167,13 +167,19 @@ def _initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
     normal = v[:, 0]
     if abs(normal[2]) > 0.8:  # near-horizontal surface: look down at an angle
         direction = np.array([0.0, -0.6, 0.8])
+        right = np.array([1.0, 0.0, 0.0])
     else:  # steep face: look at it straight on, slightly from above
         horiz = np.array([normal[0], normal[1], 0.0])
         horiz /= np.linalg.norm(horiz)
+        if horiz[0] - horiz[1] < 0:  # keep +x (or +y) to the right on screen
+            horiz = -horiz
         direction = horiz + np.array([0.0, 0.0, 0.35])
+        right = np.array([-horiz[1], horiz[0], 0.0])
     direction /= np.linalg.norm(direction)
-    server.initial_camera.look_at = tuple(centre)
-    server.initial_camera.position = tuple(centre + 1.6 * extent * direction)
+    # aim right of the centre so the cloud sits left of the control panel
+    target = centre + 0.22 * extent * right
+    server.initial_camera.look_at = tuple(target)
+    server.initial_camera.position = tuple(target + 1.1 * extent * direction)
     server.initial_camera.up = (0.0, 0.0, 1.0)
 
 
@@ -184,7 +190,8 @@ def default_point_size(loaded: LoadedCloud) -> float:
     w = np.linalg.eigvalsh(np.cov((sample - sample.mean(axis=0)).T))
     area = 12.0 * np.sqrt(max(w[1], 1e-12) * max(w[2], 1e-12))  # two largest spreads
     spacing = np.sqrt(area / max(loaded.n_display, 1))
-    return float(np.clip(1.5 * spacing, 1e-4, 1.0))
+    size = float(np.clip(1.5 * spacing, 1e-4, 1.0))
+    return float(f"{size:.2g}")
 
 
 def _add_cloud(server: viser.ViserServer, loaded: LoadedCloud, point_size: float):

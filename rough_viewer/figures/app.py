@@ -52,12 +52,16 @@ def colour_bar_figure(
         rgb = colormaps.apply_binary(t >= threshold, np.ones_like(t, bool), colormap)
     else:
         rgb = colormaps.apply(t, colormap, vmin=clip[0], vmax=clip[1])
+    scale = [[i / 255.0, colormaps.rgb_css(c)] for i, c in enumerate(rgb)]
     fig = go.Figure(
-        go.Image(
-            z=rgb[None, :, :].repeat(8, axis=0),
-            x0=float(mm[0]),
-            dx=float(mm[1] - mm[0]) if span > 0 else 1.0,
-            hoverinfo="skip",
+        go.Heatmap(
+            z=[t],
+            x=mm,
+            colorscale=scale,
+            zmin=0.0,
+            zmax=1.0,
+            showscale=False,
+            hovertemplate="θ %{x:.3f} mm<extra></extra>",
         )
     )
     note = f"grey: no value ({no_value_cells} cells)" if no_value_cells else ""
@@ -67,7 +71,6 @@ def colour_bar_figure(
     fig.update_layout(
         title=dict(text=title, font=dict(size=12)),
         margin=_MARGIN,
-        height=130,
         xaxis=dict(title=dict(text=f"θ (mm)   {note}", font=dict(size=11)), showgrid=False),
         yaxis=dict(visible=False),
         plot_bgcolor="white",
