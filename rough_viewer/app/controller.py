@@ -29,6 +29,10 @@ class LatestWorker(Generic[T]):
         the traceback) and never stop the worker.
     on_error
         Called on the worker thread with the exception.
+    idle
+        Optional background job, ``idle(is_stale) -> bool``, run on the worker
+        thread whenever no request waits (e.g. precomputing likely next grids);
+        it returns True if it did some work and wants to be called again.
     """
 
     def __init__(
@@ -37,8 +41,11 @@ class LatestWorker(Generic[T]):
         *,
         on_error: Callable[[BaseException], None] | None = None,
         name: str = "rough-viewer-worker",
+        idle: Callable[[Callable[[], bool]], bool] | None = None,
     ) -> None:
         self._handler = handler
+        self._idle = idle
+        self._idle_done = True
         self._on_error = on_error
         self._cond = threading.Condition()
         self._pending: T | None = None
@@ -56,6 +63,7 @@ class LatestWorker(Generic[T]):
             self._submitted += 1
             self._pending = request
             self._has_pending = True
+            self._idle_done = False
             self._cond.notify_all()
             return self._submitted
 
@@ -87,6 +95,19 @@ class LatestWorker(Generic[T]):
 
     def _run(self) -> None:
         while True:
+            with self._cond:
+                idle_work = (self._idle is not None and not self._idle_done
+                             and not self._has_pending and not self._stop)
+            if idle_work:
+                try:
+                    more = bool(self._idle(self.is_stale))
+                except Exception:  # noqa: BLE001 - background work is optional
+                    traceback.print_exc()
+                    more = False
+                if not more:
+                    with self._cond:
+                        self._idle_done = True
+                continue
             with self._cond:
                 self._cond.wait_for(lambda: self._has_pending or self._stop)
                 if self._stop:

@@ -32,6 +32,7 @@ from rough_viewer.app.picking import pick_point
 from rough_viewer.app.state import (
     DEFAULT_MAX_DISPLAY,
     MODEL_LABELS,
+    PRESET_CELL_SIZES,
     CellInfo,
     LoadedCloud,
     MapStats,
@@ -214,6 +215,7 @@ def build_app(
     settings: ViewSettings | None = None,
     max_display: int = DEFAULT_MAX_DISPLAY,
     variogram: bool = True,
+    prefetch: bool = True,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start computing the first map.
 
@@ -229,6 +231,9 @@ def build_app(
         Most points drawn in the browser (roughness uses every point).
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
+    prefetch
+        While idle, compute the preset grid sizes for the current axis and
+        minimum points, so switching presets only recolours.
 
     Returns
     -------
@@ -253,12 +258,30 @@ def build_app(
         app.gui.progress.visible = False
         app.show_error(f"{type(exc).__name__}: {exc}")
 
-    worker = LatestWorker(handle, on_error=on_error)
+    def idle(is_stale) -> bool:
+        return _prefetch_presets(holder["app"], is_stale)
+
+    worker = LatestWorker(handle, on_error=on_error, idle=idle if prefetch else None)
     app = App(server, gui, worker, Shown(loaded, settings), cloud_handle)
     holder["app"] = app
     _wire(app)
     app.request_update()
     return app
+
+
+def _prefetch_presets(app: App, is_stale) -> bool:
+    """Compute one preset grid not yet cached; True if it did (call again)."""
+    shown = app.shown
+    if shown.result is None:
+        return False
+    for size in PRESET_CELL_SIZES:
+        candidate = shown.settings.with_(cell_size=size)
+        if not shown.loaded.is_cached(candidate):
+            if is_stale():
+                return False
+            shown.loaded.result(candidate)
+            return True
+    return False
 
 
 def _wire(app: App) -> None:

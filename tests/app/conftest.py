@@ -39,7 +39,7 @@ def server():
 def app(server, cloud):
     from rough_viewer.app.server import build_app
 
-    a = build_app(server, cloud)
+    a = build_app(server, cloud, prefetch=False)  # prefetching is tested on its own
     assert a.wait_idle(60)
     yield a
     a.stop()

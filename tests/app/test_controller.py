@@ -31,3 +31,25 @@ def test_latest_request_wins_and_errors_do_not_kill_the_worker():
     assert w.wait_idle(5)
     assert [str(e) for e in errors] == ["boom"] and seen[-1] == "after"
     w.stop()
+
+
+def test_idle_job_runs_between_requests_until_done():
+    import time
+
+    done = []
+
+    def idle(is_stale):
+        if len(done) >= 3:
+            return False
+        done.append(is_stale())
+        return True
+
+    w = LatestWorker(lambda req, is_stale: None, idle=idle)
+    w.submit("go")
+    end = time.time() + 5
+    while len(done) < 3 and time.time() < end:
+        time.sleep(0.01)
+    assert done == [False, False, False]
+    time.sleep(0.05)
+    assert len(done) == 3  # stopped asking once it reported no more work
+    w.stop()

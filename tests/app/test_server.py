@@ -164,3 +164,20 @@ def test_big_cloud_is_thinned_for_display(server):
     assert app.shown.result.point_cell.shape == (30_000,)
     assert "5,000 points shown of 30,000 used" in app.gui.status.content
     app.stop()
+
+
+def test_idle_worker_prefetches_preset_grids(server, cloud):
+    import time
+
+    app = build_app(server, cloud.subset(np.arange(10_000)), prefetch=True)
+    assert app.wait_idle(60)
+    loaded = app.shown.loaded
+    presets = [app.shown.settings.with_(cell_size=g) for g in (1.0, 0.5, 0.25, 0.125)]
+    end = time.time() + 30
+    while not all(loaded.is_cached(s) for s in presets) and time.time() < end:
+        time.sleep(0.05)
+    assert all(loaded.is_cached(s) for s in presets)
+    app.gui.grid.value = "1"
+    assert app.wait_idle(60)
+    assert app.timings[-1]["cached"] and app.shown.result.grid.cell_size == 1.0
+    app.stop()
