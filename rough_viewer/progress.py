@@ -15,7 +15,11 @@ ProgressFn = Callable[[int, int], None]
 
 
 class ProgressBar:
-    """Callable progress bar: ``bar(done, total)`` redraws at most 10 times a second."""
+    """Callable progress bar: ``bar(done, total)`` redraws at most 10 times a second.
+
+    Draws only on a terminal; when the stream is redirected to a file or pipe the bar
+    stays silent, so logs hold no carriage-return clutter.
+    """
 
     def __init__(self, label: str, *, stream: TextIO | None = None, width: int = 30) -> None:
         self.label = label
@@ -24,8 +28,12 @@ class ProgressBar:
         self._last = 0.0
         self._start = time.perf_counter()
         self._done = False
+        isatty = getattr(self.stream, "isatty", None)
+        self.enabled = bool(isatty and isatty())
 
     def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
         now = time.perf_counter()
         finished = total > 0 and done >= total
         if not finished and now - self._last < 0.1:

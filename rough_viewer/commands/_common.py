@@ -49,6 +49,10 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[object], None], 
         kwargs = {"newline": ""} if "b" not in mode else {}
         with os.fdopen(fd, mode, **kwargs) as fh:
             write(fh)
+        # mkstemp makes the file private (0600); give it the usual umask permissions
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, p)
     except BaseException:
         try:

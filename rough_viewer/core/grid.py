@@ -91,7 +91,7 @@ def make_grid(
     index_min = np.floor(first)
     index_max = np.floor(span)
     counts = index_max - index_min + 1
-    total = float(np.prod(counts))
+    total = float(counts[0]) * float(counts[1]) * float(counts[2])  # inf, not a warning, on overflow
     if total > MAX_GRID_CELLS or np.any(np.abs(index_max) > 2**53) or np.any(np.abs(index_min) > 2**53):
         raise InputError(
             f"grid size {g:g} m would take {total:.3g} cells over the cloud's extent; "
@@ -277,14 +277,14 @@ def cell_moments(
     return CellMoments(counts=index.counts, s1=s1, s2=s2)
 
 
-def abs_distance_sums(
+def distance_sums(
     x: np.ndarray,
     y: np.ndarray,
     z: np.ndarray,
     index: CellIndex,
     vectors: dict[str, tuple[np.ndarray, np.ndarray]],
-) -> dict[str, np.ndarray]:
-    """Per-cell sums of ``|v . (p - c)|`` for one or more per-cell vectors.
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
 
     Parameters
     ----------
@@ -293,18 +293,18 @@ def abs_distance_sums(
     index : CellIndex
         Cell membership.
     vectors : dict
-        name -> (v, c_local): ``v`` (M, 3) per-cell vector (NaN rows are skipped:
-        their sums are NaN), ``c_local`` (M, 3) the reference point relative to the
-        cell centre, metres.
+        name -> (v, c_local): ``v`` (M, 3) per-cell vector, ``c_local`` (M, 3) the
+        reference point relative to the cell centre, metres.
 
     Returns
     -------
     dict
-        name -> (M,) sums of absolute distances (units of ``v`` times metres).
+        name -> (sum of ``|D|``, sum of ``D^2``), each (M,), in units of ``v`` times
+        metres (squared).
     """
     m_cells = index.n_cells
     centre = index.grid.centres(index.ijk)
-    out = {name: np.zeros(m_cells) for name in vectors}
+    out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
@@ -317,6 +317,71 @@ def abs_distance_sums(
             d += local[1] * v[:, 1][pc]
             d += local[2] * v[:, 2][pc]
             d -= off[pc]
+            abs_sum, sq_sum = out[name]
+            sq_sum += np.bincount(pc, weights=d * d, minlength=m_cells)
             np.abs(d, out=d)
-            out[name] += np.bincount(pc, weights=d, minlength=m_cells)
+            abs_sum += np.bincount(pc, weights=d, minlength=m_cells)
     return out
+
+
+def coarsen(
+    index: CellIndex, moments: CellMoments, factor: int
+) -> tuple[CellIndex, CellMoments]:
+    """The cell index and moments of the grid ``factor`` times coarser, from a finer
+    grid's, without touching the point coordinates.
+
+    Grids with one origin nest by integer factors: the coarse cell of a point is
+    ``floor(i_fine / factor)`` exactly (``floor(t / k) == floor(floor(t) / k)``), so the
+    coarse moments are sums of the fine ones, shifted from fine to coarse cell centres.
+    Only the per-point cell membership (one gather) is recomputed.
+
+    Parameters
+    ----------
+    index, moments : CellIndex, CellMoments
+        Of the fine grid (edge ``g``).
+    factor : int
+        Positive integer; the coarse edge is ``factor * g``.
+
+    Returns
+    -------
+    CellIndex, CellMoments
+        Of the coarse grid; equal to :func:`index_points` and :func:`cell_moments` on
+        ``make_grid(bounds, factor * g, origin)`` up to rounding.
+    """
+    k = int(factor)
+    if k < 1 or k != factor:
+        raise ValueError(f"factor must be a positive integer, got {factor}")
+    fine = index.grid
+    g = fine.cell_size * k
+    ijk_c = np.floor_divide(index.ijk, k)
+    lo = ijk_c.min(axis=0)
+    hi = ijk_c.max(axis=0)
+    shape = tuple(int(v) for v in (hi - lo + 1))
+    key = ((ijk_c[:, 2] - lo[2]) * shape[1] + (ijk_c[:, 1] - lo[1])) * shape[0] + (ijk_c[:, 0] - lo[0])
+    keys_c, parent = np.unique(key, return_inverse=True)
+    m_c = keys_c.shape[0]
+    kk = keys_c // (shape[0] * shape[1])
+    rem = keys_c - kk * (shape[0] * shape[1])
+    jj = rem // shape[0]
+    ii = rem - jj * shape[0]
+    coarse_ijk = np.stack([ii, jj, kk], axis=1) + lo
+    grid = GridSpec(origin=fine.origin.copy(), cell_size=g, index_min=lo.astype(np.int64),
+                    shape=shape)  # type: ignore[arg-type]
+    counts = np.bincount(parent, weights=index.counts, minlength=m_c).astype(np.int64)
+    # shift of each fine cell's centre from its coarse cell's centre, metres
+    delta = ((index.ijk + 0.5) - (coarse_ijk[parent] + 0.5) * k) * fine.cell_size
+    n = moments.counts.astype(np.float64)
+    s1_f = moments.s1
+    s1 = np.empty((m_c, 3))
+    s2 = np.empty((m_c, 3, 3))
+    for a in range(3):
+        s1[:, a] = np.bincount(parent, weights=s1_f[:, a] + n * delta[:, a], minlength=m_c)
+        for b in range(3):
+            w = (moments.s2[:, a, b] + s1_f[:, a] * delta[:, b] + delta[:, a] * s1_f[:, b]
+                 + n * delta[:, a] * delta[:, b])
+            s2[:, a, b] = np.bincount(parent, weights=w, minlength=m_c)
+    point_cell = parent[index.point_cell]
+    return (
+        CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
+        CellMoments(counts=counts, s1=s1, s2=s2),
+    )

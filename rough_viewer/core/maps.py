@@ -42,6 +42,16 @@ class Plane(Protocol):
 
 
 @dataclass(frozen=True)
+class FacePlane:
+    """A plane given by a point and a normal (satisfies :class:`Plane`)."""
+
+    centroid: np.ndarray
+    """(3,) a point of the plane, metres (for the whole-cloud plane: the mean point)."""
+    normal: np.ndarray
+    """(3,) unit normal."""
+
+
+@dataclass(frozen=True)
 class FaceFrame:
     """2-D frame of the face plane."""
 

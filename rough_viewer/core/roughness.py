@@ -16,8 +16,10 @@ RMS of the signed distances instead (an option, not the default).
 
 Implementation: one pass over the points for cell keys, one for cell-local moment
 sums, planes fitted per cell from the 3x3 covariances (batched), and one pass for
-the sums of absolute distances. ``mean(D^2)`` comes from the moments in closed form
-(``n^T C n`` for ODR, ``w^T C w`` for OLS), so the last pass only sums ``|D|``.
+the sums of ``|D|`` and ``D^2``. (``mean(D^2)`` is also ``n^T C n`` from the moments,
+but that closed form loses ``sqrt(eps) g`` of absolute precision where a cell is
+nearly flat, so both sums come from the points.) The hybrid model needs no pass of
+its own: its distances are the ODR ones divided by ``|n_a|``, constant per cell.
 """
 
 from __future__ import annotations
@@ -32,8 +34,9 @@ from rough_viewer.core.grid import (
     CellIndex,
     CellMoments,
     GridSpec,
-    abs_distance_sums,
     cell_moments,
+    coarsen,
+    distance_sums,
     index_points,
     make_grid,
 )
@@ -59,6 +62,45 @@ MAPS: tuple[MapName, ...] = ("odr", "ols", "hybrid", "e_ols")
 #: A hybrid distance along axis ``a`` is undefined when the ODR normal is
 #: (numerically) perpendicular to ``a``.
 HYBRID_MIN_COMPONENT = 1e-9
+
+
+@dataclass(frozen=True)
+class PreparedGrid:
+    """Cell membership and moment sums of a cloud on one grid: the part of
+    :func:`grid_roughness` that does not depend on the model, the axis or
+    ``min_points``. Keep one to recompute those quickly, or :func:`coarsen_prepared`
+    it to a nested coarser grid without a pass over the points."""
+
+    index: CellIndex
+    """Cell membership."""
+    moments: CellMoments
+    """Cell-local moment sums."""
+
+    @property
+    def cell_size(self) -> float:
+        """Grid cell edge, metres."""
+        return self.index.grid.cell_size
+
+
+def prepare_grid(
+    cloud: PointCloud | np.ndarray, cell_size: float, *, origin: np.ndarray | None = None
+) -> PreparedGrid:
+    """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments."""
+    x, y, z = _as_columns(cloud)
+    if x.shape[0] < 3:
+        raise InputError(f"need at least 3 points, got {x.shape[0]}")
+    lo = np.array([x.min(), y.min(), z.min()])
+    hi = np.array([x.max(), y.max(), z.max()])
+    grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
+    index = index_points(x, y, z, grid)
+    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index))
+
+
+def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
+    """The prepared grid ``factor`` (a positive integer) times coarser, same origin,
+    computed from the fine one without a pass over the coordinates."""
+    index, moments = coarsen(prepared.index, prepared.moments, factor)
+    return PreparedGrid(index=index, moments=moments)
 
 
 @dataclass(frozen=True)
@@ -183,6 +225,7 @@ def grid_roughness(
     models: Iterable[Model] = MODELS,
     residual: Residual = "absolute",
     progress: ProgressFn | None = None,
+    prepared: PreparedGrid | None = None,
 ) -> GridRoughness:
     """Roughness of every grid cell of a cloud.
 
@@ -205,7 +248,12 @@ def grid_roughness(
         ``"absolute"``: std of absolute distances (SCIENCE.md); ``"signed"``: RMS of
         signed distances.
     progress : callable, optional
-        ``progress(done, total)`` over the four stages.
+        ``progress(done, total)`` over the five stages (cell keys, moments, plane
+        fits, distances, assembly).
+    prepared : PreparedGrid, optional
+        Cell index and moments of this cloud on this grid (from
+        :func:`prepare_grid` or :func:`coarsen_prepared`), to skip those passes;
+        ``cell_size`` and ``origin`` are then taken from it.
 
     Returns
     -------
@@ -228,14 +276,21 @@ def grid_roughness(
         raise InputError(f"need at least 3 points, got {n_total}")
     tick = progress or (lambda done, total: None)
 
-    lo = np.array([x.min(), y.min(), z.min()])
-    hi = np.array([x.max(), y.max(), z.max()])
-    grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
-    tick(0, 4)
-    index = index_points(x, y, z, grid)
-    tick(1, 4)
-    mom = cell_moments(x, y, z, index)
-    tick(2, 4)
+    tick(0, 5)
+    if prepared is None:
+        lo = np.array([x.min(), y.min(), z.min()])
+        hi = np.array([x.max(), y.max(), z.max()])
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
+        index = index_points(x, y, z, grid)
+        tick(1, 5)
+        mom = cell_moments(x, y, z, index)
+    else:
+        if prepared.index.point_cell.shape[0] != n_total:
+            raise ValueError("prepared grid was made for another cloud")
+        index, mom = prepared.index, prepared.moments
+        grid = index.grid
+        tick(1, 5)
+    tick(2, 5)
 
     m_cells = index.n_cells
     counts = index.counts
@@ -262,19 +317,19 @@ def grid_roughness(
         w_ols, valid_ols = ols_from_covariance(cov, used_axis)
         valid_ols &= enough
 
+    tick(3, 5)
     vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    if residual == "absolute":
-        if need_odr:
-            vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
-        if w_ols is not None:
-            vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
-    sums = abs_distance_sums(x, y, z, index, vectors) if vectors else {}
-    tick(3, 4)
+    if need_odr:
+        vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
+    if w_ols is not None:
+        vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
+    sums = distance_sums(x, y, z, index, vectors)
+    tick(4, 5)
 
     n_f = counts.astype(np.float64)
+    signed = residual == "signed"
     if need_odr:
-        msq = np.clip(eig[:, 2], 0.0, None)  # mean squared orthogonal distance
-        t = _theta(msq, sums.get("odr"), n_f)
+        t = _theta(*sums["odr"], n_f, signed=signed)
         t[~valid_odr] = np.nan
         if "odr" in models_t:
             theta["odr"] = t
@@ -285,16 +340,14 @@ def grid_roughness(
             th[ok] = t[ok] / na[ok]
             theta["hybrid"] = th
     if w_ols is not None:
-        wc = np.where(valid_ols[:, None], w_ols, 0.0)
-        msq = np.clip(np.einsum("mi,mij,mj->m", wc, cov, wc), 0.0, None)
-        t = _theta(msq, sums.get("ols"), n_f)
+        t = _theta(*sums["ols"], n_f, signed=signed)
         t[~valid_ols] = np.nan
         theta["ols"] = t
     e_ols = np.abs(theta["ols"] - theta["odr"])
     centre = grid.centres(index.ijk)
     centroid = centre + mean_local
     centroid[~enough] = np.nan
-    tick(4, 4)
+    tick(5, 5)
     return GridRoughness(
         grid=grid,
         axis=used_axis,
@@ -317,9 +370,10 @@ def grid_roughness(
     )
 
 
-def _theta(mean_sq: np.ndarray, abs_sum: np.ndarray | None, n: np.ndarray) -> np.ndarray:
-    """Std of absolute distances from mean(D^2) and sum|D|; RMS when abs_sum is None."""
-    if abs_sum is None:
+def _theta(abs_sum: np.ndarray, sq_sum: np.ndarray, n: np.ndarray, *, signed: bool) -> np.ndarray:
+    """Std of absolute distances from their sums; RMS of signed ones when ``signed``."""
+    mean_sq = sq_sum / n
+    if signed:
         return np.sqrt(mean_sq)
     mean_abs = abs_sum / n
     return np.sqrt(np.clip(mean_sq - mean_abs * mean_abs, 0.0, None))

@@ -1,0 +1,153 @@
+"""Browser-app panel: predict the roughness bias of a scanner (noise, beam smoothing).
+
+:func:`add_bias_panel` adds a folder to a viser GUI: range noise, effective radius,
+asperity radius (millimetres), roughness convention and a "Predict" button. The
+prediction (:func:`rough_viewer.core.scanner_sim.predict_bias` on the paper's target
+layout) is shown as a small table, with the smoothing curve against ER / asperity
+radius for the chosen asperity radius (:func:`rough_viewer.figures.bias.
+smoothing_curve_figure`). The panel is self-contained: it needs no loaded cloud.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rough_viewer.core.scanner_sim import BiasPrediction, predict_bias, smoothing_curve
+
+#: ER / asperity radius values of the panel's curve.
+CURVE_RATIOS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+
+
+@dataclass
+class BiasPanel:
+    """Handles of the bias panel; :meth:`update` recomputes from their values."""
+
+    noise_mm: Any
+    """Number handle: range noise sigma, mm."""
+    er_mm: Any
+    """Number handle: beam effective radius, mm."""
+    asperity_mm: Any
+    """Number handle: asperity (hemisphere) radius, mm."""
+    ratio: Any
+    """Number handle: background : asperity ratio of the normalisation."""
+    residual: Any
+    """Dropdown handle: "absolute" (SCIENCE.md) or "signed" (the paper's numbers)."""
+    button: Any
+    """Button handle: runs :meth:`update`."""
+    result: Any
+    """Markdown handle: the prediction table."""
+    plot: Any
+    """Plotly handle: the smoothing curve."""
+    spacing_m: float = 1e-3
+    """Raster spacing of the simulation, metres."""
+    last: BiasPrediction | None = None
+    """The latest prediction."""
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def update(self) -> BiasPrediction | None:
+        """Recompute the prediction and the curve from the handles' values.
+
+        Returns the prediction, or None (with a message in the table) for values that
+        cannot be simulated.
+        """
+        from rough_viewer.figures.bias import smoothing_curve_figure
+
+        noise = float(self.noise_mm.value) * 1e-3
+        er = float(self.er_mm.value) * 1e-3
+        radius = float(self.asperity_mm.value) * 1e-3
+        ratio = float(self.ratio.value)
+        residual = str(self.residual.value)
+        if not (noise >= 0 and er >= 0 and radius > 0 and ratio > 0):
+            self.result.content = "**Cannot predict:** values must be positive."
+            return None
+        if 0 < er < 0.5 * self.spacing_m:
+            self.result.content = (f"**Cannot predict:** ER below {self.spacing_m * 500:g} mm "
+                                   "is finer than the simulation raster.")
+            return None
+        with self._lock:
+            self.button.disabled = True
+            self.result.content = "_computing..._"
+            try:
+                p = predict_bias(noise_sigma_m=noise, effective_radius_m=er,
+                                 asperity_radius_m=radius, spacing_m=self.spacing_m,
+                                 ratio=ratio, trials=1, residual=residual)
+                ratios = np.asarray(CURVE_RATIOS)
+                ratios = ratios[(ratios == 0) | (ratios * radius >= 0.5 * self.spacing_m)]
+                curve = smoothing_curve(ratios * radius, asperity_radius_m=radius,
+                                        noise_sigma_m=noise, spacing_m=self.spacing_m,
+                                        ratio=ratio, residual=residual)
+            except ValueError as exc:
+                self.result.content = f"**Cannot predict:** {exc}"
+                return None
+            finally:
+                self.button.disabled = False
+            self.result.content = prediction_markdown(p)
+            self.plot.figure = smoothing_curve_figure([curve], mark=(p.er_ratio, p.vs_noisy_pct))
+            self.last = p
+            return p
+
+
+def prediction_markdown(p: BiasPrediction) -> str:
+    """The prediction as a markdown table (millimetres and percent)."""
+    return "\n".join([
+        f"ER / r = **{p.er_ratio:.3f}**, {p.residual} distances, "
+        f"normalised {p.ratio:.1f} : 1",
+        "",
+        "| surface | roughness | bias |",
+        "|---|---|---|",
+        f"| true | {p.expected_m * 1e3:.3f} mm | |",
+        f"| + noise | {p.noise_only_m * 1e3:.3f} mm | {p.noise_effect_pct:+.2f} % |",
+        f"| + beam smoothing | {p.smoothing_only_m * 1e3:.3f} mm | "
+        f"{p.smoothing_effect_pct:+.2f} % |",
+        f"| measured (both) | {p.measured_m * 1e3:.3f} mm | {p.total_effect_pct:+.2f} % |",
+    ])
+
+
+def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1e-3,
+                   expand: bool = False) -> BiasPanel:
+    """Add the scanner-bias panel to a viser GUI.
+
+    Parameters
+    ----------
+    gui : viser.ViserServer or its ``.gui`` (GuiApi)
+        Where to add the folder.
+    order : float, optional
+        Position of the folder among the GUI's elements.
+    spacing_m : float
+        Raster spacing of the simulation, metres.
+    expand : bool
+        Open the folder at start.
+
+    Returns
+    -------
+    BiasPanel
+        Its handles; the button runs :meth:`BiasPanel.update` (also callable directly).
+    """
+    import plotly.graph_objects as go
+
+    api = getattr(gui, "gui", gui)
+    with api.add_folder("Scanner bias", order=order, expand_by_default=expand):
+        noise = api.add_number("Range noise (mm)", 1.6, min=0.0, step=0.1,
+                               hint="rangefinder noise sigma (bias noise BOARD_SCAN)")
+        er = api.add_number("Effective radius (mm)", 4.0, min=0.0, step=0.1,
+                            hint="beam effective radius at the scan range (bias radius)")
+        radius = api.add_number("Asperity radius (mm)", 19.0, min=1.0, step=0.5,
+                                hint="hemisphere radius of the features of interest")
+        ratio = api.add_number("Background : asperity", 5.0, min=0.5, step=0.5,
+                               hint="point-population normalisation ratio")
+        residual = api.add_dropdown("Roughness", ("absolute", "signed"),
+                                    initial_value="absolute",
+                                    hint="absolute distances (SCIENCE.md) or signed "
+                                    "(the paper's published numbers)")
+        button = api.add_button("Predict bias")
+        result = api.add_markdown("Set the scanner values and press **Predict bias**.")
+        plot = api.add_plotly(go.Figure(), aspect=1.2)
+    panel = BiasPanel(noise_mm=noise, er_mm=er, asperity_mm=radius, ratio=ratio,
+                      residual=residual, button=button, result=result, plot=plot,
+                      spacing_m=spacing_m)
+    button.on_click(lambda _event: panel.update())
+    return panel

@@ -1,0 +1,49 @@
+"""The scanner-bias panel on a real viser server (no browser), and its figures."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from rough_viewer.app.bias_panel import add_bias_panel
+from rough_viewer.core.scanner_sim import predict_bias
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def server():
+    import viser
+
+    srv = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    yield srv
+    srv.stop()
+
+
+def test_panel_predicts_from_its_values(server):
+    panel = add_bias_panel(server, spacing_m=0.002)
+    panel.noise_mm.value = 1.6
+    panel.er_mm.value = 6.0
+    panel.asperity_mm.value = 19.0
+    p = panel.update()
+    ref = predict_bias(noise_sigma_m=0.0016, effective_radius_m=0.006, asperity_radius_m=0.019,
+                       spacing_m=0.002, trials=1)
+    assert p is not None and p.measured_m == pytest.approx(ref.measured_m)
+    assert f"{ref.measured_m * 1e3:.3f} mm" in panel.result.content
+    assert f"{ref.noise_effect_pct:+.2f} %" in panel.result.content
+    fig = panel.plot.figure
+    assert len(fig.data) == 2                      # the curve and the marked prediction
+    assert fig.data[1].x[0] == pytest.approx(6.0 / 19.0)
+    assert not panel.button.disabled
+
+
+def test_panel_refuses_unrepresentable_er(server):
+    panel = add_bias_panel(server.gui, spacing_m=0.002)
+    panel.er_mm.value = 0.5
+    assert panel.update() is None
+    assert "Cannot predict" in panel.result.content and panel.last is None
