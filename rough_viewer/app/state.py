@@ -24,8 +24,11 @@ from rough_viewer.app.sampling import display_subset
 from rough_viewer.core.io import PointCloud
 from rough_viewer.core.roughness import (
     GridRoughness,
+    PreparedGrid,
+    coarsen_prepared,
     grid_roughness,
     normalise,
+    prepare_grid,
     whole_cloud_axis,
 )
 from rough_viewer.errors import InputError
@@ -47,6 +50,10 @@ MODEL_LABELS: dict[str, str] = {
 
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000
+
+#: Finest preset: the other presets are integer multiples of it, so their cell
+#: membership and moments come from coarsening this grid (no pass over the points).
+FINE_CELL_SIZE = min(PRESET_CELL_SIZES)
 
 #: Smallest cell size the app accepts (metres); below it grids get absurdly large.
 MIN_CELL_SIZE = 1e-3
@@ -121,6 +128,7 @@ class LoadedCloud:
     display_points: np.ndarray = field(init=False)
     auto_axis: str = field(init=False)
     _cache: OrderedDict = field(init=False, repr=False)
+    _prepared: OrderedDict = field(init=False, repr=False)
     _lock: threading.Lock = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -135,6 +143,7 @@ class LoadedCloud:
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
         self.auto_axis = whole_cloud_axis(self.cloud)
         self._cache = OrderedDict()
+        self._prepared = OrderedDict()
         self._lock = threading.Lock()
 
     @property
@@ -175,12 +184,39 @@ class LoadedCloud:
             axis=settings.axis,
             models=("odr", "ols", "hybrid"),
             progress=progress,
+            prepared=self.prepared(settings.cell_size),
         )
         with self._lock:
             self._cache[key] = res
             while len(self._cache) > self.cache_size:
                 self._cache.popitem(last=False)
         return res
+
+
+    def prepared(self, cell_size: float) -> PreparedGrid:
+        """Cell membership and moments of the grid ``cell_size`` (metres), cached.
+
+        Sizes that are integer multiples of :data:`FINE_CELL_SIZE` (the presets)
+        are coarsened from the fine grid, which shares their origin (the
+        bounding-box minimum), instead of indexing the points again.
+        """
+        key = round(float(cell_size), 9)
+        with self._lock:
+            if key in self._prepared:
+                self._prepared.move_to_end(key)
+                return self._prepared[key]
+        factor = cell_size / FINE_CELL_SIZE
+        fine_key = round(FINE_CELL_SIZE, 9)
+        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
+            fine = self.prepared(FINE_CELL_SIZE)
+            prep = coarsen_prepared(fine, int(round(factor)))
+        else:
+            prep = prepare_grid(self.cloud, cell_size)
+        with self._lock:
+            self._prepared[key] = prep
+            while len(self._prepared) > 6:  # keep the fine grid: every preset comes from it
+                self._prepared.pop(next(k for k in self._prepared if k != fine_key))
+        return prep
 
 
 def normalised_map(result: GridRoughness, model: MapName) -> np.ndarray:

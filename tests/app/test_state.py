@@ -113,3 +113,16 @@ def test_check_settings_rejects_bad_input():
         check_settings(ViewSettings(min_points=2))
     with pytest.raises(ValueError, match="colour map"):
         check_settings(ViewSettings(colormap="jet"))
+
+
+def test_presets_coarsened_from_fine_grid_equal_direct_core(cloud):
+    fresh = LoadedCloud(cloud, max_display=1000)
+    fine = fresh.prepared(0.125)
+    assert fresh.prepared(1.0) is not fine and fresh.prepared(0.125) is fine
+    for size in (1.0, 0.5, 0.3):
+        got = fresh.result(ViewSettings(cell_size=size))
+        want = grid_roughness(cloud, size)
+        assert np.array_equal(got.point_cell, want.point_cell)
+        for m in ("odr", "ols", "hybrid", "e_ols"):
+            assert np.allclose(got.values(m), want.values(m), rtol=1e-9, atol=1e-15,
+                               equal_nan=True)
