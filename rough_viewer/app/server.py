@@ -180,7 +180,7 @@ def _initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
     # aim right of the centre so the cloud sits left of the control panel
     target = centre + 0.22 * extent * right
     server.initial_camera.look_at = tuple(target)
-    server.initial_camera.position = tuple(target + 1.1 * extent * direction)
+    server.initial_camera.position = tuple(target + 0.8 * extent * direction)
     server.initial_camera.up = (0.0, 0.0, 1.0)
 
 
