@@ -42,10 +42,21 @@ def variogram_maps(model: str) -> tuple[str, ...]:
     return (model,) + tuple(m for m in ("odr", "ols", "e_ols") if m != model)
 
 
-def variograms(result: GridRoughness, maps: tuple[str, ...]) -> dict[str, Semivariogram]:
-    """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell size)."""
+def variograms(
+    result: GridRoughness,
+    maps: tuple[str, ...],
+    *,
+    is_stale: Callable[[], bool] = lambda: False,
+) -> dict[str, Semivariogram] | None:
+    """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell size),
+    or None if ``is_stale()`` turned True between maps (fine grids take seconds)."""
     g = result.grid.cell_size
-    return {m: semivariogram(result.ijk, result.values(m), g) for m in maps}
+    out = {}
+    for m in maps:
+        if is_stale():
+            return None
+        out[m] = semivariogram(result.ijk, result.values(m), g)
+    return out
 
 
 def build_panels(
@@ -66,7 +77,10 @@ def build_panels(
     if is_stale():
         return None
     v_maps = variogram_maps(settings.model) if variogram else ()
-    vfig = variogram_figure(variograms(result, v_maps), **kw) if variogram else None
-    if is_stale():
-        return None
+    vfig = None
+    if variogram:
+        vgs = variograms(result, v_maps, is_stale=is_stale)
+        if vgs is None:
+            return None
+        vfig = variogram_figure(vgs, **kw)
     return Panels(hist, vfig, summary, h_maps, v_maps)
