@@ -83,6 +83,7 @@ class Gui:
     path: viser.GuiTextHandle
     load: viser.GuiButtonHandle
     upload: viser.GuiUploadButtonHandle
+    tabs: viser.GuiTabGroupHandle
 
 
 def build_gui(
@@ -140,4 +141,4 @@ def build_gui(
         upload = gui.add_upload_button(L_UPLOAD)
     return Gui(status, error, progress, colour_bar, grid, grid_free, model, toggle, axis,
                axis_note, show_axis, display, threshold, min_points, point_size, colormap,
-               clip, pick, histogram, variogram, summary, path, load, upload)
+               clip, pick, histogram, variogram, summary, path, load, upload, tabs)

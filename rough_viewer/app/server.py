@@ -88,6 +88,10 @@ class App:
     """Error messages shown to the user, oldest first."""
     last_pick: CellInfo | None = None
     pick_nodes: list = field(default_factory=list)
+    profile: dict | None = None
+    """Profile mode state (``items``: kept :class:`ProfileAnalysis`, ``start``)."""
+    profile_pick: object = None
+    profile_settings: object = None
     _syncing: bool = False
     _panel_key: tuple | None = None
     _lock: threading.RLock = field(default_factory=threading.RLock)
@@ -265,6 +269,9 @@ def build_app(
     app = App(server, gui, worker, Shown(loaded, settings), cloud_handle)
     holder["app"] = app
     _wire(app)
+    from rough_viewer.app.profile_mode import add_profile_tab
+
+    add_profile_tab(app, gui.tabs)
     app.request_update()
     return app
 
@@ -348,10 +355,12 @@ def on_scene_click(app: App, origin, direction) -> CellInfo | None:
         return None
     point = int(shown.loaded.display_index[i])
     xyz = shown.loaded.to_file_frame(shown.loaded.display_points[i])
+    local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
+    if app.profile_pick is not None and app.profile_pick(xyz, local):
+        return None
     info = cell_info(shown.result, point, xyz)
     app.last_pick = info
     app.gui.pick.content = format_cell_info(info, shown.result.grid.cell_size)
-    local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
     g = shown.result.grid.cell_size
     centre_local = tuple(np.asarray(info.centre) - shown.loaded.origin)
     app.pick_nodes = [
