@@ -60,6 +60,7 @@ class Request:
     settings: ViewSettings
     load_path: str | None = None
     upload: tuple[str, bytes] | None = None
+    cloud: PointCloud | None = None
     kind: Literal["view", "load"] = "view"
 
 
@@ -92,6 +93,8 @@ class App:
     """Profile mode state (``items``: kept :class:`ProfileAnalysis`, ``start``)."""
     profile_pick: object = None
     profile_settings: object = None
+    board: dict | None = None
+    """Board teaching view state (``lesson``: the last :class:`BoardLesson`)."""
     _syncing: bool = False
     _panel_key: tuple | None = None
     _lock: threading.RLock = field(default_factory=threading.RLock)
@@ -120,11 +123,16 @@ class App:
             return 0
         return self.worker.submit(Request(self.settings_from_gui()))
 
-    def load(self, path: str | None = None, upload: tuple[str, bytes] | None = None) -> int:
-        """Queue loading another file (path on the server, or uploaded bytes)."""
-        return self.worker.submit(
-            Request(self.settings_from_gui(), load_path=path, upload=upload, kind="load")
-        )
+    def load(
+        self,
+        path: str | None = None,
+        upload: tuple[str, bytes] | None = None,
+        cloud: PointCloud | None = None,
+    ) -> int:
+        """Queue showing another cloud: a path on the server, uploaded bytes, or
+        an in-memory cloud."""
+        return self.worker.submit(Request(self.settings_from_gui(), load_path=path,
+                                          upload=upload, cloud=cloud, kind="load"))
 
     def wait_idle(self, timeout: float = 120.0) -> bool:
         """Block until the worker has nothing left to do (tests, scripts)."""
@@ -272,6 +280,9 @@ def build_app(
     from rough_viewer.app.profile_mode import add_profile_tab
 
     add_profile_tab(app, gui.tabs)
+    from rough_viewer.app.board_mode import add_board_tab
+
+    add_board_tab(app, gui.tabs)
     app.request_update()
     return app
 
@@ -521,6 +532,8 @@ def _handle_request(app: App, request: Request, is_stale, *, variogram: bool) ->
 
 
 def _load(app: App, request: Request) -> LoadedCloud:
+    if request.cloud is not None:
+        return LoadedCloud(request.cloud, max_display=app.shown.loaded.max_display)
     if request.upload is not None:
         name, content = request.upload
         suffix = "".join(Path(name).suffixes[-1:]) or ".xyz"
