@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
-import browser as b  # noqa: E402
-from conftest import face_cloud  # noqa: E402
+import app_browser as b  # noqa: E402
+from app_fixtures import face_cloud  # noqa: E402
 
 from rough_viewer import colormaps  # noqa: E402
 
