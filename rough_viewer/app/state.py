@@ -1,0 +1,315 @@
+"""What the app shows, as plain data: settings, the loaded cloud, cached grid
+results and the colours they give. No viser here, so all of it is testable.
+
+Data flow: a :class:`ViewSettings` snapshot names a grid (cell size, dependent
+axis, minimum points) and a way to colour it. :meth:`LoadedCloud.result` computes
+that grid with the core (:func:`rough_viewer.core.roughness.grid_roughness`, the
+same call as ``rough-viewer compute``) once and caches it; :func:`point_colours`
+turns a result plus the colouring settings into one RGB triple per displayed
+point without touching the planes again.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+
+from rough_viewer import colormaps
+from rough_viewer.app.sampling import display_subset
+from rough_viewer.core.io import PointCloud
+from rough_viewer.core.roughness import (
+    GridRoughness,
+    PreparedGrid,
+    coarsen_prepared,
+    grid_roughness,
+    normalise,
+    prepare_grid,
+    whole_cloud_axis,
+)
+from rough_viewer.errors import InputError
+
+MapName = Literal["odr", "ols", "hybrid", "e_ols"]
+AxisChoice = Literal["auto", "x", "y", "z"]
+DisplayMode = Literal["continuous", "binary"]
+
+#: Grid sizes offered as one-click presets (metres), as in the 2011 paper.
+PRESET_CELL_SIZES: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
+
+#: Models in the order the GUI lists them; labels shown to the user.
+MODEL_LABELS: dict[str, str] = {
+    "odr": "ODR",
+    "ols": "OLS",
+    "hybrid": "hybrid",
+    "e_ols": "OLS error e_ols",
+}
+
+#: Default display budget (points drawn in the browser).
+DEFAULT_MAX_DISPLAY = 2_000_000
+
+#: Finest preset: the other presets are integer multiples of it, so their cell
+#: membership and moments come from coarsening this grid (no pass over the points).
+FINE_CELL_SIZE = min(PRESET_CELL_SIZES)
+
+#: Smallest cell size the app accepts (metres); below it grids get absurdly large.
+MIN_CELL_SIZE = 1e-3
+
+
+@dataclass(frozen=True)
+class ViewSettings:
+    """Everything the user chose that changes the picture (one immutable snapshot)."""
+
+    cell_size: float = 0.25
+    """Grid cell edge in metres."""
+    model: MapName = "odr"
+    """Which roughness map colours the points."""
+    axis: AxisChoice = "auto"
+    """Dependent axis for OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
+    min_points: int = 3
+    """Cells with fewer points get no value."""
+    mode: DisplayMode = "continuous"
+    """Continuous normalised roughness, or the binary transform at ``threshold``."""
+    threshold: float = 0.05
+    """Binary threshold on normalised roughness (0-1)."""
+    colormap: str = "viridis"
+    """Colour map name (see :mod:`rough_viewer.colormaps`)."""
+    clip: tuple[float, float] = (0.0, 1.0)
+    """Normalised range spread over the colour map; values outside get the end colours."""
+
+    @property
+    def grid_key(self) -> tuple[float, str, int]:
+        """Cache key of the grid computation: (cell size, axis, min points)."""
+        return (round(float(self.cell_size), 9), self.axis, int(self.min_points))
+
+    def with_(self, **changes: object) -> ViewSettings:
+        """A copy with some fields changed."""
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+
+def check_settings(settings: ViewSettings) -> None:
+    """Raise InputError for settings the core cannot use (message for the GUI)."""
+    if not np.isfinite(settings.cell_size) or settings.cell_size < MIN_CELL_SIZE:
+        raise InputError(
+            f"grid size {settings.cell_size:g} m is too small (minimum {MIN_CELL_SIZE:g} m)"
+        )
+    if settings.min_points < 3:
+        raise InputError(f"minimum points per cell must be at least 3, got {settings.min_points}")
+    if settings.model not in MODEL_LABELS:
+        raise InputError(f"unknown model {settings.model!r}")
+    if settings.axis not in ("auto", "x", "y", "z"):
+        raise InputError(f"unknown dependent axis {settings.axis!r}")
+    colormaps.lut(settings.colormap)
+
+
+@dataclass
+class LoadedCloud:
+    """A cloud prepared for display, with its grid results cached.
+
+    Parameters
+    ----------
+    cloud
+        The points (file frame, metres).
+    max_display
+        Most points drawn; roughness is always computed on all ``cloud.n``.
+    cache_size
+        Grid results kept (least recently used dropped first).
+    """
+
+    cloud: PointCloud
+    max_display: int = DEFAULT_MAX_DISPLAY
+    cache_size: int = 8
+    seed: int = 0
+    origin: np.ndarray = field(init=False)
+    display_index: np.ndarray = field(init=False)
+    display_points: np.ndarray = field(init=False)
+    auto_axis: str = field(init=False)
+    _cache: OrderedDict = field(init=False, repr=False)
+    _prepared: OrderedDict = field(init=False, repr=False)
+    _lock: threading.Lock = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.cloud.n < 3:
+            raise InputError(f"{self.cloud.source or 'cloud'}: needs at least 3 points, has {self.cloud.n}")
+        xyz = self.cloud.xyz()
+        lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+        # Local origin: the bounding-box centre rounded to whole metres, so the
+        # float32 coordinates sent to the browser stay precise for UTM scans.
+        self.origin = np.round(0.5 * (lo + hi))
+        self.display_index = display_subset(xyz, self.max_display, seed=self.seed)
+        self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
+        self.auto_axis = whole_cloud_axis(self.cloud)
+        self._cache = OrderedDict()
+        self._prepared = OrderedDict()
+        self._lock = threading.Lock()
+
+    @property
+    def n_total(self) -> int:
+        """Points used for roughness (all of them)."""
+        return self.cloud.n
+
+    @property
+    def n_display(self) -> int:
+        """Points drawn."""
+        return len(self.display_index)
+
+    def to_file_frame(self, local: np.ndarray) -> np.ndarray:
+        """Local display coordinates -> the file's frame (metres, float64)."""
+        return np.asarray(local, dtype=np.float64) + self.origin
+
+    def is_cached(self, settings: ViewSettings) -> bool:
+        with self._lock:
+            return settings.grid_key in self._cache
+
+    def result(
+        self,
+        settings: ViewSettings,
+        *,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> GridRoughness:
+        """Grid roughness for the settings' (cell size, axis, min points), cached."""
+        key = settings.grid_key
+        with self._lock:
+            if key in self._cache:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+        check_settings(settings)
+        res = grid_roughness(
+            self.cloud,
+            settings.cell_size,
+            min_points=settings.min_points,
+            axis=settings.axis,
+            models=("odr", "ols", "hybrid"),
+            progress=progress,
+            prepared=self.prepared(settings.cell_size),
+        )
+        with self._lock:
+            self._cache[key] = res
+            while len(self._cache) > self.cache_size:
+                self._cache.popitem(last=False)
+        return res
+
+
+    def prepared(self, cell_size: float) -> PreparedGrid:
+        """Cell membership and moments of the grid ``cell_size`` (metres), cached.
+
+        Sizes that are integer multiples of :data:`FINE_CELL_SIZE` (the presets)
+        are coarsened from the fine grid, which shares their origin (the
+        bounding-box minimum), instead of indexing the points again.
+        """
+        key = round(float(cell_size), 9)
+        with self._lock:
+            if key in self._prepared:
+                self._prepared.move_to_end(key)
+                return self._prepared[key]
+        factor = cell_size / FINE_CELL_SIZE
+        fine_key = round(FINE_CELL_SIZE, 9)
+        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
+            fine = self.prepared(FINE_CELL_SIZE)
+            prep = coarsen_prepared(fine, int(round(factor)))
+        else:
+            prep = prepare_grid(self.cloud, cell_size)
+        with self._lock:
+            self._prepared[key] = prep
+            while len(self._prepared) > 6:  # keep the fine grid: every preset comes from it
+                self._prepared.pop(next(k for k in self._prepared if k != fine_key))
+        return prep
+
+
+def normalised_map(result: GridRoughness, model: MapName) -> np.ndarray:
+    """Min-max normalised roughness of every cell of ``result`` for ``model`` (NaN: no value)."""
+    return normalise(result.values(model))
+
+
+def point_colours(
+    result: GridRoughness,
+    settings: ViewSettings,
+    point_index: np.ndarray,
+    *,
+    normalised: np.ndarray | None = None,
+) -> np.ndarray:
+    """RGB colour (``(K, 3)`` uint8) of the points ``point_index`` of the cloud.
+
+    Each point takes the colour of its cell's normalised roughness under
+    ``settings`` (model, continuous or binary, threshold, colour map, clip
+    range); points in cells without a value get :data:`colormaps.NEUTRAL_RGB`.
+    ``normalised`` may pass a precomputed :func:`normalised_map`.
+    """
+    norm = normalised_map(result, settings.model) if normalised is None else normalised
+    cell = result.point_cell[point_index]
+    per_point = norm[cell]
+    if settings.mode == "binary":
+        valid = np.isfinite(per_point)
+        with np.errstate(invalid="ignore"):
+            flags = per_point >= settings.threshold
+        return colormaps.apply_binary(flags, valid, settings.colormap)
+    lo, hi = settings.clip
+    return colormaps.apply(per_point, settings.colormap, vmin=float(lo), vmax=float(hi))
+
+
+@dataclass(frozen=True)
+class MapStats:
+    """Numbers the colour bar and status line show for the current map."""
+
+    theta_min: float
+    """Smallest roughness of a valid cell (metres)."""
+    theta_max: float
+    """Largest roughness of a valid cell (metres)."""
+    cells: int
+    """Occupied cells."""
+    valid_cells: int
+    """Cells with a value for this model."""
+    rough_share: float
+    """Share of valid cells at or above the binary threshold."""
+
+
+def map_stats(result: GridRoughness, settings: ViewSettings) -> MapStats:
+    """Range and counts of the current map (see :class:`MapStats`)."""
+    values = result.values(settings.model)
+    finite = np.isfinite(values)
+    norm = normalise(values)
+    valid = int(finite.sum())
+    if valid:
+        lo, hi = float(values[finite].min()), float(values[finite].max())
+        rough = float(np.mean(norm[finite] >= settings.threshold))
+    else:
+        lo = hi = rough = float("nan")
+    return MapStats(lo, hi, len(values), valid, rough)
+
+
+@dataclass(frozen=True)
+class CellInfo:
+    """What a click on a point reports about its cell (file frame, metres)."""
+
+    cell: int
+    """Index into the result's cell arrays."""
+    ijk: tuple[int, int, int]
+    """Grid index of the cell."""
+    centre: tuple[float, float, float]
+    n_points: int
+    theta: dict[str, float]
+    """Roughness per model (``odr``, ``ols``, ``hybrid``, ``e_ols``), metres, NaN if none."""
+    normal: tuple[float, float, float]
+    """ODR unit normal of the cell (NaN if no plane)."""
+    point: tuple[float, float, float]
+    """The clicked point, file frame."""
+    axis: str
+    """Dependent axis used for OLS/hybrid."""
+
+
+def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellInfo:
+    """Describe the cell holding cloud point number ``point`` (see :class:`CellInfo`)."""
+    c = int(result.point_cell[point])
+    return CellInfo(
+        cell=c,
+        ijk=tuple(int(v) for v in result.ijk[c]),
+        centre=tuple(float(v) for v in result.centre[c]),
+        n_points=int(result.n_points[c]),
+        theta={m: float(result.values(m)[c]) for m in MODEL_LABELS},
+        normal=tuple(float(v) for v in result.normal[c]),
+        point=tuple(float(v) for v in point_xyz),
+        axis=result.axis,
+    )

@@ -1,0 +1,139 @@
+"""Helpers for driving the app in headless Chromium (Playwright, software WebGL).
+
+Reading pixels: viser's WebGL canvas keeps its drawing buffer, so the page can
+copy it into a small 2-D canvas and count colours there (fast), instead of taking
+Playwright screenshots (seconds per frame under software rendering).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import re
+import time
+
+import numpy as np
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = [
+    "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--disable-dev-shm-usage", "--no-first-run", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--disable-quic",
+]
+VIEWPORT = {"width": 1280, "height": 800}
+#: Part of the canvas left of the control panel and below the top bar (fractions).
+SCENE = (0.02, 0.12, 0.62, 0.95)
+
+# Copy the largest canvas (the three.js one) into a w x h 2-D canvas and return
+# its RGBA bytes as base64; transparent pixels are the page background (white).
+_GRAB_JS = r"""
+([x0, y0, x1, y1, w, h]) => {
+  const cs = [...document.querySelectorAll('canvas')];
+  let src = null;
+  for (const c of cs) if (!src || c.width * c.height > src.width * src.height) src = c;
+  if (!src || !src.width) return null;
+  const t = document.createElement('canvas'); t.width = w; t.height = h;
+  const g = t.getContext('2d', {willReadFrequently: true});
+  g.drawImage(src, x0 * src.width, y0 * src.height, (x1 - x0) * src.width,
+              (y1 - y0) * src.height, 0, 0, w, h);
+  const d = g.getImageData(0, 0, w, h).data;
+  let s = ''; for (let i = 0; i < d.length; i++) s += String.fromCharCode(d[i]);
+  return btoa(s);
+}
+"""
+
+# Fraction of saturated (coloured, not white/grey) pixels in the scene region.
+_COLOURED_JS = r"""
+([grab, region]) => {
+  const b = eval(grab)(region); if (!b) return 0;
+  const s = atob(b); let n = 0;
+  for (let i = 0; i < s.length; i += 4) {
+    if (s.charCodeAt(i + 3) < 16) continue;
+    const r = s.charCodeAt(i), g = s.charCodeAt(i + 1), bl = s.charCodeAt(i + 2);
+    if (Math.max(r, g, bl) - Math.min(r, g, bl) > 40) n++;
+  }
+  return n / (s.length / 4);
+}
+"""
+
+
+def scene_pixels(page, w: int = 192, h: int = 160, region=SCENE) -> np.ndarray:
+    """RGB (h, w, 3) uint8 of the scene region, transparent -> white."""
+    b64 = page.evaluate(_GRAB_JS, [*region, w, h])
+    rgba = np.frombuffer(base64.b64decode(b64), dtype=np.uint8).reshape(h, w, 4).astype(float)
+    a = rgba[..., 3:4] / 255.0
+    return np.round(rgba[..., :3] * a + 255.0 * (1 - a)).astype(np.uint8)
+
+
+def coloured_mask(img: np.ndarray) -> np.ndarray:
+    """Pixels with a clear hue (point colours), not white, grey or black."""
+    i = img.astype(int)
+    return (i.max(axis=2) - i.min(axis=2)) > 40
+
+
+def wait_coloured(page, min_fraction: float = 0.05, timeout: float = 90.0) -> None:
+    """Wait until enough of the scene shows coloured points."""
+    page.wait_for_function(
+        "([js, grab, region, f]) => eval(js)([grab, region]) >= f",
+        arg=[_COLOURED_JS, _GRAB_JS, [*SCENE, 96, 80], min_fraction],
+        polling=200, timeout=timeout * 1000,
+    )
+
+
+def wait_until(predicate, timeout: float = 30.0, what: str = "condition"):
+    end = time.time() + timeout
+    while time.time() < end:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def wait_pixels(page, predicate, timeout: float = 60.0, what: str = "pixels"):
+    """Poll the scene image until ``predicate(img)`` is true; returns the image."""
+    end = time.time() + timeout
+    while time.time() < end:
+        img = scene_pixels(page)
+        if predicate(img):
+            return img
+        time.sleep(0.3)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def control(page, label: str):
+    """The element a GUI row's <label> points at (viser ids it by the handle uuid)."""
+    lab = page.locator("label", has_text=re.compile(f"^{re.escape(label)}$")).first
+    return page.locator(f'[id="{lab.get_attribute("for")}"]')
+
+
+def choose(page, label: str, option: str) -> None:
+    """Pick ``option`` in the dropdown labelled ``label``."""
+    control(page, label).click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def type_number(page, label: str, value: str) -> None:
+    """Type into the number box of a slider (never arrow keys: they move the camera)."""
+    box = control(page, label).locator("xpath=..").locator("input.mantine-NumberInput-input")
+    box.fill(value)
+    box.press("Enter")
+
+
+def hide_toasts(page) -> None:
+    """Hide notifications (the software-WebGL warning covers the scene)."""
+    page.add_style_tag(content=".mantine-Notifications-root{display:none!important}")
+
+
+def png(page) -> bytes:
+    """PNG of the whole canvas (for a person to look at)."""
+    url = page.evaluate("() => { let s = null; for (const c of document.querySelectorAll('canvas'))"
+                        " if (!s || c.width * c.height > s.width * s.height) s = c;"
+                        " return s.toDataURL('image/png'); }")
+    return base64.b64decode(url.split(",", 1)[1])
+
+
+def to_array(png_bytes: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png_bytes)).convert("RGB"))

@@ -1,0 +1,31 @@
+import numpy as np
+import pytest
+
+from rough_viewer.app.board_mode import board_lesson
+from rough_viewer.core.synthetic.board import PAPER_THEORETICAL_ROUGHNESS_M
+
+
+def test_unrotated_board_matches_the_paper_and_ols_grows_with_rotation():
+    flat = board_lesson(0.0, 0.0)
+    t = PAPER_THEORETICAL_ROUGHNESS_M
+    assert flat.scan.theoretical_roughness == pytest.approx(t, rel=1e-3)
+    for m in ("odr", "ols", "hybrid"):
+        assert flat.theta[m] == pytest.approx(t, rel=0.1)
+    turned = board_lesson(40.0, 0.0)
+    assert turned.theta["ols"] > flat.theta["ols"] * 1.1
+    assert abs(turned.theta["odr"] / t - 1) < abs(turned.theta["ols"] / t - 1)
+    assert turned.n_points == pytest.approx(turned.n_points_facing, rel=0.1)
+    steep = board_lesson(70.0, 0.0)
+    assert steep.axis == flat.axis  # the axis stays the one facing the unrotated board
+    assert steep.theta["ols"] > turned.theta["ols"]
+
+
+def test_scan_button_opens_the_board_in_the_app(app):
+    ctl = app.board["controls"]
+    ctl["alpha"].value = 30.0
+    ctl["scan"].value = True
+    assert app.wait_idle(60)
+    lesson = app.board["lesson"]
+    assert app.shown.loaded.cloud is lesson.scan.cloud
+    assert "Board α 30°" in ctl["note"].content and "true roughness" in ctl["note"].content
+    assert np.isfinite(lesson.theta["odr"])

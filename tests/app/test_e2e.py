@@ -1,0 +1,144 @@
+"""The app in headless Chromium: rendering, controls, panels and picking.
+
+One server and one page for the module (page setup costs seconds under software
+WebGL); each test sets the controls it relies on. ~120k points.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import app_browser as b  # noqa: E402
+from app_fixtures import face_cloud  # noqa: E402
+
+from rough_viewer import colormaps  # noqa: E402
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    if not os.path.exists(b.CHROMIUM):
+        pytest.skip("chromium not installed (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture(scope="module")
+def live(chromium):
+    import viser
+
+    from rough_viewer.app.server import build_app
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = build_app(server, face_cloud(120_000, seed=5))
+    assert app.wait_idle(60)
+    ctx = chromium.new_context(viewport=b.VIEWPORT)
+    ctx.set_default_timeout(30_000)
+    page = ctx.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
+    b.wait_coloured(page, 0.05, timeout=90)
+    b.hide_toasts(page)
+    yield app, page
+    ctx.close()
+    app.stop()
+    server.stop()
+    assert not errors, errors
+
+
+def _share_near(img, rgb, tol=40):
+    d = np.abs(img.astype(int) - np.asarray(rgb, int)).sum(axis=2)
+    return float(np.mean(d < tol))
+
+
+def test_renders_coloured_points(live):
+    app, page = live
+    img = b.scene_pixels(page)
+    coloured = b.coloured_mask(img)
+    assert coloured.mean() > 0.1
+    # the rendered colours are viridis colours of the map
+    lut = colormaps.lut("viridis").astype(int)
+    px = img[coloured].astype(int)
+    dist = np.abs(px[:, None, :] - lut[None, ::8, :]).sum(axis=2).min(axis=1)
+    assert np.median(dist) < 40
+    assert len(app.server.get_clients()) == 1
+
+
+def test_grid_and_model_change_colours_and_histogram(live):
+    app, page = live
+    before = b.scene_pixels(page)
+    page.get_by_role("tab", name="Panels").click()
+    page.locator(".js-plotly-plot .gtitle", has_text="grid 0.25 m").first.wait_for()
+    page.get_by_role("tab", name="Map").click()
+    b.choose(page, "Grid size (m)", "1")
+    b.wait_until(lambda: app.shown.settings.cell_size == 1.0 and not app.worker.busy,
+                 30, "grid 1 m on the server")
+    b.wait_pixels(page, lambda im: np.abs(im.astype(int) - before).sum(axis=2).mean() > 5,
+                  60, "colours to change with the grid")
+    page.get_by_role("tab", name="Panels").click()
+    page.locator(".js-plotly-plot .gtitle", has_text="grid 1 m").first.wait_for()
+    page.get_by_role("tab", name="Map").click()
+    mid = b.scene_pixels(page)
+    # OLS along y on a face looking along y barely differs from ODR; the OLS error
+    # map (diverging colours) must look different
+    b.choose(page, "Model", "OLS error e_ols")
+    b.wait_until(lambda: app.shown.settings.model == "e_ols" and not app.worker.busy, 30, "e_ols")
+    b.wait_pixels(page, lambda im: np.abs(im.astype(int) - mid).sum(axis=2).mean() > 10,
+                  60, "colours to change with the model")
+    names = [t.name for t in app.gui.variogram.figure.data]
+    assert names[0] == "e_OLS"
+    page.get_by_role("tab", name="Panels").click()
+    page.locator(".js-plotly-plot .legendtext", has_text="e_OLS").first.wait_for()
+    page.get_by_role("tab", name="Map").click()
+    b.choose(page, "Model", "ODR")
+    b.choose(page, "Grid size (m)", "0.25")
+    b.wait_until(lambda: app.shown.settings.cell_size == 0.25 and app.shown.settings.model == "odr"
+                 and not app.worker.busy, 30, "back to ODR 0.25 m")
+
+
+def test_threshold_switches_to_binary_view(live):
+    app, page = live
+    b.choose(page, "Display", "binary")
+    b.type_number(page, "Threshold", "0.3")
+    b.wait_until(lambda: app.shown.settings.mode == "binary"
+                 and app.shown.settings.threshold == 0.3 and not app.worker.busy, 30, "binary")
+    lut = colormaps.lut("viridis")
+    lo, hi = lut[0], lut[-1]
+
+    def two_colours(img):
+        c = b.coloured_mask(img)
+        return c.mean() > 0.05 and (_share_near(img, lo) + _share_near(img, hi)) / c.mean() > 0.8
+
+    img = b.wait_pixels(page, two_colours, 60, "two-colour binary view")
+    assert _share_near(img, lo) > 0.01 and _share_near(img, hi) > 0.01
+    b.choose(page, "Display", "continuous")
+    b.wait_until(lambda: app.shown.settings.mode == "continuous" and not app.worker.busy, 30)
+
+
+def test_click_reports_cell(live):
+    app, page = live
+    img = b.to_array(b.png(page))
+    h, w = img.shape[:2]
+    mask = b.coloured_mask(img)
+    mask[:, int(0.62 * w):] = False
+    mask[: int(0.12 * h), :] = False
+    ys, xs = np.nonzero(mask)
+    y, x = int(np.median(ys)), int(np.median(xs))
+    assert mask[y, x]
+    page.mouse.click(x, y)
+    info = b.wait_until(lambda: app.last_pick, 30, "a picked cell")
+    page.get_by_text(f"Cell {info.ijk}").wait_for()
+    res = app.shown.result
+    assert info.theta["odr"] == pytest.approx(res.theta_odr[info.cell])
+    assert info.n_points == res.n_points[info.cell]

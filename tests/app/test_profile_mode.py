@@ -1,0 +1,55 @@
+"""Profile mode on a real viser server: two clicks -> profile, de-noising, D."""
+
+import numpy as np
+import pytest
+
+from rough_viewer.app.profile_mode import ProfileSettings, analyse, profiles_csv
+from rough_viewer.app.server import on_scene_click
+from rough_viewer.core.fractal import roughness_length
+from rough_viewer.core.profile import extract_profile
+from rough_viewer.core.wavelets import denoise
+
+
+def click_on(app, i):
+    target = app.shown.loaded.display_points[i].astype(float)
+    return on_scene_click(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+
+
+def test_two_clicks_make_a_profile_matching_the_core(app, cloud):
+    ctl = app.profile["controls"]
+    ctl["on"].value = True
+    pts = app.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    assert click_on(app, i) is None and app.profile["start"] is not None
+    click_on(app, j)
+    assert app.errors == [] and len(app.profile["items"]) == 1
+    a = app.profile["items"][0]
+    start = app.shown.loaded.to_file_frame(pts[i])
+    end = app.shown.loaded.to_file_frame(pts[j])
+    ref = extract_profile(cloud.xyz(), start, end)
+    assert np.allclose(a.profile.heights, ref.heights, equal_nan=True)
+    assert a.raw_fit.dimension == pytest.approx(roughness_length(ref.heights, ref.spacing).dimension)
+    assert "D raw" in ctl["note"].content
+    assert any("D=" in (t.name or "") for t in ctl["plot"].figure.data)
+
+    ctl["wavelet"].value = "sym4"
+    ctl["mode"].value = "soft"
+    b = app.profile["items"][0]
+    want = denoise(ref.heights, wavelet="sym4", mode="soft")
+    assert np.allclose(b.denoised.heights, want, equal_nan=True)
+    assert b.settings.wavelet == "sym4"
+
+    text = profiles_csv(app.profile["items"])
+    assert len(text.strip().splitlines()) == 1 + len(ref.distance)
+    ctl["clear"].value = True
+    assert app.profile["items"] == []
+    ctl["on"].value = False
+    assert click_on(app, i) is not None  # cell picking again
+
+
+def test_analyse_is_independent_of_the_app(cloud):
+    xyz = cloud.xyz()
+    a = analyse(xyz, xyz[0], xyz[0] + [2.0, 0.0, 0.0], ProfileSettings(level=2))
+    assert a.denoised.level == 2 and np.isfinite(a.raw_fit.dimension)
+    assert 1.0 <= a.raw_fit.dimension <= 2.2

@@ -1,0 +1,183 @@
+"""The app on a real viser server (port 0), driven by setting GUI handle values.
+
+Setting ``handle.value`` runs the callbacks as a browser edit would; the work then
+runs on the app's worker thread, so each test waits with ``app.wait_idle()``.
+"""
+
+import numpy as np
+import pytest
+
+from rough_viewer import colormaps
+from rough_viewer.app import state as state_mod
+from rough_viewer.app.server import build_app, on_scene_click
+from rough_viewer.core.io import PointCloud
+from rough_viewer.core.roughness import grid_roughness, histogram, normalise
+
+
+def expected_colours(app, cloud, cell, name, cmap="viridis"):
+    core = grid_roughness(cloud, cell)
+    idx = app.shown.loaded.display_index
+    return colormaps.apply(normalise(core.values(name))[core.point_cell[idx]], cmap)
+
+
+def test_first_view_is_odr_at_quarter_metre(app, cloud):
+    assert app.errors == []
+    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.25, "odr"))
+    assert "40,000 points shown of 40,000 used" in app.gui.status.content
+    assert "auto chose **y**" in app.gui.axis_note.content
+    title = app.gui.colour_bar.figure.layout.title.text
+    assert "ODR" in title and "0.25 m" in title and "axis y" in title
+
+
+def test_grid_and_model_change_colours_and_panels(app, cloud):
+    before = app.cloud_handle.colors.copy()
+    app.gui.grid.value = "0.125"
+    assert app.wait_idle(60)
+    assert app.gui.grid_free.value == 0.125
+    assert app.shown.result.grid.cell_size == 0.125
+    now = app.cloud_handle.colors
+    assert not np.array_equal(before, now)
+    assert np.array_equal(now, expected_colours(app, cloud, 0.125, "odr"))
+    # histogram panel: ODR and OLS fractions equal the core's 0.05-bin histogram
+    core = grid_roughness(cloud, 0.125)
+    fig = app.gui.histogram.figure
+    names = [t.name for t in fig.data]
+    assert names[0].startswith("ODR") and names[1].startswith("OLS")
+    for trace, m in zip(fig.data, ("odr", "ols"), strict=False):
+        want = histogram(normalise(core.values(m)), 0.05).fractions * 100
+        assert np.allclose(trace.y, want)
+    assert "grid 0.125 m" in fig.layout.title.text
+
+    app.gui.model.value = "OLS"
+    assert app.wait_idle(60)
+    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.125, "ols"))
+    assert [t.name for t in app.gui.variogram.figure.data] == ["OLS", "ODR", "e_OLS"]
+    table = app.gui.summary.figure.data[0]
+    assert list(table.cells.values[0]) == ["ODR", "OLS", "hybrid", "e_OLS"]
+
+
+def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
+    calls = []
+    real = state_mod.grid_roughness
+    monkeypatch.setattr(state_mod, "grid_roughness", lambda *a, **k: calls.append(a) or real(*a, **k))
+    app.gui.display.value = "binary"
+    app.gui.threshold.value = 0.3
+    assert app.wait_idle(60)
+    colours = app.cloud_handle.colors
+    lut = colormaps.lut("viridis")
+    distinct = {tuple(c) for c in np.unique(colours, axis=0)}
+    assert distinct <= {tuple(lut[0]), tuple(lut[-1]), colormaps.NEUTRAL_RGB}
+    rough = np.all(colours == lut[-1], axis=1).mean()
+    app.gui.threshold.value = 0.8
+    assert app.wait_idle(60)
+    assert np.all(app.cloud_handle.colors == lut[-1], axis=1).mean() < rough
+    app.gui.colormap.value = "magma"
+    assert app.wait_idle(60)
+    assert {tuple(c) for c in np.unique(app.cloud_handle.colors, axis=0)} <= {
+        tuple(colormaps.lut("magma")[0]), tuple(colormaps.lut("magma")[-1])}
+    assert calls == []  # every change above reused the cached planes
+    assert all(t["cached"] for t in app.timings[-3:])
+
+
+def test_e_ols_gets_diverging_map_and_toggle_button(app, cloud):
+    app.gui.model.value = "OLS error e_ols"
+    assert app.wait_idle(60)
+    assert app.shown.settings.colormap == "coolwarm"
+    assert np.array_equal(app.cloud_handle.colors,
+                          expected_colours(app, cloud, 0.25, "e_ols", "coolwarm"))
+    app.gui.model.value = "ODR"
+    app.gui.toggle.value = True  # fires on_click like a browser press
+    assert app.gui.model.value == "OLS"
+    app.gui.toggle.value = True
+    assert app.gui.model.value == "ODR"
+
+
+def test_axis_choice_and_free_grid(app):
+    app.gui.axis.value = "z"
+    app.gui.grid_free.value = 0.3
+    assert app.wait_idle(60)
+    assert app.gui.grid.value == "free"
+    res = app.shown.result
+    assert res.axis == "z" and res.grid.cell_size == 0.3
+    assert "using **z**" in app.gui.axis_note.content
+
+
+def test_bad_grid_keeps_previous_view(app):
+    before = app.cloud_handle.colors.copy()
+    app.gui.grid_free.value = 0.0001
+    assert app.wait_idle(60)
+    assert app.errors and "too small" in app.errors[-1]
+    assert app.gui.error.visible and "previous view" in app.gui.error.content
+    assert np.array_equal(app.cloud_handle.colors, before)
+    assert app.gui.grid.value == "0.25" and app.shown.settings.cell_size == 0.25
+    app.gui.grid.value = "0.5"  # a good change clears the message
+    assert app.wait_idle(60)
+    assert not app.gui.error.visible
+
+
+def test_load_files_from_path_and_upload(app, tmp_path, cloud):
+    app.load(path=str(tmp_path / "missing.las"))
+    assert app.wait_idle(60)
+    assert "not found" in app.errors[-1] and app.shown.loaded.cloud is cloud
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("not numbers\n")
+    app.load(path=str(bad))
+    assert app.wait_idle(60)
+    assert len(app.errors) == 2 and app.shown.loaded.cloud is cloud
+    xyz = cloud.xyz()[::4]
+    good = tmp_path / "quarter.npy"
+    np.save(good, xyz)
+    app.load(path=str(good))
+    assert app.wait_idle(60)
+    assert app.shown.loaded.n_total == len(xyz)
+    assert "quarter.npy" in app.gui.status.content
+    assert len(app.cloud_handle.colors) == len(xyz)
+    text = "\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz[:3000])
+    app.load(upload=("up.xyz", text.encode()))
+    assert app.wait_idle(60)
+    assert app.shown.loaded.n_total == 3000 and "up.xyz" in app.gui.status.content
+
+
+def test_click_reports_cell(app, cloud):
+    loaded = app.shown.loaded
+    i = 777
+    target = loaded.display_points[i].astype(float)
+    origin = target + np.array([0.0, -5.0, 0.0])  # the face looks at -y
+    info = on_scene_click(app, origin, (0.0, 1.0, 0.0))
+    core = grid_roughness(cloud, 0.25)
+    p = int(loaded.display_index[i])
+    assert info is not None and info.cell == core.point_cell[p]
+    assert info.theta["odr"] == pytest.approx(core.theta_odr[info.cell])
+    assert info.theta["e_ols"] == pytest.approx(core.e_ols[info.cell])
+    assert f"Cell {info.ijk}" in app.gui.pick.content
+    assert np.allclose(info.point, cloud.xyz()[p], atol=1e-5)  # file frame
+    assert on_scene_click(app, origin, (0.0, -1.0, 0.0)) is None
+
+
+def test_big_cloud_is_thinned_for_display(server):
+    rng = np.random.default_rng(2)
+    xyz = np.column_stack([rng.uniform(0, 3, 30_000), rng.normal(0, 0.002, 30_000),
+                           rng.uniform(0, 3, 30_000)])
+    app = build_app(server, PointCloud.from_xyz(xyz), max_display=5_000)
+    assert app.wait_idle(60)
+    assert len(app.cloud_handle.points) == 5_000
+    assert app.shown.result.point_cell.shape == (30_000,)
+    assert "5,000 points shown of 30,000 used" in app.gui.status.content
+    app.stop()
+
+
+def test_idle_worker_prefetches_preset_grids(server, cloud):
+    import time
+
+    app = build_app(server, cloud.subset(np.arange(10_000)), prefetch=True)
+    assert app.wait_idle(60)
+    loaded = app.shown.loaded
+    presets = [app.shown.settings.with_(cell_size=g) for g in (1.0, 0.5, 0.25, 0.125)]
+    end = time.time() + 30
+    while not all(loaded.is_cached(s) for s in presets) and time.time() < end:
+        time.sleep(0.05)
+    assert all(loaded.is_cached(s) for s in presets)
+    app.gui.grid.value = "1"
+    assert app.wait_idle(60)
+    assert app.timings[-1]["cached"] and app.shown.result.grid.cell_size == 1.0
+    app.stop()

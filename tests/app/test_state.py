@@ -1,0 +1,128 @@
+"""App state without viser: caching, colours and cell reports against the core."""
+
+import numpy as np
+import pytest
+
+from rough_viewer import colormaps
+from rough_viewer.app import state as state_mod
+from rough_viewer.app.state import (
+    LoadedCloud,
+    ViewSettings,
+    cell_info,
+    check_settings,
+    map_stats,
+    point_colours,
+)
+from rough_viewer.core.roughness import binary, grid_roughness, normalise
+from rough_viewer.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def loaded(cloud):
+    return LoadedCloud(cloud, max_display=15_000)
+
+
+def test_local_origin_keeps_float32_precise(loaded, cloud):
+    assert loaded.n_display == 15_000 and loaded.n_total == cloud.n
+    assert loaded.display_points.dtype == np.float32
+    back = loaded.to_file_frame(loaded.display_points)
+    err = np.abs(back - cloud.xyz()[loaded.display_index]).max()
+    assert err < 1e-6  # metres; float32 of UTM eastings directly would be ~0.03 m off
+    assert np.all(loaded.origin == np.round(loaded.origin))
+
+
+def test_results_cached_per_grid_key(loaded, monkeypatch):
+    calls = []
+    real = state_mod.grid_roughness
+
+    def counting(*a, **k):
+        calls.append((a[1], k["axis"], k["min_points"]))
+        return real(*a, **k)
+
+    monkeypatch.setattr(state_mod, "grid_roughness", counting)
+    s = ViewSettings(cell_size=0.5)
+    r1 = loaded.result(s)
+    # colouring changes share the grid result
+    r2 = loaded.result(s.with_(model="ols", threshold=0.3, mode="binary", colormap="magma"))
+    assert r1 is r2 and len(calls) == 1
+    loaded.result(s.with_(axis="z"))
+    loaded.result(s.with_(min_points=10))
+    assert calls == [(0.5, "auto", 3), (0.5, "z", 3), (0.5, "auto", 10)]
+    assert loaded.is_cached(s.with_(min_points=10))
+
+
+def test_continuous_colours_match_core(loaded, cloud):
+    s = ViewSettings(cell_size=0.25, model="ols", colormap="cividis", clip=(0.1, 0.8))
+    got = point_colours(loaded.result(s), s, loaded.display_index)
+    core = grid_roughness(cloud, 0.25)  # independent call to the core
+    norm = normalise(core.theta_ols)[core.point_cell[loaded.display_index]]
+    lut = colormaps.lut("cividis")
+    t = np.clip((norm - 0.1) / 0.7, 0, 1)
+    want = lut[np.round(t * 255).astype(int)]
+    assert np.array_equal(got, want)
+    # left half is smooth, right half rough: colour brightness follows
+    x = cloud.x[loaded.display_index] - cloud.x.min()
+    luma = got.astype(float) @ [0.2126, 0.7152, 0.0722]
+    assert luma[x > 2.5].mean() > luma[x < 1.5].mean() + 50
+
+
+def test_binary_colours_and_threshold(loaded, cloud):
+    s = ViewSettings(cell_size=0.25, mode="binary", threshold=0.3)
+    got = point_colours(loaded.result(s), s, loaded.display_index)
+    core = grid_roughness(cloud, 0.25)
+    rough = binary(normalise(core.theta_odr), 0.3)[core.point_cell[loaded.display_index]]
+    lut = colormaps.lut("viridis")
+    assert np.array_equal(got[rough], np.broadcast_to(lut[-1], got[rough].shape))
+    assert np.array_equal(got[~rough], np.broadcast_to(lut[0], got[~rough].shape))
+    stats = map_stats(loaded.result(s), s)
+    assert stats.rough_share == pytest.approx(np.mean(binary(normalise(core.theta_odr), 0.3)))
+
+
+def test_cells_without_value_are_neutral(cloud):
+    small = LoadedCloud(cloud.subset(np.arange(2000)), max_display=2000)
+    s = ViewSettings(cell_size=0.125, min_points=5)
+    res = small.result(s)
+    got = point_colours(res, s, small.display_index)
+    empty = ~np.isfinite(res.theta_odr[res.point_cell])
+    assert empty.any() and (~empty).any()
+    assert np.all(got[empty] == colormaps.NEUTRAL_RGB)
+
+
+def test_cell_info_matches_brute_force(loaded, cloud):
+    s = ViewSettings(cell_size=0.5)
+    res = loaded.result(s)
+    p = 1234
+    info = cell_info(res, p, cloud.xyz()[p])
+    xyz = cloud.xyz()
+    lo = xyz.min(axis=0)
+    ijk = np.floor((xyz - lo) / 0.5).astype(int)
+    same = np.all(ijk == ijk[p], axis=1)
+    assert info.ijk == tuple(ijk[p]) and info.n_points == same.sum()
+    pts = xyz[same] - xyz[same].mean(axis=0)
+    normal = np.linalg.svd(pts, full_matrices=False)[2][-1]
+    d = np.abs(pts @ normal)
+    assert info.theta["odr"] == pytest.approx(d.std(), rel=1e-6)
+    assert abs(abs(np.dot(info.normal, normal)) - 1) < 1e-9
+    assert info.axis == "y" and info.point == tuple(xyz[p])
+
+
+def test_check_settings_rejects_bad_input():
+    with pytest.raises(InputError, match="too small"):
+        check_settings(ViewSettings(cell_size=1e-5))
+    with pytest.raises(InputError, match="at least 3"):
+        check_settings(ViewSettings(min_points=2))
+    with pytest.raises(ValueError, match="colour map"):
+        check_settings(ViewSettings(colormap="jet"))
+
+
+def test_presets_coarsened_from_fine_grid_equal_direct_core(cloud):
+    fresh = LoadedCloud(cloud, max_display=1000)
+    fine = fresh.prepared(0.125)
+    assert fresh.prepared(1.0) is not fine and fresh.prepared(0.125) is fine
+    for size in (1.0, 0.5, 0.3):
+        got = fresh.result(ViewSettings(cell_size=size))
+        want = grid_roughness(cloud, size)
+        assert np.array_equal(got.point_cell, want.point_cell)
+        for m in ("odr", "ols", "hybrid", "e_ols"):
+            assert np.allclose(got.values(m), want.values(m), rtol=1e-9, atol=1e-15,
+                               equal_nan=True)
