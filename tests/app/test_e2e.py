@@ -142,3 +142,40 @@ def test_click_reports_cell(live):
     res = app.shown.result
     assert info.theta["odr"] == pytest.approx(res.theta_odr[info.cell])
     assert info.n_points == res.n_points[info.cell]
+
+
+def test_two_clicks_make_a_profile_with_fractal_dimension(live):
+    app, page = live
+    page.get_by_role("tab", name="Profile").click()
+    control = b.control(page, "Profile mode")
+    control.click()
+    b.wait_until(lambda: app.profile["controls"]["on"].value, 20, "profile mode on")
+    img = b.to_array(b.png(page))
+    h, w = img.shape[:2]
+    mask = b.coloured_mask(img)
+    mask[:, int(0.62 * w):] = False
+    mask[: int(0.12 * h), :] = False
+    ys, xs = np.nonzero(mask)
+    y = int(np.median(ys))
+    row = np.flatnonzero(mask[y])
+    # two points on one image row of the face, well apart
+    x0, x1 = int(np.percentile(row, 30)), int(np.percentile(row, 70))
+    assert mask[y, x0] and mask[y, x1]
+    try:
+        page.mouse.click(x0, y)
+        b.wait_until(lambda: app.profile["start"] is not None, 30, "the profile start")
+        page.mouse.click(x1, y)
+        b.wait_until(lambda: len(app.profile["items"]) == 1, 60, "a profile")
+        a = app.profile["items"][0]
+        d_raw, d_den = a.raw_fit.dimension, a.denoised_fit.dimension
+        assert a.profile.length > 0.5 and a.profile.n_points > 50
+        assert 1.0 < d_raw < 2.5 and np.isfinite(d_den)
+        # the panel in the browser shows the values
+        page.get_by_text(f"{d_raw:.3f}").first.wait_for()
+        page.get_by_text(f"{d_den:.3f}").first.wait_for()
+        fig = app.profile["controls"]["plot"].figure
+        assert len(fig.data) >= 2 and any(len(t.x) == len(a.profile.distance) for t in fig.data)
+        page.locator(".js-plotly-plot:visible").first.wait_for()
+    finally:
+        app.profile["controls"]["on"].value = False
+        page.get_by_role("tab", name="Map").click()
