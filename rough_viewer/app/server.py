@@ -44,6 +44,7 @@ from rough_viewer.app.state import (
     point_colours,
 )
 from rough_viewer.core.io import PointCloud, load_points
+from rough_viewer.core.planes import fit_plane
 from rough_viewer.core.roughness import GridRoughness
 from rough_viewer.errors import InputError
 from rough_viewer.figures.app import colour_bar_figure
@@ -176,8 +177,7 @@ def _initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     extent = float(np.max(pts.max(axis=0) - pts.min(axis=0))) or 1.0
     sample = pts[:: max(1, len(pts) // 50_000)]
-    w, v = np.linalg.eigh(np.cov((sample - sample.mean(axis=0)).T))
-    normal = v[:, 0]
+    normal = fit_plane(sample).normal
     if abs(normal[2]) > 0.8:  # near-horizontal surface: look down at an angle
         direction = np.array([0.0, -0.6, 0.8])
         right = np.array([1.0, 0.0, 0.0])

@@ -38,6 +38,9 @@ class PlaneFit:
     """(3,) unit normal (eigenvector of the smallest covariance eigenvalue)."""
     eigenvalues: np.ndarray
     """(3,) population covariance eigenvalues, descending, square metres."""
+    axes: np.ndarray
+    """(3, 3) principal axes as columns, in the order of ``eigenvalues`` (the last
+    column is ``normal``)."""
 
 
 def axis_index(axis: Axis) -> int:
@@ -59,7 +62,7 @@ def fit_plane(xyz: np.ndarray) -> PlaneFit:
     Returns
     -------
     PlaneFit
-        Centroid, unit normal and covariance eigenvalues (descending).
+        Centroid, unit normal, covariance eigenvalues (descending) and principal axes.
     """
     pts = np.asarray(xyz, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
@@ -68,7 +71,9 @@ def fit_plane(xyz: np.ndarray) -> PlaneFit:
     d = pts - centroid
     cov = d.T @ d / pts.shape[0]
     w, v = np.linalg.eigh(cov)
-    return PlaneFit(centroid=centroid, normal=v[:, 0].copy(), eigenvalues=w[::-1].copy())
+    axes = v[:, ::-1].copy()
+    return PlaneFit(centroid=centroid, normal=axes[:, 2].copy(), eigenvalues=w[::-1].copy(),
+                    axes=axes)
 
 
 def dominant_axis(normal: np.ndarray) -> Axis:

@@ -45,6 +45,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from rough_viewer.core.planes import fit_plane
+
 _SPACING_NEIGHBOUR = 4
 _SPACING_SAMPLE = 5000
 _STRIP_POINTS = 50000
@@ -203,10 +205,9 @@ def _strip_spacing(along: np.ndarray, across: np.ndarray) -> float:
 
 def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: float) -> LocalFrame:
     """Principal axes of ``patch`` with ``along`` following ``end - start`` (see module doc)."""
-    centroid = patch.mean(axis=0)
-    cov = np.cov((patch - centroid).T, bias=True)
-    evals, evecs = np.linalg.eigh(cov)  # ascending
-    normal = evecs[:, 0]
+    fit = fit_plane(patch)
+    centroid = fit.centroid
+    normal = fit.normal
     normal = normal * (1.0 if normal[np.argmax(np.abs(normal))] > 0 else -1.0)
     d = end - start
     along = d - (d @ normal) * normal
@@ -224,7 +225,7 @@ def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: f
         along=along,
         across=across,
         normal=normal,
-        eigenvalues=evals[::-1].copy(),
+        eigenvalues=fit.eigenvalues,
         n_points=int(patch.shape[0]),
         radius=float(radius),
     )

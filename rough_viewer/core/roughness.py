@@ -46,6 +46,7 @@ from rough_viewer.core.planes import (
     Axis,
     axis_index,
     dominant_axis,
+    fit_plane,
     odr_from_covariance,
     ols_from_covariance,
 )
@@ -208,11 +209,8 @@ def whole_cloud_normal_from_moments(grid: GridSpec, index: CellIndex, mom: CellM
 
 def whole_cloud_axis(cloud: PointCloud | np.ndarray) -> Axis:
     """The coordinate axis closest to the normal of the whole cloud's ODR plane."""
-    x, y, z = _as_columns(cloud)
-    c = np.array([x.mean(), y.mean(), z.mean()])
-    cols = (x - c[0], y - c[1], z - c[2])
-    cov = np.array([[np.dot(a, b) for b in cols] for a in cols]) / x.shape[0]
-    return dominant_axis(np.linalg.eigh(cov)[1][:, 0])
+    xyz = cloud.xyz() if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
+    return dominant_axis(fit_plane(xyz).normal)
 
 
 def grid_roughness(

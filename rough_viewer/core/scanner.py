@@ -66,13 +66,6 @@ def _as_points(xyz: np.ndarray, *, minimum: int, what: str) -> np.ndarray:
     return pts
 
 
-def _principal_axes(pts: np.ndarray, centroid: np.ndarray) -> np.ndarray:
-    """(3, 3) eigenvectors of the population covariance as columns, largest first."""
-    d = pts - centroid
-    _, v = np.linalg.eigh(d.T @ d / pts.shape[0])
-    return v[:, ::-1]
-
-
 def _orient(normal: np.ndarray, centroid: np.ndarray, scanner: np.ndarray | None,
             residuals: np.ndarray | None = None) -> np.ndarray:
     """Flip ``normal`` to point toward the scanner.
@@ -242,7 +235,7 @@ def range_noise(
         rng = np.random.default_rng(seed)
         pts = pts[rng.choice(pts.shape[0], size=max_points, replace=False)]
     whole = fit_plane(pts)
-    axes = _principal_axes(pts, whole.centroid)
+    axes = whole.axes
     d_whole = (pts - whole.centroid) @ whole.normal
     normal = _orient(whole.normal, whole.centroid,
                      None if scanner is None else np.asarray(scanner, dtype=np.float64))
@@ -361,8 +354,9 @@ def effective_radius(
     if not 0.0 < top_fraction <= 1.0:
         raise ValueError(f"top_fraction must be in (0, 1], got {top_fraction}")
     s = np.asarray(scanner, dtype=np.float64).reshape(3)
-    centroid = pts.mean(axis=0)
-    direction = _principal_axes(pts, centroid)[:, 0]
+    line = fit_plane(pts)
+    centroid = line.centroid
+    direction = line.axes[:, 0]
     to_line = centroid - s
     m = np.cross(direction, to_line)
     norm = float(np.linalg.norm(m))
