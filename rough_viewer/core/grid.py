@@ -154,6 +154,27 @@ def _chunk_size(n_cells: int) -> int:
     return max(1 << 21, int(n_cells))
 
 
+def _decode_keys(keys: np.ndarray, shape: tuple[int, int, int], index_min: np.ndarray) -> np.ndarray:
+    """(M, 3) cell indices from linear keys ``i + nx (j + ny k)`` (x fastest)."""
+    nx, ny, _ = shape
+    k = keys // (nx * ny)
+    rem = keys - k * (nx * ny)
+    j = rem // nx
+    i = rem - j * nx
+    return np.stack([i, j, k], axis=1) + index_min
+
+
+def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex):
+    """Yield ``(point_cell, [lx, ly, lz])`` chunk by chunk: the points' coordinates
+    relative to their cell centre, metres. Every pass over the points takes its
+    cell-local coordinates from here, so the moments and the distances agree exactly."""
+    centre = index.grid.centres(index.ijk)
+    centre_cols = [np.ascontiguousarray(centre[:, a]) for a in range(3)]
+    for s in _chunks(int(x.shape[0]), _chunk_size(index.n_cells)):
+        pc = index.point_cell[s]
+        yield pc, [col[s] - c[pc] for col, c in zip((x, y, z), centre_cols, strict=True)]
+
+
 def index_points(
     x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec
 ) -> CellIndex:
@@ -209,11 +230,7 @@ def index_points(
     else:
         keys_occ, point_cell, counts = np.unique(key, return_inverse=True, return_counts=True)
         del key
-    k = keys_occ // (nx * ny)
-    rem = keys_occ - k * (nx * ny)
-    j = rem // nx
-    i = rem - j * nx
-    ijk = np.stack([i, j, k], axis=1) + grid.index_min
+    ijk = _decode_keys(keys_occ, grid.shape, grid.index_min)
     return CellIndex(grid=grid, ijk=ijk, counts=counts.astype(np.int64), point_cell=point_cell)
 
 
@@ -260,13 +277,9 @@ def cell_moments(
     CellMoments
     """
     m_cells = index.n_cells
-    centre = index.grid.centres(index.ijk)
     s1 = np.zeros((m_cells, 3))
     s2 = np.zeros((m_cells, 3, 3))
-    n = int(x.shape[0])
-    for s in _chunks(n, _chunk_size(m_cells)):
-        pc = index.point_cell[s]
-        local = [col[s] - centre[:, a][pc] for a, col in enumerate((x, y, z))]
+    for pc, local in _local_chunks(x, y, z, index):
         for a in range(3):
             s1[:, a] += np.bincount(pc, weights=local[a], minlength=m_cells)
             for b in range(a, 3):
@@ -303,15 +316,11 @@ def distance_sums(
         metres (squared).
     """
     m_cells = index.n_cells
-    centre = index.grid.centres(index.ijk)
     out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
-    n = int(x.shape[0])
-    for s in _chunks(n, _chunk_size(m_cells)):
-        pc = index.point_cell[s]
-        local = [col[s] - centre[:, a][pc] for a, col in enumerate((x, y, z))]
+    for pc, local in _local_chunks(x, y, z, index):
         for name, (v, off) in offsets.items():
             d = local[0] * v[:, 0][pc]
             d += local[1] * v[:, 1][pc]
@@ -360,11 +369,7 @@ def coarsen(
     key = ((ijk_c[:, 2] - lo[2]) * shape[1] + (ijk_c[:, 1] - lo[1])) * shape[0] + (ijk_c[:, 0] - lo[0])
     keys_c, parent = np.unique(key, return_inverse=True)
     m_c = keys_c.shape[0]
-    kk = keys_c // (shape[0] * shape[1])
-    rem = keys_c - kk * (shape[0] * shape[1])
-    jj = rem // shape[0]
-    ii = rem - jj * shape[0]
-    coarse_ijk = np.stack([ii, jj, kk], axis=1) + lo
+    coarse_ijk = _decode_keys(keys_c, shape, lo)  # type: ignore[arg-type]
     grid = GridSpec(origin=fine.origin.copy(), cell_size=g, index_min=lo.astype(np.int64),
                     shape=shape)  # type: ignore[arg-type]
     counts = np.bincount(parent, weights=index.counts, minlength=m_c).astype(np.int64)
