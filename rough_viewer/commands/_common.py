@@ -36,27 +36,38 @@ def check_output_path(path: str | os.PathLike[str], *, force: bool) -> Path:
     return p
 
 
-def write_atomic(path: str | os.PathLike[str], write: Callable[[object], None], *, mode: str = "w") -> None:
-    """Write a file through a temporary file in the same folder, then rename it,
-    so an error or interrupt never leaves a half-written output.
+def write_path_atomic(path: str | os.PathLike[str], write_to: Callable[[Path], None]) -> None:
+    """Make a file through a temporary file in the same folder, then rename it, so an
+    error or interrupt never leaves a half-written output.
 
-    ``write`` receives the open file object.
+    ``write_to`` receives the temporary path (it ends with ``path``'s suffix, so
+    writers that choose a format by suffix, such as LAS/LAZ, work) and writes the
+    whole file there. The result gets the usual umask permissions.
     """
     p = Path(path)
     parent = p.parent if str(p.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=parent)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".part{p.suffix}", dir=parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
     try:
-        kwargs = {"newline": ""} if "b" not in mode else {}
-        with os.fdopen(fd, mode, **kwargs) as fh:
-            write(fh)
+        write_to(tmp)
         # mkstemp makes the file private (0600); give it the usual umask permissions
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, p)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+        tmp.unlink(missing_ok=True)
         raise
+
+
+def write_atomic(path: str | os.PathLike[str], write: Callable[[object], None], *, mode: str = "w") -> None:
+    """Write a file atomically (see :func:`write_path_atomic`); ``write`` receives the
+    open file object."""
+    kwargs = {"newline": ""} if "b" not in mode else {}
+
+    def write_to(tmp: Path) -> None:
+        with open(tmp, mode, **kwargs) as fh:
+            write(fh)
+
+    write_path_atomic(path, write_to)

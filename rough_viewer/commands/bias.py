@@ -26,12 +26,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.commands._common import check_output_path, parse_xyz
+from rough_viewer.commands._common import check_output_path, parse_xyz, write_path_atomic
 from rough_viewer.errors import InputError
 
 
@@ -132,23 +131,10 @@ def _check_las_out(args: argparse.Namespace) -> Path | None:
 
 
 def _write_las_atomic(path: Path, xyz: np.ndarray, extra: dict) -> None:
-    """Write a LAS/LAZ through a temporary file in the same folder, then rename."""
-    import tempfile
-
+    """Write a LAS/LAZ atomically (temporary file in the same folder, then rename)."""
     from rough_viewer.core.io import PointCloud, write_las
 
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix,
-                               dir=path.parent if str(path.parent) else ".")
-    os.close(fd)
-    try:
-        write_las(tmp, PointCloud.from_xyz(xyz), extra=extra)
-        umask = os.umask(0)  # mkstemp made it private (0600): give the usual permissions
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_path_atomic(path, lambda tmp: write_las(tmp, PointCloud.from_xyz(xyz), extra=extra))
 
 
 # ------------------------------------------------------------------------------ register

@@ -10,11 +10,8 @@
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
-from pathlib import Path
 
-from rough_viewer.commands._common import check_output_path
+from rough_viewer.commands._common import check_output_path, write_path_atomic
 from rough_viewer.errors import InputError
 
 
@@ -70,14 +67,8 @@ def run(args: argparse.Namespace) -> int:
     for opt, val in (("--alpha", args.alpha), ("--beta", args.beta)):
         if not -90.0 < val < 90.0:
             raise InputError(f"{opt} must be between -90 and 90 degrees, got {val:g}")
-    parent = out.parent if str(out.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=out.suffix, dir=parent)
-    os.close(fd)
-    try:
-        n = write_demo(args.name, tmp, alpha_deg=args.alpha, beta_deg=args.beta)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    print(f"wrote {n} points to {out}")
+    written: list[int] = []
+    write_path_atomic(out, lambda tmp: written.append(
+        write_demo(args.name, tmp, alpha_deg=args.alpha, beta_deg=args.beta)))
+    print(f"wrote {written[0]} points to {out}")
     return 0
