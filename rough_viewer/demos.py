@@ -25,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-from rough_viewer.core.io import PointCloud, load_points, write_las
+from rough_viewer.core.io import PointCloud, load_las_with_extra, load_points, write_las
 from rough_viewer.core.synthetic import board as _board
 from rough_viewer.core.synthetic import outcrop as _outcrop
 from rough_viewer.errors import InputError
@@ -156,21 +156,9 @@ def load_demo_with_truth(
 @functools.lru_cache(maxsize=2)
 def _read_bundled(path: str, size: int, mtime_ns: int) -> tuple[PointCloud, DemoTruth]:
     """Points, truth and face part of a bundled outcrop file (cached per file version)."""
-    import laspy
-
-    try:
-        las = laspy.read(path)
-        cloud = PointCloud(
-            x=np.asarray(las.x, dtype=np.float64),
-            y=np.asarray(las.y, dtype=np.float64),
-            z=np.asarray(las.z, dtype=np.float64),
-            intensity=np.asarray(las.intensity),
-            source=path,
-        )
-        truth = np.asarray(las["truth"], dtype=np.uint8)
-        face = np.asarray(las["face"], dtype=np.uint8)
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"cannot read the demo file {path}: {exc}") from None
+    cloud, extra = load_las_with_extra(path, ("truth", "face"))
+    truth = extra["truth"].astype(np.uint8)
+    face = extra["face"].astype(np.uint8)
     return cloud, DemoTruth(truth, _outcrop.TRUTH_NAMES, face, _outcrop.FACE_NAMES)
 
 

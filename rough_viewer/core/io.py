@@ -340,19 +340,45 @@ def write_las(
     las.write(str(p), do_compress=p.suffix.lower() == ".laz", laz_backend=_laz_backend())
 
 
-def read_las_extra(path: str | os.PathLike[str], name: str) -> np.ndarray:
-    """Read one extra dimension (e.g. ``"truth"``) from a LAS/LAZ file."""
+def load_las_with_extra(
+    path: str | os.PathLike[str], names: tuple[str, ...]
+) -> tuple[PointCloud, dict[str, np.ndarray]]:
+    """Read a LAS/LAZ file's points and some of its extra dimensions in one decode.
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.las`` or ``.laz`` file.
+    names : tuple of str
+        Extra dimensions to return (e.g. ``("truth",)``).
+
+    Returns
+    -------
+    PointCloud, dict
+        The points (metres, with intensity) and name -> (N,) array, row-aligned.
+    """
     import laspy
 
     p = Path(path)
     try:
         with laspy.open(p, laz_backend=_laz_backend()) as reader:
             las = reader.read()
-    except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc}") from None
-    if name not in list(las.point_format.extra_dimension_names):
-        raise InputError(f"no extra dimension {name!r} in {p}")
-    return np.asarray(las[name])
+    except Exception as exc:  # laspy and lazrs raise their own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {p}: {msg}") from None
+    present = list(las.point_format.extra_dimension_names)
+    for name in names:
+        if name not in present:
+            raise InputError(f"no extra dimension {name!r} in {p}")
+    x, y, z = (np.asarray(c, dtype=np.float64) for c in (las.x, las.y, las.z))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
+    cloud = _finite_cloud(x, y, z, np.asarray(las.intensity), p)
+    return cloud, {name: np.asarray(las[name])[ok] for name in names}
+
+
+def read_las_extra(path: str | os.PathLike[str], name: str) -> np.ndarray:
+    """Read one extra dimension (e.g. ``"truth"``) from a LAS/LAZ file."""
+    return load_las_with_extra(path, (name,))[1][name]
 
 
 # ----------------------------------------------------------------------------- text
