@@ -16,7 +16,7 @@ import numpy as np
 
 
 def synthetic_face(n: int, seed: int = 0):
-    from rough_viewer.core.io import PointCloud
+    from rough_viewer.io import PointCloud
 
     rng = np.random.default_rng(seed)
     x = rng.uniform(0.0, 40.0, n)
@@ -78,7 +78,7 @@ def main() -> None:
     ap.add_argument("--demo", action="store_true", help="also time the demo outcrop")
     args = ap.parse_args()
     if args.demo:
-        from rough_viewer import demos
+        from rough_viewer.synthetic import demos
 
         demo = demos.load_demo("outcrop")
         run(demo, "demo outcrop", prefetch=False)

@@ -25,8 +25,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rough_viewer.core.io import PointCloud, load_points, write_las  # noqa: E402
-from rough_viewer.core.roughness import grid_roughness  # noqa: E402
+from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
+from rough_viewer.io import PointCloud, load_points, write_las  # noqa: E402
 
 STAGES = ("cell keys", "moments", "plane fits", "distances")
 

@@ -17,10 +17,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rough_viewer.core.denoise_compare import compare_denoising  # noqa: E402
-from rough_viewer.core.fractal import roughness_length, roughness_length_2d  # noqa: E402
-from rough_viewer.core.profile import extract_profile  # noqa: E402
-from rough_viewer.core.synthetic_fbm import fbm_profile  # noqa: E402
+from rough_viewer.profiles.comparison import compare_denoising  # noqa: E402
+from rough_viewer.profiles.extraction import extract_profile  # noqa: E402
+from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d  # noqa: E402
+from rough_viewer.synthetic.fbm import fbm_profile  # noqa: E402
 
 
 def timed(fn, repeat: int) -> float:

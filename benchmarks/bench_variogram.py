@@ -17,7 +17,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rough_viewer.core.variogram import face_semivariogram, semivariogram
+from rough_viewer.grid.variogram import face_semivariogram, semivariogram
 
 
 def face_cells(n_cells: int, g: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from rough_viewer.core.roughness import grid_roughness
-from rough_viewer.core.synthetic import PAPER_ROTATIONS_DEG, board_scan
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.synthetic import PAPER_ROTATIONS_DEG, board_scan
 
 
 def main() -> None:

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.core.roughness import binary, grid_roughness, normalise
-from rough_viewer.demos import demo_path, load_demo_with_truth, write_demo
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.summary import binary, normalise
+from rough_viewer.synthetic.demos import demo_path, load_demo_with_truth, write_demo
 
 
 def main() -> None:

@@ -22,13 +22,13 @@ import time
 
 import numpy as np
 
-from rough_viewer.core.scanner import (
+from rough_viewer.bias.measurement import (
     classification_scores,
     classify_population,
     normalise_population,
     range_noise,
 )
-from rough_viewer.core.scanner_sim import paper_target, simulate_target, smoothing_curve
+from rough_viewer.bias.simulation import paper_target, simulate_target, smoothing_curve
 
 NOISE = 0.0016
 PAPER = {"A": (5.07, 5.31, 17.75), "B": (8.64, 8.79, 5.5)}

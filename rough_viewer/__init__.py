@@ -1,8 +1,151 @@
 """rough_viewer: surface roughness of scanned rock faces.
 
-The compute core lives in :mod:`rough_viewer.core` (numpy, scipy, PyWavelets and
-laspy only); the browser app in :mod:`rough_viewer.app`; the command line in
-:mod:`rough_viewer.cli`.
+The public API is flat: everything a notebook needs is importable from here.
+
+>>> import numpy as np
+>>> import rough_viewer as rv
+>>> rng = np.random.default_rng(0)
+>>> xy = rng.uniform(0.0, 2.0, (20_000, 2))
+>>> z = 0.002 * rng.standard_normal(20_000)          # a flat face with 2 mm noise
+>>> res = rv.grid_roughness(np.column_stack([xy, z]), 0.5)
+>>> res.n_cells, res.axis
+(16, 'z')
+>>> round(float(np.nanmean(res.theta_odr)) * 1e3, 1)   # std of |2 mm noise|, in mm
+1.2
+
+Packages, data flowing one way (each imports only those above it):
+
+- :mod:`rough_viewer.vocabulary`: models, maps, axes, labels, the one error type;
+- :mod:`rough_viewer.io`: reading points, the decode cache, writers;
+- :mod:`rough_viewer.grid`: grid roughness, maps, semivariograms;
+- :mod:`rough_viewer.profiles`: profiles, wavelets, fractal dimension;
+- :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
+- :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
+- :mod:`rough_viewer.visual`: colour maps and plotly figures;
+- :mod:`rough_viewer.report`, :mod:`rough_viewer.app`, :mod:`rough_viewer.cli` on top.
+
+Names are loaded on first use, so ``import rough_viewer`` stays cheap.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+#: Public name -> module that defines it.
+_API: dict[str, str] = {
+    # vocabulary
+    "InputError": "rough_viewer.vocabulary",
+    "MODELS": "rough_viewer.vocabulary",
+    "MAPS": "rough_viewer.vocabulary",
+    "AXES": "rough_viewer.vocabulary",
+    # points
+    "PointCloud": "rough_viewer.io.cloud",
+    "load_points": "rough_viewer.io.load",
+    "write_las": "rough_viewer.io.las",
+    # grid roughness
+    "grid_roughness": "rough_viewer.grid.roughness",
+    "prepare_grid": "rough_viewer.grid.roughness",
+    "coarsen_prepared": "rough_viewer.grid.roughness",
+    "whole_cloud_axis": "rough_viewer.grid.roughness",
+    "GridRoughness": "rough_viewer.grid.roughness",
+    "fit_plane": "rough_viewer.grid.planes",
+    "summarise": "rough_viewer.grid.summary",
+    "summaries": "rough_viewer.grid.summary",
+    "normalise": "rough_viewer.grid.summary",
+    "binary": "rough_viewer.grid.summary",
+    "histogram": "rough_viewer.grid.summary",
+    "Summary": "rough_viewer.grid.summary",
+    "semivariogram": "rough_viewer.grid.variogram",
+    "face_semivariogram": "rough_viewer.grid.variogram",
+    "face_maps": "rough_viewer.grid.maps",
+    "face_raster": "rough_viewer.grid.maps",
+    # profiles
+    "extract_profile": "rough_viewer.profiles.extraction",
+    "regular_samples": "rough_viewer.profiles.extraction",
+    "noise_sigma": "rough_viewer.profiles.wavelets",
+    "denoise": "rough_viewer.profiles.wavelets",
+    "denoise_result": "rough_viewer.profiles.wavelets",
+    "threshold_value": "rough_viewer.profiles.wavelets",
+    "roughness_length": "rough_viewer.profiles.fractal",
+    "roughness_length_2d": "rough_viewer.profiles.fractal",
+    "compare_denoising": "rough_viewer.profiles.comparison",
+    # scanner bias
+    "range_noise": "rough_viewer.bias.measurement",
+    "effective_radius": "rough_viewer.bias.measurement",
+    "normalise_population": "rough_viewer.bias.measurement",
+    "target_roughness": "rough_viewer.bias.measurement",
+    "predict_bias": "rough_viewer.bias.simulation",
+    "simulate_target": "rough_viewer.bias.simulation",
+    "smoothing_curve": "rough_viewer.bias.simulation",
+    # synthetic data and demos
+    "board_scan": "rough_viewer.synthetic.board",
+    "generate_outcrop": "rough_viewer.synthetic.outcrop",
+    "fbm_profile": "rough_viewer.synthetic.fbm",
+    "list_demos": "rough_viewer.synthetic.demos",
+    "load_demo": "rough_viewer.synthetic.demos",
+}
+
+__all__ = ["__version__", *sorted(_API)]
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use (PEP 562)."""
+    try:
+        module = _API[name]
+    except KeyError:
+        raise AttributeError(f"module 'rough_viewer' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))
+
+
+if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
+    from rough_viewer.bias.measurement import (
+        effective_radius,
+        normalise_population,
+        range_noise,
+        target_roughness,
+    )
+    from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
+    from rough_viewer.grid.maps import face_maps, face_raster
+    from rough_viewer.grid.planes import fit_plane
+    from rough_viewer.grid.roughness import (
+        GridRoughness,
+        coarsen_prepared,
+        grid_roughness,
+        prepare_grid,
+        whole_cloud_axis,
+    )
+    from rough_viewer.grid.summary import (
+        Summary,
+        binary,
+        histogram,
+        normalise,
+        summaries,
+        summarise,
+    )
+    from rough_viewer.grid.variogram import face_semivariogram, semivariogram
+    from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.las import write_las
+    from rough_viewer.io.load import load_points
+    from rough_viewer.profiles.comparison import compare_denoising
+    from rough_viewer.profiles.extraction import extract_profile, regular_samples
+    from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d
+    from rough_viewer.profiles.wavelets import (
+        denoise,
+        denoise_result,
+        noise_sigma,
+        threshold_value,
+    )
+    from rough_viewer.synthetic.board import board_scan
+    from rough_viewer.synthetic.demos import list_demos, load_demo
+    from rough_viewer.synthetic.fbm import fbm_profile
+    from rough_viewer.synthetic.outcrop import generate_outcrop
+    from rough_viewer.vocabulary import AXES, MAPS, MODELS, InputError

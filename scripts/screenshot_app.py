@@ -48,9 +48,9 @@ def main() -> None:
     import viser
     from playwright.sync_api import sync_playwright
 
-    from rough_viewer import demos
     from rough_viewer.app.server import build_app
     from rough_viewer.app.state import ViewSettings
+    from rough_viewer.synthetic import demos
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, demos.load_demo(args.demo), max_display=args.max_points,

@@ -2,9 +2,9 @@
 
 :func:`add_bias_panel` adds a folder to a viser GUI: range noise, effective radius,
 asperity radius (millimetres), roughness convention and a "Predict" button. The
-prediction (:func:`rough_viewer.core.scanner_sim.predict_bias` on the paper's target
+prediction (:func:`rough_viewer.bias.simulation.predict_bias` on the paper's target
 layout) is shown as a small table, with the smoothing curve against ER / asperity
-radius for the chosen asperity radius (:func:`rough_viewer.figures.bias.
+radius for the chosen asperity radius (:func:`rough_viewer.visual.bias.
 smoothing_curve_figure`). The panel is self-contained: it needs no loaded cloud.
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.core.scanner_sim import BiasPrediction, predict_bias, smoothing_curve
+from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
 
 #: ER / asperity radius values of the panel's curve.
 CURVE_RATIOS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
@@ -54,7 +54,7 @@ class BiasPanel:
         Returns the prediction, or None (with a message in the table) for values that
         cannot be simulated.
         """
-        from rough_viewer.figures.bias import smoothing_curve_figure
+        from rough_viewer.visual.bias import smoothing_curve_figure
 
         noise = float(self.noise_mm.value) * 1e-3
         er = float(self.er_mm.value) * 1e-3

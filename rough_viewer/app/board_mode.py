@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rough_viewer.core.roughness import grid_roughness, whole_cloud_axis
-from rough_viewer.core.synthetic.board import BoardScan, board_scan
+from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
+from rough_viewer.synthetic.board import BoardScan, board_scan
 
 #: Cell edge that holds the whole 1 m board in one cell, metres.
 WHOLE_BOARD_CELL = 2.0

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import plotly.graph_objects as go
 import viser
 
-from rough_viewer import colormaps
 from rough_viewer.app.state import MODEL_LABELS, PRESET_CELL_SIZES, ViewSettings
+from rough_viewer.visual import colormaps
 
 #: Grid-size dropdown entries: the presets as text, then "free" (use the number field).
 GRID_PRESET_OPTIONS: tuple[str, ...] = tuple(f"{g:g}" for g in PRESET_CELL_SIZES) + ("free",)

@@ -1,9 +1,9 @@
 """Data for the analysis panels, built with the shared figure builders.
 
 The histogram, semivariogram and summary table shown in the app are the report's
-figures (:mod:`rough_viewer.figures.grid`) fed with core results
-(:func:`rough_viewer.core.roughness.histogram`, :func:`summarise`,
-:func:`rough_viewer.core.variogram.semivariogram`); nothing is recomputed here.
+figures (:mod:`rough_viewer.visual.grid`) fed with core results
+(:func:`rough_viewer.grid.roughness.histogram`, :func:`summarise`,
+:func:`rough_viewer.grid.variogram.semivariogram`); nothing is recomputed here.
 """
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import plotly.graph_objects as go
 
 from rough_viewer.app.state import ViewSettings
-from rough_viewer.core.roughness import GridRoughness, histogram, normalise, summarise
-from rough_viewer.core.variogram import Semivariogram, semivariogram
-from rough_viewer.figures.grid import histogram_figure, summary_table_figure, variogram_figure
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.summary import histogram, normalise, summarise
+from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.visual.grid import histogram_figure, summary_table_figure, variogram_figure
 
 ALL_MAPS = ("odr", "ols", "hybrid", "e_ols")
 

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rough_viewer.core.fractal import RoughnessLength, roughness_length
-from rough_viewer.core.profile import Profile, extract_profile
-from rough_viewer.core.wavelets import Denoised, denoise_result
+from rough_viewer.profiles.extraction import Profile, extract_profile
+from rough_viewer.profiles.fractal import RoughnessLength, roughness_length
+from rough_viewer.profiles.wavelets import Denoised, denoise_result
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
 THRESHOLD_RULES = ("fixed", "penalized-low", "penalized-medium", "penalized-high")
@@ -24,7 +24,7 @@ LINE_COLOURS = ((230, 60, 40), (30, 120, 230), (250, 160, 0), (150, 60, 200), (2
 
 @dataclass(frozen=True)
 class ProfileSettings:
-    """De-noising and extraction options (see :mod:`rough_viewer.core.wavelets`)."""
+    """De-noising and extraction options (see :mod:`rough_viewer.profiles.wavelets`)."""
 
     wavelet: str = "db3"
     level: int = 3
@@ -94,7 +94,7 @@ def summary_markdown(analyses: list[ProfileAnalysis]) -> str:
 
 def add_profile_tab(app, tabs) -> None:
     """Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
-    from rough_viewer.figures.app import profile_figure
+    from rough_viewer.visual.app import profile_figure
 
     gui = app.server.gui
     with tabs.add_tab("Profile"):

@@ -43,11 +43,11 @@ from rough_viewer.app.state import (
     normalised_map,
     point_colours,
 )
-from rough_viewer.core.io import PointCloud, load_points
-from rough_viewer.core.planes import fit_plane
-from rough_viewer.core.roughness import GridRoughness
-from rough_viewer.errors import InputError
-from rough_viewer.figures.app import colour_bar_figure
+from rough_viewer.grid.planes import fit_plane
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.io import PointCloud, load_points
+from rough_viewer.visual.app import colour_bar_figure
+from rough_viewer.vocabulary import InputError
 
 AXIS_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 AXIS_COLOUR = (230, 60, 40)

@@ -3,7 +3,7 @@ results and the colours they give. No viser here, so all of it is testable.
 
 Data flow: a :class:`ViewSettings` snapshot names a grid (cell size, dependent
 axis, minimum points) and a way to colour it. :meth:`LoadedCloud.result` computes
-that grid with the core (:func:`rough_viewer.core.roughness.grid_roughness`, the
+that grid with the core (:func:`rough_viewer.grid.roughness.grid_roughness`, the
 same call as ``rough-viewer compute``) once and caches it; :func:`point_colours`
 turns a result plus the colouring settings into one RGB triple per displayed
 point without touching the planes again.
@@ -19,19 +19,19 @@ from typing import Literal
 
 import numpy as np
 
-from rough_viewer import colormaps
 from rough_viewer.app.sampling import display_subset
-from rough_viewer.core.io import PointCloud
-from rough_viewer.core.roughness import (
+from rough_viewer.grid.roughness import (
     GridRoughness,
     PreparedGrid,
     coarsen_prepared,
     grid_roughness,
-    normalise,
     prepare_grid,
     whole_cloud_axis,
 )
-from rough_viewer.errors import InputError
+from rough_viewer.grid.summary import normalise
+from rough_viewer.io import PointCloud
+from rough_viewer.visual import colormaps
+from rough_viewer.vocabulary import InputError
 
 MapName = Literal["odr", "ols", "hybrid", "e_ols"]
 AxisChoice = Literal["auto", "x", "y", "z"]
@@ -76,7 +76,7 @@ class ViewSettings:
     threshold: float = 0.05
     """Binary threshold on normalised roughness (0-1)."""
     colormap: str = "viridis"
-    """Colour map name (see :mod:`rough_viewer.colormaps`)."""
+    """Colour map name (see :mod:`rough_viewer.visual.colormaps`)."""
     clip: tuple[float, float] = (0.0, 1.0)
     """Normalised range spread over the colour map; values outside get the end colours."""
 

@@ -2,15 +2,10 @@
 
 from __future__ import annotations
 
-import os
-import sys
-
 import pytest
 
-sys.path.insert(0, os.path.dirname(__file__))
-from app_fixtures import face_cloud  # noqa: E402
-
-from rough_viewer.core.io import PointCloud  # noqa: E402
+from rough_viewer.io import PointCloud  # noqa: E402
+from tests.helpers import face_cloud
 
 
 @pytest.fixture(scope="session")

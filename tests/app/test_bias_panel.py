@@ -7,7 +7,7 @@ import socket
 import pytest
 
 from rough_viewer.app.bias_panel import add_bias_panel
-from rough_viewer.core.scanner_sim import predict_bias
+from rough_viewer.bias.simulation import predict_bias
 
 
 def _free_port() -> int:

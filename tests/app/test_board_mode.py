@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.board_mode import board_lesson
-from rough_viewer.core.synthetic.board import PAPER_THEORETICAL_ROUGHNESS_M
+from rough_viewer.synthetic.board import PAPER_THEORETICAL_ROUGHNESS_M
 
 
 def test_unrotated_board_matches_the_paper_and_ols_grows_with_rotation():

@@ -7,16 +7,13 @@ WebGL); each test sets the controls it relies on. ~120k points.
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(__file__))
-import app_browser as b  # noqa: E402
-from app_fixtures import face_cloud  # noqa: E402
-
-from rough_viewer import colormaps  # noqa: E402
+from rough_viewer.visual import colormaps  # noqa: E402
+from tests.app import browser as b
+from tests.helpers import face_cloud
 
 pytestmark = pytest.mark.browser
 

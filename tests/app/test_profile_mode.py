@@ -5,9 +5,9 @@ import pytest
 
 from rough_viewer.app.profile_mode import ProfileSettings, analyse, profiles_csv
 from rough_viewer.app.server import on_scene_click
-from rough_viewer.core.fractal import roughness_length
-from rough_viewer.core.profile import extract_profile
-from rough_viewer.core.wavelets import denoise
+from rough_viewer.profiles.extraction import extract_profile
+from rough_viewer.profiles.fractal import roughness_length
+from rough_viewer.profiles.wavelets import denoise
 
 
 def click_on(app, i):

@@ -7,11 +7,12 @@ runs on the app's worker thread, so each test waits with ``app.wait_idle()``.
 import numpy as np
 import pytest
 
-from rough_viewer import colormaps
 from rough_viewer.app import state as state_mod
 from rough_viewer.app.server import build_app, on_scene_click
-from rough_viewer.core.io import PointCloud
-from rough_viewer.core.roughness import grid_roughness, histogram, normalise
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.summary import histogram, normalise
+from rough_viewer.io import PointCloud
+from rough_viewer.visual import colormaps
 
 
 def expected_colours(app, cloud, cell, name, cmap="viridis"):

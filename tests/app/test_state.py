@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from rough_viewer import colormaps
 from rough_viewer.app import state as state_mod
 from rough_viewer.app.state import (
     LoadedCloud,
@@ -13,8 +12,10 @@ from rough_viewer.app.state import (
     map_stats,
     point_colours,
 )
-from rough_viewer.core.roughness import binary, grid_roughness, normalise
-from rough_viewer.errors import InputError
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.summary import binary, normalise
+from rough_viewer.visual import colormaps
+from rough_viewer.vocabulary import InputError
 
 
 @pytest.fixture(scope="module")

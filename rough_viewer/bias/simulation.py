@@ -1,0 +1,481 @@
+"""Simulated rough targets: hemispherical asperities, range noise and beam smoothing.
+
+After the instrument-bias paper (SCIENCE.md section 3): a flat board sampled on a
+regular raster (default 1 mm), hemispheres of radius ``r`` on chosen nodes (height
+``sqrt(r^2 - d^2)`` inside, 0 outside), then
+
+- beam smoothing: every sample is the mean height of the surface over a disc of the
+  beam's effective radius (ER) around it (an FFT convolution with a disc kernel);
+- range noise: independent Gaussian heights of standard deviation ``sigma``.
+
+:func:`predict_bias` compares the roughness of the true surface ("expected") with
+that of the noisy, smoothed surface ("measured") on population-normalised clouds;
+:func:`smoothing_curve` gives the error against ER / asperity radius (the paper's
+Fig. 4). The paper's targets are :func:`paper_target` ("A": r = 19 mm, "B": 32.5 mm).
+All lengths are metres.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from scipy.signal import fftconvolve
+
+from rough_viewer.bias.measurement import normalise_population, target_roughness
+from rough_viewer.vocabulary import Residual
+
+PaperTarget = Literal["A", "B"]
+Normalisation = Literal["known", "none"]
+
+#: The paper's board: 0.609 m x 1.244 m.
+PAPER_BOARD_M = (0.609, 1.244)
+#: Asperity radii of the paper's targets A and B, metres.
+PAPER_RADIUS_M = {"A": 0.019, "B": 0.0325}
+#: Edge of the squares of the paper's node grid (6 x 13 squares), metres.
+PAPER_PITCH_M = 0.085
+#: Asperities on the paper's targets (at randomly chosen nodes).
+PAPER_N_ASPERITIES = 36
+
+__all__ = [
+    "BiasPrediction",
+    "PAPER_BOARD_M",
+    "PAPER_RADIUS_M",
+    "SimulatedTarget",
+    "SmoothingCurve",
+    "TargetLayout",
+    "disc_kernel",
+    "paper_target",
+    "predict_bias",
+    "raster_heights",
+    "simulate_target",
+    "smooth_heights",
+    "smoothing_curve",
+]
+
+
+@dataclass(frozen=True)
+class TargetLayout:
+    """A flat board with hemispherical asperities."""
+
+    width_m: float
+    """Board extent along x, metres."""
+    height_m: float
+    """Board extent along y, metres."""
+    centres: np.ndarray
+    """(K, 2) asperity centres (x, y) on the board, metres from its corner."""
+    asperity_radius_m: float
+    """Hemisphere radius, metres."""
+
+
+def paper_target(
+    which: PaperTarget = "A",
+    *,
+    asperity_radius_m: float | None = None,
+    seed: int | None = 0,
+) -> TargetLayout:
+    """The paper's target A or B: a 0.609 m x 1.244 m board, 36 hemispheres.
+
+    The nodes are the 7 x 14 corners of a 6 x 13 grid of 85 mm squares centred on
+    the board; 36 of them are drawn at random (the paper's own draw is not
+    published; with population normalisation the roughness hardly depends on it).
+
+    Parameters
+    ----------
+    which : {"A", "B"}
+        Target A (r = 19 mm) or B (r = 32.5 mm).
+    asperity_radius_m : float, optional
+        Another radius on the same layout, metres.
+    seed : int, optional
+        Seed of the node draw (the same for A and B: identical node patterns).
+    """
+    if which not in PAPER_RADIUS_M:
+        raise ValueError(f"paper target must be 'A' or 'B', got {which!r}")
+    r = PAPER_RADIUS_M[which] if asperity_radius_m is None else float(asperity_radius_m)
+    w, h = PAPER_BOARD_M
+    gx = (w - 6 * PAPER_PITCH_M) / 2 + PAPER_PITCH_M * np.arange(7)
+    gy = (h - 13 * PAPER_PITCH_M) / 2 + PAPER_PITCH_M * np.arange(14)
+    nodes = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
+    pick = np.random.default_rng(seed).choice(nodes.shape[0], size=PAPER_N_ASPERITIES,
+                                              replace=False)
+    return TargetLayout(width_m=w, height_m=h, centres=nodes[np.sort(pick)],
+                        asperity_radius_m=r)
+
+
+def raster_heights(
+    layout: TargetLayout, *, spacing_m: float = 1e-3
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """True heights of a target on a regular raster.
+
+    Raster nodes sit at the centres of ``spacing_m`` squares covering the board:
+    ``x_i = (i + 0.5) * spacing_m``.
+
+    Returns
+    -------
+    x : (nx,) array, metres
+    y : (ny,) array, metres
+    z : (ny, nx) array
+        Heights above the board, metres: ``sqrt(r^2 - d^2)`` within ``r`` of an
+        asperity centre (the highest where two overlap), 0 elsewhere.
+    asperity : (ny, nx) bool array
+        True within ``r`` of an asperity centre (the known class).
+    """
+    if not spacing_m > 0:
+        raise ValueError(f"spacing must be > 0, got {spacing_m}")
+    nx = int(round(layout.width_m / spacing_m))
+    ny = int(round(layout.height_m / spacing_m))
+    if nx < 1 or ny < 1:
+        raise ValueError("the board is smaller than one raster cell")
+    x = (np.arange(nx) + 0.5) * spacing_m
+    y = (np.arange(ny) + 0.5) * spacing_m
+    z = np.zeros((ny, nx))
+    asperity = np.zeros((ny, nx), dtype=bool)
+    r = float(layout.asperity_radius_m)
+    r2 = r * r
+    # One window per asperity (a loop over asperities, not over points).
+    for cx, cy in np.asarray(layout.centres, dtype=np.float64).reshape(-1, 2):
+        i0 = max(0, int(math.floor((cx - r) / spacing_m - 0.5)))
+        i1 = min(nx, int(math.ceil((cx + r) / spacing_m + 0.5)) + 1)
+        j0 = max(0, int(math.floor((cy - r) / spacing_m - 0.5)))
+        j1 = min(ny, int(math.ceil((cy + r) / spacing_m + 0.5)) + 1)
+        if i0 >= i1 or j0 >= j1:
+            continue
+        d2 = (x[None, i0:i1] - cx) ** 2 + (y[j0:j1, None] - cy) ** 2
+        inside = d2 < r2
+        h = np.sqrt(np.where(inside, r2 - d2, 0.0))
+        z[j0:j1, i0:i1] = np.maximum(z[j0:j1, i0:i1], h)
+        asperity[j0:j1, i0:i1] |= inside
+    return x, y, z, asperity
+
+
+def disc_kernel(radius_m: float, spacing_m: float, *, supersample: int = 8) -> np.ndarray:
+    """Averaging kernel of a disc on a raster, weights summing to 1.
+
+    Each weight is the fraction of the raster cell (a ``spacing_m`` square centred
+    on the node) inside the disc, estimated on a ``supersample`` x ``supersample``
+    sub-grid, so radii that are not whole multiples of the spacing are honoured.
+
+    Parameters
+    ----------
+    radius_m : float
+        Disc radius (the effective radius), metres; 0 gives the identity kernel.
+    spacing_m : float
+        Raster spacing, metres.
+    """
+    if radius_m < 0 or not spacing_m > 0:
+        raise ValueError("disc radius must be >= 0 and spacing > 0")
+    rp = radius_m / spacing_m
+    half = int(math.floor(rp + 0.5))
+    if half == 0:
+        return np.ones((1, 1))
+    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+    off = np.arange(-half, half + 1)
+    px = off[:, None] + sub[None, :]                      # (n, q) sub-sample coordinates
+    d2 = px[:, None, :, None] ** 2 + px[None, :, None, :] ** 2   # (n, n, q, q)
+    w = (d2 <= rp * rp).mean(axis=(2, 3))
+    return w / w.sum()
+
+
+def smooth_heights(z: np.ndarray, *, effective_radius_m: float, spacing_m: float) -> np.ndarray:
+    """Beam smoothing: each sample becomes the mean height over a disc around it.
+
+    FFT convolution of the height raster with :func:`disc_kernel`; outside the
+    raster the board is taken as flat at height 0.
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Heights, metres.
+    effective_radius_m : float
+        Beam effective radius, metres.
+    spacing_m : float
+        Raster spacing, metres.
+    """
+    k = disc_kernel(effective_radius_m, spacing_m)
+    if k.shape == (1, 1):
+        return np.array(z, dtype=np.float64, copy=True)
+    return fftconvolve(np.asarray(z, dtype=np.float64), k, mode="same")
+
+
+@dataclass(frozen=True)
+class SimulatedTarget:
+    """A simulated scan of a rough target on a regular raster."""
+
+    x: np.ndarray
+    """(nx,) raster x coordinates, metres."""
+    y: np.ndarray
+    """(ny,) raster y coordinates, metres."""
+    true_height: np.ndarray
+    """(ny, nx) heights of the real surface, metres."""
+    height: np.ndarray
+    """(ny, nx) "measured" heights: smoothed by the beam, plus range noise, metres."""
+    asperity: np.ndarray
+    """(ny, nx) bool: the known class (True = asperity point)."""
+    spacing_m: float
+    """Raster spacing, metres."""
+    noise_sigma_m: float
+    """Range noise standard deviation, metres."""
+    effective_radius_m: float
+    """Beam effective radius, metres."""
+
+    def xyz(self, *, true: bool = False) -> np.ndarray:
+        """(ny * nx, 3) points, metres (the board in the xy plane, the scanner on +z)."""
+        z = self.true_height if true else self.height
+        gx, gy = np.meshgrid(self.x, self.y)
+        return np.column_stack((gx.ravel(), gy.ravel(), z.ravel()))
+
+    def labels(self) -> np.ndarray:
+        """(ny * nx,) bool known classes in the order of :meth:`xyz`."""
+        return self.asperity.ravel().copy()
+
+
+def simulate_target(
+    layout: TargetLayout,
+    *,
+    spacing_m: float = 1e-3,
+    noise_sigma_m: float = 0.0,
+    effective_radius_m: float = 0.0,
+    seed: int | np.random.Generator | None = 0,
+) -> SimulatedTarget:
+    """Simulate the scan of a rough target: true raster, beam smoothing, range noise.
+
+    Parameters
+    ----------
+    layout : TargetLayout
+        Board and asperities (e.g. :func:`paper_target`).
+    spacing_m : float
+        Raster spacing, metres (the paper: 1 mm). Keep it well below the effective
+        radius, or the smoothing cannot be represented.
+    noise_sigma_m : float
+        Range noise standard deviation, metres (the paper: 1.6 mm).
+    effective_radius_m : float
+        Beam effective radius, metres (0 = no smoothing).
+    seed : int or numpy Generator, optional
+        Randomness of the noise.
+    """
+    if noise_sigma_m < 0 or effective_radius_m < 0:
+        raise ValueError("noise sigma and effective radius must be >= 0")
+    x, y, z, asperity = raster_heights(layout, spacing_m=spacing_m)
+    h = smooth_heights(z, effective_radius_m=effective_radius_m, spacing_m=spacing_m)
+    if noise_sigma_m > 0:
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        h = h + rng.normal(0.0, noise_sigma_m, size=h.shape)
+    return SimulatedTarget(x=x, y=y, true_height=z, height=h, asperity=asperity,
+                           spacing_m=float(spacing_m), noise_sigma_m=float(noise_sigma_m),
+                           effective_radius_m=float(effective_radius_m))
+
+
+@dataclass(frozen=True)
+class BiasPrediction:
+    """Expected against "measured" roughness of a simulated target (means over trials)."""
+
+    noise_sigma_m: float
+    """Range noise, metres."""
+    effective_radius_m: float
+    """Beam effective radius, metres."""
+    asperity_radius_m: float
+    """Hemisphere radius, metres."""
+    er_ratio: float
+    """Effective radius / asperity radius."""
+    expected_m: float
+    """Roughness of the true surface, metres."""
+    noise_only_m: float
+    """Roughness with range noise, no smoothing, metres."""
+    smoothing_only_m: float
+    """Roughness with beam smoothing, no noise, metres."""
+    measured_m: float
+    """Roughness with both (what the scanner would give), metres."""
+    measured_std_m: float
+    """Standard deviation of ``measured_m`` over the trials, metres."""
+    noise_effect_pct: float
+    """``100 (noise_only / expected - 1)``: the over-estimate from noise."""
+    smoothing_effect_pct: float
+    """``100 (smoothing_only / expected - 1)``: the under-estimate from smoothing."""
+    total_effect_pct: float
+    """``100 (measured / expected - 1)``."""
+    vs_noisy_pct: float
+    """``100 (measured / noise_only - 1)``: against a simulation that includes the
+    noise (the paper's Fig. 4 axis)."""
+    trials: int
+    """Noise and thinning draws averaged."""
+    normalisation: Normalisation
+    """``"known"``: thinned to ``ratio`` with the known classes; ``"none"``: all points."""
+    ratio: float
+    """Background : asperity ratio after normalisation (or the native one)."""
+    residual: Residual
+    """Roughness convention (see :func:`rough_viewer.bias.measurement.target_roughness`)."""
+
+
+def _roughness_variants(
+    xy: np.ndarray, heights: list[np.ndarray], keep: np.ndarray, residual: Residual
+) -> list[float]:
+    out = []
+    for h in heights:
+        pts = np.column_stack((xy[keep], h.ravel()[keep]))
+        out.append(target_roughness(pts, residual=residual))
+    return out
+
+
+def predict_bias(
+    *,
+    noise_sigma_m: float,
+    effective_radius_m: float,
+    asperity_radius_m: float | None = None,
+    layout: TargetLayout | None = None,
+    spacing_m: float = 1e-3,
+    ratio: float = 5.0,
+    normalisation: Normalisation = "known",
+    trials: int = 1,
+    seed: int | None = 0,
+    residual: Residual = "absolute",
+) -> BiasPrediction:
+    """Predict the roughness over- or under-estimate of a scanner on a rough target.
+
+    Simulates the true target, the target with noise, with smoothing and with both,
+    thins every version with the same known-class draw to ``ratio`` background
+    points per asperity point, and compares their roughness.
+
+    Parameters
+    ----------
+    noise_sigma_m : float
+        Range noise, metres.
+    effective_radius_m : float
+        Beam effective radius, metres.
+    asperity_radius_m : float, optional
+        Hemisphere radius, metres, on the paper's layout (default: target A, 19 mm).
+        Ignored when ``layout`` is given.
+    layout : TargetLayout, optional
+        Another target.
+    spacing_m : float
+        Raster spacing, metres.
+    ratio : float
+        Background : asperity ratio of the normalisation (the paper: 5).
+    normalisation : {"known", "none"}
+        Thin with the known classes, or keep every point.
+    trials : int
+        Independent noise / thinning draws to average.
+    seed : int, optional
+        Seed of all draws.
+    residual : {"absolute", "signed"}
+        Roughness convention.
+    """
+    if trials < 1:
+        raise ValueError(f"trials must be >= 1, got {trials}")
+    if normalisation not in ("known", "none"):
+        raise ValueError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
+    if layout is None:
+        layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    base = simulate_target(layout, spacing_m=spacing_m)
+    smooth = smooth_heights(base.true_height, effective_radius_m=effective_radius_m,
+                            spacing_m=spacing_m)
+    xy = base.xyz(true=True)[:, :2]
+    labels = base.labels()
+    rng = np.random.default_rng(seed)
+    rows = []
+    ratios = []
+    for _ in range(trials):
+        noise = rng.normal(0.0, noise_sigma_m, size=smooth.shape) if noise_sigma_m > 0 else 0.0
+        if normalisation == "known":
+            pts0 = np.column_stack((xy, base.true_height.ravel()))
+            pop = normalise_population(pts0, labels, ratio=ratio, seed=rng, residual=residual)
+            keep = pop.keep
+            ratios.append(pop.ratio)
+        else:
+            keep = np.arange(labels.size)
+            n_asp = max(int(labels.sum()), 1)
+            ratios.append((labels.size - n_asp) / n_asp)
+        rows.append(_roughness_variants(
+            xy, [base.true_height, base.true_height + noise, smooth, smooth + noise],
+            keep, residual))
+    v = np.asarray(rows)
+    mean = v.mean(axis=0)
+    exp_, noisy, smoothed, measured = (float(m) for m in mean)
+    r = float(layout.asperity_radius_m)
+    return BiasPrediction(
+        noise_sigma_m=float(noise_sigma_m), effective_radius_m=float(effective_radius_m),
+        asperity_radius_m=r, er_ratio=float(effective_radius_m) / r if r > 0 else float("nan"),
+        expected_m=exp_, noise_only_m=noisy, smoothing_only_m=smoothed, measured_m=measured,
+        measured_std_m=float(v[:, 3].std()),
+        noise_effect_pct=100.0 * (noisy / exp_ - 1.0),
+        smoothing_effect_pct=100.0 * (smoothed / exp_ - 1.0),
+        total_effect_pct=100.0 * (measured / exp_ - 1.0),
+        vs_noisy_pct=100.0 * (measured / noisy - 1.0),
+        trials=int(trials), normalisation=normalisation, ratio=float(np.mean(ratios)),
+        residual=residual,
+    )
+
+
+@dataclass(frozen=True)
+class SmoothingCurve:
+    """Roughness error against ER / asperity radius (the paper's Fig. 4)."""
+
+    asperity_radius_m: float
+    """Hemisphere radius, metres."""
+    effective_radius_m: np.ndarray
+    """(K,) effective radii, metres."""
+    er_ratio: np.ndarray
+    """(K,) effective radius / asperity radius."""
+    expected_m: float
+    """Roughness of the true surface, metres."""
+    noise_only_m: float
+    """Roughness with noise and no smoothing, metres."""
+    measured_m: np.ndarray
+    """(K,) roughness with noise and smoothing, metres."""
+    error_pct: np.ndarray
+    """(K,) ``100 (measured / expected - 1)``."""
+    vs_noisy_pct: np.ndarray
+    """(K,) ``100 (measured / noise_only - 1)``."""
+    noise_sigma_m: float
+    """Range noise, metres."""
+
+
+def smoothing_curve(
+    effective_radii_m: np.ndarray,
+    *,
+    asperity_radius_m: float | None = None,
+    layout: TargetLayout | None = None,
+    noise_sigma_m: float = 0.0,
+    spacing_m: float = 1e-3,
+    ratio: float = 5.0,
+    normalisation: Normalisation = "known",
+    seed: int | None = 0,
+    residual: Residual = "absolute",
+) -> SmoothingCurve:
+    """Roughness error for a series of effective radii on one target.
+
+    One noise draw and one known-class thinning are shared by all radii, so the
+    curve is smooth. See :func:`predict_bias` for the parameters.
+    """
+    ers = np.asarray(effective_radii_m, dtype=np.float64).ravel()
+    if ers.size == 0 or np.any(ers < 0):
+        raise ValueError("effective radii must be a non-empty list of values >= 0")
+    if layout is None:
+        layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    base = simulate_target(layout, spacing_m=spacing_m)
+    xy = base.xyz(true=True)[:, :2]
+    labels = base.labels()
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(0.0, noise_sigma_m, size=base.true_height.shape) if noise_sigma_m > 0 \
+        else np.zeros_like(base.true_height)
+    if normalisation == "known":
+        keep = normalise_population(np.column_stack((xy, base.true_height.ravel())), labels,
+                                    ratio=ratio, seed=rng, residual=residual).keep
+    elif normalisation == "none":
+        keep = np.arange(labels.size)
+    else:
+        raise ValueError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
+    expected, noisy = _roughness_variants(xy, [base.true_height, base.true_height + noise],
+                                          keep, residual)
+    heights = [smooth_heights(base.true_height, effective_radius_m=float(e),
+                              spacing_m=spacing_m) + noise for e in ers]
+    measured = np.asarray(_roughness_variants(xy, heights, keep, residual))
+    r = float(layout.asperity_radius_m)
+    return SmoothingCurve(
+        asperity_radius_m=r, effective_radius_m=ers, er_ratio=ers / r,
+        expected_m=expected, noise_only_m=noisy, measured_m=measured,
+        error_pct=100.0 * (measured / expected - 1.0),
+        vs_noisy_pct=100.0 * (measured / noisy - 1.0),
+        noise_sigma_m=float(noise_sigma_m),
+    )

@@ -1,0 +1,74 @@
+"""Command-line front end: ``rough-viewer <command> ...``.
+
+Each command lives in its own module of this package (``compute.py``,
+``report.py``, ...; ``bias/`` has one module per subcommand) and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` (a callable taking
+the parsed namespace and returning an exit status). Modules are found
+automatically (those starting with ``_`` are helpers), so adding a command touches
+no other file.
+
+Problems the user can fix raise :class:`rough_viewer.vocabulary.InputError`, in the
+science or here; :func:`main` is the one place that prints them as one line on
+stderr and exits with status 2, never with a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from rough_viewer import __version__
+from rough_viewer.vocabulary import InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse parser whose usage errors are one line and exit 2."""
+
+    def error(self, message: str) -> None:  # noqa: D401
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser, with every command module found in this package."""
+    parser = _Parser(
+        prog="rough-viewer",
+        description="Surface roughness of scanned rock faces.",
+    )
+    parser.add_argument("--version", action="version", version=f"rough-viewer {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rough-viewer`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"rough-viewer: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rough-viewer: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # stdout closed early (e.g. piped into `head`): stop quietly, as Unix tools do
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+
+
+if __name__ == "__main__":
+    sys.exit(main())

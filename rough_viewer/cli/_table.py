@@ -1,0 +1,61 @@
+"""The one text format of the Table-1 summary (2011 paper, Table 1), used by the
+command line; the report and the app show the same numbers from the same
+:class:`rough_viewer.grid.roughness.Summary`."""
+
+from __future__ import annotations
+
+import math
+
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.summary import Summary, summarise
+from rough_viewer.vocabulary import MAPS
+
+MAP_LABELS = {"odr": "ODR", "ols": "OLS", "hybrid": "hybrid", "e_ols": "e_ols"}
+
+
+def summaries(result: GridRoughness) -> dict[str, Summary]:
+    """Summary of every map (odr, ols, hybrid, e_ols) of a result."""
+    return {name: summarise(result, name) for name in MAPS}
+
+
+def _num(v: float, fmt: str) -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+
+
+def format_table(result: GridRoughness, *, source: str = "") -> str:
+    """Readable Table-1 style summary of all maps of one grid size."""
+    g = result.grid.cell_size
+    axis = result.axis + (" (auto)" if result.axis_requested == "auto" else "")
+    head = (
+        f"{source or 'cloud'}: {result.n_points_total:,} points, grid {g:g} m, "
+        f"dependent axis {axis}, min points {result.min_points}"
+        + (", signed residuals" if result.residual == "signed" else "")
+    )
+    rep = result.cell_report("odr")
+    cells_line = (
+        f"cells: {rep['occupied']:,} occupied, {rep['below_min_points']:,} below min points"
+    )
+    lines = [head, cells_line, ""]
+    cols = ("model", "cells", "mean pts", "min (m)", "max (m)", "mean (m)", "variance (m2)", "std (m)")
+    widths = (7, 9, 9, 11, 11, 11, 13, 11)
+    lines.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths, strict=True))))
+    for name, s in summaries(result).items():
+        if name != "e_ols" and name not in result.models:
+            continue
+        if name == "e_ols" and not ("odr" in result.models and "ols" in result.models):
+            continue
+        row = (
+            MAP_LABELS[name].ljust(widths[0]),
+            f"{s.cells:,}".rjust(widths[1]),
+            _num(s.mean_points, ".1f").rjust(widths[2]),
+            _num(s.min, ".4e").rjust(widths[3]),
+            _num(s.max, ".4e").rjust(widths[4]),
+            _num(s.mean, ".4e").rjust(widths[5]),
+            _num(s.variance, ".4e").rjust(widths[6]),
+            _num(s.std, ".4e").rjust(widths[7]),
+        )
+        lines.append("  ".join(row))
+        deg = result.cell_report(name)["degenerate"] if name != "e_ols" else 0
+        if deg:
+            lines.append(f"{'':9}({deg:,} cells with enough points but no unique {MAP_LABELS[name]} plane)")
+    return "\n".join(lines)

@@ -1,0 +1,348 @@
+"""``rough-viewer profile``: a roughness profile, its wavelet de-noising and fractal dimension.
+
+Contract::
+
+    rough-viewer profile INPUT --from X,Y,Z --to X,Y,Z [--band M] [--spacing M]
+        [--max-gap M] [--wavelet db3] [--level 3] [--json] [--csv OUT.csv] [--force]
+    rough-viewer profile PROFILE.txt [--profile-file] [--profile-units m|mm] ...
+
+INPUT is a point cloud (any format ``load_points`` reads) and the profile is
+extracted between the two points; or a two-column text file (distance, height), used
+as it is (``--profile-file``, or detected when a text file has exactly two columns).
+
+Prints the noise sigma, the thresholds and the fractal dimension D of the raw profile
+and of every decomposition x threshold x mode (the layout of Khoshelham & Altundag's
+Tables 1 and 2 side by side); ``--json`` prints the same numbers as JSON (metres);
+``--csv`` writes the samples: distance, raw and one column per de-noised variant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.cli._options import parse_xyz
+from rough_viewer.io.output import check_output_path, write_atomic
+from rough_viewer.vocabulary import InputError
+
+_PROFILE_SUFFIXES = (".txt", ".csv", ".dat", ".xyz", ".prof", ".tsv")
+_RULE_LABEL = {
+    "fixed": ("Fixed-form", ""),
+    "penalized-low": ("Penalized", "Low"),
+    "penalized-medium": ("Penalized", "Med."),
+    "penalized-high": ("Penalized", "High"),
+}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "profile",
+        help="profile along a line: wavelet de-noising and fractal dimension",
+        description="Extract a roughness profile between two points of a cloud (or read "
+        "a distance,height profile file), de-noise it with wavelets (DWT and wavelet "
+        "packets; fixed and penalized thresholds; hard and soft) and report the fractal "
+        "dimension of each version by the roughness-length method (SCIENCE.md section 2).",
+    )
+    p.add_argument("input", help="point cloud (.las .laz .xyz .txt .csv .pts .npy .ply .stl) "
+                   "or a two-column profile file (distance height)")
+    p.add_argument("--from", dest="start", metavar="X,Y,Z", help="line start (cloud input); write --from=-1,2,3 when X is negative")
+    p.add_argument("--to", dest="end", metavar="X,Y,Z", help="line end (cloud input); --to=-1,2,3 when X is negative")
+    p.add_argument("--band", type=float, metavar="M",
+                   help="band half-width around the line, metres (default: local point spacing)")
+    p.add_argument("--spacing", type=float, metavar="M",
+                   help="sample spacing, metres (default: local point spacing; for a "
+                   "profile file: its median step)")
+    p.add_argument("--max-gap", type=float, metavar="M",
+                   help="longest stretch without points interpolated across, metres "
+                   "(default: 3 spacings); longer gaps are NaN and reported")
+    p.add_argument("--wavelet", default="db3", help="PyWavelets discrete wavelet (default db3)")
+    p.add_argument("--level", type=int, default=3, help="decomposition levels (default 3)")
+    p.add_argument("--profile-file", action="store_true",
+                   help="INPUT is a two-column text profile (distance, height)")
+    p.add_argument("--profile-units", choices=("m", "mm"), default="m",
+                   help="units of a profile file's columns (default m)")
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON (metres)")
+    p.add_argument("--csv", metavar="OUT.csv", help="write the samples, raw and de-noised")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --csv file")
+    p.set_defaults(func=run)
+
+
+# ----------------------------------------------------------------------------- input
+
+
+def _two_column_text(path: Path) -> bool:
+    """True when ``path`` is a text file whose first data line has exactly 2 numbers."""
+    if path.suffix.lower() not in _PROFILE_SUFFIXES:
+        return False
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                text = line.split("#", 1)[0].strip()
+                if not text:
+                    continue
+                fields = [f for f in text.replace(",", " ").replace(";", " ").split() if f]
+                try:
+                    [float(f) for f in fields]
+                except ValueError:
+                    continue  # a header line
+                return len(fields) == 2
+    except OSError:
+        return False
+    return False
+
+
+def read_profile_file(path: Path, *, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``distance height`` rows (whitespace, comma or semicolon separated; ``#``
+    comments and header lines skipped), times ``scale``, as metres."""
+    if not path.is_file():
+        raise InputError(f"no such file: {path}")
+    rows = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for number, line in enumerate(fh, 1):
+            text = line.split("#", 1)[0].strip()
+            if not text:
+                continue
+            fields = [f for f in text.replace(",", " ").replace(";", " ").split() if f]
+            try:
+                values = [float(f) for f in fields]
+            except ValueError:
+                if rows:
+                    raise InputError(f"line {number} of {path} is not two numbers: {text!r}") from None
+                continue  # header
+            if len(values) != 2:
+                raise InputError(
+                    f"line {number} of {path} has {len(values)} columns; a profile file has 2 "
+                    "(distance height)"
+                )
+            rows.append(values)
+    if len(rows) < 2:
+        raise InputError(f"no profile samples (distance height) in {path}")
+    data = np.asarray(rows, dtype=float) * scale
+    return data[:, 0], data[:, 1]
+
+
+# ----------------------------------------------------------------------------- output
+
+
+def _num(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _fit_dict(fit) -> dict:
+    if fit is None:
+        return {"dimension": None, "hurst": None, "amplitude": None, "r2": None}
+    return {
+        "dimension": _num(fit.dimension),
+        "hurst": _num(fit.hurst),
+        "amplitude": _num(fit.amplitude),
+        "r2": _num(fit.r2),
+    }
+
+
+def result_dict(info: dict, comparison) -> dict:
+    """The ``--json`` document (metres)."""
+    return {
+        **info,
+        "wavelet": comparison.wavelet,
+        "level": comparison.level,
+        "sigma_m": comparison.sigma,
+        "thresholds_m": comparison.thresholds(),
+        "windows_m": [float(w) for w in comparison.raw.windows],
+        "raw": _fit_dict(comparison.raw),
+        "variants": [
+            {
+                "decomposition": v.decomposition,
+                "threshold": v.threshold_rule,
+                "mode": v.mode,
+                "threshold_m": v.denoised.threshold,
+                **_fit_dict(v.fractal),
+                "rms_change_m": _num(v.rms_change),
+                "coefficients_kept": v.denoised.n_kept,
+                "coefficients": v.denoised.n_coefficients,
+            }
+            for v in comparison.variants
+        ],
+    }
+
+
+def _d(fit) -> str:
+    return "   -" if fit is None else f"{fit.dimension:5.2f}"
+
+
+def format_tables(info: dict, comparison) -> str:
+    """Text report: header and the Tables 1-2 layout (DWT and WP side by side)."""
+    mm = 1e3
+    lines = [f"profile: {info['input']}"]
+    if info["source"] == "cloud":
+        lines.append(
+            f"  from {tuple(info['from'])} to {tuple(info['to'])}; local normal "
+            f"({', '.join(f'{c:.3f}' for c in info['normal'])})"
+        )
+        lines.append(
+            f"  {info['points']} points in a band of +-{info['band_half_width_m'] * mm:.3f} mm "
+            f"(point spacing {info['point_spacing_m'] * mm:.3f} mm)"
+        )
+    lines.append(
+        f"  length {info['length_m']:.4f} m, {info['samples']} samples at "
+        f"{info['spacing_m'] * mm:.3f} mm"
+        + (", resampled" if info.get("resampled") else "")
+    )
+    gaps = info["gaps_m"]
+    if gaps:
+        spans = ", ".join(f"{a:.4f}-{b:.4f}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+        lines.append(
+            f"  {len(gaps)} gap(s) not interpolated ({info['nan_samples']} NaN samples): {spans} m"
+        )
+    else:
+        lines.append("  no gaps")
+    raw = comparison.raw
+    w = comparison.raw.windows
+    lines.append(
+        f"wavelet {comparison.wavelet}, {comparison.level} levels; noise sigma (MAD of level-1 "
+        f"details) {comparison.sigma * mm:.4f} mm"
+    )
+    lines.append(
+        f"roughness length: {w.size} windows {w[0] * mm:.1f}-{w[-1] * mm:.1f} mm; D = 2 - H"
+    )
+    lines.append("")
+    head = f"{'':34s}{'DWT (Table 1)':>22s}{'Wavelet packets (Table 2)':>28s}"
+    sub = f"{'':34s}{'thresh mm':>12s}{'D':>8s}{'':>4s}{'thresh mm':>14s}{'D':>8s}"
+    lines += [head, sub]
+    lines.append(f"{'Original profile':34s}{'':12s}{_d(raw):>8s}{'':4s}{'':14s}{_d(raw):>8s}")
+    for mode, label in (("soft", "Soft thresh."), ("hard", "Hard thresh.")):
+        for i, rule in enumerate(("fixed", "penalized-low", "penalized-medium", "penalized-high")):
+            a, b = _RULE_LABEL[rule]
+            first = label if i == 0 else ""
+            name = f"{first:14s}{a if i < 2 else '':12s}{b:8s}"
+            cells = []
+            for dec in ("dwt", "wp"):
+                try:
+                    v = comparison.variant(dec, rule, mode)
+                except KeyError:
+                    cells.append(("", "   -"))
+                    continue
+                cells.append((f"{v.denoised.threshold * mm:.4f}", _d(v.fractal)))
+            lines.append(
+                f"{name:34s}{cells[0][0]:>12s}{cells[0][1]:>8s}{'':4s}{cells[1][0]:>14s}{cells[1][1]:>8s}"
+            )
+    return "\n".join(lines)
+
+
+def write_samples_csv(path: Path, distance: np.ndarray, raw: np.ndarray, comparison) -> None:
+    """distance_m, raw_m and one ``<dec>_<threshold>_<mode>_m`` column per variant; NaN empty."""
+    cols = [distance, raw] + [v.denoised.heights for v in comparison.variants]
+    names = ["distance_m", "raw_m"] + [f"{v.key}_m" for v in comparison.variants]
+    text = []
+    for c in cols:
+        t = np.asarray(c, dtype=float).astype(str)
+        t[~np.isfinite(c)] = ""
+        text.append(t.tolist())
+
+    def write(fh) -> None:
+        fh.write(",".join(names) + "\n")
+        for row in zip(*text, strict=True):
+            fh.write(",".join(row) + "\n")
+
+    write_atomic(path, write)
+
+
+# ----------------------------------------------------------------------------- run
+
+
+def _positive_option(value: float | None, option: str) -> float | None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option} must be a positive number of metres, got {value:g}")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
+    import pywt
+
+    from rough_viewer.profiles.comparison import compare_denoising
+    from rough_viewer.profiles.extraction import extract_profile, regular_samples
+
+    path = Path(args.input)
+    band = _positive_option(args.band, "--band")
+    spacing = _positive_option(args.spacing, "--spacing")
+    max_gap = _positive_option(args.max_gap, "--max-gap")
+    if args.wavelet not in pywt.wavelist(kind="discrete"):
+        raise InputError(f"--wavelet {args.wavelet!r} is not a discrete PyWavelets wavelet (e.g. db3, sym4, haar)")
+    if args.level < 1:
+        raise InputError(f"--level must be at least 1, got {args.level}")
+    csv_path = check_output_path(args.csv, force=args.force) if args.csv else None
+    if not path.exists():
+        raise InputError(f"no such file: {path}")
+
+    as_profile = args.profile_file or _two_column_text(path)
+    if as_profile:
+        if args.start or args.end:
+            raise InputError(f"--from/--to are for point clouds; {path} is a profile file")
+        scale = 1e-3 if args.profile_units == "mm" else 1.0
+        d_in, h_in = read_profile_file(path, scale=scale)
+        try:
+            distance, heights, gaps = regular_samples(d_in, h_in, spacing=spacing, max_gap=max_gap)
+        except ValueError as exc:
+            raise InputError(f"{exc} in {path}") from None
+        step = float(np.median(np.diff(distance)))
+        info = {
+            "input": str(path),
+            "source": "profile-file",
+            "samples": int(distance.size),
+            "spacing_m": step,
+            "length_m": float(distance[-1] - distance[0]),
+            "resampled": distance.size != d_in.size or not np.array_equal(distance, d_in),
+        }
+    else:
+        if not (args.start and args.end):
+            raise InputError(f"{path} is a point cloud: give the line with --from X,Y,Z --to X,Y,Z")
+        p0 = parse_xyz(args.start, option="--from")
+        p1 = parse_xyz(args.end, option="--to")
+        from rough_viewer.io import load_points
+
+        cloud = load_points(path)
+        try:
+            prof = extract_profile(
+                cloud, p0, p1, band_half_width=band, spacing=spacing, max_gap=max_gap
+            )
+        except ValueError as exc:
+            raise InputError(f"{exc} ({path})") from None
+        distance, heights, gaps, step = prof.distance, prof.heights, prof.gaps, prof.spacing
+        info = {
+            "input": str(path),
+            "source": "cloud",
+            "from": list(p0),
+            "to": list(p1),
+            "samples": int(distance.size),
+            "spacing_m": step,
+            "length_m": prof.length,
+            "band_half_width_m": prof.band_half_width,
+            "point_spacing_m": prof.point_spacing,
+            "points": prof.n_points,
+            "normal": [float(c) for c in prof.frame.normal],
+        }
+    info["gaps_m"] = [[float(a), float(b)] for a, b in gaps]
+    info["nan_samples"] = int(np.count_nonzero(~np.isfinite(heights)))
+    info["max_gap_m"] = max_gap if max_gap is not None else 3.0 * step
+
+    try:
+        comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level)
+    except ValueError as exc:
+        raise InputError(f"{exc} ({path}: {distance.size} samples)") from None
+
+    if csv_path is not None:
+        write_samples_csv(csv_path, distance, heights, comparison)
+    if args.json:
+        json.dump(result_dict(info, comparison), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        if csv_path is not None:
+            print(f"wrote {csv_path}", file=sys.stderr)
+    else:
+        print(format_tables(info, comparison))
+        if csv_path is not None:
+            print(f"wrote {csv_path}")
+    return 0

@@ -1,0 +1,100 @@
+"""``rough-viewer serve``: the browser app.
+
+Contract::
+
+    rough-viewer serve [INPUT] [--demo NAME] [--port 8080] [--host 127.0.0.1]
+        [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
+        [--min-points K] [--max-points N]
+
+With no INPUT the bundled demo outcrop opens (``--demo NAME`` picks another demo).
+The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
+printed once the first map is ready. Ctrl-C stops it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from rough_viewer.vocabulary import InputError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "serve",
+        help="open the roughness viewer in the browser",
+        description="Start the interactive roughness viewer (viser) on a cloud or a demo.",
+    )
+    p.add_argument("input", nargs="?", help="point cloud (.las .laz .xyz .txt .csv .pts .npy "
+                   ".ply .stl); default: the demo outcrop")
+    p.add_argument("--demo", metavar="NAME", help="open a bundled demo instead of INPUT")
+    p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes it)")
+    p.add_argument("--grid", type=float, default=0.25, metavar="G",
+                   help="initial grid cell size in metres (default 0.25)")
+    p.add_argument("--model", choices=("odr", "ols", "hybrid", "e_ols"), default="odr",
+                   help="initial map (default odr)")
+    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
+                   help="initial dependent axis of OLS and hybrid (default auto)")
+    p.add_argument("--min-points", type=int, default=3, metavar="K",
+                   help="initial minimum points per cell (default 3)")
+    p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",
+                   help="most points drawn in the browser (default 2000000; roughness "
+                   "always uses every point)")
+    p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
+    p.set_defaults(func=run)
+
+
+def _load_cloud(args: argparse.Namespace):
+    if args.input and args.demo:
+        raise InputError("give either INPUT or --demo, not both")
+    if args.input:
+        from rough_viewer.io import load_points
+
+        return load_points(args.input)
+    try:
+        from rough_viewer.synthetic import demos
+    except ImportError:
+        raise InputError("no demo data in this installation; give a point-cloud file") from None
+    name = args.demo or "outcrop"
+    try:
+        return demos.load_demo(name)
+    except KeyError:
+        raise InputError(f"unknown demo {name!r}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from rough_viewer.app.state import ViewSettings, check_settings
+
+    settings = ViewSettings(cell_size=args.grid, model=args.model, axis=args.axis,
+                            min_points=args.min_points)
+    check_settings(settings)
+    if args.max_points < 1:
+        raise InputError(f"--max-points must be positive, got {args.max_points}")
+    if not 0 <= args.port < 65536:
+        raise InputError(f"--port must be 0-65535, got {args.port}")
+    cloud = _load_cloud(args)
+
+    import viser
+
+    from rough_viewer.app.server import build_app
+
+    server = viser.ViserServer(host=args.host, port=args.port, verbose=False)
+    app = build_app(server, cloud, settings=settings, max_display=args.max_points)
+    app.wait_idle(timeout=None if not args.no_block else 120)
+    host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
+    print(f"rough-viewer: {cloud.n:,} points, open http://{host}:{server.get_port()}/",
+          flush=True)
+    if app.errors:
+        print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
+    try:
+        while not args.no_block:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+        server.stop()
+    return 0

@@ -1,1 +1,0 @@
-"""One module per command; each defines ``register(subparsers)``."""

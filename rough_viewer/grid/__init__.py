@@ -1,0 +1,58 @@
+"""Grid roughness (SCIENCE.md section 1): the one grid, plane fits, per-cell ODR, OLS
+and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
+
+Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
+:mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
+:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`.
+"""
+
+from rough_viewer.grid.cells import GridSpec, make_grid
+from rough_viewer.grid.maps import FaceMaps, FacePlane, face_frame, face_maps, face_raster
+from rough_viewer.grid.planes import PlaneFit, dominant_axis, fit_plane
+from rough_viewer.grid.roughness import (
+    GridRoughness,
+    PreparedGrid,
+    coarsen_prepared,
+    grid_roughness,
+    prepare_grid,
+    whole_cloud_axis,
+)
+from rough_viewer.grid.summary import (
+    Histogram,
+    Summary,
+    binary,
+    histogram,
+    normalise,
+    summaries,
+    summarise,
+)
+from rough_viewer.grid.variogram import Semivariogram, face_semivariogram, semivariogram
+
+__all__ = [
+    "FaceMaps",
+    "FacePlane",
+    "GridRoughness",
+    "GridSpec",
+    "Histogram",
+    "PlaneFit",
+    "PreparedGrid",
+    "Semivariogram",
+    "Summary",
+    "binary",
+    "coarsen_prepared",
+    "dominant_axis",
+    "face_frame",
+    "face_maps",
+    "face_raster",
+    "face_semivariogram",
+    "fit_plane",
+    "grid_roughness",
+    "histogram",
+    "make_grid",
+    "normalise",
+    "prepare_grid",
+    "semivariogram",
+    "summaries",
+    "summarise",
+    "whole_cloud_axis",
+]

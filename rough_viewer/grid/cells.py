@@ -1,0 +1,392 @@
+"""The one grid: cubic cells of edge ``g``, point-to-cell indexing and per-cell sums.
+
+SCIENCE.md section 1: origin ``o`` = bounding-box minimum unless given; cell index of
+a point ``i = floor((p - o) / g)`` per axis; cell centre ``o + (i + 0.5) g``.
+
+Points are passed as three float64 columns (structure of arrays). Work is done in
+chunks of points so no stage allocates several full-length temporaries, and the
+per-cell sums are taken in cell-local coordinates (relative to the cell centre) so
+that UTM-sized coordinates lose no precision.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from rough_viewer.vocabulary import InputError
+
+#: Largest total number of grid cells (occupied or not) we can key with int64.
+MAX_GRID_CELLS = 2**62
+#: Dense bookkeeping (one int64 per grid cell) is used up to this many grid cells
+#: or ``4 * n_points``, whichever is larger; beyond, a sort-based path is used.
+DENSE_LIMIT = 1 << 25
+#: Bytes per occupied cell of the result arrays (moments, planes, maps), an estimate
+#: used to refuse grids that cannot fit in memory.
+BYTES_PER_CELL = 400
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """A regular grid of cubic cells."""
+
+    origin: np.ndarray
+    """(3,) grid origin, metres (cell (0, 0, 0) starts here)."""
+    cell_size: float
+    """Cell edge length, metres."""
+    index_min: np.ndarray
+    """(3,) int64, smallest cell index that holds points (0 when origin = bbox min)."""
+    shape: tuple[int, int, int]
+    """Number of cells per axis between ``index_min`` and the largest occupied index."""
+
+    @property
+    def n_cells(self) -> int:
+        """Total number of cells of the bounding grid (occupied or not)."""
+        return int(self.shape[0]) * int(self.shape[1]) * int(self.shape[2])
+
+    def centres(self, ijk: np.ndarray) -> np.ndarray:
+        """Cell centres ``o + (ijk + 0.5) g`` of an (M, 3) index array, metres."""
+        return self.origin + (np.asarray(ijk, dtype=np.float64) + 0.5) * self.cell_size
+
+
+def make_grid(
+    bounds_min: np.ndarray,
+    bounds_max: np.ndarray,
+    cell_size: float,
+    origin: np.ndarray | None = None,
+    *,
+    n_points: int | None = None,
+) -> GridSpec:
+    """The grid of edge ``cell_size`` covering a bounding box.
+
+    Parameters
+    ----------
+    bounds_min, bounds_max : (3,) array_like
+        Bounding box of the points, metres.
+    cell_size : float
+        Cell edge, metres; must be positive and finite.
+    origin : (3,) array_like, optional
+        Grid origin, metres. Default: ``bounds_min``.
+    n_points : int, optional
+        Number of points, to refuse grids whose occupied cells could not fit in
+        memory.
+
+    Raises
+    ------
+    InputError
+        If ``cell_size`` is not positive or the grid would need too many cells.
+    """
+    g = float(cell_size)
+    if not np.isfinite(g) or g <= 0:
+        raise InputError(f"grid size must be a positive number of metres, got {cell_size}")
+    lo_b = np.asarray(bounds_min, dtype=np.float64)
+    hi_b = np.asarray(bounds_max, dtype=np.float64)
+    o = lo_b.copy() if origin is None else np.asarray(origin, dtype=np.float64).copy()
+    span = (hi_b - o) / g
+    first = (lo_b - o) / g
+    if not (np.all(np.isfinite(span)) and np.all(np.isfinite(first))):
+        raise InputError(f"grid size {g:g} m is too small for this cloud's extent")
+    index_min = np.floor(first)
+    index_max = np.floor(span)
+    counts = index_max - index_min + 1
+    total = float(counts[0]) * float(counts[1]) * float(counts[2])  # inf, not a warning, on overflow
+    if total > MAX_GRID_CELLS or np.any(np.abs(index_max) > 2**53) or np.any(np.abs(index_min) > 2**53):
+        raise InputError(
+            f"grid size {g:g} m would take {total:.3g} cells over the cloud's extent; "
+            "choose a larger grid size"
+        )
+    if n_points is not None:
+        occupied_max = min(total, float(n_points))
+        need = occupied_max * BYTES_PER_CELL
+        avail = _available_memory()
+        if avail is not None and need > avail:
+            raise InputError(
+                f"grid size {g:g} m could take up to {occupied_max:.3g} occupied cells "
+                f"(~{need / 2**30:.1f} GiB), more than the {avail / 2**30:.1f} GiB available; "
+                "choose a larger grid size"
+            )
+    shape = (int(counts[0]), int(counts[1]), int(counts[2]))
+    return GridSpec(origin=o, cell_size=g, index_min=index_min.astype(np.int64), shape=shape)
+
+
+def _available_memory() -> float | None:
+    """Available physical memory in bytes (Linux), or None when unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+@dataclass(frozen=True)
+class CellIndex:
+    """Which cell every point falls in, and the occupied cells."""
+
+    grid: GridSpec
+    ijk: np.ndarray
+    """(M, 3) int64 cell indices of the occupied cells, sorted by linear key (x fastest)."""
+    counts: np.ndarray
+    """(M,) int64 number of points per occupied cell."""
+    point_cell: np.ndarray
+    """(N,) int64 index into ``ijk`` for every point."""
+
+    @property
+    def n_cells(self) -> int:
+        """Number of occupied cells."""
+        return int(self.counts.shape[0])
+
+
+def _chunks(n: int, size: int):
+    for start in range(0, n, size):
+        yield slice(start, min(n, start + size))
+
+
+def _chunk_size(n_cells: int) -> int:
+    # Per-chunk bincounts allocate n_cells-long arrays; keep chunks at least as long.
+    return max(1 << 21, int(n_cells))
+
+
+def _decode_keys(keys: np.ndarray, shape: tuple[int, int, int], index_min: np.ndarray) -> np.ndarray:
+    """(M, 3) cell indices from linear keys ``i + nx (j + ny k)`` (x fastest)."""
+    nx, ny, _ = shape
+    k = keys // (nx * ny)
+    rem = keys - k * (nx * ny)
+    j = rem // nx
+    i = rem - j * nx
+    return np.stack([i, j, k], axis=1) + index_min
+
+
+def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex):
+    """Yield ``(point_cell, [lx, ly, lz])`` chunk by chunk: the points' coordinates
+    relative to their cell centre, metres. Every pass over the points takes its
+    cell-local coordinates from here, so the moments and the distances agree exactly."""
+    centre = index.grid.centres(index.ijk)
+    centre_cols = [np.ascontiguousarray(centre[:, a]) for a in range(3)]
+    for s in _chunks(int(x.shape[0]), _chunk_size(index.n_cells)):
+        pc = index.point_cell[s]
+        yield pc, [col[s] - c[pc] for col, c in zip((x, y, z), centre_cols, strict=True)]
+
+
+def index_points(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec
+) -> CellIndex:
+    """Assign every point to its grid cell.
+
+    Parameters
+    ----------
+    x, y, z : (N,) float64 arrays
+        Point coordinates, metres.
+    grid : GridSpec
+        The grid (from :func:`make_grid` over these points' bounds).
+
+    Returns
+    -------
+    CellIndex
+        Occupied cells (in linear-key order), their point counts and the cell of
+        every point.
+    """
+    n = int(x.shape[0])
+    g = grid.cell_size
+    nx, ny, _ = grid.shape
+    key = np.empty(n, dtype=np.int64)
+    tmp = np.empty(min(n, 1 << 21), dtype=np.float64)
+    for s in _chunks(n, 1 << 21):
+        m = s.stop - s.start
+        t = tmp[:m]
+        kk = key[s]
+        for col, axis, stride in ((z, 2, nx * ny), (y, 1, nx), (x, 0, 1)):
+            np.subtract(col[s], grid.origin[axis], out=t)
+            np.divide(t, g, out=t)
+            np.floor(t, out=t)
+            t -= grid.index_min[axis]
+            if axis == 2:
+                kk[:] = t
+                kk *= stride
+            else:
+                if stride != 1:
+                    t *= stride
+                kk += t.astype(np.int64)
+    total = grid.n_cells
+    if total <= max(DENSE_LIMIT, 4 * n):
+        counts_dense = np.bincount(key, minlength=total)
+        occupied = np.flatnonzero(counts_dense)
+        counts = counts_dense[occupied]
+        del counts_dense
+        lookup = np.full(total, -1, dtype=np.int64)
+        lookup[occupied] = np.arange(occupied.shape[0], dtype=np.int64)
+        for s in _chunks(n, 1 << 21):
+            key[s] = lookup[key[s]]
+        del lookup
+        keys_occ = occupied.astype(np.int64)
+        point_cell = key
+    else:
+        keys_occ, point_cell, counts = np.unique(key, return_inverse=True, return_counts=True)
+        del key
+    ijk = _decode_keys(keys_occ, grid.shape, grid.index_min)
+    return CellIndex(grid=grid, ijk=ijk, counts=counts.astype(np.int64), point_cell=point_cell)
+
+
+@dataclass(frozen=True)
+class CellMoments:
+    """First and second moment sums per cell, in cell-local coordinates.
+
+    Coordinates are taken relative to each cell's centre (``|local| <= g/2``), so the
+    sums keep full precision whatever the magnitude of the file's coordinates.
+    """
+
+    counts: np.ndarray
+    """(M,) number of points per cell."""
+    s1: np.ndarray
+    """(M, 3) sums of local x, y, z (metres)."""
+    s2: np.ndarray
+    """(M, 3, 3) sums of products of local coordinates (square metres)."""
+
+    def mean_local(self) -> np.ndarray:
+        """(M, 3) centroid relative to the cell centre, metres."""
+        return self.s1 / self.counts[:, None]
+
+    def covariance(self) -> np.ndarray:
+        """(M, 3, 3) population covariance of each cell's points, square metres."""
+        n = self.counts.astype(np.float64)[:, None, None]
+        m = self.s1[:, :, None] / n
+        return self.s2 / n - m * np.swapaxes(m, 1, 2)
+
+
+def cell_moments(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex
+) -> CellMoments:
+    """Per-cell moment sums of the points' cell-local coordinates.
+
+    Parameters
+    ----------
+    x, y, z : (N,) float64 arrays
+        Point coordinates, metres.
+    index : CellIndex
+        Cell membership from :func:`index_points`.
+
+    Returns
+    -------
+    CellMoments
+    """
+    m_cells = index.n_cells
+    s1 = np.zeros((m_cells, 3))
+    s2 = np.zeros((m_cells, 3, 3))
+    for pc, local in _local_chunks(x, y, z, index):
+        for a in range(3):
+            s1[:, a] += np.bincount(pc, weights=local[a], minlength=m_cells)
+            for b in range(a, 3):
+                acc = np.bincount(pc, weights=local[a] * local[b], minlength=m_cells)
+                s2[:, a, b] += acc
+                if b != a:
+                    s2[:, b, a] += acc
+    return CellMoments(counts=index.counts, s1=s1, s2=s2)
+
+
+def distance_sums(
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    index: CellIndex,
+    vectors: dict[str, tuple[np.ndarray, np.ndarray]],
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
+
+    Parameters
+    ----------
+    x, y, z : (N,) float64 arrays
+        Point coordinates, metres.
+    index : CellIndex
+        Cell membership.
+    vectors : dict
+        name -> (v, c_local): ``v`` (M, 3) per-cell vector, ``c_local`` (M, 3) the
+        reference point relative to the cell centre, metres.
+
+    Returns
+    -------
+    dict
+        name -> (sum of ``|D|``, sum of ``D^2``), each (M,), in units of ``v`` times
+        metres (squared).
+    """
+    m_cells = index.n_cells
+    out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
+    offsets = {
+        name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
+    }
+    for pc, local in _local_chunks(x, y, z, index):
+        for name, (v, off) in offsets.items():
+            d = local[0] * v[:, 0][pc]
+            d += local[1] * v[:, 1][pc]
+            d += local[2] * v[:, 2][pc]
+            d -= off[pc]
+            abs_sum, sq_sum = out[name]
+            sq_sum += np.bincount(pc, weights=d * d, minlength=m_cells)
+            np.abs(d, out=d)
+            abs_sum += np.bincount(pc, weights=d, minlength=m_cells)
+    return out
+
+
+def coarsen(
+    index: CellIndex, moments: CellMoments, factor: int
+) -> tuple[CellIndex, CellMoments]:
+    """The cell index and moments of the grid ``factor`` times coarser, from a finer
+    grid's, without touching the point coordinates.
+
+    Grids with one origin nest by integer factors: the coarse cell of a point is
+    ``floor(i_fine / factor)`` exactly (``floor(t / k) == floor(floor(t) / k)``), so the
+    coarse moments are sums of the fine ones, shifted from fine to coarse cell centres.
+    Only the per-point cell membership (one gather) is recomputed.
+
+    Parameters
+    ----------
+    index, moments : CellIndex, CellMoments
+        Of the fine grid (edge ``g``).
+    factor : int
+        Positive integer; the coarse edge is ``factor * g``.
+
+    Returns
+    -------
+    CellIndex, CellMoments
+        Of the coarse grid; equal to :func:`index_points` and :func:`cell_moments` on
+        ``make_grid(bounds, factor * g, origin)`` up to rounding.
+    """
+    k = int(factor)
+    if k < 1 or k != factor:
+        raise ValueError(f"factor must be a positive integer, got {factor}")
+    fine = index.grid
+    g = fine.cell_size * k
+    ijk_c = np.floor_divide(index.ijk, k)
+    lo = ijk_c.min(axis=0)
+    hi = ijk_c.max(axis=0)
+    shape = tuple(int(v) for v in (hi - lo + 1))
+    key = ((ijk_c[:, 2] - lo[2]) * shape[1] + (ijk_c[:, 1] - lo[1])) * shape[0] + (ijk_c[:, 0] - lo[0])
+    keys_c, parent = np.unique(key, return_inverse=True)
+    m_c = keys_c.shape[0]
+    coarse_ijk = _decode_keys(keys_c, shape, lo)  # type: ignore[arg-type]
+    grid = GridSpec(origin=fine.origin.copy(), cell_size=g, index_min=lo.astype(np.int64),
+                    shape=shape)  # type: ignore[arg-type]
+    counts = np.bincount(parent, weights=index.counts, minlength=m_c).astype(np.int64)
+    # shift of each fine cell's centre from its coarse cell's centre, metres
+    delta = ((index.ijk + 0.5) - (coarse_ijk[parent] + 0.5) * k) * fine.cell_size
+    n = moments.counts.astype(np.float64)
+    s1_f = moments.s1
+    s1 = np.empty((m_c, 3))
+    s2 = np.empty((m_c, 3, 3))
+    for a in range(3):
+        s1[:, a] = np.bincount(parent, weights=s1_f[:, a] + n * delta[:, a], minlength=m_c)
+        for b in range(3):
+            w = (moments.s2[:, a, b] + s1_f[:, a] * delta[:, b] + delta[:, a] * s1_f[:, b]
+                 + n * delta[:, a] * delta[:, b])
+            s2[:, a, b] = np.bincount(parent, weights=w, minlength=m_c)
+    point_cell = parent[index.point_cell]
+    return (
+        CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
+        CellMoments(counts=counts, s1=s1, s2=s2),
+    )

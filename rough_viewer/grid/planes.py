@@ -1,0 +1,147 @@
+"""Plane fits: orthogonal distance regression (ODR) and ordinary least squares (OLS).
+
+Two flavours of the same two ideas:
+
+- :func:`fit_plane` fits one point set (an (N, 3) array), for profiles, targets
+  and the whole-cloud orientation.
+- :func:`odr_from_covariance` and :func:`ols_from_covariance` fit many cells at once
+  from their 3x3 covariance matrices (batched, no loop over cells).
+
+The ODR plane passes through the centroid with normal = eigenvector of the
+smallest eigenvalue of the population covariance (SCIENCE.md section 1; this is the
+orthogonal regression of the 2011 paper's Eq. 2 without its inability to represent
+a vertical face). The OLS plane takes one coordinate axis ``a`` as the dependent
+variable: ``p_a = b0 + b1 p_u + b2 p_v``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rough_viewer.vocabulary import AXES, Axis
+
+#: Relative size below which a covariance eigenvalue counts as zero.
+DEGENERATE_RTOL = 1e-12
+
+
+@dataclass(frozen=True)
+class PlaneFit:
+    """ODR plane of one point set."""
+
+    centroid: np.ndarray
+    """(3,) mean of the points, metres."""
+    normal: np.ndarray
+    """(3,) unit normal (eigenvector of the smallest covariance eigenvalue)."""
+    eigenvalues: np.ndarray
+    """(3,) population covariance eigenvalues, descending, square metres."""
+    axes: np.ndarray
+    """(3, 3) principal axes as columns, in the order of ``eigenvalues`` (the last
+    column is ``normal``)."""
+
+
+def axis_index(axis: Axis) -> int:
+    """Index 0, 1, 2 of the coordinate axis named ``"x"``, ``"y"`` or ``"z"``."""
+    try:
+        return AXES.index(axis)
+    except ValueError:
+        raise ValueError(f"axis must be one of x, y, z, got {axis!r}") from None
+
+
+def fit_plane(xyz: np.ndarray) -> PlaneFit:
+    """ODR plane of an (N, 3) point set (N >= 3).
+
+    Parameters
+    ----------
+    xyz : (N, 3) array_like
+        Points in metres.
+
+    Returns
+    -------
+    PlaneFit
+        Centroid, unit normal, covariance eigenvalues (descending) and principal axes.
+    """
+    pts = np.asarray(xyz, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
+        raise ValueError("fit_plane needs an (N, 3) array with N >= 3")
+    centroid = pts.mean(axis=0)
+    d = pts - centroid
+    cov = d.T @ d / pts.shape[0]
+    w, v = np.linalg.eigh(cov)
+    axes = v[:, ::-1].copy()
+    return PlaneFit(centroid=centroid, normal=axes[:, 2].copy(), eigenvalues=w[::-1].copy(),
+                    axes=axes)
+
+
+def dominant_axis(normal: np.ndarray) -> Axis:
+    """The coordinate axis closest to ``normal`` (largest absolute component)."""
+    return AXES[int(np.argmax(np.abs(np.asarray(normal, dtype=np.float64))))]
+
+
+def odr_from_covariance(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Batched ODR normals from per-cell covariance matrices.
+
+    Parameters
+    ----------
+    cov : (M, 3, 3) array
+        Population covariance of each cell's points (square metres).
+
+    Returns
+    -------
+    normal : (M, 3) array
+        Unit normal per cell (eigenvector of the smallest eigenvalue).
+    eigenvalues : (M, 3) array
+        Eigenvalues, descending.
+    valid : (M,) bool array
+        False where the plane is not unique: points coincident or collinear (the two
+        smallest eigenvalues vanish relative to the largest).
+    """
+    w, v = np.linalg.eigh(cov)
+    normal = v[:, :, 0]
+    eig = w[:, ::-1]
+    scale = np.maximum(eig[:, 0], 0.0)
+    valid = (scale > 0) & (eig[:, 1] > DEGENERATE_RTOL * scale)
+    return normal, eig, valid
+
+
+def ols_from_covariance(cov: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
+    """Batched OLS planes along a dependent axis, from per-cell covariances.
+
+    The fitted plane through the centroid is ``w . (p - c) = 0`` with ``w_a = 1`` and
+    ``w_u = -b1``, ``w_v = -b2``; the residual along ``a`` of a point is
+    ``w . (p - c)``.
+
+    Parameters
+    ----------
+    cov : (M, 3, 3) array
+        Population covariance of each cell's points (square metres).
+    axis : {"x", "y", "z"}
+        Dependent axis.
+
+    Returns
+    -------
+    w : (M, 3) array
+        Residual vector per cell (dimensionless).
+    valid : (M,) bool array
+        False where the two independent coordinates are degenerate (collinear or
+        coincident in the u-v plane), so the regression has no unique solution.
+    """
+    a = axis_index(axis)
+    u, v = [i for i in range(3) if i != a]
+    cuu = cov[:, u, u]
+    cvv = cov[:, v, v]
+    cuv = cov[:, u, v]
+    cua = cov[:, u, a]
+    cva = cov[:, v, a]
+    det = cuu * cvv - cuv * cuv
+    valid = (cuu > 0) & (cvv > 0) & (det > DEGENERATE_RTOL * cuu * cvv)
+    safe = np.where(valid, det, 1.0)
+    b1 = (cvv * cua - cuv * cva) / safe
+    b2 = (cuu * cva - cuv * cua) / safe
+    w = np.zeros((cov.shape[0], 3))
+    w[:, a] = 1.0
+    w[:, u] = -b1
+    w[:, v] = -b2
+    w[~valid] = np.nan
+    return w, valid

@@ -1,0 +1,377 @@
+"""Per-cell surface roughness: ODR, OLS and hybrid models, e_ols, summaries.
+
+Definitions (SCIENCE.md section 1; 2011 paper Eqs. 3-5, 2012 paper Table 1):
+
+==========  ==================================  ======================================
+model       reference plane                     distance ``D_i`` of a point
+==========  ==================================  ======================================
+``odr``     ODR plane (centroid, min-eigvec)    ``|n . (p_i - c)|``
+``ols``     OLS along dependent axis ``a``      ``|residual along a|``
+``hybrid``  ODR plane                           ``|n . (p_i - c)| / |n_a|``
+==========  ==================================  ======================================
+
+Roughness of a cell: ``theta = sqrt(mean(D^2) - mean(D)^2)``, the population
+standard deviation of the ABSOLUTE distances. With ``residual="signed"`` it is the
+RMS of the signed distances instead (an option, not the default).
+
+Implementation: one pass over the points for cell keys, one for cell-local moment
+sums, planes fitted per cell from the 3x3 covariances (batched), and one pass for
+the sums of ``|D|`` and ``D^2``. (``mean(D^2)`` is also ``n^T C n`` from the moments,
+but that closed form loses ``sqrt(eps) g`` of absolute precision where a cell is
+nearly flat, so both sums come from the points.) The hybrid model needs no pass of
+its own: its distances are the ODR ones divided by ``|n_a|``, constant per cell.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rough_viewer.grid.cells import (
+    CellIndex,
+    CellMoments,
+    GridSpec,
+    cell_moments,
+    coarsen,
+    distance_sums,
+    index_points,
+    make_grid,
+)
+from rough_viewer.grid.planes import (
+    axis_index,
+    dominant_axis,
+    fit_plane,
+    odr_from_covariance,
+    ols_from_covariance,
+)
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.vocabulary import (
+    AXES,
+    MAPS,
+    MODELS,
+    Axis,
+    AxisChoice,
+    InputError,
+    MapName,
+    Model,
+    ProgressFn,
+    Residual,
+)
+
+#: A hybrid distance along axis ``a`` is undefined when the ODR normal is
+#: (numerically) perpendicular to ``a``.
+HYBRID_MIN_COMPONENT = 1e-9
+
+
+@dataclass(frozen=True)
+class PreparedGrid:
+    """Cell membership and moment sums of a cloud on one grid: the part of
+    :func:`grid_roughness` that does not depend on the model, the axis or
+    ``min_points``. Keep one to recompute those quickly, or :func:`coarsen_prepared`
+    it to a nested coarser grid without a pass over the points."""
+
+    index: CellIndex
+    """Cell membership."""
+    moments: CellMoments
+    """Cell-local moment sums."""
+
+    @property
+    def cell_size(self) -> float:
+        """Grid cell edge, metres."""
+        return self.index.grid.cell_size
+
+
+def prepare_grid(
+    cloud: PointCloud | np.ndarray, cell_size: float, *, origin: np.ndarray | None = None
+) -> PreparedGrid:
+    """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments."""
+    x, y, z = _as_columns(cloud)
+    if x.shape[0] < 3:
+        raise InputError(f"need at least 3 points, got {x.shape[0]}")
+    lo = np.array([x.min(), y.min(), z.min()])
+    hi = np.array([x.max(), y.max(), z.max()])
+    grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
+    index = index_points(x, y, z, grid)
+    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index))
+
+
+def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
+    """The prepared grid ``factor`` (a positive integer) times coarser, same origin,
+    computed from the fine one without a pass over the coordinates."""
+    index, moments = coarsen(prepared.index, prepared.moments, factor)
+    return PreparedGrid(index=index, moments=moments)
+
+
+@dataclass(frozen=True)
+class GridRoughness:
+    """Roughness maps of one cloud on one grid. Cell arrays have one row per occupied
+    cell; values are NaN where a cell has no value (too few points, degenerate
+    plane, model not asked for)."""
+
+    grid: GridSpec
+    """The grid (origin, cell size in metres)."""
+    axis: Axis
+    """Dependent axis actually used by OLS and hybrid."""
+    axis_requested: AxisChoice
+    """Axis option as given (``"auto"`` picks the axis closest to the whole-cloud normal)."""
+    whole_normal: np.ndarray
+    """(3,) unit normal of the whole cloud's ODR plane."""
+    min_points: int
+    """Cells with fewer points get no value."""
+    residual: Residual
+    """``"absolute"`` (SCIENCE.md default) or ``"signed"`` (RMS of signed distances)."""
+    models: tuple[Model, ...]
+    """Models computed."""
+    ijk: np.ndarray
+    """(M, 3) int64 cell indices."""
+    centre: np.ndarray
+    """(M, 3) cell centres, metres, the file's frame."""
+    n_points: np.ndarray
+    """(M,) int64 points per cell."""
+    centroid: np.ndarray
+    """(M, 3) point centroid per cell, metres (NaN below ``min_points``)."""
+    normal: np.ndarray
+    """(M, 3) ODR unit normal per cell (NaN where no plane)."""
+    theta_odr: np.ndarray
+    """(M,) ODR roughness, metres."""
+    theta_ols: np.ndarray
+    """(M,) OLS roughness along the dependent axis, metres."""
+    theta_hybrid: np.ndarray
+    """(M,) hybrid roughness, metres."""
+    e_ols: np.ndarray
+    """(M,) OLS error ``|theta_ols - theta_odr|``, metres."""
+    point_cell: np.ndarray
+    """(N,) int64 row of the cell arrays for every input point."""
+    n_points_total: int
+    """Number of points used."""
+
+    @property
+    def n_cells(self) -> int:
+        """Number of occupied cells."""
+        return int(self.n_points.shape[0])
+
+    def values(self, name: MapName) -> np.ndarray:
+        """The (M,) map ``"odr"``, ``"ols"``, ``"hybrid"`` or ``"e_ols"``, metres."""
+        if name == "e_ols":
+            return self.e_ols
+        if name in MODELS:
+            return getattr(self, f"theta_{name}")
+        raise ValueError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+
+    def point_values(self, name: MapName) -> np.ndarray:
+        """(N,) the map's value of each point's cell (NaN where the cell has none)."""
+        return self.values(name)[self.point_cell]
+
+    def cell_report(self, name: MapName) -> dict[str, int]:
+        """Counts of cells: occupied, below ``min_points``, degenerate, with a value."""
+        v = self.values(name)
+        below = int(np.count_nonzero(self.n_points < self.min_points))
+        valued = int(np.count_nonzero(np.isfinite(v)))
+        return {
+            "occupied": self.n_cells,
+            "below_min_points": below,
+            "degenerate": self.n_cells - below - valued,
+            "with_value": valued,
+        }
+
+
+def _as_columns(cloud: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if isinstance(cloud, PointCloud):
+        return cloud.x, cloud.y, cloud.z
+    arr = np.asarray(cloud, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError("points must be a PointCloud or an (N, 3) array")
+    return (
+        np.ascontiguousarray(arr[:, 0]),
+        np.ascontiguousarray(arr[:, 1]),
+        np.ascontiguousarray(arr[:, 2]),
+    )
+
+
+def whole_cloud_normal_from_moments(grid: GridSpec, index: CellIndex, mom: CellMoments) -> np.ndarray:
+    """Unit normal of the whole cloud's ODR plane, combined from per-cell moments.
+
+    Cell means are taken relative to the grid origin, so no precision is lost on
+    large coordinates.
+    """
+    n = mom.counts.astype(np.float64)
+    total = n.sum()
+    mean_c = (index.ijk - index.grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
+    mean_all = (n[:, None] * mean_c).sum(axis=0) / total
+    d = mean_c - mean_all
+    cov_cells = mom.covariance()
+    scatter = np.einsum("m,mij->ij", n, cov_cells) + np.einsum("m,mi,mj->ij", n, d, d)
+    w, v = np.linalg.eigh(scatter / total)
+    return v[:, 0]
+
+
+def whole_cloud_axis(cloud: PointCloud | np.ndarray) -> Axis:
+    """The coordinate axis closest to the normal of the whole cloud's ODR plane."""
+    xyz = cloud.xyz() if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
+    return dominant_axis(fit_plane(xyz).normal)
+
+
+def grid_roughness(
+    cloud: PointCloud | np.ndarray,
+    cell_size: float,
+    *,
+    origin: np.ndarray | None = None,
+    min_points: int = 3,
+    axis: AxisChoice = "auto",
+    models: Iterable[Model] = MODELS,
+    residual: Residual = "absolute",
+    progress: ProgressFn | None = None,
+    prepared: PreparedGrid | None = None,
+) -> GridRoughness:
+    """Roughness of every grid cell of a cloud.
+
+    Parameters
+    ----------
+    cloud : PointCloud or (N, 3) array
+        Points, metres.
+    cell_size : float
+        Grid cell edge ``g``, metres.
+    origin : (3,) array_like, optional
+        Grid origin, metres; default the bounding-box minimum.
+    min_points : int
+        Cells with fewer points get no value (default 3, the fewest that fix a plane).
+    axis : {"auto", "x", "y", "z"}
+        Dependent axis of OLS and hybrid; ``"auto"`` = axis closest to the normal of
+        the whole cloud's ODR plane.
+    models : iterable of {"odr", "ols", "hybrid"}
+        Models to compute (``e_ols`` is filled when both odr and ols are).
+    residual : {"absolute", "signed"}
+        ``"absolute"``: std of absolute distances (SCIENCE.md); ``"signed"``: RMS of
+        signed distances.
+    progress : callable, optional
+        ``progress(done, total)`` over the five stages (cell keys, moments, plane
+        fits, distances, assembly).
+    prepared : PreparedGrid, optional
+        Cell index and moments of this cloud on this grid (from
+        :func:`prepare_grid` or :func:`coarsen_prepared`), to skip those passes;
+        ``cell_size`` and ``origin`` are then taken from it.
+
+    Returns
+    -------
+    GridRoughness
+    """
+    models_t = tuple(dict.fromkeys(models))
+    for m in models_t:
+        if m not in MODELS:
+            raise InputError(f"unknown method {m!r}; expected odr, ols or hybrid")
+    if axis not in ("auto", *AXES):
+        raise InputError(f"unknown axis {axis!r}; expected auto, x, y or z")
+    if residual not in ("absolute", "signed"):
+        raise InputError(f"unknown residual {residual!r}; expected absolute or signed")
+    if int(min_points) < 3:
+        raise InputError(f"min points must be at least 3 (a plane needs 3), got {min_points}")
+    min_points = int(min_points)
+    x, y, z = _as_columns(cloud)
+    n_total = int(x.shape[0])
+    if n_total < 3:
+        raise InputError(f"need at least 3 points, got {n_total}")
+    tick = progress or (lambda done, total: None)
+
+    tick(0, 5)
+    if prepared is None:
+        lo = np.array([x.min(), y.min(), z.min()])
+        hi = np.array([x.max(), y.max(), z.max()])
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
+        index = index_points(x, y, z, grid)
+        tick(1, 5)
+        mom = cell_moments(x, y, z, index)
+    else:
+        if prepared.index.point_cell.shape[0] != n_total:
+            raise ValueError("prepared grid was made for another cloud")
+        index, mom = prepared.index, prepared.moments
+        grid = index.grid
+        tick(1, 5)
+    tick(2, 5)
+
+    m_cells = index.n_cells
+    counts = index.counts
+    enough = counts >= min_points
+    cov = mom.covariance()
+    mean_local = mom.mean_local()
+    whole_normal = whole_cloud_normal_from_moments(grid, index, mom)
+    used_axis: Axis = dominant_axis(whole_normal) if axis == "auto" else axis
+    a = axis_index(used_axis)
+
+    if whole_normal[int(np.argmax(np.abs(whole_normal)))] < 0:
+        whole_normal = -whole_normal
+    normal, eig, valid_odr = odr_from_covariance(cov)
+    valid_odr &= enough
+    # Eigenvectors have arbitrary sign: orient every cell normal like the whole face's.
+    normal *= np.where(normal @ whole_normal < 0, -1.0, 1.0)[:, None]
+    normal[~valid_odr] = np.nan
+    nan = np.full(m_cells, np.nan)
+    theta = {"odr": nan.copy(), "ols": nan.copy(), "hybrid": nan.copy()}
+
+    need_odr = any(m in models_t for m in ("odr", "hybrid"))
+    w_ols = valid_ols = None
+    if "ols" in models_t:
+        w_ols, valid_ols = ols_from_covariance(cov, used_axis)
+        valid_ols &= enough
+
+    tick(3, 5)
+    vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if need_odr:
+        vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
+    if w_ols is not None:
+        vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
+    sums = distance_sums(x, y, z, index, vectors)
+    tick(4, 5)
+
+    n_f = counts.astype(np.float64)
+    signed = residual == "signed"
+    if need_odr:
+        t = _theta(*sums["odr"], n_f, signed=signed)
+        t[~valid_odr] = np.nan
+        if "odr" in models_t:
+            theta["odr"] = t
+        if "hybrid" in models_t:
+            na = np.abs(normal[:, a])
+            ok = valid_odr & (na > HYBRID_MIN_COMPONENT)
+            th = np.full(m_cells, np.nan)
+            th[ok] = t[ok] / na[ok]
+            theta["hybrid"] = th
+    if w_ols is not None:
+        t = _theta(*sums["ols"], n_f, signed=signed)
+        t[~valid_ols] = np.nan
+        theta["ols"] = t
+    e_ols = np.abs(theta["ols"] - theta["odr"])
+    centre = grid.centres(index.ijk)
+    centroid = centre + mean_local
+    centroid[~enough] = np.nan
+    tick(5, 5)
+    return GridRoughness(
+        grid=grid,
+        axis=used_axis,
+        axis_requested=axis,
+        whole_normal=whole_normal,
+        min_points=min_points,
+        residual=residual,
+        models=models_t,
+        ijk=index.ijk,
+        centre=centre,
+        n_points=counts,
+        centroid=centroid,
+        normal=normal,
+        theta_odr=theta["odr"],
+        theta_ols=theta["ols"],
+        theta_hybrid=theta["hybrid"],
+        e_ols=e_ols,
+        point_cell=index.point_cell,
+        n_points_total=n_total,
+    )
+
+
+def _theta(abs_sum: np.ndarray, sq_sum: np.ndarray, n: np.ndarray, *, signed: bool) -> np.ndarray:
+    """Std of absolute distances from their sums; RMS of signed ones when ``signed``."""
+    mean_sq = sq_sum / n
+    if signed:
+        return np.sqrt(mean_sq)
+    mean_abs = abs_sum / n
+    return np.sqrt(np.clip(mean_sq - mean_abs * mean_abs, 0.0, None))

@@ -1,0 +1,251 @@
+"""Plotly figures of grid-roughness results (2011 paper, Table 1 and Figs. 2-4).
+
+Pure functions: core results in, a :class:`plotly.graph_objects.Figure` out. The
+report and the browser app both use them. Every figure's title says the grid size,
+the models shown, the dependent axis (of OLS and hybrid) and the point count.
+
+Inputs are dictionaries keyed by map name (``"odr"``, ``"ols"``, ``"hybrid"``,
+``"e_ols"``); figures show the maps in the order given, so pass them in the order
+you want them drawn.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, Literal
+
+import numpy as np
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from rough_viewer.grid.maps import FaceMaps
+from rough_viewer.grid.variogram import Semivariogram
+
+LABELS = {"odr": "ODR", "ols": "OLS", "hybrid": "hybrid", "e_ols": "e_OLS"}
+"""Display names of the maps."""
+
+COLOURS = {"odr": "#1f77b4", "ols": "#d62728", "hybrid": "#2ca02c", "e_ols": "#9467bd"}
+"""One colour per map, shared by every figure."""
+
+MARKERS = {"odr": "circle-open", "ols": "triangle-up-open", "hybrid": "square-open",
+           "e_ols": "cross-thin-open"}
+"""Marker symbols of the 2011 paper's Fig. 4: ODR circles, OLS triangles, e_OLS plus."""
+
+BINARY_COLOURS = [[0.0, "#bdbdbd"], [0.5, "#bdbdbd"], [0.5, "#000000"], [1.0, "#000000"]]
+"""2011 paper Fig. 2: below the threshold grey, at or above it black."""
+
+
+def label(name: str) -> str:
+    """Display name of a map (``"e_ols"`` -> ``"e_OLS"``)."""
+    return LABELS.get(name, name)
+
+
+def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = ()) -> str:
+    """The caption every figure carries: grid size, models, dependent axis, points."""
+    parts = [f"grid {grid_size:g} m"]
+    if models:
+        parts.append("models " + ", ".join(label(m) for m in models))
+    parts.append(f"dependent axis {axis}")
+    parts.append(f"{int(n_points):,} points")
+    return " · ".join(parts)
+
+
+def _title(what: str, **kw: Any) -> dict[str, Any]:
+    return {"text": f"{what}<br><sup>{describe(**kw)}</sup>", "x": 0.01, "xanchor": "left"}
+
+
+def _fmt(value: float) -> str:
+    value = float(value)
+    if not np.isfinite(value):
+        return "–"
+    if value == 0 or 1e-3 <= abs(value) < 1e5:
+        return f"{value:.4f}" if abs(value) < 1 else f"{value:,.4g}"
+    return f"{value:.3e}"
+
+
+def summary_table_figure(
+    summaries: Mapping[str, Any],
+    *,
+    grid_size: float,
+    axis: str,
+    n_points: int,
+) -> go.Figure:
+    """Table 1 of the 2011 paper for one grid size.
+
+    Parameters
+    ----------
+    summaries : dict map name -> ``rough_viewer.grid.roughness.Summary``
+        Objects with ``cells``, ``mean_points``, ``min``, ``max``, ``mean``,
+        ``variance`` and ``std`` (roughness in metres, variance in m^2).
+    """
+    names = list(summaries)
+    rows = [summaries[n] for n in names]
+    header = ["map", "cells", "mean points per cell", "minimum (m)", "maximum (m)", "mean (m)",
+              "variance (m²)", "std (m)"]
+    cells = [
+        [label(n) for n in names],
+        [f"{int(s.cells):,}" for s in rows],
+        [f"{float(s.mean_points):,.1f}" for s in rows],
+        [_fmt(s.min) for s in rows],
+        [_fmt(s.max) for s in rows],
+        [_fmt(s.mean) for s in rows],
+        [_fmt(s.variance) for s in rows],
+        [_fmt(s.std) for s in rows],
+    ]
+    fig = go.Figure(go.Table(
+        header={"values": header, "align": "left", "fill_color": "#e8e8e8"},
+        cells={"values": cells, "align": "left"},
+    ))
+    fig.update_layout(
+        title=_title("Roughness summary (Table 1)", grid_size=grid_size, axis=axis,
+                     n_points=n_points, models=names),
+        height=140 + 30 * len(names), margin={"l": 10, "r": 10, "t": 70, "b": 10},
+    )
+    return fig
+
+
+def histogram_figure(
+    histograms: Mapping[str, Any],
+    *,
+    grid_size: float,
+    axis: str,
+    n_points: int,
+) -> go.Figure:
+    """Histograms of normalised roughness with the first-bin shares (2011 Fig. 3).
+
+    Parameters
+    ----------
+    histograms : dict map name -> ``rough_viewer.grid.roughness.Histogram``
+        Objects with ``edges`` (K+1,) and ``fractions`` (K,) over normalised values.
+    """
+    names = list(histograms)
+    fig = go.Figure()
+    shares = []
+    for name in names:
+        h = histograms[name]
+        edges = np.asarray(h.edges, dtype=float)
+        fractions = np.asarray(h.fractions, dtype=float)
+        first = float(fractions[0]) if fractions.size else float("nan")
+        shares.append(f"{label(name)} {first * 100:.0f} %")
+        fig.add_trace(go.Bar(
+            x=0.5 * (edges[:-1] + edges[1:]), y=fractions * 100.0,
+            name=f"{label(name)} (first bin {first * 100:.1f} %)",
+            marker_color=COLOURS.get(name),
+            hovertemplate=label(name) + ": %{y:.2f} %<extra></extra>",
+        ))
+    first_edge = f"{histograms[names[0]].edges[1]:g}" if names else ""
+    fig.update_layout(
+        title=_title(f"Normalised roughness histograms — first bin (0–{first_edge}): "
+                     + ", ".join(shares), grid_size=grid_size, axis=axis, n_points=n_points,
+                     models=names),
+        barmode="group", bargap=0.15, bargroupgap=0.0,
+        xaxis_title="normalised roughness", yaxis_title="cells (%)",
+        height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
+        legend={"x": 0.99, "xanchor": "right", "y": 0.99},
+    )
+    fig.update_xaxes(range=[0, 1])
+    return fig
+
+
+def variogram_figure(
+    variograms: Mapping[str, Semivariogram],
+    *,
+    grid_size: float,
+    axis: str,
+    n_points: int,
+    normalised: bool = True,
+) -> go.Figure:
+    """Experimental semivariograms overlaid (2011 Fig. 4, one panel per grid size).
+
+    Parameters
+    ----------
+    variograms : dict map name -> Semivariogram
+        Usually ``odr``, ``ols`` and ``e_ols``.
+    normalised : bool
+        Plot ``gamma / variance`` (sill near 1; default) or ``gamma`` (m^2).
+    """
+    names = list(variograms)
+    fig = go.Figure()
+    space = "3-D"
+    for name in names:
+        vg = variograms[name]
+        space = "in the face plane" if vg.space == "plane" else "3-D"
+        y = vg.gamma_normalised if normalised else vg.gamma
+        fig.add_trace(go.Scatter(
+            x=vg.lag, y=y, mode="markers", name=label(name),
+            marker={"symbol": MARKERS.get(name, "circle-open"), "color": COLOURS.get(name),
+                    "size": 7},
+            customdata=vg.pairs,
+            hovertemplate=(label(name) + ": lag %{x:.3f} m, γ %{y:.4g}, "
+                           "%{customdata:,} pairs<extra></extra>"),
+        ))
+    fig.update_layout(
+        title=_title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
+                     grid_size=grid_size, axis=axis, n_points=n_points, models=names),
+        xaxis_title="lag (m)",
+        yaxis_title="γ / variance" if normalised else "γ (m²)",
+        height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
+    )
+    if normalised:
+        fig.add_hline(y=1.0, line={"dash": "dot", "color": "#888", "width": 1})
+    return fig
+
+
+def face_map_figure(
+    maps: Mapping[str, FaceMaps],
+    *,
+    kind: Literal["normalised", "binary"],
+    grid_size: float,
+    axis: str,
+    n_points: int,
+) -> go.Figure:
+    """Face-plane maps, one panel per model stacked (2011 Fig. 2: OLS beside ODR).
+
+    Parameters
+    ----------
+    maps : dict map name -> FaceMaps
+        From :func:`rough_viewer.grid.maps.face_maps`.
+    kind : {"normalised", "binary"}
+        The continuous normalised roughness, or the binary transform at the threshold
+        (grey below, black at or above, white where no cell).
+    """
+    names = list(maps)
+    if kind not in ("normalised", "binary"):
+        raise ValueError(f"kind must be 'normalised' or 'binary', got {kind!r}")
+    threshold = next(iter(maps.values())).threshold if names else 0.05
+    subtitles = [
+        f"{label(n)}: " + ("normalised roughness" if kind == "normalised"
+                           else f"normalised ≥ {threshold:g} in black")
+        for n in names
+    ]
+    fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
+                        vertical_spacing=0.08 if len(names) > 1 else 0.0)
+    aspect = 0.3
+    for row, name in enumerate(names, start=1):
+        img = maps[name].normalised if kind == "normalised" else maps[name].binary
+        if img.u.size and img.v.size:
+            aspect = (img.v[-1] - img.v[0] + img.cell_size) / (img.u[-1] - img.u[0] + img.cell_size)
+        heat = {
+            "z": img.image, "x": img.u, "y": img.v, "zmin": 0.0, "zmax": 1.0,
+            "hovertemplate": label(name) + ": u %{x:.2f} m, v %{y:.2f} m, %{z:.3f}<extra></extra>",
+        }
+        if kind == "binary":
+            heat.update(colorscale=BINARY_COLOURS, showscale=False)
+        else:
+            heat.update(colorscale="Viridis", showscale=row == 1,
+                        colorbar={"title": {"text": "normalised"}, "len": 0.5, "y": 1.0,
+                                  "yanchor": "top"})
+        fig.add_trace(go.Heatmap(**heat), row=row, col=1)
+        xref = "x" if row == 1 else f"x{row}"
+        fig.update_yaxes(scaleanchor=xref, scaleratio=1, title_text="v, up the face (m)",
+                         row=row, col=1)
+        fig.update_xaxes(title_text="u, along the face (m)", row=row, col=1)
+    panel = float(np.clip(900 * aspect, 160, 600))
+    what = "Normalised roughness" if kind == "normalised" else f"Binary transform at {threshold:g}"
+    fig.update_layout(
+        title=_title(f"{what} on the face plane (whole-cloud ODR plane)", grid_size=grid_size,
+                     axis=axis, n_points=n_points, models=names),
+        height=int(110 + len(names) * (panel + 70)), width=1000,
+        margin={"l": 60, "r": 10, "t": 90, "b": 40}, plot_bgcolor="white",
+    )
+    return fig

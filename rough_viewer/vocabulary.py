@@ -1,0 +1,117 @@
+"""The words every part of rough_viewer shares: models, maps, axes, residual
+conventions, wavelet options, display labels and colours, the progress callback and
+the one error type for bad input.
+
+Everything here is a constant or a type; nothing imports from the rest of the
+package, so every layer (science, figures, app, command line) can use it.
+
+>>> MAPS
+('odr', 'ols', 'hybrid', 'e_ols')
+>>> MAP_LABELS["e_ols"]
+'e_OLS'
+>>> issubclass(InputError, ValueError)
+True
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Literal
+
+# ----------------------------------------------------------------------------- errors
+
+
+class InputError(ValueError):
+    """Bad input the user can fix: a file, an option or a value that cannot be used.
+
+    Raised by the science layer (reading, grid, profiles, bias) and by the app and
+    command line alike. The command line prints it as one line and exits with
+    status 2; the app shows it as a notice. The message names the problem and,
+    where there is one, the file.
+    """
+
+
+#: ``progress(done, total)``: how the science reports progress without printing.
+ProgressFn = Callable[[int, int], None]
+
+# ----------------------------------------------------------------------------- grid roughness
+
+Axis = Literal["x", "y", "z"]
+"""A coordinate axis."""
+AxisChoice = Literal["auto", "x", "y", "z"]
+"""Dependent-axis option: ``auto`` = the axis closest to the whole cloud's ODR normal."""
+Model = Literal["odr", "ols", "hybrid"]
+"""A roughness model (SCIENCE.md section 1)."""
+MapName = Literal["odr", "ols", "hybrid", "e_ols"]
+"""A per-cell map: the three models and the OLS error ``e_ols = |theta_ols - theta_odr|``."""
+Residual = Literal["absolute", "signed"]
+"""``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
+signed distances."""
+
+AXES: tuple[Axis, Axis, Axis] = ("x", "y", "z")
+AXIS_CHOICES: tuple[AxisChoice, ...] = ("auto", "x", "y", "z")
+MODELS: tuple[Model, ...] = ("odr", "ols", "hybrid")
+MAPS: tuple[MapName, ...] = ("odr", "ols", "hybrid", "e_ols")
+RESIDUALS: tuple[Residual, ...] = ("absolute", "signed")
+
+MAP_LABELS: dict[str, str] = {"odr": "ODR", "ols": "OLS", "hybrid": "hybrid", "e_ols": "e_OLS"}
+"""Short display name of each map (tables, legends, axis titles)."""
+MAP_TITLES: dict[str, str] = {
+    "odr": "ODR",
+    "ols": "OLS",
+    "hybrid": "hybrid",
+    "e_ols": "OLS error e_ols",
+}
+"""Longer name of each map where there is room (the app's model menu)."""
+MAP_COLOURS: dict[str, str] = {
+    "odr": "#1f77b4",
+    "ols": "#d62728",
+    "hybrid": "#2ca02c",
+    "e_ols": "#9467bd",
+}
+"""One line colour per map, shared by every figure."""
+MAP_MARKERS: dict[str, str] = {
+    "odr": "circle-open",
+    "ols": "triangle-up-open",
+    "hybrid": "square-open",
+    "e_ols": "cross-thin-open",
+}
+"""Marker symbols of the 2011 paper's Fig. 4: ODR circles, OLS triangles, e_OLS plus."""
+
+DEFAULT_THRESHOLD = 0.05
+"""Binary transform threshold on normalised roughness (2011 paper)."""
+HISTOGRAM_BIN = 0.05
+"""Bin width of normalised-roughness histograms (2011 paper, Fig. 3)."""
+PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
+"""The 2011 paper's grid sizes, metres."""
+
+# ----------------------------------------------------------------------------- profiles
+
+Decomposition = Literal["dwt", "wp"]
+"""Wavelet decomposition: discrete wavelet transform or wavelet packets."""
+ThresholdRule = Literal["fixed", "penalized-low", "penalized-medium", "penalized-high"]
+"""Threshold rule: fixed form, or Birge-Massart penalized with alpha 1.5 / 2 / 5."""
+Mode = Literal["hard", "soft"]
+"""How a threshold is applied to the detail coefficients."""
+
+DECOMPOSITIONS: tuple[Decomposition, ...] = ("dwt", "wp")
+THRESHOLD_RULES: tuple[ThresholdRule, ...] = (
+    "fixed",
+    "penalized-low",
+    "penalized-medium",
+    "penalized-high",
+)
+MODES: tuple[Mode, ...] = ("soft", "hard")
+
+PROFILE_COLOURS: tuple[str, ...] = ("#e63c28", "#1e78e6", "#faa000", "#963cc8", "#14aa5a")
+"""Colours of kept profiles, in order (the scene line and its curves share one)."""
+
+
+def hex_to_rgb(code: str) -> tuple[int, int, int]:
+    """``"#rrggbb"`` -> ``(r, g, b)`` in 0..255.
+
+    >>> hex_to_rgb("#e63c28")
+    (230, 60, 40)
+    """
+    code = code.lstrip("#")
+    return int(code[0:2], 16), int(code[2:4], 16), int(code[4:6], 16)

@@ -1,0 +1,141 @@
+"""`rough-viewer compute`: the output contract and the bad-input errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rough_viewer.cli import main
+from rough_viewer.cli.compute import CSV_COLUMNS
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.summary import summarise
+from rough_viewer.io import PointCloud, write_las
+from tests.helpers import rough_surface
+
+
+@pytest.fixture
+def cloud_file(tmp_path):
+    xyz = rough_surface(4000, seed=12, size=2.0)[:, [0, 2, 1]] + [500_000.0, 20.0, 4_000_000.0]
+    path = tmp_path / "face.npy"
+    np.save(path, xyz)
+    return path, xyz
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], rows[1:]
+
+
+def test_csv_and_json_contract(tmp_path, cloud_file, capsys):
+    path, xyz = cloud_file
+    out, js = tmp_path / "cells.csv", tmp_path / "summary.json"
+    assert main(["compute", str(path), "--grid", "0.5", "--out", str(out),
+                 "--summary-json", str(js), "--quiet"]) == 0
+    header, rows = read_csv(out)
+    assert tuple(header) == CSV_COLUMNS
+    ref = grid_roughness(xyz, 0.5)
+    keep = ref.n_points >= 3
+    assert len(rows) == keep.sum()
+    by_key = {tuple(r[:3]): r for r in rows}
+    for i in np.flatnonzero(keep):
+        r = by_key[tuple(str(v) for v in ref.ijk[i])]
+        assert int(r[6]) == ref.n_points[i]
+        for col, val in (("cx", ref.centre[i, 0]), ("theta_odr", ref.theta_odr[i]),
+                         ("theta_ols", ref.theta_ols[i]), ("theta_hybrid", ref.theta_hybrid[i]),
+                         ("e_ols", ref.e_ols[i]), ("normal_z", ref.normal[i, 2])):
+            text = r[CSV_COLUMNS.index(col)]
+            if np.isnan(val):
+                assert text == ""
+            else:
+                assert float(text) == val  # full precision: exact round trip
+    data = json.loads(js.read_text())
+    assert data["axis"] == "y" and data["axis_requested"] == "auto"
+    assert data["grid_size"] == 0.5 and data["points"] == len(xyz)
+    np.testing.assert_allclose(data["origin"], xyz.min(axis=0))
+    for name in ("odr", "ols", "hybrid", "e_ols"):
+        s = summarise(ref, name)
+        assert set(data[name]) == {"cells", "mean_points", "min", "max", "mean", "variance", "std"}
+        assert data[name]["cells"] == s.cells
+        assert data[name]["std"] == pytest.approx(s.std, rel=1e-12)
+    text = capsys.readouterr().out
+    assert "ODR" in text and "OLS" in text and "hybrid" in text and "dependent axis y (auto)" in text
+
+
+def test_several_grids_one_method_and_signed(tmp_path, cloud_file):
+    path, xyz = cloud_file
+    out = tmp_path / "cells.csv"
+    assert main(["compute", str(path), "--grid", "1", "--grid", "0.25", "--method", "ols",
+                 "--axis", "z", "--signed", "--origin", "499999,19,3999999",
+                 "--out", str(out), "--summary-json", str(tmp_path / "s.json"), "--quiet"]) == 0
+    for g in ("1", "0.25"):
+        header, rows = read_csv(tmp_path / f"cells_g{g}.csv")
+        assert all(r[CSV_COLUMNS.index("theta_odr")] == "" for r in rows)
+        assert any(r[CSV_COLUMNS.index("theta_ols")] != "" for r in rows)
+        data = json.loads((tmp_path / f"s_g{g}.json").read_text())
+        ref = grid_roughness(xyz, float(g), origin=[499999, 19, 3999999], axis="z",
+                             models=("ols",), residual="signed")
+        assert data["ols"]["mean"] == pytest.approx(summarise(ref, "ols").mean, rel=1e-12)
+        assert data["odr"]["cells"] == 0 and data["odr"]["mean"] is None
+    assert not out.exists()
+
+
+def test_las_input_with_nan_rows_reports_dropped(tmp_path, capsys):
+    xyz = rough_surface(500, seed=2)
+    xyz[5] = np.nan
+    np.save(tmp_path / "n.npy", xyz)
+    assert main(["compute", str(tmp_path / "n.npy"), "--grid", "1", "--out",
+                 str(tmp_path / "o.csv"), "--quiet"]) == 0
+    assert "dropped 1 points" in capsys.readouterr().err
+    write_las(tmp_path / "c.laz", PointCloud.from_xyz(rough_surface(500, seed=3)))
+    assert main(["compute", str(tmp_path / "c.laz"), "--grid", "1", "--out",
+                 str(tmp_path / "l.csv"), "--quiet"]) == 0
+
+
+def bad_cases(tmp_path, good):
+    (tmp_path / "exists.csv").write_text("keep me\n")
+    (tmp_path / "empty.xyz").write_text("")
+    (tmp_path / "two.xyz").write_text("0 0 0\n1 1 1\n")
+    return {
+        "missing file": (["compute", str(tmp_path / "nope.laz"), "--grid", "1"], "file not found"),
+        "unknown extension": (["compute", str(tmp_path / "exists.csv.bak"), "--grid", "1"], "unknown file type"),
+        "empty cloud": (["compute", str(tmp_path / "empty.xyz"), "--grid", "1"], "no points"),
+        "two points": (["compute", str(tmp_path / "two.xyz"), "--grid", "1"], "at least 3"),
+        "grid zero": (["compute", str(good), "--grid", "0"], "positive"),
+        "grid negative": (["compute", str(good), "--grid", "-1"], "positive"),
+        "grid tiny": (["compute", str(good), "--grid", "1e-300"], "cells"),
+        "missing folder": (["compute", str(good), "--grid", "1", "--out", str(tmp_path / "no" / "c.csv")], "folder does not exist"),
+        "existing output": (["compute", str(good), "--grid", "1", "--out", str(tmp_path / "exists.csv")], "exists"),
+        "bad origin": (["compute", str(good), "--grid", "1", "--origin", "1,2"], "--origin"),
+        "min points": (["compute", str(good), "--grid", "1", "--min-points", "2"], "at least 3"),
+    }
+
+
+@pytest.mark.parametrize("case", ["missing file", "unknown extension", "empty cloud", "two points",
+                                  "grid zero", "grid negative", "grid tiny", "missing folder",
+                                  "existing output", "bad origin", "min points"])
+def test_bad_input_one_line_exit_2_no_output(tmp_path, cloud_file, capsys, case):
+    good, _ = cloud_file
+    argv, message = bad_cases(tmp_path, good)[case]
+    if "--out" not in argv:
+        argv = [*argv, "--out", str(tmp_path / "out.csv")]
+    before = sorted(os.listdir(tmp_path))
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and "Traceback" not in err
+    assert sorted(os.listdir(tmp_path)) == before  # nothing written
+    assert (tmp_path / "exists.csv").read_text() == "keep me\n"
+
+
+def test_console_script_exit_status_and_no_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "rough_viewer", "compute", str(tmp_path / "x.las"),
+                           "--grid", "1", "--out", str(tmp_path / "o.csv")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"rough-viewer: error: file not found: {tmp_path / 'x.las'}"

@@ -1,0 +1,156 @@
+"""``rough-viewer profile``: JSON numbers, CSV samples, profile files, one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rough_viewer.cli import main
+from rough_viewer.profiles.comparison import compare_denoising
+from rough_viewer.profiles.extraction import extract_profile
+from rough_viewer.profiles.wavelets import noise_sigma
+from rough_viewer.synthetic.fbm import fbm_profile
+
+N = 400
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> dict:
+    """A tilted 1 mm grid (0.4 m x 41 mm) carrying fBm ridges (H 0.7) plus 1 mm noise."""
+    folder = tmp_path_factory.mktemp("profile_cli")
+    rng = np.random.default_rng(0)
+    g = fbm_profile(N, 0.7, spacing=1e-3, sigma=0.02, rng=1)
+    a, c = np.meshgrid(np.arange(N) * 1e-3, np.arange(-20, 21) * 1e-3)
+    z = np.interp(a, np.arange(N) * 1e-3, g) + rng.normal(0, 0.001, a.shape)
+    th = np.radians(70)
+    rot = np.array([[1, 0, 0], [0, np.cos(th), -np.sin(th)], [0, np.sin(th), np.cos(th)]])
+    shift = np.array([100.0, 200.0, 50.0])
+    xyz = np.column_stack([a.ravel(), c.ravel(), z.ravel()]) @ rot.T + shift
+    cloud = folder / "cloud.npy"
+    np.save(cloud, xyz)
+    start = np.array([0.01, 0.0, g[10]]) @ rot.T + shift
+    end = np.array([0.38, 0.0, g[380]]) @ rot.T + shift
+    hand = folder / "hand.txt"
+    np.savetxt(hand, np.column_stack([np.arange(N) * 1.0, g * 1e3]), header="distance_mm height_mm")
+    return {
+        "folder": folder, "cloud": cloud, "xyz": xyz, "start": start, "end": end,
+        "hand": hand, "g": g,
+    }
+
+
+def xyz_arg(p: np.ndarray) -> str:
+    return ",".join(repr(float(v)) for v in p)
+
+
+def line_args(scene) -> list[str]:
+    return ["--from", xyz_arg(scene["start"]), "--to", xyz_arg(scene["end"])]
+
+
+def test_json_numbers_match_the_core(scene, capsys) -> None:
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--json"])
+    out = capsys.readouterr().out
+    assert code == 0
+    data = json.loads(out)
+    prof = extract_profile(scene["xyz"], scene["start"], scene["end"])
+    assert data["samples"] == prof.distance.size
+    assert data["spacing_m"] == prof.spacing and data["points"] == prof.n_points
+    assert data["sigma_m"] == noise_sigma(prof.heights)
+    ref = compare_denoising(prof.heights, prof.spacing)
+    assert data["raw"]["dimension"] == ref.raw.dimension
+    assert len(data["variants"]) == 16
+    for row, v in zip(data["variants"], ref.variants, strict=True):
+        assert (row["decomposition"], row["threshold"], row["mode"]) == (
+            v.decomposition, v.threshold_rule, v.mode)
+        assert row["threshold_m"] == v.denoised.threshold
+        assert row["dimension"] == v.fractal.dimension
+    assert data["thresholds_m"]["wp"]["fixed"] > data["thresholds_m"]["dwt"]["fixed"]
+    # the paper's pattern on noisy data: de-noising lowers D, soft below hard
+    raw_d = data["raw"]["dimension"]
+    by = {(r["decomposition"], r["threshold"], r["mode"]): r["dimension"] for r in data["variants"]}
+    assert all(d < raw_d for d in by.values())
+    assert all(by[(dec, t, "soft")] <= by[(dec, t, "hard")] for dec, t, _ in by)
+
+
+def test_text_table_and_csv(scene, capsys, tmp_path: Path) -> None:
+    out_csv = tmp_path / "samples.csv"
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--csv", str(out_csv)])
+    text = capsys.readouterr().out
+    assert code == 0
+    for label in ("Original profile", "Soft thresh.", "Hard thresh.", "Fixed-form", "Med.",
+                  "noise sigma", "DWT", "Wavelet packets"):
+        assert label in text
+    header = out_csv.read_text().splitlines()[0].split(",")
+    assert header[:3] == ["distance_m", "raw_m", "dwt_fixed_soft_m"] and len(header) == 18
+    data = np.loadtxt(out_csv, delimiter=",", skiprows=1)
+    prof = extract_profile(scene["xyz"], scene["start"], scene["end"])
+    np.testing.assert_array_equal(data[:, 0], prof.distance)
+    np.testing.assert_array_equal(data[:, 1], prof.heights)
+    ref = compare_denoising(prof.heights, prof.spacing)
+    np.testing.assert_array_equal(data[:, 2], ref.variant("dwt", "fixed", "soft").denoised.heights)
+
+
+def test_refuses_existing_output_without_force(scene, capsys, tmp_path: Path) -> None:
+    out_csv = tmp_path / "exists.csv"
+    out_csv.write_text("keep me\n")
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--csv", str(out_csv)])
+    err = capsys.readouterr().err
+    assert code == 2 and "exists" in err and out_csv.read_text() == "keep me\n"
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--csv", str(out_csv),
+                 "--force", "--json"])
+    assert code == 0 and out_csv.read_text().startswith("distance_m,")
+
+
+def test_profile_file_in_millimetres(scene, capsys) -> None:
+    code = main(["profile", str(scene["hand"]), "--profile-units", "mm", "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0 and data["source"] == "profile-file"
+    assert data["samples"] == N and data["spacing_m"] == pytest.approx(1e-3)
+    g = np.loadtxt(scene["hand"])[:, 1] * 1e-3
+    assert data["sigma_m"] == noise_sigma(g)
+    assert data["raw"]["dimension"] == pytest.approx(compare_denoising(g, 1e-3).raw.dimension, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "make_args,needle",
+    [
+        (lambda s: ["profile", str(s["folder"] / "missing.npy"), *line_args(s)], "no such file"),
+        (lambda s: ["profile", str(s["cloud"]), "--from", "1,2", "--to", "1,2,3"], "--from"),
+        (lambda s: ["profile", str(s["cloud"])], "--from X,Y,Z"),
+        (lambda s: ["profile", str(s["cloud"]), *line_args(s), "--wavelet", "db99x"], "--wavelet"),
+        (lambda s: ["profile", str(s["cloud"]), *line_args(s), "--spacing", "-1"], "--spacing"),
+        (lambda s: ["profile", str(s["cloud"]), "--from", "0,0,0", "--to", "1,1,1"], "points within"),
+        (lambda s: ["profile", str(s["bad"])], "line 3"),
+        (lambda s: ["profile", str(s["short"])], "samples"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(scene, capsys, make_args, needle) -> None:
+    bad = scene["folder"] / "bad.txt"
+    bad.write_text("# d h\n0 1\n1 x\n2 3\n")
+    short = scene["folder"] / "short.txt"
+    short.write_text("".join(f"{i} {np.sin(i)}\n" for i in range(20)))
+    s = {**scene, "bad": bad, "short": short}
+    code = main(make_args(s))
+    cap = capsys.readouterr()
+    assert code == 2
+    assert cap.out == ""
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rough-viewer: error:") and needle in lines[0]
+
+
+def test_text_clouds_and_two_column_detection(scene, capsys, tmp_path: Path) -> None:
+    cloud_txt = tmp_path / "cloud.xyz"
+    np.savetxt(cloud_txt, scene["xyz"], fmt="%.6f")
+    assert main(["profile", str(cloud_txt), *line_args(scene), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["source"] == "cloud" and data["points"] > 1000
+    two = tmp_path / "two.csv"
+    two.write_text("distance,height\n" + "".join(f"{i * 0.001},{np.sin(i / 7) * 1e-3}\n"
+                                                 for i in range(300)))
+    assert main(["profile", str(two), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["source"] == "profile-file" and data["samples"] == 300
+    code = main(["profile", str(two), *line_args(scene)])
+    assert code == 2 and "profile file" in capsys.readouterr().err

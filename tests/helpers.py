@@ -1,0 +1,106 @@
+"""Synthetic clouds shared by the tests (made here: the suite never reads ../shared).
+
+A normal module: test files import what they need from ``tests.helpers``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rough_viewer.io import PointCloud
+
+#: Range noise of the synthetic board and wire scans, metres (the bias paper's 1.6 mm).
+NOISE = 0.0016
+
+
+def rough_surface(n: int, seed: int = 0, *, size: float = 4.0, noise: float = 0.003) -> np.ndarray:
+    """(n, 3) points of a wavy, noisy surface z = f(x, y), metres."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0.0, size, (n, 2))
+    z = (
+        0.05 * np.sin(3.1 * xy[:, 0]) * np.cos(2.3 * xy[:, 1])
+        + 0.02 * np.sin(11.0 * xy[:, 0] + 1.0)
+        + rng.normal(0.0, noise, n)
+    )
+    return np.column_stack([xy, z])
+
+
+def random_rotation(seed: int) -> np.ndarray:
+    """A random proper rotation matrix (3x3)."""
+    rng = np.random.default_rng(seed)
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    return q
+
+
+
+UTM = np.array([512_000.0, 4_170_000.0, 100.0])
+
+
+def face_cloud(n: int = 40_000, *, seed: int = 0) -> PointCloud:
+    """A vertical face 4 m x 2 m facing -y at UTM-like coordinates, gently waved,
+    whose noise grows from 0.5 mm at the left edge to 10.5 mm at the right."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.0, 4.0, n)
+    z = rng.uniform(0.0, 2.0, n)
+    sigma = 0.0005 + 0.0025 * x
+    y = 0.02 * np.sin(1.5 * x) + sigma * rng.standard_normal(n)
+    return PointCloud.from_xyz(np.column_stack([x, y, z]) + UTM, source="synthetic-face")
+
+
+def board_rotation(seed: int) -> np.ndarray:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def board_points(*, n: int, noise: float, sag: float, seed: int, grid: bool = False,
+           long_m: float = 1.244, short_m: float = 0.609) -> tuple[np.ndarray, np.ndarray]:
+    """A board scanned at ~10 m: in its own frame u (long), v (short), w (normal),
+    bowed by ``w = k u^2`` with ``sag`` at the ends, rotated into a random pose.
+
+    Returns the points and the scanner position (the origin)."""
+    rng = np.random.default_rng(seed)
+    if grid:
+        m = int(round(math.sqrt(n * long_m / short_m)))
+        u, v = np.meshgrid((np.arange(m) + 0.5) / m - 0.5,
+                           (np.arange(n // m) + 0.5) / (n // m) - 0.5)
+        u = u.ravel() * long_m
+        v = v.ravel() * short_m
+    else:
+        u = rng.uniform(-long_m / 2, long_m / 2, n)
+        v = rng.uniform(-short_m / 2, short_m / 2, n)
+    k = sag / (long_m / 2) ** 2
+    w = k * u**2 + rng.normal(0.0, noise, u.size)
+    rot = board_rotation(seed)
+    local = np.column_stack((u, v, w))
+    centre = np.array([3.0, 9.0, 1.0])
+    # Board normal (third column of rot) faces the scanner at the origin.
+    if np.dot(rot[:, 2], -centre) < 0:
+        rot[:, 2] *= -1
+        rot[:, 0] *= -1
+    return local @ rot.T + centre, np.zeros(3)
+
+
+def wire_points(*, er: float, wire_r: float, range_m: float, n: int, seed: int) -> np.ndarray:
+    """Scan of a taut wire at 45 degrees across the view: every beam whose footprint
+    (radius ``er``) touches the wire (radius ``wire_r``) returns the wire's range."""
+    rng = np.random.default_rng(seed)
+    view = np.array([0.3, 0.9, 0.2])
+    view /= np.linalg.norm(view)
+    centre = range_m * view
+    a = np.cross(view, [0.0, 0.0, 1.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(view, a)
+    direction = (a + b) / math.sqrt(2.0)
+    across = np.cross(direction, view)
+    t = rng.uniform(-0.4, 0.4, n)
+    s = rng.uniform(-(er + wire_r), er + wire_r, n)
+    target = centre + t[:, None] * direction + s[:, None] * across
+    rng_to_wire = np.linalg.norm(centre + t[:, None] * direction, axis=1)
+    rays = target / np.linalg.norm(target, axis=1)[:, None]
+    return rays * (rng_to_wire + rng.normal(0.0, NOISE, n))[:, None]

@@ -1,0 +1,159 @@
+"""Readers: every format gives the same points and the same roughness."""
+
+from __future__ import annotations
+
+import struct
+
+import laspy
+import numpy as np
+import pytest
+
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.io import PointCloud, load_points, read_las_extra, write_las
+from rough_viewer.vocabulary import InputError
+from tests.helpers import rough_surface
+
+SCALE = 1e-4
+
+
+@pytest.fixture(scope="module")
+def cloud() -> PointCloud:
+    # coordinates on the LAS integer lattice (1e-4 m) so every format stores them exactly
+    xyz = rough_surface(3000, seed=8, size=3.0) + np.array([523_456.0, 4_123_456.0, 800.0])
+    xyz = np.round(xyz / SCALE) * SCALE
+    return PointCloud.from_xyz(xyz, intensity=np.arange(3000) % 4000)
+
+
+def _write_all(tmp_path, cloud):
+    xyz = cloud.xyz()
+    files = {}
+    write_las(tmp_path / "c.las", cloud, scale=SCALE)
+    write_las(tmp_path / "c.laz", cloud, scale=SCALE)
+    files["las"] = tmp_path / "c.las"
+    files["laz"] = tmp_path / "c.laz"
+    np.save(tmp_path / "c.npy", xyz)
+    files["npy"] = tmp_path / "c.npy"
+    rows = "\n".join(f"{a!r} {b!r} {c!r} 17" for a, b, c in xyz.tolist())
+    (tmp_path / "c.xyz").write_text(rows + "\n")
+    files["xyz"] = tmp_path / "c.xyz"
+    rows = "\n".join(f"{a!r},{b!r},{c!r}" for a, b, c in xyz.tolist())
+    (tmp_path / "c.csv").write_text("x,y,z\n" + rows + "\n")
+    files["csv"] = tmp_path / "c.csv"
+    head = f"ply\nformat ascii 1.0\nelement vertex {len(xyz)}\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nend_header\n"
+    (tmp_path / "a.ply").write_text(head + "\n".join(f"{a!r} {b!r} {c!r} 5" for a, b, c in xyz.tolist()) + "\n")
+    files["ply-ascii"] = tmp_path / "a.ply"
+    for end, name in (("<", "binary_little_endian"), (">", "binary_big_endian")):
+        head = (f"ply\nformat {name} 1.0\ncomment made by a test\nelement vertex {len(xyz)}\n"
+                "property float64 x\nproperty float64 y\nproperty float64 z\nproperty float nx\n"
+                "element face 1\nproperty list uchar int vertex_indices\nend_header\n")
+        rec = np.zeros(len(xyz), dtype=[("x", end + "f8"), ("y", end + "f8"), ("z", end + "f8"), ("nx", end + "f4")])
+        rec["x"], rec["y"], rec["z"] = xyz.T
+        face = struct.pack(end + "Biii", 3, 0, 1, 2)
+        path = tmp_path / f"{name}.ply"
+        path.write_bytes(head.encode() + rec.tobytes() + face)
+        files[f"ply-{name}"] = path
+    return files
+
+
+def test_every_format_gives_identical_points_and_roughness(tmp_path, cloud):
+    files = _write_all(tmp_path, cloud)
+    ref = grid_roughness(cloud, 0.5)
+    order = np.lexsort(cloud.xyz().T[::-1])
+    for kind, path in files.items():
+        got = load_points(path, cache=False)
+        assert got.n == cloud.n, kind
+        np.testing.assert_allclose(got.xyz()[np.lexsort(got.xyz().T[::-1])], cloud.xyz()[order],
+                                   rtol=0, atol=1e-9, err_msg=kind)
+        res = grid_roughness(got, 0.5)
+        for name in ("odr", "ols", "hybrid", "e_ols"):
+            a, b = np.sort(res.values(name)), np.sort(ref.values(name))
+            np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-12, err_msg=f"{kind} {name}")
+    las = load_points(files["las"])
+    np.testing.assert_array_equal(las.intensity, cloud.intensity)
+
+
+def _stl_binary(path, tris):
+    rec = np.zeros(len(tris), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    rec["v"] = tris
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", len(tris)) + rec.tobytes())
+
+
+def test_stl_ascii_and_binary_give_each_vertex_once(tmp_path):
+    # a 6 x 6 vertex sheet triangulated: 50 triangles sharing 36 vertices
+    g = np.arange(6, dtype=np.float32) * 0.25
+    vx, vy = np.meshgrid(g, g, indexing="ij")
+    vz = (0.1 * np.sin(vx) * np.cos(vy)).astype(np.float32)
+    V = np.stack([vx, vy, vz], axis=-1)
+    tris = []
+    for i in range(5):
+        for j in range(5):
+            tris.append([V[i, j], V[i + 1, j], V[i, j + 1]])
+            tris.append([V[i + 1, j], V[i + 1, j + 1], V[i, j + 1]])
+    tris = np.array(tris, dtype=np.float32)
+    _stl_binary(tmp_path / "b.stl", tris)
+    lines = ["solid sheet"]
+    for t in tris:
+        lines += ["facet normal 0 0 1", " outer loop"]
+        lines += [f"  vertex {a!r} {b!r} {c!r}" for a, b, c in t.astype(np.float64).tolist()]
+        lines += [" endloop", "endfacet"]
+    (tmp_path / "a.stl").write_text("\n".join(lines + ["endsolid sheet"]) + "\n")
+    expected = np.unique(V.reshape(-1, 3).astype(np.float64), axis=0)
+    for name in ("a.stl", "b.stl"):
+        got = load_points(tmp_path / name)
+        assert got.n == 36
+        np.testing.assert_array_equal(got.xyz(), expected)
+
+
+def test_laz_cache_makes_second_read_identical(tmp_path, cloud, monkeypatch):
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    write_las(tmp_path / "c.laz", cloud, scale=SCALE)
+    first = load_points(tmp_path / "c.laz")
+    assert any((tmp_path / "cache").iterdir())
+    second = load_points(tmp_path / "c.laz")
+    np.testing.assert_array_equal(first.xyz(), second.xyz())
+    np.testing.assert_array_equal(first.intensity, second.intensity)
+
+
+def test_extra_dimension_round_trip_and_deterministic_bytes(tmp_path, cloud):
+    labels = (np.arange(cloud.n) % 3).astype(np.uint8)
+    write_las(tmp_path / "a.laz", cloud, extra={"truth": labels})
+    write_las(tmp_path / "b.laz", cloud, extra={"truth": labels})
+    np.testing.assert_array_equal(read_las_extra(tmp_path / "a.laz", "truth"), labels)
+    assert (tmp_path / "a.laz").read_bytes() == (tmp_path / "b.laz").read_bytes()
+    assert laspy.read(tmp_path / "a.laz").header.point_count == cloud.n
+
+
+def test_nonfinite_rows_dropped_and_counted(tmp_path):
+    xyz = rough_surface(50, seed=1)
+    xyz[3, 0] = np.nan
+    xyz[7, 2] = np.inf
+    np.save(tmp_path / "n.npy", xyz)
+    got = load_points(tmp_path / "n.npy")
+    assert got.n == 48 and got.dropped_nonfinite == 2
+
+
+@pytest.mark.parametrize(
+    "name, content, message",
+    [
+        ("missing.las", None, "file not found"),
+        ("cloud.obj", "v 1 2 3\n", "unknown file type"),
+        ("empty.xyz", "", "no points"),
+        ("two.xyz", "0 0 0\n1 1 1\n", "only 2 point"),
+        ("cols.xyz", "1 2\n3 4\n5 6\n", "at least 3 columns"),
+        ("bad.csv", "x,y,z\n1,2,3\n4,five,6\n7,8,9\n", "cannot parse"),
+        ("nan.xyz", "nan 1 2\n1 nan 2\n", "no points"),
+        ("junk.las", "this is not a las file", "cannot read"),
+        ("junk.laz", "this is not a laz file", "cannot read"),
+        ("junk.ply", "plx\n", "not a PLY"),
+        ("junk.stl", "hello", "not an STL"),
+        ("junk.npy", "nope", "cannot read"),
+    ],
+)
+def test_bad_files_raise_one_line_errors_naming_the_file(tmp_path, name, content, message):
+    path = tmp_path / name
+    if content is not None:
+        path.write_text(content)
+    with pytest.raises(InputError) as exc:
+        load_points(path)
+    text = str(exc.value)
+    assert message in text and name in text and "\n" not in text

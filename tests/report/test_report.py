@@ -1,0 +1,259 @@
+"""Tests of the report: JSON numbers against independent references, the HTML page,
+the command's input checks, and the page in headless Chromium."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import re
+
+import numpy as np
+import pytest
+from plotly.offline import get_plotlyjs
+
+from rough_viewer import __version__
+from rough_viewer.cli import main
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.summary import histogram, normalise, summarise
+from rough_viewer.io import PointCloud
+from rough_viewer.report import FIGURE_NAMES, build_report, report_html, report_json
+from rough_viewer.vocabulary import MAPS
+
+GOOD = (0.5, 0.25)
+TOO_COARSE = 2.5  # leaves 3 cells
+
+
+def rough_tilted_face(n: int = 20_000, seed: int = 0) -> np.ndarray:
+    """A 6 m x 2 m rough face, turned 25 degrees about z, far from the origin (UTM-like)."""
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(0, 6, n)
+    v = rng.uniform(0, 2, n)
+    h = (0.1 * np.sin(1.7 * u) * np.cos(2.3 * v) + 0.01 * rng.normal(size=n)
+         + 0.05 * (np.sin(6 * u) > 0.9) * rng.normal(size=n))
+    a = np.radians(25)
+    return np.column_stack([
+        600_000 + u * np.cos(a) - h * np.sin(a),
+        4_100_000 + u * np.sin(a) + h * np.cos(a),
+        1500 + v,
+    ])
+
+
+@pytest.fixture(scope="module")
+def cloud_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cloud") / "face.npy"
+    np.save(path, rough_tilted_face())
+    return path
+
+
+@pytest.fixture(scope="module")
+def cloud(cloud_file):
+    return PointCloud.from_xyz(np.load(cloud_file), source=str(cloud_file))
+
+
+@pytest.fixture(scope="module")
+def report(cloud):
+    return build_report(cloud, [*GOOD, TOO_COARSE])
+
+
+def brute_force_variogram(centres, values, g):
+    """Contract binning by a plain loop over pairs: bin k holds d in [(k-.5)g, (k+.5)g)."""
+    ok = np.isfinite(values)
+    c, z = centres[ok], values[ok]
+    extent = (c.max(axis=0) - c.min(axis=0)) + g
+    n_bins = int(np.floor(0.5 * extent.max() / g + 1e-9))
+    pairs = np.zeros(n_bins, dtype=np.int64)
+    total = np.zeros(n_bins)
+    for i in range(len(z) - 1):
+        d = np.sqrt(((c[i + 1:] - c[i]) ** 2).sum(axis=1))
+        k = np.floor(d / g + 0.5).astype(int)
+        sel = (k >= 1) & (k <= n_bins)
+        np.add.at(pairs, k[sel] - 1, 1)
+        np.add.at(total, k[sel] - 1, (z[i + 1:][sel] - z[i]) ** 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gamma = np.where(pairs > 0, total / (2 * pairs), np.nan)
+    return np.arange(1, n_bins + 1) * g, pairs, gamma
+
+
+def test_json_numbers_match_independent_references(cloud, report):
+    data = json.loads(json.dumps(report_json(report), allow_nan=False))
+    assert data["software"] == {"name": "rough_viewer", "version": __version__}
+    assert data["input"]["points"] == cloud.n == 20_000
+    np.testing.assert_allclose(data["input"]["bounds_min"], cloud.bounds()[0])
+    assert data["axis"] == "y"  # face turned 25 degrees from xz: normal closest to y
+    assert [gr["grid_size"] for gr in data["grids"]] == [*GOOD, TOO_COARSE]
+    for gr in data["grids"][:2]:
+        g = gr["grid_size"]
+        assert gr["error"] is None
+        result = grid_roughness(cloud, g)
+        assert set(gr["models"]) == set(MAPS) == {"odr", "ols", "hybrid", "e_ols"}
+        for name in MAPS:
+            entry = gr["models"][name]
+            values = result.values(name)
+            ref = summarise(result, name).as_dict()
+            assert entry["summary"] == pytest.approx(ref, rel=1e-12)
+            hist = histogram(normalise(values), 0.05)
+            np.testing.assert_allclose(entry["histogram"]["edges"], np.linspace(0, 1, 21))
+            np.testing.assert_allclose(entry["histogram"]["fractions"], hist.fractions)
+            assert sum(entry["histogram"]["fractions"]) == pytest.approx(1.0)
+            lag, pairs, gamma = brute_force_variogram(result.centre, values, g)
+            vg = entry["semivariogram"]
+            np.testing.assert_allclose(vg["lag"], lag)
+            assert vg["pairs"] == pairs.tolist()
+            np.testing.assert_allclose(vg["gamma"], gamma, rtol=1e-8)
+            var = np.var(values[np.isfinite(values)])
+            np.testing.assert_allclose(vg["gamma_normalised"], gamma / var, rtol=1e-8)
+    coarse = data["grids"][2]
+    assert "too few cells" in coarse["error"] and "models" not in coarse
+
+
+def test_html_holds_every_figure_and_the_input_facts(report):
+    page = report_html(report)
+    assert "face.npy" in page and "20,000" in page and f"rough_viewer {__version__}" in page
+    assert "dependent axis (OLS, hybrid)</td><td>y" in page
+    # plotly.js inlined once; apart from it, nothing refers to the network
+    plotly_js = get_plotlyjs()
+    assert page.count(plotly_js) == 1
+    rest = page.replace(plotly_js, "")
+    assert "<script src=" not in rest and "http" not in rest
+    for g in GOOD:
+        sid = f"grid-{g:g}".replace(".", "_")
+        section = page.split(f'<section id="{sid}"')[1].split("</section>")[0]
+        assert re.findall(r'data-figure="(\w+)"', section) == list(FIGURE_NAMES)
+        assert f"grid {g:g} m" in section
+    bad = page.split('<section id="grid-2_5"')[1].split("</section>")[0]
+    assert "too few cells" in bad and "data-figure" not in bad
+
+
+def test_every_grid_too_coarse_still_reports(cloud):
+    rep = build_report(cloud, [TOO_COARSE, 50.0])
+    assert [s.error is not None for s in rep.sections] == [True, True]
+    assert rep.axis == "y" and rep.n_points == 20_000
+    data = report_json(rep)
+    assert all("too few cells" in g["error"] for g in data["grids"])
+    assert report_html(rep).count("too few cells") == 2
+
+
+def test_progress_reaches_the_end(cloud):
+    calls = []
+    build_report(cloud, [0.5, TOO_COARSE], progress=lambda d, t: calls.append((d, t)))
+    assert calls[-1][0] == calls[-1][1] and calls[0][0] == 0
+    assert all(b[0] >= a[0] for a, b in zip(calls, calls[1:], strict=False))
+
+
+def test_command_writes_json_and_html(cloud_file, tmp_path, capsys):
+    out = tmp_path / "r.json"
+    rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),
+               "--format", "json", "--out", str(out), "--quiet"])
+    assert rc == 0
+    data = json.loads(out.read_text())
+    assert data["grids"][0]["models"]["odr"]["summary"]["cells"] > 10
+    err = capsys.readouterr().err
+    assert "grid 2.5 m: too few cells" in err
+    html_out = tmp_path / "r.html"
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(html_out),
+                 "--quiet", "--threshold", "0.1"]) == 0
+    assert "Binary transform at 0.1" in html_out.read_text()
+
+
+def test_command_refuses_bad_input(cloud_file, tmp_path, capsys):
+    out = tmp_path / "r.html"
+    out.write_text("keep me")
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(out), "--quiet"]) == 2
+    assert "output file exists" in capsys.readouterr().err
+    assert out.read_text() == "keep me"
+    missing = tmp_path / "nope" / "r.html"
+    assert main(["report", str(cloud_file), "--out", str(missing), "--quiet"]) == 2
+    assert "output folder does not exist" in capsys.readouterr().err
+    for opts in (["--grid", "0"], ["--grid", "nan"], ["--threshold", "1.5"], ["--min-points", "2"]):
+        assert main(["report", str(cloud_file), *opts, "--out", str(tmp_path / "x.html")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("rough-viewer: error:") and err.count("\n") == 1
+    assert not (tmp_path / "x.html").exists()
+    assert main(["report", str(tmp_path / "absent.npy"), "--out", str(tmp_path / "x.html")]) == 2
+    assert "absent.npy" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(importlib.util.find_spec("kaleido") is not None, reason="kaleido installed")
+def test_png_without_kaleido_is_a_one_line_error(cloud_file, tmp_path, capsys):
+    out = tmp_path / "r.html"
+    rc = main(["report", str(cloud_file), "--grid", "0.5", "--out", str(out),
+               "--png", str(tmp_path / "png"), "--quiet"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "kaleido" in err and err.count("\n") == 1
+    assert not out.exists()  # checked before any work
+
+
+def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
+    """The export logic, with kaleido's renderer replaced by a stub."""
+    import plotly.graph_objects as go
+
+    import rough_viewer.report as report_module
+
+    rendered = []
+
+    def fake_to_image(fig, format="png", scale=1):
+        rendered.append(fig.layout.title.text)
+        return b"\x89PNG fake"
+
+    monkeypatch.setattr(report_module, "check_png_export", lambda: None)
+    monkeypatch.setattr(go.Figure, "to_image", fake_to_image)
+    png = tmp_path / "png"
+    rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),
+               "--out", str(tmp_path / "r.html"), "--png", str(png), "--quiet"])
+    assert rc == 0
+    assert sorted(p.name for p in png.iterdir()) == sorted(f"g0.5_{f}.png" for f in FIGURE_NAMES)
+    assert (png / "g0.5_histogram.png").read_bytes() == b"\x89PNG fake"
+    assert all("grid 0.5 m" in t for t in rendered)
+    # existing PNGs are refused before any work, unless --force
+    (tmp_path / "r.html").unlink()
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(tmp_path / "r.html"),
+                 "--png", str(png), "--quiet"]) == 2
+    assert not (tmp_path / "r.html").exists()
+
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update"]
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not os.path.exists(CHROMIUM):
+        pytest.skip("headless Chromium not installed (apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.mark.browser
+def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
+    path = tmp_path / "report.html"
+    path.write_text(report_html(report), encoding="utf-8")
+    ctx = browser.new_context(viewport={"width": 1200, "height": 900}, offline=True)
+    page = ctx.new_page()
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.goto(path.as_uri())
+    expected = len(GOOD) * len(FIGURE_NAMES)
+    page.wait_for_function(
+        f"document.querySelectorAll('.js-plotly-plot .main-svg').length >= {expected}",
+        timeout=60_000)
+    for g in GOOD:
+        sid = f"grid-{g:g}".replace(".", "_")
+        for name in FIGURE_NAMES:
+            fig = page.locator(f'#{sid} [data-figure="{name}"] .js-plotly-plot')
+            assert fig.count() == 1, (g, name)
+            title = fig.locator(".gtitle").first.text_content()
+            assert f"grid {g:g} m" in title and "dependent axis y" in title, title
+            assert "20,000 points" in title
+    traces = page.evaluate(
+        "Array.from(document.querySelectorAll('.js-plotly-plot')).map(d => d.data.length)")
+    assert len(traces) == expected and min(traces) >= 1
+    assert page.get_by_text("too few cells").count() == 1
+    ctx.close()
+    assert not errors, errors

@@ -1,0 +1,79 @@
+"""Tests of rough_viewer.visual.grid: the figures carry the data and the captions."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rough_viewer.grid.maps import face_maps, face_raster
+from rough_viewer.grid.summary import Summary, histogram
+from rough_viewer.grid.variogram import semivariogram
+from rough_viewer.visual.grid import (
+    face_map_figure,
+    histogram_figure,
+    summary_table_figure,
+    variogram_figure,
+)
+
+KW = {"grid_size": 0.125, "axis": "y", "n_points": 1_234_567}
+
+
+def assert_caption(fig, *models):
+    text = fig.layout.title.text
+    assert "grid 0.125 m" in text and "dependent axis y" in text and "1,234,567 points" in text
+    for m in models:
+        assert m in text
+
+
+def test_summary_table():
+    s = Summary(cells=53508, mean_points=1222.0, min=0.0, max=0.1202, mean=0.0069,
+                variance=4.32e-5, std=0.0066)
+    fig = summary_table_figure({"odr": s, "ols": s}, **KW)
+    cells = fig.data[0].cells.values
+    assert list(cells[0]) == ["ODR", "OLS"]
+    assert cells[1][0] == "53,508" and cells[4][0] == "0.1202" and cells[6][0] == "4.320e-05"
+    assert_caption(fig, "ODR", "OLS")
+
+
+def test_histogram_bars_and_first_bin_shares():
+    ols = histogram(np.r_[np.zeros(86), np.linspace(0.06, 1, 14)], 0.05)
+    odr = histogram(np.r_[np.zeros(63), np.linspace(0.06, 1, 37)], 0.05)
+    fig = histogram_figure({"ols": ols, "odr": odr}, **KW)
+    np.testing.assert_allclose(fig.data[0].y, ols.fractions * 100)
+    np.testing.assert_allclose(fig.data[1].x, 0.5 * (odr.edges[:-1] + odr.edges[1:]))
+    assert "OLS 86 %" in fig.layout.title.text and "ODR 63 %" in fig.layout.title.text
+    assert_caption(fig, "OLS", "ODR")
+
+
+def test_variogram_points_and_symbols():
+    rng = np.random.default_rng(0)
+    ijk = np.argwhere(np.ones((12, 12), bool))
+    vgs = {n: semivariogram(ijk, rng.normal(size=len(ijk)), 0.125) for n in ("odr", "ols", "e_ols")}
+    fig = variogram_figure(vgs, **KW)
+    assert [t.name for t in fig.data] == ["ODR", "OLS", "e_OLS"]
+    assert fig.data[0].marker.symbol == "circle-open"
+    assert fig.data[1].marker.symbol == "triangle-up-open"
+    np.testing.assert_allclose(fig.data[2].y, vgs["e_ols"].gamma_normalised)
+    np.testing.assert_array_equal(fig.data[2].customdata, vgs["e_ols"].pairs)
+    raw = variogram_figure(vgs, normalised=False, **KW)
+    np.testing.assert_allclose(raw.data[0].y, vgs["odr"].gamma)
+    assert_caption(fig, "ODR", "OLS", "e_OLS")
+
+
+@pytest.mark.parametrize("kind", ["normalised", "binary"])
+def test_face_map_panels(kind):
+    plane = SimpleNamespace(centroid=np.zeros(3), normal=np.array([0.0, 1.0, 0.0]))
+    centres = np.array([[0.1, 0, 0.1], [0.3, 0, 0.1], [0.1, 0, 0.3]])
+    raster = face_raster(centres, plane, 0.25)
+    maps = {"ols": face_maps(raster, np.array([0.0, 0.5, 1.0])),
+            "odr": face_maps(raster, np.array([1.0, 0.02, 0.0]))}
+    fig = face_map_figure(maps, kind=kind, **KW)
+    assert len(fig.data) == 2
+    want = maps["odr"].normalised.image if kind == "normalised" else maps["odr"].binary.image
+    np.testing.assert_array_equal(np.asarray(fig.data[1].z, dtype=float), want)
+    assert fig.layout.annotations[0].text.startswith("OLS")
+    assert_caption(fig, "OLS", "ODR")
+    with pytest.raises(ValueError):
+        face_map_figure(maps, kind="other", **KW)
