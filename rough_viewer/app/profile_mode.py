@@ -16,10 +16,9 @@ import numpy as np
 from rough_viewer.profiles.extraction import Profile, extract_profile
 from rough_viewer.profiles.fractal import RoughnessLength, roughness_length
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
+from rough_viewer.vocabulary import PROFILE_COLOURS, THRESHOLD_RULES, hex_to_rgb
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
-THRESHOLD_RULES = ("fixed", "penalized-low", "penalized-medium", "penalized-high")
-LINE_COLOURS = ((230, 60, 40), (30, 120, 230), (250, 160, 0), (150, 60, 200), (20, 170, 90))
 
 
 @dataclass(frozen=True)
@@ -94,7 +93,7 @@ def summary_markdown(analyses: list[ProfileAnalysis]) -> str:
 
 def add_profile_tab(app, tabs) -> None:
     """Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
-    from rough_viewer.visual.app import profile_figure
+    from rough_viewer.visual.profiles import profile_figure
 
     gui = app.server.gui
     with tabs.add_tab("Profile"):
@@ -163,7 +162,7 @@ def add_profile_tab(app, tabs) -> None:
         if not on.value:
             return False
         k = len(state["items"])
-        colour = LINE_COLOURS[k % len(LINE_COLOURS)]
+        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
         if state["start"] is None:
             state["start"] = (point_file, local)
             state["nodes"].append(app.server.scene.add_icosphere(

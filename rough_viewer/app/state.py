@@ -31,22 +31,15 @@ from rough_viewer.grid.roughness import (
 from rough_viewer.grid.summary import normalise
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import MAP_TITLES, MAPS, AxisChoice, InputError, MapName
 
-MapName = Literal["odr", "ols", "hybrid", "e_ols"]
-AxisChoice = Literal["auto", "x", "y", "z"]
 DisplayMode = Literal["continuous", "binary"]
 
 #: Grid sizes offered as one-click presets (metres), as in the 2011 paper.
 PRESET_CELL_SIZES: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 
-#: Models in the order the GUI lists them; labels shown to the user.
-MODEL_LABELS: dict[str, str] = {
-    "odr": "ODR",
-    "ols": "OLS",
-    "hybrid": "hybrid",
-    "e_ols": "OLS error e_ols",
-}
+#: Maps in the order the GUI lists them; names shown to the user.
+MODEL_LABELS: dict[str, str] = {name: MAP_TITLES[name] for name in MAPS}
 
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000

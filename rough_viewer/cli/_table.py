@@ -8,9 +8,7 @@ import math
 
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.summary import Summary, summarise
-from rough_viewer.vocabulary import MAPS
-
-MAP_LABELS = {"odr": "ODR", "ols": "OLS", "hybrid": "hybrid", "e_ols": "e_ols"}
+from rough_viewer.vocabulary import MAP_LABELS, MAPS
 
 
 def summaries(result: GridRoughness) -> dict[str, Summary]:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
 
@@ -102,12 +103,6 @@ def write_cells_csv(path: Path, result) -> None:
     write_atomic(path, write)
 
 
-def _clean(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def summary_dict(result, cloud_source: str, dropped: int) -> dict:
     """The SUMMARY.json content for one grid size."""
     from rough_viewer.grid.summary import summarise
@@ -115,7 +110,7 @@ def summary_dict(result, cloud_source: str, dropped: int) -> dict:
 
     out: dict = {}
     for name in MAPS:
-        out[name] = {k: _clean(v) for k, v in summarise(result, name).as_dict().items()}
+        out[name] = summarise(result, name).as_dict()
     out.update(
         {
             "grid_size": result.grid.cell_size,
@@ -131,7 +126,7 @@ def summary_dict(result, cloud_source: str, dropped: int) -> dict:
             "input": cloud_source,
         }
     )
-    return out
+    return to_jsonable(out)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
 
@@ -129,18 +130,14 @@ def read_profile_file(path: Path, *, scale: float = 1.0) -> tuple[np.ndarray, np
 # ----------------------------------------------------------------------------- output
 
 
-def _num(v: float | None) -> float | None:
-    return None if v is None or not math.isfinite(v) else float(v)
-
-
 def _fit_dict(fit) -> dict:
     if fit is None:
         return {"dimension": None, "hurst": None, "amplitude": None, "r2": None}
     return {
-        "dimension": _num(fit.dimension),
-        "hurst": _num(fit.hurst),
-        "amplitude": _num(fit.amplitude),
-        "r2": _num(fit.r2),
+        "dimension": to_jsonable(fit.dimension),
+        "hurst": to_jsonable(fit.hurst),
+        "amplitude": to_jsonable(fit.amplitude),
+        "r2": to_jsonable(fit.r2),
     }
 
 
@@ -161,7 +158,7 @@ def result_dict(info: dict, comparison) -> dict:
                 "mode": v.mode,
                 "threshold_m": v.denoised.threshold,
                 **_fit_dict(v.fractal),
-                "rms_change_m": _num(v.rms_change),
+                "rms_change_m": to_jsonable(v.rms_change),
                 "coefficients_kept": v.denoised.n_kept,
                 "coefficients": v.denoised.n_coefficients,
             }

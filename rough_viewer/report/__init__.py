@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import html
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +24,7 @@ from rough_viewer.grid.roughness import GridRoughness, grid_roughness, whole_clo
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io import PointCloud
+from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.vocabulary import MAPS, InputError, ProgressFn
 
 PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
@@ -236,29 +236,14 @@ def build_report(
 # ----------------------------------------------------------------------------- numbers
 
 
-def _num(v: Any) -> Any:
-    """JSON-safe number (NaN and inf -> None)."""
-    if isinstance(v, (np.integer, int)) and not isinstance(v, bool):
-        return int(v)
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-def _list(a: np.ndarray) -> list:
-    a = np.asarray(a)
-    if np.issubdtype(a.dtype, np.integer):
-        return [int(v) for v in a]
-    return [_num(v) for v in a]
-
-
 def variogram_dict(vg: Semivariogram) -> dict[str, Any]:
     """Plain numbers of a semivariogram (the JSON contract)."""
     return {
-        "lag": _list(vg.lag),
-        "gamma": _list(vg.gamma),
-        "gamma_normalised": _list(vg.gamma_normalised),
-        "pairs": _list(vg.pairs),
-        "variance": _num(vg.variance),
+        "lag": to_jsonable(vg.lag),
+        "gamma": to_jsonable(vg.gamma),
+        "gamma_normalised": to_jsonable(vg.gamma_normalised),
+        "pairs": to_jsonable(vg.pairs),
+        "variance": to_jsonable(vg.variance),
         "n_cells": int(vg.n_cells),
         "bin_width": float(vg.bin_width),
         "max_lag": float(vg.max_lag),
@@ -283,11 +268,11 @@ def report_json(report: Report) -> dict[str, Any]:
         if s.error is None:
             entry["models"] = {
                 name: {
-                    "summary": {k: _num(v) for k, v in s.summaries[name].as_dict().items()},
+                    "summary": {k: to_jsonable(v) for k, v in s.summaries[name].as_dict().items()},
                     "histogram": {
-                        "edges": _list(s.histograms[name].edges),
-                        "fractions": _list(s.histograms[name].fractions),
-                        "counts": _list(s.histograms[name].counts),
+                        "edges": to_jsonable(s.histograms[name].edges),
+                        "fractions": to_jsonable(s.histograms[name].fractions),
+                        "counts": to_jsonable(s.histograms[name].counts),
                     },
                     "semivariogram": variogram_dict(s.variograms[name]),
                 }
@@ -302,8 +287,8 @@ def report_json(report: Report) -> dict[str, Any]:
             "path": report.source,
             "points": report.n_points,
             "dropped_nonfinite": report.dropped_nonfinite,
-            "bounds_min": _list(report.bounds_min),
-            "bounds_max": _list(report.bounds_max),
+            "bounds_min": to_jsonable(report.bounds_min),
+            "bounds_max": to_jsonable(report.bounds_max),
         },
         "axis": report.axis,
         "axis_requested": report.axis_requested,
@@ -311,10 +296,10 @@ def report_json(report: Report) -> dict[str, Any]:
         "min_points": report.min_points,
         "histogram_bin_width": HISTOGRAM_BIN,
         "face_plane": {
-            "centroid": _list(frame.origin),
-            "normal": _list(frame.normal),
-            "u_axis": _list(frame.u_axis),
-            "v_axis": _list(frame.v_axis),
+            "centroid": to_jsonable(frame.origin),
+            "normal": to_jsonable(frame.normal),
+            "u_axis": to_jsonable(frame.u_axis),
+            "v_axis": to_jsonable(frame.v_axis),
         },
         "grids": grids,
     }

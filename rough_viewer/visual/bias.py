@@ -15,6 +15,7 @@ import plotly.graph_objects as go
 
 from rough_viewer.bias.measurement import EffectiveRadius, PiecewiseLinearFit, RangeNoise
 from rough_viewer.bias.simulation import SmoothingCurve
+from rough_viewer.visual import colormaps
 
 __all__ = ["board_segments_figure", "radius_range_figure", "smoothing_curve_figure"]
 
@@ -73,7 +74,7 @@ def board_segments_figure(noise: RangeNoise, *, value: Literal["offset", "sigma"
     z = np.full((rows, cols), np.nan)
     for s in noise.segments:
         z[s.row, s.col] = (s.offset if value == "offset" else s.sigma) * 1e3
-    scale = "RdBu" if value == "offset" else "Viridis"
+    scale = colormaps.plotly_colorscale("coolwarm" if value == "offset" else "viridis")
     extra = {"zmid": 0.0} if value == "offset" else {}
     fig = go.Figure(go.Heatmap(
         z=z, x=[f"col {c}" for c in range(cols)], y=[f"row {r}" for r in range(rows)],

@@ -21,6 +21,12 @@ ColormapName = Literal["viridis", "cividis", "magma", "coolwarm", "gray"]
 #: Colour of points whose cell has no value (too few points, degenerate plane).
 NEUTRAL_RGB: tuple[int, int, int] = (190, 190, 190)
 
+#: Plotly colour scale of the 2011 paper's binary maps (Fig. 2): grey below the
+#: threshold, black at or above it.
+PAPER_BINARY_COLORSCALE: list[list[float | str]] = [
+    [0.0, "#bdbdbd"], [0.5, "#bdbdbd"], [0.5, "#000000"], [1.0, "#000000"],
+]
+
 #: Number of entries of every LUT.
 LUT_SIZE = 256
 

@@ -20,24 +20,13 @@ from plotly.subplots import make_subplots
 
 from rough_viewer.grid.maps import FaceMaps
 from rough_viewer.grid.variogram import Semivariogram
-
-LABELS = {"odr": "ODR", "ols": "OLS", "hybrid": "hybrid", "e_ols": "e_OLS"}
-"""Display names of the maps."""
-
-COLOURS = {"odr": "#1f77b4", "ols": "#d62728", "hybrid": "#2ca02c", "e_ols": "#9467bd"}
-"""One colour per map, shared by every figure."""
-
-MARKERS = {"odr": "circle-open", "ols": "triangle-up-open", "hybrid": "square-open",
-           "e_ols": "cross-thin-open"}
-"""Marker symbols of the 2011 paper's Fig. 4: ODR circles, OLS triangles, e_OLS plus."""
-
-BINARY_COLOURS = [[0.0, "#bdbdbd"], [0.5, "#bdbdbd"], [0.5, "#000000"], [1.0, "#000000"]]
-"""2011 paper Fig. 2: below the threshold grey, at or above it black."""
+from rough_viewer.visual import colormaps
+from rough_viewer.vocabulary import MAP_COLOURS, MAP_LABELS, MAP_MARKERS
 
 
 def label(name: str) -> str:
     """Display name of a map (``"e_ols"`` -> ``"e_OLS"``)."""
-    return LABELS.get(name, name)
+    return MAP_LABELS.get(name, name)
 
 
 def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = ()) -> str:
@@ -130,7 +119,7 @@ def histogram_figure(
         fig.add_trace(go.Bar(
             x=0.5 * (edges[:-1] + edges[1:]), y=fractions * 100.0,
             name=f"{label(name)} (first bin {first * 100:.1f} %)",
-            marker_color=COLOURS.get(name),
+            marker_color=MAP_COLOURS.get(name),
             hovertemplate=label(name) + ": %{y:.2f} %<extra></extra>",
         ))
     first_edge = f"{histograms[names[0]].edges[1]:g}" if names else ""
@@ -173,7 +162,7 @@ def variogram_figure(
         y = vg.gamma_normalised if normalised else vg.gamma
         fig.add_trace(go.Scatter(
             x=vg.lag, y=y, mode="markers", name=label(name),
-            marker={"symbol": MARKERS.get(name, "circle-open"), "color": COLOURS.get(name),
+            marker={"symbol": MAP_MARKERS.get(name, "circle-open"), "color": MAP_COLOURS.get(name),
                     "size": 7},
             customdata=vg.pairs,
             hovertemplate=(label(name) + ": lag %{x:.3f} m, γ %{y:.4g}, "
@@ -230,9 +219,9 @@ def face_map_figure(
             "hovertemplate": label(name) + ": u %{x:.2f} m, v %{y:.2f} m, %{z:.3f}<extra></extra>",
         }
         if kind == "binary":
-            heat.update(colorscale=BINARY_COLOURS, showscale=False)
+            heat.update(colorscale=colormaps.PAPER_BINARY_COLORSCALE, showscale=False)
         else:
-            heat.update(colorscale="Viridis", showscale=row == 1,
+            heat.update(colorscale=colormaps.plotly_colorscale("viridis"), showscale=row == 1,
                         colorbar={"title": {"text": "normalised"}, "len": 0.5, "y": 1.0,
                                   "yanchor": "top"})
         fig.add_trace(go.Heatmap(**heat), row=row, col=1)

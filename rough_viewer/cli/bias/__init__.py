@@ -24,13 +24,13 @@ See docs/bias.md.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.io.jsonable import dumps
 from rough_viewer.io.output import check_output_path, write_path_atomic
 from rough_viewer.vocabulary import InputError
 
@@ -87,24 +87,9 @@ def _segments(text: str) -> int | tuple[int, int]:
     raise argparse.ArgumentTypeError(f"expected a count (8) or rows x cols (4x2), got {text!r}")
 
 
-def _clean(v):
-    """JSON-safe value: numpy -> python, NaN/inf -> null."""
-    if isinstance(v, dict):
-        return {k: _clean(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_clean(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return [_clean(x) for x in v.tolist()]
-    if isinstance(v, np.generic):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def _emit(args: argparse.Namespace, data: dict, text: str) -> None:
     if args.json:
-        print(json.dumps(_clean(data), indent=2))
+        print(dumps(data, indent=2))
     else:
         print(text)
 
