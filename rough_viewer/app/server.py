@@ -43,7 +43,6 @@ from rough_viewer.app.state import (
     normalised_map,
     point_colours,
 )
-from rough_viewer.grid.planes import fit_plane
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.visual.app import colour_bar_figure
@@ -176,8 +175,7 @@ def _initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
     pts = loaded.display_points.astype(np.float64)
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     extent = float(np.max(pts.max(axis=0) - pts.min(axis=0))) or 1.0
-    sample = pts[:: max(1, len(pts) // 50_000)]
-    normal = fit_plane(sample).normal
+    normal = loaded.plane.normal
     if abs(normal[2]) > 0.8:  # near-horizontal surface: look down at an angle
         direction = np.array([0.0, -0.6, 0.8])
         right = np.array([1.0, 0.0, 0.0])
@@ -198,10 +196,8 @@ def _initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
 
 def default_point_size(loaded: LoadedCloud) -> float:
     """A point size (metres) that closes the gaps between displayed points."""
-    pts = loaded.display_points.astype(np.float64)
-    sample = pts[:: max(1, len(pts) // 50_000)]
-    w = np.linalg.eigvalsh(np.cov((sample - sample.mean(axis=0)).T))
-    area = 12.0 * np.sqrt(max(w[1], 1e-12) * max(w[2], 1e-12))  # two largest spreads
+    w = loaded.plane.eigenvalues  # descending: the two largest are the face's spreads
+    area = 12.0 * np.sqrt(max(w[0], 1e-12) * max(w[1], 1e-12))
     spacing = np.sqrt(area / max(loaded.n_display, 1))
     size = float(np.clip(1.5 * spacing, 1e-4, 1.0))
     return float(f"{size:.2g}")

@@ -20,13 +20,13 @@ from typing import Literal
 import numpy as np
 
 from rough_viewer.app.sampling import display_subset
+from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
     GridRoughness,
     PreparedGrid,
     coarsen_prepared,
     grid_roughness,
     prepare_grid,
-    whole_cloud_axis,
 )
 from rough_viewer.grid.summary import normalise
 from rough_viewer.io import PointCloud
@@ -119,6 +119,7 @@ class LoadedCloud:
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)
+    plane: PlaneFit = field(init=False)
     auto_axis: str = field(init=False)
     _cache: OrderedDict = field(init=False, repr=False)
     _prepared: OrderedDict = field(init=False, repr=False)
@@ -134,7 +135,8 @@ class LoadedCloud:
         self.origin = np.round(0.5 * (lo + hi))
         self.display_index = display_subset(xyz, self.max_display, seed=self.seed)
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
-        self.auto_axis = whole_cloud_axis(self.cloud)
+        self.plane = whole_cloud_plane(self.cloud)
+        self.auto_axis = dominant_axis(self.plane.normal)
         self._cache = OrderedDict()
         self._prepared = OrderedDict()
         self._lock = threading.Lock()

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from rough_viewer.grid.planes import fit_plane
-from rough_viewer.vocabulary import Residual
+from rough_viewer.vocabulary import InputError, Residual
 
 ClassMethod = Literal["kmeans", "kmeans-3sigma"]
 
@@ -58,11 +58,11 @@ __all__ = [
 def _as_points(xyz: np.ndarray, *, minimum: int, what: str) -> np.ndarray:
     pts = np.asarray(xyz, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"{what} needs an (N, 3) array of points, got shape {pts.shape}")
+        raise InputError(f"{what} needs an (N, 3) array of points, got shape {pts.shape}")
     if pts.shape[0] < minimum:
-        raise ValueError(f"{what} needs at least {minimum} points, got {pts.shape[0]}")
+        raise InputError(f"{what} needs at least {minimum} points, got {pts.shape[0]}")
     if not np.all(np.isfinite(pts)):
-        raise ValueError(f"{what} got non-finite coordinates")
+        raise InputError(f"{what} got non-finite coordinates")
     return pts
 
 
@@ -116,7 +116,7 @@ def target_roughness(xyz: np.ndarray, *, residual: Residual = "absolute") -> flo
         return float(np.abs(d).std())
     if residual == "signed":
         return float(d.std())
-    raise ValueError(f"residual must be 'absolute' or 'signed', got {residual!r}")
+    raise InputError(f"residual must be 'absolute' or 'signed', got {residual!r}")
 
 
 # --------------------------------------------------------------------------------------
@@ -181,7 +181,7 @@ def segment_layout(n_segments: int, long_m: float, short_m: float) -> tuple[int,
         ``rows * cols == n_segments``; rows along the long axis.
     """
     if n_segments < 1:
-        raise ValueError(f"segments must be >= 1, got {n_segments}")
+        raise InputError(f"segments must be >= 1, got {n_segments}")
     best: tuple[float, int, int] | None = None
     for rows in range(1, n_segments + 1):
         if n_segments % rows:
@@ -248,7 +248,7 @@ def range_noise(
     if isinstance(segments, tuple):
         rows, cols = (int(segments[0]), int(segments[1]))
         if rows < 1 or cols < 1:
-            raise ValueError(f"segments must be positive, got {segments}")
+            raise InputError(f"segments must be positive, got {segments}")
     else:
         rows, cols = segment_layout(int(segments), lu, lv)
     iu = np.clip(((u - u.min()) / (lu if lu > 0 else 1.0) * rows).astype(np.int64), 0, rows - 1)
@@ -258,7 +258,7 @@ def range_noise(
     counts = np.bincount(seg, minlength=rows * cols)
     if np.any(counts < 3):
         bad = int(np.argmin(counts))
-        raise ValueError(
+        raise InputError(
             f"segment {bad // cols},{bad % cols} has {counts[bad]} points; "
             "a plane needs at least 3 (use fewer segments)"
         )
@@ -352,7 +352,7 @@ def effective_radius(
     """
     pts = _as_points(xyz, minimum=3, what="effective_radius")
     if not 0.0 < top_fraction <= 1.0:
-        raise ValueError(f"top_fraction must be in (0, 1], got {top_fraction}")
+        raise InputError(f"top_fraction must be in (0, 1], got {top_fraction}")
     s = np.asarray(scanner, dtype=np.float64).reshape(3)
     line = fit_plane(pts)
     centroid = line.centroid
@@ -361,7 +361,7 @@ def effective_radius(
     m = np.cross(direction, to_line)
     norm = float(np.linalg.norm(m))
     if norm <= 1e-9 * max(1.0, float(np.linalg.norm(to_line))):
-        raise ValueError("the scanner lies on the wire's line; no plane through both")
+        raise InputError("the scanner lies on the wire's line; no plane through both")
     m = m / norm
     r = (pts - centroid) @ m
     mag = np.abs(r)
@@ -450,11 +450,11 @@ def fit_piecewise_linear(
     x = np.asarray(range_m, dtype=np.float64).ravel()
     y = np.asarray(radius_m, dtype=np.float64).ravel()
     if x.size != y.size:
-        raise ValueError("range and radius must have the same length")
+        raise InputError("range and radius must have the same length")
     if x.size < 4:
-        raise ValueError(f"a piecewise-linear fit needs at least 4 ranges, got {x.size}")
+        raise InputError(f"a piecewise-linear fit needs at least 4 ranges, got {x.size}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        raise ValueError("range and radius must be finite")
+        raise InputError("range and radius must be finite")
     xs = np.sort(x)
     given = break_range is not None
     if given:
@@ -462,7 +462,7 @@ def fit_piecewise_linear(
     else:
         lo, hi = float(xs[1]), float(xs[-2])
         if not hi > lo:
-            raise ValueError("ranges too few distinct values to place a break point")
+            raise InputError("ranges too few distinct values to place a break point")
         grid = np.unique(np.concatenate((np.linspace(lo, hi, candidates), xs[1:-1])))
         sse, _ = _hinge_sse(x, y, grid)
         i = int(np.argmin(sse))
@@ -509,9 +509,9 @@ def kmeans_1d(values: np.ndarray) -> tuple[float, float, float]:
     v = np.sort(np.asarray(values, dtype=np.float64).ravel())
     n = v.size
     if n < 2:
-        raise ValueError("kmeans_1d needs at least 2 values")
+        raise InputError("kmeans_1d needs at least 2 values")
     if v[0] == v[-1]:
-        raise ValueError("kmeans_1d: all values are equal, no two clusters")
+        raise InputError("kmeans_1d: all values are equal, no two clusters")
     c = np.cumsum(v)
     k = np.arange(1, n)
     left = c[:-1]
@@ -579,7 +579,7 @@ def classify_population(
     """
     pts = _as_points(xyz, minimum=4, what="classify_population")
     if method not in ("kmeans", "kmeans-3sigma"):
-        raise ValueError(f"method must be 'kmeans' or 'kmeans-3sigma', got {method!r}")
+        raise InputError(f"method must be 'kmeans' or 'kmeans-3sigma', got {method!r}")
     sc = None if scanner is None else np.asarray(scanner, dtype=np.float64).reshape(3)
     fit = fit_plane(pts)
     r = (pts - fit.centroid) @ fit.normal
@@ -601,7 +601,7 @@ def classify_population(
             else:
                 sigma = float(noise_sigma)
             if not sigma >= 0:
-                raise ValueError(f"noise sigma must be >= 0, got {noise_sigma}")
+                raise InputError(f"noise sigma must be >= 0, got {noise_sigma}")
             # A floor of 1 nm keeps rounding error of a noise-free board in place.
             up = bg[rb > max(n_sigma * sigma, 1e-9)]
             asperity[up] = True
@@ -632,7 +632,7 @@ def classification_scores(truth: np.ndarray, predicted: np.ndarray) -> Classific
     t = np.asarray(truth, dtype=bool).ravel()
     p = np.asarray(predicted, dtype=bool).ravel()
     if t.shape != p.shape:
-        raise ValueError("truth and predicted must have the same length")
+        raise InputError("truth and predicted must have the same length")
     nt = int(t.sum())
     npred = int(p.sum())
     x = 100.0 * int((t & p).sum()) / nt if nt else float("nan")
@@ -698,15 +698,15 @@ def normalise_population(
     pts = _as_points(xyz, minimum=3, what="normalise_population")
     a = np.asarray(asperity, dtype=bool).ravel()
     if a.size != pts.shape[0]:
-        raise ValueError("asperity must have one value per point")
+        raise InputError("asperity must have one value per point")
     if not ratio > 0:
-        raise ValueError(f"ratio must be > 0, got {ratio}")
+        raise InputError(f"ratio must be > 0, got {ratio}")
     n_asp = int(a.sum())
     bg = np.flatnonzero(~a)
     if n_asp == 0:
-        raise ValueError("no asperity points: nothing to normalise against")
+        raise InputError("no asperity points: nothing to normalise against")
     if bg.size == 0:
-        raise ValueError("no background points: nothing to normalise")
+        raise InputError("no background points: nothing to normalise")
     n_keep = min(bg.size, int(round(ratio * n_asp)))
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     kept_bg = rng.choice(bg, size=n_keep, replace=False)

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
-from rough_viewer.vocabulary import Residual
+from rough_viewer.vocabulary import InputError, Residual
 
 PaperTarget = Literal["A", "B"]
 Normalisation = Literal["known", "none"]
@@ -92,7 +92,7 @@ def paper_target(
         Seed of the node draw (the same for A and B: identical node patterns).
     """
     if which not in PAPER_RADIUS_M:
-        raise ValueError(f"paper target must be 'A' or 'B', got {which!r}")
+        raise InputError(f"paper target must be 'A' or 'B', got {which!r}")
     r = PAPER_RADIUS_M[which] if asperity_radius_m is None else float(asperity_radius_m)
     w, h = PAPER_BOARD_M
     gx = (w - 6 * PAPER_PITCH_M) / 2 + PAPER_PITCH_M * np.arange(7)
@@ -123,11 +123,11 @@ def raster_heights(
         True within ``r`` of an asperity centre (the known class).
     """
     if not spacing_m > 0:
-        raise ValueError(f"spacing must be > 0, got {spacing_m}")
+        raise InputError(f"spacing must be > 0, got {spacing_m}")
     nx = int(round(layout.width_m / spacing_m))
     ny = int(round(layout.height_m / spacing_m))
     if nx < 1 or ny < 1:
-        raise ValueError("the board is smaller than one raster cell")
+        raise InputError("the board is smaller than one raster cell")
     x = (np.arange(nx) + 0.5) * spacing_m
     y = (np.arange(ny) + 0.5) * spacing_m
     z = np.zeros((ny, nx))
@@ -165,7 +165,7 @@ def disc_kernel(radius_m: float, spacing_m: float, *, supersample: int = 8) -> n
         Raster spacing, metres.
     """
     if radius_m < 0 or not spacing_m > 0:
-        raise ValueError("disc radius must be >= 0 and spacing > 0")
+        raise InputError("disc radius must be >= 0 and spacing > 0")
     rp = radius_m / spacing_m
     half = int(math.floor(rp + 0.5))
     if half == 0:
@@ -256,7 +256,7 @@ def simulate_target(
         Randomness of the noise.
     """
     if noise_sigma_m < 0 or effective_radius_m < 0:
-        raise ValueError("noise sigma and effective radius must be >= 0")
+        raise InputError("noise sigma and effective radius must be >= 0")
     x, y, z, asperity = raster_heights(layout, spacing_m=spacing_m)
     h = smooth_heights(z, effective_radius_m=effective_radius_m, spacing_m=spacing_m)
     if noise_sigma_m > 0:
@@ -362,9 +362,9 @@ def predict_bias(
         Roughness convention.
     """
     if trials < 1:
-        raise ValueError(f"trials must be >= 1, got {trials}")
+        raise InputError(f"trials must be >= 1, got {trials}")
     if normalisation not in ("known", "none"):
-        raise ValueError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
+        raise InputError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
     base = simulate_target(layout, spacing_m=spacing_m)
@@ -450,7 +450,7 @@ def smoothing_curve(
     """
     ers = np.asarray(effective_radii_m, dtype=np.float64).ravel()
     if ers.size == 0 or np.any(ers < 0):
-        raise ValueError("effective radii must be a non-empty list of values >= 0")
+        raise InputError("effective radii must be a non-empty list of values >= 0")
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
     base = simulate_target(layout, spacing_m=spacing_m)
@@ -465,7 +465,7 @@ def smoothing_curve(
     elif normalisation == "none":
         keep = np.arange(labels.size)
     else:
-        raise ValueError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
+        raise InputError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
     expected, noisy = _roughness_variants(xy, [base.true_height, base.true_height + noise],
                                           keep, residual)
     heights = [smooth_heights(base.true_height, effective_radius_m=float(e),

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
 from rough_viewer.vocabulary import InputError
 
 
@@ -15,3 +20,73 @@ def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
     if len(values) != 3 or not all(v == v and abs(v) != float("inf") for v in values):
         raise InputError(f"{option} expects three finite numbers X,Y,Z, got {text!r}")
     return values  # type: ignore[return-value]
+
+
+@contextmanager
+def naming(what: object) -> Iterator[None]:
+    """Add ``what`` (a file, usually) to the message of an InputError raised inside,
+    unless the message names it already, so every error says where it came from."""
+    try:
+        yield
+    except InputError as exc:
+        text = str(exc)
+        if str(what) in text:
+            raise
+        raise InputError(f"{text} ({what})") from None
+
+
+def positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def non_negative(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return v
+
+
+def list_of(kind: Callable[[str], float]) -> Callable[[str], list[float]]:
+    """argparse type: comma-separated values, each parsed by ``kind``."""
+    def parse(text: str) -> list[float]:
+        return [kind(p.strip()) for p in text.split(",") if p.strip()] or [kind("")]
+    return parse
+
+
+def segments(text: str) -> int | tuple[int, int]:
+    """argparse type: a segment count (``8``) or rows x cols (``4x2``)."""
+    t = text.lower().strip()
+    try:
+        if "x" in t:
+            r, c = (int(p) for p in t.split("x"))
+            if r >= 1 and c >= 1:
+                return (r, c)
+        else:
+            n = int(t)
+            if n >= 1:
+                return n
+    except ValueError:
+        pass
+    raise argparse.ArgumentTypeError(f"expected a count (8) or rows x cols (4x2), got {text!r}")

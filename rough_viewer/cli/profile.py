@@ -23,10 +23,11 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._options import naming, parse_xyz
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
@@ -257,79 +258,89 @@ def _positive_option(value: float | None, option: str) -> float | None:
     return value
 
 
-def run(args: argparse.Namespace) -> int:
+def _check_options(args: argparse.Namespace) -> None:
     import pywt
 
-    from rough_viewer.profiles.comparison import compare_denoising
-    from rough_viewer.profiles.extraction import extract_profile, regular_samples
-
-    path = Path(args.input)
-    band = _positive_option(args.band, "--band")
-    spacing = _positive_option(args.spacing, "--spacing")
-    max_gap = _positive_option(args.max_gap, "--max-gap")
+    for option in ("band", "spacing", "max_gap"):
+        _positive_option(getattr(args, option), "--" + option.replace("_", "-"))
     if args.wavelet not in pywt.wavelist(kind="discrete"):
         raise InputError(f"--wavelet {args.wavelet!r} is not a discrete PyWavelets wavelet (e.g. db3, sym4, haar)")
     if args.level < 1:
         raise InputError(f"--level must be at least 1, got {args.level}")
+
+
+Samples = tuple[np.ndarray, np.ndarray, list[tuple[float, float]], float, dict[str, Any]]
+
+
+def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
+    """Heights of a two-column profile file, resampled at a regular spacing."""
+    from rough_viewer.profiles.extraction import regular_samples
+
+    if args.start or args.end:
+        raise InputError(f"--from/--to are for point clouds; {path} is a profile file")
+    scale = 1e-3 if args.profile_units == "mm" else 1.0
+    d_in, h_in = read_profile_file(path, scale=scale)
+    with naming(path):
+        distance, heights, gaps = regular_samples(d_in, h_in, spacing=args.spacing,
+                                                  max_gap=args.max_gap)
+    step = float(np.median(np.diff(distance)))
+    info = {
+        "input": str(path),
+        "source": "profile-file",
+        "samples": int(distance.size),
+        "spacing_m": step,
+        "length_m": float(distance[-1] - distance[0]),
+        "resampled": distance.size != d_in.size or not np.array_equal(distance, d_in),
+    }
+    return distance, heights, gaps, step, info
+
+
+def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
+    """The profile of a point cloud along ``--from`` .. ``--to``."""
+    from rough_viewer.io import load_points
+    from rough_viewer.profiles.extraction import extract_profile
+
+    if not (args.start and args.end):
+        raise InputError(f"{path} is a point cloud: give the line with --from X,Y,Z --to X,Y,Z")
+    p0 = parse_xyz(args.start, option="--from")
+    p1 = parse_xyz(args.end, option="--to")
+    cloud = load_points(path)
+    with naming(path):
+        prof = extract_profile(cloud, p0, p1, band_half_width=args.band, spacing=args.spacing,
+                               max_gap=args.max_gap)
+    info = {
+        "input": str(path),
+        "source": "cloud",
+        "from": list(p0),
+        "to": list(p1),
+        "samples": int(prof.distance.size),
+        "spacing_m": prof.spacing,
+        "length_m": prof.length,
+        "band_half_width_m": prof.band_half_width,
+        "point_spacing_m": prof.point_spacing,
+        "points": prof.n_points,
+        "normal": [float(c) for c in prof.frame.normal],
+    }
+    return prof.distance, prof.heights, prof.gaps, prof.spacing, info
+
+
+def run(args: argparse.Namespace) -> int:
+    from rough_viewer.profiles.comparison import compare_denoising
+
+    path = Path(args.input)
+    _check_options(args)
     csv_path = check_output_path(args.csv, force=args.force) if args.csv else None
     if not path.exists():
         raise InputError(f"no such file: {path}")
 
-    as_profile = args.profile_file or _two_column_text(path)
-    if as_profile:
-        if args.start or args.end:
-            raise InputError(f"--from/--to are for point clouds; {path} is a profile file")
-        scale = 1e-3 if args.profile_units == "mm" else 1.0
-        d_in, h_in = read_profile_file(path, scale=scale)
-        try:
-            distance, heights, gaps = regular_samples(d_in, h_in, spacing=spacing, max_gap=max_gap)
-        except ValueError as exc:
-            raise InputError(f"{exc} in {path}") from None
-        step = float(np.median(np.diff(distance)))
-        info = {
-            "input": str(path),
-            "source": "profile-file",
-            "samples": int(distance.size),
-            "spacing_m": step,
-            "length_m": float(distance[-1] - distance[0]),
-            "resampled": distance.size != d_in.size or not np.array_equal(distance, d_in),
-        }
-    else:
-        if not (args.start and args.end):
-            raise InputError(f"{path} is a point cloud: give the line with --from X,Y,Z --to X,Y,Z")
-        p0 = parse_xyz(args.start, option="--from")
-        p1 = parse_xyz(args.end, option="--to")
-        from rough_viewer.io import load_points
-
-        cloud = load_points(path)
-        try:
-            prof = extract_profile(
-                cloud, p0, p1, band_half_width=band, spacing=spacing, max_gap=max_gap
-            )
-        except ValueError as exc:
-            raise InputError(f"{exc} ({path})") from None
-        distance, heights, gaps, step = prof.distance, prof.heights, prof.gaps, prof.spacing
-        info = {
-            "input": str(path),
-            "source": "cloud",
-            "from": list(p0),
-            "to": list(p1),
-            "samples": int(distance.size),
-            "spacing_m": step,
-            "length_m": prof.length,
-            "band_half_width_m": prof.band_half_width,
-            "point_spacing_m": prof.point_spacing,
-            "points": prof.n_points,
-            "normal": [float(c) for c in prof.frame.normal],
-        }
+    read = _from_profile_file if args.profile_file or _two_column_text(path) else _from_cloud
+    distance, heights, gaps, step, info = read(args, path)
     info["gaps_m"] = [[float(a), float(b)] for a, b in gaps]
     info["nan_samples"] = int(np.count_nonzero(~np.isfinite(heights)))
-    info["max_gap_m"] = max_gap if max_gap is not None else 3.0 * step
+    info["max_gap_m"] = args.max_gap if args.max_gap is not None else 3.0 * step
 
-    try:
+    with naming(f"{path}: {distance.size} samples"):
         comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level)
-    except ValueError as exc:
-        raise InputError(f"{exc} ({path}: {distance.size} samples)") from None
 
     if csv_path is not None:
         write_samples_csv(csv_path, distance, heights, comparison)

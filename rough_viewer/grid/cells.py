@@ -359,7 +359,7 @@ def coarsen(
     """
     k = int(factor)
     if k < 1 or k != factor:
-        raise ValueError(f"factor must be a positive integer, got {factor}")
+        raise InputError(f"factor must be a positive integer, got {factor}")
     fine = index.grid
     g = fine.cell_size * k
     ijk_c = np.floor_divide(index.ijk, k)

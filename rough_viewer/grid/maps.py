@@ -31,6 +31,8 @@ from typing import Literal, Protocol
 
 import numpy as np
 
+from rough_viewer.vocabulary import InputError
+
 Reduce = Literal["max", "mean"]
 
 
@@ -131,7 +133,7 @@ def face_raster(centres: np.ndarray, plane: Plane, cell_size: float) -> FaceRast
     centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
     g = float(cell_size)
     if not g > 0:
-        raise ValueError(f"cell_size must be positive, got {cell_size}")
+        raise InputError(f"cell_size must be positive, got {cell_size}")
     frame = face_frame(plane)
     rel = centres - frame.origin
     uv = np.column_stack([rel @ frame.u_axis, rel @ frame.v_axis])
@@ -155,9 +157,9 @@ def face_image(raster: FaceRaster, values: np.ndarray, *, reduce: Reduce = "max"
     """
     values = np.asarray(values, dtype=np.float64)
     if values.shape != (raster.pixel.shape[0],):
-        raise ValueError(f"values must have shape ({raster.pixel.shape[0]},), got {values.shape}")
+        raise InputError(f"values must have shape ({raster.pixel.shape[0]},), got {values.shape}")
     if reduce not in ("max", "mean"):
-        raise ValueError(f"reduce must be 'max' or 'mean', got {reduce!r}")
+        raise InputError(f"reduce must be 'max' or 'mean', got {reduce!r}")
     rows, cols = raster.shape
     ok = np.isfinite(values)
     flat = raster.pixel[ok, 1] * cols + raster.pixel[ok, 0]

@@ -16,11 +16,12 @@ variable: ``p_a = b0 + b1 p_u + b2 p_v``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rough_viewer.vocabulary import AXES, Axis
+from rough_viewer.io.cloud import PointCloud, as_columns
+from rough_viewer.vocabulary import AXES, Axis, InputError
 
 #: Relative size below which a covariance eigenvalue counts as zero.
 DEGENERATE_RTOL = 1e-12
@@ -46,7 +47,34 @@ def axis_index(axis: Axis) -> int:
     try:
         return AXES.index(axis)
     except ValueError:
-        raise ValueError(f"axis must be one of x, y, z, got {axis!r}") from None
+        raise InputError(f"axis must be one of x, y, z, got {axis!r}") from None
+
+
+def plane_from_scatter(centroid: np.ndarray, covariance: np.ndarray) -> PlaneFit:
+    """The ODR plane of a point set given its centroid and population covariance.
+
+    The one place where a plane comes from an eigen-decomposition: :func:`fit_plane`
+    and :func:`whole_cloud_plane` (and the grid's moment sums) all end here.
+
+    Parameters
+    ----------
+    centroid : (3,) array_like
+        Mean of the points, metres.
+    covariance : (3, 3) array_like
+        Population covariance of the points, square metres.
+    """
+    w, v = np.linalg.eigh(np.asarray(covariance, dtype=np.float64))
+    axes = v[:, ::-1].copy()
+    return PlaneFit(centroid=np.asarray(centroid, dtype=np.float64).copy(),
+                    normal=axes[:, 2].copy(), eigenvalues=w[::-1].copy(), axes=axes)
+
+
+def orient_normal(normal: np.ndarray) -> np.ndarray:
+    """``normal`` with its largest component made positive: the sign convention of the
+    whole-cloud plane (for a vertical face parallel to xz the normal points to +y;
+    for a horizontal surface, up)."""
+    n = np.asarray(normal, dtype=np.float64)
+    return -n if n[int(np.argmax(np.abs(n)))] < 0 else n.copy()
 
 
 def fit_plane(xyz: np.ndarray) -> PlaneFit:
@@ -64,14 +92,56 @@ def fit_plane(xyz: np.ndarray) -> PlaneFit:
     """
     pts = np.asarray(xyz, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
-        raise ValueError("fit_plane needs an (N, 3) array with N >= 3")
+        raise InputError("fit_plane needs an (N, 3) array with N >= 3")
     centroid = pts.mean(axis=0)
     d = pts - centroid
-    cov = d.T @ d / pts.shape[0]
-    w, v = np.linalg.eigh(cov)
-    axes = v[:, ::-1].copy()
-    return PlaneFit(centroid=centroid, normal=axes[:, 2].copy(), eigenvalues=w[::-1].copy(),
-                    axes=axes)
+    return plane_from_scatter(centroid, d.T @ d / pts.shape[0])
+
+
+#: Points per chunk of :func:`whole_cloud_plane` (bounds its temporaries).
+_PLANE_CHUNK = 1 << 21
+
+
+def whole_cloud_plane(points: PointCloud | np.ndarray) -> PlaneFit:
+    """The ODR plane of a whole cloud: the face plane of maps, the reference of the
+    ``auto`` dependent axis and of the app's camera.
+
+    Sums are taken in chunks relative to the first point, so no (N, 3) temporary is
+    made and UTM-sized coordinates lose no precision. The normal follows
+    :func:`orient_normal`.
+
+    Parameters
+    ----------
+    points : PointCloud or (N, 3) array
+        Points, metres (N >= 3).
+
+    Returns
+    -------
+    PlaneFit
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> xz = np.random.default_rng(0).uniform(0, 4, (1000, 2))
+    >>> face = np.column_stack([xz[:, 0], np.full(1000, 7.0), xz[:, 1]])  # a wall facing y
+    >>> whole_cloud_plane(face).normal.round(6) + 0.0
+    array([0., 1., 0.])
+    """
+    x, y, z = as_columns(points)
+    n = int(x.shape[0])
+    if n < 3:
+        raise InputError(f"a plane needs at least 3 points, got {n}")
+    ref = np.array([x[0], y[0], z[0]])
+    s1 = np.zeros(3)
+    s2 = np.zeros((3, 3))
+    for start in range(0, n, _PLANE_CHUNK):
+        sl = slice(start, min(n, start + _PLANE_CHUNK))
+        d = np.column_stack([x[sl] - ref[0], y[sl] - ref[1], z[sl] - ref[2]])
+        s1 += d.sum(axis=0)
+        s2 += d.T @ d
+    mean = s1 / n
+    plane = plane_from_scatter(ref + mean, s2 / n - np.outer(mean, mean))
+    return replace(plane, normal=orient_normal(plane.normal))
 
 
 def dominant_axis(normal: np.ndarray) -> Axis:

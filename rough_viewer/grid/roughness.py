@@ -25,7 +25,7 @@ its own: its distances are the ODR ones divided by ``|n_a|``, constant per cell.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,13 +40,16 @@ from rough_viewer.grid.cells import (
     make_grid,
 )
 from rough_viewer.grid.planes import (
+    PlaneFit,
     axis_index,
     dominant_axis,
-    fit_plane,
     odr_from_covariance,
     ols_from_covariance,
+    orient_normal,
+    plane_from_scatter,
+    whole_cloud_plane,
 )
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.vocabulary import (
     AXES,
     MAPS,
@@ -82,12 +85,29 @@ class PreparedGrid:
         """Grid cell edge, metres."""
         return self.index.grid.cell_size
 
+    def whole_plane(self) -> PlaneFit:
+        """The whole cloud's ODR plane, combined from the per-cell moment sums (no pass
+        over the points); equal to :func:`~rough_viewer.grid.planes.whole_cloud_plane`
+        of the same points up to rounding. Cell means are taken relative to the grid
+        origin, so no precision is lost on large coordinates."""
+        index, mom = self.index, self.moments
+        grid = index.grid
+        n = mom.counts.astype(np.float64)
+        total = n.sum()
+        mean_c = (index.ijk - grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
+        mean_all = (n[:, None] * mean_c).sum(axis=0) / total
+        d = mean_c - mean_all
+        scatter = np.einsum("m,mij->ij", n, mom.covariance()) + np.einsum("m,mi,mj->ij", n, d, d)
+        centroid = grid.origin + grid.index_min * grid.cell_size + mean_all
+        plane = plane_from_scatter(centroid, scatter / total)
+        return replace(plane, normal=orient_normal(plane.normal))
+
 
 def prepare_grid(
     cloud: PointCloud | np.ndarray, cell_size: float, *, origin: np.ndarray | None = None
 ) -> PreparedGrid:
     """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments."""
-    x, y, z = _as_columns(cloud)
+    x, y, z = as_columns(cloud)
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
     lo = np.array([x.min(), y.min(), z.min()])
@@ -116,8 +136,9 @@ class GridRoughness:
     """Dependent axis actually used by OLS and hybrid."""
     axis_requested: AxisChoice
     """Axis option as given (``"auto"`` picks the axis closest to the whole-cloud normal)."""
-    whole_normal: np.ndarray
-    """(3,) unit normal of the whole cloud's ODR plane."""
+    whole_plane: PlaneFit
+    """The whole cloud's ODR plane (normal oriented by
+    :func:`~rough_viewer.grid.planes.orient_normal`)."""
     min_points: int
     """Cells with fewer points get no value."""
     residual: Residual
@@ -152,13 +173,18 @@ class GridRoughness:
         """Number of occupied cells."""
         return int(self.n_points.shape[0])
 
+    @property
+    def whole_normal(self) -> np.ndarray:
+        """(3,) unit normal of the whole cloud's ODR plane."""
+        return self.whole_plane.normal
+
     def values(self, name: MapName) -> np.ndarray:
         """The (M,) map ``"odr"``, ``"ols"``, ``"hybrid"`` or ``"e_ols"``, metres."""
         if name == "e_ols":
             return self.e_ols
         if name in MODELS:
             return getattr(self, f"theta_{name}")
-        raise ValueError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+        raise InputError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
 
     def point_values(self, name: MapName) -> np.ndarray:
         """(N,) the map's value of each point's cell (NaN where the cell has none)."""
@@ -177,40 +203,10 @@ class GridRoughness:
         }
 
 
-def _as_columns(cloud: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    if isinstance(cloud, PointCloud):
-        return cloud.x, cloud.y, cloud.z
-    arr = np.asarray(cloud, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError("points must be a PointCloud or an (N, 3) array")
-    return (
-        np.ascontiguousarray(arr[:, 0]),
-        np.ascontiguousarray(arr[:, 1]),
-        np.ascontiguousarray(arr[:, 2]),
-    )
-
-
-def whole_cloud_normal_from_moments(grid: GridSpec, index: CellIndex, mom: CellMoments) -> np.ndarray:
-    """Unit normal of the whole cloud's ODR plane, combined from per-cell moments.
-
-    Cell means are taken relative to the grid origin, so no precision is lost on
-    large coordinates.
-    """
-    n = mom.counts.astype(np.float64)
-    total = n.sum()
-    mean_c = (index.ijk - index.grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
-    mean_all = (n[:, None] * mean_c).sum(axis=0) / total
-    d = mean_c - mean_all
-    cov_cells = mom.covariance()
-    scatter = np.einsum("m,mij->ij", n, cov_cells) + np.einsum("m,mi,mj->ij", n, d, d)
-    w, v = np.linalg.eigh(scatter / total)
-    return v[:, 0]
-
-
 def whole_cloud_axis(cloud: PointCloud | np.ndarray) -> Axis:
-    """The coordinate axis closest to the normal of the whole cloud's ODR plane."""
-    xyz = cloud.xyz() if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=np.float64)
-    return dominant_axis(fit_plane(xyz).normal)
+    """The coordinate axis closest to the normal of the whole cloud's ODR plane
+    (the ``auto`` dependent axis)."""
+    return dominant_axis(whole_cloud_plane(cloud).normal)
 
 
 def grid_roughness(
@@ -257,6 +253,58 @@ def grid_roughness(
     -------
     GridRoughness
     """
+    models_t = _check_options(models, axis, residual, min_points)
+    x, y, z = as_columns(cloud)
+    n_total = int(x.shape[0])
+    if n_total < 3:
+        raise InputError(f"need at least 3 points, got {n_total}")
+    tick = progress or (lambda done, total: None)
+
+    tick(0, 5)
+    if prepared is None:
+        prepared = prepare_grid(cloud, cell_size, origin=origin)
+    elif prepared.index.point_cell.shape[0] != n_total:
+        raise InputError("prepared grid was made for another cloud")
+    tick(2, 5)
+    whole = prepared.whole_plane()
+    used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
+    planes = _cell_planes(prepared, whole.normal, used_axis, int(min_points), models_t)
+    tick(3, 5)
+    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors())
+    tick(4, 5)
+    theta = _thetas(planes, sums, prepared.index.counts, used_axis, models_t,
+                    signed=residual == "signed")
+    index = prepared.index
+    centre = index.grid.centres(index.ijk)
+    centroid = centre + planes.mean_local
+    centroid[~planes.enough] = np.nan
+    tick(5, 5)
+    return GridRoughness(
+        grid=index.grid,
+        axis=used_axis,
+        axis_requested=axis,
+        whole_plane=whole,
+        min_points=int(min_points),
+        residual=residual,
+        models=models_t,
+        ijk=index.ijk,
+        centre=centre,
+        n_points=index.counts,
+        centroid=centroid,
+        normal=planes.normal,
+        theta_odr=theta["odr"],
+        theta_ols=theta["ols"],
+        theta_hybrid=theta["hybrid"],
+        e_ols=np.abs(theta["ols"] - theta["odr"]),
+        point_cell=index.point_cell,
+        n_points_total=n_total,
+    )
+
+
+def _check_options(
+    models: Iterable[Model], axis: AxisChoice, residual: Residual, min_points: int
+) -> tuple[Model, ...]:
+    """The models asked for, without repeats; InputError for any unusable option."""
     models_t = tuple(dict.fromkeys(models))
     for m in models_t:
         if m not in MODELS:
@@ -267,105 +315,92 @@ def grid_roughness(
         raise InputError(f"unknown residual {residual!r}; expected absolute or signed")
     if int(min_points) < 3:
         raise InputError(f"min points must be at least 3 (a plane needs 3), got {min_points}")
-    min_points = int(min_points)
-    x, y, z = _as_columns(cloud)
-    n_total = int(x.shape[0])
-    if n_total < 3:
-        raise InputError(f"need at least 3 points, got {n_total}")
-    tick = progress or (lambda done, total: None)
+    return models_t
 
-    tick(0, 5)
-    if prepared is None:
-        lo = np.array([x.min(), y.min(), z.min()])
-        hi = np.array([x.max(), y.max(), z.max()])
-        grid = make_grid(lo, hi, cell_size, origin, n_points=n_total)
-        index = index_points(x, y, z, grid)
-        tick(1, 5)
-        mom = cell_moments(x, y, z, index)
-    else:
-        if prepared.index.point_cell.shape[0] != n_total:
-            raise ValueError("prepared grid was made for another cloud")
-        index, mom = prepared.index, prepared.moments
-        grid = index.grid
-        tick(1, 5)
-    tick(2, 5)
 
-    m_cells = index.n_cells
-    counts = index.counts
-    enough = counts >= min_points
+@dataclass(frozen=True)
+class _CellPlanes:
+    """The reference planes of every cell, before any distance is taken."""
+
+    enough: np.ndarray
+    """(M,) bool: the cell has at least ``min_points`` points."""
+    mean_local: np.ndarray
+    """(M, 3) centroid relative to the cell centre, metres."""
+    normal: np.ndarray
+    """(M, 3) ODR unit normal, oriented like the whole face's; NaN where none."""
+    valid_odr: np.ndarray
+    """(M,) bool: unique ODR plane and enough points."""
+    w_ols: np.ndarray | None
+    """(M, 3) OLS residual vector (None when OLS is not asked for)."""
+    valid_ols: np.ndarray | None
+    """(M,) bool: unique OLS plane and enough points."""
+    need_odr: bool
+    """ODR distances are needed (for odr or hybrid)."""
+
+    def distance_vectors(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """name -> (per-cell vector, reference point): the inputs of
+        :func:`~rough_viewer.grid.cells.distance_sums`."""
+        vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        if self.need_odr:
+            vectors["odr"] = (np.where(self.valid_odr[:, None], self.normal, 0.0), self.mean_local)
+        if self.w_ols is not None and self.valid_ols is not None:
+            vectors["ols"] = (np.where(self.valid_ols[:, None], self.w_ols, 0.0), self.mean_local)
+        return vectors
+
+
+def _cell_planes(
+    prepared: PreparedGrid,
+    whole_normal: np.ndarray,
+    axis: Axis,
+    min_points: int,
+    models: tuple[Model, ...],
+) -> _CellPlanes:
+    """Batched ODR and OLS planes of every cell from its moment sums."""
+    mom = prepared.moments
+    enough = prepared.index.counts >= min_points
     cov = mom.covariance()
-    mean_local = mom.mean_local()
-    whole_normal = whole_cloud_normal_from_moments(grid, index, mom)
-    used_axis: Axis = dominant_axis(whole_normal) if axis == "auto" else axis
-    a = axis_index(used_axis)
-
-    if whole_normal[int(np.argmax(np.abs(whole_normal)))] < 0:
-        whole_normal = -whole_normal
-    normal, eig, valid_odr = odr_from_covariance(cov)
+    normal, _, valid_odr = odr_from_covariance(cov)
     valid_odr &= enough
     # Eigenvectors have arbitrary sign: orient every cell normal like the whole face's.
     normal *= np.where(normal @ whole_normal < 0, -1.0, 1.0)[:, None]
     normal[~valid_odr] = np.nan
-    nan = np.full(m_cells, np.nan)
-    theta = {"odr": nan.copy(), "ols": nan.copy(), "hybrid": nan.copy()}
-
-    need_odr = any(m in models_t for m in ("odr", "hybrid"))
     w_ols = valid_ols = None
-    if "ols" in models_t:
-        w_ols, valid_ols = ols_from_covariance(cov, used_axis)
+    if "ols" in models:
+        w_ols, valid_ols = ols_from_covariance(cov, axis)
         valid_ols &= enough
+    return _CellPlanes(enough=enough, mean_local=mom.mean_local(), normal=normal,
+                       valid_odr=valid_odr, w_ols=w_ols, valid_ols=valid_ols,
+                       need_odr=any(m in models for m in ("odr", "hybrid")))
 
-    tick(3, 5)
-    vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    if need_odr:
-        vectors["odr"] = (np.where(valid_odr[:, None], normal, 0.0), mean_local)
-    if w_ols is not None:
-        vectors["ols"] = (np.where(valid_ols[:, None], w_ols, 0.0), mean_local)
-    sums = distance_sums(x, y, z, index, vectors)
-    tick(4, 5)
 
+def _thetas(
+    planes: _CellPlanes,
+    sums: dict[str, tuple[np.ndarray, np.ndarray]],
+    counts: np.ndarray,
+    axis: Axis,
+    models: tuple[Model, ...],
+    *,
+    signed: bool,
+) -> dict[str, np.ndarray]:
+    """Roughness of every cell per model from the distance sums (NaN where none)."""
+    m_cells = counts.shape[0]
+    theta = {name: np.full(m_cells, np.nan) for name in MODELS}
     n_f = counts.astype(np.float64)
-    signed = residual == "signed"
-    if need_odr:
+    if planes.need_odr:
         t = _theta(*sums["odr"], n_f, signed=signed)
-        t[~valid_odr] = np.nan
-        if "odr" in models_t:
+        t[~planes.valid_odr] = np.nan
+        if "odr" in models:
             theta["odr"] = t
-        if "hybrid" in models_t:
-            na = np.abs(normal[:, a])
-            ok = valid_odr & (na > HYBRID_MIN_COMPONENT)
-            th = np.full(m_cells, np.nan)
-            th[ok] = t[ok] / na[ok]
-            theta["hybrid"] = th
-    if w_ols is not None:
+        if "hybrid" in models:
+            # The hybrid distance is the ODR one divided by |n_a|, constant per cell.
+            na = np.abs(planes.normal[:, axis_index(axis)])
+            ok = planes.valid_odr & (na > HYBRID_MIN_COMPONENT)
+            theta["hybrid"][ok] = t[ok] / na[ok]
+    if planes.valid_ols is not None:
         t = _theta(*sums["ols"], n_f, signed=signed)
-        t[~valid_ols] = np.nan
+        t[~planes.valid_ols] = np.nan
         theta["ols"] = t
-    e_ols = np.abs(theta["ols"] - theta["odr"])
-    centre = grid.centres(index.ijk)
-    centroid = centre + mean_local
-    centroid[~enough] = np.nan
-    tick(5, 5)
-    return GridRoughness(
-        grid=grid,
-        axis=used_axis,
-        axis_requested=axis,
-        whole_normal=whole_normal,
-        min_points=min_points,
-        residual=residual,
-        models=models_t,
-        ijk=index.ijk,
-        centre=centre,
-        n_points=counts,
-        centroid=centroid,
-        normal=normal,
-        theta_odr=theta["odr"],
-        theta_ols=theta["ols"],
-        theta_hybrid=theta["hybrid"],
-        e_ols=e_ols,
-        point_cell=index.point_cell,
-        n_points_total=n_total,
-    )
+    return theta
 
 
 def _theta(abs_sum: np.ndarray, sq_sum: np.ndarray, n: np.ndarray, *, signed: bool) -> np.ndarray:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.vocabulary import DEFAULT_THRESHOLD, HISTOGRAM_BIN, MAPS, MapName
+from rough_viewer.vocabulary import DEFAULT_THRESHOLD, HISTOGRAM_BIN, MAPS, InputError, MapName
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def histogram(normalised: np.ndarray, bin_width: float = HISTOGRAM_BIN) -> Histo
     """Histogram of normalised values in bins of ``bin_width`` on [0, 1]."""
     k = int(round(1.0 / bin_width))
     if k < 1 or abs(k * bin_width - 1.0) > 1e-9:
-        raise ValueError(f"bin width must divide 1, got {bin_width}")
+        raise InputError(f"bin width must divide 1, got {bin_width}")
     v = np.asarray(normalised, dtype=np.float64)
     v = v[np.isfinite(v)]
     edges = np.linspace(0.0, 1.0, k + 1)

@@ -44,6 +44,7 @@ import numpy as np
 import scipy.fft
 
 from rough_viewer.grid.maps import Plane, face_raster
+from rough_viewer.vocabulary import InputError
 
 Space = Literal["3d", "plane"]
 
@@ -117,17 +118,17 @@ def semivariogram(
     ijk = np.asarray(ijk)
     values = np.asarray(values, dtype=np.float64)
     if ijk.ndim != 2 or ijk.shape[1] not in (2, 3):
-        raise ValueError(f"ijk must have shape (M, 2) or (M, 3), got {ijk.shape}")
+        raise InputError(f"ijk must have shape (M, 2) or (M, 3), got {ijk.shape}")
     if values.shape != (ijk.shape[0],):
-        raise ValueError(f"values must have shape ({ijk.shape[0]},), got {values.shape}")
+        raise InputError(f"values must have shape ({ijk.shape[0]},), got {values.shape}")
     if not np.issubdtype(ijk.dtype, np.integer):
-        raise ValueError("ijk must be an integer array of cell indices")
+        raise InputError("ijk must be an integer array of cell indices")
     g = float(cell_size)
     if not g > 0:
-        raise ValueError(f"cell_size must be positive, got {cell_size}")
+        raise InputError(f"cell_size must be positive, got {cell_size}")
     w = g if bin_width is None else float(bin_width)
     if not w > 0:
-        raise ValueError(f"bin_width must be positive, got {bin_width}")
+        raise InputError(f"bin_width must be positive, got {bin_width}")
 
     ok = np.isfinite(values)
     idx = ijk[ok].astype(np.int64)

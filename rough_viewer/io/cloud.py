@@ -49,7 +49,7 @@ class PointCloud:
         """A cloud from an (N, 3) array (copied into contiguous float64 columns)."""
         arr = np.asarray(xyz, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] < 3:
-            raise ValueError("xyz must be an (N, 3) array")
+            raise InputError("xyz must be an (N, 3) array")
         return cls(
             x=np.ascontiguousarray(arr[:, 0]),
             y=np.ascontiguousarray(arr[:, 1]),
@@ -68,6 +68,20 @@ class PointCloud:
             source=self.source,
             dropped_nonfinite=self.dropped_nonfinite,
         )
+
+
+def as_columns(points: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Three contiguous float64 columns (metres) of a PointCloud or an (N, 3) array."""
+    if isinstance(points, PointCloud):
+        return points.x, points.y, points.z
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError("points must be a PointCloud or an (N, 3) array")
+    return (
+        np.ascontiguousarray(arr[:, 0]),
+        np.ascontiguousarray(arr[:, 1]),
+        np.ascontiguousarray(arr[:, 2]),
+    )
 
 
 def finite_cloud(

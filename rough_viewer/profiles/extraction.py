@@ -46,6 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from rough_viewer.grid.planes import fit_plane
+from rough_viewer.vocabulary import InputError
 
 _SPACING_NEIGHBOUR = 4
 _SPACING_SAMPLE = 5000
@@ -121,7 +122,7 @@ class Profile:
         """
         h = self.heights if heights is None else np.asarray(heights, dtype=float)
         if h.shape != self.distance.shape:
-            raise ValueError(f"heights must have shape {self.distance.shape}, got {h.shape}")
+            raise InputError(f"heights must have shape {self.distance.shape}, got {h.shape}")
         f = self.frame
         offset = float((self.start - f.origin) @ f.normal)
         return self.start + self.distance[:, None] * f.along + (h - offset)[:, None] * f.normal
@@ -140,14 +141,14 @@ def _as_xyz(points: Any) -> np.ndarray:
         points = points.xyz()
     xyz = np.asarray(points, dtype=float)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise ValueError(f"points must be an (N, 3) array, got shape {xyz.shape}")
+        raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
     return xyz
 
 
 def _as_point(p: Any, name: str) -> np.ndarray:
     a = np.asarray(p, dtype=float).ravel()
     if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be three finite coordinates, got {p!r}")
+        raise InputError(f"{name} must be three finite coordinates, got {p!r}")
     return a
 
 
@@ -156,7 +157,7 @@ def _positive(value: float | None, name: str) -> float | None:
         return None
     v = float(value)
     if not np.isfinite(v) or v <= 0:
-        raise ValueError(f"{name} must be a positive length in metres, got {value!r}")
+        raise InputError(f"{name} must be a positive length in metres, got {value!r}")
     return v
 
 
@@ -174,13 +175,13 @@ def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
     At most 5000 evenly strided points are queried (against all points).
     """
     if xyz.shape[0] <= k:
-        raise ValueError(f"need more than {k} points to estimate the point spacing")
+        raise InputError(f"need more than {k} points to estimate the point spacing")
     tree = cKDTree(xyz)
     step = max(1, xyz.shape[0] // _SPACING_SAMPLE)
     dist, _ = tree.query(xyz[::step], k=k + 1)
     value = float(np.median(dist[:, k]))
     if not value > 0:
-        raise ValueError("points are coincident: cannot estimate the point spacing")
+        raise InputError("points are coincident: cannot estimate the point spacing")
     return value
 
 
@@ -199,7 +200,7 @@ def _strip_spacing(along: np.ndarray, across: np.ndarray) -> float:
     d, _ = tree.query(xy[inner[::step]], k=_SPACING_NEIGHBOUR + 1)
     value = float(np.median(d[:, _SPACING_NEIGHBOUR]))
     if not value > 0:
-        raise ValueError("points are coincident: cannot estimate the point spacing")
+        raise InputError("points are coincident: cannot estimate the point spacing")
     return value
 
 
@@ -214,7 +215,7 @@ def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: f
     norm = float(np.linalg.norm(along))
     if norm < 0.1 * float(np.linalg.norm(d)):
         angle = np.degrees(np.arccos(min(1.0, norm / float(np.linalg.norm(d)))))
-        raise ValueError(
+        raise InputError(
             f"the line is nearly perpendicular to the local surface ({angle:.0f} degrees "
             "from it): no profile along it"
         )
@@ -319,7 +320,7 @@ def extract_profile(
     p1 = _as_point(end, "end")
     length3 = float(np.linalg.norm(p1 - p0))
     if length3 <= 0:
-        raise ValueError("start and end are the same point")
+        raise InputError("start and end are the same point")
     band = _positive(band_half_width, "band_half_width")
     step = _positive(spacing, "spacing")
     gap = _positive(max_gap, "max_gap")
@@ -334,7 +335,7 @@ def extract_profile(
     near = segment_distance(xyz[box], p0, p1) <= radius
     patch_index = box[near]
     if patch_index.size < _SPACING_NEIGHBOUR + 1:
-        raise ValueError(
+        raise InputError(
             f"only {patch_index.size} points within {radius:.4g} m of the line: "
             "pick the line on the surface"
         )
@@ -352,11 +353,11 @@ def extract_profile(
     length = float((p1 - p0) @ frame.along)
     n_samples = int(np.rint(length / step)) + 1
     if n_samples < 2:
-        raise ValueError(f"line ({length:.4g} m) shorter than one sample spacing ({step:.4g} m)")
+        raise InputError(f"line ({length:.4g} m) shorter than one sample spacing ({step:.4g} m)")
     in_band = (np.abs(across) <= band) & (along >= -0.5 * step)
     in_band &= np.rint(along / step) <= n_samples - 1
     if np.count_nonzero(in_band) < 3:
-        raise ValueError(
+        raise InputError(
             f"only {np.count_nonzero(in_band)} points within {band:.4g} m of the line: "
             "widen the band"
         )
@@ -412,16 +413,16 @@ def regular_samples(
     d = np.asarray(distance, dtype=float).ravel()
     h = np.asarray(heights, dtype=float).ravel()
     if d.shape != h.shape:
-        raise ValueError("distance and heights differ in length")
+        raise InputError("distance and heights differ in length")
     if not np.all(np.isfinite(d)):
-        raise ValueError("distances must be finite")
+        raise InputError("distances must be finite")
     keep = np.isfinite(h)
     d, h = d[keep], h[keep]
     if d.size < 2:
-        raise ValueError("a profile needs at least 2 samples with a finite height")
+        raise InputError("a profile needs at least 2 samples with a finite height")
     steps = np.diff(d)
     if np.any(steps <= 0):
-        raise ValueError("distances must be strictly increasing")
+        raise InputError("distances must be strictly increasing")
     step = _positive(spacing, "spacing") or float(np.median(steps))
     gap = _positive(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
     if keep.all() and np.all(np.abs(steps - step) <= 1e-6 * step):

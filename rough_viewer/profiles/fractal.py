@@ -35,6 +35,8 @@ from typing import Literal
 
 import numpy as np
 
+from rough_viewer.vocabulary import InputError
+
 DEFAULT_FRACTIONS = np.linspace(0.03, 0.10, 8)
 
 
@@ -75,12 +77,12 @@ def _window_samples(
     else:
         targets = np.asarray(windows, dtype=float).ravel()
         if targets.size == 0 or not np.all(np.isfinite(targets)) or np.any(targets <= 0):
-            raise ValueError("windows must be positive lengths in metres")
+            raise InputError("windows must be positive lengths in metres")
     m = np.rint(targets / spacing).astype(np.int64) + 1
     m = np.unique(np.clip(m, 3, None))
     m = m[m <= n_max]
     if m.size < 2:
-        raise ValueError(
+        raise InputError(
             f"need at least 2 distinct window sizes of 3..{n_max} samples; got {m.tolist()} "
             "(profile too short for these windows?)"
         )
@@ -99,7 +101,7 @@ def _fit(
     # s below round-off of the input's magnitude counts as zero (e.g. a straight line)
     ok = (counts > 0) & np.isfinite(s) & (s > 1e-12 * scale)
     if ok.sum() < 2:
-        raise ValueError("fewer than 2 window sizes with a positive s(w): cannot fit s = A w^H")
+        raise InputError("fewer than 2 window sizes with a positive s(w): cannot fit s = A w^H")
     x = np.log(w[ok])
     y = np.log(s[ok])
     slope, intercept = np.polyfit(x, y, 1)
@@ -129,7 +131,7 @@ def _scale(a: np.ndarray) -> float:
 def _check_spacing(spacing: float) -> float:
     spacing = float(spacing)
     if not np.isfinite(spacing) or spacing <= 0:
-        raise ValueError(f"spacing must be a positive length in metres, got {spacing}")
+        raise InputError(f"spacing must be a positive length in metres, got {spacing}")
     return spacing
 
 
@@ -204,7 +206,7 @@ def roughness_length(
     """
     h = np.asarray(heights, dtype=float)
     if h.ndim != 1:
-        raise ValueError(f"a profile must be one-dimensional, got shape {h.shape}")
+        raise InputError(f"a profile must be one-dimensional, got shape {h.shape}")
     spacing = _check_spacing(spacing)
     m_all = _window_samples((h.size - 1) * spacing, spacing, windows, h.size)
     s = np.full(m_all.size, np.nan)
@@ -292,7 +294,7 @@ def roughness_length_2d(
     """
     z = np.asarray(heights_grid, dtype=float)
     if z.ndim != 2:
-        raise ValueError(f"a patch must be a 2-D grid, got shape {z.shape}")
+        raise InputError(f"a patch must be a 2-D grid, got shape {z.shape}")
     spacing = _check_spacing(spacing)
     side = min(z.shape)
     m_all = _window_samples((side - 1) * spacing, spacing, windows, side)

@@ -43,6 +43,7 @@ from rough_viewer.vocabulary import (
     MODES,
     THRESHOLD_RULES,
     Decomposition,
+    InputError,
     Mode,
     ThresholdRule,
 )
@@ -95,7 +96,7 @@ def _wavelet(wavelet: str | pywt.Wavelet) -> pywt.Wavelet:
     try:
         return wavelet if isinstance(wavelet, pywt.Wavelet) else pywt.Wavelet(wavelet)
     except ValueError as exc:
-        raise ValueError(f"unknown discrete wavelet {wavelet!r} (see pywt.wavelist(kind='discrete'))") from exc
+        raise InputError(f"unknown discrete wavelet {wavelet!r} (see pywt.wavelist(kind='discrete'))") from exc
 
 
 def finite_runs(heights: np.ndarray) -> list[tuple[int, int]]:
@@ -110,7 +111,7 @@ def finite_runs(heights: np.ndarray) -> list[tuple[int, int]]:
 def _as_profile(heights: np.ndarray) -> np.ndarray:
     h = np.asarray(heights, dtype=float)
     if h.ndim != 1:
-        raise ValueError(f"a profile must be one-dimensional, got shape {h.shape}")
+        raise InputError(f"a profile must be one-dimensional, got shape {h.shape}")
     return h
 
 
@@ -128,7 +129,7 @@ def _usable_runs(
     used = [(a, b) for a, b in runs if b - a >= min_len]
     skipped = [(a, b) for a, b in runs if b - a < min_len]
     if not used:
-        raise ValueError(
+        raise InputError(
             f"profile has no run of at least {min_len} finite samples "
             f"(needed for a level-{level} decomposition)"
         )
@@ -148,7 +149,7 @@ def _decompose(x: np.ndarray, w: pywt.Wavelet, level: int, decomposition: Decomp
         wp = pywt.WaveletPacket(data=x, wavelet=w, mode=_BOUNDARY, maxlevel=level)
         nodes = wp.get_level(level, order="natural")
         return nodes, [n.data for n in nodes if n.path != "a" * level]
-    raise ValueError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
+    raise InputError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
 
 
 def _reconstruct(container, new_details, w, level, decomposition, n) -> np.ndarray:
@@ -170,7 +171,7 @@ def mad_sigma(coefficients: np.ndarray) -> float:
     """Noise sigma from detail coefficients: ``median(|w|) / 0.6745`` (same unit as w)."""
     c = np.asarray(coefficients, dtype=float)
     if c.size == 0:
-        raise ValueError("no detail coefficients to estimate the noise from")
+        raise InputError("no detail coefficients to estimate the noise from")
     return float(np.median(np.abs(c)) / MAD_CONSTANT)
 
 
@@ -203,12 +204,12 @@ def fixed_threshold(sigma: float, d: int, *, decomposition: Decomposition = "dwt
     packets; ``d`` is the number of level-1 detail coefficients. Same unit as sigma.
     """
     if d < 2:
-        raise ValueError(f"need at least 2 level-1 detail coefficients, got {d}")
+        raise InputError(f"need at least 2 level-1 detail coefficients, got {d}")
     if decomposition == "dwt":
         return float(sigma * math.sqrt(2.0 * math.log(d)))
     if decomposition == "wp":
         return float(sigma * math.sqrt(2.0 * math.log(d * math.log(d) / math.log(2.0))))
-    raise ValueError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
+    raise InputError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
 
 
 def birge_massart_threshold(coefficients: np.ndarray, sigma: float, *, alpha: float) -> float:
@@ -221,7 +222,7 @@ def birge_massart_threshold(coefficients: np.ndarray, sigma: float, *, alpha: fl
     mag = np.sort(np.abs(np.asarray(coefficients, dtype=float).ravel()))[::-1]
     n = mag.size
     if n == 0:
-        raise ValueError("no detail coefficients to threshold")
+        raise InputError("no detail coefficients to threshold")
     t = np.arange(1, n + 1, dtype=float)
     crit = -np.cumsum(mag**2) + 2.0 * t * sigma**2 * (alpha + np.log(n / t))
     return float(mag[int(np.argmin(crit))])
@@ -234,15 +235,15 @@ def _threshold_from(
         return fixed_threshold(sigma, d, decomposition=decomposition)
     if rule in PENALTY_ALPHA:
         return birge_massart_threshold(details, sigma, alpha=PENALTY_ALPHA[rule])
-    raise ValueError(f"threshold must be one of {', '.join(THRESHOLD_RULES)}; got {rule!r}")
+    raise InputError(f"threshold must be one of {', '.join(THRESHOLD_RULES)}; got {rule!r}")
 
 
 def _prepare(h, wavelet, level, decomposition):
     w = _wavelet(wavelet)
     if decomposition not in DECOMPOSITIONS:
-        raise ValueError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
+        raise InputError(f"decomposition must be 'dwt' or 'wp', got {decomposition!r}")
     if not isinstance(level, (int, np.integer)) or isinstance(level, bool) or level < 1:
-        raise ValueError(f"level must be a positive integer, got {level!r}")
+        raise InputError(f"level must be a positive integer, got {level!r}")
     runs, skipped = _usable_runs(h, level, w)
     parts = []
     for a, b in runs:
@@ -303,7 +304,7 @@ def denoise_result(
     """
     h = _as_profile(heights)
     if mode not in MODES:
-        raise ValueError(f"mode must be 'hard' or 'soft', got {mode!r}")
+        raise InputError(f"mode must be 'hard' or 'soft', got {mode!r}")
     w, runs, skipped, parts, sigma, d, pooled = _prepare(h, wavelet, level, decomposition)
     t = _threshold_from(threshold, sigma, d, pooled, decomposition)
     out = np.full(h.shape, np.nan)

@@ -19,8 +19,9 @@ from typing import Any
 import numpy as np
 
 from rough_viewer import __version__
-from rough_viewer.grid.maps import FaceMaps, FacePlane, face_frame, face_maps, face_raster
-from rough_viewer.grid.roughness import GridRoughness, grid_roughness, whole_cloud_axis
+from rough_viewer.grid.maps import FaceMaps, face_frame, face_maps, face_raster
+from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
+from rough_viewer.grid.roughness import GridRoughness, grid_roughness
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io import PointCloud
@@ -76,16 +77,12 @@ class Report:
     threshold: float
     """Binary-transform threshold on normalised roughness."""
     min_points: int
-    plane: FacePlane
+    plane: PlaneFit
     """The whole-cloud ODR plane (centroid = mean point), the frame of the face maps."""
     sections: tuple[GridSection, ...]
     version: str = __version__
     created: str = ""
     """UTC time the report was made (ISO 8601)."""
-
-
-def _cloud_centroid(cloud: PointCloud) -> np.ndarray:
-    return np.array([cloud.x.mean(), cloud.y.mean(), cloud.z.mean()])
 
 
 def _section(
@@ -95,15 +92,15 @@ def _section(
     axis: str,
     threshold: float,
     min_points: int,
-    centroid: np.ndarray,
+    plane: PlaneFit,
     tick: Callable[[], None],
     stage: ProgressFn,
-) -> tuple[GridSection, np.ndarray | None]:
+) -> GridSection:
     try:
         result = grid_roughness(cloud, g, min_points=min_points, axis=axis,  # type: ignore[arg-type]
                                 progress=stage)
     except InputError as exc:
-        return GridSection(grid_size=g, error=str(exc)), None
+        return GridSection(grid_size=g, error=str(exc))
     n_valid = int(np.count_nonzero(np.isfinite(result.theta_odr)))
     if n_valid < MIN_CELLS:
         return GridSection(
@@ -112,8 +109,7 @@ def _section(
                    f"roughness value, at least {MIN_CELLS} needed (cells need {min_points} "
                    "points); use a smaller grid size"),
             result=result,
-        ), result.whole_normal
-    plane = FacePlane(centroid=centroid, normal=result.whole_normal)
+        )
     raster = face_raster(result.centre, plane, g)
     summaries, histograms, variograms, maps = {}, {}, {}, {}
     for name in MAPS:
@@ -129,12 +125,12 @@ def _section(
                 grid_size=g, result=result,
                 error=(f"not enough memory for the semivariogram of the occupied box "
                        f"{shape[0]} x {shape[1]} x {shape[2]} cells; use a larger grid size"),
-            ), result.whole_normal
+            )
         maps[name] = face_maps(raster, norm, threshold=threshold)
         tick()
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
-                       variograms=variograms, maps=maps), result.whole_normal
+                       variograms=variograms, maps=maps)
 
 
 def build_report(
@@ -194,27 +190,16 @@ def build_report(
             show(base + round(ROUGHNESS_STAGES * min(stage_done, stage_total) / stage_total))
 
     show(0)
-    centroid = _cloud_centroid(cloud)
+    plane = whole_cloud_plane(cloud)
+    used_axis = dominant_axis(plane.normal) if axis == "auto" else axis
     sections = []
-    whole_normal = None
     for i, g in enumerate(sizes):
         base = STEPS_PER_GRID * i
         done = base + ROUGHNESS_STAGES
-        section, normal = _section(cloud, g, axis=axis, threshold=threshold,
-                                   min_points=min_points, centroid=centroid, tick=tick,
-                                   stage=stage)
-        sections.append(section)
-        if whole_normal is None and normal is not None:
-            whole_normal = normal
+        sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
+                                 min_points=min_points, plane=plane, tick=tick, stage=stage))
         done = STEPS_PER_GRID * (i + 1)
         show(done)
-    used_axis = next((s.result.axis for s in sections if s.result is not None), None)
-    if whole_normal is None or used_axis is None:
-        from rough_viewer.grid.planes import fit_plane
-
-        fit = fit_plane(cloud.xyz())
-        whole_normal = fit.normal
-        used_axis = whole_cloud_axis(cloud) if axis == "auto" else axis
     lo, hi = cloud.bounds()
     return Report(
         name=Path(cloud.source).name if cloud.source else "in-memory cloud",
@@ -227,7 +212,7 @@ def build_report(
         axis_requested=axis,
         threshold=float(threshold),
         min_points=int(min_points),
-        plane=FacePlane(centroid=centroid, normal=np.asarray(whole_normal, dtype=float)),
+        plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
     )

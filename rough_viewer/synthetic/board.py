@@ -31,6 +31,7 @@ import numpy as np
 
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.synthetic._scan import directions, ray_grid
+from rough_viewer.vocabulary import InputError
 
 #: Height of the scanner mirror and of the board centre above the ground (m), as in the paper.
 MOUNT_HEIGHT_M = 1.75
@@ -88,9 +89,9 @@ def hemisphere_board(
     ii, jj = np.meshgrid(interior, interior, indexing="ij")
     nodes = np.column_stack([ii.ravel(), jj.ravel()])
     if not 0 <= n_spheres <= nodes.shape[0]:
-        raise ValueError(f"n_spheres must be in 0..{nodes.shape[0]}, got {n_spheres}")
+        raise InputError(f"n_spheres must be in 0..{nodes.shape[0]}, got {n_spheres}")
     if 2 * radius_m >= node_spacing_m:
-        raise ValueError("hemispheres would touch: need 2 * radius_m < node_spacing_m")
+        raise InputError("hemispheres would touch: need 2 * radius_m < node_spacing_m")
     pick = np.random.default_rng(seed).choice(nodes.shape[0], size=n_spheres, replace=False)
     node_ij = nodes[np.sort(pick)]
     centres = -size_m / 2 + node_ij * node_spacing_m
@@ -129,13 +130,13 @@ def hemisphere_roughness(
     r = float(radius_m)
     f = n_spheres * np.pi * r * r / float(area_m2)
     if not 0.0 <= f <= 1.0:
-        raise ValueError("hemispheres cover more than the area")
+        raise InputError("hemispheres cover more than the area")
     m = f * 2.0 * r / 3.0
     var_signed = f * r * r / 2.0 - m * m
     if residual == "signed":
         return float(np.sqrt(var_signed))
     if residual != "absolute":
-        raise ValueError(f"residual must be 'absolute' or 'signed', got {residual!r}")
+        raise InputError(f"residual must be 'absolute' or 'signed', got {residual!r}")
     mean_abs = (1.0 - f) * m + f * (2.0 * r / 3.0 - m + 2.0 * m**3 / (3.0 * r * r))
     return float(np.sqrt(var_signed - mean_abs * mean_abs))
 
@@ -259,7 +260,7 @@ def _board_scan_cached(
 ) -> BoardScan:
     board = key.board
     if spacing <= 0 or range_m <= 0 or noise < 0:
-        raise ValueError("spacing and range_m must be > 0 and noise >= 0")
+        raise InputError("spacing and range_m must be > 0 and noise >= 0")
     scanner = np.array([0.0, 0.0, MOUNT_HEIGHT_M])
     centre = np.array([0.0, range_m, MOUNT_HEIGHT_M])
     axes = board_rotation(alpha_deg, beta_deg)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rough_viewer.vocabulary import InputError
+
 
 def fgn_autocovariance(n: int, hurst: float) -> np.ndarray:
     """Autocovariance ``g(0..n-1)`` of unit-variance fractional Gaussian noise."""
@@ -52,9 +54,9 @@ def fbm_profile(
         (n,) heights in metres, starting at 0.
     """
     if not 0.0 < hurst < 1.0:
-        raise ValueError(f"hurst must be in (0, 1), got {hurst}")
+        raise InputError(f"hurst must be in (0, 1), got {hurst}")
     if n < 2:
-        raise ValueError(f"need at least 2 samples, got {n}")
+        raise InputError(f"need at least 2 samples, got {n}")
     gen = np.random.default_rng(rng)
     m = n - 1  # number of increments
     g = fgn_autocovariance(m + 1, hurst)

@@ -16,6 +16,8 @@ from typing import Literal
 
 import numpy as np
 
+from rough_viewer.vocabulary import InputError
+
 ColormapName = Literal["viridis", "cividis", "magma", "coolwarm", "gray"]
 
 #: Colour of points whose cell has no value (too few points, degenerate plane).
@@ -89,7 +91,7 @@ def lut(name: str) -> np.ndarray:
     try:
         return _LUTS[name]
     except KeyError:
-        raise ValueError(
+        raise InputError(
             f"unknown colour map {name!r}; choose one of {', '.join(COLORMAP_NAMES)}"
         ) from None
 

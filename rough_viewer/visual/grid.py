@@ -21,7 +21,7 @@ from plotly.subplots import make_subplots
 from rough_viewer.grid.maps import FaceMaps
 from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import MAP_COLOURS, MAP_LABELS, MAP_MARKERS
+from rough_viewer.vocabulary import MAP_COLOURS, MAP_LABELS, MAP_MARKERS, InputError
 
 
 def label(name: str) -> str:
@@ -200,7 +200,7 @@ def face_map_figure(
     """
     names = list(maps)
     if kind not in ("normalised", "binary"):
-        raise ValueError(f"kind must be 'normalised' or 'binary', got {kind!r}")
+        raise InputError(f"kind must be 'normalised' or 'binary', got {kind!r}")
     threshold = next(iter(maps.values())).threshold if names else 0.05
     subtitles = [
         f"{label(n)}: " + ("normalised roughness" if kind == "normalised"

@@ -1,0 +1,64 @@
+"""``rough-viewer bias noise``: range noise from the scan of a flat board (equal segments, a plane each)."""
+
+from __future__ import annotations
+
+import argparse
+
+from rough_viewer.cli._options import (
+    naming,
+    positive_int,
+    segments,
+)
+from rough_viewer.cli.bias._shared import (
+    add_json_option,
+    emit,
+    load,
+    mm,
+    scanner_position,
+)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``bias noise`` to the ``bias`` subparsers."""
+    q = sub.add_parser("noise", help="range noise from the scan of a flat board",
+                       description="Split the board into equal segments, fit a plane to each, "
+                       "report the standard deviation of all residuals and per-segment values.")
+    q.add_argument("input", metavar="BOARD_SCAN", help="point cloud of the board, cropped")
+    q.add_argument("--segments", type=segments, default=8, metavar="N|RxC",
+                   help="number of equal segments, or rows x cols along the long x short "
+                   "axis (default 8)")
+    q.add_argument("--scanner", metavar="X,Y,Z", help="scanner position (orients offsets)")
+    q.add_argument("--max-points", type=positive_int, metavar="N",
+                   help="random subsample of N points (the paper: 180000)")
+    q.add_argument("--seed", type=int, default=0, help="seed of the subsample (default 0)")
+    add_json_option(q)
+    q.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rough_viewer.bias.measurement import range_noise
+
+    scanner = scanner_position(args)
+    cloud = load(args.input)
+    with naming(args.input):
+        r = range_noise(cloud.xyz(), segments=args.segments, scanner=scanner,
+                        max_points=args.max_points, seed=args.seed)
+    segs = [
+        {"row": s.row, "col": s.col, "n_points": s.n_points, "sigma": s.sigma,
+         "offset": s.offset, "tilt_deg": s.tilt_deg, "centre": s.centre}
+        for s in r.segments
+    ]
+    data = {"sigma": r.sigma, "sigma_single_plane": r.sigma_single_plane,
+            "n_points": r.n_points, "shape": list(r.shape), "segments": segs,
+            "normal": r.normal, "file": str(args.input)}
+    lines = [
+        f"range noise of {args.input}: sigma = {mm(r.sigma)} "
+        f"({r.n_points:,} points, {r.shape[0]} x {r.shape[1]} segments)",
+        f"one plane over the whole board: {mm(r.sigma_single_plane)}"
+        + ("  (board looks curved)" if r.sigma_single_plane > 1.05 * r.sigma else ""),
+        "row col   points   sigma mm  offset mm  tilt deg",
+    ]
+    lines += [f"{s.row:3d} {s.col:3d} {s.n_points:8d} {s.sigma * 1e3:10.3f} "
+              f"{s.offset * 1e3:10.3f} {s.tilt_deg:9.3f}" for s in r.segments]
+    emit(args, data, "\n".join(lines))
+    return 0

@@ -1,0 +1,49 @@
+"""``rough-viewer bias predict``: predict the roughness over- or under-estimate of a scanner."""
+
+from __future__ import annotations
+
+import argparse
+
+from rough_viewer.cli._options import (
+    non_negative,
+    positive,
+    positive_int,
+)
+from rough_viewer.cli.bias._shared import (
+    add_json_option,
+    add_simulation_options,
+    check_er,
+    emit,
+    layout,
+    prediction_dict,
+    prediction_text,
+)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``bias predict`` to the ``bias`` subparsers."""
+    q = sub.add_parser("predict", help="predict the roughness over/under-estimate",
+                       description="Simulate the target true, with noise, with beam smoothing "
+                       "and with both; report each roughness and the percentage biases.")
+    add_simulation_options(q, target_default=None)
+    q.add_argument("--noise", type=non_negative, required=True, metavar="M",
+                   help="range noise sigma, metres")
+    q.add_argument("--er", type=non_negative, required=True, metavar="M",
+                   help="beam effective radius, metres")
+    q.add_argument("--asperity-radius", type=positive, metavar="M",
+                   help="hemisphere radius on the paper's layout, metres (default: target A)")
+    q.add_argument("--trials", type=positive_int, default=3, help="draws averaged (default 3)")
+    add_json_option(q)
+    q.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rough_viewer.bias.simulation import predict_bias
+
+    check_er(args, [args.er])
+    p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er,
+                     layout=layout(args, args.asperity_radius), spacing_m=args.spacing,
+                     ratio=args.ratio, trials=args.trials, seed=args.seed,
+                     residual="signed" if args.signed else "absolute")
+    emit(args, prediction_dict(p), prediction_text(p, "predicted roughness bias"))
+    return 0
