@@ -11,11 +11,11 @@ that UTM-sized coordinates lose no precision.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
 #: Largest total number of grid cells (occupied or not) we can key with int64.
@@ -99,31 +99,11 @@ def make_grid(
         )
     if n_points is not None:
         occupied_max = min(total, float(n_points))
-        need = occupied_max * BYTES_PER_CELL
-        avail = _available_memory()
-        if avail is not None and need > avail:
-            raise InputError(
-                f"grid size {g:g} m could take up to {occupied_max:.3g} occupied cells "
-                f"(~{need / 2**30:.1f} GiB), more than the {avail / 2**30:.1f} GiB available; "
-                "choose a larger grid size"
-            )
+        require(occupied_max * BYTES_PER_CELL,
+                f"grid size {g:g} m (up to {occupied_max:.3g} occupied cells)",
+                hint="choose a larger grid size")
     shape = (int(counts[0]), int(counts[1]), int(counts[2]))
     return GridSpec(origin=o, cell_size=g, index_min=index_min.astype(np.int64), shape=shape)
-
-
-def _available_memory() -> float | None:
-    """Available physical memory in bytes (Linux), or None when unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 @dataclass(frozen=True)
