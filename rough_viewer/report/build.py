@@ -1,0 +1,205 @@
+"""Every number of the report: roughness maps at each grid size, Table-1 summaries,
+histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4)."""
+
+from __future__ import annotations
+
+import datetime as _dt
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer import __version__
+from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
+from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
+from rough_viewer.grid.roughness import GridRoughness, grid_roughness
+from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
+from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, PAPER_GRIDS, InputError, ProgressFn
+
+MIN_CELLS = 10
+"""A grid size leaving fewer cells with an ODR value than this is reported, not drawn."""
+VARIOGRAM_FIGURE_MAPS = ("odr", "ols", "e_ols")
+"""Maps overlaid in the semivariogram figure (2011 Fig. 4); the numbers cover all maps."""
+FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
+"""Panel order of the face-map figures (2011 Fig. 2: A = OLS, B = ODR)."""
+ROUGHNESS_STAGES = 4
+"""Progress stages reported by ``grid_roughness``."""
+STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 1
+
+
+@dataclass(frozen=True)
+class GridSection:
+    """Everything the report shows for one grid size."""
+
+    grid_size: float
+    """Cell edge, metres."""
+    error: str | None = None
+    """Why this grid size has no results (e.g. too few cells), else None."""
+    result: GridRoughness | None = None
+    summaries: dict[str, Summary] = field(default_factory=dict)
+    histograms: dict[str, Histogram] = field(default_factory=dict)
+    variograms: dict[str, Semivariogram] = field(default_factory=dict)
+    maps: dict[str, FaceMaps] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Report:
+    """A whole report: the input, the options and one section per grid size."""
+
+    name: str
+    """File name of the input (or "in-memory cloud")."""
+    source: str
+    """Path of the input as given."""
+    n_points: int
+    dropped_nonfinite: int
+    bounds_min: np.ndarray
+    """(3,) metres."""
+    bounds_max: np.ndarray
+    axis: str
+    """Dependent axis used by OLS and hybrid."""
+    axis_requested: str
+    threshold: float
+    """Binary-transform threshold on normalised roughness."""
+    min_points: int
+    plane: PlaneFit
+    """The whole-cloud ODR plane (centroid = mean point), the frame of the face maps."""
+    sections: tuple[GridSection, ...]
+    version: str = __version__
+    created: str = ""
+    """UTC time the report was made (ISO 8601)."""
+
+
+def _section(
+    cloud: PointCloud,
+    g: float,
+    *,
+    axis: str,
+    threshold: float,
+    min_points: int,
+    plane: PlaneFit,
+    tick: Callable[[], None],
+    stage: ProgressFn,
+) -> GridSection:
+    try:
+        result = grid_roughness(cloud, g, min_points=min_points, axis=axis,  # type: ignore[arg-type]
+                                progress=stage)
+    except InputError as exc:
+        return GridSection(grid_size=g, error=str(exc))
+    n_valid = int(np.count_nonzero(np.isfinite(result.theta_odr)))
+    if n_valid < MIN_CELLS:
+        return GridSection(
+            grid_size=g,
+            error=(f"too few cells: {n_valid} cell{'s' if n_valid != 1 else ''} with a "
+                   f"roughness value, at least {MIN_CELLS} needed (cells need {min_points} "
+                   "points); use a smaller grid size"),
+            result=result,
+        )
+    raster = face_raster(result.centre, plane, g)
+    summaries, histograms, variograms, maps = {}, {}, {}, {}
+    for name in MAPS:
+        values = result.values(name)
+        norm = normalise(values)
+        summaries[name] = summarise(result, name)
+        histograms[name] = histogram(norm, HISTOGRAM_BIN)
+        try:
+            variograms[name] = semivariogram(result.ijk, values, g)
+        except MemoryError:
+            shape = tuple(int(v) for v in np.ptp(result.ijk, axis=0) + 1)
+            return GridSection(
+                grid_size=g, result=result,
+                error=(f"not enough memory for the semivariogram of the occupied box "
+                       f"{shape[0]} x {shape[1]} x {shape[2]} cells; use a larger grid size"),
+            )
+        maps[name] = face_maps(raster, norm, threshold=threshold)
+        tick()
+    tick()
+    return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
+                       variograms=variograms, maps=maps)
+
+
+def build_report(
+    cloud: PointCloud,
+    grid_sizes: Sequence[float] = PAPER_GRIDS,
+    *,
+    axis: str = "auto",
+    threshold: float = 0.05,
+    min_points: int = 3,
+    progress: ProgressFn | None = None,
+) -> Report:
+    """Compute every number of the report.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+        The points, metres.
+    grid_sizes : sequence of float
+        Cell edges, metres (default the paper's 1, 0.5, 0.25, 0.125).
+    axis : {"auto", "x", "y", "z"}
+        Dependent axis of OLS and hybrid.
+    threshold : float
+        Binary transform threshold on normalised roughness (paper: 0.05).
+    min_points : int
+        Cells with fewer points get no value.
+    progress : callable, optional
+        ``progress(done, total)`` over all steps of all grid sizes.
+
+    Returns
+    -------
+    Report
+        One section per grid size; a grid size that fails (too few cells, too many
+        cells for memory) has ``error`` set and the others go on.
+    """
+    if cloud.n < 3:
+        raise InputError(f"need at least 3 points, got {cloud.n} ({cloud.source or 'cloud'})")
+    sizes = list(dict.fromkeys(float(g) for g in grid_sizes))
+    total = STEPS_PER_GRID * len(sizes)
+    done = base = 0
+    shown = -1
+
+    def show(value: int) -> None:
+        nonlocal shown
+        value = min(value, total)
+        if progress is not None and value > shown:
+            shown = value
+            progress(value, total)
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        show(done)
+
+    def stage(stage_done: int, stage_total: int) -> None:
+        # grid_roughness's own stages, mapped onto the first steps of this grid size
+        if stage_total > 0:
+            show(base + round(ROUGHNESS_STAGES * min(stage_done, stage_total) / stage_total))
+
+    show(0)
+    plane = whole_cloud_plane(cloud)
+    used_axis = dominant_axis(plane.normal) if axis == "auto" else axis
+    sections = []
+    for i, g in enumerate(sizes):
+        base = STEPS_PER_GRID * i
+        done = base + ROUGHNESS_STAGES
+        sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
+                                 min_points=min_points, plane=plane, tick=tick, stage=stage))
+        done = STEPS_PER_GRID * (i + 1)
+        show(done)
+    lo, hi = cloud.bounds()
+    return Report(
+        name=Path(cloud.source).name if cloud.source else "in-memory cloud",
+        source=cloud.source,
+        n_points=cloud.n,
+        dropped_nonfinite=cloud.dropped_nonfinite,
+        bounds_min=lo,
+        bounds_max=hi,
+        axis=used_axis,
+        axis_requested=axis,
+        threshold=float(threshold),
+        min_points=int(min_points),
+        plane=plane,
+        sections=tuple(sections),
+        created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
+    )

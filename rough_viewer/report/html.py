@@ -1,0 +1,144 @@
+"""The report as one self-contained HTML page (plotly.js inlined: works offline), and
+its figures for PNG export."""
+
+from __future__ import annotations
+
+import html
+from typing import Any
+
+import numpy as np
+
+from rough_viewer.grid.maps import face_frame
+from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
+from rough_viewer.vocabulary import InputError
+
+
+def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
+    """The plotly figures of one grid section, keyed by a short file-name-safe name:
+    ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``.
+    Empty when the section has an error."""
+    from rough_viewer.visual.grid import (
+        face_map_figure,
+        histogram_figure,
+        summary_table_figure,
+        variogram_figure,
+    )
+
+    if section.error is not None:
+        return {}
+    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
+    maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
+    return {
+        "summary": summary_table_figure(section.summaries, **kw),
+        "maps_normalised": face_map_figure(maps, kind="normalised", **kw),
+        "maps_binary": face_map_figure(maps, kind="binary", **kw),
+        "histogram": histogram_figure(
+            {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw),
+        "variogram": variogram_figure(
+            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw),
+    }
+
+
+def png_name(grid_size: float, figure: str) -> str:
+    """File name of one exported figure: ``g<G>_<figure>.png``."""
+    return f"g{grid_size:g}_{figure}.png"
+
+
+FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram")
+
+
+_CSS = """
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.5em; } h2 { border-bottom: 1px solid #ccc; margin-top: 2em; }
+table.meta td { padding: 2px 12px 2px 0; vertical-align: top; }
+.error { color: #a00; font-weight: bold; }
+.figure { margin: 1em 0; }
+.note { color: #555; font-size: 0.9em; }
+"""
+
+
+def _fmt_xyz(v: np.ndarray) -> str:
+    return ", ".join(f"{float(c):.3f}" for c in v)
+
+
+def report_html(report: Report) -> str:
+    """One self-contained HTML page (plotly.js inlined: no network needed)."""
+    from plotly.offline import get_plotlyjs
+
+    esc = html.escape
+    frame = face_frame(report.plane)
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>Roughness report: {esc(report.name)}</title>",
+        f"<style>{_CSS}</style>",
+        f'<script type="text/javascript">{get_plotlyjs()}</script>',
+        "</head><body>",
+        f"<h1>Surface roughness report: {esc(report.name)}</h1>",
+        '<table class="meta">',
+        f"<tr><td>input</td><td>{esc(report.source or report.name)}</td></tr>",
+        f"<tr><td>points</td><td>{report.n_points:,}"
+        + (f" ({report.dropped_nonfinite:,} non-finite rows dropped)"
+           if report.dropped_nonfinite else "") + "</td></tr>",
+        f"<tr><td>bounding box (m)</td><td>min ({_fmt_xyz(report.bounds_min)})<br>"
+        f"max ({_fmt_xyz(report.bounds_max)})<br>size "
+        f"({_fmt_xyz(report.bounds_max - report.bounds_min)})</td></tr>",
+        f"<tr><td>dependent axis (OLS, hybrid)</td><td>{esc(report.axis)}"
+        f" (requested: {esc(report.axis_requested)})</td></tr>",
+        f"<tr><td>face plane (whole-cloud ODR)</td><td>normal ({_fmt_xyz(frame.normal)}); "
+        f"u axis ({_fmt_xyz(frame.u_axis)}); v axis ({_fmt_xyz(frame.v_axis)})</td></tr>",
+        f"<tr><td>grid sizes (m)</td><td>"
+        f"{', '.join(f'{s.grid_size:g}' for s in report.sections)}</td></tr>",
+        f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness)</td></tr>",
+        f"<tr><td>min points per cell</td><td>{report.min_points}</td></tr>",
+        f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
+        f"<tr><td>created (UTC)</td><td>{esc(report.created)}</td></tr>",
+        "</table>",
+        '<p class="note">Roughness: population standard deviation of the absolute '
+        "point-to-plane distances per cell (ODR: orthogonal; OLS: along the dependent axis; "
+        "hybrid: ODR plane, distance along the dependent axis); e_OLS = |OLS - ODR|. "
+        "Face maps: cells projected onto the whole-cloud ODR plane, pixel = cell size, "
+        "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
+        "between cell centres, bins of one cell size up to half the largest extent, "
+        "divided by the map's variance.</p>",
+    ]
+    for s in report.sections:
+        sid = f"grid-{s.grid_size:g}".replace(".", "_")
+        parts.append(f'<section id="{sid}" class="grid-section"><h2>Grid {s.grid_size:g} m</h2>')
+        if s.error is not None:
+            parts.append(f'<p class="error">{esc(s.error)}</p></section>')
+            continue
+        cells = s.result.cell_report("odr") if s.result is not None else {}
+        if cells:
+            parts.append(
+                f'<p class="note">{cells["occupied"]:,} occupied cells, '
+                f'{cells["with_value"]:,} with an ODR value, '
+                f'{cells["below_min_points"]:,} below {report.min_points} points, '
+                f'{cells["degenerate"]:,} degenerate.</p>'
+            )
+        for key, fig in report_figures(report, s).items():
+            div = fig.to_html(full_html=False, include_plotlyjs=False,
+                              div_id=f"{sid}-{key}", config={"displaylogo": False})
+            parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
+        parts.append("</section>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def check_png_export() -> None:
+    """Raise InputError (one line) unless the optional kaleido package is installed."""
+    import importlib.util
+
+    if importlib.util.find_spec("kaleido") is None:
+        raise InputError("PNG export needs the optional package kaleido "
+                         "(pip install kaleido); the HTML and JSON reports do not")
+
+
+def png_figures(report: Report) -> list[tuple[str, Any]]:
+    """``(file name, figure)`` for every figure of every grid section, for PNG export
+    (``fig.to_image(format="png")`` needs kaleido: see :func:`check_png_export`)."""
+    return [
+        (png_name(s.grid_size, key), fig)
+        for s in report.sections
+        for key, fig in report_figures(report, s).items()
+    ]
