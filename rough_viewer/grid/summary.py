@@ -120,6 +120,6 @@ def histogram(normalised: np.ndarray, bin_width: float = HISTOGRAM_BIN) -> Histo
     return Histogram(edges=edges, counts=counts, fractions=fractions)
 
 
-def summaries(result: GridRoughness) -> dict[str, Summary]:
+def summaries(result: GridRoughness) -> dict[MapName, Summary]:
     """Table-1 summary of every map (odr, ols, hybrid, e_ols) of a result."""
     return {name: summarise(result, name) for name in MAPS}
