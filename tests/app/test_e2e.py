@@ -11,7 +11,8 @@ import os
 import numpy as np
 import pytest
 
-from rough_viewer.visual import colormaps  # noqa: E402
+from rough_viewer.app.profile_mode import ProfileMode
+from rough_viewer.visual import colormaps
 from tests.app import browser as b
 from tests.helpers import face_cloud
 
@@ -144,9 +145,10 @@ def test_click_reports_cell(live):
 def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     app, page = live
     page.get_by_role("tab", name="Profile").click()
+    m = app.mode(ProfileMode)
     control = b.control(page, "Profile mode")
     control.click()
-    b.wait_until(lambda: app.profile["controls"]["on"].value, 20, "profile mode on")
+    b.wait_until(lambda: m.on.value, 20, "profile mode on")
     img = b.to_array(b.png(page))
     h, w = img.shape[:2]
     mask = b.coloured_mask(img)
@@ -160,19 +162,19 @@ def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     assert mask[y, x0] and mask[y, x1]
     try:
         page.mouse.click(x0, y)
-        b.wait_until(lambda: app.profile["start"] is not None, 30, "the profile start")
+        b.wait_until(lambda: m.start is not None, 30, "the profile start")
         page.mouse.click(x1, y)
-        b.wait_until(lambda: len(app.profile["items"]) == 1, 60, "a profile")
-        a = app.profile["items"][0]
+        b.wait_until(lambda: len(m.items) == 1, 60, "a profile")
+        a = m.items[0]
         d_raw, d_den = a.raw_fit.dimension, a.denoised_fit.dimension
         assert a.profile.length > 0.5 and a.profile.n_points > 50
         assert 1.0 < d_raw < 2.5 and np.isfinite(d_den)
         # the panel in the browser shows the values
         page.get_by_text(f"{d_raw:.3f}").first.wait_for()
         page.get_by_text(f"{d_den:.3f}").first.wait_for()
-        fig = app.profile["controls"]["plot"].figure
+        fig = m.plot.figure
         assert len(fig.data) >= 2 and any(len(t.x) == len(a.profile.distance) for t in fig.data)
         page.locator(".js-plotly-plot:visible").first.wait_for()
     finally:
-        app.profile["controls"]["on"].value = False
+        m.on.value = False
         page.get_by_role("tab", name="Map").click()
