@@ -121,19 +121,21 @@ def run(args: argparse.Namespace) -> int:
         server, gate = open_server(args.host, args.port,
                                    token=None if args.no_token else new_token(),
                                    allow_origins=args.allow_origin)
-    app = build_app(server, cloud, settings=settings, max_display=args.max_points,
-                    data_dir=data_dir, max_upload_mb=args.max_upload_mb)
-    app.wait_idle(timeout=None if not args.no_block else 120.0)
-    print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
-          flush=True)
-    if app.errors:
-        print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
+    app = None
     try:
+        app = build_app(server, cloud, settings=settings, max_display=args.max_points,
+                        data_dir=data_dir, max_upload_mb=args.max_upload_mb)
+        app.wait_idle(timeout=None if not args.no_block else 120.0)
+        print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
+              flush=True)
+        if app.errors:
+            print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
     finally:
-        app.stop()
+        if app is not None:
+            app.stop()
         server.stop()
     return 0
