@@ -78,6 +78,11 @@ MAP_MARKERS: dict[str, str] = {
 }
 """Marker symbols of the 2011 paper's Fig. 4: ODR circles, OLS triangles, e_OLS plus."""
 
+DEFAULT_MIN_POINTS = 4
+"""Cells with fewer points get no value. Three points fix a plane exactly (roughness
+0 by construction, no information), so the default is 4; 3 stays accepted."""
+MIN_POINTS_FLOOR = 3
+"""The smallest ``min_points`` accepted: a plane needs 3 points."""
 DEFAULT_THRESHOLD = 0.05
 """Binary transform threshold on normalised roughness (2011 paper)."""
 HISTOGRAM_BIN = 0.05

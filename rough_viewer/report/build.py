@@ -17,7 +17,14 @@ from rough_viewer.grid.roughness import GridRoughness, grid_roughness
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, PAPER_GRIDS, InputError, ProgressFn
+from rough_viewer.vocabulary import (
+    DEFAULT_MIN_POINTS,
+    HISTOGRAM_BIN,
+    MAPS,
+    PAPER_GRIDS,
+    InputError,
+    ProgressFn,
+)
 
 MIN_CELLS = 10
 """A grid size leaving fewer cells with an ODR value than this is reported, not drawn."""
@@ -126,7 +133,7 @@ def build_report(
     *,
     axis: str = "auto",
     threshold: float = 0.05,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     progress: ProgressFn | None = None,
 ) -> Report:
     """Compute every number of the report.
