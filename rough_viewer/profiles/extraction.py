@@ -46,6 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from rough_viewer.grid.planes import fit_plane
+from rough_viewer.grid.spacing import neighbour_distance
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
@@ -175,19 +176,11 @@ def segment_distance(xyz: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.
 
 def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
     """Median distance from the points (N, 2 or 3) to their ``k``-th nearest neighbour,
-    metres.
+    metres (:func:`rough_viewer.grid.spacing.neighbour_distance`, the one definition).
 
     At most 5000 evenly strided points are queried (against all points).
     """
-    if xyz.shape[0] <= k:
-        raise InputError(f"need more than {k} points to estimate the point spacing")
-    tree = cKDTree(xyz)
-    step = max(1, xyz.shape[0] // _SPACING_SAMPLE)
-    dist, _ = tree.query(xyz[::step], k=k + 1)
-    value = float(np.median(dist[:, k]))
-    if not value > 0:
-        raise InputError("points are coincident: cannot estimate the point spacing")
-    return value
+    return neighbour_distance(xyz, k=k)
 
 
 def _strip_spacing(along: np.ndarray, across: np.ndarray) -> float:
