@@ -25,6 +25,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, Residual
 
 PaperTarget = Literal["A", "B"]
@@ -54,6 +55,10 @@ __all__ = [
     "smooth_heights",
     "smoothing_curve",
 ]
+
+#: Bytes per raster node held at the peak of a simulation (heights, labels, noise,
+#: the smoothing convolution and the scanned points).
+RASTER_BYTES_PER_NODE = 12 * 8
 
 
 @dataclass(frozen=True)
@@ -128,6 +133,10 @@ def raster_heights(
     ny = int(round(layout.height_m / spacing_m))
     if nx < 1 or ny < 1:
         raise InputError("the board is smaller than one raster cell")
+    # heights, noise, smoothed heights, labels and the simulated points all live on
+    # this raster at once (about 12 float64 per node, FFT convolution included)
+    require(nx * ny * RASTER_BYTES_PER_NODE, f"a simulated target raster of {nx:,} x {ny:,} "
+            f"nodes at {spacing_m * 1e3:g} mm", hint="choose a larger raster spacing")
     x = (np.arange(nx) + 0.5) * spacing_m
     y = (np.arange(ny) + 0.5) * spacing_m
     z = np.zeros((ny, nx))

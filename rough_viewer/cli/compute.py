@@ -23,7 +23,7 @@ import numpy as np
 from rough_viewer.cli._options import parse_xyz
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
 CSV_COLUMNS = (
     "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
@@ -47,8 +47,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="dependent axis of OLS and hybrid (default: auto = closest to the "
                    "whole cloud's normal)")
-    p.add_argument("--min-points", type=int, default=3, metavar="K",
-                   help="cells with fewer points get no value (default 3)")
+    p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
+                   help="cells with fewer points get no value (default 4: three points fix a "
+                   "plane exactly, so their roughness is 0 by construction; 3 is accepted)")
     p.add_argument("--origin", metavar="X,Y,Z", help="grid origin (default: bounding-box minimum)")
     p.add_argument("--signed", action="store_true",
                    help="RMS of signed distances instead of the std of absolute distances")

@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,8 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "whole cloud's normal)")
     p.add_argument("--threshold", type=float, default=0.05, metavar="T",
                    help="binary transform threshold on normalised roughness (default 0.05)")
-    p.add_argument("--min-points", type=int, default=3, metavar="K",
-                   help="cells with fewer points get no value (default 3)")
+    p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
+                   help="cells with fewer points get no value (default 4: three points fix a "
+                   "plane exactly, so their roughness is 0 by construction; 3 is accepted)")
     p.add_argument("--out", required=True, metavar="REPORT.html", help="output file")
     p.add_argument("--format", choices=("html", "json"), default="html",
                    help="html: the full report (default); json: the numbers alone")

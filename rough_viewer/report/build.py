@@ -7,6 +7,7 @@ import datetime as _dt
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -17,7 +18,16 @@ from rough_viewer.grid.roughness import GridRoughness, grid_roughness
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, PAPER_GRIDS, InputError, ProgressFn
+from rough_viewer.vocabulary import (
+    DEFAULT_MIN_POINTS,
+    HISTOGRAM_BIN,
+    MAPS,
+    PAPER_GRIDS,
+    InputError,
+    ProgressFn,
+)
+
+_T = TypeVar("_T")
 
 MIN_CELLS = 10
 """A grid size leaving fewer cells with an ODR value than this is reported, not drawn."""
@@ -43,6 +53,9 @@ class GridSection:
     histograms: dict[str, Histogram] = field(default_factory=dict)
     variograms: dict[str, Semivariogram] = field(default_factory=dict)
     maps: dict[str, FaceMaps] = field(default_factory=dict)
+    figure_errors: dict[str, str] = field(default_factory=dict)
+    """Figures that could not be made (``"variogram"``, ``"maps"``), each with why;
+    the rest of the section (Table 1, histograms, other figures) stands."""
 
 
 @dataclass(frozen=True)
@@ -97,27 +110,39 @@ def _section(
                    "points); use a smaller grid size"),
             result=result,
         )
-    raster = face_raster(result.centre, plane, g)
-    summaries, histograms, variograms, maps = {}, {}, {}, {}
+    summaries, histograms, normalised = {}, {}, {}
     for name in MAPS:
-        values = result.values(name)
-        norm = normalise(values)
         summaries[name] = summarise(result, name)
-        histograms[name] = histogram(norm, HISTOGRAM_BIN)
-        try:
-            variograms[name] = semivariogram(result.ijk, values, g)
-        except MemoryError:
-            shape = tuple(int(v) for v in np.ptp(result.ijk, axis=0) + 1)
-            return GridSection(
-                grid_size=g, result=result,
-                error=(f"not enough memory for the semivariogram of the occupied box "
-                       f"{shape[0]} x {shape[1]} x {shape[2]} cells; use a larger grid size"),
-            )
-        maps[name] = face_maps(raster, norm, threshold=threshold)
+        normalised[name] = normalise(result.values(name))
+        histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
+    figure_errors: dict[str, str] = {}
+    variograms = _figure(figure_errors, "variogram", g, lambda: {
+        name: semivariogram(result.ijk, result.values(name), g) for name in MAPS})
+    for _ in MAPS:
         tick()
+    maps = _figure(figure_errors, "maps", g, lambda: _face_maps(result, plane, normalised,
+                                                               threshold))
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
-                       variograms=variograms, maps=maps)
+                       variograms=variograms or {}, maps=maps or {}, figure_errors=figure_errors)
+
+
+def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
+               threshold: float) -> dict[str, FaceMaps]:
+    raster = face_raster(result.centre, plane, result.grid.cell_size)
+    return {name: face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
+
+
+def _figure(errors: dict[str, str], key: str, g: float, make: Callable[[], _T]) -> _T | None:
+    """Make one figure's numbers; a failure (memory or bad input) is recorded in
+    ``errors`` and never takes the rest of the section with it."""
+    try:
+        return make()
+    except InputError as exc:
+        errors[key] = str(exc)
+    except MemoryError:
+        errors[key] = f"not enough memory for the {key} at grid {g:g} m; use a larger grid size"
+    return None
 
 
 def build_report(
@@ -126,7 +151,7 @@ def build_report(
     *,
     axis: str = "auto",
     threshold: float = 0.05,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     progress: ProgressFn | None = None,
 ) -> Report:
     """Compute every number of the report.

@@ -28,15 +28,16 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
         return {}
     kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
-    return {
-        "summary": summary_table_figure(section.summaries, **kw),
-        "maps_normalised": face_map_figure(maps, kind="normalised", **kw),
-        "maps_binary": face_map_figure(maps, kind="binary", **kw),
-        "histogram": histogram_figure(
-            {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw),
-        "variogram": variogram_figure(
-            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw),
-    }
+    figures: dict[str, Any] = {"summary": summary_table_figure(section.summaries, **kw)}
+    if maps:  # absent when the face maps could not be made (section.figure_errors)
+        figures["maps_normalised"] = face_map_figure(maps, kind="normalised", **kw)
+        figures["maps_binary"] = face_map_figure(maps, kind="binary", **kw)
+    figures["histogram"] = histogram_figure(
+        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw)
+    if section.variograms:
+        figures["variogram"] = variogram_figure(
+            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw)
+    return figures
 
 
 def png_name(grid_size: float, figure: str) -> str:
@@ -116,6 +117,12 @@ def report_html(report: Report) -> str:
                 f'{cells["below_min_points"]:,} below {report.min_points} points, '
                 f'{cells["degenerate"]:,} degenerate.</p>'
             )
+        for key, why in s.figure_errors.items():
+            parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
+        limited = sorted({f"{vg.max_lag:g} m" for vg in s.variograms.values() if vg.lag_limited})
+        if limited:
+            parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
+                         "to fit in memory (default: half the largest extent).</p>")
         for key, fig in report_figures(report, s).items():
             div = fig.to_html(full_html=False, include_plotlyjs=False,
                               div_id=f"{sid}-{key}", config={"displaylogo": False})

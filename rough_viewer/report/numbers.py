@@ -22,6 +22,7 @@ def variogram_dict(vg: Semivariogram) -> dict[str, Any]:
         "n_cells": int(vg.n_cells),
         "bin_width": float(vg.bin_width),
         "max_lag": float(vg.max_lag),
+        "lag_limited": bool(vg.lag_limited),
         "space": vg.space,
     }
 
@@ -49,10 +50,12 @@ def report_json(report: Report) -> dict[str, Any]:
                         "fractions": to_jsonable(s.histograms[name].fractions),
                         "counts": to_jsonable(s.histograms[name].counts),
                     },
-                    "semivariogram": variogram_dict(s.variograms[name]),
+                    "semivariogram": (variogram_dict(s.variograms[name])
+                                      if name in s.variograms else None),
                 }
                 for name in MAPS
             }
+            entry["figure_errors"] = dict(s.figure_errors)
         grids.append(entry)
     return {
         "software": {"name": "rough_viewer", "version": report.version},

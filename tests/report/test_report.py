@@ -257,3 +257,22 @@ def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
     assert page.get_by_text("too few cells").count() == 1
     ctx.close()
     assert not errors, errors
+
+
+def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it():
+    # two rough patches 50 km apart diagonally: the face image between them would
+    # be 100,000 x 100,000 pixels (hundreds of GB); the cells are only 2 x ~100
+    a = rough_tilted_face(4000, seed=1)
+    b = rough_tilted_face(4000, seed=2) + np.array([35_000.0, 35_000.0, 0.0])
+    cloud = PointCloud.from_xyz(np.vstack([a, b]))
+    report = build_report(cloud, (0.5,))
+    s = report.sections[0]
+    assert s.error is None
+    assert "maps" in s.figure_errors and "face-plane image" in s.figure_errors["maps"]
+    ref = grid_roughness(cloud, 0.5)
+    assert s.summaries["odr"].cells == int(np.isfinite(ref.theta_odr).sum())
+    assert set(s.histograms) == set(MAPS) and set(s.variograms) == set(MAPS)
+    assert all(vg.lag_limited for vg in s.variograms.values())
+    html = report_html(report)
+    assert "no maps figure" in html and 'data-figure="summary"' in html
+    assert json.loads(json.dumps(report_json(report)))["grids"][0]["figure_errors"]["maps"]
