@@ -11,6 +11,7 @@ import os
 import numpy as np
 import pytest
 
+from rough_viewer.app.bias_panel import BiasPanel
 from rough_viewer.app.profile_mode import ProfileMode
 from rough_viewer.visual import colormaps
 from tests.app import browser as b
@@ -178,3 +179,40 @@ def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     finally:
         m.on.value = False
         page.get_by_role("tab", name="Map").click()
+
+
+def test_bias_predictions_are_reached_from_the_app(live):
+    app, page = live
+    page.get_by_role("tab", name="Bias").click()
+    page.get_by_role("button", name="Predict bias", exact=True).click()
+    page.get_by_text("ER / r =").first.wait_for(timeout=60_000)
+    page.locator(".js-plotly-plot:visible").first.wait_for()
+    assert app.mode(BiasPanel).last is not None
+    page.get_by_role("tab", name="Map").click()
+
+
+HOSTILE_NAME = '<img src=x onerror="window.__xss=1"> **b** [a](javascript:window.__xss=3).xyz'
+HOSTILE_PATH = "<iframe srcdoc='<script>parent.__xss=2</script>'></iframe>.las"
+
+
+def test_hostile_file_name_and_path_render_as_text(live):
+    """Runs last: it replaces the cloud."""
+    app, page = live
+    page.get_by_role("tab", name="File", exact=True).click()
+    box = b.text_input(page, "File path")
+    box.fill(HOSTILE_PATH)
+    box.press("Enter")
+    b.wait_until(lambda: app.gui.path.value == HOSTILE_PATH, 20, "the typed path")
+    page.get_by_role("button", name="Load file", exact=True).click()
+    page.get_by_text(f"file not found: {HOSTILE_PATH}").first.wait_for()
+    xyz = face_cloud(3000, seed=8).xyz()
+    data = "\n".join(f"{x:.4f} {y:.4f} {z:.4f}" for x, y, z in xyz).encode()
+    page.locator("input[type=file]").set_input_files(
+        files=[{"name": HOSTILE_NAME, "mimeType": "text/plain", "buffer": data}])
+    b.wait_until(lambda: app.shown.loaded.n_total == 3000 and not app.worker.busy, 60,
+                 "the uploaded cloud")
+    page.get_by_text(HOSTILE_NAME).first.wait_for()  # the name, character for character
+    assert page.evaluate("() => window.__xss") is None
+    assert page.locator("img[src=x], iframe[srcdoc]").count() == 0
+    assert page.locator("a[href^='javascript']").count() == 0
+    page.screenshot(path="/tmp/rough-viewer-shots/hostile-names.png", timeout=60_000)

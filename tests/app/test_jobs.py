@@ -16,7 +16,6 @@ from rough_viewer.app.bias_panel import BiasPanel
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.server import App, build_app
-from rough_viewer.app.state import ByteCache, LoadedCloud, ViewSettings, nbytes
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.io import PointCloud
 from tests.app.protocol import ProtocolClient
@@ -144,46 +143,54 @@ def test_bias_predictions_are_reached_from_the_app_and_run_on_the_worker(app):
     assert [r.kind for r in app.worker.records][-1] == "BiasJob"
 
 
-def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server):
-    # two 1 m patches 2 km apart: a 1 cm grid has few occupied cells, but the
-    # semivariogram's lag grid spans 200,000 cells per axis (terabytes)
+def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, monkeypatch):
+    # 3,000 small patches spread through a 1 m cube: on a 1 cm grid every cell is
+    # occupied apart from its neighbours, and the semivariogram must correlate the
+    # whole 100^3 frame (~140 MB even for its first lag bin). On a machine with
+    # 100 MB free that cannot fit: the same path as the 16.5 GB request.
+    import rough_viewer.grid.variogram as variogram_module
+    import rough_viewer.memory as memory
+
     rng = np.random.default_rng(0)
-    n = 20_000
-    xyz = np.column_stack([rng.uniform(0, 1, n), rng.normal(0, 0.003, n), rng.uniform(0, 1, n)])
-    xyz[n // 2:, 0] += 2000.0
-    xyz[n // 2:, 2] += 50.0
+    centres = rng.uniform(0, 1, (3000, 3))
+    xyz = np.repeat(centres, 4, axis=0) + rng.normal(0, 1e-4, (12_000, 3))
     app = build_app(server, PointCloud.from_xyz(xyz + [500_000.0, 4_000_000.0, 0.0]),
                     prefetch=False)
     assert app.wait_idle(60)
     before = app.cloud_handle.colors.copy()
+    small = 100 * 2**20
+    monkeypatch.setattr(memory, "available_bytes", lambda: small)
+    monkeypatch.setattr(variogram_module, "available_bytes", lambda: small)
     app.gui.grid_free.value = 0.01
     assert app.wait_idle(120)
     msg = app.errors[-1]
-    assert "semivariogram" in msg and "memory" in msg, msg
+    assert "semivariogram" in msg and "needs about" in msg and "memory" in msg, msg
+    assert "The map and the other panels are shown" in app.gui.error.content
     # the map at 1 cm is shown; only the panel could not be computed
-    assert app.shown.settings.cell_size == 0.01 and not np.array_equal(app.cloud_handle.colors,
-                                                                        before)
+    assert app.shown.settings.cell_size == 0.01
+    assert not np.array_equal(app.cloud_handle.colors, before)
+    assert "grid 0.01 m" in app.gui.histogram.figure.layout.title.text
     app.gui.grid.value = "0.5"  # the server is still up and answers
     assert app.wait_idle(120)
     assert app.shown.settings.cell_size == 0.5 and not app.gui.error.visible
+    assert "grid 0.5 m" in app.gui.variogram.figure.layout.title.text
     app.stop()
 
 
-def test_the_grid_cache_is_bounded_by_bytes(cloud):
-    loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
-    sizes = []
-    for g in (0.3, 0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
-        loaded.result(ViewSettings(cell_size=g))
-        sizes.append(loaded.cached_bytes)
-    assert max(sizes) <= 2_000_000 and loaded.cached_bytes > 0
-    assert loaded.is_cached(ViewSettings(cell_size=0.7))
-    assert not loaded.is_cached(ViewSettings(cell_size=0.3))  # least recently used went
-    one = nbytes(loaded.result(ViewSettings(cell_size=0.7)))
-    assert one > 8 * cloud.n  # the per-point cell index alone is 8 bytes a point
-    cache: ByteCache[str, np.ndarray] = ByteCache(100)
-    assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
-    a = np.zeros(5)
-    assert nbytes((a, a[1:], {"x": a})) == a.nbytes  # views count once
+def test_a_grid_that_cannot_fit_puts_the_controls_back(server, cloud, monkeypatch):
+    import rough_viewer.memory as memory
+
+    app = build_app(server, cloud, prefetch=False)
+    assert app.wait_idle(60)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1e6)
+    app.gui.grid_free.value = 0.002
+    assert app.wait_idle(60)
+    assert "grid 0.002 m" in app.errors[-1] and "needs about" in app.errors[-1]
+    assert app.shown.settings.cell_size == 0.25 and app.gui.grid.value == "0.25"
+    monkeypatch.undo()
+    app.gui.grid.value = "0.5"
+    assert app.wait_idle(60) and app.shown.settings.cell_size == 0.5
+    app.stop()
 
 
 def test_long_lived_lists_are_bounded(app):
