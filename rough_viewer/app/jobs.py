@@ -11,6 +11,7 @@ LoadJob        read, prepare, show, then ViewJob's                       load (v
 ViewJob        check, grid, colours, status (then queues PanelsJob)      view (panels)
 PanelsJob      distribution, variogram                                   panels
 PickJob        pick, cell or the mode's click handler                    pick, keep all
+AxisJob        axis                                                      axis
 =============  =======================================================  =================
 
 A pending LoadJob absorbs a newer ViewJob (it shows the new file with the newest
@@ -317,6 +318,21 @@ def show_cloud(app: App, loaded: LoadedCloud) -> None:
         scene.initial_camera(app.server, loaded)
         scene.reset_cameras(app.server)
         app.panel_key = None
+
+
+@dataclass(frozen=True)
+class AxisJob(Job["App"]):
+    """Show or hide the dependent-axis marker."""
+
+    visible: bool
+    lane: ClassVar[str] = "axis"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        shown = ctx.shown
+        if shown.result is not None:
+            scene.draw_axis(ctx.server, shown.loaded, shown.result.axis,
+                            chosen=shown.settings.axis != "auto", visible=self.visible)
+        yield "axis"
 
 
 # ----------------------------------------------------------------------------- pick

@@ -268,6 +268,14 @@ class ProfilesCsvJob(Job["App"]):
 
 def mount(app: App) -> ProfileMode:
     """Add the Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
+    m = _add_controls(app)
+    _wire(app, m)
+    app.click_handlers.append(m.on_pick)
+    return m
+
+
+def _add_controls(app: App) -> ProfileMode:
+    """Stage 1: the tab's controls, registered for values from browsers."""
     from rough_viewer.visual.profiles import profile_figure
 
     gui = app.server.gui
@@ -295,6 +303,11 @@ def mount(app: App) -> ProfileMode:
         )
     app.controls.allow(m.on, m.wavelet, m.level, m.decomposition, m.threshold, m.mode,
                        m.band, m.exaggeration, m.clear, m.download)
+    return m
+
+
+def _wire(app: App, m: ProfileMode) -> None:
+    """Stage 2: each control queues its job."""
 
     def denoise(_event: object) -> None:
         app.submit(DenoiseJob(m, m.settings()))
@@ -313,6 +326,3 @@ def mount(app: App) -> ProfileMode:
     @m.download.on_click
     def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
         app.submit(ProfilesCsvJob(m, event.client_id))
-
-    app.click_handlers.append(m.on_pick)
-    return m

@@ -30,6 +30,7 @@ from rough_viewer.app import bias_panel, board_mode, profile_mode, scene
 from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.jobs import (
+    AxisJob,
     ClickHandler,
     LoadJob,
     PickJob,
@@ -372,8 +373,22 @@ def _prefetch_presets(app: App, run: Run) -> bool:
 
 
 def _wire(app: App) -> None:
+    """Connect the map's controls, the File tab and scene clicks to jobs."""
+    app.controls.allow(*app.gui.inputs())
+    _wire_map(app)
+    _wire_file(app)
+
+    @app.server.scene.on_click()
+    def _(event: viser.SceneClickEvent) -> None:
+        if valid_ray(event.ray_origin, event.ray_direction):
+            o, d = event.ray_origin, event.ray_direction
+            app.submit(PickJob((float(o[0]), float(o[1]), float(o[2])),
+                               (float(d[0]), float(d[1]), float(d[2]))))
+
+
+def _wire_map(app: App) -> None:
+    """The Map tab: every change queues a view; grid and free grid follow each other."""
     g = app.gui
-    app.controls.allow(*g.inputs())
 
     def update(_event: object) -> None:
         app.request_update()
@@ -414,12 +429,12 @@ def _wire(app: App) -> None:
 
     @g.show_axis.on_update
     def _(_event: object) -> None:
-        shown = app.shown
-        if shown.result is not None:
-            with app.lock:
-                scene.draw_axis(app.server, shown.loaded, shown.result.axis,
-                                chosen=shown.settings.axis != "auto",
-                                visible=bool(g.show_axis.value))
+        app.submit(AxisJob(bool(g.show_axis.value)))
+
+
+def _wire_file(app: App) -> None:
+    """The File tab: "Load file" and uploads queue a load."""
+    g = app.gui
 
     @g.load.on_click
     def _(_event: object) -> None:
@@ -429,10 +444,3 @@ def _wire(app: App) -> None:
         app.load(upload=file)
 
     app.uploads.register(g.upload, uploaded)
-
-    @app.server.scene.on_click()
-    def _(event: viser.SceneClickEvent) -> None:
-        if valid_ray(event.ray_origin, event.ray_direction):
-            o, d = event.ray_origin, event.ray_direction
-            app.submit(PickJob((float(o[0]), float(o[1]), float(o[2])),
-                               (float(d[0]), float(d[1]), float(d[2]))))

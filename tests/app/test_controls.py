@@ -65,7 +65,7 @@ def test_invalid_values_are_put_back_with_a_notice(live):
     before = app.shown.settings
     values = {label: hooks.input_handles(app.server)[client.uuid(label)].value
               for label, _, _ in BAD}
-    for label, value, reason in BAD:
+    for label, value, _reason in BAD:
         client.set_value(label, value)
     settle(app)
     # nothing reached the app: same controls, same view, every later change still works

@@ -10,7 +10,6 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-import pytest
 
 from rough_viewer.app.bias_panel import BiasPanel
 from rough_viewer.app.gate import open_server
