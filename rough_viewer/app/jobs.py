@@ -209,9 +209,8 @@ class PanelsJob(Job["App"]):
         if app.shown.result is not self.result:
             return
         dist = distribution_figures(self.result, self.settings)
-        gui.histogram.figure = dist.histogram
-        gui.summary.figure = dist.summary
         yield "distribution"
+        fig = None
         if app.options.variogram:
             try:
                 fig = variogram_figure_of(self.result, self.settings,
@@ -220,11 +219,16 @@ class PanelsJob(Job["App"]):
                 what = "not enough memory" if isinstance(exc, MemoryError) else str(exc)
                 app.show_error(f"semivariogram of grid {self.settings.cell_size:g} m: {what}",
                                kept="The map and the other panels are shown.")
-                fig = None
-            if fig is None:
-                return
-            gui.variogram.figure = fig
+            else:
+                if fig is None:  # cancelled between maps
+                    run.check()
+                    return
             yield "variogram"
+        # all panels change together, as the grid they describe
+        gui.histogram.figure = dist.histogram
+        gui.summary.figure = dist.summary
+        if fig is not None:
+            gui.variogram.figure = fig
         app.panel_key = (self.settings.grid_key, self.settings.model, app.options.variogram)
         self.record["panels_s"] = time.perf_counter() - t0
 
