@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from websockets.exceptions import InvalidStatus
 
-from rough_viewer.app.gate import normalise_origin, open_server
+from rough_viewer.app.gate import normalise_origin, open_server, own_origins
 from rough_viewer.app.server import build_app
 from rough_viewer.vocabulary import InputError
 from tests.app import browser as b
@@ -130,6 +130,18 @@ def test_without_token_the_origin_check_stays():
         assert get(f"http://127.0.0.1:{port}/")[0] == 200
     finally:
         server.stop()
+
+
+def test_own_origins():
+    import socket
+
+    local = own_origins("127.0.0.1", 8080)
+    assert {"http://127.0.0.1:8080", "http://localhost:8080", "http://[::1]:8080"} <= local
+    assert len(local) == 3
+    assert "http://10.1.2.3:8080" in own_origins("10.1.2.3", 8080)
+    everywhere = own_origins("0.0.0.0", 80)
+    assert f"http://{socket.gethostname().lower()}:80" in everywhere
+    assert f"http://{socket.gethostname().lower()}" in everywhere  # port 80 may be left out
 
 
 def test_origin_values_are_checked():
