@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._options import add_units, parse_xyz, per_unit, warn
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
 CSV_COLUMNS = (
     "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
@@ -41,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
-                   help="grid cell size in metres (repeat for several sizes)")
+                   help="grid cell size in --units (default metres; repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
                    help="roughness model (default: all)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
@@ -57,6 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--summary-json", metavar="SUMMARY.json", help="Table-1 summary as JSON")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -77,23 +78,30 @@ def _fmt_column(values: np.ndarray) -> list[str]:
     return text.tolist()
 
 
-def cells_csv_rows(result) -> list[list[str]]:
-    """Columns of the CELLS.csv for cells with at least ``min_points`` points."""
+def cells_csv_rows(result, per: float = 1.0) -> list[list[str]]:
+    """Columns of the CELLS.csv for cells with at least ``min_points`` points;
+    centres and roughness divided by ``per`` (metres per output unit)."""
     keep = result.n_points >= result.min_points
+    c = result.centre[keep] / per if per != 1.0 else result.centre[keep]
+
+    def length(v: np.ndarray) -> np.ndarray:
+        return v[keep] / per if per != 1.0 else v[keep]
+
     cols = [
         result.ijk[keep, 0], result.ijk[keep, 1], result.ijk[keep, 2],
-        result.centre[keep, 0], result.centre[keep, 1], result.centre[keep, 2],
+        c[:, 0], c[:, 1], c[:, 2],
         result.n_points[keep],
-        result.theta_odr[keep], result.theta_ols[keep], result.theta_hybrid[keep],
-        result.e_ols[keep],
+        length(result.theta_odr), length(result.theta_ols), length(result.theta_hybrid),
+        length(result.e_ols),
         result.normal[keep, 0], result.normal[keep, 1], result.normal[keep, 2],
     ]
     return [_fmt_column(np.asarray(c)) for c in cols]
 
 
-def write_cells_csv(path: Path, result) -> None:
-    """Write CELLS.csv atomically (temporary file, then rename)."""
-    cols = cells_csv_rows(result)
+def write_cells_csv(path: Path, result, per: float = 1.0) -> None:
+    """Write CELLS.csv atomically (temporary file, then rename); lengths in metres
+    divided by ``per``."""
+    cols = cells_csv_rows(result, per)
 
     def write(fh) -> None:
         fh.write(",".join(CSV_COLUMNS) + "\n")
@@ -104,18 +112,26 @@ def write_cells_csv(path: Path, result) -> None:
     write_atomic(path, write)
 
 
-def summary_dict(result, cloud_source: str, dropped: int) -> dict:
-    """The SUMMARY.json content for one grid size."""
+def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
+                 warnings: tuple[str, ...] = ()) -> dict:
+    """The SUMMARY.json content for one grid size, lengths in ``unit``."""
     from rough_viewer.grid.summary import summarise
-    from rough_viewer.vocabulary import MAPS
+    from rough_viewer.vocabulary import MAPS, UNIT_METRES
 
+    per = UNIT_METRES[unit]
     out: dict = {}
     for name in MAPS:
-        out[name] = summarise(result, name).as_dict()
+        d = summarise(result, name).as_dict()
+        for k in ("min", "max", "mean", "std"):
+            d[k] = d[k] / per
+        d["variance"] = d["variance"] / per**2
+        out[name] = d
     out.update(
         {
-            "grid_size": result.grid.cell_size,
-            "origin": [float(v) for v in result.grid.origin],
+            "unit": unit,
+            "warnings": list(warnings),
+            "grid_size": result.grid.cell_size / per,
+            "origin": [float(v) / per for v in result.grid.origin],
             "axis": result.axis,
             "axis_requested": result.axis_requested,
             "points": result.n_points_total,
@@ -140,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     grids = list(dict.fromkeys(args.grid))
     for g in grids:
         if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
+            raise InputError(f"--grid must be a positive length, got {g:g}")
     if args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
@@ -153,7 +169,13 @@ def run(args: argparse.Namespace) -> int:
             for g in grids
         }
     quiet = args.quiet
-    cloud = load_points(args.input, progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    cloud = load_points(args.input, units=args.units,
+                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    warn(cloud.warnings)
+    unit = cloud.source_unit  # every length given and shown is in this unit
+    per = per_unit(unit)
+    if origin is not None:
+        origin = origin * per
     if cloud.dropped_nonfinite:
         print(
             f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
@@ -163,16 +185,17 @@ def run(args: argparse.Namespace) -> int:
     models = MODELS if args.method == "all" else (args.method,)
     for i, g in enumerate(grids):
         result = grid_roughness(
-            cloud, g, origin=origin, min_points=args.min_points, axis=args.axis,
+            cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
             models=models, residual="signed" if args.signed else "absolute",
-            progress=None if quiet else ProgressBar(f"grid {g:g} m"),
+            progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}"),
         )
-        write_cells_csv(outs[g], result)
+        write_cells_csv(outs[g], result, per)
         if g in jsons:
-            data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
+            data = summary_dict(result, str(args.input), cloud.dropped_nonfinite, unit,
+                                cloud.warnings)
             write_atomic(jsons[g], lambda fh, d=data: json.dump(d, fh, indent=2))
         if i:
             print()
-        print(format_table(result, source=str(args.input)))
+        print(format_table(result, source=str(args.input), unit=unit))
         print(f"wrote {outs[g]}" + (f" and {jsons[g]}" if g in jsons else ""))
     return 0

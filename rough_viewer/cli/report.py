@@ -19,8 +19,9 @@ import math
 import sys
 from pathlib import Path
 
+from rough_viewer.cli._options import add_units, per_unit, warn
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
     p.add_argument("--grid", type=float, action="append", metavar="G",
-                   help="grid cell size in metres, repeatable (default: 1 0.5 0.25 0.125)")
+                   help="grid cell size in --units, repeatable (default: from the point "
+                   "spacing: the size at which the typical occupied cell holds 16 points, "
+                   "times 8, 4, 2 and 1)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="dependent axis of OLS and hybrid (default: auto = closest to the "
                    "whole cloud's normal)")
@@ -48,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write every figure as PNG into DIR (needs kaleido)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -69,40 +73,55 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.grid.spacing import preset_cell_sizes
     from rough_viewer.io import load_points
     from rough_viewer.report import (
-        PAPER_GRIDS,
         build_report,
         png_figures,
         report_html,
         report_json,
     )
 
-    grids = list(dict.fromkeys(args.grid or PAPER_GRIDS))
-    for g in grids:
+    given = list(dict.fromkeys(args.grid or []))
+    for g in given:
         if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
+            raise InputError(f"--grid must be a positive length, got {g:g}")
     if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
         raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
     if args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     out = check_output_path(args.out, force=args.force)
+    if args.png:
+        from rough_viewer.report import check_png_export
+
+        check_png_export()
+
+    quiet = args.quiet
+    cloud = load_points(args.input, units=args.units,
+                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    warn(cloud.warnings)
+    per = per_unit(cloud.source_unit)
+    grids = [g * per for g in given] if given else list(preset_cell_sizes(cloud))
     png_dir = None
     if args.png:
         png_dir, _ = _png_targets(args.png, grids, force=args.force)
-
-    quiet = args.quiet
-    cloud = load_points(args.input,
-                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
     if cloud.dropped_nonfinite:
         print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
               f"coordinates from {args.input}", file=sys.stderr)
-    report = build_report(cloud, grids, axis=args.axis, threshold=args.threshold,
-                          min_points=args.min_points,
+    report = build_report(cloud, grids if given else None, axis=args.axis,
+                          threshold=args.threshold, min_points=args.min_points,
                           progress=None if quiet else ProgressBar("report"))
+    warn(report.warnings[len(cloud.warnings):])
+    u = UNIT_LABELS[report.unit]
+    if not given:
+        print("grid sizes from the point spacing: "
+              + ", ".join(f"{s.grid_size / per:g}" for s in report.sections) + f" {u}")
     for s in report.sections:
         if s.error is not None:
-            print(f"rough-viewer: grid {s.grid_size:g} m: {s.error}", file=sys.stderr)
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: {s.error}", file=sys.stderr)
+        for key, why in s.figure_errors.items():
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: no {key} figure: {why}",
+                  file=sys.stderr)
 
     if args.format == "json":
         data = report_json(report)

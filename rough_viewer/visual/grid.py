@@ -7,6 +7,9 @@ the models shown, the dependent axis (of OLS and hybrid) and the point count.
 Inputs are dictionaries keyed by map name (``"odr"``, ``"ols"``, ``"hybrid"``,
 ``"e_ols"``); figures show the maps in the order given, so pass them in the order
 you want them drawn.
+
+Inputs are in metres (the core's unit); ``unit`` (``"m"``, ``"mm"``, ``"ft"``,
+``"us-ft"``) chooses the unit every length, roughness and label is shown in.
 """
 
 from __future__ import annotations
@@ -21,7 +24,14 @@ from plotly.subplots import make_subplots
 from rough_viewer.grid.maps import FaceMaps
 from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import MAP_COLOURS, MAP_LABELS, MAP_MARKERS, InputError
+from rough_viewer.vocabulary import (
+    MAP_COLOURS,
+    MAP_LABELS,
+    MAP_MARKERS,
+    UNIT_LABELS,
+    UNIT_METRES,
+    InputError,
+)
 
 
 def label(name: str) -> str:
@@ -29,9 +39,19 @@ def label(name: str) -> str:
     return MAP_LABELS.get(name, name)
 
 
-def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = ()) -> str:
-    """The caption every figure carries: grid size, models, dependent axis, points."""
-    parts = [f"grid {grid_size:g} m"]
+def _per(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) of a display unit."""
+    if unit not in UNIT_METRES:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+    return UNIT_METRES[unit], UNIT_LABELS[unit]
+
+
+def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = (),
+             unit: str = "m") -> str:
+    """The caption every figure carries: grid size (metres in, shown in ``unit``),
+    models, dependent axis, points."""
+    f, u = _per(unit)
+    parts = [f"grid {grid_size / f:g} {u}"]
     if models:
         parts.append("models " + ", ".join(label(m) for m in models))
     parts.append(f"dependent axis {axis}")
@@ -58,6 +78,7 @@ def summary_table_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
     """Table 1 of the 2011 paper for one grid size.
 
@@ -69,17 +90,18 @@ def summary_table_figure(
     """
     names = list(summaries)
     rows = [summaries[n] for n in names]
-    header = ["map", "cells", "mean points per cell", "minimum (m)", "maximum (m)", "mean (m)",
-              "variance (m²)", "std (m)"]
+    f, u = _per(unit)
+    header = ["map", "cells", "mean points per cell", f"minimum ({u})", f"maximum ({u})",
+              f"mean ({u})", f"variance ({u}²)", f"std ({u})"]
     cells = [
         [label(n) for n in names],
         [f"{int(s.cells):,}" for s in rows],
         [f"{float(s.mean_points):,.1f}" for s in rows],
-        [_fmt(s.min) for s in rows],
-        [_fmt(s.max) for s in rows],
-        [_fmt(s.mean) for s in rows],
-        [_fmt(s.variance) for s in rows],
-        [_fmt(s.std) for s in rows],
+        [_fmt(s.min / f) for s in rows],
+        [_fmt(s.max / f) for s in rows],
+        [_fmt(s.mean / f) for s in rows],
+        [_fmt(s.variance / f**2) for s in rows],
+        [_fmt(s.std / f) for s in rows],
     ]
     fig = go.Figure(go.Table(
         header={"values": header, "align": "left", "fill_color": "#e8e8e8"},
@@ -87,7 +109,7 @@ def summary_table_figure(
     ))
     fig.update_layout(
         title=_title("Roughness summary (Table 1)", grid_size=grid_size, axis=axis,
-                     n_points=n_points, models=names),
+                     n_points=n_points, models=names, unit=unit),
         height=140 + 30 * len(names), margin={"l": 10, "r": 10, "t": 70, "b": 10},
     )
     return fig
@@ -99,6 +121,7 @@ def histogram_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
     """Histograms of normalised roughness with the first-bin shares (2011 Fig. 3).
 
@@ -126,7 +149,7 @@ def histogram_figure(
     fig.update_layout(
         title=_title(f"Normalised roughness histograms — first bin (0–{first_edge}): "
                      + ", ".join(shares), grid_size=grid_size, axis=axis, n_points=n_points,
-                     models=names),
+                     models=names, unit=unit),
         barmode="group", bargap=0.15, bargroupgap=0.0,
         xaxis_title="normalised roughness", yaxis_title="cells (%)",
         height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
@@ -143,6 +166,7 @@ def variogram_figure(
     axis: str,
     n_points: int,
     normalised: bool = True,
+    unit: str = "m",
 ) -> go.Figure:
     """Experimental semivariograms overlaid (2011 Fig. 4, one panel per grid size).
 
@@ -156,23 +180,25 @@ def variogram_figure(
     names = list(variograms)
     fig = go.Figure()
     space = "3-D"
+    f, u = _per(unit)
     for name in names:
         vg = variograms[name]
         space = "in the face plane" if vg.space == "plane" else "3-D"
-        y = vg.gamma_normalised if normalised else vg.gamma
+        y = vg.gamma_normalised if normalised else vg.gamma / f**2
         fig.add_trace(go.Scatter(
-            x=vg.lag, y=y, mode="markers", name=label(name),
+            x=vg.lag / f, y=y, mode="markers", name=label(name),
             marker={"symbol": MAP_MARKERS.get(name, "circle-open"), "color": MAP_COLOURS.get(name),
                     "size": 7},
             customdata=vg.pairs,
-            hovertemplate=(label(name) + ": lag %{x:.3f} m, γ %{y:.4g}, "
+            hovertemplate=(label(name) + f": lag %{{x:.3f}} {u}, γ %{{y:.4g}}, "
                            "%{customdata:,} pairs<extra></extra>"),
         ))
     fig.update_layout(
         title=_title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
-                     grid_size=grid_size, axis=axis, n_points=n_points, models=names),
-        xaxis_title="lag (m)",
-        yaxis_title="γ / variance" if normalised else "γ (m²)",
+                     grid_size=grid_size, axis=axis, n_points=n_points, models=names,
+                     unit=unit),
+        xaxis_title=f"lag ({u})",
+        yaxis_title="γ / variance" if normalised else f"γ ({u}²)",
         height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
     )
     if normalised:
@@ -187,6 +213,7 @@ def face_map_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
     """Face-plane maps, one panel per model stacked (2011 Fig. 2: OLS beside ODR).
 
@@ -210,13 +237,15 @@ def face_map_figure(
     fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
                         vertical_spacing=0.08 if len(names) > 1 else 0.0)
     aspect = 0.3
+    f, u = _per(unit)
     for row, name in enumerate(names, start=1):
         img = maps[name].normalised if kind == "normalised" else maps[name].binary
         if img.u.size and img.v.size:
             aspect = (img.v[-1] - img.v[0] + img.cell_size) / (img.u[-1] - img.u[0] + img.cell_size)
         heat = {
-            "z": img.image, "x": img.u, "y": img.v, "zmin": 0.0, "zmax": 1.0,
-            "hovertemplate": label(name) + ": u %{x:.2f} m, v %{y:.2f} m, %{z:.3f}<extra></extra>",
+            "z": img.image, "x": img.u / f, "y": img.v / f, "zmin": 0.0, "zmax": 1.0,
+            "hovertemplate": label(name) + f": u %{{x:.2f}} {u}, v %{{y:.2f}} {u}, "
+                             "%{z:.3f}<extra></extra>",
         }
         if kind == "binary":
             heat.update(colorscale=colormaps.PAPER_BINARY_COLORSCALE, showscale=False)
@@ -226,14 +255,14 @@ def face_map_figure(
                                   "yanchor": "top"})
         fig.add_trace(go.Heatmap(**heat), row=row, col=1)
         xref = "x" if row == 1 else f"x{row}"
-        fig.update_yaxes(scaleanchor=xref, scaleratio=1, title_text="v, up the face (m)",
+        fig.update_yaxes(scaleanchor=xref, scaleratio=1, title_text=f"v, up the face ({u})",
                          row=row, col=1)
-        fig.update_xaxes(title_text="u, along the face (m)", row=row, col=1)
+        fig.update_xaxes(title_text=f"u, along the face ({u})", row=row, col=1)
     panel = float(np.clip(900 * aspect, 160, 600))
     what = "Normalised roughness" if kind == "normalised" else f"Binary transform at {threshold:g}"
     fig.update_layout(
         title=_title(f"{what} on the face plane (whole-cloud ODR plane)", grid_size=grid_size,
-                     axis=axis, n_points=n_points, models=names),
+                     axis=axis, n_points=n_points, models=names, unit=unit),
         height=int(110 + len(names) * (panel + 70)), width=1000,
         margin={"l": 60, "r": 10, "t": 90, "b": 40}, plot_bgcolor="white",
     )
