@@ -48,6 +48,17 @@ Residual = Literal["absolute", "signed"]
 """``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
 signed distances."""
 
+BIAS_RESIDUAL: Residual = "signed"
+"""Default roughness of the bias toolkit: the bias paper's own definition, the
+standard deviation of the SIGNED orthogonal residuals (so its published numbers come
+out without a flag). Grid roughness keeps SCIENCE.md's absolute distances."""
+RESIDUAL_NAMES: dict[str, str] = {
+    "signed": "std of signed orthogonal distances (the bias paper's definition)",
+    "absolute": "std of absolute orthogonal distances (the grid-roughness convention, "
+                "SCIENCE.md section 1)",
+}
+"""How each residual convention is named in output (text and JSON)."""
+
 AXES: tuple[Axis, Axis, Axis] = ("x", "y", "z")
 AXIS_CHOICES: tuple[AxisChoice, ...] = ("auto", "x", "y", "z")
 MODELS: tuple[Model, ...] = ("odr", "ols", "hybrid")
