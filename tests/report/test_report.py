@@ -276,3 +276,39 @@ def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it():
     html = report_html(report)
     assert "no maps figure" in html and 'data-figure="summary"' in html
     assert json.loads(json.dumps(report_json(report)))["grids"][0]["figure_errors"]["maps"]
+
+
+def test_command_without_grid_uses_the_grids_from_the_point_spacing(cloud_file, cloud, tmp_path,
+                                                                    capsys):
+    from rough_viewer.grid.spacing import TARGET_POINTS, median_cell_count, preset_cell_sizes
+
+    out = tmp_path / "d.json"
+    assert main(["report", str(cloud_file), "--format", "json", "--out", str(out),
+                 "--quiet"]) == 0
+    data = json.loads(out.read_text())
+    sizes = [g["grid_size"] for g in data["grids"]]
+    assert sizes == pytest.approx(list(preset_cell_sizes(cloud)))
+    assert data["grids_chosen"] == "default"
+    assert sizes == pytest.approx([8 * sizes[-1], 4 * sizes[-1], 2 * sizes[-1], sizes[-1]])
+    assert median_cell_count(cloud, sizes[-1]) >= TARGET_POINTS
+    assert "grid sizes from the point spacing" in capsys.readouterr().out
+
+
+def test_command_units_mm_scale_every_length(cloud_file, cloud, tmp_path):
+    mm_file = tmp_path / "face_mm.npy"
+    np.save(mm_file, np.load(cloud_file) * 1000.0)
+    a, b = tmp_path / "m.json", tmp_path / "mm.json"
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--format", "json", "--out", str(a),
+                 "--quiet"]) == 0
+    assert main(["report", str(mm_file), "--units", "mm", "--grid", "500", "--format", "json",
+                 "--out", str(b), "--quiet"]) == 0
+    m, mm = json.loads(a.read_text()), json.loads(b.read_text())
+    assert mm["unit"] == "mm" and mm["grids"][0]["grid_size"] == 500.0
+    sm, smm = m["grids"][0]["models"]["odr"], mm["grids"][0]["models"]["odr"]
+    assert smm["summary"]["mean"] == pytest.approx(1000 * sm["summary"]["mean"], rel=1e-9)
+    assert smm["semivariogram"]["lag"] == pytest.approx([1000 * v for v in sm["semivariogram"]["lag"]])
+    html_out = tmp_path / "mm.html"
+    assert main(["report", str(mm_file), "--units", "mm", "--grid", "500", "--out",
+                 str(html_out), "--quiet"]) == 0
+    text = html_out.read_text()
+    assert "Grid 500 mm" in text and "lag (mm)" in text and "std (mm)" in text
