@@ -45,6 +45,8 @@ _API: dict[str, str] = {
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
     "write_las": "rough_viewer.io.las",
+    "read_crs": "rough_viewer.io.crs",
+    "CrsInfo": "rough_viewer.io.crs",
     # grid roughness
     "grid_roughness": "rough_viewer.grid.roughness",
     "prepare_grid": "rough_viewer.grid.roughness",
@@ -59,6 +61,10 @@ _API: dict[str, str] = {
     "histogram": "rough_viewer.grid.summary",
     "Summary": "rough_viewer.grid.summary",
     "semivariogram": "rough_viewer.grid.variogram",
+    "plan_semivariogram": "rough_viewer.grid.variogram",
+    "point_spacing": "rough_viewer.grid.spacing",
+    "default_cell_size": "rough_viewer.grid.spacing",
+    "preset_cell_sizes": "rough_viewer.grid.spacing",
     "face_semivariogram": "rough_viewer.grid.variogram",
     "face_maps": "rough_viewer.grid.maps",
     "face_raster": "rough_viewer.grid.maps",
@@ -71,6 +77,7 @@ _API: dict[str, str] = {
     "threshold_value": "rough_viewer.profiles.wavelets",
     "roughness_length": "rough_viewer.profiles.fractal",
     "roughness_length_2d": "rough_viewer.profiles.fractal",
+    "detrend": "rough_viewer.profiles.fractal",
     "compare_denoising": "rough_viewer.profiles.comparison",
     # scanner bias
     "range_noise": "rough_viewer.bias.measurement",
@@ -123,6 +130,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         prepare_grid,
         whole_cloud_axis,
     )
+    from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
         binary,
@@ -131,13 +139,14 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         summaries,
         summarise,
     )
-    from rough_viewer.grid.variogram import face_semivariogram, semivariogram
+    from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.crs import CrsInfo, read_crs
     from rough_viewer.io.las import write_las
     from rough_viewer.io.load import load_points
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples
-    from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d
+    from rough_viewer.profiles.fractal import detrend, roughness_length, roughness_length_2d
     from rough_viewer.profiles.wavelets import (
         denoise,
         denoise_result,

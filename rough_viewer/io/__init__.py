@@ -8,16 +8,20 @@ that names it.
 
 from rough_viewer.io.cache import cache_dir
 from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.crs import CrsInfo, read_crs
 from rough_viewer.io.las import load_las_with_extra, read_las_extra, write_las
-from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points
+from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points, resolve_units
 
 __all__ = [
     "SUPPORTED_SUFFIXES",
     "TEXT_SUFFIXES",
+    "CrsInfo",
     "PointCloud",
     "cache_dir",
     "load_las_with_extra",
     "load_points",
+    "read_crs",
     "read_las_extra",
+    "resolve_units",
     "write_las",
 ]

@@ -206,6 +206,37 @@ def variogram_figure(
     return fig
 
 
+#: Most pixels one face-map panel draws; larger images are shown by the max of
+#: k x k pixel blocks (the binary map by its max too: a block is black when any of
+#: its pixels is), so a report at a fine grid stays a few MB, not hundreds.
+MAX_PANEL_PIXELS = 500_000
+
+
+def _display_image(image: np.ndarray, u: np.ndarray, v: np.ndarray,
+                   max_pixels: int = MAX_PANEL_PIXELS) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The image reduced by the max of k x k blocks so that it has at most
+    ``max_pixels`` pixels, its pixel centres, and k (1 = unchanged)."""
+    rows, cols = image.shape
+    k = 1
+    while (rows // k + 1) * (cols // k + 1) > max_pixels and k < max(rows, cols):
+        k *= 2
+    if k == 1:
+        return image, u, v, 1
+    r2, c2 = -(-rows // k), -(-cols // k)
+    padded = np.full((r2 * k, c2 * k), np.nan)
+    padded[:rows, :cols] = image
+    blocks = padded.reshape(r2, k, c2, k)
+    with np.errstate(all="ignore"):
+        finite = np.isfinite(blocks).any(axis=(1, 3))
+        reduced = np.where(finite, np.nanmax(np.where(np.isfinite(blocks), blocks, -np.inf),
+                                             axis=(1, 3)), np.nan)
+    du = float(u[1] - u[0]) if u.size > 1 else 1.0
+    dv = float(v[1] - v[0]) if v.size > 1 else 1.0
+    u2 = u[0] + (np.arange(c2) * k + 0.5 * (k - 1)) * du
+    v2 = v[0] + (np.arange(r2) * k + 0.5 * (k - 1)) * dv
+    return reduced, u2, v2, k
+
+
 def face_map_figure(
     maps: Mapping[str, FaceMaps],
     *,
@@ -229,21 +260,25 @@ def face_map_figure(
     if kind not in ("normalised", "binary"):
         raise InputError(f"kind must be 'normalised' or 'binary', got {kind!r}")
     threshold = next(iter(maps.values())).threshold if names else 0.05
+    images = [maps[n].normalised if kind == "normalised" else maps[n].binary for n in names]
+    shown = [_display_image(img.image, img.u, img.v) for img in images]
     subtitles = [
         f"{label(n)}: " + ("normalised roughness" if kind == "normalised"
                            else f"normalised ≥ {threshold:g} in black")
-        for n in names
+        + (f" (shown by the max of {d[3]} x {d[3]} pixels)" if d[3] > 1 else "")
+        for n, d in zip(names, shown, strict=True)
     ]
     fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
                         vertical_spacing=0.08 if len(names) > 1 else 0.0)
     aspect = 0.3
     f, u = _per(unit)
     for row, name in enumerate(names, start=1):
-        img = maps[name].normalised if kind == "normalised" else maps[name].binary
+        img = images[row - 1]
         if img.u.size and img.v.size:
             aspect = (img.v[-1] - img.v[0] + img.cell_size) / (img.u[-1] - img.u[0] + img.cell_size)
+        z_img, u_img, v_img, _ = shown[row - 1]
         heat = {
-            "z": img.image, "x": img.u / f, "y": img.v / f, "zmin": 0.0, "zmax": 1.0,
+            "z": z_img, "x": u_img / f, "y": v_img / f, "zmin": 0.0, "zmax": 1.0,
             "hovertemplate": label(name) + f": u %{{x:.2f}} {u}, v %{{y:.2f}} {u}, "
                              "%{z:.3f}<extra></extra>",
         }
