@@ -4,6 +4,7 @@ option, LAS outputs and the simulation options."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -104,7 +105,7 @@ def prediction_text(p: BiasPrediction, title: str) -> str:
     ])
 
 
-def check_er(args: argparse.Namespace, ers: object) -> None:
+def check_er(args: argparse.Namespace, ers: Iterable[float]) -> None:
     """Refuse effective radii too small to smooth at the raster spacing."""
     for e in ers:
         if 0 < e < 0.5 * args.spacing:
