@@ -205,13 +205,13 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
         raise
 
 
-def write_atomic(path: PathLike, write: Callable[[IO[Any]], None], *, mode: str = "w") -> None:
+def write_atomic(path: PathLike, write: Callable[[IO[Any]], object], *, mode: str = "w") -> None:
     """Write a file atomically (see :func:`write_path_atomic`); ``write`` receives the
     open file object (text with ``mode="w"``, bytes with ``mode="wb"``)."""
-    kwargs = {"newline": ""} if "b" not in mode else {}
 
     def write_to(tmp: Path) -> None:
-        with open(tmp, mode, **kwargs) as fh:
+        fh: IO[Any]
+        with (open(tmp, mode) if "b" in mode else open(tmp, mode, newline="")) as fh:
             write(fh)
 
     write_path_atomic(path, write_to)
