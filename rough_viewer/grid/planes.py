@@ -89,6 +89,14 @@ def fit_plane(xyz: np.ndarray) -> PlaneFit:
     -------
     PlaneFit
         Centroid, unit normal, covariance eigenvalues (descending) and principal axes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    >>> fit = fit_plane(pts)
+    >>> np.abs(fit.normal).round(6) + 0.0, fit.centroid
+    (array([0., 0., 1.]), array([0.5, 0.5, 0. ]))
     """
     pts = np.asarray(xyz, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
