@@ -85,6 +85,12 @@ HISTOGRAM_BIN = 0.05
 PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 """The 2011 paper's grid sizes, metres."""
 
+# ----------------------------------------------------------------------------- units
+
+Unit = Literal["m", "mm", "ft", "us-ft"]
+"""Length unit of a file's coordinates (the core works in metres)."""
+UNITS: tuple[Unit, ...] = ("m", "mm", "ft", "us-ft")
+
 # ----------------------------------------------------------------------------- profiles
 
 Decomposition = Literal["dwt", "wp"]
