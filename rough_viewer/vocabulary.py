@@ -98,6 +98,12 @@ COLOUR_LAYER_LABELS: dict[str, str] = {
 }
 """Display name of each colour layer."""
 
+# ----------------------------------------------------------------------------- units
+
+Unit = Literal["m", "mm", "ft", "us-ft"]
+"""Length unit of a file's coordinates (the core works in metres)."""
+UNITS: tuple[Unit, ...] = ("m", "mm", "ft", "us-ft")
+
 # ----------------------------------------------------------------------------- profiles
 
 Decomposition = Literal["dwt", "wp"]

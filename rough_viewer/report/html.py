@@ -10,7 +10,6 @@ import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
-from rough_viewer.vocabulary import InputError
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -26,7 +25,8 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
 
     if section.error is not None:
         return {}
-    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
+    kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
+                          "n_points": report.n_points}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
     return {
         "summary": summary_table_figure(section.summaries, **kw),
@@ -127,11 +127,9 @@ def report_html(report: Report) -> str:
 
 def check_png_export() -> None:
     """Raise InputError (one line) unless the optional kaleido package is installed."""
-    import importlib.util
+    from rough_viewer.visual.export import check_figure_export
 
-    if importlib.util.find_spec("kaleido") is None:
-        raise InputError("PNG export needs the optional package kaleido "
-                         "(pip install kaleido); the HTML and JSON reports do not")
+    check_figure_export("png")
 
 
 def png_figures(report: Report) -> list[tuple[str, Any]]:
