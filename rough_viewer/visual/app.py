@@ -149,3 +149,18 @@ def colour_scale_figure(
         plot_bgcolor="white",
     )
     return fig
+
+
+#: Width of an analysis panel the figures are laid out for, px (issue 13: at least
+#: ~480 px at a 1600 x 1000 window).
+PANEL_WIDTH = 480
+
+
+def panel_aspect(fig: go.Figure, width: int = PANEL_WIDTH) -> float:
+    """The ``aspect`` to give ``viser``'s ``add_plotly`` (which draws a figure
+    ``aspect`` times as high as the panel is wide) so that ``fig`` gets the height
+    its builder laid it out for (``fig.layout.height``) at ``width`` px."""
+    height = fig.layout.height
+    if height is None:
+        raise ValueError("the figure has no layout height")
+    return float(height) / float(width)

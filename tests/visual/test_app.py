@@ -33,3 +33,16 @@ def test_colour_scale_of_an_absolute_range():
     assert list(fig.layout.xaxis.ticktext) == ["0", "10", "20", "30"]  # 5s would be 7 ticks
     np.testing.assert_allclose(fig.layout.xaxis.tickvals, [0, 1 / 3, 2 / 3, 1])
     assert "absolute 0–30 mm, linear" in fig.layout.xaxis.title.text
+
+
+def test_panel_aspect_gives_the_laid_out_height():
+    import plotly.graph_objects as go
+    import pytest
+
+    from rough_viewer.visual.app import PANEL_WIDTH, panel_aspect
+
+    fig = go.Figure().update_layout(height=240)
+    assert panel_aspect(fig) == 240 / PANEL_WIDTH == 0.5
+    assert panel_aspect(fig, 300) == 0.8
+    with pytest.raises(ValueError):
+        panel_aspect(go.Figure())
