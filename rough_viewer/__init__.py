@@ -56,6 +56,11 @@ _API: dict[str, str] = {
     "whole_cloud_axis": "rough_viewer.grid.roughness",
     "GridRoughness": "rough_viewer.grid.roughness",
     "fit_plane": "rough_viewer.grid.planes",
+    "whole_cloud_plane": "rough_viewer.grid.planes",
+    "signed_distance": "rough_viewer.grid.planes",
+    "point_scales": "rough_viewer.grid.scales",
+    "point_scales_from_prepared": "rough_viewer.grid.scales",
+    "face_scales": "rough_viewer.grid.scales",
     "cell_columns": "rough_viewer.grid.table",
     "point_fields": "rough_viewer.grid.table",
     "summarise": "rough_viewer.grid.summary",
@@ -128,7 +133,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
     from rough_viewer.grid.maps import face_maps, face_raster
-    from rough_viewer.grid.planes import fit_plane
+    from rough_viewer.grid.planes import fit_plane, signed_distance, whole_cloud_plane
     from rough_viewer.grid.roughness import (
         GridRoughness,
         coarsen_prepared,
@@ -136,6 +141,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         prepare_grid,
         whole_cloud_axis,
     )
+    from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
     from rough_viewer.grid.summary import (
         Summary,
         binary,
