@@ -109,7 +109,7 @@ def read_profile_file(path: Path, *, scale: float = 1.0) -> tuple[np.ndarray, np
     comments and header lines skipped), times ``scale``, as metres."""
     if not path.is_file():
         raise InputError(f"no such file: {path}")
-    rows = []
+    rows: list[list[float]] = []
     with open(path, encoding="utf-8", errors="replace") as fh:
         for number, line in enumerate(fh, 1):
             text = line.split("#", 1)[0].strip()
@@ -303,7 +303,7 @@ def _check_options(args: argparse.Namespace) -> None:
         raise InputError(f"--detrend must be a degree from 0 to 5, got {args.detrend}")
 
 
-Samples = tuple[np.ndarray, np.ndarray, list[tuple[float, float]], float, dict[str, Any]]
+Samples = tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...], float, dict[str, Any]]
 
 
 def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
@@ -322,7 +322,7 @@ def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
         distance, heights, gaps = regular_samples(d_in, h_in, spacing=args.spacing,
                                                   max_gap=args.max_gap)
     step = float(np.median(np.diff(distance)))
-    info = {
+    info: dict[str, Any] = {
         "input": str(path),
         "unit": unit,
         "source": "profile-file",
@@ -352,7 +352,7 @@ def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
     with naming(path):
         prof = extract_profile(cloud, p0, p1, band_half_width=args.band, spacing=args.spacing,
                                max_gap=args.max_gap)
-    info = {
+    info: dict[str, Any] = {
         "input": str(path),
         "unit": cloud.source_unit,
         "source": "cloud",
@@ -376,7 +376,8 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.input)
     _check_options(args)
-    csv_path = check_output_path(args.csv, force=args.force) if args.csv else None
+    csv_path = (check_output_path(args.csv, force=args.force, inputs=[path])
+                if args.csv else None)
     if not path.exists():
         raise InputError(f"no such file: {path}")
 

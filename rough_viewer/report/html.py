@@ -10,7 +10,7 @@ import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -26,8 +26,8 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
 
     if section.error is not None:
         return {}
-    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points,
-          "unit": report.unit}
+    kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
+                          "n_points": report.n_points, "unit": report.unit}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
     figures: dict[str, Any] = {"summary": summary_table_figure(section.summaries, **kw)}
     if maps:  # absent when the face maps could not be made (section.figure_errors)
@@ -143,11 +143,9 @@ def report_html(report: Report) -> str:
 
 def check_png_export() -> None:
     """Raise InputError (one line) unless the optional kaleido package is installed."""
-    import importlib.util
+    from rough_viewer.visual.export import check_figure_export
 
-    if importlib.util.find_spec("kaleido") is None:
-        raise InputError("PNG export needs the optional package kaleido "
-                         "(pip install kaleido); the HTML and JSON reports do not")
+    check_figure_export("png")
 
 
 def png_figures(report: Report) -> list[tuple[str, Any]]:

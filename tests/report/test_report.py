@@ -189,7 +189,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
     """The export logic, with kaleido's renderer replaced by a stub."""
     import plotly.graph_objects as go
 
-    import rough_viewer.report as report_module
+    import rough_viewer.visual.export as export_module
 
     rendered = []
 
@@ -197,7 +197,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
         rendered.append(fig.layout.title.text)
         return b"\x89PNG fake"
 
-    monkeypatch.setattr(report_module, "check_png_export", lambda: None)
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
     monkeypatch.setattr(go.Figure, "to_image", fake_to_image)
     png = tmp_path / "png"
     rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),
@@ -312,4 +312,5 @@ def test_command_units_mm_scale_every_length(cloud_file, cloud, tmp_path):
     assert main(["report", str(mm_file), "--units", "mm", "--grid", "500", "--out",
                  str(html_out), "--quiet"]) == 0
     text = html_out.read_text()
-    assert "Grid 500 mm" in text and "lag (mm)" in text and "std (mm)" in text
+    assert "Grid 500 mm" in text and "lag (mm)" in text
+    assert "std\\u003cbr\\u003e(mm)" in text  # Table 1 header, as plotly escapes it
