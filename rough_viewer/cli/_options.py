@@ -20,7 +20,7 @@ def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
         values = ()
     if len(values) != 3 or not all(v == v and abs(v) != float("inf") for v in values):
         raise InputError(f"{option} expects three finite numbers X,Y,Z, got {text!r}")
-    return values  # type: ignore[return-value]
+    return values[0], values[1], values[2]
 
 
 @contextmanager

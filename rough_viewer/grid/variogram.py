@@ -297,7 +297,7 @@ def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
     lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
     m = int(cells.z.size)
     limited = False
-    budget = MEMORY_BUDGET
+    budget = float(MEMORY_BUDGET)
     avail = available_bytes()
     if avail is not None:
         budget = min(budget, USABLE_SHARE * avail)

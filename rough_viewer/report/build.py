@@ -119,14 +119,16 @@ def _section(
                    "points); use a smaller grid size"),
             result=result,
         )
-    summaries, histograms, normalised = {}, {}, {}
+    summaries: dict[str, Summary] = {}
+    histograms: dict[str, Histogram] = {}
+    normalised: dict[str, np.ndarray] = {}
     for name in MAPS:
         summaries[name] = summarise(result, name)
         normalised[name] = normalise(result.values(name))
         histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
     figure_errors: dict[str, str] = {}
     variograms = _figure(figure_errors, "variogram", g, lambda: {
-        name: semivariogram(result.ijk, result.values(name), g) for name in MAPS})
+        str(name): semivariogram(result.ijk, result.values(name), g) for name in MAPS})
     for _ in MAPS:
         tick()
     maps = _figure(figure_errors, "maps", g, lambda: _face_maps(result, plane, normalised,
@@ -139,7 +141,7 @@ def _section(
 def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
                threshold: float) -> dict[str, FaceMaps]:
     raster = face_raster(result.centre, plane, result.grid.cell_size)
-    return {name: face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
+    return {str(name): face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
 
 
 def _figure(errors: dict[str, str], key: str, g: float, make: Callable[[], _T]) -> _T | None:
@@ -231,7 +233,7 @@ def build_report(
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
-    shown = unit or cloud.source_unit
+    display_unit = unit or cloud.source_unit
     return Report(
         name=Path(cloud.source).name if cloud.source else "in-memory cloud",
         source=cloud.source,
@@ -246,9 +248,9 @@ def build_report(
         plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
-        unit=shown,
+        unit=display_unit,
         grids_chosen=chosen,
-        warnings=cloud.warnings + _coverage_warnings(sections, shown),
+        warnings=cloud.warnings + _coverage_warnings(sections, display_unit),
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--top-fraction must be in (0, 1], got {args.top_fraction:g}")
     if args.break_range is not None and len(args.inputs) < 4:
         raise InputError("--break-range needs at least 4 wire scans (a piecewise fit)")
-    scans = []
+    scans: list[dict[str, Any]] = []
     for path in args.inputs:
         cloud = load(path)
         with naming(path):
@@ -64,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
     fit = None
     if len(scans) >= 4:
         with naming("piecewise fit of effective radius against range"):
-            f = fit_piecewise_linear([s["range"] for s in scans],
-                                     [s["effective_radius"] for s in scans],
+            f = fit_piecewise_linear(np.array([s["range"] for s in scans]),
+                                     np.array([s["effective_radius"] for s in scans]),
                                      break_range=args.break_range)
         fit = {"break_range": f.break_range, "intercept": f.intercept,
                "slope_near": f.slope_near, "slope_far": f.slope_far, "rmse": f.rmse,
