@@ -24,8 +24,8 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "units": "m",
      "grid": {"cell_size_m": 0.25, "min_points": 4, "axis": "auto"},
      "model": "odr", "threshold": 0.05,
-     "colour": {"colormap": "viridis", "mode": "continuous", "stretch": "minmax",
-                "range": [0.0, 1.0], "log": false},
+     "colour": {"colormap": "viridis", "mode": "continuous", "stretch": "percentile",
+                "range": [2.0, 98.0], "log": true},
      "panels": ["table", "histogram"],
      "profiles": [{"start": [x, y, z], "end": [x, y, z], "band_half_width_m": null,
                    "wavelet": "db3", "level": 3, "decomposition": "dwt",
@@ -52,7 +52,7 @@ from typing import Any, Literal, TypeVar
 
 from rough_viewer import __version__
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.visual.colormaps import COLORMAP_NAMES
+from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
     DECOMPOSITIONS,
@@ -85,8 +85,6 @@ HASH_BLOCK = 1 << 20
 
 ColourMode = Literal["continuous", "binary"]
 COLOUR_MODES: tuple[ColourMode, ...] = ("continuous", "binary")
-Stretch = Literal["minmax", "percentile", "absolute"]
-STRETCHES: tuple[Stretch, ...] = ("minmax", "percentile", "absolute")
 Connectivity = Literal["face", "edge", "vertex"]
 CONNECTIVITIES: tuple[Connectivity, ...] = ("face", "edge", "vertex")
 InputStatus = Literal["unchanged", "moved", "changed", "missing", "not_checked"]
@@ -120,13 +118,10 @@ class ColourSettings:
     """One of :data:`rough_viewer.visual.colormaps.COLORMAP_NAMES`."""
     mode: ColourMode = "continuous"
     """Continuous colours, or the binary transform at the view's threshold."""
-    stretch: Stretch = "minmax"
-    """What ``range`` means: ``minmax`` normalised roughness in [0, 1]; ``percentile``
-    percentiles of the cells in [0, 100]; ``absolute`` roughness in metres."""
-    range: tuple[float, float] = (0.0, 1.0)
-    """Low and high end of the colour scale, in the unit of ``stretch``."""
-    log: bool = False
-    """Logarithmic colour scale (``absolute`` needs a low end above 0)."""
+    stretch: Stretch = ROUGHNESS_STRETCH
+    """How values spread over the map (:class:`rough_viewer.visual.colormaps.Stretch`:
+    percentiles of the cells or absolute limits in metres, linear or log). In the
+    file: ``"stretch"`` (its mode), ``"range"`` (its limits) and ``"log"``."""
 
 
 @dataclass(frozen=True)
@@ -326,7 +321,9 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d = asdict(view)
     d["grid"] = {"cell_size_m": d.pop("cell_size_m"), "min_points": d.pop("min_points"),
                  "axis": d.pop("axis")}
-    d["colour"]["range"] = list(d["colour"]["range"])
+    s = view.colour.stretch
+    d["colour"] = {"colormap": view.colour.colormap, "mode": view.colour.mode,
+                   "stretch": s.mode, "range": [s.lo, s.hi], "log": s.log}
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
@@ -488,22 +485,26 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
 def _colour(r: _Reader, value: Any) -> ColourSettings:
     c = r.obj(value, "colour", [], ["colormap", "mode", "stretch", "range", "log"])
     default = ColourSettings()
-    stretch = r.choice(c.get("stretch", default.stretch), "colour.stretch", STRETCHES)
-    bounds = {"minmax": (0.0, 1.0), "percentile": (0.0, 100.0), "absolute": (0.0, 1e6)}[stretch]
-    raw = c.get("range", list(default.range))
+    mode = r.choice(c.get("stretch", default.stretch.mode), "colour.stretch", STRETCH_MODES)
+    bounds = {"percentile": (0.0, 100.0), "absolute": (0.0, 1e6)}[mode]
+    raw = c.get("range", [default.stretch.lo, default.stretch.hi])
     if not isinstance(raw, list) or len(raw) != 2:
         raise r.fail("colour.range", "must be a list of two numbers [low, high]")
     lo = r.number(raw[0], "colour.range[0]", *bounds)
     hi = r.number(raw[1], "colour.range[1]", *bounds)
     if not lo < hi:
         raise r.fail("colour.range", f"must rise (low < high), got [{lo:g}, {hi:g}]")
-    log = r.boolean(c.get("log", default.log), "colour.log")
-    if log and stretch == "absolute" and lo <= 0.0:
+    log = r.boolean(c.get("log", default.stretch.log), "colour.log")
+    if log and mode == "absolute" and lo <= 0.0:
         raise r.fail("colour.range", "must start above 0 for a logarithmic absolute scale")
+    try:
+        stretch = Stretch(mode, lo, hi, log=log)
+    except InputError as exc:
+        raise r.fail("colour.range", str(exc)) from None
     return ColourSettings(
         colormap=r.choice(c.get("colormap", default.colormap), "colour.colormap", COLORMAP_NAMES),
         mode=r.choice(c.get("mode", default.mode), "colour.mode", COLOUR_MODES),
-        stretch=stretch, range=(lo, hi), log=log)
+        stretch=stretch)
 
 
 def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:

@@ -227,6 +227,7 @@ def rgb_css(rgb: tuple[int, int, int] | np.ndarray) -> str:
 # ----------------------------------------------------------------------------- stretch
 
 StretchMode = Literal["percentile", "absolute"]
+STRETCH_MODES: tuple[StretchMode, ...] = ("percentile", "absolute")
 """``percentile``: limits from the values' percentiles; ``absolute``: fixed limits."""
 
 #: Most decades a log stretch spans: its lower limit is raised to ``hi / 10**4`` if

@@ -21,6 +21,7 @@ from rough_viewer.report.view import (
     load_view,
     save_view,
 )
+from rough_viewer.visual.colormaps import Stretch
 from rough_viewer.vocabulary import InputError
 
 
@@ -37,8 +38,8 @@ def full_view(scan) -> View:
     return View(
         input=input_ref(scan), cell_size_m=0.125, min_points=4, axis="y", model="e_ols",
         units="mm", threshold=0.12,
-        colour=ColourSettings(colormap="cividis", mode="binary", stretch="absolute",
-                              range=(0.0005, 0.02), log=True),
+        colour=ColourSettings(colormap="cividis", mode="binary",
+                              stretch=Stretch.absolute_mm(0.5, 20, log=True)),
         panels=("table", "histogram", "across-scales"),
         profiles=(ProfilePick(start=(1.0, 2.0, 3.0), end=(4.0, 5.5, 3.0), band_half_width_m=0.002,
                               wavelet="sym4", level=4, decomposition="wp",
@@ -54,7 +55,8 @@ def test_save_and_reload_give_the_same_view(scan, tmp_path):
     path = save_view(tmp_path / "v.json", view)
     loaded = load_view(path)
     assert loaded.view == view
-    assert loaded.view.colour == ColourSettings("cividis", "binary", "absolute", (0.0005, 0.02), True)
+    assert loaded.view.colour == ColourSettings("cividis", "binary",
+                                                Stretch("absolute", 0.0005, 0.02, log=True))
     assert loaded.view.panels == ("table", "histogram", "across-scales")
     assert loaded.input_check.status == "unchanged" and loaded.input_check.path == scan
     assert loaded.software.startswith("rough_viewer ")
