@@ -138,9 +138,22 @@ def _section(
                        variograms=variograms or {}, maps=maps or {}, figure_errors=figure_errors)
 
 
+#: Most pixels of one face-plane image. A face whose image at the grid size would be
+#: larger (parts far apart, a long face at a fine grid) is rasterised at 2, 4, 8 ...
+#: times the grid size, each pixel the max of the cells in it: the same picture the
+#: figure would draw after block reduction, without the dense image in between.
+FACE_IMAGE_MAX_PIXELS = 4_000_000
+
+
 def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
                threshold: float) -> dict[str, FaceMaps]:
-    raster = face_raster(result.centre, plane, result.grid.cell_size)
+    g = result.grid.cell_size
+    raster = face_raster(result.centre, plane, g)
+    k = 1
+    while (raster.shape[0] // k + 1) * (raster.shape[1] // k + 1) > FACE_IMAGE_MAX_PIXELS:
+        k *= 2
+    if k > 1:
+        raster = face_raster(result.centre, plane, g * k)
     return {str(name): face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
 
 

@@ -321,6 +321,11 @@ def _display_image(image: np.ndarray, u: np.ndarray, v: np.ndarray,
     return reduced, u2, v2, k
 
 
+def _block_note(k: int) -> str:
+    """Subtitle note for a panel whose pixels each hold k x k grid cells (their max)."""
+    return f" (each pixel the max of {k} x {k} cells)" if k > 1 else ""
+
+
 def face_map_figure(
     maps: Mapping[str, FaceMaps],
     *,
@@ -349,8 +354,8 @@ def face_map_figure(
     subtitles = [
         f"{label(n)}: " + ("normalised roughness" if kind == "normalised"
                            else f"normalised ≥ {threshold:g} in black")
-        + (f" (shown by the max of {d[3]} x {d[3]} pixels)" if d[3] > 1 else "")
-        for n, d in zip(names, shown, strict=True)
+        + _block_note(d[3] * max(1, round(img.cell_size / grid_size)))
+        for n, d, img in zip(names, shown, images, strict=True)
     ]
     fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
                         vertical_spacing=0.08 if len(names) > 1 else 0.0)

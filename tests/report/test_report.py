@@ -18,6 +18,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise, summarise
 from rough_viewer.io import PointCloud
 from rough_viewer.report import FIGURE_NAMES, build_report, report_html, report_json
+from rough_viewer.report.build import FACE_IMAGE_MAX_PIXELS
 from rough_viewer.vocabulary import MAPS
 
 GOOD = (0.5, 0.25)
@@ -259,12 +260,31 @@ def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
     assert not errors, errors
 
 
-def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it():
-    # two rough patches 50 km apart diagonally: the face image between them would
-    # be 100,000 x 100,000 pixels (hundreds of GB); the cells are only 2 x ~100
+def test_far_apart_parts_get_coarser_face_pixels_not_a_dense_box():
+    # two rough patches 50 km apart diagonally: at 0.5 m the face image between them
+    # would be 100,000 x 100,000 pixels; it is drawn at 64 x 64 cells per pixel
     a = rough_tilted_face(4000, seed=1)
     b = rough_tilted_face(4000, seed=2) + np.array([35_000.0, 35_000.0, 0.0])
+    report = build_report(PointCloud.from_xyz(np.vstack([a, b])), (0.5,))
+    s = report.sections[0]
+    assert s.error is None and s.figure_errors == {}
+    img = s.maps["odr"].normalised
+    assert img.image.size <= FACE_IMAGE_MAX_PIXELS and img.cell_size == 0.5 * 64
+    # the figure may reduce further for display (at most 500,000 pixels a panel)
+    found = re.search(r"each pixel the max of (\d+) x \1 cells", report_html(report))
+    assert found and int(found.group(1)) >= 64
+
+
+def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it(monkeypatch):
+    import rough_viewer.memory as memory
+
+    # a machine with 60 MB free once the cloud is read: the face-plane images (up to
+    # 160 MB) cannot be made; Table 1, histograms and semivariograms (lag shortened)
+    # still are
+    a = rough_tilted_face(4000, seed=1)
+    b = rough_tilted_face(4000, seed=2) + np.array([3_000.0, 3_000.0, 0.0])
     cloud = PointCloud.from_xyz(np.vstack([a, b]))
+    monkeypatch.setattr(memory, "available_bytes", lambda: 60e6)
     report = build_report(cloud, (0.5,))
     s = report.sections[0]
     assert s.error is None
@@ -272,10 +292,10 @@ def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it():
     ref = grid_roughness(cloud, 0.5)
     assert s.summaries["odr"].cells == int(np.isfinite(ref.theta_odr).sum())
     assert set(s.histograms) == set(MAPS) and set(s.variograms) == set(MAPS)
-    # ~200 cells: counted pair by pair, at any lag, including across the 50 km
     assert all(vg.pairs.sum() > 0 for vg in s.variograms.values())
     html = report_html(report)
     assert "no maps figure" in html and 'data-figure="summary"' in html
+    assert 'data-figure="maps_normalised"' not in html
     assert json.loads(json.dumps(report_json(report)))["grids"][0]["figure_errors"]["maps"]
 
 
