@@ -35,8 +35,9 @@ that axis): the frame holds every partner of the block's cells at lags up to ``r
 and its zero margin keeps the circular correlation free of wrap-around. Summed over
 the blocks, every ordered pair within ``r`` is counted once. ``B`` is chosen among
 powers of two (and the whole extent: one block, the plain FFT of the box) to
-minimise ``blocks x frame volume``, so a compact map costs one FFT of its box and two
-patches far apart cost two small frames, not the box between them.
+minimise the estimated time ``blocks x (frame volume, lag window)`` among the
+sizes that fit the memory budget, so a compact map costs one FFT of its box and
+two patches far apart cost two small frames, not the box between them.
 
 Few cells spread far apart are cheaper counted directly: every ordered pair, a
 chunk of rows at a time (time ``O(M^2)``, memory :data:`PAIR_CHUNK_BYTES` plus
@@ -117,11 +118,13 @@ BYTES_PER_LAG = 40
 BYTES_PER_CELL = 96
 #: Most memory one semivariogram may take when its lag is chosen by default, bytes.
 MEMORY_BUDGET = 512 * 2**20
-#: Estimated seconds per FFT frame cell and block (eight real transforms and the
-#: binning), and per ordered pair of the direct count: the cost model that picks
-#: the method and, with the default lag, keeps a map's estimate under
+#: Estimated seconds per FFT frame cell and block (eight real transforms), per lag
+#: vector and block (extracting and binning the window) and per ordered pair of the
+#: direct count (measured on the project's 2-core machine): the cost model that
+#: picks the method and, with the default lag, keeps a map's estimate under
 #: :data:`TIME_BUDGET` seconds.
-FRAME_SECONDS = 1.2e-7
+FRAME_SECONDS = 1.0e-7
+LAG_SECONDS = 1.5e-6
 PAIR_SECONDS = 1.2e-8
 TIME_BUDGET = 10.0
 #: Memory of one chunk of the direct pair count, bytes.
@@ -307,7 +310,7 @@ def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
         if n_bins <= 0:
             return VariogramPlan(n_bins=0, max_lag=lag, lag_limited=limited, reach=(),
                                  block=(), frame=(), n_blocks=0, bytes=0.0)
-        plan = _blocks(cells, g, w, n_bins, lag, limited)
+        plan = _blocks(cells, g, w, n_bins, lag, limited, budget)
         pairs = replace(plan, method="pairs", seconds=pair_seconds, n_blocks=0, frame=(),
                         bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m)
         cheaper = pair_seconds <= plan.seconds
@@ -322,9 +325,10 @@ def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
 
 
 def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
-            limited: bool) -> VariogramPlan:
-    """The block edge (a power of two or the whole extent) that minimises
-    ``blocks x frame volume`` for this reach."""
+            limited: bool, budget: float = np.inf) -> VariogramPlan:
+    """The block edge (a power of two or the whole extent) that minimises the
+    estimated time ``blocks x (frame volume, lag window)`` for this reach among those
+    whose memory estimate fits ``budget`` bytes (the cheapest overall when none fits)."""
     reach_all = int(np.floor((n_bins + 0.5) * w / g))
     reach = tuple(min(s - 1, reach_all) for s in cells.shape)
     window = float(np.prod([2 * r + 1 for r in reach]))
@@ -332,6 +336,7 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
     sizes = sorted({*(1 << k for k in range(2, max(2, longest.bit_length()) + 1)), longest})
     best: VariogramPlan | None = None
     best_cost = np.inf
+    best_fits = False
     for b in sizes:
         block = tuple(min(b, s) for s in cells.shape)
         frame = tuple(
@@ -340,13 +345,14 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
         )
         n_blocks = int(np.unique(cells.idx // np.array(block), axis=0).shape[0])
         volume = float(np.prod(frame))
-        cost = n_blocks * volume
-        if cost < best_cost:
-            best_cost = cost
-            est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
+        cost = n_blocks * (FRAME_SECONDS * volume + LAG_SECONDS * window)
+        est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
+        fits = est <= budget
+        if (fits and not best_fits) or (fits == best_fits and cost < best_cost):
+            best_cost, best_fits = cost, fits
             best = VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=limited, reach=reach,
                                  block=block, frame=frame, n_blocks=n_blocks, bytes=est,
-                                 seconds=FRAME_SECONDS * cost)
+                                 seconds=cost)
     assert best is not None
     return best
 
