@@ -48,6 +48,17 @@ Residual = Literal["absolute", "signed"]
 """``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
 signed distances."""
 
+BIAS_RESIDUAL: Residual = "signed"
+"""Default roughness of the bias toolkit: the bias paper's own definition, the
+standard deviation of the SIGNED orthogonal residuals (so its published numbers come
+out without a flag). Grid roughness keeps SCIENCE.md's absolute distances."""
+RESIDUAL_NAMES: dict[str, str] = {
+    "signed": "std of signed orthogonal distances (the bias paper's definition)",
+    "absolute": "std of absolute orthogonal distances (the grid-roughness convention, "
+                "SCIENCE.md section 1)",
+}
+"""How each residual convention is named in output (text and JSON)."""
+
 AXES: tuple[Axis, Axis, Axis] = ("x", "y", "z")
 AXIS_CHOICES: tuple[AxisChoice, ...] = ("auto", "x", "y", "z")
 MODELS: tuple[Model, ...] = ("odr", "ols", "hybrid")
@@ -90,6 +101,19 @@ HISTOGRAM_BIN = 0.05
 PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 """The 2011 paper's grid sizes, metres."""
 
+# ----------------------------------------------------------------------------- colour layers
+
+ColourLayerName = Literal["roughness", "rgb", "intensity", "distance"]
+"""What colours the points: the roughness map, or a layer that shows the rock itself."""
+COLOUR_LAYERS: tuple[ColourLayerName, ...] = ("roughness", "rgb", "intensity", "distance")
+COLOUR_LAYER_LABELS: dict[str, str] = {
+    "roughness": "roughness map",
+    "rgb": "scan colours (RGB)",
+    "intensity": "intensity",
+    "distance": "distance to face plane",
+}
+"""Display name of each colour layer."""
+
 # ----------------------------------------------------------------------------- units
 
 Unit = Literal["m", "mm", "ft", "us-ft"]
@@ -101,6 +125,9 @@ UNIT_METRES: dict[str, float] = {"m": 1.0, "mm": 1e-3, "ft": 0.3048, "us-ft": 12
 """Metres per unit (the US survey foot is exactly 1200/3937 m)."""
 UNIT_LABELS: dict[str, str] = {"m": "m", "mm": "mm", "ft": "ft", "us-ft": "US ft"}
 """How each unit is written after a number."""
+ROUGHNESS_UNIT: dict[str, Unit] = {"m": "mm", "mm": "mm", "ft": "ft", "us-ft": "us-ft"}
+"""Unit roughness (a few mm) is shown in, for each coordinate unit: millimetres for
+metric input (SCIENCE.md: the tools may show mm), the input's own unit otherwise."""
 
 # ----------------------------------------------------------------------------- profiles
 

@@ -26,7 +26,7 @@ from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError, Residual
+from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, Residual
 
 PaperTarget = Literal["A", "B"]
 Normalisation = Literal["known", "none"]
@@ -338,7 +338,7 @@ def predict_bias(
     normalisation: Normalisation = "known",
     trials: int = 1,
     seed: int | None = 0,
-    residual: Residual = "absolute",
+    residual: Residual = BIAS_RESIDUAL,
 ) -> BiasPrediction:
     """Predict the roughness over- or under-estimate of a scanner on a rough target.
 
@@ -367,8 +367,9 @@ def predict_bias(
         Independent noise / thinning draws to average.
     seed : int, optional
         Seed of all draws.
-    residual : {"absolute", "signed"}
-        Roughness convention.
+    residual : {"signed", "absolute"}
+        Roughness convention (default signed, the bias paper's definition; see
+        :func:`rough_viewer.bias.measurement.target_roughness`).
     """
     if trials < 1:
         raise InputError(f"trials must be >= 1, got {trials}")
@@ -450,7 +451,7 @@ def smoothing_curve(
     ratio: float = 5.0,
     normalisation: Normalisation = "known",
     seed: int | None = 0,
-    residual: Residual = "absolute",
+    residual: Residual = BIAS_RESIDUAL,
 ) -> SmoothingCurve:
     """Roughness error for a series of effective radii on one target.
 

@@ -3,11 +3,19 @@
 Contract (other tools script against it)::
 
     rough-viewer compute INPUT --grid G [--grid G2 ...] [--method odr|ols|hybrid|all]
-        [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed]
-        --out CELLS.csv [--summary-json SUMMARY.json] [--force] [--quiet]
+        [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed] [--units U]
+        [--out CELLS.csv|CELLS.parquet] [--summary-json SUMMARY.json]
+        [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply] [--force] [--quiet]
 
-With several ``--grid`` values each output name gets ``_g<G>`` before its
-extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``).
+At least one output is required. With several ``--grid`` values each output name
+gets ``_g<G>`` before its extension (``cells.csv`` -> ``cells_g0.5.csv``,
+``cells_g0.25.csv``). ``--las-out`` and ``--ply-out`` write every point with its
+cell's values as extra dimensions / scalar properties (docs/export.md).
+
+``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
+input's coordinates and of ``--grid``, ``--origin``, the table printed, the cell
+table and the summary JSON (which says ``unit``); the per-point LAS/PLY fields stay
+in metres (their names and comments say so).
 """
 
 from __future__ import annotations
@@ -20,16 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._options import add_units, parse_xyz, per_unit, warn
+from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
-from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+from rough_viewer.io.output import check_outputs, write_atomic
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
-CSV_COLUMNS = (
-    "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
-    "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
-    "normal_x", "normal_y", "normal_z",
-)
+#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
+CSV_COLUMNS = CELL_COLUMNS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,9 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
         "and write one CSV row per cell.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    p.add_argument("input", help="point cloud: .las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl")
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
-                   help="grid cell size in metres (repeat for several sizes)")
+                   help="grid cell size in --units (default metres; repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
                    help="roughness model (default: all)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
@@ -53,10 +59,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--origin", metavar="X,Y,Z", help="grid origin (default: bounding-box minimum)")
     p.add_argument("--signed", action="store_true",
                    help="RMS of signed distances instead of the std of absolute distances")
-    p.add_argument("--out", required=True, metavar="CELLS.csv", help="per-cell CSV output")
+    p.add_argument("--out", metavar="CELLS.csv",
+                   help="per-cell table: CSV, or Parquet when the name ends in .parquet "
+                   "(needs pyarrow)")
     p.add_argument("--summary-json", metavar="SUMMARY.json", help="Table-1 summary as JSON")
+    p.add_argument("--las-out", metavar="OUT.las|OUT.laz",
+                   help="every input point with its cell's roughness as LAS extra dimensions")
+    p.add_argument("--ply-out", metavar="OUT.ply",
+                   help="every point with its cell's roughness as PLY scalar properties")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -68,54 +81,26 @@ def output_name(path: str, grid: float, several: bool) -> Path:
     return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
 
 
-def _fmt_column(values: np.ndarray) -> list[str]:
-    """Shortest round-trip text of each value (full precision); NaN -> empty."""
-    if np.issubdtype(values.dtype, np.integer):
-        return values.astype(str).tolist()
-    text = values.astype(str)
-    text[~np.isfinite(values)] = ""
-    return text.tolist()
-
-
-def cells_csv_rows(result) -> list[list[str]]:
-    """Columns of the CELLS.csv for cells with at least ``min_points`` points."""
-    keep = result.n_points >= result.min_points
-    cols = [
-        result.ijk[keep, 0], result.ijk[keep, 1], result.ijk[keep, 2],
-        result.centre[keep, 0], result.centre[keep, 1], result.centre[keep, 2],
-        result.n_points[keep],
-        result.theta_odr[keep], result.theta_ols[keep], result.theta_hybrid[keep],
-        result.e_ols[keep],
-        result.normal[keep, 0], result.normal[keep, 1], result.normal[keep, 2],
-    ]
-    return [_fmt_column(np.asarray(c)) for c in cols]
-
-
-def write_cells_csv(path: Path, result) -> None:
-    """Write CELLS.csv atomically (temporary file, then rename)."""
-    cols = cells_csv_rows(result)
-
-    def write(fh) -> None:
-        fh.write(",".join(CSV_COLUMNS) + "\n")
-        for row in zip(*cols, strict=True):
-            fh.write(",".join(row))
-            fh.write("\n")
-
-    write_atomic(path, write)
-
-
-def summary_dict(result, cloud_source: str, dropped: int) -> dict:
-    """The SUMMARY.json content for one grid size."""
+def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
+                 warnings: tuple[str, ...] = ()) -> dict:
+    """The SUMMARY.json content for one grid size, lengths in ``unit``."""
     from rough_viewer.grid.summary import summarise
-    from rough_viewer.vocabulary import MAPS
+    from rough_viewer.vocabulary import MAPS, UNIT_METRES
 
+    per = UNIT_METRES[unit]
     out: dict = {}
     for name in MAPS:
-        out[name] = summarise(result, name).as_dict()
+        d = summarise(result, name).as_dict()
+        for k in ("min", "max", "mean", "std"):
+            d[k] = d[k] / per
+        d["variance"] = d["variance"] / per**2
+        out[name] = d
     out.update(
         {
-            "grid_size": result.grid.cell_size,
-            "origin": [float(v) for v in result.grid.origin],
+            "unit": unit,
+            "warnings": list(warnings),
+            "grid_size": result.grid.cell_size / per,
+            "origin": [float(v) / per for v in result.grid.origin],
             "axis": result.axis,
             "axis_requested": result.axis_requested,
             "points": result.n_points_total,
@@ -140,20 +125,20 @@ def run(args: argparse.Namespace) -> int:
     grids = list(dict.fromkeys(args.grid))
     for g in grids:
         if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
+            raise InputError(f"--grid must be a positive length, got {g:g}")
     if args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     several = len(grids) > 1
-    outs = {g: check_output_path(output_name(args.out, g, several), force=args.force) for g in grids}
-    jsons = {}
-    if args.summary_json:
-        jsons = {
-            g: check_output_path(output_name(args.summary_json, g, several), force=args.force)
-            for g in grids
-        }
+    outputs = _outputs(args, grids, several)
     quiet = args.quiet
-    cloud = load_points(args.input, progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    cloud = load_points(args.input, units=args.units,
+                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    warn(cloud.warnings)
+    unit = cloud.source_unit  # every length given and shown is in this unit
+    per = per_unit(unit)
+    if origin is not None:
+        origin = origin * per
     if cloud.dropped_nonfinite:
         print(
             f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
@@ -163,16 +148,69 @@ def run(args: argparse.Namespace) -> int:
     models = MODELS if args.method == "all" else (args.method,)
     for i, g in enumerate(grids):
         result = grid_roughness(
-            cloud, g, origin=origin, min_points=args.min_points, axis=args.axis,
+            cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
             models=models, residual="signed" if args.signed else "absolute",
-            progress=None if quiet else ProgressBar(f"grid {g:g} m"),
+            progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}"),
         )
-        write_cells_csv(outs[g], result)
-        if g in jsons:
-            data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
-            write_atomic(jsons[g], lambda fh, d=data: json.dump(d, fh, indent=2))
         if i:
             print()
-        print(format_table(result, source=str(args.input)))
-        print(f"wrote {outs[g]}" + (f" and {jsons[g]}" if g in jsons else ""))
+        print(format_table(result, source=str(args.input), unit=unit))
+        _write_outputs(outputs, g, result, cloud, args, unit)
     return 0
+
+
+def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dict[str, dict[float, Path]]:
+    """Every output path of the run by option and grid size, all checked before any work."""
+    from rough_viewer.io.las_out import check_las_output
+    from rough_viewer.io.table import check_table_output
+
+    given = {opt: getattr(args, opt) for opt in ("out", "summary_json", "las_out", "ply_out")
+             if getattr(args, opt)}
+    if not given:
+        raise InputError("no output given: use --out CELLS.csv, --las-out OUT.las|OUT.laz, "
+                         "--ply-out OUT.ply or --summary-json SUMMARY.json")
+    if args.las_out:
+        check_las_output(args.las_out)
+    if args.ply_out and Path(args.ply_out).suffix.lower() != ".ply":
+        raise InputError(f"--ply-out must end in .ply, got {args.ply_out}")
+    if args.out:
+        check_table_output(args.out)
+    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
+    check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
+                  force=args.force, inputs=[args.input])
+    return outputs
+
+
+def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, cloud, args,
+                   unit: str = "m") -> None:
+    """Write every output of one grid size and say so."""
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
+    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.table import write_table
+
+    written = []
+    if "out" in outputs:
+        write_table(outputs["out"][g], cell_columns(result, unit=unit),
+                    metadata=table_metadata(result, str(args.input), unit=unit))
+        written.append(str(outputs["out"][g]))
+    if "summary_json" in outputs:
+        data = summary_dict(result, str(args.input), cloud.dropped_nonfinite, unit,
+                            cloud.warnings)
+        write_atomic(outputs["summary_json"][g], lambda fh: json.dump(data, fh, indent=2))
+        written.append(str(outputs["summary_json"][g]))
+    if written:
+        print("wrote " + " and ".join(written))
+    fields = point_fields(result) if ("las_out" in outputs or "ply_out" in outputs) else None
+    if "las_out" in outputs and fields is not None:
+        path = outputs["las_out"][g]
+        info = write_las_fields(path, cloud, fields,
+                                progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
+        print(f"wrote {path}: {info}")
+    if "ply_out" in outputs and fields is not None:
+        path = outputs["ply_out"][g]
+        info = write_ply_fields(path, cloud, fields, comments=[
+            f"rough_viewer: {Path(str(args.input)).name}, grid {g:g} {UNIT_LABELS[unit]}, "
+            f"axis {result.axis}, roughness in metres"])
+        print(f"wrote {path}: {info}")

@@ -4,9 +4,12 @@ Contract::
 
     rough-viewer report INPUT [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--force] [--quiet]
 
-Default grid sizes: the paper's 1, 0.5, 0.25 and 0.125 m. ``--format json`` writes
+Default grid sizes: from the point spacing, the size at which the typical occupied
+cell holds 16 points, times 8, 4, 2 and 1 (``rough_viewer.grid.spacing``); the
+paper's are ``--grid 1 --grid 0.5 --grid 0.25 --grid 0.125``. ``--units`` is the unit
+of the input's coordinates and of every length given and shown. ``--format json`` writes
 the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>.png``
 (needs the optional package kaleido; the HTML does not).
 """
@@ -14,13 +17,12 @@ the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from pathlib import Path
 
-from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+from rough_viewer.cli._options import add_units, per_unit, warn
+from rough_viewer.io.output import check_output_path, path_in_folder
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,9 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Grid roughness report of a cloud at several grid sizes (2011 paper "
         "Table 1 and Figs. 2-4): one self-contained HTML file that works offline.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    p.add_argument("input", help="point cloud: .las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl")
     p.add_argument("--grid", type=float, action="append", metavar="G",
-                   help="grid cell size in metres, repeatable (default: 1 0.5 0.25 0.125)")
+                   help="grid cell size in --units, repeatable (default: from the point "
+                   "spacing: the size at which the typical occupied cell holds 16 points, "
+                   "times 8, 4, 2 and 1)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="dependent axis of OLS and hybrid (default: auto = closest to the "
                    "whole cloud's normal)")
@@ -48,6 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write every figure as PNG into DIR (needs kaleido)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -61,55 +66,68 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
     if not d.parent.is_dir():
         raise InputError(f"output folder does not exist: {d.parent} (for --png {d})")
     targets = [d / png_name(g, f) for g in grids for f in FIGURE_NAMES]
+    if d.is_symlink():
+        raise InputError(f"--png folder is a symbolic link, refused: {d}")
     if d.is_dir():
         for t in targets:
-            check_output_path(t, force=force)
+            check_output_path(t, force=force, folder=d)
     return d, targets
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.io import load_points
-    from rough_viewer.report import (
-        PAPER_GRIDS,
-        build_report,
-        png_figures,
-        report_html,
-        report_json,
-    )
+    from rough_viewer.report import check_png_export, png_figures
+    from rough_viewer.report.export import ReportSettings, compute_report, write_report
+    from rough_viewer.visual.export import write_figure
 
-    grids = list(dict.fromkeys(args.grid or PAPER_GRIDS))
-    for g in grids:
-        if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
-    if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
-        raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
-    if args.min_points < 3:
-        raise InputError(f"--min-points must be at least 3, got {args.min_points}")
-    out = check_output_path(args.out, force=args.force)
-    png_dir = None
+    given = tuple(dict.fromkeys(args.grid)) if args.grid else None
+    settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
+                              axis=args.axis, threshold=args.threshold)
+    try:
+        settings.check()
+    except InputError as exc:  # name the option as the user typed it
+        text = str(exc)
+        for word, option in (("grid size", "--grid"), ("threshold", "--threshold"),
+                             ("min points", "--min-points")):
+            text = text.replace(word, option, 1) if text.startswith(word) else text
+        raise InputError(text) from None
+    out = check_output_path(args.out, force=args.force, inputs=[args.input])
     if args.png:
-        png_dir, _ = _png_targets(args.png, grids, force=args.force)
+        check_png_export()
 
     quiet = args.quiet
-    cloud = load_points(args.input,
+    cloud = load_points(args.input, units=args.units,
                         progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
+    warn(cloud.warnings)
+    per = per_unit(cloud.source_unit)
+    u = UNIT_LABELS[cloud.source_unit]
+    if given is not None:  # lengths given in the input's unit
+        settings = replace(settings, grid_sizes=tuple(g * per for g in given))
+    png_dir = None
+    if args.png and given is not None:
+        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force)
     if cloud.dropped_nonfinite:
         print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
               f"coordinates from {args.input}", file=sys.stderr)
-    report = build_report(cloud, grids, axis=args.axis, threshold=args.threshold,
-                          min_points=args.min_points,
-                          progress=None if quiet else ProgressBar("report"))
+    report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
+    warn(report.warnings[len(cloud.warnings):])
+    if given is None:
+        print("grid sizes from the point spacing: "
+              + ", ".join(f"{s.grid_size / per:g}" for s in report.sections) + f" {u}")
+        if args.png:
+            png_dir, _ = _png_targets(args.png, [s.grid_size for s in report.sections],
+                                      force=args.force)
     for s in report.sections:
         if s.error is not None:
-            print(f"rough-viewer: grid {s.grid_size:g} m: {s.error}", file=sys.stderr)
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: {s.error}", file=sys.stderr)
+        for key, why in s.figure_errors.items():
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: no {key} figure: {why}",
+                  file=sys.stderr)
 
-    if args.format == "json":
-        data = report_json(report)
-        write_atomic(out, lambda fh: json.dump(data, fh, indent=1, allow_nan=False))
-    else:
-        text = report_html(report)
-        write_atomic(out, lambda fh: fh.write(text))
+    write_report(out, report, args.format)
     print(f"wrote {out}")
 
     if png_dir is not None:
@@ -117,8 +135,7 @@ def run(args: argparse.Namespace) -> int:
         bar = None if quiet else ProgressBar("PNG figures")
         png_dir.mkdir(exist_ok=True)
         for i, (name, fig) in enumerate(figures):
-            data = fig.to_image(format="png", scale=2)
-            write_atomic(png_dir / name, lambda fh, d=data: fh.write(d), mode="wb")
+            write_figure(fig, path_in_folder(png_dir, name), fmt="png")
             if bar is not None:
                 bar(i + 1, len(figures))
         print(f"wrote {len(figures)} PNG figures to {png_dir}")

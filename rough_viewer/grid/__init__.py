@@ -3,7 +3,8 @@ and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
 
 Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
 :mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
-:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`.
+:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`; :mod:`.spacing` chooses the default
+grid from the point spacing.
 """
 
 from rough_viewer.grid.cells import GridSpec, make_grid
@@ -17,6 +18,7 @@ from rough_viewer.grid.roughness import (
     prepare_grid,
     whole_cloud_axis,
 )
+from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
 from rough_viewer.grid.summary import (
     Histogram,
     Summary,
@@ -26,7 +28,13 @@ from rough_viewer.grid.summary import (
     summaries,
     summarise,
 )
-from rough_viewer.grid.variogram import Semivariogram, face_semivariogram, semivariogram
+from rough_viewer.grid.variogram import (
+    Semivariogram,
+    VariogramPlan,
+    face_semivariogram,
+    plan_semivariogram,
+    semivariogram,
+)
 
 __all__ = [
     "FaceMaps",
@@ -38,8 +46,10 @@ __all__ = [
     "PreparedGrid",
     "Semivariogram",
     "Summary",
+    "VariogramPlan",
     "binary",
     "coarsen_prepared",
+    "default_cell_size",
     "dominant_axis",
     "face_frame",
     "face_maps",
@@ -50,7 +60,10 @@ __all__ = [
     "histogram",
     "make_grid",
     "normalise",
+    "plan_semivariogram",
+    "point_spacing",
     "prepare_grid",
+    "preset_cell_sizes",
     "semivariogram",
     "summaries",
     "summarise",

@@ -35,18 +35,25 @@ that axis): the frame holds every partner of the block's cells at lags up to ``r
 and its zero margin keeps the circular correlation free of wrap-around. Summed over
 the blocks, every ordered pair within ``r`` is counted once. ``B`` is chosen among
 powers of two (and the whole extent: one block, the plain FFT of the box) to
-minimise ``blocks x frame volume``, so a compact map costs one FFT of its box and two
-patches far apart cost two small frames, not the box between them.
+minimise the estimated time ``blocks x (frame volume, lag window)`` among the
+sizes that fit the memory budget, so a compact map costs one FFT of its box and
+two patches far apart cost two small frames, not the box between them.
 
-Cost: time ``O(blocks x F log F)``, memory ``O(F + W + M)`` with ``F`` the frame
+Few cells spread far apart are cheaper counted directly: every ordered pair, a
+chunk of rows at a time (time ``O(M^2)``, memory :data:`PAIR_CHUNK_BYTES` plus
+``O(M)``), exact at any lag. A cost model (:data:`FRAME_SECONDS`,
+:data:`PAIR_SECONDS`) picks the cheaper method; ``method=`` forces one.
+
+Cost of the FFT: time ``O(blocks x F log F)``, memory ``O(F + W + M)`` with ``F`` the frame
 volume (about :data:`BYTES_PER_FRAME_CELL` bytes per frame cell at the peak), ``W =
 prod(2 r_a + 1)`` the lag window (:data:`BYTES_PER_LAG` bytes each) and ``M`` the
 cells with a value. Both follow the occupied cells and the largest lag, never the
 distance between far-apart parts. The estimate is :func:`plan_semivariogram`'s
 ``bytes``; it is checked with :func:`rough_viewer.memory.require` before anything
 large is allocated. With the default ``max_lag`` the lag is shortened (halved until
-the estimate fits :data:`MEMORY_BUDGET` and the available memory) and the result
-says so (``lag_limited``); a ``max_lag`` given explicitly is never shortened, and
+the estimate fits :data:`MEMORY_BUDGET`, the available memory and
+:data:`TIME_BUDGET` seconds, unless the direct count fits that time at full lag) and
+the result says so (``lag_limited``); a ``max_lag`` given explicitly is never shortened, and
 one that cannot fit is an InputError.
 
 The face-plane variant (:func:`face_semivariogram`) is the 2-D analogue: cell
@@ -57,7 +64,7 @@ mean of the cells falling into one pixel), and the same estimator runs on that
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -68,6 +75,7 @@ from rough_viewer.memory import USABLE_SHARE, available_bytes, require
 from rough_viewer.vocabulary import InputError
 
 Space = Literal["3d", "plane"]
+Method = Literal["auto", "fft", "pairs"]
 
 
 @dataclass(frozen=True)
@@ -110,6 +118,17 @@ BYTES_PER_LAG = 40
 BYTES_PER_CELL = 96
 #: Most memory one semivariogram may take when its lag is chosen by default, bytes.
 MEMORY_BUDGET = 512 * 2**20
+#: Estimated seconds per FFT frame cell and block (eight real transforms), per lag
+#: vector and block (extracting and binning the window) and per ordered pair of the
+#: direct count (measured on the project's 2-core machine): the cost model that
+#: picks the method and, with the default lag, keeps a map's estimate under
+#: :data:`TIME_BUDGET` seconds.
+FRAME_SECONDS = 1.0e-7
+LAG_SECONDS = 1.5e-6
+PAIR_SECONDS = 1.2e-8
+TIME_BUDGET = 10.0
+#: Memory of one chunk of the direct pair count, bytes.
+PAIR_CHUNK_BYTES = 32 * 2**20
 
 
 @dataclass(frozen=True)
@@ -134,6 +153,11 @@ class VariogramPlan:
     """Occupied blocks (FFT frames computed)."""
     bytes: float
     """Estimated peak memory, bytes."""
+    method: Literal["fft", "pairs"] = "fft"
+    """``"fft"``: tiled FFT; ``"pairs"``: every pair counted directly, in chunks
+    (cheaper for few cells spread far apart)."""
+    seconds: float = 0.0
+    """Estimated time, seconds (cost model, not a promise)."""
 
 
 @dataclass(frozen=True)
@@ -159,6 +183,7 @@ def semivariogram(
     max_lag: float | None = None,
     space: Space = "3d",
     workers: int | None = None,
+    method: Method = "auto",
 ) -> Semivariogram:
     """Experimental semivariogram of a map on a regular grid, exact over all pairs
     up to the largest lag, with memory that follows the occupied cells (module
@@ -186,6 +211,8 @@ def semivariogram(
         pixels); the computation is the same.
     workers : int, optional
         Threads for :mod:`scipy.fft` (default: all cores).
+    method : {"auto", "fft", "pairs"}
+        Tiled FFT, direct pair count, or the cheaper by the cost model (default).
 
     Returns
     -------
@@ -200,12 +227,15 @@ def semivariogram(
     """
     cells = _finite_cells(ijk, values)
     g, w = _check_sizes(cell_size, bin_width)
-    plan = _plan(cells, g, w, max_lag)
+    plan = _plan(cells, g, w, max_lag, method)
     if plan.n_bins <= 0:
         return _assemble(cells, plan, w, space, np.zeros(0), np.zeros(0))
     require(plan.bytes, f"the semivariogram of {cells.z.size:,} cells at {g:g} m up to "
             f"lag {plan.max_lag:g} m", hint="give a smaller max lag or a larger grid size")
-    ordered, sums = _lag_sums(cells, plan, g, w, workers)
+    if plan.method == "pairs":
+        ordered, sums = _pair_sums(cells, plan, g, w)
+    else:
+        ordered, sums = _lag_sums(cells, plan, g, w, workers)
     return _assemble(cells, plan, w, space, ordered, sums)
 
 
@@ -216,13 +246,14 @@ def plan_semivariogram(
     *,
     bin_width: float | None = None,
     max_lag: float | None = None,
+    method: Method = "auto",
 ) -> VariogramPlan:
     """The plan :func:`semivariogram` would follow for these arguments: bins, the
     (possibly shortened) max lag, blocks, FFT frame and the estimated peak memory in
     bytes. Cheap: no transform is computed."""
     cells = _finite_cells(ijk, values)
     g, w = _check_sizes(cell_size, bin_width)
-    return _plan(cells, g, w, max_lag)
+    return _plan(cells, g, w, max_lag, method)
 
 
 # ----------------------------------------------------------------------------- stages
@@ -260,33 +291,44 @@ def _check_sizes(cell_size: float, bin_width: float | None) -> tuple[float, floa
     return g, w
 
 
-def _plan(cells: _Cells, g: float, w: float, max_lag: float | None) -> VariogramPlan:
-    """Stage 2: bins, reach, the cheapest block size and the memory estimate; the
-    default max lag halved until the estimate fits."""
+def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
+          method: Method = "auto") -> VariogramPlan:
+    """Stage 2: bins, the cheaper method (tiled FFT or direct pairs) by the cost
+    model, and the memory estimate; the default max lag halved until the FFT plan
+    fits the memory and time budgets."""
     explicit = max_lag is not None
     lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
     m = int(cells.z.size)
     limited = False
-    budget = MEMORY_BUDGET
+    budget = float(MEMORY_BUDGET)
     avail = available_bytes()
     if avail is not None:
         budget = min(budget, USABLE_SHARE * avail)
+    pair_seconds = PAIR_SECONDS * m * max(m - 1, 0)
     while True:
         n_bins = int(np.floor(lag / w + 1e-9)) if m >= 2 else 0
         if n_bins <= 0:
             return VariogramPlan(n_bins=0, max_lag=lag, lag_limited=limited, reach=(),
                                  block=(), frame=(), n_blocks=0, bytes=0.0)
-        plan = _blocks(cells, g, w, n_bins, lag, limited)
-        if explicit or plan.bytes <= budget or n_bins == 1:
+        plan = _blocks(cells, g, w, n_bins, lag, limited, budget)
+        pairs = replace(plan, method="pairs", seconds=pair_seconds, n_blocks=0, frame=(),
+                        bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m)
+        cheaper = pair_seconds <= plan.seconds
+        if method == "pairs" or (method == "auto" and cheaper
+                                 and (explicit or pair_seconds <= TIME_BUDGET or n_bins == 1)):
+            return pairs
+        fits = plan.bytes <= budget and plan.seconds <= TIME_BUDGET
+        if explicit or fits or n_bins == 1:
             return plan
         lag = max(w, 0.5 * lag)
         limited = True
 
 
 def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
-            limited: bool) -> VariogramPlan:
-    """The block edge (a power of two or the whole extent) that minimises
-    ``blocks x frame volume`` for this reach."""
+            limited: bool, budget: float = np.inf) -> VariogramPlan:
+    """The block edge (a power of two or the whole extent) that minimises the
+    estimated time ``blocks x (frame volume, lag window)`` for this reach among those
+    whose memory estimate fits ``budget`` bytes (the cheapest overall when none fits)."""
     reach_all = int(np.floor((n_bins + 0.5) * w / g))
     reach = tuple(min(s - 1, reach_all) for s in cells.shape)
     window = float(np.prod([2 * r + 1 for r in reach]))
@@ -294,6 +336,7 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
     sizes = sorted({*(1 << k for k in range(2, max(2, longest.bit_length()) + 1)), longest})
     best: VariogramPlan | None = None
     best_cost = np.inf
+    best_fits = False
     for b in sizes:
         block = tuple(min(b, s) for s in cells.shape)
         frame = tuple(
@@ -302,12 +345,14 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
         )
         n_blocks = int(np.unique(cells.idx // np.array(block), axis=0).shape[0])
         volume = float(np.prod(frame))
-        cost = n_blocks * volume
-        if cost < best_cost:
-            best_cost = cost
-            est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
+        cost = n_blocks * (FRAME_SECONDS * volume + LAG_SECONDS * window)
+        est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
+        fits = est <= budget
+        if (fits and not best_fits) or (fits == best_fits and cost < best_cost):
+            best_cost, best_fits = cost, fits
             best = VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=limited, reach=reach,
-                                 block=block, frame=frame, n_blocks=n_blocks, bytes=est)
+                                 block=block, frame=frame, n_blocks=n_blocks, bytes=est,
+                                 seconds=cost)
     assert best is not None
     return best
 
@@ -364,6 +409,31 @@ def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
         sums += np.bincount(kb, weights=back(cross), minlength=n_bins + 1)[1:]
         del cross
     return ordered, sums * scale * scale
+
+
+def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float,
+               w: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 3 for few, scattered cells: every ordered pair counted directly, a
+    chunk of rows at a time (memory :data:`PAIR_CHUNK_BYTES`)."""
+    n_bins = plan.n_bins
+    m = int(cells.z.size)
+    pos = cells.idx.astype(np.float64)
+    z = cells.z - cells.z.mean()
+    rows = max(1, int(PAIR_CHUNK_BYTES // (48 * max(m, 1))))
+    ordered = np.zeros(n_bins + 1)
+    sums = np.zeros(n_bins + 1)
+    for start in range(0, m, rows):
+        sl = slice(start, min(start + rows, m))
+        d2 = np.zeros((sl.stop - sl.start, m))
+        for a in range(pos.shape[1]):
+            d2 += (pos[sl, a, None] - pos[None, :, a]) ** 2
+        k = np.floor(np.sqrt(d2) * (g / w) + 0.5).astype(np.int64)
+        del d2
+        keep = (k >= 1) & (k <= n_bins)
+        diff2 = (z[sl, None] - z[None, :]) ** 2
+        ordered += np.bincount(k[keep], minlength=n_bins + 1)
+        sums += np.bincount(k[keep], weights=diff2[keep], minlength=n_bins + 1)
+    return ordered[1:], sums[1:]
 
 
 def _assemble(cells: _Cells, plan: VariogramPlan, w: float, space: Space,

@@ -52,8 +52,9 @@ def data_point_capacity(p: Path, header, laz_vlr=None) -> tuple[int, bool]:
     """How many points the file's point data can hold, judged from the data, not
     the header's count: ``(count, exact)``.
 
-    LAS: the bytes between the start of the point data and the first extended VLR
-    (or the end of the file), divided by the record length (exact). LAZ: the chunk
+    LAS: the bytes between the start of the point data and the first extended VLR,
+    the internal waveform packets or the end of the file, divided by the record
+    length (exact). LAZ: the chunk
     table's point counts (exact for variable-size chunks such as COPC, an upper
     bound of ``chunks x chunk size`` for fixed-size chunks); ``laz_vlr`` is the
     file's ``lazrs.LazVlr``. ``(-1, False)`` when the data cannot be measured (no
@@ -66,6 +67,9 @@ def data_point_capacity(p: Path, header, laz_vlr=None) -> tuple[int, bool]:
         first_evlr = int(getattr(header, "start_of_first_evlr", 0) or 0)
         if getattr(header, "number_of_evlrs", 0) and start < first_evlr <= size:
             end = first_evlr
+        waveforms = int(getattr(header, "start_of_waveform_data_packet_record", 0) or 0)
+        if start < waveforms < end:  # LAS 1.3 waveform packets stored after the points
+            end = waveforms
         return max(0, end - start) // int(header.point_format.size), True
     if laz_vlr is None:
         return -1, False
@@ -238,7 +242,21 @@ def load_las_with_extra(
     p = Path(path)
     try:
         with laspy.open(p, laz_backend=laz_backend()) as reader:
+            hdr = reader.header
+            n = int(hdr.point_count)
+            capacity, exact = data_point_capacity(p, hdr, _laz_vlr(hdr))
+            if capacity >= 0 and n > capacity:
+                raise InputError(
+                    f"the header of {p} declares {n:,} points but its point data hold "
+                    f"{'' if exact else 'at most '}{capacity:,}: the file is truncated or damaged"
+                )
+            # the whole record, then x, y, z and the finite-row copies
+            require(n * (int(hdr.point_format.size) + READ_BYTES_PER_POINT),
+                    f"reading {n:,} points from {p}",
+                    hint="use a smaller file or a machine with more memory")
             las = reader.read()
+    except InputError:
+        raise
     except Exception as exc:  # laspy and lazrs raise their own types
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read {p}: {msg}") from None

@@ -15,6 +15,7 @@ from rough_viewer import __version__
 from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, grid_roughness
+from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io.cloud import PointCloud
@@ -22,7 +23,8 @@ from rough_viewer.vocabulary import (
     DEFAULT_MIN_POINTS,
     HISTOGRAM_BIN,
     MAPS,
-    PAPER_GRIDS,
+    UNIT_LABELS,
+    UNIT_METRES,
     InputError,
     ProgressFn,
 )
@@ -83,6 +85,13 @@ class Report:
     version: str = __version__
     created: str = ""
     """UTC time the report was made (ISO 8601)."""
+    unit: str = "m"
+    """Unit every length and roughness is shown in (the numbers here are metres)."""
+    grids_chosen: str = "given"
+    """``"given"`` or ``"default"``: sizes from the point spacing
+    (:func:`rough_viewer.grid.spacing.preset_cell_sizes`)."""
+    warnings: tuple[str, ...] = ()
+    """What the reader and the report noticed (one line each)."""
 
 
 def _section(
@@ -110,14 +119,16 @@ def _section(
                    "points); use a smaller grid size"),
             result=result,
         )
-    summaries, histograms, normalised = {}, {}, {}
+    summaries: dict[str, Summary] = {}
+    histograms: dict[str, Histogram] = {}
+    normalised: dict[str, np.ndarray] = {}
     for name in MAPS:
         summaries[name] = summarise(result, name)
         normalised[name] = normalise(result.values(name))
         histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
     figure_errors: dict[str, str] = {}
     variograms = _figure(figure_errors, "variogram", g, lambda: {
-        name: semivariogram(result.ijk, result.values(name), g) for name in MAPS})
+        str(name): semivariogram(result.ijk, result.values(name), g) for name in MAPS})
     for _ in MAPS:
         tick()
     maps = _figure(figure_errors, "maps", g, lambda: _face_maps(result, plane, normalised,
@@ -127,10 +138,23 @@ def _section(
                        variograms=variograms or {}, maps=maps or {}, figure_errors=figure_errors)
 
 
+#: Most pixels of one face-plane image. A face whose image at the grid size would be
+#: larger (parts far apart, a long face at a fine grid) is rasterised at 2, 4, 8 ...
+#: times the grid size, each pixel the max of the cells in it: the same picture the
+#: figure would draw after block reduction, without the dense image in between.
+FACE_IMAGE_MAX_PIXELS = 4_000_000
+
+
 def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
                threshold: float) -> dict[str, FaceMaps]:
-    raster = face_raster(result.centre, plane, result.grid.cell_size)
-    return {name: face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
+    g = result.grid.cell_size
+    raster = face_raster(result.centre, plane, g)
+    k = 1
+    while (raster.shape[0] // k + 1) * (raster.shape[1] // k + 1) > FACE_IMAGE_MAX_PIXELS:
+        k *= 2
+    if k > 1:
+        raster = face_raster(result.centre, plane, g * k)
+    return {str(name): face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
 
 
 def _figure(errors: dict[str, str], key: str, g: float, make: Callable[[], _T]) -> _T | None:
@@ -147,11 +171,12 @@ def _figure(errors: dict[str, str], key: str, g: float, make: Callable[[], _T]) 
 
 def build_report(
     cloud: PointCloud,
-    grid_sizes: Sequence[float] = PAPER_GRIDS,
+    grid_sizes: Sequence[float] | None = None,
     *,
     axis: str = "auto",
     threshold: float = 0.05,
     min_points: int = DEFAULT_MIN_POINTS,
+    unit: str | None = None,
     progress: ProgressFn | None = None,
 ) -> Report:
     """Compute every number of the report.
@@ -160,14 +185,19 @@ def build_report(
     ----------
     cloud : PointCloud
         The points, metres.
-    grid_sizes : sequence of float
-        Cell edges, metres (default the paper's 1, 0.5, 0.25, 0.125).
+    grid_sizes : sequence of float, optional
+        Cell edges, metres; default from the point spacing
+        (:func:`rough_viewer.grid.spacing.preset_cell_sizes`: the size at which the
+        median occupied cell holds 16 points, times 8, 4, 2 and 1).
     axis : {"auto", "x", "y", "z"}
         Dependent axis of OLS and hybrid.
     threshold : float
         Binary transform threshold on normalised roughness (paper: 0.05).
     min_points : int
         Cells with fewer points get no value.
+    unit : {"m", "mm", "ft", "us-ft"}, optional
+        Unit to show lengths in (default: the unit the file was in,
+        ``cloud.source_unit``); the numbers stay metres.
     progress : callable, optional
         ``progress(done, total)`` over all steps of all grid sizes.
 
@@ -179,6 +209,9 @@ def build_report(
     """
     if cloud.n < 3:
         raise InputError(f"need at least 3 points, got {cloud.n} ({cloud.source or 'cloud'})")
+    chosen = "given" if grid_sizes is not None else "default"
+    if grid_sizes is None:
+        grid_sizes = preset_cell_sizes(cloud)
     sizes = list(dict.fromkeys(float(g) for g in grid_sizes))
     total = STEPS_PER_GRID * len(sizes)
     done = base = 0
@@ -213,6 +246,7 @@ def build_report(
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
+    display_unit = unit or cloud.source_unit
     return Report(
         name=Path(cloud.source).name if cloud.source else "in-memory cloud",
         source=cloud.source,
@@ -227,4 +261,26 @@ def build_report(
         plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
+        unit=display_unit,
+        grids_chosen=chosen,
+        warnings=cloud.warnings + _coverage_warnings(sections, display_unit),
     )
+
+
+#: Share of occupied cells with an ODR value below which a grid is called sparse.
+SPARSE_SHARE = 0.5
+
+
+def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...]:
+    """A line for every grid where most occupied cells have no value."""
+    out = []
+    for s in sections:
+        if s.result is None:
+            continue
+        rep = s.result.cell_report("odr")
+        if rep["occupied"] and rep["with_value"] < SPARSE_SHARE * rep["occupied"]:
+            size = s.grid_size / UNIT_METRES[unit]
+            out.append(f"grid {size:g} {UNIT_LABELS[unit]}: only {rep['with_value']:,} of "
+                       f"{rep['occupied']:,} occupied cells have a value (too few points per "
+                       "cell); a larger grid size gives a fuller map")
+    return tuple(out)

@@ -10,7 +10,7 @@ import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -26,7 +26,8 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
 
     if section.error is not None:
         return {}
-    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
+    kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
+                          "n_points": report.n_points, "unit": report.unit}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
     figures: dict[str, Any] = {"summary": summary_table_figure(section.summaries, **kw)}
     if maps:  # absent when the face maps could not be made (section.figure_errors)
@@ -58,8 +59,8 @@ table.meta td { padding: 2px 12px 2px 0; vertical-align: top; }
 """
 
 
-def _fmt_xyz(v: np.ndarray) -> str:
-    return ", ".join(f"{float(c):.3f}" for c in v)
+def _fmt_xyz(v: np.ndarray, per: float = 1.0) -> str:
+    return ", ".join(f"{float(c) / per:.3f}" for c in v)
 
 
 def report_html(report: Report) -> str:
@@ -68,6 +69,7 @@ def report_html(report: Report) -> str:
 
     esc = html.escape
     frame = face_frame(report.plane)
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -81,15 +83,17 @@ def report_html(report: Report) -> str:
         f"<tr><td>points</td><td>{report.n_points:,}"
         + (f" ({report.dropped_nonfinite:,} non-finite rows dropped)"
            if report.dropped_nonfinite else "") + "</td></tr>",
-        f"<tr><td>bounding box (m)</td><td>min ({_fmt_xyz(report.bounds_min)})<br>"
-        f"max ({_fmt_xyz(report.bounds_max)})<br>size "
-        f"({_fmt_xyz(report.bounds_max - report.bounds_min)})</td></tr>",
+        f"<tr><td>bounding box ({u})</td><td>min ({_fmt_xyz(report.bounds_min, per)})<br>"
+        f"max ({_fmt_xyz(report.bounds_max, per)})<br>size "
+        f"({_fmt_xyz(report.bounds_max - report.bounds_min, per)})</td></tr>",
         f"<tr><td>dependent axis (OLS, hybrid)</td><td>{esc(report.axis)}"
         f" (requested: {esc(report.axis_requested)})</td></tr>",
         f"<tr><td>face plane (whole-cloud ODR)</td><td>normal ({_fmt_xyz(frame.normal)}); "
         f"u axis ({_fmt_xyz(frame.u_axis)}); v axis ({_fmt_xyz(frame.v_axis)})</td></tr>",
-        f"<tr><td>grid sizes (m)</td><td>"
-        f"{', '.join(f'{s.grid_size:g}' for s in report.sections)}</td></tr>",
+        f"<tr><td>grid sizes ({u})</td><td>"
+        f"{', '.join(f'{s.grid_size / per:g}' for s in report.sections)}"
+        + (" (default: from the point spacing, the typical occupied cell holds 16 points)"
+           if report.grids_chosen == "default" else "") + "</td></tr>",
         f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness)</td></tr>",
         f"<tr><td>min points per cell</td><td>{report.min_points}</td></tr>",
         f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
@@ -100,12 +104,16 @@ def report_html(report: Report) -> str:
         "hybrid: ODR plane, distance along the dependent axis); e_OLS = |OLS - ODR|. "
         "Face maps: cells projected onto the whole-cloud ODR plane, pixel = cell size, "
         "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
-        "between cell centres, bins of one cell size up to half the largest extent, "
+        "between cell centres, bins of one cell size up to half the largest extent "
+        "(shorter where noted, to fit in memory), "
         "divided by the map's variance.</p>",
     ]
+    for line in report.warnings:
+        parts.append(f'<p class="error">warning: {esc(line)}</p>')
     for s in report.sections:
         sid = f"grid-{s.grid_size:g}".replace(".", "_")
-        parts.append(f'<section id="{sid}" class="grid-section"><h2>Grid {s.grid_size:g} m</h2>')
+        parts.append(f'<section id="{sid}" class="grid-section">'
+                     f'<h2>Grid {s.grid_size / per:g} {u}</h2>')
         if s.error is not None:
             parts.append(f'<p class="error">{esc(s.error)}</p></section>')
             continue
@@ -119,7 +127,8 @@ def report_html(report: Report) -> str:
             )
         for key, why in s.figure_errors.items():
             parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
-        limited = sorted({f"{vg.max_lag:g} m" for vg in s.variograms.values() if vg.lag_limited})
+        limited = sorted({f"{vg.max_lag / per:g} {u}" for vg in s.variograms.values()
+                          if vg.lag_limited})
         if limited:
             parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
                          "to fit in memory (default: half the largest extent).</p>")
@@ -134,11 +143,9 @@ def report_html(report: Report) -> str:
 
 def check_png_export() -> None:
     """Raise InputError (one line) unless the optional kaleido package is installed."""
-    import importlib.util
+    from rough_viewer.visual.export import check_figure_export
 
-    if importlib.util.find_spec("kaleido") is None:
-        raise InputError("PNG export needs the optional package kaleido "
-                         "(pip install kaleido); the HTML and JSON reports do not")
+    check_figure_export("png")
 
 
 def png_figures(report: Report) -> list[tuple[str, Any]]:

@@ -172,15 +172,17 @@ def _two_patches(gap: int, side: int = 12, seed: int = 3):
 
 
 def test_tiled_blocks_equal_brute_force_on_a_sparse_map():
-    ijk, values = _two_patches(gap=64)
     g = 0.5
-    for max_lag, blocks in ((3.0, 2), (40.0, 1)):  # short lags: tiles; long: one box
-        plan = plan_semivariogram(ijk, values, g, max_lag=max_lag)
-        assert plan.n_blocks >= blocks and not plan.lag_limited
-        vg = semivariogram(ijk, values, g, max_lag=max_lag)
+    # far apart with short lags: tiles; closer with long lags: one box
+    for gap, max_lag, blocks in ((512, 3.0, 2), (64, 40.0, 1)):
+        ijk, values = _two_patches(gap=gap)
+        plan = plan_semivariogram(ijk, values, g, max_lag=max_lag, method="fft")
+        assert plan.n_blocks == blocks and not plan.lag_limited
         pairs, gamma = brute_force(ijk, values, g, max_lag=max_lag)
-        np.testing.assert_array_equal(vg.pairs, pairs)
-        np.testing.assert_allclose(vg.gamma, gamma, rtol=1e-9)
+        for method in ("fft", "pairs", "auto"):
+            vg = semivariogram(ijk, values, g, max_lag=max_lag, method=method)
+            np.testing.assert_array_equal(vg.pairs, pairs)
+            np.testing.assert_allclose(vg.gamma, gamma, rtol=1e-9)
     assert vg.pairs[60:70].sum() > 0  # cross-patch pairs (about 64 cells apart)
 
 
@@ -191,18 +193,22 @@ def test_sparse_two_patch_map_stays_within_its_memory_estimate():
     # 30,000 cells long; the default lag (half of it) is shortened to fit
     ijk, values = _two_patches(gap=30_000, side=16)
     g = 0.05
-    plan = plan_semivariogram(ijk, values, g)
-    assert plan.bytes <= MEMORY_BUDGET
-    tracemalloc.start()
-    vg = semivariogram(ijk, values, g)
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    assert peak <= plan.bytes, (peak, plan.bytes)
-    assert vg.lag_limited and vg.max_lag == plan.max_lag < 750.0
-    # exact up to the lag reached: against the brute force on the first 20 bins
     pairs, gamma = brute_force(ijk, values, g, max_lag=20 * g)
-    np.testing.assert_array_equal(vg.pairs[:20], pairs)
-    np.testing.assert_allclose(vg.gamma[:20], gamma, rtol=1e-9)
+    for method in ("fft", "pairs", "auto"):
+        plan = plan_semivariogram(ijk, values, g, method=method)
+        assert plan.bytes <= MEMORY_BUDGET
+        tracemalloc.start()
+        vg = semivariogram(ijk, values, g, method=method)
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        assert peak <= plan.bytes, (method, peak, plan.bytes)
+        assert vg.max_lag == plan.max_lag
+        # the tiled FFT shortens the lag; the direct count (few cells) reaches 750 m
+        assert vg.lag_limited == (plan.method == "fft")
+        # exact up to the lag reached: against the brute force on the first 20 bins
+        np.testing.assert_array_equal(vg.pairs[:20], pairs)
+        np.testing.assert_allclose(vg.gamma[:20], gamma, rtol=1e-9)
+    assert plan.method == "pairs"  # 512 cells: the cost model picks the direct count
 
 
 def test_explicit_max_lag_that_cannot_fit_is_refused(monkeypatch):

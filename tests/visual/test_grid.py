@@ -11,10 +11,15 @@ from rough_viewer.grid.maps import face_maps, face_raster
 from rough_viewer.grid.summary import Summary, histogram
 from rough_viewer.grid.variogram import semivariogram
 from rough_viewer.visual.grid import (
+    CAPTION_CHARS,
+    describe,
     face_map_figure,
+    format_number,
     histogram_figure,
     summary_table_figure,
+    title_height,
     variogram_figure,
+    wrap_caption,
 )
 
 KW = {"grid_size": 0.125, "axis": "y", "n_points": 1_234_567}
@@ -30,11 +35,38 @@ def assert_caption(fig, *models):
 def test_summary_table():
     s = Summary(cells=53508, mean_points=1222.0, min=0.0, max=0.1202, mean=0.0069,
                 variance=4.32e-5, std=0.0066)
-    fig = summary_table_figure({"odr": s, "ols": s}, **KW)
+    h = Summary(cells=2194, mean_points=69.8, min=6.5e-18, max=5.23884, mean=0.01322,
+                variance=0.017918, std=0.13386)
+    fig = summary_table_figure({"odr": s, "hybrid": h}, **KW)
+    header = fig.data[0].header.values
     cells = fig.data[0].cells.values
-    assert list(cells[0]) == ["ODR", "OLS"]
-    assert cells[1][0] == "53,508" and cells[4][0] == "0.1202" and cells[6][0] == "4.320e-05"
-    assert_caption(fig, "ODR", "OLS")
+    assert list(cells[0]) == ["ODR", "hybrid"]
+    # roughness in mm, variance in mm², every value short enough for its column
+    assert "(mm)" in header[3] and "(mm²)" in header[6]
+    assert [c[0] for c in cells[1:]] == ["53,508", "1,222", "0", "120", "6.90", "43.2", "6.60"]
+    assert [c[1] for c in cells[1:]] == ["2,194", "69.8", "6.5e-15", "5,239", "13.2", "17,918",
+                                         "134"]
+    assert_caption(fig, "ODR", "hybrid")
+
+
+@pytest.mark.parametrize(("value", "text"), [
+    (0.0, "0"), (123456.7, "123,457"), (100.0, "100"), (99.96, "100.0"), (41.14, "41.1"),
+    (4.317, "4.32"), (0.5, "0.5"), (0.0523, "0.0523"), (0.001, "0.001"), (6.5e-15, "6.5e-15"),
+    (-2.5, "-2.50"), (float("nan"), "–"),
+])
+def test_format_number(value, text):
+    assert format_number(value) == text
+    assert len(text) <= 8
+
+
+def test_captions_wrap_to_fit_a_narrow_panel():
+    caption = describe(grid_size=0.125, axis="y", n_points=1_234_567,
+                       models=("odr", "ols", "hybrid", "e_ols"))
+    wrapped = wrap_caption(caption)
+    assert wrapped.replace("<br>", " · ") == caption
+    assert all(len(line) <= CAPTION_CHARS for line in wrapped.split("<br>"))
+    fig = summary_table_figure({"odr": Summary(1, 1, 0, 0, 0, 0, 0)}, **KW)
+    assert fig.layout.margin.t >= title_height(fig.layout.title.to_plotly_json())
 
 
 def test_histogram_bars_and_first_bin_shares():
@@ -77,3 +109,20 @@ def test_face_map_panels(kind):
     assert_caption(fig, "OLS", "ODR")
     with pytest.raises(ValueError):
         face_map_figure(maps, kind="other", **KW)
+
+
+def test_large_face_images_are_shown_by_block_maxima():
+    from rough_viewer.visual.grid import _display_image
+
+    rng = np.random.default_rng(0)
+    image = rng.random((1500, 1200))
+    image[rng.random(image.shape) < 0.3] = np.nan
+    u = 0.1 * (np.arange(1200) + 0.5)
+    v = 0.1 * (np.arange(1500) + 0.5)
+    small, u2, v2, k = _display_image(image, u, v, max_pixels=200_000)
+    assert k == 4 and small.shape == (375, 300) and small.size <= 200_000
+    np.testing.assert_allclose(small[7, 9], np.nanmax(image[28:32, 36:40]))
+    np.testing.assert_allclose(u2[0], u[:4].mean())
+    np.testing.assert_allclose(v2[1], v[4:8].mean())
+    same, *_, k1 = _display_image(image[:100, :100], u[:100], v[:100], max_pixels=200_000)
+    assert k1 == 1 and same is not None
