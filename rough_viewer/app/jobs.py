@@ -8,7 +8,7 @@ job            stages                                                    lane (c
 =============  =======================================================  =================
 LoadJob        read, prepare, show, then ViewJob's                       load (view,
                                                                          panels, pick)
-ViewJob        check, grid, colours, status (then queues PanelsJob)      view (panels)
+ViewJob        check, grid, colours (then queues PanelsJob)              view (panels)
 PanelsJob      distribution, variogram                                   panels
 PickJob        pick, cell or the mode's click handler                    pick, keep all
 AxisJob        axis                                                      axis
@@ -115,14 +115,14 @@ def view_stages(app: App, run: Run, settings: ViewSettings, *,
         app.cloud_handle.colors = colours
         app.shown = Shown(loaded, settings, result, stats)
     t_colours = time.perf_counter() - t0
-    yield "colours"
+    # the colour bar and status always go with the colours (no stage in between)
     if not keep_error:
         app.clear_error()
     _show_map_text(app, loaded, result, stats, settings, t_colours, cached)
     record: dict[str, object] = {"cell_size": settings.cell_size, "model": settings.model,
                                  "cached": cached, "colours_s": t_colours}
     app.timings.append(record)
-    yield "status"
+    yield "colours"
     key = (settings.grid_key, settings.model, app.options.variogram)
     if key != app.panel_key:
         app.submit(PanelsJob(settings, result, record))

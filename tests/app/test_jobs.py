@@ -16,7 +16,6 @@ from rough_viewer.app.gate import open_server
 from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.server import App, build_app
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.io import PointCloud
 from tests.app.protocol import ProtocolClient
 
 
@@ -142,53 +141,54 @@ def test_bias_predictions_are_reached_from_the_app_and_run_on_the_worker(app):
     assert [r.kind for r in app.worker.records][-1] == "BiasJob"
 
 
-def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, monkeypatch):
-    # 3,000 small patches spread through a 1 m cube: on a 1 cm grid every cell is
-    # occupied apart from its neighbours, and the semivariogram must correlate the
-    # whole 100^3 frame (~140 MB even for its first lag bin). On a machine with
-    # 100 MB free that cannot fit: the same path as the 16.5 GB request.
-    import rough_viewer.grid.variogram as variogram_module
-    import rough_viewer.memory as memory
-
-    rng = np.random.default_rng(0)
-    centres = rng.uniform(0, 1, (3000, 3))
-    xyz = np.repeat(centres, 4, axis=0) + rng.normal(0, 1e-4, (12_000, 3))
-    app = build_app(server, PointCloud.from_xyz(xyz + [500_000.0, 4_000_000.0, 0.0]),
-                    prefetch=False)
-    assert app.wait_idle(60)
-    before = app.cloud_handle.colors.copy()
-    small = 100 * 2**20
-    monkeypatch.setattr(memory, "available_bytes", lambda: small)
-    monkeypatch.setattr(variogram_module, "available_bytes", lambda: small)
-    app.gui.grid_free.value = 0.01
-    assert app.wait_idle(120)
-    msg = app.errors[-1]
-    assert "semivariogram" in msg and "needs about" in msg and "memory" in msg, msg
-    assert "The map and the other panels are shown" in app.gui.error.content
-    # the map at 1 cm is shown; only the panel could not be computed
-    assert app.shown.settings.cell_size == 0.01
-    assert not np.array_equal(app.cloud_handle.colors, before)
-    assert "grid 0.01 m" in app.gui.histogram.figure.layout.title.text
-    app.gui.grid.value = "0.5"  # the server is still up and answers
-    assert app.wait_idle(120)
-    assert app.shown.settings.cell_size == 0.5 and not app.gui.error.visible
-    assert "grid 0.5 m" in app.gui.variogram.figure.layout.title.text
-    app.stop()
-
-
-def test_a_grid_that_cannot_fit_puts_the_controls_back(server, cloud, monkeypatch):
+def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, cloud, monkeypatch):
+    # On a machine with 1 MB free (memory.available_bytes), a 2 mm grid on 40,000
+    # points cannot fit: the grid code refuses it (memory.require) before allocating,
+    # the same path as the 16.5 GB request on a 24 GB machine.
     import rough_viewer.memory as memory
 
     app = build_app(server, cloud, prefetch=False)
     assert app.wait_idle(60)
+    before = app.cloud_handle.colors.copy()
     monkeypatch.setattr(memory, "available_bytes", lambda: 1e6)
     app.gui.grid_free.value = 0.002
     assert app.wait_idle(60)
-    assert "grid 0.002 m" in app.errors[-1] and "needs about" in app.errors[-1]
+    msg = app.errors[-1]
+    assert "grid 0.002 m" in msg and "needs about" in msg and "memory" in msg, msg
+    assert app.gui.error.visible and "previous view is kept" in app.gui.error.content
+    # the view and the controls are the previous ones
     assert app.shown.settings.cell_size == 0.25 and app.gui.grid.value == "0.25"
+    assert np.array_equal(app.cloud_handle.colors, before)
     monkeypatch.undo()
-    app.gui.grid.value = "0.5"
+    app.gui.grid.value = "0.5"  # the server is still up and answers
     assert app.wait_idle(60) and app.shown.settings.cell_size == 0.5
+    assert not app.gui.error.visible
+    app.stop()
+
+
+def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypatch):
+    import rough_viewer.app.panels as panels
+    from rough_viewer.memory import require
+
+    def too_big(ijk, values, g, **kw):
+        require(1e15, f"the semivariogram of {len(values):,} cells at {g:g} m")
+        raise AssertionError("unreachable")
+
+    app = build_app(server, cloud, prefetch=False)
+    assert app.wait_idle(60)
+    monkeypatch.setattr(panels, "semivariogram", too_big)
+    app.gui.grid.value = "0.5"
+    assert app.wait_idle(60)
+    msg = app.errors[-1]
+    assert msg.startswith("semivariogram of grid 0.5 m: the semivariogram of") and \
+        "needs about" in msg, msg
+    assert "The map and the other panels are shown" in app.gui.error.content
+    assert app.shown.settings.cell_size == 0.5  # the map is shown
+    assert "grid 0.5 m" in app.gui.histogram.figure.layout.title.text
+    assert "grid 0.25 m" in app.gui.variogram.figure.layout.title.text  # the old one stays
+    monkeypatch.undo()
+    app.gui.grid.value = "1"
+    assert app.wait_idle(60) and "grid 1 m" in app.gui.variogram.figure.layout.title.text
     app.stop()
 
 
