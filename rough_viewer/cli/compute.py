@@ -20,16 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+# CSV_COLUMNS stays importable from here: the compute contract's columns
+from rough_viewer.cli._cells_csv import CSV_COLUMNS as CSV_COLUMNS
+from rough_viewer.cli._cells_csv import write_cells_csv
 from rough_viewer.cli._options import parse_xyz
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
-
-CSV_COLUMNS = (
-    "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
-    "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
-    "normal_x", "normal_y", "normal_z",
-)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -65,42 +62,6 @@ def output_name(path: str, grid: float, several: bool) -> Path:
     if not several:
         return p
     return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
-
-
-def _fmt_column(values: np.ndarray) -> list[str]:
-    """Shortest round-trip text of each value (full precision); NaN -> empty."""
-    if np.issubdtype(values.dtype, np.integer):
-        return values.astype(str).tolist()
-    text = values.astype(str)
-    text[~np.isfinite(values)] = ""
-    return text.tolist()
-
-
-def cells_csv_rows(result) -> list[list[str]]:
-    """Columns of the CELLS.csv for cells with at least ``min_points`` points."""
-    keep = result.n_points >= result.min_points
-    cols = [
-        result.ijk[keep, 0], result.ijk[keep, 1], result.ijk[keep, 2],
-        result.centre[keep, 0], result.centre[keep, 1], result.centre[keep, 2],
-        result.n_points[keep],
-        result.theta_odr[keep], result.theta_ols[keep], result.theta_hybrid[keep],
-        result.e_ols[keep],
-        result.normal[keep, 0], result.normal[keep, 1], result.normal[keep, 2],
-    ]
-    return [_fmt_column(np.asarray(c)) for c in cols]
-
-
-def write_cells_csv(path: Path, result) -> None:
-    """Write CELLS.csv atomically (temporary file, then rename)."""
-    cols = cells_csv_rows(result)
-
-    def write(fh) -> None:
-        fh.write(",".join(CSV_COLUMNS) + "\n")
-        for row in zip(*cols, strict=True):
-            fh.write(",".join(row))
-            fh.write("\n")
-
-    write_atomic(path, write)
 
 
 def summary_dict(result, cloud_source: str, dropped: int) -> dict:
