@@ -28,6 +28,7 @@ from rough_viewer.vocabulary import (
     PAPER_GRIDS,
     Connectivity,
     InputError,
+    MapName,
     ProgressFn,
 )
 
@@ -40,7 +41,7 @@ FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 ROUGHNESS_STAGES = 4
 """Progress stages reported by ``grid_roughness``."""
 STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 2
-ZONES_MAP = "odr"
+ZONES_MAP: MapName = "odr"
 """The map whose normalised roughness makes the report's zones."""
 
 
@@ -122,7 +123,10 @@ def _section(
             result=result,
         )
     raster = face_raster(result.centre, plane, g)
-    summaries, histograms, variograms, maps = {}, {}, {}, {}
+    summaries: dict[str, Summary] = {}
+    histograms: dict[str, Histogram] = {}
+    variograms: dict[str, Semivariogram] = {}
+    maps: dict[str, FaceMaps] = {}
     for name in MAPS:
         values = result.values(name)
         norm = normalise(values)

@@ -29,7 +29,8 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
 
     if section.error is not None:
         return {}
-    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
+    kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
+                          "n_points": report.n_points}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
     figures = {
         "summary": summary_table_figure(section.summaries, **kw),
