@@ -22,7 +22,8 @@ Packages, data flowing one way (each imports only those above it):
 - :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
 - :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
 - :mod:`rough_viewer.visual`: colour maps and plotly figures;
-- :mod:`rough_viewer.report`, :mod:`rough_viewer.app`, :mod:`rough_viewer.cli` on top.
+- :mod:`rough_viewer.report`: the HTML/JSON report and saved views;
+- :mod:`rough_viewer.app`, :mod:`rough_viewer.cli` on top.
 
 Names are loaded on first use, so ``import rough_viewer`` stays cheap.
 """
@@ -45,6 +46,9 @@ _API: dict[str, str] = {
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
     "write_las": "rough_viewer.io.las",
+    "write_las_fields": "rough_viewer.io.las_out",
+    "write_ply_fields": "rough_viewer.io.ply",
+    "write_table": "rough_viewer.io.table",
     # grid roughness
     "grid_roughness": "rough_viewer.grid.roughness",
     "prepare_grid": "rough_viewer.grid.roughness",
@@ -52,6 +56,13 @@ _API: dict[str, str] = {
     "whole_cloud_axis": "rough_viewer.grid.roughness",
     "GridRoughness": "rough_viewer.grid.roughness",
     "fit_plane": "rough_viewer.grid.planes",
+    "whole_cloud_plane": "rough_viewer.grid.planes",
+    "signed_distance": "rough_viewer.grid.planes",
+    "point_scales": "rough_viewer.grid.scales",
+    "point_scales_from_prepared": "rough_viewer.grid.scales",
+    "face_scales": "rough_viewer.grid.scales",
+    "cell_columns": "rough_viewer.grid.table",
+    "point_fields": "rough_viewer.grid.table",
     "summarise": "rough_viewer.grid.summary",
     "summaries": "rough_viewer.grid.summary",
     "normalise": "rough_viewer.grid.summary",
@@ -94,6 +105,13 @@ _API: dict[str, str] = {
     "fbm_profile": "rough_viewer.synthetic.fbm",
     "list_demos": "rough_viewer.synthetic.demos",
     "load_demo": "rough_viewer.synthetic.demos",
+    # results out
+    "write_figure": "rough_viewer.visual.export",
+    "ReportSettings": "rough_viewer.report.export",
+    "report_page": "rough_viewer.report.export",
+    "View": "rough_viewer.report.view",
+    "save_view": "rough_viewer.report.view",
+    "load_view": "rough_viewer.report.view",
 }
 
 __all__ = ["__version__", *sorted(_API)]
@@ -130,7 +148,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         stereonet,
         trend_and_plunge,
     )
-    from rough_viewer.grid.planes import fit_plane
+    from rough_viewer.grid.planes import fit_plane, signed_distance, whole_cloud_plane
     from rough_viewer.grid.roughness import (
         GridRoughness,
         coarsen_prepared,
@@ -138,6 +156,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         prepare_grid,
         whole_cloud_axis,
     )
+    from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
     from rough_viewer.grid.summary import (
         Summary,
         binary,
@@ -146,11 +165,15 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         summaries,
         summarise,
     )
+    from rough_viewer.grid.table import cell_columns, point_fields
     from rough_viewer.grid.variogram import face_semivariogram, semivariogram
     from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.las import write_las
+    from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.load import load_points
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.table import write_table
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples
     from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d
@@ -160,8 +183,11 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         noise_sigma,
         threshold_value,
     )
+    from rough_viewer.report.export import ReportSettings, report_page
+    from rough_viewer.report.view import View, load_view, save_view
     from rough_viewer.synthetic.board import board_scan
     from rough_viewer.synthetic.demos import list_demos, load_demo
     from rough_viewer.synthetic.fbm import fbm_profile
     from rough_viewer.synthetic.outcrop import generate_outcrop
+    from rough_viewer.visual.export import write_figure
     from rough_viewer.vocabulary import AXES, MAPS, MODELS, InputError

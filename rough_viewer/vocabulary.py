@@ -96,6 +96,25 @@ CONNECTIVITY_NEIGHBOURS: dict[str, int] = {"face": 6, "edge": 18, "vertex": 26}
 DEFAULT_MIN_CELLS = 3
 """Zones with fewer cells are dropped."""
 
+# ----------------------------------------------------------------------------- colour layers
+
+ColourLayerName = Literal["roughness", "rgb", "intensity", "distance"]
+"""What colours the points: the roughness map, or a layer that shows the rock itself."""
+COLOUR_LAYERS: tuple[ColourLayerName, ...] = ("roughness", "rgb", "intensity", "distance")
+COLOUR_LAYER_LABELS: dict[str, str] = {
+    "roughness": "roughness map",
+    "rgb": "scan colours (RGB)",
+    "intensity": "intensity",
+    "distance": "distance to face plane",
+}
+"""Display name of each colour layer."""
+
+# ----------------------------------------------------------------------------- units
+
+Unit = Literal["m", "mm", "ft", "us-ft"]
+"""Length unit of a file's coordinates (the core works in metres)."""
+UNITS: tuple[Unit, ...] = ("m", "mm", "ft", "us-ft")
+
 # ----------------------------------------------------------------------------- profiles
 
 Decomposition = Literal["dwt", "wp"]

@@ -56,3 +56,16 @@ def test_example_05_scanner_bias() -> None:
 
 def test_example_06_app() -> None:
     assert "showing 153,385 of 153,385 points" in _run("06_app.py", "--check")
+
+
+def test_example_07_colours_and_scales() -> None:
+    out = _run("07_colours_and_scales.py")
+    shares = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) > 2 and parts[1] in ("min-max", "default") and "%" in line:
+            shares[parts[0], parts[1]] = float(line.split("%")[0].split()[-1])
+    assert len(shares) == 8
+    assert all(shares[m, "default"] <= 50 for m in ("odr", "ols", "hybrid", "e_ols"))
+    assert shares["hybrid", "min-max"] > 50
+    assert out.count("grid ") >= 4 and "whole face across scales" in out

@@ -4,10 +4,13 @@ Contract (other tools script against it)::
 
     rough-viewer compute INPUT --grid G [--grid G2 ...] [--method odr|ols|hybrid|all]
         [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed]
-        --out CELLS.csv [--summary-json SUMMARY.json] [--force] [--quiet]
+        [--out CELLS.csv|CELLS.parquet] [--summary-json SUMMARY.json]
+        [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply] [--force] [--quiet]
 
-With several ``--grid`` values each output name gets ``_g<G>`` before its
-extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``).
+At least one output is required. With several ``--grid`` values each output name
+gets ``_g<G>`` before its extension (``cells.csv`` -> ``cells_g0.5.csv``,
+``cells_g0.25.csv``). ``--las-out`` and ``--ply-out`` write every point with its
+cell's values as extra dimensions / scalar properties (docs/export.md).
 """
 
 from __future__ import annotations
@@ -20,13 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-# CSV_COLUMNS stays importable from here: the compute contract's columns
-from rough_viewer.cli._cells_csv import CSV_COLUMNS as CSV_COLUMNS
-from rough_viewer.cli._cells_csv import write_cells_csv
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
-from rough_viewer.io.output import check_output_path, write_atomic
+from rough_viewer.io.output import check_outputs, write_atomic
 from rough_viewer.vocabulary import InputError
+
+#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
+CSV_COLUMNS = CELL_COLUMNS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,8 +53,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--origin", metavar="X,Y,Z", help="grid origin (default: bounding-box minimum)")
     p.add_argument("--signed", action="store_true",
                    help="RMS of signed distances instead of the std of absolute distances")
-    p.add_argument("--out", required=True, metavar="CELLS.csv", help="per-cell CSV output")
+    p.add_argument("--out", metavar="CELLS.csv",
+                   help="per-cell table: CSV, or Parquet when the name ends in .parquet "
+                   "(needs pyarrow)")
     p.add_argument("--summary-json", metavar="SUMMARY.json", help="Table-1 summary as JSON")
+    p.add_argument("--las-out", metavar="OUT.las|OUT.laz",
+                   help="every input point with its cell's roughness as LAS extra dimensions")
+    p.add_argument("--ply-out", metavar="OUT.ply",
+                   help="every point with its cell's roughness as PLY scalar properties")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -105,13 +115,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     several = len(grids) > 1
-    outs = {g: check_output_path(output_name(args.out, g, several), force=args.force) for g in grids}
-    jsons = {}
-    if args.summary_json:
-        jsons = {
-            g: check_output_path(output_name(args.summary_json, g, several), force=args.force)
-            for g in grids
-        }
+    outputs = _outputs(args, grids, several)
     quiet = args.quiet
     cloud = load_points(args.input, progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
     if cloud.dropped_nonfinite:
@@ -127,12 +131,63 @@ def run(args: argparse.Namespace) -> int:
             models=models, residual="signed" if args.signed else "absolute",
             progress=None if quiet else ProgressBar(f"grid {g:g} m"),
         )
-        write_cells_csv(outs[g], result)
-        if g in jsons:
-            data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
-            write_atomic(jsons[g], lambda fh, d=data: json.dump(d, fh, indent=2))
         if i:
             print()
         print(format_table(result, source=str(args.input)))
-        print(f"wrote {outs[g]}" + (f" and {jsons[g]}" if g in jsons else ""))
+        _write_outputs(outputs, g, result, cloud, args)
     return 0
+
+
+def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dict[str, dict[float, Path]]:
+    """Every output path of the run by option and grid size, all checked before any work."""
+    from rough_viewer.io.las_out import check_las_output
+    from rough_viewer.io.table import check_table_output
+
+    given = {opt: getattr(args, opt) for opt in ("out", "summary_json", "las_out", "ply_out")
+             if getattr(args, opt)}
+    if not given:
+        raise InputError("no output given: use --out CELLS.csv, --las-out OUT.las|OUT.laz, "
+                         "--ply-out OUT.ply or --summary-json SUMMARY.json")
+    if args.las_out:
+        check_las_output(args.las_out)
+    if args.ply_out and Path(args.ply_out).suffix.lower() != ".ply":
+        raise InputError(f"--ply-out must end in .ply, got {args.ply_out}")
+    if args.out:
+        check_table_output(args.out)
+    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
+    check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
+                  force=args.force, inputs=[args.input])
+    return outputs
+
+
+def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, cloud, args) -> None:
+    """Write every output of one grid size and say so."""
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
+    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.table import write_table
+
+    written = []
+    if "out" in outputs:
+        write_table(outputs["out"][g], cell_columns(result),
+                    metadata=table_metadata(result, str(args.input)))
+        written.append(str(outputs["out"][g]))
+    if "summary_json" in outputs:
+        data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
+        write_atomic(outputs["summary_json"][g], lambda fh: json.dump(data, fh, indent=2))
+        written.append(str(outputs["summary_json"][g]))
+    if written:
+        print("wrote " + " and ".join(written))
+    fields = point_fields(result) if ("las_out" in outputs or "ply_out" in outputs) else None
+    if "las_out" in outputs and fields is not None:
+        path = outputs["las_out"][g]
+        info = write_las_fields(path, cloud, fields,
+                                progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
+        print(f"wrote {path}: {info}")
+    if "ply_out" in outputs and fields is not None:
+        path = outputs["ply_out"][g]
+        info = write_ply_fields(path, cloud, fields, comments=[
+            f"rough_viewer: {Path(str(args.input)).name}, grid {g:g} m, axis {result.axis}, "
+            "roughness in metres"])
+        print(f"wrote {path}: {info}")

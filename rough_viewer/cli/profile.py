@@ -329,7 +329,8 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.input)
     _check_options(args)
-    csv_path = check_output_path(args.csv, force=args.force) if args.csv else None
+    csv_path = (check_output_path(args.csv, force=args.force, inputs=[path])
+                if args.csv else None)
     if not path.exists():
         raise InputError(f"no such file: {path}")
 

@@ -9,7 +9,9 @@ Contract (other tools script against it)::
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
 :data:`rough_viewer.grid.zones.ZONE_COLUMNS` (theta in metres, angles in degrees,
 numbers at full precision as ``compute`` writes them). CELLS.csv: ``compute``'s
-columns (all three models) plus ``zone`` (0 = in no zone).
+columns (all three models; :func:`rough_viewer.grid.table.cell_columns`) plus
+``zone`` (0 = in no zone). Both go through :func:`rough_viewer.io.table.write_table`
+(a ``.parquet`` name writes Parquet, as ``compute``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.cli._options import positive, positive_int
-from rough_viewer.io.output import check_output_path
+from rough_viewer.io.output import check_outputs
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
@@ -69,13 +71,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def zones_csv_columns(zones) -> list[list[str]]:
-    """ZONES.csv columns as text, in :data:`~rough_viewer.grid.zones.ZONE_COLUMNS` order."""
-    from rough_viewer.cli._cells_csv import fmt_column
-
-    return [fmt_column(v) for v in zones.table().values()]
-
-
 def format_zones(zones, result, *, source: str) -> str:
     """Readable summary of the zones (the first :data:`SHOWN`) for the terminal."""
     from rough_viewer.grid.orientation import dip_and_direction
@@ -109,22 +104,22 @@ def format_zones(zones, result, *, source: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.cli._cells_csv import write_cells_csv, write_csv
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller
+    from rough_viewer.grid.table import cell_columns, table_metadata
+    from rough_viewer.grid.zones import ZoneLabeller
     from rough_viewer.io import load_points
+    from rough_viewer.io.table import check_table_output, write_table
 
     if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
         raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
     if args.min_points is not None and args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
-    out = check_output_path(args.out, force=args.force)
-    cells_out = None
-    if args.cells_out:
-        cells_out = check_output_path(args.cells_out, force=args.force)
-        if cells_out.resolve() == out.resolve():
-            raise InputError(f"--out and --cells-out name the same file: {out}")
+    paths = check_outputs([args.out, *([args.cells_out] if args.cells_out else [])],
+                          force=args.force, inputs=[args.input])
+    for path in paths:
+        check_table_output(path)
+    out, cells_out = paths[0], (paths[1] if len(paths) > 1 else None)
     quiet = args.quiet
     cloud = load_points(args.input,
                         progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
@@ -137,9 +132,11 @@ def run(args: argparse.Namespace) -> int:
                             **options)
     zones = ZoneLabeller.build(result, args.method).zones(
         args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
-    write_csv(out, ZONE_COLUMNS, zones_csv_columns(zones))
+    write_table(out, zones.table())
     if cells_out is not None:
-        write_cells_csv(cells_out, result, {"zone": zones.labels})
+        keep = result.n_points >= result.min_points  # the rows of cell_columns
+        write_table(cells_out, {**cell_columns(result), "zone": zones.labels[keep]},
+                    metadata=table_metadata(result, str(args.input)))
     print(format_zones(zones, result, source=str(args.input)))
     print(f"wrote {out}" + (f" and {cells_out}" if cells_out is not None else ""))
     return 0

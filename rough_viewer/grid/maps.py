@@ -37,8 +37,8 @@ Reduce = Literal["max", "mean"]
 
 
 class Plane(Protocol):
-    """What the face-plane tools need of a plane (e.g. ``planes.PlaneFit``): read-only
-    attributes, so frozen dataclasses satisfy it."""
+    """What the face-plane tools need of a plane (e.g. ``planes.PlaneFit``): read-only,
+    so frozen dataclasses match."""
 
     @property
     def centroid(self) -> np.ndarray: ...

@@ -11,7 +11,6 @@ import numpy as np
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
 from rough_viewer.visual.colormaps import zone_colour
-from rough_viewer.vocabulary import InputError
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -155,11 +154,9 @@ def report_html(report: Report) -> str:
 
 def check_png_export() -> None:
     """Raise InputError (one line) unless the optional kaleido package is installed."""
-    import importlib.util
+    from rough_viewer.visual.export import check_figure_export
 
-    if importlib.util.find_spec("kaleido") is None:
-        raise InputError("PNG export needs the optional package kaleido "
-                         "(pip install kaleido); the HTML and JSON reports do not")
+    check_figure_export("png")
 
 
 def png_figures(report: Report) -> list[tuple[str, Any]]:

@@ -101,7 +101,7 @@ def test_options_reach_the_labelling(tmp_path, face):
     (["--threshold", "nan"], "--threshold must lie in [0, 1]"),
     (["--out", "{tmp}/exists.csv"], "exists"),
     (["--cells-out", "{tmp}/exists.csv"], "exists"),
-    (["--cells-out", "{tmp}/out.csv"], "same file"),
+    (["--cells-out", "{tmp}/out.csv"], "same path"),
     (["--min-points", "2"], "at least 3"),
     (["--min-cells", "0"], "--min-cells"),
     (["--connectivity", "corner"], "--connectivity"),

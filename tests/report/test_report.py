@@ -189,7 +189,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
     """The export logic, with kaleido's renderer replaced by a stub."""
     import plotly.graph_objects as go
 
-    import rough_viewer.report as report_module
+    import rough_viewer.visual.export as export_module
 
     rendered = []
 
@@ -197,7 +197,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
         rendered.append(fig.layout.title.text)
         return b"\x89PNG fake"
 
-    monkeypatch.setattr(report_module, "check_png_export", lambda: None)
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
     monkeypatch.setattr(go.Figure, "to_image", fake_to_image)
     png = tmp_path / "png"
     rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),

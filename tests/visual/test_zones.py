@@ -11,6 +11,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
+from rough_viewer.vocabulary import hex_to_rgb
 from tests.helpers import banded_face
 
 BANDS = [(-1.3, -1.6, 5.0, 0.6, 0.0), (2.3, 1.0, 3.4, 0.6, 60.0)]
@@ -30,7 +31,7 @@ def kw(res):
 def test_zone_colours_cycle_and_grey_for_none():
     rgb = colormaps.zone_colours(np.array([0, 1, 2, 13]))
     assert tuple(rgb[0]) == colormaps.NEUTRAL_RGB
-    assert tuple(rgb[1]) == colormaps._hex_to_rgb(colormaps.ZONE_PALETTE[0])
+    assert tuple(rgb[1]) == hex_to_rgb(colormaps.ZONE_PALETTE[0])
     assert tuple(rgb[3]) == tuple(rgb[1])  # 13 = 12 + 1 wraps round
     assert len(set(colormaps.ZONE_PALETTE)) == len(colormaps.ZONE_PALETTE)
 

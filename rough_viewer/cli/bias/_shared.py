@@ -67,7 +67,8 @@ def check_las_out(args: argparse.Namespace) -> Path | None:
         return None
     if Path(args.out).suffix.lower() not in (".las", ".laz"):
         raise InputError(f"--out must end in .las or .laz, got {args.out}")
-    return check_output_path(args.out, force=args.force)
+    inputs = [args.input] if getattr(args, "input", None) else []
+    return check_output_path(args.out, force=args.force, inputs=inputs)
 
 
 def write_las_atomic(path: Path, xyz: np.ndarray, extra: dict) -> None:
