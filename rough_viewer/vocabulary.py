@@ -91,8 +91,6 @@ Connectivity = Literal["face", "edge", "vertex"]
 """Which grid cells touch: ``face`` (6 neighbours), ``edge`` (18) or ``vertex`` (26)."""
 CONNECTIVITIES: tuple[Connectivity, ...] = ("vertex", "edge", "face")
 """Connectivity options, default first."""
-CONNECTIVITY_NEIGHBOURS: dict[str, int] = {"face": 6, "edge": 18, "vertex": 26}
-"""Number of neighbours of a cell under each connectivity."""
 DEFAULT_MIN_CELLS = 3
 """Zones with fewer cells are dropped."""
 
