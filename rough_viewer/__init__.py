@@ -79,6 +79,14 @@ _API: dict[str, str] = {
     "face_semivariogram": "rough_viewer.grid.variogram",
     "face_maps": "rough_viewer.grid.maps",
     "face_raster": "rough_viewer.grid.maps",
+    "ZoneLabeller": "rough_viewer.grid.zones",
+    "Zones": "rough_viewer.grid.zones",
+    "find_zones": "rough_viewer.grid.zones",
+    "dip_and_direction": "rough_viewer.grid.orientation",
+    "trend_and_plunge": "rough_viewer.grid.orientation",
+    "stereonet": "rough_viewer.grid.orientation",
+    "cell_stereonet": "rough_viewer.grid.orientation",
+    "cell_orientation": "rough_viewer.grid.orientation",
     # profiles
     "extract_profile": "rough_viewer.profiles.extraction",
     "regular_samples": "rough_viewer.profiles.extraction",
@@ -140,6 +148,13 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
     from rough_viewer.grid.maps import face_maps, face_raster
+    from rough_viewer.grid.orientation import (
+        cell_orientation,
+        cell_stereonet,
+        dip_and_direction,
+        stereonet,
+        trend_and_plunge,
+    )
     from rough_viewer.grid.planes import fit_plane, signed_distance, whole_cloud_plane
     from rough_viewer.grid.roughness import (
         GridRoughness,
@@ -160,6 +175,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.grid.table import cell_columns, point_fields
     from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
+    from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.crs import CrsInfo, read_crs
     from rough_viewer.io.las import write_las

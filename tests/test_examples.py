@@ -69,3 +69,16 @@ def test_example_07_colours_and_scales() -> None:
     assert all(shares[m, "default"] <= 50 for m in ("odr", "ols", "hybrid", "e_ols"))
     assert shares["hybrid", "min-max"] > 50
     assert out.count("grid ") >= 4 and "whole face across scales" in out
+
+
+def test_example_08_zones() -> None:
+    import re
+
+    out = _run("08_zones.py")
+    shares = {float(m[0]): (float(m[1]), float(m[2])) for m in re.findall(
+        r"threshold ([\d.]+):.*rubble points in zones ([\d.]+), rock points in zones ([\d.]+)",
+        out)}
+    rubble, rock = shares[0.1]
+    assert rubble >= 0.65 and rock <= 0.15  # zones hold rubble, not smooth rock
+    assert shares[0.05][0] > shares[0.2][0]  # a lower threshold takes in more
+    assert "poles, peak density" in out

@@ -3,8 +3,9 @@ and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
 
 Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
 :mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
-:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`; :mod:`.spacing` chooses the default
-grid from the point spacing.
+:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`, :mod:`.zones` (connected rough
+cells; :mod:`.orientation` for dips, traces and the stereonet); :mod:`.spacing`
+chooses the default grid from the point spacing.
 """
 
 from rough_viewer.grid.cells import GridSpec, make_grid
@@ -35,6 +36,7 @@ from rough_viewer.grid.variogram import (
     plan_semivariogram,
     semivariogram,
 )
+from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
 
 __all__ = [
     "FaceMaps",
@@ -47,6 +49,8 @@ __all__ = [
     "Semivariogram",
     "Summary",
     "VariogramPlan",
+    "ZoneLabeller",
+    "Zones",
     "binary",
     "coarsen_prepared",
     "default_cell_size",
@@ -55,6 +59,7 @@ __all__ = [
     "face_maps",
     "face_raster",
     "face_semivariogram",
+    "find_zones",
     "fit_plane",
     "grid_roughness",
     "histogram",

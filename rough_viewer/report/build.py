@@ -1,5 +1,6 @@
 """Every number of the report: roughness maps at each grid size, Table-1 summaries,
-histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4)."""
+histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4),
+and the zones at the binary threshold with the stereonet of the cell poles."""
 
 from __future__ import annotations
 
@@ -13,19 +14,25 @@ import numpy as np
 
 from rough_viewer import __version__
 from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
+from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, grid_roughness
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.vocabulary import (
+    CONNECTIVITIES,
+    DEFAULT_MIN_CELLS,
     DEFAULT_MIN_POINTS,
     HISTOGRAM_BIN,
     MAPS,
     UNIT_LABELS,
     UNIT_METRES,
+    Connectivity,
     InputError,
+    MapName,
     ProgressFn,
 )
 
@@ -39,7 +46,9 @@ FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 """Panel order of the face-map figures (2011 Fig. 2: A = OLS, B = ODR)."""
 ROUGHNESS_STAGES = 4
 """Progress stages reported by ``grid_roughness``."""
-STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 1
+STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 2
+ZONES_MAP: MapName = "odr"
+"""The map whose normalised roughness makes the report's zones."""
 
 
 @dataclass(frozen=True)
@@ -55,9 +64,14 @@ class GridSection:
     histograms: dict[str, Histogram] = field(default_factory=dict)
     variograms: dict[str, Semivariogram] = field(default_factory=dict)
     maps: dict[str, FaceMaps] = field(default_factory=dict)
+    zones: Zones | None = None
+    """Zones of the ODR map at the report's threshold."""
+    stereonet: Stereonet | None = None
+    """Poles of every cell's ODR plane."""
     figure_errors: dict[str, str] = field(default_factory=dict)
-    """Figures that could not be made (``"variogram"``, ``"maps"``), each with why;
-    the rest of the section (Table 1, histograms, other figures) stands."""
+    """Figures that could not be made (``"variogram"``, ``"maps"``, ``"zones"``,
+    ``"stereonet"``), each with why; the rest of the section (Table 1, histograms,
+    other figures) stands."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +99,10 @@ class Report:
     version: str = __version__
     created: str = ""
     """UTC time the report was made (ISO 8601)."""
+    min_cells: int = DEFAULT_MIN_CELLS
+    """Zones of fewer cells are dropped."""
+    connectivity: Connectivity = "vertex"
+    """Which cells of a zone touch."""
     unit: str = "m"
     """Unit every length and roughness is shown in (the numbers here are metres)."""
     grids_chosen: str = "given"
@@ -102,6 +120,8 @@ def _section(
     threshold: float,
     min_points: int,
     plane: PlaneFit,
+    min_cells: int,
+    connectivity: Connectivity,
     tick: Callable[[], None],
     stage: ProgressFn,
 ) -> GridSection:
@@ -131,11 +151,16 @@ def _section(
         str(name): semivariogram(result.ijk, result.values(name), g) for name in MAPS})
     for _ in MAPS:
         tick()
-    maps = _figure(figure_errors, "maps", g, lambda: _face_maps(result, plane, normalised,
-                                                               threshold))
+    maps = _figure(figure_errors, "maps", g,
+                   lambda: _face_maps(result, plane, normalised, threshold))
+    zones = _figure(figure_errors, "zones", g, lambda: ZoneLabeller.build(result, ZONES_MAP)
+                    .zones(threshold, connectivity=connectivity, min_cells=min_cells))
+    net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
+    tick()
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
-                       variograms=variograms or {}, maps=maps or {}, figure_errors=figure_errors)
+                       variograms=variograms or {}, maps=maps or {}, zones=zones,
+                       stereonet=net, figure_errors=figure_errors)
 
 
 #: Most pixels of one face-plane image. A face whose image at the grid size would be
@@ -176,6 +201,8 @@ def build_report(
     axis: str = "auto",
     threshold: float = 0.05,
     min_points: int = DEFAULT_MIN_POINTS,
+    min_cells: int = DEFAULT_MIN_CELLS,
+    connectivity: Connectivity = "vertex",
     unit: str | None = None,
     progress: ProgressFn | None = None,
 ) -> Report:
@@ -188,13 +215,19 @@ def build_report(
     grid_sizes : sequence of float, optional
         Cell edges, metres; default from the point spacing
         (:func:`rough_viewer.grid.spacing.preset_cell_sizes`: the size at which the
-        median occupied cell holds 16 points, times 8, 4, 2 and 1).
+        median occupied cell holds 16 points, times 8, 4, 2 and 1). The paper's are
+        :data:`rough_viewer.vocabulary.PAPER_GRIDS`.
     axis : {"auto", "x", "y", "z"}
         Dependent axis of OLS and hybrid.
     threshold : float
         Binary transform threshold on normalised roughness (paper: 0.05).
     min_points : int
         Cells with fewer points get no value.
+    min_cells : int
+        Zones (connected cells at or above ``threshold``, ODR) of fewer cells are
+        dropped.
+    connectivity : {"vertex", "edge", "face"}
+        Which cells of a zone touch.
     unit : {"m", "mm", "ft", "us-ft"}, optional
         Unit to show lengths in (default: the unit the file was in,
         ``cloud.source_unit``); the numbers stay metres.
@@ -209,6 +242,10 @@ def build_report(
     """
     if cloud.n < 3:
         raise InputError(f"need at least 3 points, got {cloud.n} ({cloud.source or 'cloud'})")
+    if connectivity not in CONNECTIVITIES:
+        raise InputError(f"unknown connectivity {connectivity!r}; expected vertex, edge or face")
+    if int(min_cells) != min_cells or min_cells < 1:
+        raise InputError(f"min cells must be a whole number >= 1, got {min_cells}")
     chosen = "given" if grid_sizes is not None else "default"
     if grid_sizes is None:
         grid_sizes = preset_cell_sizes(cloud)
@@ -242,7 +279,8 @@ def build_report(
         base = STEPS_PER_GRID * i
         done = base + ROUGHNESS_STAGES
         sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
-                                 min_points=min_points, plane=plane, tick=tick, stage=stage))
+                                 min_points=min_points, plane=plane, min_cells=min_cells,
+                                 connectivity=connectivity, tick=tick, stage=stage))
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
@@ -261,6 +299,8 @@ def build_report(
         plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
+        min_cells=int(min_cells),
+        connectivity=connectivity,
         unit=display_unit,
         grids_chosen=chosen,
         warnings=cloud.warnings + _coverage_warnings(sections, display_unit),

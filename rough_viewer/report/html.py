@@ -10,35 +10,67 @@ import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES
+from rough_viewer.visual.colormaps import zone_colour
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     """The plotly figures of one grid section, keyed by a short file-name-safe name:
-    ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``.
-    Empty when the section has an error."""
+    ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``,
+    ``zones_table``, ``zones_map``, ``stereonet``. Empty when the section has an
+    error; a figure that cannot be drawn (memory) is left out
+    (:func:`figures_and_errors` says why)."""
+    return figures_and_errors(report, section)[0]
+
+
+def figures_and_errors(report: Report, section: GridSection
+                       ) -> tuple[dict[str, Any], dict[str, str]]:
+    """The figures of :func:`report_figures` and, for each one that could not be
+    drawn, why (an InputError from a memory check, or MemoryError): one figure never
+    takes the others with it."""
     from rough_viewer.visual.grid import (
         face_map_figure,
         histogram_figure,
         summary_table_figure,
         variogram_figure,
     )
+    from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
 
     if section.error is not None:
-        return {}
+        return {}, {}
+    errors: dict[str, str] = {}
+
+    def draw(key: str, make: Any) -> None:
+        try:
+            figures[key] = make()
+        except InputError as exc:
+            errors[key] = str(exc)
+        except MemoryError:
+            errors[key] = f"not enough memory to draw the {key} figure"
+
     kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
                           "n_points": report.n_points, "unit": report.unit}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
-    figures: dict[str, Any] = {"summary": summary_table_figure(section.summaries, **kw)}
+    figures: dict[str, Any] = {}
+    draw("summary", lambda: summary_table_figure(section.summaries, **kw))
     if maps:  # absent when the face maps could not be made (section.figure_errors)
-        figures["maps_normalised"] = face_map_figure(maps, kind="normalised", **kw)
-        figures["maps_binary"] = face_map_figure(maps, kind="binary", **kw)
-    figures["histogram"] = histogram_figure(
-        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw)
+        draw("maps_normalised", lambda: face_map_figure(maps, kind="normalised", **kw))
+        draw("maps_binary", lambda: face_map_figure(maps, kind="binary", **kw))
+    draw("histogram", lambda: histogram_figure(
+        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw))
     if section.variograms:
-        figures["variogram"] = variogram_figure(
-            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw)
-    return figures
+        draw("variogram", lambda: variogram_figure(
+            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw))
+    zones, net, result = section.zones, section.stereonet, section.result
+    if zones is not None and net is not None and result is not None:
+        shown = range(1, min(zones.n_zones, STEREONET_ZONES) + 1)
+        zkw = {k: v for k, v in kw.items() if k != "unit"}  # zone figures are in metres
+        draw("zones_table", lambda: zones_table_figure(zones, **zkw))
+        draw("zones_map", lambda: zones_map_figure(zones, result, plane=report.plane))
+        draw("stereonet", lambda: stereonet_figure(
+            net, highlight={f"zone {k}": zones.labels == k for k in shown},
+            colours={f"zone {k}": zone_colour(k) for k in shown}, **zkw))
+    return figures, errors
 
 
 def png_name(grid_size: float, figure: str) -> str:
@@ -46,7 +78,10 @@ def png_name(grid_size: float, figure: str) -> str:
     return f"g{grid_size:g}_{figure}.png"
 
 
-FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram")
+FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram",
+                "zones_table", "zones_map", "stereonet")
+STEREONET_ZONES = 6
+"""The largest zones whose poles the report's stereonet highlights."""
 
 
 _CSS = """
@@ -106,7 +141,13 @@ def report_html(report: Report) -> str:
         "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
         "between cell centres, bins of one cell size up to half the largest extent "
         "(shorter where noted, to fit in memory), "
-        "divided by the map's variance.</p>",
+        "divided by the map's variance. Zones: connected cells (" + esc(report.connectivity)
+        + f" connectivity) whose normalised ODR roughness is at or above {report.threshold:g}, "
+        f"groups of fewer than {report.min_cells} cells dropped, ids by size; area on the "
+        "whole-cloud ODR plane; trace = long axis of the cell centres as azimuth/plunge, "
+        "orientation = point-weighted mean ODR normal as dip/dip direction (z up, azimuths "
+        "clockwise from +y); stereonet: poles of every cell's ODR plane, lower hemisphere, "
+        "equal area, contours in multiples of a uniform distribution (MUD).</p>",
     ]
     for line in report.warnings:
         parts.append(f'<p class="error">warning: {esc(line)}</p>')
@@ -125,14 +166,21 @@ def report_html(report: Report) -> str:
                 f'{cells["below_min_points"]:,} below {report.min_points} points, '
                 f'{cells["degenerate"]:,} degenerate.</p>'
             )
-        for key, why in s.figure_errors.items():
+        figures, drawing_errors = figures_and_errors(report, s)
+        for key, why in {**s.figure_errors, **drawing_errors}.items():
             parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
         limited = sorted({f"{vg.max_lag / per:g} {u}" for vg in s.variograms.values()
                           if vg.lag_limited})
         if limited:
             parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
                          "to fit in memory (default: half the largest extent).</p>")
-        for key, fig in report_figures(report, s).items():
+        for key, fig in figures.items():
+            if key == "zones_table":
+                z = s.zones
+                parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
+                if z is not None:
+                    parts.append(f'<p class="note">{z.n_zones:,} zones holding '
+                                 f'{int(z.cells.sum()):,} cells.</p>')
             div = fig.to_html(full_html=False, include_plotlyjs=False,
                               div_id=f"{sid}-{key}", config={"displaylogo": False})
             parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')

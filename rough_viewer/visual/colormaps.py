@@ -517,3 +517,33 @@ def colour_ticks(
         positions=positions(values / scale, colour_range),
         labels=tuple(format_tick(t, step) for t in ticks),
     )
+
+
+# ----------------------------------------------------------------------------- zones
+
+#: Distinct colours of zones (qualitative, after Tableau 10 without its grey), cycled
+#: by zone id: zone ``k`` (1..Z) takes ``ZONE_PALETTE[(k - 1) % len(ZONE_PALETTE)]``.
+ZONE_PALETTE: tuple[str, ...] = (
+    "#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948",
+    "#b07aa1", "#ff9da7", "#9c755f", "#17becf", "#8c6d31", "#393b79",
+)
+
+
+def zone_colour(zone: int) -> str:
+    """``"#rrggbb"`` of zone ``zone`` (1..Z); the neutral grey for 0 (in no zone).
+
+    >>> zone_colour(1), zone_colour(13), zone_colour(0)
+    ('#4e79a7', '#4e79a7', '#bebebe')
+    """
+    if zone <= 0:
+        return "#{:02x}{:02x}{:02x}".format(*NEUTRAL_RGB)
+    return ZONE_PALETTE[(int(zone) - 1) % len(ZONE_PALETTE)]
+
+
+def zone_colours(labels: np.ndarray, *, none_rgb: tuple[int, int, int] = NEUTRAL_RGB) -> np.ndarray:
+    """``(N, 3)`` uint8 colours of zone ids (0 = in no zone -> ``none_rgb``)."""
+    table = np.array([hex_to_rgb(c) for c in ZONE_PALETTE], dtype=np.uint8)
+    lab = np.asarray(labels).astype(np.int64)
+    out = table[(np.maximum(lab, 1) - 1) % len(ZONE_PALETTE)]
+    out[lab <= 0] = np.asarray(none_rgb, dtype=np.uint8)
+    return out

@@ -334,3 +334,42 @@ def test_command_units_mm_scale_every_length(cloud_file, cloud, tmp_path):
     text = html_out.read_text()
     assert "Grid 500 mm" in text and "lag (mm)" in text
     assert "std\\u003cbr\\u003e(mm)" in text  # Table 1 header, as plotly escapes it
+
+
+def test_zones_section_in_json_matches_the_labeller(cloud, report):
+    from rough_viewer.grid.orientation import cell_stereonet
+    from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller
+
+    data = json.loads(json.dumps(report_json(report), allow_nan=False))
+    assert data["min_cells"] == 3 and data["connectivity"] == "vertex"
+    for entry, g in zip(data["grids"], GOOD, strict=False):
+        ref = grid_roughness(cloud, g, axis=report.axis)
+        zones = ZoneLabeller.build(ref).zones(report.threshold)
+        z = entry["zones"]
+        assert z["map"] == "odr" and z["threshold"] == report.threshold
+        assert z["columns"] == list(ZONE_COLUMNS)
+        assert z["count"] == zones.n_zones == len(z["rows"])
+        assert z["cells_in_zones"] == int(zones.cells.sum())
+        table = zones.table()
+        for k, row in enumerate(z["rows"]):
+            for name, value in zip(ZONE_COLUMNS, row, strict=True):
+                assert value == pytest.approx(float(table[name][k]), rel=1e-12, abs=1e-12)
+        net = cell_stereonet(ref)
+        assert z["stereonet"]["poles"] == net.n_poles
+        dens = np.array([[np.nan if v is None else v for v in r]
+                         for r in z["stereonet"]["density_mud"]])
+        np.testing.assert_allclose(dens, net.density, rtol=1e-12, equal_nan=True)
+    assert "zones" not in data["grids"][2]  # the grid size with too few cells
+
+
+def test_report_zone_options_and_their_checks(cloud):
+    rep = build_report(cloud, [0.25], threshold=0.3, min_cells=5, connectivity="face")
+    zones = rep.sections[0].zones
+    assert zones is not None and zones.connectivity == "face" and zones.min_cells == 5
+    assert np.all(zones.cells >= 5)
+    from rough_viewer.vocabulary import InputError
+
+    with pytest.raises(InputError, match="connectivity"):
+        build_report(cloud, [0.25], connectivity="corner")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="min cells"):
+        build_report(cloud, [0.25], min_cells=0)

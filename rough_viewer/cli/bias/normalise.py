@@ -80,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     residual = args.residual
     with naming(args.input):
         if args.classes == "truth":
+            assert truth is not None  # --classes truth needs --truth-dim (checked above)
             asperity = truth
             cls = None
         else:
