@@ -12,7 +12,7 @@ process's peak resident memory (``VmHWM``) before and after is printed (medians 
 - a 64 MiB upload that announced 1 MiB (cut off);
 - a 20,000-point LAZ whose header declares 50,000,000 points (uploaded, and through
   "Load file");
-- an accepted 12 MiB text upload (streamed to disk, then parsed).
+- an accepted 13 MiB text upload of 400,000 points (streamed to disk, then parsed).
 
 ``--cache`` also prints the bytes the grid cache holds on the demo outcrop per
 grid size (the budget is ``rough_viewer.app.limits.CACHE_BYTES``).
@@ -105,7 +105,7 @@ def main() -> None:
     ap.add_argument("--cache", action="store_true", help="also the grid cache on the demo")
     args = ap.parse_args()
     cases = ["refused 200 MiB upload", "64 MiB upload announced as 1 MiB",
-             "LAZ bomb, uploaded", "LAZ bomb, Load file", "accepted 12 MiB text upload"]
+             "LAZ bomb, uploaded", "LAZ bomb, Load file", "accepted text upload, 400,000 points"]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         _data(folder)
