@@ -54,6 +54,7 @@ from rough_viewer.app.limits import (
     DEFAULT_MAX_UPLOAD_MB,
     MAX_ERRORS,
     MAX_JOB_RECORDS,
+    MAX_MESSAGE,
     MAX_PENDING_JOBS,
     MAX_TIMINGS,
 )
@@ -232,9 +233,9 @@ class App:
     def show_error(self, message: str, *, kept: str = "The previous view is kept.") -> None:
         """Show an error under the status line and as a notice (escaped, shortened)."""
         self.errors.append(message)
-        self.gui.error.content = f"**Error:** {md(message, max_chars=300)}  \n{kept}"
+        self.gui.error.content = f"**Error:** {md(message, max_chars=MAX_MESSAGE)}  \n{kept}"
         self.gui.error.visible = True
-        self.notify("Error", message[:300], color="red", seconds=10.0)
+        self.notify("Error", message[:MAX_MESSAGE], color="red", seconds=10.0)
 
     def clear_error(self) -> None:
         if self.gui.error.visible:
