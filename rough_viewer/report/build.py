@@ -13,7 +13,7 @@ from typing import TypeVar
 import numpy as np
 
 from rough_viewer import __version__
-from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
+from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, grid_roughness
@@ -170,15 +170,21 @@ def _section(
 FACE_IMAGE_MAX_PIXELS = 4_000_000
 
 
-def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
-               threshold: float) -> dict[str, FaceMaps]:
+def report_raster(result: GridRoughness, plane: PlaneFit) -> FaceRaster:
+    """The face-plane raster of a result's cells for the report's images: pixels of
+    the grid size, or of 2, 4, 8 ... times it when the image would exceed
+    :data:`FACE_IMAGE_MAX_PIXELS` (each pixel then shows the max of its cells)."""
     g = result.grid.cell_size
     raster = face_raster(result.centre, plane, g)
     k = 1
     while (raster.shape[0] // k + 1) * (raster.shape[1] // k + 1) > FACE_IMAGE_MAX_PIXELS:
         k *= 2
-    if k > 1:
-        raster = face_raster(result.centre, plane, g * k)
+    return raster if k == 1 else face_raster(result.centre, plane, g * k)
+
+
+def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
+               threshold: float) -> dict[str, FaceMaps]:
+    raster = report_raster(result, plane)
     return {str(name): face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
 
 

@@ -9,7 +9,13 @@ from typing import Any
 import numpy as np
 
 from rough_viewer.grid.maps import face_frame
-from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
+from rough_viewer.report.build import (
+    FACE_MAP_ORDER,
+    VARIOGRAM_FIGURE_MAPS,
+    GridSection,
+    Report,
+    report_raster,
+)
 from rough_viewer.visual.colormaps import zone_colour
 from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError
 
@@ -66,7 +72,8 @@ def figures_and_errors(report: Report, section: GridSection
         shown = range(1, min(zones.n_zones, STEREONET_ZONES) + 1)
         zkw = {k: v for k, v in kw.items() if k != "unit"}  # zone figures are in metres
         draw("zones_table", lambda: zones_table_figure(zones, **zkw))
-        draw("zones_map", lambda: zones_map_figure(zones, result, plane=report.plane))
+        draw("zones_map", lambda: zones_map_figure(zones, result, plane=report.plane,
+                                                   raster=report_raster(result, report.plane)))
         draw("stereonet", lambda: stereonet_figure(
             net, highlight={f"zone {k}": zones.labels == k for k in shown},
             colours={f"zone {k}": zone_colour(k) for k in shown}, **zkw))

@@ -271,8 +271,10 @@ def test_far_apart_parts_get_coarser_face_pixels_not_a_dense_box():
     img = s.maps["odr"].normalised
     assert img.image.size <= FACE_IMAGE_MAX_PIXELS and img.cell_size == 0.5 * 64
     # the figure may reduce further for display (at most 500,000 pixels a panel)
-    found = re.search(r"each pixel the max of (\d+) x \1 cells", report_html(report))
+    html = report_html(report)
+    found = re.search(r"each pixel the max of (\d+) x \1 cells", html)
     assert found and int(found.group(1)) >= 64
+    assert "no zones_map figure" not in html  # the zone map uses the same coarse raster
 
 
 def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it(monkeypatch):
