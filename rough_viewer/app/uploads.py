@@ -177,7 +177,7 @@ class Uploads:
             return
         try:
             t.fh.write(content)
-        except OSError:
+        except (OSError, ValueError):  # ValueError: closed meanwhile (the browser left)
             self._abort(message.transfer_uuid, f"{t.name}: the server could not store the upload")
             return
         t.next_part += 1

@@ -107,7 +107,7 @@ def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
     assert app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1
     client.close()
     end = time.time() + 10
-    while app.uploads.active and time.time() < end:
+    while (app.uploads.active or list(app.uploads.folder.iterdir())) and time.time() < end:
         time.sleep(0.05)
     assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
     assert app.shown.loaded.cloud is cloud
