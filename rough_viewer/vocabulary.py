@@ -88,6 +88,18 @@ HISTOGRAM_BIN = 0.05
 PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 """The 2011 paper's grid sizes, metres."""
 
+# ----------------------------------------------------------------------------- units
+
+Unit = Literal["m", "mm", "ft", "us-ft"]
+"""A length unit of input coordinates and of what the user sees (``--units``)."""
+CrsUnit = Literal["m", "ft", "us-ft"]
+"""A linear unit a coordinate reference system can declare."""
+UNITS: tuple[Unit, ...] = ("m", "mm", "ft", "us-ft")
+UNIT_METRES: dict[str, float] = {"m": 1.0, "mm": 1e-3, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
+"""Metres per unit (the US survey foot is exactly 1200/3937 m)."""
+UNIT_LABELS: dict[str, str] = {"m": "m", "mm": "mm", "ft": "ft", "us-ft": "US ft"}
+"""How each unit is written after a number."""
+
 # ----------------------------------------------------------------------------- profiles
 
 Decomposition = Literal["dwt", "wp"]

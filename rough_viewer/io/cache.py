@@ -2,7 +2,9 @@
 open of the same file is near-instant.
 
 Entries are keyed by the file's resolved path, size and modification time, and a
-format version; a cache that cannot be written is no error.
+format version; a cache that cannot be written is no error. Version 2 (every point
+format decoded with its z layer, RGB and reader warnings kept) never serves an entry
+written by version 1, whose LAS 1.4 z values could be wrong.
 """
 
 from __future__ import annotations
@@ -29,9 +31,15 @@ def cache_dir() -> Path:
     return Path(base) / "rough_viewer"
 
 
+#: Changed whenever what a decode produces changes, so old entries are never served.
+CACHE_VERSION = "v2-z-rgb"
+
+
 def cache_key(p: Path) -> str:
+    """Folder name of ``p``'s entry: a hash of its resolved path, size, modification
+    time and :data:`CACHE_VERSION`."""
     st = p.stat()
-    ident = f"{p.resolve()}|{st.st_size}|{st.st_mtime_ns}|v1"
+    ident = f"{p.resolve()}|{st.st_size}|{st.st_mtime_ns}|{CACHE_VERSION}"
     return hashlib.sha1(ident.encode()).hexdigest()[:20]
 
 
@@ -41,11 +49,13 @@ def cache_read(p: Path) -> PointCloud | None:
         meta = json.loads((folder / "meta.json").read_text())
         cols = [np.load(folder / f"{c}.npy") for c in "xyz"]
         inten = np.load(folder / "intensity.npy") if meta.get("intensity") else None
+        rgb = np.load(folder / "rgb.npy") if meta.get("rgb") else None
     except (OSError, ValueError):
         return None
     return PointCloud(
         x=cols[0], y=cols[1], z=cols[2], intensity=inten, source=str(p),
-        dropped_nonfinite=int(meta.get("dropped", 0)),
+        dropped_nonfinite=int(meta.get("dropped", 0)), rgb=rgb,
+        warnings=tuple(str(w) for w in meta.get("warnings", ())),
     )
 
 
@@ -59,8 +69,11 @@ def cache_write(p: Path, cloud: PointCloud) -> None:
             np.save(tmp / f"{c}.npy", getattr(cloud, c))
         if cloud.intensity is not None:
             np.save(tmp / "intensity.npy", cloud.intensity)
+        if cloud.rgb is not None:
+            np.save(tmp / "rgb.npy", cloud.rgb)
         meta = {"source": str(p), "intensity": cloud.intensity is not None,
-                "dropped": cloud.dropped_nonfinite}
+                "rgb": cloud.rgb is not None, "dropped": cloud.dropped_nonfinite,
+                "warnings": list(cloud.warnings), "version": CACHE_VERSION}
         (tmp / "meta.json").write_text(json.dumps(meta))
         try:
             os.replace(tmp, final)
