@@ -156,7 +156,8 @@ def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex)
 
 
 def index_points(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *, engine: Engine = "numpy"
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *, engine: Engine = "numpy",
+    dense_limit: int = DENSE_LIMIT,
 ) -> CellIndex:
     """Assign every point to its grid cell.
 
@@ -169,6 +170,9 @@ def index_points(
     engine : {"numpy", "numba", "auto"}
         ``numpy``: this module's reference code; ``numba``: the compiled kernels of
         :mod:`rough_viewer.grid.fast` (same keys).
+    dense_limit : int
+        Dense bookkeeping (two int64 per grid cell) is used up to this many cells of
+        the grid or ``4 N``, whichever is larger; beyond, a sort (the same result).
 
     Returns
     -------
@@ -181,7 +185,7 @@ def index_points(
     compiled = fast.resolve_engine(engine) == "numba"
     n = int(x.shape[0])
     total = grid.n_cells
-    dense = total <= max(DENSE_LIMIT, 4 * n)
+    dense = total <= max(int(dense_limit), 4 * n)
     if compiled:
         key = fast.cell_keys(x, y, z, grid.origin, grid.cell_size, grid.index_min, grid.shape)
     else:

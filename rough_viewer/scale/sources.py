@@ -1,0 +1,234 @@
+"""The files of one merged cloud, and reading them in chunks of points.
+
+A :class:`Source` is one input file with what its header says (point count,
+bounding box, unit); :func:`open_sources` checks a list of them; :func:`chunk_plan`
+cuts them into :class:`Chunk` s (file, first point, end) that any process can read
+on its own with :func:`read_chunk` (LAS/LAZ seek to the chunk's first point; LAZ
+decodes through the parallel lazrs backend). Coordinates come out in metres with the
+same arithmetic as :func:`rough_viewer.io.load.load_points` (``X * scale + offset``,
+then the unit's metres-per-unit factor), so a chunk's points are bit for bit the
+points the in-memory path reads.
+
+Only LAS/LAZ files stream. Other formats have no random access, so each is one
+chunk, read whole (it must fit in the memory budget by itself).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
+
+#: Suffixes read in chunks straight from the file.
+STREAMED = (".las", ".laz")
+
+
+@dataclass(frozen=True)
+class Source:
+    """One input file of a merged cloud, as its header describes it."""
+
+    path: str
+    """The file."""
+    n_points: int
+    """Points in the file (LAS header count; for other formats the finite points)."""
+    bounds_min: np.ndarray
+    """(3,) smallest x, y, z, metres (LAS: from the header; checked while reading)."""
+    bounds_max: np.ndarray
+    """(3,) largest x, y, z, metres."""
+    unit: str
+    """Unit of the file's coordinates (``m``, ``mm``, ``ft``, ``us-ft``)."""
+    streamed: bool
+    """True for LAS/LAZ (read chunk by chunk); False: read whole."""
+    dropped_nonfinite: int = 0
+    """Rows with NaN or infinite coordinates (formats other than LAS), dropped."""
+    warnings: tuple[str, ...] = ()
+    """What the user should know about this file (units against its CRS, ...)."""
+
+    @property
+    def factor(self) -> float:
+        """Metres per unit of the file's coordinates."""
+        return UNIT_METRES[self.unit]
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Points ``[start, stop)`` of source number ``source``."""
+
+    source: int
+    start: int
+    stop: int
+
+    @property
+    def n(self) -> int:
+        """Number of points."""
+        return self.stop - self.start
+
+
+def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
+    import laspy
+
+    from rough_viewer.io.las import laz_backend
+
+    with laspy.open(p, laz_backend=laz_backend()) as reader:
+        hdr = reader.header
+        n = int(hdr.point_count)
+        lo = np.asarray(hdr.mins, dtype=np.float64)
+        hi = np.asarray(hdr.maxs, dtype=np.float64)
+    if n < 1:
+        raise InputError(f"no points in {p}")
+    f = UNIT_METRES[unit]
+    if f != 1.0:
+        lo, hi = lo * f, hi * f
+    return Source(path=str(p), n_points=n, bounds_min=lo, bounds_max=hi, unit=unit,
+                  streamed=True, warnings=notes)
+
+
+def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
+                 ) -> list[Source]:
+    """Describe the files of one merged cloud from their headers.
+
+    LAS/LAZ headers give the point count and bounding box without decoding a
+    point; other formats are read once here (whole) for theirs.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The files (any format :func:`~rough_viewer.io.load.load_points` reads).
+    units : {"m", "mm", "ft", "us-ft"}, optional
+        Unit of every file's coordinates; default each file's CRS unit, else metres.
+
+    Raises
+    ------
+    InputError
+        A file that cannot be read, has no points, or none at all given.
+    """
+    from rough_viewer.io.load import SUPPORTED_SUFFIXES, load_points, resolve_units
+
+    if not paths:
+        raise InputError("no input files")
+    out: list[Source] = []
+    for path in paths:
+        p = Path(path)
+        suffix = p.suffix.lower()
+        if suffix in STREAMED:
+            if not p.is_file():
+                raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+            try:
+                unit, notes = resolve_units(p, units)
+                out.append(_las_source(p, unit, notes))
+            except InputError:
+                raise
+            except Exception as exc:  # laspy and lazrs raise their own types
+                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise InputError(f"cannot read {p}: {msg}") from None
+        else:
+            if suffix not in SUPPORTED_SUFFIXES:
+                load_points(p)  # raises the one message for unknown types
+            cloud = load_points(p, units=units)
+            lo, hi = cloud.bounds()
+            out.append(Source(path=str(p), n_points=cloud.n, bounds_min=lo, bounds_max=hi,
+                              unit=cloud.source_unit, streamed=False,
+                              dropped_nonfinite=cloud.dropped_nonfinite,
+                              warnings=tuple(cloud.warnings)))
+    return out
+
+
+def chunk_plan(sources: Sequence[Source], chunk_points: int) -> list[Chunk]:
+    """Cut every streamed file into chunks of at most ``chunk_points`` points (other
+    files are one chunk each), in file order."""
+    size = max(1, int(chunk_points))
+    chunks: list[Chunk] = []
+    for i, s in enumerate(sources):
+        if not s.streamed:
+            chunks.append(Chunk(i, 0, s.n_points))
+            continue
+        for start in range(0, s.n_points, size):
+            chunks.append(Chunk(i, start, min(s.n_points, start + size)))
+    return chunks
+
+
+def _scaled_columns(points, hdr, factor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, z in metres from a laspy point record: ``X * scale + offset`` per axis
+    (as :func:`rough_viewer.io.las.read_las`), times metres-per-unit."""
+    scale = np.asarray(hdr.scales, dtype=np.float64)
+    offset = np.asarray(hdr.offsets, dtype=np.float64)
+    cols = []
+    for raw, k in ((points.X, 0), (points.Y, 1), (points.Z, 2)):
+        col = np.multiply(raw, scale[k])
+        col += offset[k]
+        if factor != 1.0:
+            col = col * factor
+        cols.append(col)
+    return cols[0], cols[1], cols[2]
+
+
+def _open_las(path: str):
+    import laspy
+
+    from rough_viewer.io.las import _selection, laz_backend
+
+    reader = laspy.open(path, laz_backend=laz_backend())
+    reader.decompression_selection = _selection(reader.header.point_format)
+    return reader
+
+
+def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points of one chunk as three float64 columns, metres.
+
+    Opens the file, seeks to the chunk's first point and decodes its points only;
+    a file of another format is read whole (it is one chunk).
+    """
+    if not source.streamed:
+        from rough_viewer.io.load import load_points
+
+        cloud = load_points(source.path, units=source.unit)  # type: ignore[arg-type]
+        return (cloud.x[chunk.start:chunk.stop], cloud.y[chunk.start:chunk.stop],
+                cloud.z[chunk.start:chunk.stop])
+    try:
+        with _open_las(source.path) as reader:
+            if chunk.start:
+                reader.seek(chunk.start)
+            points = reader.read_points(chunk.n)
+            if len(points) != chunk.n:
+                raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
+                                 f"the {source.n_points:,} points its header declares")
+            return _scaled_columns(points, reader.header, source.factor)
+    except InputError:
+        raise
+    except Exception as exc:  # laspy and lazrs raise their own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {source.path}: {msg}") from None
+
+
+def iter_chunks(source: Source, index: int, chunk_points: int
+                ) -> Iterator[tuple[Chunk, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+    """The chunks of one file in order, from one open reader (the sequential path);
+    the same chunks and points as :func:`chunk_plan` and :func:`read_chunk`."""
+    if not source.streamed:
+        c = Chunk(index, 0, source.n_points)
+        yield c, read_chunk(source, c)
+        return
+    size = max(1, int(chunk_points))
+    try:
+        with _open_las(source.path) as reader:
+            start = 0
+            while start < source.n_points:
+                want = min(size, source.n_points - start)
+                points = reader.read_points(want)
+                if len(points) != want:
+                    raise InputError(f"{source.path} ended after {start + len(points):,} of "
+                                     f"the {source.n_points:,} points its header declares")
+                cols = _scaled_columns(points, reader.header, source.factor)
+                del points
+                yield Chunk(index, start, start + want), cols
+                start += want
+    except InputError:
+        raise
+    except Exception as exc:  # laspy and lazrs raise their own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {source.path}: {msg}") from None
