@@ -2,12 +2,15 @@
 
 Contract (other tools script against it)::
 
-    rough-viewer compute INPUT --grid G [--grid G2 ...] [--method odr|ols|hybrid|all]
-        [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed]
-        --out CELLS.csv [--summary-json SUMMARY.json] [--force] [--quiet]
+    rough-viewer compute INPUT [INPUT ...] --grid G [--grid G2 ...]
+        [--method odr|ols|hybrid|all] [--axis auto|x|y|z] [--min-points K]
+        [--origin X,Y,Z] [--signed] [--memory SIZE] [--scheduler threads|processes|tcp://H:P]
+        [--workers N] --out CELLS.csv [--summary-json SUMMARY.json] [--force] [--quiet]
 
-With several ``--grid`` values each output name gets ``_g<G>`` before its
-extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``).
+Several inputs (files or quoted globs) are one merged cloud. With several ``--grid``
+values each output name gets ``_g<G>`` before its extension (``cells.csv`` ->
+``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--memory`` streams the points in chunks
+within that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md).
 """
 
 from __future__ import annotations
@@ -15,12 +18,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
@@ -39,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
         "and write one CSV row per cell.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
                    help="grid cell size in metres (repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
@@ -54,6 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="RMS of signed distances instead of the std of absolute distances")
     p.add_argument("--out", required=True, metavar="CELLS.csv", help="per-cell CSV output")
     p.add_argument("--summary-json", metavar="SUMMARY.json", help="Table-1 summary as JSON")
+    add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -130,10 +135,11 @@ def summary_dict(result, cloud_source: str, dropped: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.io import load_points
     from rough_viewer.vocabulary import MODELS
 
     grids = list(dict.fromkeys(args.grid))
@@ -152,26 +158,28 @@ def run(args: argparse.Namespace) -> int:
             for g in grids
         }
     quiet = args.quiet
-    cloud = load_points(args.input, progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    if cloud.dropped_nonfinite:
-        print(
-            f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-            f"coordinates from {args.input}",
-            file=sys.stderr,
-        )
+    paths = input_paths(args)
+    source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
-    for i, g in enumerate(grids):
-        result = grid_roughness(
+    residual = "signed" if args.signed else "absolute"
+    if wants_chunks(args):
+        results, dropped = chunked_results(args, paths, grids, origin=origin, models=models,
+                                           residual=residual)
+    else:
+        cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+        dropped = cloud.dropped_nonfinite
+        results = (grid_roughness(
             cloud, g, origin=origin, min_points=args.min_points, axis=args.axis,
-            models=models, residual="signed" if args.signed else "absolute",
-            progress=None if quiet else ProgressBar(f"grid {g:g} m"),
-        )
+            models=models, residual=residual,
+            progress=None if quiet else ProgressBar(f"grid {g:g} m", unit="step"),
+        ) for g in grids)
+    for i, (g, result) in enumerate(zip(grids, results, strict=True)):
         write_cells_csv(outs[g], result)
         if g in jsons:
-            data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
+            data = summary_dict(result, source, dropped)
             write_atomic(jsons[g], lambda fh, d=data: json.dump(d, fh, indent=2))
         if i:
             print()
-        print(format_table(result, source=str(args.input)))
+        print(format_table(result, source=source))
         print(f"wrote {outs[g]}" + (f" and {jsons[g]}" if g in jsons else ""))
     return 0

@@ -465,7 +465,7 @@ def cell_thetas(
 ) -> dict[str, np.ndarray]:
     """Roughness of every cell per model from the distance sums (NaN where none)."""
     m_cells = counts.shape[0]
-    theta = {name: np.full(m_cells, np.nan) for name in MODELS}
+    theta: dict[str, np.ndarray] = {name: np.full(m_cells, np.nan) for name in MODELS}
     n_f = counts.astype(np.float64)
     if planes.need_odr:
         t = _theta(*sums["odr"], n_f, signed=signed)

@@ -41,8 +41,9 @@ from typing import Protocol
 import numpy as np
 
 from rough_viewer.grid.cells import GridSpec, make_grid
-from rough_viewer.grid.planes import dominant_axis
+from rough_viewer.grid.planes import PlaneFit, dominant_axis
 from rough_viewer.grid.roughness import (
+    CellPlanes,
     GridRoughness,
     assemble_roughness,
     cell_planes,
@@ -262,15 +263,16 @@ def chunked_roughness(
                 "left for them; give more memory or a larger grid size")
 
     n_passes = 2
-    done = {"all": 0, "files": [0] * len(sources)}
+    done_all = [0]
+    done_files = [0] * len(sources)
 
     def on_chunk(chunk: Chunk) -> None:
-        done["all"] += chunk.n
-        done["files"][chunk.source] += chunk.n
+        done_all[0] += chunk.n
+        done_files[chunk.source] += chunk.n
         if progress:
-            progress(done["all"], n_passes * n_total)
+            progress(done_all[0], n_passes * n_total)
         if file_progress:
-            file_progress[chunk.source](done["files"][chunk.source],
+            file_progress[chunk.source](done_files[chunk.source],
                                         n_passes * sources[chunk.source].n_points)
 
     lo = np.min([s.bounds_min for s in sources], axis=0)
@@ -290,36 +292,55 @@ def chunked_roughness(
             raise InputError("points moved between two reads of the same files")
         lo, hi = exact_lo, exact_hi  # a header's box was wrong: again, on the measured box
         n_passes = 3
-    results: list[tuple[GridSpec, np.ndarray, PlaneTable, object, dict]] = []
-    plane_tables = []
+    stages: list[_GridStage] = []
     for grid, table in zip(grids, tables, strict=True):
         check(0, table.n_cells)
-        moments = moments_of(table)
-        ijk = decode_keys(table.keys, grid)
-        whole = whole_plane_from_moments(grid, ijk, moments)
-        used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
-        planes = cell_planes(moments, whole.normal, used_axis, int(min_points), models_t)
-        vectors = planes.distance_vectors()
-        names = tuple(vectors)
-        m = table.n_cells
-        plane_tables.append(PlaneTable(
-            keys=table.keys, names=names,
-            vectors=np.stack([vectors[k][0] for k in names]) if names else np.empty((0, m, 3)),
-            points=np.stack([vectors[k][1] for k in names]) if names else np.empty((0, m, 3))))
-        results.append((grid, ijk, plane_tables[-1], planes, {"whole": whole, "axis": used_axis}))
-    dist = run.map_reduce(sources, chunk_points, Pass2(grids, tuple(plane_tables), engine),
+        stages.append(_plan_distances(grid, table, axis, int(min_points), models_t))
+    dist = run.map_reduce(sources, chunk_points,
+                          Pass2(grids, tuple(st.table for st in stages), engine),
                           len(grids), on_chunk, check)
     out = []
-    for (grid, ijk, ptable, planes, info), table in zip(results, dist, strict=True):
-        m = ijk.shape[0]
-        cols = np.zeros((m, table.values.shape[1]))
+    for st, table in zip(stages, dist, strict=True):
+        cols = np.zeros((st.ijk.shape[0], table.values.shape[1]))
         cols[table.keys] = table.values
-        sums = {name: (cols[:, 2 * q], cols[:, 2 * q + 1]) for q, name in enumerate(ptable.names)}
+        sums = {name: (cols[:, 2 * q], cols[:, 2 * q + 1])
+                for q, name in enumerate(st.table.names)}
         out.append(assemble_roughness(
-            grid, ijk, planes, sums, whole=info["whole"], axis=info["axis"],  # type: ignore[arg-type]
+            st.grid, st.ijk, st.planes, sums, whole=st.whole, axis=st.axis,
             axis_requested=axis, min_points=int(min_points), residual=residual,
             models=models_t, point_cell=np.empty(0, dtype=np.int64), n_points_total=n_total))
     return out
+
+
+@dataclass(frozen=True)
+class _GridStage:
+    """One grid between the passes: its cells, planes and what pass 2 needs."""
+
+    grid: GridSpec
+    ijk: np.ndarray
+    whole: PlaneFit
+    axis: Axis
+    planes: CellPlanes
+    table: PlaneTable
+
+
+def _plan_distances(grid: GridSpec, moments_table: Partial, axis: AxisChoice, min_points: int,
+                    models: tuple[Model, ...]) -> _GridStage:
+    """Planes of every cell from the summed moments (the in-memory code)."""
+    moments = moments_of(moments_table)
+    ijk = decode_keys(moments_table.keys, grid)
+    whole = whole_plane_from_moments(grid, ijk, moments)
+    used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
+    planes = cell_planes(moments, whole.normal, used_axis, min_points, models)
+    vectors = planes.distance_vectors()
+    names = tuple(vectors)
+    m = moments_table.n_cells
+    table = PlaneTable(
+        keys=moments_table.keys, names=names,
+        vectors=np.stack([vectors[k][0] for k in names]) if names else np.empty((0, m, 3)),
+        points=np.stack([vectors[k][1] for k in names]) if names else np.empty((0, m, 3)))
+    return _GridStage(grid=grid, ijk=ijk, whole=whole, axis=used_axis, planes=planes,
+                      table=table)
 
 
 __all__ = ["BYTES_PER_CELL", "BYTES_PER_POINT", "Pass1", "Pass2", "Runner", "SequentialRunner",

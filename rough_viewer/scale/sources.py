@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn, Unit
 
 #: Suffixes read in chunks straight from the file.
 STREAMED = (".las", ".laz")
@@ -111,6 +112,7 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
 
     if not paths:
         raise InputError("no input files")
+    notes = check_compatible(paths, units=units)
     out: list[Source] = []
     for path in paths:
         p = Path(path)
@@ -119,8 +121,8 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
             if not p.is_file():
                 raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
             try:
-                unit, notes = resolve_units(p, units)
-                out.append(_las_source(p, unit, notes))
+                unit, notes_p = resolve_units(p, units)
+                out.append(_las_source(p, unit, notes_p))
             except InputError:
                 raise
             except Exception as exc:  # laspy and lazrs raise their own types
@@ -135,6 +137,8 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
                               unit=cloud.source_unit, streamed=False,
                               dropped_nonfinite=cloud.dropped_nonfinite,
                               warnings=tuple(cloud.warnings)))
+    if notes:
+        out[0] = replace(out[0], warnings=out[0].warnings + notes)
     return out
 
 
@@ -232,3 +236,136 @@ def iter_chunks(source: Source, index: int, chunk_points: int
     except Exception as exc:  # laspy and lazrs raise their own types
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read {source.path}: {msg}") from None
+
+
+def _crs_name(info) -> str:
+    if info.epsg is not None:
+        return f"EPSG:{info.epsg}"
+    text = str(info.description or "")
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
+                     ) -> tuple[str, ...]:
+    """Refuse files that cannot be one cloud: different CRSs or different units.
+
+    Two files differ in CRS when both declare one (LAS/LAZ WKT or GeoTIFF keys, read
+    by :func:`rough_viewer.io.crs.read_crs`) and their EPSG codes (or, without
+    codes, their descriptions) differ; in unit when the units they are read in
+    (``units``, else each CRS's linear unit, else metres) differ.
+
+    Returns
+    -------
+    tuple of str
+        Warnings: files that declare no CRS beside files that do.
+
+    Raises
+    ------
+    InputError
+        Naming the two files and what differs.
+    """
+    from rough_viewer.io.crs import read_crs
+    from rough_viewer.io.load import resolve_units
+
+    if len(paths) < 2:
+        return ()
+    first_crs: tuple[Path, object] | None = None
+    first_unit: tuple[Path, str] | None = None
+    bare: list[Path] = []
+    for path in paths:
+        p = Path(path)
+        info = read_crs(p)
+        unit, _ = resolve_units(p, units)
+        if first_unit is None:
+            first_unit = (p, unit)
+        elif unit != first_unit[1]:
+            raise InputError(
+                f"{p} is in {unit} but {first_unit[0]} is in {first_unit[1]}: files of "
+                "different units cannot be merged into one cloud (convert them, or give "
+                "--units if the CRS records are wrong)")
+        if info.epsg is None and not info.description:
+            bare.append(p)
+            continue
+        if first_crs is None:
+            first_crs = (p, info)
+            continue
+        ref = first_crs[1]
+        same = (info.epsg == ref.epsg if info.epsg is not None and ref.epsg is not None  # type: ignore[attr-defined]
+                else info.description == ref.description)  # type: ignore[attr-defined]
+        if not same:
+            raise InputError(
+                f"{p} is in {_crs_name(info)} but {first_crs[0]} is in {_crs_name(ref)}: "
+                "files of different coordinate systems cannot be merged into one cloud "
+                "(reproject them to one CRS first)")
+    if first_crs is not None and bare:
+        names = ", ".join(str(b) for b in bare[:3]) + (" ..." if len(bare) > 3 else "")
+        return (f"{names} declare{'s' if len(bare) == 1 else ''} no CRS; taken to be in "
+                f"{_crs_name(first_crs[1])} like {first_crs[0]}",)
+    return ()
+
+
+def merge_clouds(clouds: Sequence[PointCloud]) -> PointCloud:
+    """One cloud of the points of several, in order (coordinates in metres).
+
+    Intensity and colour are kept where every cloud has them (colour of one dtype);
+    scan indices are renumbered so that scans of different files stay apart.
+    """
+    from rough_viewer.memory import require
+
+    if len(clouds) == 1:
+        return clouds[0]
+    n = sum(c.n for c in clouds)
+    require(n * 3 * 8 + sum(c.x.nbytes for c in clouds[:1]),
+            f"merging {len(clouds)} files ({n:,} points)",
+            hint="give --memory to stream the files in chunks instead")
+
+    def cat(get):
+        parts = [get(c) for c in clouds]
+        return None if any(p is None for p in parts) else np.concatenate(parts)
+
+    rgb = None
+    if all(c.rgb is not None for c in clouds) and len({c.rgb.dtype for c in clouds}) == 1:  # type: ignore[union-attr]
+        rgb = np.concatenate([c.rgb for c in clouds])  # type: ignore[misc]
+    scan_index = scanners = None
+    if all(c.scan_index is not None and c.scanner_positions is not None for c in clouds):
+        offsets: list[int] = np.cumsum(
+            [0] + [len(c.scanner_positions) for c in clouds[:-1]]).tolist()  # type: ignore[arg-type]
+        scan_index = np.concatenate([c.scan_index + o for c, o in zip(clouds, offsets, strict=True)])  # type: ignore[operator]
+        scanners = np.concatenate([c.scanner_positions for c in clouds])  # type: ignore[misc]
+    units = {c.source_unit for c in clouds}
+    return PointCloud(
+        x=np.concatenate([c.x for c in clouds]),
+        y=np.concatenate([c.y for c in clouds]),
+        z=np.concatenate([c.z for c in clouds]),
+        intensity=cat(lambda c: c.intensity),
+        source=" + ".join(c.source for c in clouds),
+        dropped_nonfinite=sum(c.dropped_nonfinite for c in clouds),
+        rgb=rgb,
+        scan_index=scan_index,
+        scanner_positions=scanners,
+        source_unit=units.pop() if len(units) == 1 else "m",
+        warnings=tuple(w for c in clouds for w in c.warnings),
+    )
+
+
+def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None,
+                progress: Sequence[ProgressFn] | None = None) -> PointCloud:
+    """Read several files (after :func:`check_compatible`) as one cloud, in memory.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The files.
+    units : {"m", "mm", "ft", "us-ft"}, optional
+        Unit of their coordinates (default: each file's CRS unit, else metres).
+    progress : sequence of callable, optional
+        One ``progress(done, total)`` per file.
+    """
+    from rough_viewer.io.load import load_points
+
+    if not paths:
+        raise InputError("no input files")
+    notes = check_compatible(paths, units=units)
+    clouds = [load_points(p, units=units, progress=None if progress is None else progress[i])
+              for i, p in enumerate(paths)]
+    return merge_clouds(clouds).with_warnings(*notes)
