@@ -269,6 +269,10 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
 
     if len(paths) < 2:
         return ()
+    for path in paths:
+        if not Path(path).is_file():
+            p = Path(path)
+            raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
     first_crs: tuple[Path, object] | None = None
     first_unit: tuple[Path, str] | None = None
     bare: list[Path] = []
