@@ -73,98 +73,14 @@ def resolve_engine(engine: Engine = "auto") -> Engine:
 
 @functools.cache
 def _kernels() -> dict[str, Any]:
-    """Compile (or load from numba's cache) the kernels; numba is imported here only."""
+    """The compiled kernels (numba is imported here only; compiled on first use and
+    cached on disk next to :mod:`rough_viewer.grid._kernels`)."""
     import numba
-    from numba import njit, prange
 
-    @njit(cache=True, parallel=True)
-    def keys(x, y, z, origin, g, index_min, nx, ny, out):  # pragma: no cover - compiled
-        n = x.shape[0]
-        for i in prange(n):
-            tz = np.floor((z[i] - origin[2]) / g) - index_min[2]
-            ty = np.floor((y[i] - origin[1]) / g) - index_min[1]
-            tx = np.floor((x[i] - origin[0]) / g) - index_min[0]
-            out[i] = np.int64(tz) * (nx * ny) + np.int64(ty * nx) + np.int64(tx)
+    from rough_viewer.grid import _kernels as k
 
-    @njit(cache=True)
-    def count(key, total):  # pragma: no cover - compiled
-        counts = np.zeros(total, dtype=np.int64)
-        for i in range(key.shape[0]):
-            counts[key[i]] += 1
-        return counts
-
-    @njit(cache=True, parallel=True)
-    def relabel(key, lookup):  # pragma: no cover - compiled
-        for i in prange(key.shape[0]):
-            key[i] = lookup[key[i]]
-
-    @njit(cache=True)
-    def moments_chunk(x, y, z, pc, cx, cy, cz, start, stop, acc):  # pragma: no cover
-        acc[:] = 0.0
-        for i in range(start, stop):
-            c = pc[i]
-            lx = x[i] - cx[c]
-            ly = y[i] - cy[c]
-            lz = z[i] - cz[c]
-            acc[c, 0] += lx
-            acc[c, 1] += ly
-            acc[c, 2] += lz
-            acc[c, 3] += lx * lx
-            acc[c, 4] += lx * ly
-            acc[c, 5] += lx * lz
-            acc[c, 6] += ly * ly
-            acc[c, 7] += ly * lz
-            acc[c, 8] += lz * lz
-
-    @njit(cache=True, parallel=True)
-    def moments(x, y, z, pc, cx, cy, cz, chunk, total, partial):  # pragma: no cover
-        n = x.shape[0]
-        n_chunks = (n + chunk - 1) // chunk
-        width = partial.shape[0]
-        for base in range(0, n_chunks, width):
-            for t in prange(width):
-                k = base + t
-                if k < n_chunks:
-                    moments_chunk(x, y, z, pc, cx, cy, cz, k * chunk,
-                                  min(n, (k + 1) * chunk), partial[t])
-            for t in range(width):  # partial sums added in chunk order
-                if base + t < n_chunks:
-                    total += partial[t]
-
-    @njit(cache=True)
-    def distances_chunk(x, y, z, pc, cx, cy, cz, v, off, start, stop, acc):  # pragma: no cover
-        acc[:] = 0.0
-        n_vec = v.shape[0]
-        for i in range(start, stop):
-            c = pc[i]
-            lx = x[i] - cx[c]
-            ly = y[i] - cy[c]
-            lz = z[i] - cz[c]
-            for q in range(n_vec):
-                d = lx * v[q, c, 0]
-                d += ly * v[q, c, 1]
-                d += lz * v[q, c, 2]
-                d -= off[q, c]
-                acc[q, 1, c] += d * d
-                acc[q, 0, c] += abs(d)
-
-    @njit(cache=True, parallel=True)
-    def distances(x, y, z, pc, cx, cy, cz, v, off, chunk, total, partial):  # pragma: no cover
-        n = x.shape[0]
-        n_chunks = (n + chunk - 1) // chunk
-        width = partial.shape[0]
-        for base in range(0, n_chunks, width):
-            for t in prange(width):
-                k = base + t
-                if k < n_chunks:
-                    distances_chunk(x, y, z, pc, cx, cy, cz, v, off, k * chunk,
-                                    min(n, (k + 1) * chunk), partial[t])
-            for t in range(width):
-                if base + t < n_chunks:
-                    total += partial[t]
-
-    return {"keys": keys, "count": count, "relabel": relabel, "moments": moments,
-            "distances": distances, "threads": int(numba.get_num_threads())}
+    return {"keys": k.keys, "count": k.count, "relabel": k.relabel, "moments": k.moments,
+            "distances": k.distances, "threads": int(numba.get_num_threads())}
 
 
 def _width(n: int, chunk: int, n_cells: int, row_bytes: int) -> int:

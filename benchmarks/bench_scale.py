@@ -1,0 +1,157 @@
+"""Benchmark of campaign-scale runs (issue 16 "Targets"): several LAZ files streamed
+under a memory budget, and on Dask with 1, 2, ... workers, against the in-memory path.
+
+Writes a synthetic outcrop (the same as bench_compute.py) as ``--files`` LAZ files
+into a temporary folder (or ``--data DIR``, kept for re-runs), then runs
+``rough-viewer compute`` on them in child processes, each configuration
+``--repeat`` times, and prints medians of wall time, points per second and peak
+resident memory (the child's ``ru_maxrss``), and whether the cells are identical.
+
+    flock /tmp/rough_viewer_heavy.lock python benchmarks/bench_scale.py
+    python benchmarks/bench_scale.py --points 2e6 --files 3 --repeat 1   # quick look
+
+The in-memory path reads LAZ through the decode cache; it is measured cold (an
+empty cache folder each run, as on a first open) and warm.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_compute import synthetic_outcrop  # noqa: E402
+
+from rough_viewer.io import PointCloud, write_las  # noqa: E402
+
+RV = [sys.executable, "-m", "rough_viewer"]
+
+
+def make_files(folder: Path, n: int, n_files: int) -> list[Path]:
+    """``n`` points of the synthetic outcrop, in scan order, cut into ``n_files`` LAZ files
+    along the face (neighbouring files share cells at their seams)."""
+    paths = [folder / f"scan{i:02d}.laz" for i in range(n_files)]
+    if all(p.exists() for p in paths):
+        return paths
+    cloud = synthetic_outcrop(n)
+    edges = np.linspace(0, n, n_files + 1).astype(int)
+    for p, a, b in zip(paths, edges[:-1], edges[1:], strict=True):
+        write_las(p, PointCloud(x=cloud.x[a:b], y=cloud.y[a:b], z=cloud.z[a:b]))
+    return paths
+
+
+def run(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
+    """Wall time (s) and peak RSS (bytes) of one child process."""
+    t = time.perf_counter()
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode() if proc.stderr else ""
+    if proc.returncode != 0:
+        raise SystemExit(f"failed ({proc.returncode}): {' '.join(argv)}\n{err}")
+    return wall, usage.ru_maxrss * 1024.0
+
+
+def read_cells(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))[1:]
+    keys = np.array([[int(r[i]) for i in (0, 1, 2, 6)] for r in rows])
+    vals = np.array([[float(v) if v else np.nan for v in r[7:11]] for r in rows])
+    return keys, vals
+
+
+def compare(a: Path, b: Path) -> str:
+    ka, va = read_cells(a)
+    kb, vb = read_cells(b)
+    if ka.shape != kb.shape or not np.array_equal(ka, kb):
+        return "DIFFERENT CELLS"
+    if not np.array_equal(np.isnan(va), np.isnan(vb)):
+        return "different NaNs"
+    ok = ~np.isnan(va[:, :3]) & (va[:, :3] > 0)
+    rel = np.abs(va[:, :3][ok] - vb[:, :3][ok]) / np.abs(va[:, :3][ok])
+    worst = float(rel.max()) if rel.size else 0.0
+    return "identical" if worst == 0.0 else f"same cells, max rel diff {worst:.1e}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--points", type=float, default=3e7)
+    ap.add_argument("--files", type=int, default=6)
+    ap.add_argument("--grid", type=float, default=0.25)
+    ap.add_argument("--memory", default="1GB")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--data", type=Path, help="folder for the LAZ files (kept)")
+    args = ap.parse_args()
+    n = int(args.points)
+    tmp = Path(tempfile.mkdtemp(prefix="rv-bench-scale-"))
+    data = args.data or tmp / "data"
+    data.mkdir(parents=True, exist_ok=True)
+    try:
+        t = time.perf_counter()
+        paths = make_files(data, n, args.files)
+        size = sum(p.stat().st_size for p in paths)
+        print(f"{n:,} points in {len(paths)} LAZ files ({size / 1e6:.0f} MB), grid {args.grid} m, "
+              f"{os.cpu_count()} cores; data ready in {time.perf_counter() - t:.0f} s; "
+              f"median of {args.repeat} runs; load average before: "
+              f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+        base = [*RV, "compute", *map(str, paths), "--grid", str(args.grid), "--quiet", "--force"]
+        configs: list[tuple[str, list[str], bool]] = [
+            ("in memory, cold cache", [], True),
+            ("in memory, warm cache", [], False),
+            (f"--memory {args.memory}", ["--memory", args.memory], False),
+        ]
+        for w in args.workers:
+            configs.append((f"--memory {args.memory} --scheduler threads --workers {w}",
+                            ["--memory", args.memory, "--scheduler", "threads",
+                             "--workers", str(w)], False))
+        print(f"{'configuration':<52} {'wall s':>7} {'Mpts/s':>7} {'peak RSS':>9}  cells")
+        ref_out = None
+        warm_cache = tmp / "cache-warm"
+        times: dict[str, float] = {}
+        for label, extra, cold in configs:
+            out = tmp / f"cells-{len(times)}.csv"
+            walls, peaks = [], []
+            if label.endswith("warm cache"):
+                env = dict(os.environ, ROUGH_VIEWER_CACHE=str(warm_cache))
+                run([*base, *extra, "--out", str(out)], env)  # fills the cache
+            for _ in range(args.repeat):
+                env = dict(os.environ)
+                cache = tmp / "cache-cold" if cold else warm_cache
+                if cold:
+                    shutil.rmtree(cache, ignore_errors=True)
+                env["ROUGH_VIEWER_CACHE"] = str(cache)
+                wall, peak = run([*base, *extra, "--out", str(out)], env)
+                walls.append(wall)
+                peaks.append(peak)
+            wall = statistics.median(walls)
+            times[label] = wall
+            verdict = "reference" if ref_out is None else compare(ref_out, out)
+            ref_out = ref_out or out
+            print(f"{label:<52} {wall:>7.2f} {n / wall / 1e6:>7.2f} "
+                  f"{max(peaks) / 2**30:>7.2f} G  {verdict}", flush=True)
+        cold = times["in memory, cold cache"]
+        chunked = times[f"--memory {args.memory}"]
+        print(f"\n--memory {args.memory} / in memory (cold cache): {chunked / cold:.2f}x; "
+              f"/ in memory (warm cache): {chunked / times['in memory, warm cache']:.2f}x")
+        print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
