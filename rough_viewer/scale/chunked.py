@@ -173,14 +173,25 @@ class Runner(Protocol):
 
 
 class SequentialRunner:
-    """Chunks one after the other in this process: at most one chunk in memory."""
+    """Chunks one after the other in this process: at most one chunk in memory.
+
+    Parameters
+    ----------
+    fill_cache : bool
+        Fill the LAZ decode cache while decoding (default True), so the second pass
+        (and the next run, in memory or streamed) reads decoded columns instead of
+        decoding again. Needs disk room for 24-32 bytes per point.
+    """
+
+    def __init__(self, *, fill_cache: bool = True) -> None:
+        self.fill_cache = fill_cache
 
     def map_reduce(self, sources: Sequence[Source], chunk_points: int, task: ChunkTask,
                    n_out: int, on_chunk: ChunkDone, check: Callable[[int], None]
                    ) -> list[Partial]:
         reducers = [TreeReducer() for _ in range(n_out)]
         for i, s in enumerate(sources):
-            for chunk, (x, y, z) in iter_chunks(s, i, chunk_points):
+            for chunk, (x, y, z) in iter_chunks(s, i, chunk_points, fill_cache=self.fill_cache):
                 for r, part in zip(reducers, task(x, y, z), strict=True):
                     r.add(part)
                 del x, y, z

@@ -156,19 +156,42 @@ def chunk_plan(sources: Sequence[Source], chunk_points: int) -> list[Chunk]:
     return chunks
 
 
-def _scaled_columns(points, hdr, factor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """x, y, z in metres from a laspy point record: ``X * scale + offset`` per axis
-    (as :func:`rough_viewer.io.las.read_las`), times metres-per-unit."""
+Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _file_columns(points, hdr) -> Columns:
+    """x, y, z as stored (the file's unit) from a laspy point record:
+    ``X * scale + offset`` per axis, as :func:`rough_viewer.io.las.read_las` computes."""
     scale = np.asarray(hdr.scales, dtype=np.float64)
     offset = np.asarray(hdr.offsets, dtype=np.float64)
     cols = []
     for raw, k in ((points.X, 0), (points.Y, 1), (points.Z, 2)):
         col = np.multiply(raw, scale[k])
         col += offset[k]
-        if factor != 1.0:
-            col = col * factor
         cols.append(col)
     return cols[0], cols[1], cols[2]
+
+
+def _metres(cols: Columns, factor: float) -> Columns:
+    """Columns in metres (times metres-per-unit, as ``PointCloud.scaled``)."""
+    if factor == 1.0:
+        return cols
+    return cols[0] * factor, cols[1] * factor, cols[2] * factor
+
+
+def _uses_cache(source: Source) -> bool:
+    """LAZ files go through the decode cache (as in :func:`~rough_viewer.io.load.load_points`)."""
+    return source.streamed and source.path.lower().endswith(".laz")
+
+
+def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
+    from rough_viewer.io.cache import cache_read_slice, cached_points
+
+    p = Path(source.path)
+    if not _uses_cache(source) or cached_points(p) != source.n_points:
+        return None
+    cols = cache_read_slice(p, chunk.start, chunk.stop)
+    return None if cols is None else _metres(cols, source.factor)
 
 
 def _open_las(path: str):
@@ -193,6 +216,9 @@ def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np
         cloud = load_points(source.path, units=source.unit)  # type: ignore[arg-type]
         return (cloud.x[chunk.start:chunk.stop], cloud.y[chunk.start:chunk.stop],
                 cloud.z[chunk.start:chunk.stop])
+    cached = _from_cache(source, chunk)
+    if cached is not None:
+        return cached
     try:
         with _open_las(source.path) as reader:
             if chunk.start:
@@ -201,7 +227,7 @@ def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np
             if len(points) != chunk.n:
                 raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
                                  f"the {source.n_points:,} points its header declares")
-            return _scaled_columns(points, reader.header, source.factor)
+            return _metres(_file_columns(points, reader.header), source.factor)
     except InputError:
         raise
     except Exception as exc:  # laspy and lazrs raise their own types
@@ -209,33 +235,67 @@ def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np
         raise InputError(f"cannot read {source.path}: {msg}") from None
 
 
-def iter_chunks(source: Source, index: int, chunk_points: int
-                ) -> Iterator[tuple[Chunk, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bool = False
+                ) -> Iterator[tuple[Chunk, Columns]]:
     """The chunks of one file in order, from one open reader (the sequential path);
-    the same chunks and points as :func:`chunk_plan` and :func:`read_chunk`."""
+    the same chunks and points as :func:`chunk_plan` and :func:`read_chunk`.
+
+    A LAZ file with a complete decode-cache entry is read from the cache. Without
+    one, ``fill_cache`` writes the entry while decoding (chunk by chunk, nothing held
+    beyond the chunk), so the next pass and the next run read the cache instead of
+    decoding again.
+    """
     if not source.streamed:
         c = Chunk(index, 0, source.n_points)
         yield c, read_chunk(source, c)
         return
     size = max(1, int(chunk_points))
+    plan = [Chunk(index, a, min(source.n_points, a + size))
+            for a in range(0, source.n_points, size)]
+    first = _from_cache(source, plan[0])
+    if first is not None:
+        yield plan[0], first
+        del first
+        for c in plan[1:]:
+            cols = _from_cache(source, c)
+            if cols is None:
+                raise InputError(f"the decode cache of {source.path} changed while reading it")
+            yield c, cols
+        return
+    writer = None
     try:
         with _open_las(source.path) as reader:
-            start = 0
-            while start < source.n_points:
-                want = min(size, source.n_points - start)
-                points = reader.read_points(want)
-                if len(points) != want:
-                    raise InputError(f"{source.path} ended after {start + len(points):,} of "
+            if fill_cache and _uses_cache(source):
+                from rough_viewer.io.cache import cache_writer
+
+                dims = reader.header.point_format.dimension_names
+                writer = cache_writer(Path(source.path), source.n_points,
+                                      intensity="intensity" in dims, rgb="red" in dims)
+            for c in plan:
+                points = reader.read_points(c.n)
+                if len(points) != c.n:
+                    raise InputError(f"{source.path} ended after {c.start + len(points):,} of "
                                      f"the {source.n_points:,} points its header declares")
-                cols = _scaled_columns(points, reader.header, source.factor)
+                cols = _file_columns(points, reader.header)
+                if writer is not None:
+                    rgb = (np.column_stack([points.red, points.green, points.blue])
+                           if "rgb" in writer.columns else None)
+                    inten = (np.asarray(points.intensity) if "intensity" in writer.columns
+                             else None)
+                    writer.append(*cols, intensity=inten, rgb=rgb)
                 del points
-                yield Chunk(index, start, start + want), cols
-                start += want
+                yield c, _metres(cols, source.factor)
+        if writer is not None:
+            writer.commit()
+            writer = None
     except InputError:
         raise
     except Exception as exc:  # laspy and lazrs raise their own types
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read {source.path}: {msg}") from None
+    finally:
+        if writer is not None:  # abandoned or failed: no half entry
+            writer.abort()
 
 
 def _crs_name(info) -> str:

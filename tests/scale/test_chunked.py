@@ -141,3 +141,24 @@ def test_bad_inputs_name_the_file(tmp_path, files):
     (tmp_path / "junk.laz").write_bytes(b"not a las file at all")
     with pytest.raises(InputError, match="junk.laz"):
         open_sources([tmp_path / "junk.laz"])
+
+
+def test_decode_cache_filled_by_pass_one_serves_pass_two_and_load_points(files, tmp_path,
+                                                                          monkeypatch):
+    from rough_viewer.io import load_points
+    from rough_viewer.io.cache import cached_points
+
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    paths, xyz = files
+    sources = open_sources(paths)
+    assert all(cached_points(p) is None for p in paths)
+    first = chunked_roughness(sources, [0.3], chunk_points=3000)[0]
+    assert [cached_points(p) for p in paths] == [s.n_points for s in sources]
+    again = chunked_roughness(sources, [0.3], chunk_points=3000)[0]   # all from the cache
+    np.testing.assert_array_equal(again.theta_odr, first.theta_odr)
+    assert_same_cells(first, grid_roughness(xyz, 0.3))
+    for p in paths:  # the entry is the one load_points writes and reads
+        cached, decoded = load_points(p), load_points(p, cache=False)
+        np.testing.assert_array_equal(cached.x, decoded.x)
+        np.testing.assert_array_equal(cached.z, decoded.z)
+        np.testing.assert_array_equal(cached.intensity, decoded.intensity)
