@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def keys(x, y, z, origin, g, index_min, nx, ny, out):
     n = x.shape[0]
     for i in prange(n):
@@ -19,7 +19,7 @@ def keys(x, y, z, origin, g, index_min, nx, ny, out):
         out[i] = np.int64(tz) * (nx * ny) + np.int64(ty * nx) + np.int64(tx)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count(key, total):
     counts = np.zeros(total, dtype=np.int64)
     for i in range(key.shape[0]):
@@ -27,13 +27,13 @@ def count(key, total):
     return counts
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def relabel(key, lookup):
     for i in prange(key.shape[0]):
         key[i] = lookup[key[i]]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def moments_chunk(x, y, z, pc, cx, cy, cz, start, stop, acc):
     acc[:] = 0.0
     for i in range(start, stop):
@@ -52,7 +52,7 @@ def moments_chunk(x, y, z, pc, cx, cy, cz, start, stop, acc):
         acc[c, 8] += lz * lz
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def moments(x, y, z, pc, cx, cy, cz, chunk, total, partial):
     n = x.shape[0]
     n_chunks = (n + chunk - 1) // chunk
@@ -68,7 +68,7 @@ def moments(x, y, z, pc, cx, cy, cz, chunk, total, partial):
                 total += partial[t]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def distances_chunk(x, y, z, pc, cx, cy, cz, v, off, start, stop, acc):
     acc[:] = 0.0
     n_vec = v.shape[0]
@@ -86,7 +86,7 @@ def distances_chunk(x, y, z, pc, cx, cy, cz, v, off, start, stop, acc):
             acc[q, 0, c] += abs(d)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def distances(x, y, z, pc, cx, cy, cz, v, off, chunk, total, partial):
     n = x.shape[0]
     n_chunks = (n + chunk - 1) // chunk

@@ -24,8 +24,10 @@ and cached on disk (numba's ``cache=True``).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -83,13 +85,32 @@ def _kernels() -> dict[str, Any]:
             "distances": k.distances, "threads": int(numba.get_num_threads())}
 
 
+@contextlib.contextmanager
+def threads(n: int) -> Iterator[None]:
+    """Run the compiled kernels of this thread on ``n`` threads inside the block (0:
+    all); for callers that parallelise over chunks themselves (Dask workers)."""
+    if n <= 0 or not available():
+        yield
+        return
+    import numba
+
+    old = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
 def _width(n: int, chunk: int, n_cells: int, row_bytes: int) -> int:
     """How many chunks run at once: the thread count, bounded by the chunks there are
     and by memory for the per-thread partial sums (at most one chunk's worth)."""
     from rough_viewer.memory import require
 
     n_chunks = max(1, -(-n // chunk))
-    width = max(1, min(int(_kernels()["threads"]), n_chunks))
+    import numba
+
+    width = max(1, min(int(numba.get_num_threads()), n_chunks))
     require(width * n_cells * row_bytes, f"partial sums of {n_cells:,} cells on {width} threads",
             hint="choose a larger grid size")
     return width

@@ -41,6 +41,7 @@ from typing import Protocol
 import numpy as np
 
 from rough_viewer.grid.cells import GridSpec, make_grid
+from rough_viewer.grid.fast import threads as kernel_threads
 from rough_viewer.grid.planes import PlaneFit, dominant_axis
 from rough_viewer.grid.roughness import (
     CellPlanes,
@@ -130,17 +131,21 @@ class Pass1:
 
     grids: tuple[GridSpec, ...]
     engine: Engine
+    threads: int = 0
+    """Threads of the compiled kernels (0: all; 1 under Dask, which runs chunks in
+    parallel itself)."""
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> list[Partial]:
         lo = np.array([x.min(), y.min(), z.min()])
         hi = np.array([x.max(), y.max(), z.max()])
         out = []
-        for g in self.grids:
-            try:
-                out.append(chunk_moments(x, y, z, g, self.engine))
-            except OutsideGrid:
-                out.append(Partial(np.empty(0, dtype=np.int64), np.empty((0, 10)),
-                                   int(x.shape[0]), lo, hi, outside=True))
+        with kernel_threads(self.threads):
+            for g in self.grids:
+                try:
+                    out.append(chunk_moments(x, y, z, g, self.engine))
+                except OutsideGrid:
+                    out.append(Partial(np.empty(0, dtype=np.int64), np.empty((0, 10)),
+                                       int(x.shape[0]), lo, hi, outside=True))
         return out
 
 
@@ -151,10 +156,13 @@ class Pass2:
     grids: tuple[GridSpec, ...]
     planes: tuple[PlaneTable, ...]
     engine: Engine
+    threads: int = 0
+    """As :attr:`Pass1.threads`."""
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> list[Partial]:
-        return [chunk_distances(x, y, z, g, p, self.engine)
-                for g, p in zip(self.grids, self.planes, strict=True)]
+        with kernel_threads(self.threads):
+            return [chunk_distances(x, y, z, g, p, self.engine)
+                    for g, p in zip(self.grids, self.planes, strict=True)]
 
 
 ChunkTask = Callable[[np.ndarray, np.ndarray, np.ndarray], list[Partial]]
@@ -259,6 +267,7 @@ def chunked_roughness(
         raise InputError(f"need at least 3 points, got {n_total}")
     run = runner or SequentialRunner()
     parallel = int(getattr(run, "parallel", 1))
+    inner = int(getattr(run, "inner_threads", 0))
     if chunk_points is None:
         chunk_points = chunk_points_for(memory_bytes, parallel=parallel)
     cell_room = None if memory_bytes is None else (1 - CHUNK_SHARE) * memory_bytes
@@ -292,7 +301,7 @@ def chunked_roughness(
         progress(0, n_passes * n_total)
     for attempt in range(2):
         grids = tuple(make_grid(lo, hi, g, origin) for g in sizes)
-        tables = run.map_reduce(sources, chunk_points, Pass1(grids, engine), len(grids),
+        tables = run.map_reduce(sources, chunk_points, Pass1(grids, engine, inner), len(grids),
                                 on_chunk, check)
         exact_lo, exact_hi = tables[0].bounds_min, tables[0].bounds_max
         assert exact_lo is not None and exact_hi is not None
@@ -308,7 +317,7 @@ def chunked_roughness(
         check(0, table.n_cells)
         stages.append(_plan_distances(grid, table, axis, int(min_points), models_t))
     dist = run.map_reduce(sources, chunk_points,
-                          Pass2(grids, tuple(st.table for st in stages), engine),
+                          Pass2(grids, tuple(st.table for st in stages), engine, inner),
                           len(grids), on_chunk, check)
     out = []
     for st, table in zip(stages, dist, strict=True):

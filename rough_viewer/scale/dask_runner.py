@@ -12,7 +12,8 @@ graph, sent once to each worker.
 Schedulers:
 
 - ``"threads"``, ``"processes"``: Dask's local schedulers in this process (a thread
-  pool, or a pool of worker processes);
+  pool, or one pool of worker processes kept for both passes). Decoding LAZ holds
+  Python's GIL, so threads add little speed; processes do;
 - ``"tcp://HOST:PORT"`` (or any ``dask.distributed`` address): an existing
   scheduler through a ``distributed.Client``; tasks of a worker that dies are run
   again elsewhere by Dask (up to its ``allowed-failures``), with the same result.
@@ -34,7 +35,8 @@ _RUN = itertools.count()
 
 
 def _map_chunk(source: Source, chunk: Chunk, task: ChunkTask) -> list[Partial]:
-    x, y, z = read_chunk(source, chunk)
+    single = getattr(task, "threads", 0) == 1
+    x, y, z = read_chunk(source, chunk, parallel=not single)
     return task(x, y, z)
 
 
@@ -62,7 +64,14 @@ class DaskRunner:
         Threads or processes of a local scheduler (default: Dask's, the CPU count).
     client : distributed.Client, optional
         A client to use instead of connecting to ``scheduler``.
+
+    Dask runs chunks in parallel, so each task decodes and computes on one thread
+    (:attr:`inner_threads`): points per second then grow with the worker count
+    instead of the tasks competing for the same cores.
     """
+
+    #: Threads of one task's decoding and kernels.
+    inner_threads = 1
 
     def __init__(self, scheduler: str = "threads", *, workers: int | None = None,
                  client: Any = None) -> None:
@@ -70,6 +79,7 @@ class DaskRunner:
         self.workers = workers
         self._client = client
         self._own_client = False
+        self._pool: Any = None
         if client is None and scheduler not in ("threads", "processes"):
             if "://" not in scheduler:
                 raise InputError(f"--scheduler expects threads, processes or tcp://HOST:PORT, "
@@ -107,10 +117,26 @@ class DaskRunner:
         return 1
 
     def close(self) -> None:
-        """Close the client this runner opened."""
+        """Close the client or the process pool this runner opened."""
         if self._own_client and self._client is not None:
             self._client.close()
             self._client = None
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def _process_pool(self) -> Any:
+        """One pool of worker processes for every pass of this runner (Dask's
+        ``processes`` scheduler would start a new pool for every pass)."""
+        if self._pool is None:
+            import multiprocessing
+            import os
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(
+                max_workers=int(self.workers or os.cpu_count() or 1),
+                mp_context=multiprocessing.get_context("spawn"))
+        return self._pool
 
     def __enter__(self) -> DaskRunner:
         return self
@@ -154,7 +180,9 @@ class DaskRunner:
                     on_chunk(chunks[int(key[len(prefix):])])
 
         kwargs: dict[str, Any] = {"scheduler": self.scheduler}
-        if self.workers:
+        if self.scheduler == "processes":
+            kwargs["pool"] = self._process_pool()
+        elif self.workers:
             kwargs["num_workers"] = int(self.workers)
         with _Progress():
             out = dask.compute(*finals, **kwargs)

@@ -194,21 +194,26 @@ def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
     return None if cols is None else _metres(cols, source.factor)
 
 
-def _open_las(path: str):
+def _open_las(path: str, *, parallel: bool = True):
     import laspy
 
     from rough_viewer.io.las import _selection, laz_backend
 
-    reader = laspy.open(path, laz_backend=laz_backend())
+    backend = laz_backend()
+    if not parallel and backend == laspy.LazBackend.LazrsParallel:
+        backend = laspy.LazBackend.Lazrs
+    reader = laspy.open(path, laz_backend=backend)
     reader.decompression_selection = _selection(reader.header.point_format)
     return reader
 
 
-def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Columns:
     """The points of one chunk as three float64 columns, metres.
 
-    Opens the file, seeks to the chunk's first point and decodes its points only;
-    a file of another format is read whole (it is one chunk).
+    Reads the decode cache's columns where the LAZ file has a complete entry; else
+    opens the file, seeks to the chunk's first point and decodes its points only
+    (on all cores unless ``parallel`` is False); a file of another format is read
+    whole (it is one chunk).
     """
     if not source.streamed:
         from rough_viewer.io.load import load_points
@@ -220,7 +225,7 @@ def read_chunk(source: Source, chunk: Chunk) -> tuple[np.ndarray, np.ndarray, np
     if cached is not None:
         return cached
     try:
-        with _open_las(source.path) as reader:
+        with _open_las(source.path, parallel=parallel) as reader:
             if chunk.start:
                 reader.seek(chunk.start)
             points = reader.read_points(chunk.n)
