@@ -11,12 +11,15 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rough_viewer.cli._options import positive_int
-from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.vocabulary import InputError, Model, Residual
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
 
 
 def add_scale_options(parser: argparse.ArgumentParser) -> None:

@@ -39,6 +39,7 @@ from rough_viewer.grid.cells import (
     index_points,
     make_grid,
 )
+from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.planes import (
     PlaneFit,
     axis_index,
@@ -128,6 +129,7 @@ def prepare_grid(
     x, y, z = as_columns(cloud)
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
+    engine = resolve_engine(engine, n_points=int(x.shape[0]))
     lo = np.array([x.min(), y.min(), z.min()])
     hi = np.array([x.max(), y.max(), z.max()])
     grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
@@ -271,7 +273,9 @@ def grid_roughness(
     engine : {"auto", "numpy", "numba"}
         Engine of the point passes: ``numpy`` is the reference, ``numba`` the compiled
         kernels of :mod:`rough_viewer.grid.fast` (same arithmetic, several times
-        faster); ``auto`` = numba when installed (``$ROUGH_VIEWER_ENGINE`` overrides).
+        faster); ``auto`` = numba when installed, for clouds of millions of points
+        (:func:`~rough_viewer.grid.fast.resolve_engine`; ``$ROUGH_VIEWER_ENGINE``
+        overrides).
 
     Returns
     -------
@@ -283,6 +287,7 @@ def grid_roughness(
     if n_total < 3:
         raise InputError(f"need at least 3 points, got {n_total}")
     tick = progress or (lambda done, total: None)
+    engine = resolve_engine(engine, n_points=n_total)
 
     tick(0, 5)
     if prepared is None:

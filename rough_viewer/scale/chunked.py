@@ -41,6 +41,7 @@ from typing import Protocol
 import numpy as np
 
 from rough_viewer.grid.cells import GridSpec, make_grid
+from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.fast import threads as kernel_threads
 from rough_viewer.grid.planes import PlaneFit, dominant_axis
 from rough_viewer.grid.roughness import (
@@ -265,6 +266,7 @@ def chunked_roughness(
     n_total = sum(s.n_points for s in sources)
     if n_total < 3:
         raise InputError(f"need at least 3 points, got {n_total}")
+    engine = resolve_engine(engine, n_points=n_total)
     run = runner or SequentialRunner()
     parallel = int(getattr(run, "parallel", 1))
     inner = int(getattr(run, "inner_threads", 0))
