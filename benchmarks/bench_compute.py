@@ -146,7 +146,8 @@ def plain_pipeline(path: str, g: float, out: str) -> None:
         ma = np.bincount(inv, np.abs(d), m) / n
         ms = np.bincount(inv, d * d, m) / n
         theta[name] = np.sqrt(np.clip(ms - ma * ma, 0, None))
-    theta["hybrid"] = theta["odr"] / np.abs(normal[:, axis])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        theta["hybrid"] = theta["odr"] / np.abs(normal[:, axis])
     ok = counts >= 3
     with open(out, "w", newline="") as fh:
         wr = csv.writer(fh)

@@ -13,7 +13,9 @@ resident memory (the child's ``ru_maxrss``), and whether the cells are identical
 Both the in-memory and the streamed path read LAZ through the decode cache (the
 streamed path fills it during its first pass); each is measured cold (an empty
 cache folder every run, as on a first open) and warm (cache filled beforehand).
-Dask runs are measured cold: workers decode every chunk of both passes.
+Dask runs (``--scheduler processes --workers W``) are measured cold: the workers
+decode every chunk of both passes; their rows give points per second against the
+worker count, and the cells must be the same bits for every count.
 """
 
 from __future__ import annotations
@@ -120,8 +122,8 @@ def main() -> None:
             (f"--memory {args.memory}", mem, "warm"),
         ]
         for w in args.workers:
-            configs.append((f"--memory {args.memory} --scheduler threads --workers {w}",
-                            [*mem, "--scheduler", "threads", "--workers", str(w)], "cold"))
+            configs.append((f"--memory {args.memory} --scheduler processes --workers {w}",
+                            [*mem, "--scheduler", "processes", "--workers", str(w)], "cold"))
         print(f"{'configuration':<50} {'cache':>5} {'wall s':>7} {'Mpts/s':>7} {'peak RSS':>9}"
               "  cells")
         ref_out = None
