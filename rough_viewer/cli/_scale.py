@@ -63,12 +63,14 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
     runner = SequentialRunner() if not args.scheduler else _dask_runner(args)
     quiet = args.quiet
     try:
+        bars: FileBars | None = None
+        overall: ProgressBar | None = None
+        per_file: list[ProgressBar] | None = None
         if len(paths) > 1 and not quiet:
             bars = FileBars([p.name for p in paths], label="all files")
             overall, per_file = bars.overall, bars.files
-        else:
-            bars, overall, per_file = None, None if quiet else ProgressBar(
-                "streaming", unit="pt"), None
+        elif not quiet:
+            overall = ProgressBar("streaming", unit="pt")
         try:
             results = chunked_roughness(
                 sources, grids, origin=origin, min_points=args.min_points, axis=args.axis,

@@ -18,7 +18,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,7 +29,10 @@ from rough_viewer.cli._options import parse_xyz
 from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, Residual
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
 
 CSV_COLUMNS = (
     "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
@@ -161,7 +166,8 @@ def run(args: argparse.Namespace) -> int:
     paths = input_paths(args)
     source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
-    residual = "signed" if args.signed else "absolute"
+    residual: Residual = "signed" if args.signed else "absolute"
+    results: Iterable[GridRoughness]
     if wants_chunks(args):
         results, dropped = chunked_results(args, paths, grids, origin=origin, models=models,
                                            residual=residual)
@@ -177,7 +183,11 @@ def run(args: argparse.Namespace) -> int:
         write_cells_csv(outs[g], result)
         if g in jsons:
             data = summary_dict(result, source, dropped)
-            write_atomic(jsons[g], lambda fh, d=data: json.dump(d, fh, indent=2))
+
+            def dump(fh, d: dict = data) -> None:
+                json.dump(d, fh, indent=2)
+
+            write_atomic(jsons[g], dump)
         if i:
             print()
         print(format_table(result, source=source))

@@ -100,7 +100,7 @@ class CacheWriter:
         root.mkdir(parents=True, exist_ok=True)
         self._tmp = Path(tempfile.mkdtemp(prefix=".part-", dir=root))
         self._final = root / cache_key(p)
-        specs = [(c, "<f8", (self.n,)) for c in "xyz"]
+        specs: list[tuple[str, str, tuple[int, ...]]] = [(c, "<f8", (self.n,)) for c in "xyz"]
         if intensity:
             specs.append(("intensity", "<u2", (self.n,)))
         if rgb:
