@@ -22,7 +22,8 @@ Packages, data flowing one way (each imports only those above it):
 - :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
 - :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
 - :mod:`rough_viewer.visual`: colour maps and plotly figures;
-- :mod:`rough_viewer.report`, :mod:`rough_viewer.app`, :mod:`rough_viewer.cli` on top.
+- :mod:`rough_viewer.report`: the HTML/JSON report and saved views;
+- :mod:`rough_viewer.app`, :mod:`rough_viewer.cli` on top.
 
 Names are loaded on first use, so ``import rough_viewer`` stays cheap.
 """
@@ -45,6 +46,9 @@ _API: dict[str, str] = {
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
     "write_las": "rough_viewer.io.las",
+    "write_las_fields": "rough_viewer.io.las_out",
+    "write_ply_fields": "rough_viewer.io.ply",
+    "write_table": "rough_viewer.io.table",
     # grid roughness
     "grid_roughness": "rough_viewer.grid.roughness",
     "prepare_grid": "rough_viewer.grid.roughness",
@@ -56,6 +60,13 @@ _API: dict[str, str] = {
     "whole_cloud_axis": "rough_viewer.grid.roughness",
     "GridRoughness": "rough_viewer.grid.roughness",
     "fit_plane": "rough_viewer.grid.planes",
+    "whole_cloud_plane": "rough_viewer.grid.planes",
+    "signed_distance": "rough_viewer.grid.planes",
+    "point_scales": "rough_viewer.grid.scales",
+    "point_scales_from_prepared": "rough_viewer.grid.scales",
+    "face_scales": "rough_viewer.grid.scales",
+    "cell_columns": "rough_viewer.grid.table",
+    "point_fields": "rough_viewer.grid.table",
     "summarise": "rough_viewer.grid.summary",
     "summaries": "rough_viewer.grid.summary",
     "normalise": "rough_viewer.grid.summary",
@@ -66,6 +77,14 @@ _API: dict[str, str] = {
     "face_semivariogram": "rough_viewer.grid.variogram",
     "face_maps": "rough_viewer.grid.maps",
     "face_raster": "rough_viewer.grid.maps",
+    "ZoneLabeller": "rough_viewer.grid.zones",
+    "Zones": "rough_viewer.grid.zones",
+    "find_zones": "rough_viewer.grid.zones",
+    "dip_and_direction": "rough_viewer.grid.orientation",
+    "trend_and_plunge": "rough_viewer.grid.orientation",
+    "stereonet": "rough_viewer.grid.orientation",
+    "cell_stereonet": "rough_viewer.grid.orientation",
+    "cell_orientation": "rough_viewer.grid.orientation",
     # profiles
     "extract_profile": "rough_viewer.profiles.extraction",
     "regular_samples": "rough_viewer.profiles.extraction",
@@ -90,6 +109,13 @@ _API: dict[str, str] = {
     "fbm_profile": "rough_viewer.synthetic.fbm",
     "list_demos": "rough_viewer.synthetic.demos",
     "load_demo": "rough_viewer.synthetic.demos",
+    # results out
+    "write_figure": "rough_viewer.visual.export",
+    "ReportSettings": "rough_viewer.report.export",
+    "report_page": "rough_viewer.report.export",
+    "View": "rough_viewer.report.view",
+    "save_view": "rough_viewer.report.view",
+    "load_view": "rough_viewer.report.view",
 }
 
 __all__ = ["__version__", *sorted(_API)]
@@ -119,7 +145,14 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
     from rough_viewer.grid.maps import face_maps, face_raster
-    from rough_viewer.grid.planes import fit_plane
+    from rough_viewer.grid.orientation import (
+        cell_orientation,
+        cell_stereonet,
+        dip_and_direction,
+        stereonet,
+        trend_and_plunge,
+    )
+    from rough_viewer.grid.planes import fit_plane, signed_distance, whole_cloud_plane
     from rough_viewer.grid.roughness import (
         GridRoughness,
         coarsen_prepared,
@@ -127,6 +160,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         prepare_grid,
         whole_cloud_axis,
     )
+    from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
     from rough_viewer.grid.summary import (
         Summary,
         binary,
@@ -135,10 +169,15 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         summaries,
         summarise,
     )
+    from rough_viewer.grid.table import cell_columns, point_fields
     from rough_viewer.grid.variogram import face_semivariogram, semivariogram
+    from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.las import write_las
+    from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.load import load_points
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.table import write_table
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples
     from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d
@@ -148,10 +187,13 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         noise_sigma,
         threshold_value,
     )
+    from rough_viewer.report.export import ReportSettings, report_page
+    from rough_viewer.report.view import View, load_view, save_view
     from rough_viewer.scale.chunked import chunked_roughness
     from rough_viewer.scale.sources import load_merged, open_sources
     from rough_viewer.synthetic.board import board_scan
     from rough_viewer.synthetic.demos import list_demos, load_demo
     from rough_viewer.synthetic.fbm import fbm_profile
     from rough_viewer.synthetic.outcrop import generate_outcrop
+    from rough_viewer.visual.export import write_figure
     from rough_viewer.vocabulary import AXES, MAPS, MODELS, InputError

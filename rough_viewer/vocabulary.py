@@ -88,6 +88,28 @@ HISTOGRAM_BIN = 0.05
 PAPER_GRIDS: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 """The 2011 paper's grid sizes, metres."""
 
+# ----------------------------------------------------------------------------- zones
+
+Connectivity = Literal["face", "edge", "vertex"]
+"""Which grid cells touch: ``face`` (6 neighbours), ``edge`` (18) or ``vertex`` (26)."""
+CONNECTIVITIES: tuple[Connectivity, ...] = ("vertex", "edge", "face")
+"""Connectivity options, default first."""
+DEFAULT_MIN_CELLS = 3
+"""Zones with fewer cells are dropped."""
+
+# ----------------------------------------------------------------------------- colour layers
+
+ColourLayerName = Literal["roughness", "rgb", "intensity", "distance"]
+"""What colours the points: the roughness map, or a layer that shows the rock itself."""
+COLOUR_LAYERS: tuple[ColourLayerName, ...] = ("roughness", "rgb", "intensity", "distance")
+COLOUR_LAYER_LABELS: dict[str, str] = {
+    "roughness": "roughness map",
+    "rgb": "scan colours (RGB)",
+    "intensity": "intensity",
+    "distance": "distance to face plane",
+}
+"""Display name of each colour layer."""
+
 # ----------------------------------------------------------------------------- units
 
 Unit = Literal["m", "mm", "ft", "us-ft"]

@@ -104,3 +104,51 @@ def wire_points(*, er: float, wire_r: float, range_m: float, n: int, seed: int) 
     rng_to_wire = np.linalg.norm(centre + t[:, None] * direction, axis=1)
     rays = target / np.linalg.norm(target, axis=1)[:, None]
     return rays * (rng_to_wire + rng.normal(0.0, NOISE, n))[:, None]
+
+
+def face_axes(dip_deg: float, dip_direction_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit vectors of a plane of given dip and dip direction (z up, azimuth clockwise
+    from +y): strike (azimuth dip direction - 90), down-dip, and the upward normal."""
+    d, a = math.radians(dip_deg), math.radians(dip_direction_deg)
+    strike = np.array([-math.cos(a), math.sin(a), 0.0])
+    down = np.array([math.cos(d) * math.sin(a), math.cos(d) * math.cos(a), -math.sin(d)])
+    normal = np.array([math.sin(d) * math.sin(a), math.sin(d) * math.cos(a), math.cos(d)])
+    return strike, down, normal
+
+
+def banded_face(
+    dip_deg: float,
+    dip_direction_deg: float,
+    bands: list[tuple[float, float, float, float, float]],
+    *,
+    size: tuple[float, float] = (8.0, 6.0),
+    n: int = 150_000,
+    smooth: float = 0.001,
+    rough: float = 0.03,
+    seed: int = 0,
+    offset: np.ndarray = UTM,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A planar face of known orientation with planted rough bands, metres.
+
+    Points are uniform over a ``size`` (along strike, down dip) rectangle and
+    displaced along the normal by Gaussian noise of ``smooth``; inside a band by
+    ``rough``. Each band is ``(s, t, length, width, angle_deg)``: centre at ``s``
+    along strike and ``t`` down dip from the face's centre, its long axis turned
+    ``angle_deg`` from the strike towards the down-dip direction.
+
+    Returns the (n, 3) points (shifted by ``offset``) and the (n,) band index of
+    every point (-1 outside every band).
+    """
+    rng = np.random.default_rng(seed)
+    strike, down, normal = face_axes(dip_deg, dip_direction_deg)
+    s = rng.uniform(-size[0] / 2, size[0] / 2, n)
+    t = rng.uniform(-size[1] / 2, size[1] / 2, n)
+    band = np.full(n, -1)
+    for k, (bs, bt, length, width, angle) in enumerate(bands):
+        ang = math.radians(angle)
+        along = (s - bs) * math.cos(ang) + (t - bt) * math.sin(ang)
+        across = -(s - bs) * math.sin(ang) + (t - bt) * math.cos(ang)
+        band[(np.abs(along) <= length / 2) & (np.abs(across) <= width / 2)] = k
+    h = rng.standard_normal(n) * np.where(band >= 0, rough, smooth)
+    pts = s[:, None] * strike + t[:, None] * down + h[:, None] * normal
+    return pts + offset, band

@@ -19,6 +19,7 @@ import importlib
 import pkgutil
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from rough_viewer import __version__
 from rough_viewer.vocabulary import InputError
@@ -27,7 +28,7 @@ from rough_viewer.vocabulary import InputError
 class _Parser(argparse.ArgumentParser):
     """argparse parser whose usage errors are one line and exit 2."""
 
-    def error(self, message: str) -> None:  # noqa: D401
+    def error(self, message: str) -> NoReturn:  # noqa: D401
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 

@@ -1,19 +1,14 @@
 """The one text format of the Table-1 summary (2011 paper, Table 1), used by the
 command line; the report and the app show the same numbers from the same
-:class:`rough_viewer.grid.roughness.Summary`."""
+:class:`rough_viewer.grid.summary.Summary`."""
 
 from __future__ import annotations
 
 import math
 
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.summary import Summary, summarise
-from rough_viewer.vocabulary import MAP_LABELS, MAPS
-
-
-def summaries(result: GridRoughness) -> dict[str, Summary]:
-    """Summary of every map (odr, ols, hybrid, e_ols) of a result."""
-    return {name: summarise(result, name) for name in MAPS}
+from rough_viewer.grid.summary import summaries
+from rough_viewer.vocabulary import MAP_LABELS
 
 
 def _num(v: float, fmt: str) -> str:

@@ -4,13 +4,18 @@ Contract (other tools script against it)::
 
     rough-viewer compute INPUT [INPUT ...] --grid G [--grid G2 ...]
         [--method odr|ols|hybrid|all] [--axis auto|x|y|z] [--min-points K]
-        [--origin X,Y,Z] [--signed] [--memory SIZE] [--scheduler threads|processes|tcp://H:P]
-        [--workers N] --out CELLS.csv [--summary-json SUMMARY.json] [--force] [--quiet]
+        [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
+        [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
+        [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
+        [--force] [--quiet]
 
-Several inputs (files or quoted globs) are one merged cloud. With several ``--grid``
-values each output name gets ``_g<G>`` before its extension (``cells.csv`` ->
-``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--memory`` streams the points in chunks
-within that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md).
+Several inputs (files or quoted globs) are one merged cloud. At least one output is
+required. With several ``--grid`` values each output name gets ``_g<G>`` before its
+extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--las-out``
+and ``--ply-out`` write every point with its cell's values as extra dimensions /
+scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
+that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
+the points, so neither goes with ``--las-out`` or ``--ply-out``.
 """
 
 from __future__ import annotations
@@ -27,18 +32,17 @@ import numpy as np
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import parse_xyz
 from rough_viewer.cli._scale import add_scale_options
+from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
-from rough_viewer.io.output import check_output_path, write_atomic
+from rough_viewer.io.output import check_outputs, write_atomic
 from rough_viewer.vocabulary import InputError, Residual
 
 if TYPE_CHECKING:
     from rough_viewer.grid.roughness import GridRoughness
+    from rough_viewer.io.cloud import PointCloud
 
-CSV_COLUMNS = (
-    "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
-    "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
-    "normal_x", "normal_y", "normal_z",
-)
+#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
+CSV_COLUMNS = CELL_COLUMNS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -61,8 +65,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--origin", metavar="X,Y,Z", help="grid origin (default: bounding-box minimum)")
     p.add_argument("--signed", action="store_true",
                    help="RMS of signed distances instead of the std of absolute distances")
-    p.add_argument("--out", required=True, metavar="CELLS.csv", help="per-cell CSV output")
+    p.add_argument("--out", metavar="CELLS.csv",
+                   help="per-cell table: CSV, or Parquet when the name ends in .parquet "
+                   "(needs pyarrow)")
     p.add_argument("--summary-json", metavar="SUMMARY.json", help="Table-1 summary as JSON")
+    p.add_argument("--las-out", metavar="OUT.las|OUT.laz",
+                   help="every input point with its cell's roughness as LAS extra dimensions")
+    p.add_argument("--ply-out", metavar="OUT.ply",
+                   help="every point with its cell's roughness as PLY scalar properties")
     add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -75,42 +85,6 @@ def output_name(path: str, grid: float, several: bool) -> Path:
     if not several:
         return p
     return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
-
-
-def _fmt_column(values: np.ndarray) -> list[str]:
-    """Shortest round-trip text of each value (full precision); NaN -> empty."""
-    if np.issubdtype(values.dtype, np.integer):
-        return values.astype(str).tolist()
-    text = values.astype(str)
-    text[~np.isfinite(values)] = ""
-    return text.tolist()
-
-
-def cells_csv_rows(result) -> list[list[str]]:
-    """Columns of the CELLS.csv for cells with at least ``min_points`` points."""
-    keep = result.n_points >= result.min_points
-    cols = [
-        result.ijk[keep, 0], result.ijk[keep, 1], result.ijk[keep, 2],
-        result.centre[keep, 0], result.centre[keep, 1], result.centre[keep, 2],
-        result.n_points[keep],
-        result.theta_odr[keep], result.theta_ols[keep], result.theta_hybrid[keep],
-        result.e_ols[keep],
-        result.normal[keep, 0], result.normal[keep, 1], result.normal[keep, 2],
-    ]
-    return [_fmt_column(np.asarray(c)) for c in cols]
-
-
-def write_cells_csv(path: Path, result) -> None:
-    """Write CELLS.csv atomically (temporary file, then rename)."""
-    cols = cells_csv_rows(result)
-
-    def write(fh) -> None:
-        fh.write(",".join(CSV_COLUMNS) + "\n")
-        for row in zip(*cols, strict=True):
-            fh.write(",".join(row))
-            fh.write("\n")
-
-    write_atomic(path, write)
 
 
 def summary_dict(result, cloud_source: str, dropped: int) -> dict:
@@ -155,20 +129,18 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     several = len(grids) > 1
-    outs = {g: check_output_path(output_name(args.out, g, several), force=args.force) for g in grids}
-    jsons = {}
-    if args.summary_json:
-        jsons = {
-            g: check_output_path(output_name(args.summary_json, g, several), force=args.force)
-            for g in grids
-        }
-    quiet = args.quiet
     paths = input_paths(args)
+    outputs = _outputs(args, grids, several, paths)
+    quiet = args.quiet
     source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
     residual: Residual = "signed" if args.signed else "absolute"
     results: Iterable[GridRoughness]
+    cloud: PointCloud | None = None
     if wants_chunks(args):
+        if args.las_out or args.ply_out:
+            raise InputError("--las-out and --ply-out write every point, which --memory and "
+                             "--scheduler do not keep; run without them for those outputs")
         results, dropped = chunked_results(args, paths, grids, origin=origin, models=models,
                                            residual=residual)
     else:
@@ -180,16 +152,72 @@ def run(args: argparse.Namespace) -> int:
             progress=None if quiet else ProgressBar(f"grid {g:g} m", unit="step"),
         ) for g in grids)
     for i, (g, result) in enumerate(zip(grids, results, strict=True)):
-        write_cells_csv(outs[g], result)
-        if g in jsons:
-            data = summary_dict(result, source, dropped)
-
-            def dump(fh, d: dict = data) -> None:
-                json.dump(d, fh, indent=2)
-
-            write_atomic(jsons[g], dump)
         if i:
             print()
         print(format_table(result, source=source))
-        print(f"wrote {outs[g]}" + (f" and {jsons[g]}" if g in jsons else ""))
+        _write_outputs(outputs, g, result, cloud, dropped, source, args)
     return 0
+
+
+def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
+             inputs: list[Path]) -> dict[str, dict[float, Path]]:
+    """Every output path of the run by option and grid size, all checked before any work."""
+    from rough_viewer.io.las_out import check_las_output
+    from rough_viewer.io.table import check_table_output
+
+    given = {opt: getattr(args, opt) for opt in ("out", "summary_json", "las_out", "ply_out")
+             if getattr(args, opt)}
+    if not given:
+        raise InputError("no output given: use --out CELLS.csv, --las-out OUT.las|OUT.laz, "
+                         "--ply-out OUT.ply or --summary-json SUMMARY.json")
+    if args.las_out:
+        check_las_output(args.las_out)
+    if args.ply_out and Path(args.ply_out).suffix.lower() != ".ply":
+        raise InputError(f"--ply-out must end in .ply, got {args.ply_out}")
+    if args.out:
+        check_table_output(args.out)
+    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
+    check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
+                  force=args.force, inputs=inputs)
+    return outputs
+
+
+def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
+                   cloud: PointCloud | None, dropped: int, source: str,
+                   args: argparse.Namespace) -> None:
+    """Write every output of one grid size and say so."""
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
+    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.table import write_table
+
+    written = []
+    if "out" in outputs:
+        write_table(outputs["out"][g], cell_columns(result),
+                    metadata=table_metadata(result, source))
+        written.append(str(outputs["out"][g]))
+    if "summary_json" in outputs:
+        data = summary_dict(result, source, dropped)
+
+        def dump(fh, d: dict = data) -> None:
+            json.dump(d, fh, indent=2)
+
+        write_atomic(outputs["summary_json"][g], dump)
+        written.append(str(outputs["summary_json"][g]))
+    if written:
+        print("wrote " + " and ".join(written))
+    wants_points = "las_out" in outputs or "ply_out" in outputs
+    fields = point_fields(result) if wants_points and cloud is not None else None
+    if "las_out" in outputs and fields is not None:
+        path = outputs["las_out"][g]
+        info = write_las_fields(path, cloud, fields,
+                                progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
+        print(f"wrote {path}: {info}")
+    if "ply_out" in outputs and fields is not None:
+        path = outputs["ply_out"][g]
+        info = write_ply_fields(path, cloud, fields, comments=[
+            f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
+            f"grid {g:g} m, axis {result.axis}, "
+            "roughness in metres"])
+        print(f"wrote {path}: {info}")

@@ -103,7 +103,7 @@ def read_profile_file(path: Path, *, scale: float = 1.0) -> tuple[np.ndarray, np
     comments and header lines skipped), times ``scale``, as metres."""
     if not path.is_file():
         raise InputError(f"no such file: {path}")
-    rows = []
+    rows: list[list[float]] = []
     with open(path, encoding="utf-8", errors="replace") as fh:
         for number, line in enumerate(fh, 1):
             text = line.split("#", 1)[0].strip()
@@ -269,7 +269,7 @@ def _check_options(args: argparse.Namespace) -> None:
         raise InputError(f"--level must be at least 1, got {args.level}")
 
 
-Samples = tuple[np.ndarray, np.ndarray, list[tuple[float, float]], float, dict[str, Any]]
+Samples = tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...], float, dict[str, Any]]
 
 
 def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
@@ -284,7 +284,7 @@ def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
         distance, heights, gaps = regular_samples(d_in, h_in, spacing=args.spacing,
                                                   max_gap=args.max_gap)
     step = float(np.median(np.diff(distance)))
-    info = {
+    info: dict[str, Any] = {
         "input": str(path),
         "source": "profile-file",
         "samples": int(distance.size),
@@ -308,7 +308,7 @@ def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
     with naming(path):
         prof = extract_profile(cloud, p0, p1, band_half_width=args.band, spacing=args.spacing,
                                max_gap=args.max_gap)
-    info = {
+    info: dict[str, Any] = {
         "input": str(path),
         "source": "cloud",
         "from": list(p0),
@@ -329,7 +329,8 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.input)
     _check_options(args)
-    csv_path = check_output_path(args.csv, force=args.force) if args.csv else None
+    csv_path = (check_output_path(args.csv, force=args.force, inputs=[path])
+                if args.csv else None)
     if not path.exists():
         raise InputError(f"no such file: {path}")
 

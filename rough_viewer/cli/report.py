@@ -15,13 +15,11 @@ quoted globs) are one merged cloud.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.io.output import check_output_path, write_atomic
+from rough_viewer.io.output import check_output_path, path_in_folder
 from rough_viewer.vocabulary import InputError
 
 
@@ -62,51 +60,46 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
     if not d.parent.is_dir():
         raise InputError(f"output folder does not exist: {d.parent} (for --png {d})")
     targets = [d / png_name(g, f) for g in grids for f in FIGURE_NAMES]
+    if d.is_symlink():
+        raise InputError(f"--png folder is a symbolic link, refused: {d}")
     if d.is_dir():
         for t in targets:
-            check_output_path(t, force=force)
+            check_output_path(t, force=force, folder=d)
     return d, targets
 
 
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.report import (
-        PAPER_GRIDS,
-        build_report,
-        png_figures,
-        report_html,
-        report_json,
-    )
+    from rough_viewer.report import PAPER_GRIDS, png_figures
+    from rough_viewer.report.export import ReportSettings, compute_report, write_report
+    from rough_viewer.visual.export import write_figure
 
-    grids = list(dict.fromkeys(args.grid or PAPER_GRIDS))
-    for g in grids:
-        if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
-    if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
-        raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
-    if args.min_points < 3:
-        raise InputError(f"--min-points must be at least 3, got {args.min_points}")
-    out = check_output_path(args.out, force=args.force)
+    settings = ReportSettings(min_points=args.min_points,
+                              grid_sizes=tuple(dict.fromkeys(args.grid or PAPER_GRIDS)),
+                              axis=args.axis, threshold=args.threshold)
+    try:
+        settings.check()
+    except InputError as exc:  # name the option as the user typed it
+        text = str(exc)
+        for word, option in (("grid size", "--grid"), ("threshold", "--threshold"),
+                             ("min points", "--min-points")):
+            text = text.replace(word, option, 1) if text.startswith(word) else text
+        raise InputError(text) from None
+    paths = input_paths(args)
+    out = check_output_path(args.out, force=args.force, inputs=paths)
     png_dir = None
     if args.png:
-        png_dir, _ = _png_targets(args.png, grids, force=args.force)
+        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes), force=args.force)
 
     quiet = args.quiet
-    cloud = load_inputs(input_paths(args), units=getattr(args, "units", None), quiet=quiet)
-    report = build_report(cloud, grids, axis=args.axis, threshold=args.threshold,
-                          min_points=args.min_points,
-                          progress=None if quiet else ProgressBar("report"))
+    cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+    report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     for s in report.sections:
         if s.error is not None:
             print(f"rough-viewer: grid {s.grid_size:g} m: {s.error}", file=sys.stderr)
 
-    if args.format == "json":
-        data = report_json(report)
-        write_atomic(out, lambda fh: json.dump(data, fh, indent=1, allow_nan=False))
-    else:
-        text = report_html(report)
-        write_atomic(out, lambda fh: fh.write(text))
+    write_report(out, report, args.format)
     print(f"wrote {out}")
 
     if png_dir is not None:
@@ -114,8 +107,7 @@ def run(args: argparse.Namespace) -> int:
         bar = None if quiet else ProgressBar("PNG figures")
         png_dir.mkdir(exist_ok=True)
         for i, (name, fig) in enumerate(figures):
-            data = fig.to_image(format="png", scale=2)
-            write_atomic(png_dir / name, lambda fh, d=data: fh.write(d), mode="wb")
+            write_figure(fig, path_in_folder(png_dir, name), fmt="png")
             if bar is not None:
                 bar(i + 1, len(figures))
         print(f"wrote {len(figures)} PNG figures to {png_dir}")

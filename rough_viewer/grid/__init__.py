@@ -3,7 +3,8 @@ and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
 
 Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
 :mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
-:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`.
+:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`, :mod:`.zones` (connected rough
+cells; :mod:`.orientation` for dips, traces and the stereonet).
 """
 
 from rough_viewer.grid.cells import GridSpec, make_grid
@@ -27,6 +28,7 @@ from rough_viewer.grid.summary import (
     summarise,
 )
 from rough_viewer.grid.variogram import Semivariogram, face_semivariogram, semivariogram
+from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
 
 __all__ = [
     "FaceMaps",
@@ -38,6 +40,8 @@ __all__ = [
     "PreparedGrid",
     "Semivariogram",
     "Summary",
+    "ZoneLabeller",
+    "Zones",
     "binary",
     "coarsen_prepared",
     "dominant_axis",
@@ -45,6 +49,7 @@ __all__ = [
     "face_maps",
     "face_raster",
     "face_semivariogram",
+    "find_zones",
     "fit_plane",
     "grid_roughness",
     "histogram",

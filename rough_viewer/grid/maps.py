@@ -37,10 +37,14 @@ Reduce = Literal["max", "mean"]
 
 
 class Plane(Protocol):
-    """What the face-plane tools need of a plane (e.g. ``planes.PlaneFit``)."""
+    """What the face-plane tools need of a plane (e.g. ``planes.PlaneFit``): read-only,
+    so frozen dataclasses match."""
 
-    centroid: np.ndarray
-    normal: np.ndarray
+    @property
+    def centroid(self) -> np.ndarray: ...
+
+    @property
+    def normal(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)

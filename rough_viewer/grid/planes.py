@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, as_columns
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import AXES, Axis, InputError
 
 #: Relative size below which a covariance eigenvalue counts as zero.
@@ -89,6 +90,14 @@ def fit_plane(xyz: np.ndarray) -> PlaneFit:
     -------
     PlaneFit
         Centroid, unit normal, covariance eigenvalues (descending) and principal axes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    >>> fit = fit_plane(pts)
+    >>> np.abs(fit.normal).round(6) + 0.0, fit.centroid
+    (array([0., 0., 1.]), array([0.5, 0.5, 0. ]))
     """
     pts = np.asarray(xyz, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
@@ -142,6 +151,53 @@ def whole_cloud_plane(points: PointCloud | np.ndarray) -> PlaneFit:
     mean = s1 / n
     plane = plane_from_scatter(ref + mean, s2 / n - np.outer(mean, mean))
     return replace(plane, normal=orient_normal(plane.normal))
+
+
+def signed_distance(points: PointCloud | np.ndarray, plane: PlaneFit) -> np.ndarray:
+    """Signed orthogonal distance of every point to a plane, metres.
+
+    ``(p - centroid) . normal``: positive on the side the plane's normal points to
+    (for :func:`whole_cloud_plane`, the :func:`orient_normal` convention: the normal's
+    largest component is positive, e.g. +y for a face parallel to xz). Computed in
+    chunks from the columns, so the only full-length array is the result.
+
+    Parameters
+    ----------
+    points : PointCloud or (N, 3) array
+        Points, metres.
+    plane : PlaneFit
+        Any object with ``centroid`` (3,) and ``normal`` (3,) (a unit vector or not:
+        it is normalised here).
+
+    Returns
+    -------
+    (N,) float64 array, metres.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> face = whole_cloud_plane(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1.0]]))
+    >>> signed_distance(np.array([[0.5, 0.25, 0.5], [3.0, -0.1, 9.0]]), face)
+    array([ 0.25, -0.1 ])
+    """
+    x, y, z = as_columns(points)
+    n = int(x.shape[0])
+    require(8.0 * (n + 2 * min(n, _PLANE_CHUNK)), f"distances of {n:,} points to a plane")
+    normal = np.asarray(plane.normal, dtype=np.float64)
+    length = float(np.linalg.norm(normal))
+    if not (np.isfinite(length) and length > 0):
+        raise InputError("the plane has no normal")
+    normal = normal / length
+    c = np.asarray(plane.centroid, dtype=np.float64)
+    out = np.empty(n)
+    for start in range(0, n, _PLANE_CHUNK):
+        sl = slice(start, min(n, start + _PLANE_CHUNK))
+        o = out[sl]
+        np.subtract(x[sl], c[0], out=o)
+        o *= normal[0]
+        o += (y[sl] - c[1]) * normal[1]
+        o += (z[sl] - c[2]) * normal[2]
+    return out
 
 
 def dominant_axis(normal: np.ndarray) -> Axis:

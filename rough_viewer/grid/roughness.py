@@ -280,6 +280,20 @@ def grid_roughness(
     Returns
     -------
     GridRoughness
+
+    Examples
+    --------
+    A flat face with 2 mm of Gaussian noise: ODR roughness is the standard deviation of
+    the absolute noise, ``0.002 * sqrt(1 - 2 / pi)`` = 1.206 mm.
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> xy = rng.uniform(0.0, 2.0, (40_000, 2))
+    >>> res = grid_roughness(np.column_stack([xy, 0.002 * rng.standard_normal(40_000)]), 1.0)
+    >>> res.n_cells, res.axis
+    (4, 'z')
+    >>> np.round(res.theta_odr * 1e3, 2)
+    array([1.21, 1.21, 1.21, 1.22])
     """
     models_t = check_options(models, axis, residual, min_points)
     x, y, z = as_columns(cloud)

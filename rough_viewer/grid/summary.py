@@ -106,7 +106,15 @@ class Histogram:
 
 
 def histogram(normalised: np.ndarray, bin_width: float = HISTOGRAM_BIN) -> Histogram:
-    """Histogram of normalised values in bins of ``bin_width`` on [0, 1]."""
+    """Histogram of normalised values in bins of ``bin_width`` on [0, 1].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = histogram(np.array([0.0, 0.01, 0.2, 1.0, np.nan]))
+    >>> h.counts[:5], float(h.fractions[0])
+    (array([2, 0, 0, 0, 1]), 0.5)
+    """
     k = int(round(1.0 / bin_width))
     if k < 1 or abs(k * bin_width - 1.0) > 1e-9:
         raise InputError(f"bin width must divide 1, got {bin_width}")
@@ -120,6 +128,6 @@ def histogram(normalised: np.ndarray, bin_width: float = HISTOGRAM_BIN) -> Histo
     return Histogram(edges=edges, counts=counts, fractions=fractions)
 
 
-def summaries(result: GridRoughness) -> dict[str, Summary]:
+def summaries(result: GridRoughness) -> dict[MapName, Summary]:
     """Table-1 summary of every map (odr, ols, hybrid, e_ols) of a result."""
     return {name: summarise(result, name) for name in MAPS}

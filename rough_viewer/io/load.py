@@ -74,6 +74,15 @@ def load_points(
     InputError
         Missing or unreadable file, unknown extension, malformed content, fewer than
         3 finite points.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "face.xyz").write_text("x y z\\n0 0 0\\n1 0 0\\n0 1 0.01\\n1 1 nan\\n")
+    >>> cloud = load_points(folder / "face.xyz")
+    >>> cloud.n, cloud.dropped_nonfinite
+    (3, 1)
     """
     p = Path(path)
     suffix = p.suffix.lower()

@@ -1,42 +1,193 @@
-"""Safe output files: check a path before any work, then write through a temporary
-file in the same folder and rename, so an error or interrupt never leaves a
-half-written file and nothing is overwritten unless asked."""
+"""Safe output files, the one module every command and the app write through.
+
+Rules (issue 15, "Safety"):
+
+- check every output before any work (:func:`check_output_path`,
+  :func:`check_outputs`), so nothing is computed in vain: the folder exists and is
+  writable; an existing file is replaced only with ``force``; an output that is a
+  symlink, a device, a pipe or a folder, or that is the input itself (same path, a
+  hard link, a symlink to it), is refused; two outputs of one run never share a path;
+  a name chosen inside a folder stays in it (:func:`path_in_folder`);
+- write through a temporary file in the same folder and rename it
+  (:func:`write_path_atomic`, :func:`write_atomic`), so an error, a full disk or an
+  interrupt never leaves a half-written or temporary file, and the old file, if any,
+  stays as it was;
+- a write error (read-only folder, full disk, quota) becomes one
+  :class:`~rough_viewer.vocabulary.InputError` line naming the file, never a
+  traceback.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import stat
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import IO, Any
 
 from rough_viewer.vocabulary import InputError
 
+PathLike = str | os.PathLike[str]
 
-def check_output_path(path: str | os.PathLike[str], *, force: bool) -> Path:
-    """Check that ``path`` can be written: its folder exists and, unless ``force``,
-    the file does not. Call before any work so nothing is computed in vain."""
+
+def _parent(p: Path) -> Path:
+    return p.parent if str(p.parent) else Path(".")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name one file (same path after resolving links, or the
+    same inode: hard links)."""
+    try:
+        if a.resolve() == b.resolve():
+            return True
+    except (OSError, RuntimeError):
+        pass
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_output_path(
+    path: PathLike,
+    *,
+    force: bool,
+    inputs: Iterable[PathLike] = (),
+    folder: PathLike | None = None,
+) -> Path:
+    """Check that ``path`` can be written; call before any work.
+
+    Parameters
+    ----------
+    path : path-like
+        The output file.
+    force : bool
+        Whether an existing regular file may be replaced (``--force``).
+    inputs : iterable of path-like
+        Files the run reads; the output may be none of them.
+    folder : path-like, optional
+        The folder the user chose for outputs; ``path`` must lie in it.
+
+    Returns
+    -------
+    Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    InputError
+        One line naming the file: missing or unwritable folder, a folder, symlink,
+        device or pipe as output, the input as output, an existing file without
+        ``force``, a path outside ``folder``.
+    """
     p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
+    if "\x00" in str(p):
+        raise InputError(f"output path contains a NUL character: {p!r}")
+    if folder is not None:
+        _check_within(folder, p, shown=p)
+    parent = _parent(p)
     if not parent.is_dir():
         raise InputError(f"output folder does not exist: {parent} (for {p})")
-    if p.is_dir():
-        raise InputError(f"output path is a folder: {p}")
-    if p.exists() and not force:
-        raise InputError(f"output file exists: {p} (use --force to overwrite)")
+    if p.is_symlink():
+        raise InputError(f"output path is a symbolic link, refused: {p}")
+    for source in inputs:
+        if _same_file(p, Path(source)):
+            raise InputError(f"output path is the input file: {p}")
+    if p.exists():
+        mode = p.stat().st_mode
+        if stat.S_ISDIR(mode):
+            raise InputError(f"output path is a folder: {p}")
+        if not stat.S_ISREG(mode):
+            raise InputError(f"output path is not a regular file (a device or pipe?), refused: {p}")
+        if not force:
+            raise InputError(f"output file exists: {p} (use --force to overwrite)")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"output folder is not writable: {parent} (for {p})")
     return p
 
 
-def write_path_atomic(path: str | os.PathLike[str], write_to: Callable[[Path], None]) -> None:
-    """Make a file through a temporary file in the same folder, then rename it, so an
-    error or interrupt never leaves a half-written output.
+def check_outputs(
+    paths: Iterable[PathLike],
+    *,
+    force: bool,
+    inputs: Iterable[PathLike] = (),
+    folder: PathLike | None = None,
+) -> list[Path]:
+    """:func:`check_output_path` for every output of one run, and no two the same file.
+
+    Returns the paths in the order given.
+    """
+    sources = [Path(s) for s in inputs]
+    checked: list[Path] = []
+    for path in paths:
+        p = check_output_path(path, force=force, inputs=sources, folder=folder)
+        for other in checked:
+            if _same_file(p, other) or os.path.abspath(p) == os.path.abspath(other):
+                raise InputError(f"two outputs have the same path: {p}")
+        checked.append(p)
+    return checked
+
+
+def path_in_folder(folder: PathLike, name: PathLike) -> Path:
+    """``folder / name``, refused unless it lies inside ``folder``.
+
+    For names that come from users or browsers: a name that climbs out (``..``), an
+    absolute path elsewhere, or a link inside the folder that points elsewhere is
+    refused with one line.
+    """
+    target = Path(folder) / Path(name)
+    _check_within(folder, target, shown=name)
+    return target
+
+
+def _check_within(folder: PathLike, target: Path, *, shown: PathLike) -> None:
+    base = Path(folder)
+    try:
+        base_real = base.resolve()
+        target_real = target.parent.resolve() / target.name
+    except (OSError, RuntimeError) as exc:
+        raise InputError(f"cannot resolve output path {target}: {exc}") from None
+    if target.name in ("", ".", "..") or not target_real.is_relative_to(base_real) \
+            or target_real == base_real:
+        raise InputError(f"output path lies outside the chosen folder {base}: {shown}")
+
+
+def _reason(exc: OSError) -> str:
+    if exc.errno == errno.ENOSPC:
+        return "no space left on device"
+    if exc.errno == errno.EDQUOT:
+        return "disk quota exceeded"
+    if exc.errno in (errno.EROFS,):
+        return "read-only file system"
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied"
+    return exc.strerror or str(exc) or type(exc).__name__
+
+
+def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
+    """Make a file through a temporary file in the same folder, then rename it.
 
     ``write_to`` receives the temporary path (it ends with ``path``'s suffix, so
     writers that choose a format by suffix, such as LAS/LAZ, work) and writes the
-    whole file there. The result gets the usual umask permissions.
+    whole file there. On success the file gets the usual umask permissions and
+    replaces ``path`` in one step; on any error or interrupt the temporary file is
+    removed and ``path`` is left as it was.
+
+    Raises
+    ------
+    InputError
+        One line when the file system refuses (read-only folder, full disk, quota,
+        permissions); other errors propagate unchanged (after the clean-up).
     """
     p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".part{p.suffix}", dir=parent)
+    parent = _parent(p)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".part{p.suffix}",
+                                        dir=parent)
+    except OSError as exc:
+        raise InputError(f"cannot write {p}: {_reason(exc)}") from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -46,18 +197,21 @@ def write_path_atomic(path: str | os.PathLike[str], write_to: Callable[[Path], N
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, p)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot write {p}: {_reason(exc)}") from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
 
 
-def write_atomic(path: str | os.PathLike[str], write: Callable[[object], None], *, mode: str = "w") -> None:
+def write_atomic(path: PathLike, write: Callable[[IO[Any]], object], *, mode: str = "w") -> None:
     """Write a file atomically (see :func:`write_path_atomic`); ``write`` receives the
-    open file object."""
-    kwargs = {"newline": ""} if "b" not in mode else {}
+    open file object (text with ``mode="w"``, bytes with ``mode="wb"``)."""
 
     def write_to(tmp: Path) -> None:
-        with open(tmp, mode, **kwargs) as fh:
+        fh: IO[Any]
+        with (open(tmp, mode) if "b" in mode else open(tmp, mode, newline="")) as fh:
             write(fh)
 
     write_path_atomic(path, write_to)

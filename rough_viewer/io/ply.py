@@ -1,12 +1,18 @@
-"""PLY point files: ASCII or binary (either byte order), vertex ``x``, ``y``, ``z``."""
+"""PLY point files: reading ASCII or binary (either byte order) vertex ``x``, ``y``,
+``z``; writing binary little-endian PLY with per-point fields (through plyfile)."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.output import write_path_atomic
+from rough_viewer.io.point_fields import PointFields
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
 _PLY_TYPES = {
@@ -63,6 +69,7 @@ def read_ply(p: Path) -> PointCloud:
             data = np.loadtxt(fh, usecols=cols, max_rows=n_vert, ndmin=2, dtype=np.float64)
             if data.shape[0] != n_vert:
                 raise InputError(f"PLY file is truncated: {data.shape[0]} of {n_vert} vertices in {p}")
+            x, y, z = (np.ascontiguousarray(data[:, k]) for k in range(3))
         else:
             end = "<" if fmt == "binary_little_endian" else ">"
             for name, count, eprops in elements[:vi]:
@@ -77,11 +84,61 @@ def read_ply(p: Path) -> PointCloud:
                 dt = np.dtype([(q[0], end + _PLY_TYPES[q[2]]) for q in props])
             except KeyError as exc:
                 raise InputError(f"unknown PLY property type {exc} in {p}") from None
-            buf = fh.read(dt.itemsize * n_vert)
-            if len(buf) < dt.itemsize * n_vert:
-                raise InputError(f"PLY file is truncated: {p}")
-            rec = np.frombuffer(buf, dtype=dt, count=n_vert)
-            data = np.column_stack([rec[k].astype(np.float64) for k in "xyz"])
-    return finite_cloud(data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy(), None, p)
+            require(dt.itemsize * n_vert + 24.0 * n_vert, f"reading {p.name}")
+            rec = np.fromfile(fh, dtype=dt, count=n_vert)
+            if rec.shape[0] < n_vert:
+                raise InputError(f"PLY file is truncated: {rec.shape[0]} of {n_vert} vertices in {p}")
+            x, y, z = (rec[k].astype(np.float64) for k in "xyz")
+            del rec
+    return finite_cloud(x, y, z, None, p)
 
 
+
+
+def write_ply_fields(
+    path: str | os.PathLike[str],
+    cloud: PointCloud,
+    fields: PointFields | None = None,
+    *,
+    comments: Sequence[str] = (),
+) -> str:
+    """Write a cloud as binary little-endian PLY (plyfile), atomically.
+
+    Vertex properties: ``x``, ``y``, ``z`` (float64, the cloud's coordinates in
+    metres), ``intensity`` (uint16) where the cloud has it, then each of ``fields``
+    (float32 roughness, int32 cell indices, uint32 counts). CloudCompare shows the
+    extra properties as scalar fields.
+
+    Returns
+    -------
+    str
+        One line saying what was written.
+    """
+    from plyfile import PlyData, PlyElement
+
+    out = Path(path)
+    if out.suffix.lower() != ".ply":
+        raise InputError(f"PLY output must end in .ply, got {out}")
+    n = cloud.n
+    if fields is not None and fields.n_points != n:
+        raise InputError(f"{fields.n_points} per-point values for a cloud of {n} points")
+    dims: list[tuple[str, str]] = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    if cloud.intensity is not None:
+        dims.append(("intensity", "<u2"))
+    for f in fields.fields if fields is not None else ():
+        dims.append((f.name, f.dtype.newbyteorder("<").str))
+    dtype = np.dtype(dims)
+    # the vertex array, plus plyfile's own copy while writing
+    require(2.0 * n * dtype.itemsize, f"writing {out.name} ({n:,} points)")
+    vertex = np.empty(n, dtype=dtype)
+    vertex["x"], vertex["y"], vertex["z"] = cloud.x, cloud.y, cloud.z
+    if cloud.intensity is not None:
+        vertex["intensity"] = np.clip(np.asarray(cloud.intensity), 0, 65535)
+    if fields is not None:
+        for f, v in zip(fields.fields, fields.gather(0, n), strict=True):
+            vertex[f.name] = v
+    ply = PlyData([PlyElement.describe(vertex, "vertex")], text=False, byte_order="<",
+                  comments=list(comments))
+    write_path_atomic(out, lambda tmp: ply.write(str(tmp)))
+    n_fields = 0 if fields is None else len(fields.fields)
+    return f"binary little-endian PLY, {n:,} vertices, {n_fields} scalar properties added"

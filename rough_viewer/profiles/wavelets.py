@@ -190,6 +190,14 @@ def noise_sigma(heights: np.ndarray, *, wavelet: str = "db3") -> float:
     -------
     float
         ``median(|d1|) / 0.6745``, metres.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> smooth = np.sin(np.linspace(0, 6, 4096)) * 0.01
+    >>> noisy = smooth + np.random.default_rng(0).normal(0, 0.0005, 4096)
+    >>> round(noise_sigma(noisy) * 1e3, 2)  # true noise 0.5 mm
+    0.49
     """
     h = _as_profile(heights)
     w = _wavelet(wavelet)

@@ -1,5 +1,6 @@
 """Every number of the report: roughness maps at each grid size, Table-1 summaries,
-histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4)."""
+histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4),
+and the zones at the binary threshold with the stereonet of the cell poles."""
 
 from __future__ import annotations
 
@@ -12,12 +13,24 @@ import numpy as np
 
 from rough_viewer import __version__
 from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
+from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, grid_roughness
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, PAPER_GRIDS, InputError, ProgressFn
+from rough_viewer.vocabulary import (
+    CONNECTIVITIES,
+    DEFAULT_MIN_CELLS,
+    HISTOGRAM_BIN,
+    MAPS,
+    PAPER_GRIDS,
+    Connectivity,
+    InputError,
+    MapName,
+    ProgressFn,
+)
 
 MIN_CELLS = 10
 """A grid size leaving fewer cells with an ODR value than this is reported, not drawn."""
@@ -27,7 +40,9 @@ FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 """Panel order of the face-map figures (2011 Fig. 2: A = OLS, B = ODR)."""
 ROUGHNESS_STAGES = 4
 """Progress stages reported by ``grid_roughness``."""
-STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 1
+STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 2
+ZONES_MAP: MapName = "odr"
+"""The map whose normalised roughness makes the report's zones."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +58,10 @@ class GridSection:
     histograms: dict[str, Histogram] = field(default_factory=dict)
     variograms: dict[str, Semivariogram] = field(default_factory=dict)
     maps: dict[str, FaceMaps] = field(default_factory=dict)
+    zones: Zones | None = None
+    """Zones of the ODR map at the report's threshold."""
+    stereonet: Stereonet | None = None
+    """Poles of every cell's ODR plane."""
 
 
 @dataclass(frozen=True)
@@ -70,6 +89,10 @@ class Report:
     version: str = __version__
     created: str = ""
     """UTC time the report was made (ISO 8601)."""
+    min_cells: int = DEFAULT_MIN_CELLS
+    """Zones of fewer cells are dropped."""
+    connectivity: Connectivity = "vertex"
+    """Which cells of a zone touch."""
 
 
 def _section(
@@ -80,6 +103,8 @@ def _section(
     threshold: float,
     min_points: int,
     plane: PlaneFit,
+    min_cells: int,
+    connectivity: Connectivity,
     tick: Callable[[], None],
     stage: ProgressFn,
 ) -> GridSection:
@@ -98,7 +123,10 @@ def _section(
             result=result,
         )
     raster = face_raster(result.centre, plane, g)
-    summaries, histograms, variograms, maps = {}, {}, {}, {}
+    summaries: dict[str, Summary] = {}
+    histograms: dict[str, Histogram] = {}
+    variograms: dict[str, Semivariogram] = {}
+    maps: dict[str, FaceMaps] = {}
     for name in MAPS:
         values = result.values(name)
         norm = normalise(values)
@@ -115,9 +143,13 @@ def _section(
             )
         maps[name] = face_maps(raster, norm, threshold=threshold)
         tick()
+    zones = ZoneLabeller.build(result, ZONES_MAP).zones(
+        threshold, connectivity=connectivity, min_cells=min_cells)
+    net = cell_stereonet(result)
+    tick()
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
-                       variograms=variograms, maps=maps)
+                       variograms=variograms, maps=maps, zones=zones, stereonet=net)
 
 
 def build_report(
@@ -127,6 +159,8 @@ def build_report(
     axis: str = "auto",
     threshold: float = 0.05,
     min_points: int = 3,
+    min_cells: int = DEFAULT_MIN_CELLS,
+    connectivity: Connectivity = "vertex",
     progress: ProgressFn | None = None,
 ) -> Report:
     """Compute every number of the report.
@@ -143,6 +177,11 @@ def build_report(
         Binary transform threshold on normalised roughness (paper: 0.05).
     min_points : int
         Cells with fewer points get no value.
+    min_cells : int
+        Zones (connected cells at or above ``threshold``, ODR) of fewer cells are
+        dropped.
+    connectivity : {"vertex", "edge", "face"}
+        Which cells of a zone touch.
     progress : callable, optional
         ``progress(done, total)`` over all steps of all grid sizes.
 
@@ -154,6 +193,10 @@ def build_report(
     """
     if cloud.n < 3:
         raise InputError(f"need at least 3 points, got {cloud.n} ({cloud.source or 'cloud'})")
+    if connectivity not in CONNECTIVITIES:
+        raise InputError(f"unknown connectivity {connectivity!r}; expected vertex, edge or face")
+    if int(min_cells) != min_cells or min_cells < 1:
+        raise InputError(f"min cells must be a whole number >= 1, got {min_cells}")
     sizes = list(dict.fromkeys(float(g) for g in grid_sizes))
     total = STEPS_PER_GRID * len(sizes)
     done = base = 0
@@ -184,7 +227,8 @@ def build_report(
         base = STEPS_PER_GRID * i
         done = base + ROUGHNESS_STAGES
         sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
-                                 min_points=min_points, plane=plane, tick=tick, stage=stage))
+                                 min_points=min_points, plane=plane, min_cells=min_cells,
+                                 connectivity=connectivity, tick=tick, stage=stage))
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
@@ -202,4 +246,6 @@ def build_report(
         plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
+        min_cells=int(min_cells),
+        connectivity=connectivity,
     )

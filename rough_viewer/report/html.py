@@ -10,25 +10,28 @@ import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
-from rough_viewer.vocabulary import InputError
+from rough_viewer.visual.colormaps import zone_colour
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     """The plotly figures of one grid section, keyed by a short file-name-safe name:
-    ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``.
-    Empty when the section has an error."""
+    ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``,
+    ``zones_table``, ``zones_map``, ``stereonet``. Empty when the section has an
+    error."""
     from rough_viewer.visual.grid import (
         face_map_figure,
         histogram_figure,
         summary_table_figure,
         variogram_figure,
     )
+    from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
 
     if section.error is not None:
         return {}
-    kw = {"grid_size": section.grid_size, "axis": report.axis, "n_points": report.n_points}
+    kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
+                          "n_points": report.n_points}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
-    return {
+    figures = {
         "summary": summary_table_figure(section.summaries, **kw),
         "maps_normalised": face_map_figure(maps, kind="normalised", **kw),
         "maps_binary": face_map_figure(maps, kind="binary", **kw),
@@ -37,6 +40,15 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
         "variogram": variogram_figure(
             {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw),
     }
+    zones, net, result = section.zones, section.stereonet, section.result
+    if zones is not None and net is not None and result is not None:
+        shown = range(1, min(zones.n_zones, STEREONET_ZONES) + 1)
+        figures["zones_table"] = zones_table_figure(zones, **kw)
+        figures["zones_map"] = zones_map_figure(zones, result, plane=report.plane)
+        figures["stereonet"] = stereonet_figure(
+            net, highlight={f"zone {k}": zones.labels == k for k in shown},
+            colours={f"zone {k}": zone_colour(k) for k in shown}, **kw)
+    return figures
 
 
 def png_name(grid_size: float, figure: str) -> str:
@@ -44,7 +56,10 @@ def png_name(grid_size: float, figure: str) -> str:
     return f"g{grid_size:g}_{figure}.png"
 
 
-FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram")
+FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram",
+                "zones_table", "zones_map", "stereonet")
+STEREONET_ZONES = 6
+"""The largest zones whose poles the report's stereonet highlights."""
 
 
 _CSS = """
@@ -100,7 +115,13 @@ def report_html(report: Report) -> str:
         "Face maps: cells projected onto the whole-cloud ODR plane, pixel = cell size, "
         "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
         "between cell centres, bins of one cell size up to half the largest extent, "
-        "divided by the map's variance.</p>",
+        "divided by the map's variance. Zones: connected cells (" + esc(report.connectivity)
+        + f" connectivity) whose normalised ODR roughness is at or above {report.threshold:g}, "
+        f"groups of fewer than {report.min_cells} cells dropped, ids by size; area on the "
+        "whole-cloud ODR plane; trace = long axis of the cell centres as azimuth/plunge, "
+        "orientation = point-weighted mean ODR normal as dip/dip direction (z up, azimuths "
+        "clockwise from +y); stereonet: poles of every cell's ODR plane, lower hemisphere, "
+        "equal area, contours in multiples of a uniform distribution (MUD).</p>",
     ]
     for s in report.sections:
         sid = f"grid-{s.grid_size:g}".replace(".", "_")
@@ -117,6 +138,12 @@ def report_html(report: Report) -> str:
                 f'{cells["degenerate"]:,} degenerate.</p>'
             )
         for key, fig in report_figures(report, s).items():
+            if key == "zones_table":
+                z = s.zones
+                parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
+                if z is not None:
+                    parts.append(f'<p class="note">{z.n_zones:,} zones holding '
+                                 f'{int(z.cells.sum()):,} cells.</p>')
             div = fig.to_html(full_html=False, include_plotlyjs=False,
                               div_id=f"{sid}-{key}", config={"displaylogo": False})
             parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
@@ -127,11 +154,9 @@ def report_html(report: Report) -> str:
 
 def check_png_export() -> None:
     """Raise InputError (one line) unless the optional kaleido package is installed."""
-    import importlib.util
+    from rough_viewer.visual.export import check_figure_export
 
-    if importlib.util.find_spec("kaleido") is None:
-        raise InputError("PNG export needs the optional package kaleido "
-                         "(pip install kaleido); the HTML and JSON reports do not")
+    check_figure_export("png")
 
 
 def png_figures(report: Report) -> list[tuple[str, Any]]:

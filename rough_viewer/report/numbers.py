@@ -5,7 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from rough_viewer.grid.maps import face_frame
+from rough_viewer.grid.orientation import Stereonet
 from rough_viewer.grid.variogram import Semivariogram
+from rough_viewer.grid.zones import ZONE_COLUMNS, Zones
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.report.build import Report
 from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS
@@ -26,12 +28,40 @@ def variogram_dict(vg: Semivariogram) -> dict[str, Any]:
     }
 
 
+def zones_dict(zones: Zones, net: Stereonet | None) -> dict[str, Any]:
+    """Plain numbers of one grid size's zones and the stereonet of its cell poles (the
+    JSON contract): the zone table as ``columns`` (:data:`ZONE_COLUMNS`) and ``rows``,
+    and the pole density on the net's nodes (multiples of a uniform distribution,
+    null outside the primitive circle)."""
+    table = zones.table()
+    out: dict[str, Any] = {
+        "map": zones.map_name,
+        "threshold": zones.threshold,
+        "connectivity": zones.connectivity,
+        "min_cells": zones.min_cells,
+        "count": zones.n_zones,
+        "cells_in_zones": int(zones.cells.sum()),
+        "columns": list(ZONE_COLUMNS),
+        "rows": [[to_jsonable(table[c][k]) for c in ZONE_COLUMNS] for k in range(zones.n_zones)],
+    }
+    if net is not None:
+        out["stereonet"] = {
+            "projection": "lower hemisphere, equal area (Schmidt), radius 1, x east, y north",
+            "poles": net.n_poles,
+            "smoothing_deg": net.smoothing_deg,
+            "nodes": to_jsonable(net.nodes),
+            "density_mud": to_jsonable(net.density),
+        }
+    return out
+
+
 def report_json(report: Report) -> dict[str, Any]:
     """The report's numbers as a JSON-ready dict (NaN -> null).
 
     Layout: ``grids`` is a list (in the order asked) of ``{"grid_size", "error",
-    "cells", "models": {name: {"summary", "histogram", "semivariogram"}}}`` for the
-    names ``odr``, ``ols``, ``hybrid`` and ``e_ols``.
+    "cells", "models": {name: {"summary", "histogram", "semivariogram"}}, "zones"}``
+    for the names ``odr``, ``ols``, ``hybrid`` and ``e_ols``; ``zones`` is
+    :func:`zones_dict`.
     """
     frame = face_frame(report.plane)
     grids = []
@@ -53,6 +83,8 @@ def report_json(report: Report) -> dict[str, Any]:
                 }
                 for name in MAPS
             }
+            if s.zones is not None:
+                entry["zones"] = zones_dict(s.zones, s.stereonet)
         grids.append(entry)
     return {
         "software": {"name": "rough_viewer", "version": report.version},
@@ -69,6 +101,8 @@ def report_json(report: Report) -> dict[str, Any]:
         "axis_requested": report.axis_requested,
         "threshold": report.threshold,
         "min_points": report.min_points,
+        "min_cells": report.min_cells,
+        "connectivity": report.connectivity,
         "histogram_bin_width": HISTOGRAM_BIN,
         "face_plane": {
             "centroid": to_jsonable(frame.origin),

@@ -190,13 +190,14 @@ def write_demo(
     if p.suffix.lower() not in (".las", ".laz"):
         raise InputError(f"demo output must be .las or .laz: {p}")
     if name == "board":
-        scan = _board.board_scan(alpha_deg, beta_deg)
-        write_las(p, scan.cloud, scale=DEMO_SCALE_M,
-                  extra={"truth": scan.on_sphere.astype(np.uint8)})
-        return scan.cloud.n
-    scan = _outcrop.generate_outcrop(_OUTCROPS[name][1])
-    write_las(p, scan.cloud, scale=DEMO_SCALE_M, extra={"truth": scan.truth, "face": scan.face})
-    return scan.cloud.n
+        board = _board.board_scan(alpha_deg, beta_deg)
+        write_las(p, board.cloud, scale=DEMO_SCALE_M,
+                  extra={"truth": board.on_sphere.astype(np.uint8)})
+        return board.cloud.n
+    outcrop = _outcrop.generate_outcrop(_OUTCROPS[name][1])
+    write_las(p, outcrop.cloud, scale=DEMO_SCALE_M,
+              extra={"truth": outcrop.truth, "face": outcrop.face})
+    return outcrop.cloud.n
 
 
 def regenerate_bundled(out_dir: str | os.PathLike[str] | None = None) -> list[Path]:

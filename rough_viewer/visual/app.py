@@ -76,3 +76,91 @@ def colour_bar_figure(
         plot_bgcolor="white",
     )
     return fig
+
+
+def colour_scale_figure(
+    colour_range: colormaps.ColourRange,
+    *,
+    colormap: str,
+    title: str = "",
+    quantity: str = "θ",
+    unit: str = "mm",
+    scale: float = 1e3,
+    no_value: int = 0,
+    no_value_what: str = "cells",
+    max_ticks: int = 6,
+) -> go.Figure:
+    """Horizontal colour bar of a resolved colour stretch, ticked at round numbers.
+
+    The successor of :func:`colour_bar_figure` for the continuous display: the bar
+    shows exactly what the points show (any :class:`~rough_viewer.visual.colormaps.Stretch`:
+    percentile or absolute, linear or log, symmetric), with the tick values of
+    :func:`~rough_viewer.visual.colormaps.colour_ticks` and the shares of values
+    clipped at either end.
+
+    Parameters
+    ----------
+    colour_range : ColourRange
+        From :func:`rough_viewer.visual.colormaps.resolve`.
+    colormap : str
+        Colour map name.
+    title : str
+        Figure title (model, grid size, axis, point count).
+    quantity, unit, scale
+        Axis label ``f"{quantity} ({unit})"``; tick values are range values times
+        ``scale`` (1e3: metres shown in mm; 1 and ``unit=""`` for intensity).
+    no_value, no_value_what
+        Count of grey (no value) cells or points, stated under the bar.
+    max_ticks : int
+        Most tick labels.
+    """
+    t = np.linspace(0.0, 1.0, 256)
+    rgb = colormaps.apply(t, colormap)
+    scale_css = [[i / 255.0, colormaps.rgb_css(c)] for i, c in enumerate(rgb)]
+    ticks = colormaps.colour_ticks(colour_range, scale=scale, max_ticks=max_ticks)
+    lo, hi = colour_range.lo * scale, colour_range.hi * scale
+    if colour_range.log and np.isfinite(lo) and np.isfinite(hi) and lo > 0 and hi > lo:
+        values = lo * (hi / lo) ** t
+    else:
+        values = lo + t * (hi - lo)
+    fig = go.Figure(go.Heatmap(
+        z=[t], x=t, colorscale=scale_css, zmin=0.0, zmax=1.0, showscale=False,
+        customdata=[values], hovertemplate=f"{quantity} %{{customdata:.4g}} {unit}<extra></extra>",
+    ))
+    stretch = colour_range.stretch.describe(scale=scale, unit=unit)
+    notes = [stretch]
+    if colour_range.below:
+        notes.append(f"{colour_range.below * 100:.0f} % below")
+    if colour_range.above:
+        notes.append(f"{colour_range.above * 100:.0f} % above")
+    if no_value:
+        notes.append(f"grey: no value ({no_value:,} {no_value_what})")
+    axis_title = f"{quantity} ({unit})" if unit else quantity
+    fig.update_layout(
+        title={"text": title, "font": {"size": 12}, "x": 0.01, "xanchor": "left"},
+        margin={"l": 12, "r": 12, "t": 30, "b": 52},
+        height=130,
+        xaxis={"range": [-0.5 / 255, 1 + 0.5 / 255], "tickvals": list(ticks.positions),
+               "ticktext": list(ticks.labels), "tickfont": {"size": 12}, "ticks": "outside",
+               "showgrid": False, "zeroline": False,
+               "title": {"text": f"{axis_title}<br><sup>{' · '.join(notes)}</sup>",
+                         "font": {"size": 12}, "standoff": 4}},
+        yaxis={"visible": False},
+        plot_bgcolor="white",
+    )
+    return fig
+
+
+#: Width of an analysis panel the figures are laid out for, px (issue 13: at least
+#: ~480 px at a 1600 x 1000 window).
+PANEL_WIDTH = 480
+
+
+def panel_aspect(fig: go.Figure, width: int = PANEL_WIDTH) -> float:
+    """The ``aspect`` to give ``viser``'s ``add_plotly`` (which draws a figure
+    ``aspect`` times as high as the panel is wide) so that ``fig`` gets the height
+    its builder laid it out for (``fig.layout.height``) at ``width`` px."""
+    height = fig.layout.height
+    if height is None:
+        raise ValueError("the figure has no layout height")
+    return float(height) / float(width)

@@ -39,17 +39,74 @@ def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str
     return " · ".join(parts)
 
 
+#: Longest caption line, in characters, that fits a ~480 px wide panel at the
+#: caption's font size (the title wraps at " · " to stay inside it).
+CAPTION_CHARS = 62
+#: Title font size, px; the caption (``<sup>``) is drawn at about 70 % of it.
+TITLE_SIZE = 15
+
+
+def wrap_caption(text: str, width: int = CAPTION_CHARS) -> str:
+    """``text`` broken into ``<br>``-separated lines at its `` · `` separators so that
+    no line is longer than ``width`` characters where a break can help.
+
+    >>> wrap_caption("grid 0.25 m · models ODR, OLS · dependent axis y · 1,000 points", 40)
+    'grid 0.25 m · models ODR, OLS<br>dependent axis y · 1,000 points'
+    """
+    lines: list[str] = []
+    for part in text.split(" · "):
+        if lines and len(lines[-1]) + 3 + len(part) <= width:
+            lines[-1] += " · " + part
+        else:
+            lines.append(part)
+    return "<br>".join(lines)
+
+
+def title_block(what: str, caption: str) -> dict[str, Any]:
+    """A plotly title: ``what`` (may hold ``<br>``) above the wrapped ``caption`` in
+    small type, left-aligned, at :data:`TITLE_SIZE`."""
+    sub = "<br>".join(f"<sup>{line}</sup>" for line in wrap_caption(caption).split("<br>"))
+    return {"text": f"{what}<br>{sub}", "x": 0.01, "xanchor": "left",
+            # plotly anchors a multi-line title about 14 px above the container's
+            # top edge; this pad brings its first line just inside
+            "yref": "container", "y": 1.0, "yanchor": "top", "pad": {"t": 18},
+            "font": {"size": TITLE_SIZE}}
+
+
+def title_height(title: dict[str, Any]) -> int:
+    """Pixels a :func:`title_block` needs above the plot (for the top margin)."""
+    lines = title["text"].split("<br>")
+    sup = sum(1 for line in lines if line.startswith("<sup>"))
+    return int(12 + (len(lines) - sup) * 1.2 * TITLE_SIZE + sup * 1.05 * TITLE_SIZE)
+
+
 def _title(what: str, **kw: Any) -> dict[str, Any]:
-    return {"text": f"{what}<br><sup>{describe(**kw)}</sup>", "x": 0.01, "xanchor": "left"}
+    return title_block(what, describe(**kw))
 
 
-def _fmt(value: float) -> str:
+def format_number(value: float) -> str:
+    """A table value in at most about 8 characters, nothing cut: thousands separated
+    from 100 up, 2 decimals from 1, 1 decimal from 10, 3 significant digits below 1,
+    and the exponent form below 0.001 (round-off such as ``6.5e-15``).
+
+    >>> [format_number(v) for v in (11045.97, 41.1, 4.317, 0.0523, 0.00123, 6.5e-15, 0.0)]
+    ['11,046', '41.1', '4.32', '0.0523', '0.00123', '6.5e-15', '0']
+    """
     value = float(value)
     if not np.isfinite(value):
         return "–"
-    if value == 0 or 1e-3 <= abs(value) < 1e5:
-        return f"{value:.4f}" if abs(value) < 1 else f"{value:,.4g}"
-    return f"{value:.3e}"
+    a = abs(value)
+    if a == 0:
+        return "0"
+    if a >= 100:
+        return f"{value:,.0f}"
+    if a >= 10:
+        return f"{value:.1f}"
+    if a >= 1:
+        return f"{value:.2f}"
+    if a >= 1e-3:
+        return f"{value:.3g}"
+    return f"{value:.1e}".replace("e-0", "e-")
 
 
 def summary_table_figure(
@@ -59,36 +116,45 @@ def summary_table_figure(
     axis: str,
     n_points: int,
 ) -> go.Figure:
-    """Table 1 of the 2011 paper for one grid size.
+    """Table 1 of the 2011 paper for one grid size, roughness in millimetres.
+
+    One row per map, columns cells, mean points per cell, minimum, maximum, mean,
+    variance (mm²) and standard deviation (mm); numbers by :func:`format_number`
+    so that every value fits its column in a panel 480 px wide.
 
     Parameters
     ----------
-    summaries : dict map name -> ``rough_viewer.grid.roughness.Summary``
+    summaries : dict map name -> ``rough_viewer.grid.summary.Summary``
         Objects with ``cells``, ``mean_points``, ``min``, ``max``, ``mean``,
         ``variance`` and ``std`` (roughness in metres, variance in m^2).
     """
     names = list(summaries)
     rows = [summaries[n] for n in names]
-    header = ["map", "cells", "mean points per cell", "minimum (m)", "maximum (m)", "mean (m)",
-              "variance (m²)", "std (m)"]
+    header = ["map", "cells", "points<br>per cell", "min<br>(mm)", "max<br>(mm)",
+              "mean<br>(mm)", "variance<br>(mm²)", "std<br>(mm)"]
     cells = [
         [label(n) for n in names],
         [f"{int(s.cells):,}" for s in rows],
-        [f"{float(s.mean_points):,.1f}" for s in rows],
-        [_fmt(s.min) for s in rows],
-        [_fmt(s.max) for s in rows],
-        [_fmt(s.mean) for s in rows],
-        [_fmt(s.variance) for s in rows],
-        [_fmt(s.std) for s in rows],
+        [format_number(s.mean_points) for s in rows],
+        [format_number(1e3 * s.min) for s in rows],
+        [format_number(1e3 * s.max) for s in rows],
+        [format_number(1e3 * s.mean) for s in rows],
+        [format_number(1e6 * s.variance) for s in rows],
+        [format_number(1e3 * s.std) for s in rows],
     ]
+    title = _title("Roughness summary (Table 1)", grid_size=grid_size, axis=axis,
+                   n_points=n_points, models=names)
     fig = go.Figure(go.Table(
-        header={"values": header, "align": "left", "fill_color": "#e8e8e8"},
-        cells={"values": cells, "align": "left"},
+        columnwidth=[1.05, 1.0, 0.95, 1.0, 1.0, 1.0, 1.25, 1.0],
+        header={"values": header, "align": ["left"] + ["right"] * 7, "fill_color": "#e8e8e8",
+                "font": {"size": 12}, "height": 36},
+        cells={"values": cells, "align": ["left"] + ["right"] * 7, "font": {"size": 12},
+               "height": 24},
     ))
+    top = title_height(title)
     fig.update_layout(
-        title=_title("Roughness summary (Table 1)", grid_size=grid_size, axis=axis,
-                     n_points=n_points, models=names),
-        height=140 + 30 * len(names), margin={"l": 10, "r": 10, "t": 70, "b": 10},
+        title=title, height=top + 36 + 24 * len(names) + 16,
+        margin={"l": 6, "r": 6, "t": top, "b": 6},
     )
     return fig
 
@@ -118,21 +184,25 @@ def histogram_figure(
         shares.append(f"{label(name)} {first * 100:.0f} %")
         fig.add_trace(go.Bar(
             x=0.5 * (edges[:-1] + edges[1:]), y=fractions * 100.0,
-            name=f"{label(name)} (first bin {first * 100:.1f} %)",
+            name=label(name),
             marker_color=MAP_COLOURS.get(name),
-            hovertemplate=label(name) + ": %{y:.2f} %<extra></extra>",
+            hovertemplate=(label(name) + ": %{y:.2f} % of cells"
+                           f" (first bin {first * 100:.1f} %)<extra></extra>"),
         ))
     first_edge = f"{histograms[names[0]].edges[1]:g}" if names else ""
+    title = _title(
+        "Normalised roughness histogram<br>"
+        + wrap_caption(f"first bin (0–{first_edge}): " + " · ".join(shares), 56),
+        grid_size=grid_size, axis=axis, n_points=n_points, models=names)
+    top = title_height(title)
     fig.update_layout(
-        title=_title(f"Normalised roughness histograms — first bin (0–{first_edge}): "
-                     + ", ".join(shares), grid_size=grid_size, axis=axis, n_points=n_points,
-                     models=names),
+        title=title,
         barmode="group", bargap=0.15, bargroupgap=0.0,
         xaxis_title="normalised roughness", yaxis_title="cells (%)",
-        height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
-        legend={"x": 0.99, "xanchor": "right", "y": 0.99},
+        height=top + 330, margin={"l": 60, "r": 10, "t": top, "b": 50},
+        legend={"x": 0.99, "xanchor": "right", "y": 0.99, "bgcolor": "rgba(255,255,255,0.7)"},
     )
-    fig.update_xaxes(range=[0, 1])
+    fig.update_xaxes(range=[0, 1], ticks="outside", ticklen=5, tickcolor="rgba(0,0,0,0)")
     return fig
 
 
@@ -168,12 +238,16 @@ def variogram_figure(
             hovertemplate=(label(name) + ": lag %{x:.3f} m, γ %{y:.4g}, "
                            "%{customdata:,} pairs<extra></extra>"),
         ))
+    title = _title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
+                   grid_size=grid_size, axis=axis, n_points=n_points, models=names)
+    top = title_height(title)
     fig.update_layout(
-        title=_title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
-                     grid_size=grid_size, axis=axis, n_points=n_points, models=names),
+        title=title,
         xaxis_title="lag (m)",
         yaxis_title="γ / variance" if normalised else "γ (m²)",
-        height=420, margin={"l": 60, "r": 10, "t": 80, "b": 50},
+        height=top + 330, margin={"l": 60, "r": 10, "t": top, "b": 50},
+        legend={"x": 0.99, "xanchor": "right", "y": 0.01, "yanchor": "bottom",
+                "bgcolor": "rgba(255,255,255,0.7)"},
     )
     if normalised:
         fig.add_hline(y=1.0, line={"dash": "dot", "color": "#888", "width": 1})

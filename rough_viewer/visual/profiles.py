@@ -2,46 +2,102 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from rough_viewer.vocabulary import PROFILE_COLOURS
+from rough_viewer.vocabulary import PROFILE_COLOURS, InputError
+
+#: Height-axis margin above and below the data, as a share of the data's span.
+HEIGHT_MARGIN = 0.08
+#: Smallest height span shown, mm (a perfectly flat profile still gets an axis).
+MIN_HEIGHT_SPAN_MM = 0.2
 
 
-def profile_figure(analyses, *, exaggeration: float = 1.0) -> go.Figure:
+def height_range_mm(analyses: Sequence[Any]) -> tuple[float, float]:
+    """The height-axis range of :func:`profile_figure`, mm: the lowest and highest
+    raw or de-noised height of every profile, widened by :data:`HEIGHT_MARGIN` of
+    their span on each side (at least :data:`MIN_HEIGHT_SPAN_MM` in all); (-1, 1)
+    when there is no height."""
+    parts = [np.asarray(h, dtype=np.float64) * 1e3 for a in analyses
+             for h in (a.profile.heights, a.denoised.heights)]
+    values = np.concatenate(parts) if parts else np.empty(0)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return (-1.0, 1.0)
+    lo, hi = float(values.min()), float(values.max())
+    span = max(hi - lo, MIN_HEIGHT_SPAN_MM)
+    mid = 0.5 * (lo + hi)
+    half = 0.5 * span * (1 + 2 * HEIGHT_MARGIN)
+    return (mid - half, mid + half)
+
+
+def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None) -> go.Figure:
     """Profiles (raw and de-noised heights along the line, mm) above the log-log
     roughness-length plot s(w) with fitted lines and D, one colour per profile.
 
-    ``analyses``: :class:`rough_viewer.app.profile_mode.ProfileAnalysis` items.
-    ``exaggeration`` stretches the height axis against the distance axis.
+    Parameters
+    ----------
+    analyses : sequence of ProfileAnalysis
+        Objects with ``profile`` (``distance`` and ``heights``, metres),
+        ``denoised.heights`` (metres), ``raw_fit`` and ``denoised_fit``
+        (:class:`~rough_viewer.profiles.fractal.RoughnessLength`), e.g.
+        ``rough_viewer.app.profile_mode.ProfileAnalysis``.
+    exaggeration : float, optional
+        None (default): the height axis spans the data (:func:`height_range_mm`), so
+        millimetre relief fills the panel; its title says the plot is not to scale.
+        A number ``E > 0``: one millimetre of height is drawn ``E`` times as long as
+        one millimetre along the line (``E = 1`` is true scale); the height range
+        stays fitted to the data and the plot box takes the shape that ratio gives
+        (a thin strip for small ``E``).
     """
-    fig = make_subplots(rows=2, cols=1, vertical_spacing=0.16,
+    if exaggeration is not None and not (np.isfinite(exaggeration) and exaggeration > 0):
+        raise InputError(f"vertical exaggeration must be a positive number, got {exaggeration}")
+    fig = make_subplots(rows=2, cols=1, vertical_spacing=0.2,
                         subplot_titles=("profile (raw, de-noised)", "roughness length s(w)"))
     for k, a in enumerate(analyses):
         c = PROFILE_COLOURS[k % len(PROFILE_COLOURS)]
         p = a.profile
-        fig.add_trace(go.Scatter(x=p.distance, y=p.heights, mode="lines", name=f"P{k + 1} raw",
-                                 line=dict(color=c, width=1), opacity=0.45), row=1, col=1)
-        fig.add_trace(go.Scatter(x=p.distance, y=a.denoised.heights, mode="lines",
-                                 name=f"P{k + 1} de-noised", line=dict(color=c, width=2)),
+        fig.add_trace(go.Scatter(x=p.distance, y=np.asarray(p.heights) * 1e3, mode="lines",
+                                 name=f"P{k + 1} raw", legendgroup=f"P{k + 1}",
+                                 line={"color": c, "width": 1}, opacity=0.45,
+                                 hovertemplate="%{x:.3f} m, %{y:.2f} mm<extra></extra>"),
+                      row=1, col=1)
+        fig.add_trace(go.Scatter(x=p.distance, y=np.asarray(a.denoised.heights) * 1e3,
+                                 mode="lines", name=f"P{k + 1} de-noised",
+                                 legendgroup=f"P{k + 1}", line={"color": c, "width": 2},
+                                 hovertemplate="%{x:.3f} m, %{y:.2f} mm<extra></extra>"),
                       row=1, col=1)
         for fit, dash, what in ((a.raw_fit, "dot", "raw"), (a.denoised_fit, "solid", "de-noised")):
             ok = np.isfinite(fit.s)
-            fig.add_trace(go.Scatter(x=fit.windows[ok], y=fit.s[ok], mode="markers",
-                                     marker=dict(color=c, symbol="circle-open" if what == "raw"
-                                                 else "circle"),
+            fig.add_trace(go.Scatter(x=fit.windows[ok], y=fit.s[ok] * 1e3, mode="markers",
+                                     marker={"color": c, "symbol": "circle-open" if what == "raw"
+                                             else "circle"},
+                                     legendgroup=f"P{k + 1}",
                                      name=f"P{k + 1} {what} D={fit.dimension:.3f}"), row=2, col=1)
             if np.isfinite(fit.amplitude) and ok.any():
                 w = fit.windows[ok]
-                fig.add_trace(go.Scatter(x=w, y=fit.amplitude * w ** fit.hurst, mode="lines",
-                                         line=dict(color=c, dash=dash, width=1),
-                                         showlegend=False, hoverinfo="skip"), row=2, col=1)
+                fig.add_trace(go.Scatter(x=w, y=fit.amplitude * w ** fit.hurst * 1e3,
+                                         mode="lines", line={"color": c, "dash": dash, "width": 1},
+                                         legendgroup=f"P{k + 1}", showlegend=False,
+                                         hoverinfo="skip"), row=2, col=1)
+    lo, hi = height_range_mm(analyses)
     fig.update_xaxes(title_text="distance along the line (m)", row=1, col=1)
-    fig.update_yaxes(title_text=f"height (m), ×{exaggeration:g}", row=1, col=1,
-                     scaleanchor="x", scaleratio=float(exaggeration))
+    if exaggeration is None:
+        fig.update_yaxes(title_text="height (mm), fitted", range=[lo, hi], row=1, col=1)
+    else:
+        # y in mm, x in m: one y unit is E/1000 of an x unit on the screen
+        fig.update_yaxes(title_text=f"height (mm), ×{exaggeration:g}", range=[lo, hi],
+                         scaleanchor="x", scaleratio=float(exaggeration) * 1e-3,
+                         constrain="domain", row=1, col=1)
+        fig.update_xaxes(constrain="domain", row=1, col=1)
     fig.update_xaxes(title_text="window w (m)", type="log", row=2, col=1)
-    fig.update_yaxes(title_text="s(w) (m)", type="log", row=2, col=1)
-    fig.update_layout(margin=dict(l=50, r=10, t=30, b=40), legend=dict(font=dict(size=9)),
+    fig.update_yaxes(title_text="s(w) (mm)", type="log", row=2, col=1)
+    fig.update_layout(height=620, margin={"l": 60, "r": 10, "t": 30, "b": 40},
+                      legend={"orientation": "h", "x": 0.0, "y": -0.1, "yanchor": "top",
+                              "font": {"size": 10}},
                       showlegend=bool(analyses))
     return fig

@@ -139,3 +139,18 @@ def test_console_script_exit_status_and_no_traceback(tmp_path):
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip() == f"rough-viewer: error: file not found: {tmp_path / 'x.las'}"
+
+
+def test_parquet_cell_table_equals_csv(tmp_path, cloud_file):
+    pq = pytest.importorskip("pyarrow.parquet")
+    path, _ = cloud_file
+    csv_out, pq_out = tmp_path / "cells.csv", tmp_path / "cells.parquet"
+    assert main(["compute", str(path), "--grid", "0.5", "--out", str(csv_out), "--quiet"]) == 0
+    assert main(["compute", str(path), "--grid", "0.5", "--out", str(pq_out), "--quiet"]) == 0
+    header, rows = read_csv(csv_out)
+    table = pq.read_table(pq_out)
+    assert table.column_names == header and table.num_rows == len(rows)
+    for k, name in enumerate(header):
+        col = table.column(name).to_pylist()
+        for text, value in zip((r[k] for r in rows), col, strict=True):
+            assert (text == "" and value is None) or float(text) == value

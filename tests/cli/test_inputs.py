@@ -113,3 +113,14 @@ def test_no_match_glob_exit_2(tmp_path, capsys):
     assert main(["compute", str(tmp_path / "*.laz"), "--grid", "1", "--out",
                  str(tmp_path / "o.csv")]) == 2
     assert "no files match" in capsys.readouterr().err
+
+
+def test_zones_takes_several_inputs_as_one_cloud(files, tmp_path):
+    paths, xyz = files
+    np.save(tmp_path / "all.npy", xyz)
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["zones", *map(str, paths), "--grid", "0.25", "--out", str(a), "--quiet"]) == 0
+    assert main(["zones", str(tmp_path / "all.npy"), "--grid", "0.25", "--out", str(b),
+                 "--quiet"]) == 0
+    ra, rb = rows(a), rows(b)
+    assert len(ra) > 1 and ra == rb

@@ -189,7 +189,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
     """The export logic, with kaleido's renderer replaced by a stub."""
     import plotly.graph_objects as go
 
-    import rough_viewer.report as report_module
+    import rough_viewer.visual.export as export_module
 
     rendered = []
 
@@ -197,7 +197,7 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
         rendered.append(fig.layout.title.text)
         return b"\x89PNG fake"
 
-    monkeypatch.setattr(report_module, "check_png_export", lambda: None)
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
     monkeypatch.setattr(go.Figure, "to_image", fake_to_image)
     png = tmp_path / "png"
     rc = main(["report", str(cloud_file), "--grid", "0.5", "--grid", str(TOO_COARSE),
@@ -257,3 +257,42 @@ def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
     assert page.get_by_text("too few cells").count() == 1
     ctx.close()
     assert not errors, errors
+
+
+def test_zones_section_in_json_matches_the_labeller(cloud, report):
+    from rough_viewer.grid.orientation import cell_stereonet
+    from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller
+
+    data = json.loads(json.dumps(report_json(report), allow_nan=False))
+    assert data["min_cells"] == 3 and data["connectivity"] == "vertex"
+    for entry, g in zip(data["grids"], GOOD, strict=False):
+        ref = grid_roughness(cloud, g, axis=report.axis)
+        zones = ZoneLabeller.build(ref).zones(report.threshold)
+        z = entry["zones"]
+        assert z["map"] == "odr" and z["threshold"] == report.threshold
+        assert z["columns"] == list(ZONE_COLUMNS)
+        assert z["count"] == zones.n_zones == len(z["rows"])
+        assert z["cells_in_zones"] == int(zones.cells.sum())
+        table = zones.table()
+        for k, row in enumerate(z["rows"]):
+            for name, value in zip(ZONE_COLUMNS, row, strict=True):
+                assert value == pytest.approx(float(table[name][k]), rel=1e-12, abs=1e-12)
+        net = cell_stereonet(ref)
+        assert z["stereonet"]["poles"] == net.n_poles
+        dens = np.array([[np.nan if v is None else v for v in r]
+                         for r in z["stereonet"]["density_mud"]])
+        np.testing.assert_allclose(dens, net.density, rtol=1e-12, equal_nan=True)
+    assert "zones" not in data["grids"][2]  # the grid size with too few cells
+
+
+def test_report_zone_options_and_their_checks(cloud):
+    rep = build_report(cloud, [0.25], threshold=0.3, min_cells=5, connectivity="face")
+    zones = rep.sections[0].zones
+    assert zones is not None and zones.connectivity == "face" and zones.min_cells == 5
+    assert np.all(zones.cells >= 5)
+    from rough_viewer.vocabulary import InputError
+
+    with pytest.raises(InputError, match="connectivity"):
+        build_report(cloud, [0.25], connectivity="corner")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="min cells"):
+        build_report(cloud, [0.25], min_cells=0)

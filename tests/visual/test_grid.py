@@ -11,10 +11,15 @@ from rough_viewer.grid.maps import face_maps, face_raster
 from rough_viewer.grid.summary import Summary, histogram
 from rough_viewer.grid.variogram import semivariogram
 from rough_viewer.visual.grid import (
+    CAPTION_CHARS,
+    describe,
     face_map_figure,
+    format_number,
     histogram_figure,
     summary_table_figure,
+    title_height,
     variogram_figure,
+    wrap_caption,
 )
 
 KW = {"grid_size": 0.125, "axis": "y", "n_points": 1_234_567}
@@ -30,11 +35,38 @@ def assert_caption(fig, *models):
 def test_summary_table():
     s = Summary(cells=53508, mean_points=1222.0, min=0.0, max=0.1202, mean=0.0069,
                 variance=4.32e-5, std=0.0066)
-    fig = summary_table_figure({"odr": s, "ols": s}, **KW)
+    h = Summary(cells=2194, mean_points=69.8, min=6.5e-18, max=5.23884, mean=0.01322,
+                variance=0.017918, std=0.13386)
+    fig = summary_table_figure({"odr": s, "hybrid": h}, **KW)
+    header = fig.data[0].header.values
     cells = fig.data[0].cells.values
-    assert list(cells[0]) == ["ODR", "OLS"]
-    assert cells[1][0] == "53,508" and cells[4][0] == "0.1202" and cells[6][0] == "4.320e-05"
-    assert_caption(fig, "ODR", "OLS")
+    assert list(cells[0]) == ["ODR", "hybrid"]
+    # roughness in mm, variance in mm², every value short enough for its column
+    assert "(mm)" in header[3] and "(mm²)" in header[6]
+    assert [c[0] for c in cells[1:]] == ["53,508", "1,222", "0", "120", "6.90", "43.2", "6.60"]
+    assert [c[1] for c in cells[1:]] == ["2,194", "69.8", "6.5e-15", "5,239", "13.2", "17,918",
+                                         "134"]
+    assert_caption(fig, "ODR", "hybrid")
+
+
+@pytest.mark.parametrize(("value", "text"), [
+    (0.0, "0"), (123456.7, "123,457"), (100.0, "100"), (99.96, "100.0"), (41.14, "41.1"),
+    (4.317, "4.32"), (0.5, "0.5"), (0.0523, "0.0523"), (0.001, "0.001"), (6.5e-15, "6.5e-15"),
+    (-2.5, "-2.50"), (float("nan"), "–"),
+])
+def test_format_number(value, text):
+    assert format_number(value) == text
+    assert len(text) <= 8
+
+
+def test_captions_wrap_to_fit_a_narrow_panel():
+    caption = describe(grid_size=0.125, axis="y", n_points=1_234_567,
+                       models=("odr", "ols", "hybrid", "e_ols"))
+    wrapped = wrap_caption(caption)
+    assert wrapped.replace("<br>", " · ") == caption
+    assert all(len(line) <= CAPTION_CHARS for line in wrapped.split("<br>"))
+    fig = summary_table_figure({"odr": Summary(1, 1, 0, 0, 0, 0, 0)}, **KW)
+    assert fig.layout.margin.t >= title_height(fig.layout.title.to_plotly_json())
 
 
 def test_histogram_bars_and_first_bin_shares():

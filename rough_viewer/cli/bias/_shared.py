@@ -4,6 +4,7 @@ option, LAS outputs and the simulation options."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -68,7 +69,8 @@ def check_las_out(args: argparse.Namespace) -> Path | None:
         return None
     if Path(args.out).suffix.lower() not in (".las", ".laz"):
         raise InputError(f"--out must end in .las or .laz, got {args.out}")
-    return check_output_path(args.out, force=args.force)
+    inputs = [args.input] if getattr(args, "input", None) else []
+    return check_output_path(args.out, force=args.force, inputs=inputs)
 
 
 def write_las_atomic(path: Path, xyz: np.ndarray, extra: dict) -> None:
@@ -108,7 +110,7 @@ def prediction_text(p: BiasPrediction, title: str) -> str:
     ])
 
 
-def check_er(args: argparse.Namespace, ers: object) -> None:
+def check_er(args: argparse.Namespace, ers: Iterable[float]) -> None:
     """Refuse effective radii too small to smooth at the raster spacing."""
     for e in ers:
         if 0 < e < 0.5 * args.spacing:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.simulation import smoothing_curve
 
-    curves = []
+    curves: list[dict[str, Any]] = []
     ratios = np.asarray(args.er_ratio, dtype=np.float64)
     for r in args.asperity_radius:
         check_er(args, ratios * r)
@@ -56,14 +57,14 @@ def run(args: argparse.Namespace) -> int:
             "residual": "signed" if args.signed else "absolute", "curves": curves}
     lines = [f"roughness error against ER / asperity radius (noise {mm(args.noise)}); "
              "percent of the noise-free / noisy expected value"]
-    for c in curves:
-        lines.append(f"asperity radius {mm(c['asperity_radius_m'])}: expected "
-                     f"{mm(c['expected_m'])}, with noise {mm(c['noise_only_m'])}")
+    for row in curves:
+        lines.append(f"asperity radius {mm(row['asperity_radius_m'])}: expected "
+                     f"{mm(row['expected_m'])}, with noise {mm(row['noise_only_m'])}")
         lines.append(f"  {'ER/r':>6} {'ER mm':>8} {'measured mm':>12} {'vs true %':>10} "
                      f"{'vs noisy %':>11}")
-        for k in range(len(c["er_ratio"])):
-            lines.append(f"  {c['er_ratio'][k]:6.3f} {c['effective_radius_m'][k] * 1e3:8.3f} "
-                         f"{c['measured_m'][k] * 1e3:12.3f} {c['error_pct'][k]:10.2f} "
-                         f"{c['vs_noisy_pct'][k]:11.2f}")
+        for k in range(len(row["er_ratio"])):
+            lines.append(f"  {row['er_ratio'][k]:6.3f} {row['effective_radius_m'][k] * 1e3:8.3f} "
+                         f"{row['measured_m'][k] * 1e3:12.3f} {row['error_pct'][k]:10.2f} "
+                         f"{row['vs_noisy_pct'][k]:11.2f}")
     emit(args, data, "\n".join(lines))
     return 0

@@ -1,0 +1,140 @@
+"""``rough-viewer zones``: fracture and rubble zones of a cloud, headless.
+
+Contract (other tools script against it)::
+
+    rough-viewer zones INPUT [INPUT ...] --grid G [--method odr|ols|hybrid] [--axis auto|x|y|z]
+        [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
+        [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--force] [--quiet]
+
+ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
+:data:`rough_viewer.grid.zones.ZONE_COLUMNS` (theta in metres, angles in degrees,
+numbers at full precision as ``compute`` writes them). CELLS.csv: ``compute``'s
+columns (all three models; :func:`rough_viewer.grid.table.cell_columns`) plus
+``zone`` (0 = in no zone). Both go through :func:`rough_viewer.io.table.write_table`
+(a ``.parquet`` name writes Parquet, as ``compute``). Several inputs (files or
+quoted globs) are one merged cloud.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from rough_viewer.cli._inputs import add_inputs
+from rough_viewer.cli._options import positive, positive_int
+from rough_viewer.io.output import check_outputs
+from rough_viewer.vocabulary import (
+    CONNECTIVITIES,
+    DEFAULT_MIN_CELLS,
+    DEFAULT_THRESHOLD,
+    MAP_LABELS,
+    InputError,
+)
+
+#: Zones listed on the terminal (all of them go to ZONES.csv).
+SHOWN = 10
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "zones",
+        help="fracture and rubble zones (connected rough cells) to CSV",
+        description="Find zones: connected groups of cells whose normalised roughness is "
+        "at or above a threshold (the 2011 paper's binary transform, Fig. 2), and write "
+        "one CSV row per zone (size, area, extent, trace, orientation, roughness).",
+    )
+    add_inputs(p)
+    p.add_argument("--grid", type=positive, required=True, metavar="G",
+                   help="grid cell size in metres")
+    p.add_argument("--method", choices=("odr", "ols", "hybrid"), default="odr",
+                   help="roughness map whose normalised values are thresholded (default odr)")
+    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
+                   help="dependent axis of OLS and hybrid (default: auto = closest to the "
+                   "whole cloud's normal)")
+    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
+                   help="cells with normalised roughness >= T are rough, T in [0, 1] "
+                   f"(default {DEFAULT_THRESHOLD:g}, the 2011 paper's)")
+    p.add_argument("--min-cells", type=positive_int, default=DEFAULT_MIN_CELLS, metavar="K",
+                   help=f"drop zones of fewer cells (default {DEFAULT_MIN_CELLS})")
+    p.add_argument("--connectivity", choices=CONNECTIVITIES, default="vertex",
+                   help="cells touch by a face (6 neighbours), an edge (18) or a vertex "
+                   "(26, default)")
+    p.add_argument("--min-points", type=int, default=None, metavar="K",
+                   help="cells with fewer points get no value (default: as compute)")
+    p.add_argument("--out", required=True, metavar="ZONES.csv", help="per-zone CSV output")
+    p.add_argument("--cells-out", metavar="CELLS.csv",
+                   help="per-cell CSV output: compute's columns plus zone")
+    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def format_zones(zones, result, *, source: str) -> str:
+    """Readable summary of the zones (the first :data:`SHOWN`) for the terminal."""
+    from rough_viewer.grid.orientation import dip_and_direction
+
+    dip, dd = dip_and_direction(result.whole_plane.normal[None])
+    valued = int(np.count_nonzero(np.isfinite(result.values(zones.map_name))))
+    in_zones = int(zones.cells.sum())
+    lines = [
+        f"{source}: {result.n_points_total:,} points, grid {zones.cell_size:g} m, "
+        f"{MAP_LABELS[zones.map_name]} roughness, threshold {zones.threshold:g}, "
+        f"{zones.connectivity} connectivity, zones of >= {zones.min_cells} cells",
+        f"face (whole-cloud ODR plane): dip {dip[0]:.1f}, dip direction {dd[0]:.1f} deg",
+        f"{zones.n_zones:,} zone{'s' if zones.n_zones != 1 else ''}, {in_zones:,} cells "
+        f"({100.0 * in_zones / max(valued, 1):.1f} % of {valued:,} cells with a value), "
+        f"{float(zones.area_m2.sum()):.4g} m2 of face",
+    ]
+    if zones.n_zones:
+        lines.append("")
+        lines.append(f"{'zone':>5} {'cells':>7} {'points':>9} {'area m2':>9} {'length m':>9} "
+                     f"{'width m':>8} {'trace':>9} {'dip/dir':>9} {'mean theta m':>13}")
+        for k in range(min(SHOWN, zones.n_zones)):
+            lines.append(
+                f"{k + 1:5d} {zones.cells[k]:7,} {zones.points[k]:9,} {zones.area_m2[k]:9.4g} "
+                f"{zones.length_m[k]:9.3g} {zones.width_m[k]:8.3g} "
+                f"{zones.trace_azimuth_deg[k]:4.0f}/{zones.trace_plunge_deg[k]:<4.0f} "
+                f"{zones.dip_deg[k]:3.0f}/{zones.dip_direction_deg[k]:<5.0f} "
+                f"{zones.mean_theta[k]:13.4e}")
+        if zones.n_zones > SHOWN:
+            lines.append(f"  ... {zones.n_zones - SHOWN:,} more in the CSV")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.grid.table import cell_columns, table_metadata
+    from rough_viewer.grid.zones import ZoneLabeller
+    from rough_viewer.io.table import check_table_output, write_table
+
+    if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
+        raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
+    if args.min_points is not None and args.min_points < 3:
+        raise InputError(f"--min-points must be at least 3, got {args.min_points}")
+    inputs = input_paths(args)
+    source = describe(inputs)
+    paths = check_outputs([args.out, *([args.cells_out] if args.cells_out else [])],
+                          force=args.force, inputs=inputs)
+    for path in paths:
+        check_table_output(path)
+    out, cells_out = paths[0], (paths[1] if len(paths) > 1 else None)
+    quiet = args.quiet
+    cloud = load_inputs(inputs, units=getattr(args, "units", None), quiet=quiet)
+    options = {} if args.min_points is None else {"min_points": args.min_points}
+    result = grid_roughness(cloud, args.grid, axis=args.axis,
+                            progress=None if quiet else ProgressBar(f"grid {args.grid:g} m"),
+                            **options)
+    zones = ZoneLabeller.build(result, args.method).zones(
+        args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
+    write_table(out, zones.table())
+    if cells_out is not None:
+        keep = result.n_points >= result.min_points  # the rows of cell_columns
+        write_table(cells_out, {**cell_columns(result), "zone": zones.labels[keep]},
+                    metadata=table_metadata(result, source))
+    print(format_zones(zones, result, source=source))
+    print(f"wrote {out}" + (f" and {cells_out}" if cells_out is not None else ""))
+    return 0

@@ -1,0 +1,100 @@
+"""The report of ``rough-viewer report`` for a cloud and a set of settings, as the
+command line and the app's Export folder make it: one call from settings to the
+finished HTML page (or JSON numbers), and to a file written atomically.
+
+>>> ReportSettings(min_points=4, grid_sizes=(0.5,)).check()   # fine: returns quietly
+>>> ReportSettings(min_points=4, threshold=2.0).check()
+Traceback (most recent call last):
+...
+rough_viewer.vocabulary.InputError: threshold must lie in [0, 1], got 2
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.output import write_atomic
+from rough_viewer.report.build import Report, build_report
+from rough_viewer.report.html import report_html
+from rough_viewer.report.numbers import report_json
+from rough_viewer.vocabulary import (
+    AXIS_CHOICES,
+    DEFAULT_THRESHOLD,
+    PAPER_GRIDS,
+    AxisChoice,
+    InputError,
+    ProgressFn,
+)
+
+ReportFormat = Literal["html", "json"]
+
+
+@dataclass(frozen=True)
+class ReportSettings:
+    """What a report is computed with (the options of ``rough-viewer report``)."""
+
+    min_points: int
+    """Cells with fewer points get no value."""
+    grid_sizes: tuple[float, ...] = PAPER_GRIDS
+    """Cell edges, metres, one report section each (default the 2011 paper's)."""
+    axis: AxisChoice = "auto"
+    """Dependent axis of OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
+    threshold: float = DEFAULT_THRESHOLD
+    """Binary-transform threshold on normalised roughness, in [0, 1]."""
+
+    def check(self) -> None:
+        """Raise InputError (one line, named as the command-line option) for a setting
+        the report cannot use."""
+        if not self.grid_sizes:
+            raise InputError("a report needs at least one grid size")
+        for g in self.grid_sizes:
+            if not (isinstance(g, int | float) and math.isfinite(g) and g > 0):
+                raise InputError(f"grid size must be a positive number of metres, got {g!r}")
+        if self.axis not in AXIS_CHOICES:
+            raise InputError(f"unknown dependent axis {self.axis!r}; expected one of "
+                             f"{', '.join(AXIS_CHOICES)}")
+        if not (math.isfinite(self.threshold) and 0.0 <= self.threshold <= 1.0):
+            raise InputError(f"threshold must lie in [0, 1], got {self.threshold:g}")
+        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) \
+                or self.min_points < 3:
+            raise InputError(f"min points must be a whole number of at least 3, got "
+                             f"{self.min_points!r}")
+
+
+def compute_report(cloud: PointCloud, settings: ReportSettings, *,
+                   progress: ProgressFn | None = None) -> Report:
+    """Every number of the report of ``cloud`` with ``settings`` (checked first)."""
+    settings.check()
+    return build_report(cloud, list(dict.fromkeys(float(g) for g in settings.grid_sizes)),
+                        axis=settings.axis, threshold=settings.threshold,
+                        min_points=settings.min_points, progress=progress)
+
+
+def report_page(cloud: PointCloud, settings: ReportSettings, *,
+                progress: ProgressFn | None = None) -> str:
+    """The HTML report of ``rough-viewer report`` for ``cloud`` and ``settings``: one
+    self-contained page (plotly.js inlined, opens offline)."""
+    return report_html(compute_report(cloud, settings, progress=progress))
+
+
+def report_text(report: Report, fmt: ReportFormat = "html") -> str:
+    """A computed report as the text of its file: the HTML page or the JSON numbers."""
+    if fmt == "json":
+        return json.dumps(report_json(report), indent=1, allow_nan=False)
+    if fmt == "html":
+        return report_html(report)
+    raise InputError(f"unknown report format {fmt!r}; expected html or json")
+
+
+def write_report(path: str | os.PathLike[str], report: Report, fmt: ReportFormat = "html") -> Path:
+    """Write a computed report atomically (check ``path`` first with
+    :func:`rough_viewer.io.output.check_output_path`)."""
+    text = report_text(report, fmt)
+    write_atomic(path, lambda fh: fh.write(text))
+    return Path(path)

@@ -1,0 +1,114 @@
+"""Figures out: any plotly figure as PNG or SVG (through the optional package kaleido,
+``pip install 'rough_viewer[images]'``) or as one self-contained HTML page (plotly.js
+inlined: opens offline), written atomically through :mod:`rough_viewer.io.output`.
+
+The app's Export folder and the command line call these; :func:`figure_bytes` gives
+the content without a file, for a browser download.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+from typing import Any, Literal
+
+from rough_viewer.io.output import write_atomic
+from rough_viewer.vocabulary import InputError
+
+FigureFormat = Literal["png", "svg", "html"]
+FIGURE_FORMATS: tuple[FigureFormat, ...] = ("png", "svg", "html")
+
+#: Pixel density of PNG exports (2 = sharp on paper and on high-density screens).
+PNG_SCALE = 2.0
+
+MIME_TYPES: dict[str, str] = {"png": "image/png", "svg": "image/svg+xml",
+                              "html": "text/html; charset=utf-8"}
+
+
+def figure_format(path: str | os.PathLike[str]) -> FigureFormat:
+    """The format named by a file's suffix (``.png``, ``.svg``, ``.html``/``.htm``)."""
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix == "htm":
+        suffix = "html"
+    if suffix not in FIGURE_FORMATS:
+        raise InputError(f"figure file must end in .png, .svg or .html, got {path}")
+    return suffix
+
+
+def check_figure_export(fmt: FigureFormat) -> None:
+    """Raise InputError (one line) when ``fmt`` needs kaleido and it is not installed;
+    call before any work."""
+    if fmt not in FIGURE_FORMATS:
+        raise InputError(f"unknown figure format {fmt!r}; expected one of {', '.join(FIGURE_FORMATS)}")
+    if fmt in ("png", "svg") and importlib.util.find_spec("kaleido") is None:
+        raise InputError(f"{fmt.upper()} export needs the optional package kaleido "
+                         "(pip install 'rough_viewer[images]'); HTML export does not")
+
+
+def figure_bytes(
+    fig: Any,
+    fmt: FigureFormat,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    scale: float = PNG_SCALE,
+) -> bytes:
+    """The file content of a plotly figure as PNG, SVG or HTML.
+
+    Parameters
+    ----------
+    fig : plotly.graph_objects.Figure
+        The figure.
+    fmt : {"png", "svg", "html"}
+        PNG and SVG need kaleido (and a Chromium it can start); HTML is one
+        self-contained page with plotly.js inlined.
+    width, height : int, optional
+        Size in CSS pixels (PNG/SVG); default the figure's layout size or plotly's.
+    scale : float
+        Pixel density of PNG (2 doubles the pixels).
+
+    Raises
+    ------
+    InputError
+        kaleido missing, or the image renderer failed (one line).
+    """
+    check_figure_export(fmt)
+    if fmt == "html":
+        text = fig.to_html(full_html=True, include_plotlyjs=True,
+                           config={"displaylogo": False, "responsive": True})
+        return str(text).encode("utf-8")
+    size = {k: v for k, v in (("width", width), ("height", height)) if v is not None}
+    try:
+        data = fig.to_image(format=fmt, scale=scale if fmt == "png" else 1.0, **size)
+    except Exception as exc:  # kaleido and its browser raise many types
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{fmt.upper()} export failed: {msg}") from None
+    return bytes(data)
+
+
+def write_figure(
+    fig: Any,
+    path: str | os.PathLike[str],
+    *,
+    fmt: FigureFormat | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    scale: float = PNG_SCALE,
+) -> Path:
+    """Write a plotly figure as PNG, SVG or HTML, atomically (a failure leaves no file).
+
+    The format is ``fmt`` or, by default, the file's suffix. Check the path first with
+    :func:`rough_viewer.io.output.check_output_path` (existing files, symlinks, the
+    chosen folder); this function only writes.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    p = Path(path)
+    kind = fmt or figure_format(p)
+    data = figure_bytes(fig, kind, width=width, height=height, scale=scale)
+    write_atomic(p, lambda fh: fh.write(data), mode="wb")
+    return p

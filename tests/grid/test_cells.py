@@ -1,0 +1,90 @@
+"""The one grid: cell indices, occupied cells and moment sums against brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rough_viewer.grid.cells import cell_moments, coarsen, index_points, make_grid
+from rough_viewer.vocabulary import InputError
+from tests.helpers import random_rotation, rough_surface
+
+UTM = np.array([512_000.0, 4_170_000.0, 100.0])
+
+
+def _cloud(n=20_000, seed=0):
+    return rough_surface(n, seed=seed, size=3.0) @ random_rotation(seed).T + UTM
+
+
+@pytest.mark.parametrize("g", [0.1, 0.37, 1.0])
+def test_cell_index_is_floor_of_offset_over_size(g):
+    xyz = _cloud()
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    grid = make_grid(lo, hi, g, n_points=len(xyz))
+    index = index_points(*xyz.T.copy(), grid)
+    expected = np.floor((xyz - lo) / g).astype(np.int64)
+    np.testing.assert_array_equal(index.ijk[index.point_cell], expected)
+    keys, counts = np.unique(expected, axis=0, return_counts=True)
+    assert index.n_cells == len(keys)
+    order = np.lexsort(index.ijk.T)  # occupied cells sorted by key, x fastest
+    np.testing.assert_array_equal(order, np.arange(index.n_cells))
+    got = {tuple(k): c for k, c in zip(index.ijk, index.counts, strict=True)}
+    assert got == {tuple(k): c for k, c in zip(keys, counts, strict=True)}
+    np.testing.assert_allclose(grid.centres(index.ijk[:1])[0], lo + (index.ijk[0] + 0.5) * g)
+
+
+def test_sparse_sort_path_equals_dense_path(monkeypatch):
+    import rough_viewer.grid.cells as cells
+
+    xyz = _cloud(5_000, seed=3)
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    grid = make_grid(lo, hi, 0.05)
+    dense = index_points(*xyz.T.copy(), grid)
+    monkeypatch.setattr(cells, "DENSE_LIMIT", 0)  # force the sort path (grid > 4 N cells)
+    assert grid.n_cells > 4 * len(xyz)
+    sparse = index_points(*xyz.T.copy(), grid)
+    np.testing.assert_array_equal(dense.ijk, sparse.ijk)
+    np.testing.assert_array_equal(dense.point_cell, sparse.point_cell)
+
+
+def test_moments_equal_direct_sums_in_cell_local_coordinates():
+    xyz = _cloud(8_000, seed=5)
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    g = 0.5
+    grid = make_grid(lo, hi, g)
+    index = index_points(*xyz.T.copy(), grid)
+    mom = cell_moments(*xyz.T.copy(), index)
+    for c in range(0, index.n_cells, max(1, index.n_cells // 25)):
+        pts = xyz[index.point_cell == c] - grid.centres(index.ijk[c:c + 1])[0]
+        np.testing.assert_allclose(mom.s1[c], pts.sum(axis=0), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(mom.s2[c], pts.T @ pts, rtol=1e-12, atol=1e-12)
+        if len(pts) > 1:
+            np.testing.assert_allclose(mom.covariance()[c], np.cov(pts.T, bias=True),
+                                       rtol=1e-9, atol=1e-15)
+
+
+def test_coarsen_equals_indexing_the_coarse_grid():
+    xyz = _cloud(10_000, seed=8)
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    fine = make_grid(lo, hi, 0.2)
+    index = index_points(*xyz.T.copy(), fine)
+    c_index, c_mom = coarsen(index, cell_moments(*xyz.T.copy(), index), 3)
+    direct_grid = make_grid(lo, hi, 0.6)
+    direct = index_points(*xyz.T.copy(), direct_grid)
+    np.testing.assert_array_equal(c_index.ijk, direct.ijk)
+    np.testing.assert_array_equal(c_index.point_cell, direct.point_cell)
+    # UTM northings carry ~5e-10 m of rounding per point (their ULP), so the two ways
+    # of reaching a coarse cell's local coordinates agree to ~1e-8 relative, not more.
+    np.testing.assert_allclose(c_mom.s2, cell_moments(*xyz.T.copy(), direct).s2,
+                               rtol=1e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize("g", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_cell_sizes_are_refused(g):
+    with pytest.raises(InputError, match="grid size"):
+        make_grid(np.zeros(3), np.ones(3), g)
+
+
+def test_grid_too_fine_for_the_extent_is_refused():
+    with pytest.raises(InputError, match="choose a larger grid size"):
+        make_grid(np.zeros(3), np.full(3, 1e6), 1e-9)

@@ -1,0 +1,189 @@
+"""Saved views: save and reload give the same settings; every field of an untrusted
+file is checked; a changed or moved input is reported (issue 15)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+
+import pytest
+
+from rough_viewer.report.view import (
+    MAX_VIEW_BYTES,
+    Camera,
+    ColourSettings,
+    ProfilePick,
+    View,
+    ZoneSettings,
+    file_sha256,
+    input_ref,
+    load_view,
+    save_view,
+)
+from rough_viewer.visual.colormaps import Stretch
+from rough_viewer.vocabulary import InputError
+
+
+@pytest.fixture
+def scan(tmp_path):
+    folder = tmp_path / "project"
+    folder.mkdir()
+    p = folder / "scan.xyz"
+    p.write_text("0 0 0\n1 0 0\n0 1 0\n1 1 0.1\n")
+    return p
+
+
+def full_view(scan) -> View:
+    return View(
+        input=input_ref(scan), cell_size_m=0.125, min_points=4, axis="y", model="e_ols",
+        units="mm", threshold=0.12,
+        colour=ColourSettings(colormap="cividis", mode="binary",
+                              stretch=Stretch.absolute_mm(0.5, 20, log=True)),
+        panels=("table", "histogram", "across-scales"),
+        profiles=(ProfilePick(start=(1.0, 2.0, 3.0), end=(4.0, 5.5, 3.0), band_half_width_m=0.002,
+                              wavelet="sym4", level=4, decomposition="wp",
+                              threshold_rule="penalized-high", mode="soft"),
+                  ProfilePick(start=(0.0, 0.0, 0.0), end=(0.0, 1.0, 0.0))),
+        zones=ZoneSettings(map="hybrid", connectivity="face", min_cells=5, selected=2),
+        camera=Camera(position=(10.0, -5.0, 3.0), look_at=(0.0, 0.0, 1.0), fov_deg=40.0),
+    )
+
+
+def test_save_and_reload_give_the_same_view(scan, tmp_path):
+    view = full_view(scan)
+    path = save_view(tmp_path / "v.json", view)
+    loaded = load_view(path)
+    assert loaded.view == view
+    assert loaded.view.colour == ColourSettings("cividis", "binary",
+                                                Stretch("absolute", 0.0005, 0.02, log=True))
+    assert loaded.view.panels == ("table", "histogram", "across-scales")
+    assert loaded.input_check.status == "unchanged" and loaded.input_check.path == scan
+    assert loaded.software.startswith("rough_viewer ")
+    doc = json.loads(path.read_text())
+    assert doc["format"] == "rough_viewer.view" and doc["version"] == 1
+    assert doc["input"]["relative_path"] == os.path.join("project", "scan.xyz")
+    # minimal views take the defaults
+    small = View(input=input_ref(scan), cell_size_m=0.5, min_points=3)
+    assert load_view(save_view(tmp_path / "small.json", small)).view == small
+
+
+def test_hash_streams_and_matches_hashlib(tmp_path, monkeypatch):
+    import hashlib
+
+    import rough_viewer.report.view as view_module
+
+    monkeypatch.setattr(view_module, "HASH_BLOCK", 1000)
+    data = os.urandom(10_500)
+    (tmp_path / "f.bin").write_bytes(data)
+    seen = []
+    assert file_sha256(tmp_path / "f.bin", progress=lambda d, t: seen.append(d)) == \
+        hashlib.sha256(data).hexdigest()
+    assert seen == [1000 * k for k in range(1, 11)] + [10_500]  # 11 reads, never whole
+
+
+def test_changed_input_is_reported(scan, tmp_path):
+    path = save_view(tmp_path / "v.json", full_view(scan))
+    scan.write_text(scan.read_text().replace("0.1", "0.2"))  # same size, other content
+    check = load_view(path).input_check
+    assert check.status == "changed" and check.path == scan and "changed" in check.message
+    scan.write_text("0 0 0\n")
+    assert load_view(path).input_check.status == "changed"
+
+
+def test_moved_and_missing_input(scan, tmp_path):
+    view = full_view(scan)
+    save_view(scan.parent / "v.json", view)
+    moved = tmp_path / "moved"
+    shutil.move(scan.parent, moved)
+    check = load_view(moved / "v.json").input_check
+    assert check.status == "moved" and check.path == moved / "scan.xyz"
+    assert "moved" in check.message
+    (moved / "scan.xyz").unlink()
+    check = load_view(moved / "v.json").input_check
+    assert check.status == "missing" and check.path is None
+    assert load_view(moved / "v.json", check=False).input_check.status == "not_checked"
+
+
+def test_save_refuses_overwrite_and_the_input(scan, tmp_path):
+    view = full_view(scan)
+    save_view(tmp_path / "v.json", view)
+    with pytest.raises(InputError, match="exists"):
+        save_view(tmp_path / "v.json", view)
+    save_view(tmp_path / "v.json", view, force=True)
+    with pytest.raises(InputError, match="is the input file"):
+        save_view(scan, view, force=True)
+    assert scan.read_text().startswith("0 0 0")
+
+
+def _doc(scan, tmp_path):
+    path = save_view(tmp_path / "good.json", full_view(scan))
+    return json.loads(path.read_text())
+
+
+BAD = {
+    "wrong type": (lambda d: d["grid"].update(cell_size_m="0.5"), "grid.cell_size_m must be a number"),
+    "bool as number": (lambda d: d["grid"].update(min_points=True), "grid.min_points must be a whole"),
+    "zero grid": (lambda d: d["grid"].update(cell_size_m=0), "grid.cell_size_m must lie in"),
+    "min points 2": (lambda d: d["grid"].update(min_points=2), "grid.min_points must lie in [3"),
+    "threshold": (lambda d: d.update(threshold=1.5), "threshold must lie in [0, 1]"),
+    "model": (lambda d: d.update(model="rms"), "model must be one of odr, ols, hybrid, e_ols"),
+    "axis": (lambda d: d["grid"].update(axis="w"), "grid.axis must be one of"),
+    "units": (lambda d: d.update(units="furlong"), "units must be one of m, mm, ft, us-ft"),
+    "colormap": (lambda d: d["colour"].update(colormap="jet"), "colour.colormap must be one of"),
+    "range falls": (lambda d: d["colour"].update(range=[0.02, 0.001]), "colour.range must rise"),
+    "log from 0": (lambda d: d["colour"].update(range=[0.0, 0.02]), "must start above 0"),
+    "unknown key": (lambda d: d.update(script="alert(1)"), "unknown key 'script'"),
+    "unknown nested": (lambda d: d["colour"].update(opacity=1), "colour has an unknown key"),
+    "hash": (lambda d: d["input"].update(sha256="xyz"), "input.sha256 must be 64"),
+    "path NUL": (lambda d: d["input"].update(path="a\x00b"), "input.path must be a string"),
+    "panel name": (lambda d: d.update(panels=["<img src=x>"]), "panels[0] must be a short"),
+    "too many profiles": (lambda d: d.update(profiles=d["profiles"] * 60), "at most 100"),
+    "profile point": (lambda d: d["profiles"][0].update(start=[1, 2]), "profiles[0].start must be"),
+    "huge coordinate": (lambda d: d["profiles"][0].update(end=[1e300, 0, 0]), "must lie in"),
+    "wavelet": (lambda d: d["profiles"][0].update(wavelet="../../etc"), "profiles[0].wavelet"),
+    "level": (lambda d: d["profiles"][0].update(level=99), "profiles[0].level must lie in"),
+    "zone id": (lambda d: d["zones"].update(selected=0), "zones.selected must lie in"),
+    "camera": (lambda d: d["camera"].update(fov_deg=0), "camera.fov_deg must lie in"),
+    "newer": (lambda d: d.update(version=2), "made by a newer rough_viewer"),
+    "format": (lambda d: d.update(format="other"), "format must be 'rough_viewer.view'"),
+    "not an object": (lambda d: d.update(grid=[1, 2]), "grid must be an object"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_every_field_is_checked(scan, tmp_path, case):
+    doc = _doc(scan, tmp_path)
+    change, message = BAD[case]
+    change(doc)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError) as info:
+        load_view(path)
+    text = str(info.value)
+    assert message in text and str(path) in text and "\n" not in text
+
+
+@pytest.mark.parametrize("content", ["{", '{"format": NaN}', "[" * 100_000 + "]" * 100_000,
+                                     "\xff\xfe", "null"])
+def test_not_a_view_is_one_line(tmp_path, content):
+    path = tmp_path / "x.json"
+    path.write_bytes(content.encode("utf-8", errors="surrogateescape")
+                     if content != "\xff\xfe" else b"\xff\xfe")
+    with pytest.raises(InputError) as info:
+        load_view(path)
+    assert "\n" not in str(info.value)
+
+
+def test_oversized_view_refused_unread(tmp_path):
+    path = tmp_path / "big.json"
+    path.write_bytes(b" " * (MAX_VIEW_BYTES + 1))
+    with pytest.raises(InputError, match="a view is at most"):
+        load_view(path)
+
+
+def test_with_validates(scan):
+    view = full_view(scan)
+    assert view.with_(threshold=0.2).threshold == 0.2
+    with pytest.raises(InputError, match="threshold"):
+        view.with_(threshold=-1.0)

@@ -1,0 +1,82 @@
+"""Figures out: PNG and SVG through kaleido, HTML offline, written atomically."""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import re
+import sys
+
+import plotly.graph_objects as go
+import pytest
+
+from rough_viewer.visual.export import (
+    check_figure_export,
+    figure_bytes,
+    figure_format,
+    write_figure,
+)
+from rough_viewer.vocabulary import InputError
+
+HAVE_KALEIDO = importlib.util.find_spec("kaleido") is not None
+
+
+def _figure() -> go.Figure:
+    return go.Figure(go.Scatter(x=[0, 1, 2], y=[3.0, 1.0, 2.0]),
+                     layout={"title": {"text": "ODR roughness, grid 0.25 m"}})
+
+
+def test_html_is_one_offline_page(tmp_path):
+    path = write_figure(_figure(), tmp_path / "fig.html")
+    text = path.read_text()
+    assert text.lower().startswith("<!doctype html>")
+    assert "ODR roughness, grid 0.25 m" in text
+    assert len(text) > 1_000_000  # plotly.js inlined
+    assert not re.search(r"<script[^>]+src=\"https?:", text)  # nothing fetched from a network
+    assert [p.name for p in tmp_path.iterdir()] == ["fig.html"]
+
+
+def test_format_from_suffix():
+    assert figure_format("a.PNG") == "png" and figure_format("b.htm") == "html"
+    with pytest.raises(InputError, match=r"\.png, \.svg or \.html"):
+        figure_format("c.jpg")
+
+
+def test_missing_kaleido_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setitem(sys.modules, "kaleido", None)
+    with pytest.raises(InputError, match=r"needs the optional package kaleido"):
+        check_figure_export("png")
+    with pytest.raises(InputError, match="SVG export needs"):
+        write_figure(_figure(), tmp_path / "x.svg")
+    check_figure_export("html")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_render_failure_leaves_no_file(monkeypatch, tmp_path):
+    import rough_viewer.visual.export as export_module
+
+    def broken(fig, **kwargs):
+        raise RuntimeError("Chrome not found\nmore detail")
+
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
+    monkeypatch.setattr(go.Figure, "to_image", broken)
+    with pytest.raises(InputError) as info:
+        write_figure(_figure(), tmp_path / "x.png")
+    assert str(info.value) == "PNG export failed: Chrome not found"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not HAVE_KALEIDO, reason="kaleido not installed (rough_viewer[images])")
+@pytest.mark.slow
+def test_png_and_svg_with_kaleido(tmp_path):
+    from PIL import Image
+
+    try:
+        png = figure_bytes(_figure(), "png", width=400, height=300, scale=2)
+    except InputError as exc:  # kaleido present but no browser it can start
+        pytest.skip(str(exc))
+    image = Image.open(io.BytesIO(png))
+    assert image.format == "PNG" and image.size == (800, 600)
+    path = write_figure(_figure(), tmp_path / "fig.svg", width=400, height=300)
+    svg = path.read_text()
+    assert svg.startswith("<svg") and "ODR roughness, grid 0.25 m" in svg

@@ -1,0 +1,66 @@
+"""Profile figure: heights in mm over a range fitted to the data, optional exaggeration."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rough_viewer.profiles.extraction import extract_profile
+from rough_viewer.profiles.fractal import roughness_length
+from rough_viewer.profiles.wavelets import denoise_result
+from rough_viewer.visual.profiles import HEIGHT_MARGIN, height_range_mm, profile_figure
+
+
+@pytest.fixture(scope="module")
+def analyses():
+    """Two profiles 1.8 m long across millimetre relief (2 mm waves, 0.5 mm noise)."""
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 2, (150_000, 2))
+    z = 0.002 * np.sin(9 * xy[:, 0]) + 0.0005 * rng.standard_normal(len(xy))
+    pts = np.column_stack([xy, z])
+    out = []
+    for y0, y1 in ((0.5, 0.5), (1.2, 1.4)):
+        p = extract_profile(pts, np.array([0.1, y0, 0.0]), np.array([1.9, y1, 0.0]))
+        d = denoise_result(p.heights)
+        out.append(SimpleNamespace(profile=p, denoised=d,
+                                   raw_fit=roughness_length(p.heights, p.spacing),
+                                   denoised_fit=roughness_length(d.heights, p.spacing)))
+    return out
+
+
+def test_heights_are_in_mm_and_the_range_fits_the_data(analyses):
+    fig = profile_figure(analyses)
+    np.testing.assert_allclose(fig.data[0].y, analyses[0].profile.heights * 1e3)
+    np.testing.assert_allclose(fig.data[1].y, analyses[0].denoised.heights * 1e3)
+    heights = np.concatenate([np.r_[a.profile.heights, a.denoised.heights] for a in analyses])
+    lo, hi = np.nanmin(heights) * 1e3, np.nanmax(heights) * 1e3
+    span = hi - lo
+    assert 3.0 < span < 8.0  # millimetre relief ...
+    assert tuple(fig.layout.yaxis.range) == pytest.approx(
+        (lo - HEIGHT_MARGIN * span, hi + HEIGHT_MARGIN * span))  # ... shown as such
+    assert fig.layout.yaxis.scaleanchor is None
+    assert "height (mm)" in fig.layout.yaxis.title.text
+    assert fig.layout.yaxis2.title.text == "s(w) (mm)" and fig.layout.xaxis2.type == "log"
+
+
+def test_exaggeration_fixes_the_ratio_of_the_axes(analyses):
+    fig = profile_figure(analyses, exaggeration=20)
+    assert fig.layout.yaxis.scaleanchor == "x"
+    assert fig.layout.yaxis.scaleratio == pytest.approx(0.02)  # 1 mm drawn as 20 mm of x (m)
+    assert fig.layout.yaxis.constrain == "domain"
+    assert tuple(fig.layout.yaxis.range) == height_range_mm(analyses)
+    assert "×20" in fig.layout.yaxis.title.text
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="exaggeration"):
+            profile_figure(analyses, exaggeration=bad)
+
+
+def test_empty_and_flat_profiles():
+    assert height_range_mm([]) == (-1.0, 1.0)
+    assert not profile_figure([]).layout.showlegend
+    flat = SimpleNamespace(profile=SimpleNamespace(heights=np.full(5, 0.001)),
+                           denoised=SimpleNamespace(heights=np.full(5, 0.001)))
+    lo, hi = height_range_mm([flat])
+    assert lo < 1.0 < hi and hi - lo == pytest.approx(0.2 * (1 + 2 * HEIGHT_MARGIN))
