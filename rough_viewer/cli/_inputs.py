@@ -65,11 +65,15 @@ def input_paths(args: argparse.Namespace) -> list[Path]:
     return paths
 
 
-def describe(paths: list[Path]) -> str:
-    """The inputs in one short phrase (for tables and summaries)."""
+def describe(paths: list[Path], *, shown: int = 4) -> str:
+    """The inputs in one phrase (for tables and summaries): the file, or ``"N files: a,
+    b, ..., z"`` naming at most ``shown`` of them."""
     if len(paths) == 1:
         return str(paths[0])
-    return f"{len(paths)} files: " + ", ".join(str(p) for p in paths)
+    names = [str(p) for p in paths]
+    if len(names) > shown:
+        names = [*names[:shown - 1], "...", names[-1]]
+    return f"{len(paths)} files: " + ", ".join(names)
 
 
 def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = False
