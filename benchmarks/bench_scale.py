@@ -45,28 +45,44 @@ RV = [sys.executable, "-m", "rough_viewer"]
 
 def make_files(folder: Path, n: int, n_files: int) -> list[Path]:
     """``n`` points of the synthetic outcrop, in scan order, cut into ``n_files`` LAZ files
-    along the face (neighbouring files share cells at their seams)."""
+    along the face (neighbouring files share cells at their seams). Written by a child
+    process, so this one stays small."""
     paths = [folder / f"scan{i:02d}.laz" for i in range(n_files)]
     if all(p.exists() for p in paths):
         return paths
+    subprocess.run([sys.executable, __file__, "--write-files", str(folder), str(n), str(n_files)],
+                   check=True)
+    return paths
+
+
+def _write_files(folder: Path, n: int, n_files: int) -> None:
+    paths = [folder / f"scan{i:02d}.laz" for i in range(n_files)]
     cloud = synthetic_outcrop(n)
     edges = np.linspace(0, n, n_files + 1).astype(int)
     for p, a, b in zip(paths, edges[:-1], edges[1:], strict=True):
         write_las(p, PointCloud(x=cloud.x[a:b], y=cloud.y[a:b], z=cloud.z[a:b]))
-    return paths
 
 
 def run(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
-    """Wall time (s) and peak RSS (bytes) of one child process."""
+    """Wall time (s) and peak RSS (bytes) of one child process.
+
+    The peak is GNU time's ``%M`` where ``/usr/bin/time`` exists: a child forked
+    from this (large) process would inherit its high-water mark in ``ru_maxrss``."""
+    timer = shutil.which("time") or ("/usr/bin/time" if Path("/usr/bin/time").exists() else None)
+    cmd = [timer, "-f", "RV_MAXRSS_KB=%M", *argv] if timer else argv
     t = time.perf_counter()
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t
     proc.returncode = os.waitstatus_to_exitcode(status)
     err = proc.stderr.read().decode() if proc.stderr else ""
     if proc.returncode != 0:
         raise SystemExit(f"failed ({proc.returncode}): {' '.join(argv)}\n{err}")
-    return wall, usage.ru_maxrss * 1024.0
+    peak = usage.ru_maxrss * 1024.0
+    for line in err.splitlines():
+        if line.startswith("RV_MAXRSS_KB="):
+            peak = float(line.split("=", 1)[1]) * 1024.0
+    return wall, peak
 
 
 def read_cells(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +116,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--data", type=Path, help="folder for the LAZ files (kept)")
+    ap.add_argument("--write-files", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.write_files:
+        _write_files(Path(args.write_files[0]), int(args.write_files[1]), int(args.write_files[2]))
+        return
     n = int(args.points)
     tmp = Path(tempfile.mkdtemp(prefix="rv-bench-scale-"))
     data = args.data or tmp / "data"
