@@ -70,6 +70,14 @@ def test_local_threads_same_bits(files, sequential):
             same_bits(r, s)
 
 
+def test_local_process_pool_same_bits(files, sequential):
+    paths, _ = files
+    with DaskRunner("processes", workers=2) as runner:
+        res = chunked_roughness(open_sources(paths), GRIDS, chunk_points=2500, runner=runner)
+    for r, s in zip(res, sequential, strict=True):
+        same_bits(r, s)
+
+
 def test_worker_killed_mid_run_is_retried_result_unchanged(files, client):
     paths, _ = files
     pids = client.run(os.getpid)
