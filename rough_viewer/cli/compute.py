@@ -209,12 +209,12 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         print("wrote " + " and ".join(written))
     wants_points = "las_out" in outputs or "ply_out" in outputs
     fields = point_fields(result) if wants_points and cloud is not None else None
-    if "las_out" in outputs and fields is not None:
+    if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
         info = write_las_fields(path, cloud, fields,
                                 progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
         print(f"wrote {path}: {info}")
-    if "ply_out" in outputs and fields is not None:
+    if "ply_out" in outputs and fields is not None and cloud is not None:
         path = outputs["ply_out"][g]
         info = write_ply_fields(path, cloud, fields, comments=[
             f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "

@@ -394,13 +394,14 @@ def merge_clouds(clouds: Sequence[PointCloud]) -> PointCloud:
 
     rgb = None
     if all(c.rgb is not None for c in clouds) and len({c.rgb.dtype for c in clouds}) == 1:  # type: ignore[union-attr]
-        rgb = np.concatenate([c.rgb for c in clouds])  # type: ignore[misc]
+        rgb = np.concatenate([c.rgb for c in clouds if c.rgb is not None])
     scan_index = scanners = None
     if all(c.scan_index is not None and c.scanner_positions is not None for c in clouds):
         offsets: list[int] = np.cumsum(
             [0] + [len(c.scanner_positions) for c in clouds[:-1]]).tolist()  # type: ignore[arg-type]
         scan_index = np.concatenate([c.scan_index + o for c, o in zip(clouds, offsets, strict=True)])  # type: ignore[operator]
-        scanners = np.concatenate([c.scanner_positions for c in clouds])  # type: ignore[misc]
+        scanners = np.concatenate([c.scanner_positions for c in clouds
+                                   if c.scanner_positions is not None])
     units = {c.source_unit for c in clouds}
     return PointCloud(
         x=np.concatenate([c.x for c in clouds]),
