@@ -45,6 +45,9 @@ Model = Literal["odr", "ols", "hybrid"]
 MapName = Literal["odr", "ols", "hybrid", "e_ols"]
 """A per-cell map: the three models and the OLS error ``e_ols = |theta_ols - theta_odr|``."""
 Residual = Literal["absolute", "signed"]
+#: Engine of the grid's point passes: ``numba`` (compiled, optional), ``numpy`` (the
+#: reference), ``auto`` (numba when installed).
+Engine = Literal["auto", "numpy", "numba"]
 """``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
 signed distances."""
 
@@ -110,8 +113,14 @@ COLOUR_LAYER_LABELS: dict[str, str] = {
 # ----------------------------------------------------------------------------- units
 
 Unit = Literal["m", "mm", "ft", "us-ft"]
-"""Length unit of a file's coordinates (the core works in metres)."""
+"""A length unit of input coordinates and of what the user sees (``--units``)."""
+CrsUnit = Literal["m", "ft", "us-ft"]
+"""A linear unit a coordinate reference system can declare."""
 UNITS: tuple[Unit, ...] = ("m", "mm", "ft", "us-ft")
+UNIT_METRES: dict[str, float] = {"m": 1.0, "mm": 1e-3, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
+"""Metres per unit (the US survey foot is exactly 1200/3937 m)."""
+UNIT_LABELS: dict[str, str] = {"m": "m", "mm": "mm", "ft": "ft", "us-ft": "US ft"}
+"""How each unit is written after a number."""
 
 # ----------------------------------------------------------------------------- profiles
 

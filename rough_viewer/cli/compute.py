@@ -2,15 +2,20 @@
 
 Contract (other tools script against it)::
 
-    rough-viewer compute INPUT --grid G [--grid G2 ...] [--method odr|ols|hybrid|all]
-        [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed]
-        [--out CELLS.csv|CELLS.parquet] [--summary-json SUMMARY.json]
-        [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply] [--force] [--quiet]
+    rough-viewer compute INPUT [INPUT ...] --grid G [--grid G2 ...]
+        [--method odr|ols|hybrid|all] [--axis auto|x|y|z] [--min-points K]
+        [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
+        [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
+        [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
+        [--force] [--quiet]
 
-At least one output is required. With several ``--grid`` values each output name
-gets ``_g<G>`` before its extension (``cells.csv`` -> ``cells_g0.5.csv``,
-``cells_g0.25.csv``). ``--las-out`` and ``--ply-out`` write every point with its
-cell's values as extra dimensions / scalar properties (docs/export.md).
+Several inputs (files or quoted globs) are one merged cloud. At least one output is
+required. With several ``--grid`` values each output name gets ``_g<G>`` before its
+extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--las-out``
+and ``--ply-out`` write every point with its cell's values as extra dimensions /
+scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
+that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
+the points, so neither goes with ``--las-out`` or ``--ply-out``.
 """
 
 from __future__ import annotations
@@ -18,16 +23,23 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_outputs, write_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, Residual
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
+    from rough_viewer.io.cloud import PointCloud
 
 #: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
 CSV_COLUMNS = CELL_COLUMNS
@@ -40,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
         "and write one CSV row per cell.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
                    help="grid cell size in metres (repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
@@ -61,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="every input point with its cell's roughness as LAS extra dimensions")
     p.add_argument("--ply-out", metavar="OUT.ply",
                    help="every point with its cell's roughness as PLY scalar properties")
+    add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -101,10 +114,11 @@ def summary_dict(result, cloud_source: str, dropped: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.io import load_points
     from rough_viewer.vocabulary import MODELS
 
     grids = list(dict.fromkeys(args.grid))
@@ -115,30 +129,38 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     several = len(grids) > 1
-    outputs = _outputs(args, grids, several)
+    paths = input_paths(args)
+    outputs = _outputs(args, grids, several, paths)
     quiet = args.quiet
-    cloud = load_points(args.input, progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    if cloud.dropped_nonfinite:
-        print(
-            f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-            f"coordinates from {args.input}",
-            file=sys.stderr,
-        )
+    source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
-    for i, g in enumerate(grids):
-        result = grid_roughness(
+    residual: Residual = "signed" if args.signed else "absolute"
+    results: Iterable[GridRoughness]
+    cloud: PointCloud | None = None
+    if wants_chunks(args):
+        if args.las_out or args.ply_out:
+            raise InputError("--las-out and --ply-out write every point, which --memory and "
+                             "--scheduler do not keep; run without them for those outputs")
+        results, dropped = chunked_results(args, paths, grids, origin=origin, models=models,
+                                           residual=residual)
+    else:
+        cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+        dropped = cloud.dropped_nonfinite
+        results = (grid_roughness(
             cloud, g, origin=origin, min_points=args.min_points, axis=args.axis,
-            models=models, residual="signed" if args.signed else "absolute",
-            progress=None if quiet else ProgressBar(f"grid {g:g} m"),
-        )
+            models=models, residual=residual,
+            progress=None if quiet else ProgressBar(f"grid {g:g} m", unit="step"),
+        ) for g in grids)
+    for i, (g, result) in enumerate(zip(grids, results, strict=True)):
         if i:
             print()
-        print(format_table(result, source=str(args.input)))
-        _write_outputs(outputs, g, result, cloud, args)
+        print(format_table(result, source=source))
+        _write_outputs(outputs, g, result, cloud, dropped, source, args)
     return 0
 
 
-def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dict[str, dict[float, Path]]:
+def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
+             inputs: list[Path]) -> dict[str, dict[float, Path]]:
     """Every output path of the run by option and grid size, all checked before any work."""
     from rough_viewer.io.las_out import check_las_output
     from rough_viewer.io.table import check_table_output
@@ -156,11 +178,13 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dic
         check_table_output(args.out)
     outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
-                  force=args.force, inputs=[args.input])
+                  force=args.force, inputs=inputs)
     return outputs
 
 
-def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, cloud, args) -> None:
+def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
+                   cloud: PointCloud | None, dropped: int, source: str,
+                   args: argparse.Namespace) -> None:
     """Write every output of one grid size and say so."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
@@ -171,23 +195,29 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, clou
     written = []
     if "out" in outputs:
         write_table(outputs["out"][g], cell_columns(result),
-                    metadata=table_metadata(result, str(args.input)))
+                    metadata=table_metadata(result, source))
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
-        data = summary_dict(result, str(args.input), cloud.dropped_nonfinite)
-        write_atomic(outputs["summary_json"][g], lambda fh: json.dump(data, fh, indent=2))
+        data = summary_dict(result, source, dropped)
+
+        def dump(fh, d: dict = data) -> None:
+            json.dump(d, fh, indent=2)
+
+        write_atomic(outputs["summary_json"][g], dump)
         written.append(str(outputs["summary_json"][g]))
     if written:
         print("wrote " + " and ".join(written))
-    fields = point_fields(result) if ("las_out" in outputs or "ply_out" in outputs) else None
-    if "las_out" in outputs and fields is not None:
+    wants_points = "las_out" in outputs or "ply_out" in outputs
+    fields = point_fields(result) if wants_points and cloud is not None else None
+    if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
         info = write_las_fields(path, cloud, fields,
                                 progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
         print(f"wrote {path}: {info}")
-    if "ply_out" in outputs and fields is not None:
+    if "ply_out" in outputs and fields is not None and cloud is not None:
         path = outputs["ply_out"][g]
         info = write_ply_fields(path, cloud, fields, comments=[
-            f"rough_viewer: {Path(str(args.input)).name}, grid {g:g} m, axis {result.axis}, "
+            f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
+            f"grid {g:g} m, axis {result.axis}, "
             "roughness in metres"])
         print(f"wrote {path}: {info}")

@@ -2,13 +2,14 @@
 
 Contract::
 
-    rough-viewer report INPUT [--grid G ...] [--axis auto|x|y|z] [--threshold T]
+    rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
         [--force] [--quiet]
 
 Default grid sizes: the paper's 1, 0.5, 0.25 and 0.125 m. ``--format json`` writes
 the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>.png``
-(needs the optional package kaleido; the HTML does not).
+(needs the optional package kaleido; the HTML does not). Several inputs (files or
+quoted globs) are one merged cloud.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.io.output import check_output_path, path_in_folder
 from rough_viewer.vocabulary import InputError
 
@@ -28,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Grid roughness report of a cloud at several grid sizes (2011 paper "
         "Table 1 and Figs. 2-4): one self-contained HTML file that works offline.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=float, action="append", metavar="G",
                    help="grid cell size in metres, repeatable (default: 1 0.5 0.25 0.125)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
@@ -67,8 +69,8 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.io import load_points
     from rough_viewer.report import PAPER_GRIDS, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import write_figure
@@ -84,17 +86,14 @@ def run(args: argparse.Namespace) -> int:
                              ("min points", "--min-points")):
             text = text.replace(word, option, 1) if text.startswith(word) else text
         raise InputError(text) from None
-    out = check_output_path(args.out, force=args.force, inputs=[args.input])
+    paths = input_paths(args)
+    out = check_output_path(args.out, force=args.force, inputs=paths)
     png_dir = None
     if args.png:
         png_dir, _ = _png_targets(args.png, list(settings.grid_sizes), force=args.force)
 
     quiet = args.quiet
-    cloud = load_points(args.input,
-                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    if cloud.dropped_nonfinite:
-        print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-              f"coordinates from {args.input}", file=sys.stderr)
+    cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     for s in report.sections:
         if s.error is not None:

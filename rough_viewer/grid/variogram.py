@@ -41,7 +41,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import scipy.fft
 
 from rough_viewer.grid.maps import Plane, face_raster
 from rough_viewer.vocabulary import InputError
@@ -153,6 +152,8 @@ def semivariogram(
             pairs=np.zeros(0, dtype=np.int64), variance=variance, n_cells=m,
             bin_width=w, max_lag=float(max_lag), space=space,
         )
+
+    import scipy.fft  # here, not on import: loading it costs 0.2 s of every command's start
 
     # Largest lag (in cells) along any axis that can fall in a bin.
     reach = int(np.floor((n_bins + 0.5) * w / g))

@@ -1,8 +1,10 @@
-"""The point cloud: three float64 coordinate columns in metres, in the file's frame."""
+"""The point cloud: three float64 coordinate columns in metres, in the file's frame,
+with the optional per-point attributes a file may carry (intensity, colour, scan
+index) and what a reader noticed on the way (warnings)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,19 @@ class PointCloud:
     """Path of the file read, or ``""`` for an in-memory cloud."""
     dropped_nonfinite: int = 0
     """Rows dropped because a coordinate was NaN or infinite."""
+    rgb: np.ndarray | None = None
+    """(N, 3) colour as stored in the file (uint16 for LAS/E57, uint8 elsewhere), or None."""
+    scan_index: np.ndarray | None = None
+    """(N,) int32: which scan of a multi-scan file (E57) each point came from, or None."""
+    scanner_positions: np.ndarray | None = None
+    """(S, 3) float64 position of each scan's scanner in the cloud's frame, metres
+    (row ``scan_index[i]`` belongs to point i), or None. Not subset with the points."""
+    source_unit: str = "m"
+    """Unit the file's coordinates were in (``rough_viewer.vocabulary.UNITS``); the
+    cloud itself is always metres. Tools show lengths in this unit by default."""
+    warnings: tuple[str, ...] = ()
+    """What the reader noticed that the user should know (a header point count that
+    disagrees with the data, units that contradict the file's CRS), one line each."""
 
     @property
     def n(self) -> int:
@@ -44,9 +59,17 @@ class PointCloud:
 
     @classmethod
     def from_xyz(
-        cls, xyz: np.ndarray, intensity: np.ndarray | None = None, source: str = ""
+        cls,
+        xyz: np.ndarray,
+        intensity: np.ndarray | None = None,
+        source: str = "",
+        *,
+        rgb: np.ndarray | None = None,
+        scan_index: np.ndarray | None = None,
+        scanner_positions: np.ndarray | None = None,
     ) -> PointCloud:
-        """A cloud from an (N, 3) array (copied into contiguous float64 columns)."""
+        """A cloud from an (N, 3) array in metres (copied into contiguous float64
+        columns) and optional per-point attributes."""
         arr = np.asarray(xyz, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] < 3:
             raise InputError("xyz must be an (N, 3) array")
@@ -56,18 +79,43 @@ class PointCloud:
             z=np.ascontiguousarray(arr[:, 2]),
             intensity=None if intensity is None else np.asarray(intensity),
             source=source,
+            rgb=None if rgb is None else np.asarray(rgb),
+            scan_index=None if scan_index is None else np.asarray(scan_index),
+            scanner_positions=None if scanner_positions is None
+            else np.asarray(scanner_positions, dtype=np.float64),
         )
 
     def subset(self, which: np.ndarray) -> PointCloud:
-        """The points selected by a boolean mask or an index array."""
-        return PointCloud(
+        """The points selected by a boolean mask or an index array (every per-point
+        attribute with them; scanner positions, source and warnings kept)."""
+        return replace(
+            self,
             x=self.x[which],
             y=self.y[which],
             z=self.z[which],
             intensity=None if self.intensity is None else self.intensity[which],
-            source=self.source,
-            dropped_nonfinite=self.dropped_nonfinite,
+            rgb=None if self.rgb is None else self.rgb[which],
+            scan_index=None if self.scan_index is None else self.scan_index[which],
         )
+
+    def scaled(self, metres_per_unit: float, unit: str) -> PointCloud:
+        """The cloud with coordinates multiplied by ``metres_per_unit`` (a file in
+        ``unit`` read into metres); scanner positions likewise."""
+        if metres_per_unit == 1.0:
+            return replace(self, source_unit=unit)
+        return replace(
+            self,
+            x=self.x * metres_per_unit,
+            y=self.y * metres_per_unit,
+            z=self.z * metres_per_unit,
+            scanner_positions=None if self.scanner_positions is None
+            else self.scanner_positions * metres_per_unit,
+            source_unit=unit,
+        )
+
+    def with_warnings(self, *lines: str) -> PointCloud:
+        """The same cloud with more warnings."""
+        return replace(self, warnings=self.warnings + tuple(lines))
 
 
 def as_columns(points: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,13 +133,25 @@ def as_columns(points: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray,
 
 
 def finite_cloud(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, intensity: np.ndarray | None, path: Path
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    intensity: np.ndarray | None,
+    path: Path,
+    *,
+    rgb: np.ndarray | None = None,
+    scan_index: np.ndarray | None = None,
+    scanner_positions: np.ndarray | None = None,
 ) -> PointCloud:
+    """A cloud of the rows whose three coordinates are finite (the others counted in
+    ``dropped_nonfinite``); InputError naming ``path`` when fewer than 3 remain."""
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
     dropped = int(ok.size - np.count_nonzero(ok))
     if dropped:
         x, y, z = x[ok], y[ok], z[ok]
         intensity = None if intensity is None else intensity[ok]
+        rgb = None if rgb is None else rgb[ok]
+        scan_index = None if scan_index is None else scan_index[ok]
     n = int(x.shape[0])
     if n == 0:
         extra = f" ({dropped} rows with NaN or infinite coordinates dropped)" if dropped else ""
@@ -105,6 +165,9 @@ def finite_cloud(
         intensity=intensity,
         source=str(path),
         dropped_nonfinite=dropped,
+        rgb=rgb,
+        scan_index=scan_index,
+        scanner_positions=scanner_positions,
     )
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from rough_viewer.io.cache import cache_read, cache_write
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn
 
 #: Points per chunk when reading LAS/LAZ.
@@ -28,7 +29,80 @@ def laz_backend():
     return None
 
 
+#: Bytes held per point while reading: x, y, z (float64), intensity (uint16), RGB
+#: (3 x uint16), and the finite-row filter's copies of the coordinates at its peak.
+READ_BYTES_PER_POINT = 3 * 8 + 2 + 6 + 3 * 8 + 1
+
+
+def _selection(point_format):
+    """What the LAZ decoder must decompress: x, y, z, intensity and RGB where the
+    point format has them. (LAS 1.4 formats 6-10 compress each of these in its own
+    layer; ``DecompressionSelection.base()`` alone leaves out Z.)"""
+    import laspy
+
+    sel = (laspy.DecompressionSelection.XY_RETURNS_CHANNEL
+           | laspy.DecompressionSelection.Z
+           | laspy.DecompressionSelection.INTENSITY)
+    if "red" in point_format.dimension_names:
+        sel |= laspy.DecompressionSelection.RGB
+    return sel
+
+
+def data_point_capacity(p: Path, header, laz_vlr=None) -> tuple[int, bool]:
+    """How many points the file's point data can hold, judged from the data, not
+    the header's count: ``(count, exact)``.
+
+    LAS: the bytes between the start of the point data and the first extended VLR
+    (or the end of the file), divided by the record length (exact). LAZ: the chunk
+    table's point counts (exact for variable-size chunks such as COPC, an upper
+    bound of ``chunks x chunk size`` for fixed-size chunks); ``laz_vlr`` is the
+    file's ``lazrs.LazVlr``. ``(-1, False)`` when the data cannot be measured (no
+    or a damaged chunk table).
+    """
+    size = p.stat().st_size
+    start = int(header.offset_to_point_data)
+    if not header.are_points_compressed:
+        end = size
+        first_evlr = int(getattr(header, "start_of_first_evlr", 0) or 0)
+        if getattr(header, "number_of_evlrs", 0) and start < first_evlr <= size:
+            end = first_evlr
+        return max(0, end - start) // int(header.point_format.size), True
+    if laz_vlr is None:
+        return -1, False
+    try:
+        import lazrs
+
+        with open(p, "rb") as fh:
+            fh.seek(start)
+            table = lazrs.read_chunk_table(fh, laz_vlr)
+    except Exception:  # no or damaged chunk table
+        return -1, False
+    counts = [int(c[0]) for c in table]
+    variable = int(laz_vlr.chunk_size()) == 0xFFFFFFFF
+    return sum(counts), variable
+
+
+def _laz_vlr(header):
+    """The file's ``lazrs.LazVlr`` (chunk size, item layout), or None for LAS."""
+    if not header.are_points_compressed:
+        return None
+    try:
+        import lazrs
+
+        return lazrs.LazVlr(header.vlrs.get("LasZipVlr")[0].record_data_bytes())
+    except Exception:  # no or a damaged LasZip record: the decoder will say so
+        return None
+
+
 def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud:
+    """Read a LAS/LAZ (COPC included: read as plain LAZ) file's x, y, z (metres as
+    stored), intensity and RGB (where the point format has them).
+
+    The header's point count is checked against what the data can hold before
+    anything is decoded: more than the data hold is an InputError (a truncated or
+    lying header); fewer gives a warning on the cloud. The declared count is then
+    checked against available memory (:func:`rough_viewer.memory.require`).
+    """
     import laspy
 
     if cache:
@@ -37,35 +111,58 @@ def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud
             if progress:
                 progress(cached.n, cached.n)
             return cached
-    sel = laspy.DecompressionSelection.base() | laspy.DecompressionSelection.INTENSITY
-    with laspy.open(p, laz_backend=laz_backend(), decompression_selection=sel) as reader:
+    warnings: list[str] = []
+    # laspy reads the header on open and builds the decoder on the first read, so
+    # the data are measured and the decompression selection set in between.
+    with laspy.open(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
+        laz_vlr = _laz_vlr(hdr)
         n = int(hdr.point_count)
+        capacity, exact = data_point_capacity(p, hdr, laz_vlr)
+        if capacity >= 0 and n > capacity:
+            raise InputError(
+                f"the header of {p} declares {n:,} points but its point data hold "
+                f"{'' if exact else 'at most '}{capacity:,}: the file is truncated or damaged"
+            )
+        chunk_size = int(laz_vlr.chunk_size()) if laz_vlr is not None else 1
+        if capacity > n and (exact or capacity - n >= chunk_size):
+            warnings.append(
+                f"the header of {p} declares {n:,} points but its point data hold "
+                f"{'' if exact else 'up to '}{capacity:,}; only the declared {n:,} were read"
+            )
+        require(n * READ_BYTES_PER_POINT, f"reading {n:,} points from {p}",
+                hint="use a smaller file or a machine with more memory")
+        reader.decompression_selection = _selection(hdr.point_format)
+        has_rgb = "red" in hdr.point_format.dimension_names
         scale = np.asarray(hdr.scales, dtype=np.float64)
         offset = np.asarray(hdr.offsets, dtype=np.float64)
         x = np.empty(n)
         y = np.empty(n)
         z = np.empty(n)
         inten = np.empty(n, dtype=np.uint16)
+        rgb = np.empty((n, 3), dtype=np.uint16) if has_rgb else None
         done = 0
         if progress:
             progress(0, n)
         for chunk in reader.chunk_iterator(LAS_CHUNK):
             m = len(chunk)
             sl = slice(done, done + m)
-            np.multiply(chunk.X, scale[0], out=x[sl])
-            x[sl] += offset[0]
-            np.multiply(chunk.Y, scale[1], out=y[sl])
-            y[sl] += offset[1]
-            np.multiply(chunk.Z, scale[2], out=z[sl])
-            z[sl] += offset[2]
+            for col, raw, k in ((x, chunk.X, 0), (y, chunk.Y, 1), (z, chunk.Z, 2)):
+                np.multiply(raw, scale[k], out=col[sl])
+                col[sl] += offset[k]
             inten[sl] = chunk.intensity
+            if rgb is not None:
+                rgb[sl, 0] = chunk.red
+                rgb[sl, 1] = chunk.green
+                rgb[sl, 2] = chunk.blue
             done += m
             if progress:
                 progress(done, n)
         if done < n:
+            warnings.append(f"{p} ended after {done:,} of the {n:,} points its header declares")
             x, y, z, inten = x[:done], y[:done], z[:done], inten[:done]
-    cloud = finite_cloud(x, y, z, inten, p)
+            rgb = None if rgb is None else rgb[:done]
+    cloud = finite_cloud(x, y, z, inten, p, rgb=rgb).with_warnings(*warnings)
     if cache:
         cache_write(p, cloud)
     return cloud

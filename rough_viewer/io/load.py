@@ -10,6 +10,14 @@ Supported inputs (by file extension):
 - ``.npy``: an (N, 3) (or wider: the first three columns) numeric array.
 - ``.ply``: ASCII or binary (either endianness) vertex ``x``, ``y``, ``z``.
 - ``.stl``: ASCII or binary; the mesh's vertices, each once.
+- ``.e57``: every scan, transformed by its pose into the file's frame and merged
+  (pye57); intensity, colour, scan index and scanner positions kept.
+
+Units: the cloud is always in metres. A file's coordinates are taken to be in
+``units`` when given, else in the linear unit of its CRS (LAS/LAZ; E57 is metres),
+else metres, and scaled to metres on reading (``PointCloud.source_unit`` says which
+unit the file was in). Given units that contradict the CRS are used as asked, with
+a warning on the cloud naming the file.
 
 Rows with NaN or infinite coordinates are dropped and counted
 (:attr:`PointCloud.dropped_nonfinite`). Every problem raises
@@ -22,33 +30,44 @@ import os
 from pathlib import Path
 
 from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.crs import read_crs
+from rough_viewer.io.e57 import read_e57
 from rough_viewer.io.las import read_las
 from rough_viewer.io.ply import read_ply
 from rough_viewer.io.stl import read_stl
 from rough_viewer.io.text import read_npy, read_text
-from rough_viewer.vocabulary import InputError, ProgressFn
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError, ProgressFn, Unit
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
-SUPPORTED_SUFFIXES = (".las", ".laz", *TEXT_SUFFIXES, ".npy", ".ply", ".stl")
+SUPPORTED_SUFFIXES = (".las", ".laz", ".e57", *TEXT_SUFFIXES, ".npy", ".ply", ".stl")
 
 
 def load_points(
-    path: str | os.PathLike[str], *, progress: ProgressFn | None = None, cache: bool = True
+    path: str | os.PathLike[str],
+    *,
+    progress: ProgressFn | None = None,
+    cache: bool = True,
+    units: Unit | None = None,
 ) -> PointCloud:
-    """Read a point cloud file.
+    """Read a point cloud file into metres.
 
     Parameters
     ----------
     path : path-like
-        A ``.las .laz .xyz .txt .csv .pts .npy .ply .stl`` file.
+        A ``.las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl`` file.
     progress : callable, optional
-        ``progress(done, total)`` in points, for LAS/LAZ files.
+        ``progress(done, total)`` in points, for LAS/LAZ and E57 files.
     cache : bool
         Use (and fill) the decoded-coordinate cache for LAZ files.
+    units : {"m", "mm", "ft", "us-ft"}, optional
+        Unit of the file's coordinates; default: its CRS's linear unit where it
+        declares one (LAS/LAZ), else metres.
 
     Returns
     -------
     PointCloud
+        Coordinates in metres; ``source_unit`` the unit the file was read in;
+        ``warnings`` what the user should know (header counts, units vs CRS).
 
     Raises
     ------
@@ -78,16 +97,11 @@ def load_points(
         raise InputError(f"not a file: {p}")
     if not os.access(p, os.R_OK):
         raise InputError(f"cannot read {p}: permission denied")
+    if units is not None and units not in UNIT_METRES:
+        raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     try:
-        if suffix in (".las", ".laz"):
-            return read_las(p, progress=progress, cache=cache and suffix == ".laz")
-        if suffix in TEXT_SUFFIXES:
-            return read_text(p)
-        if suffix == ".npy":
-            return read_npy(p)
-        if suffix == ".ply":
-            return read_ply(p)
-        return read_stl(p)
+        cloud = _read(p, suffix, progress=progress, cache=cache)
+        unit, notes = _resolve_units(p, units)
     except InputError:
         raise
     except MemoryError:
@@ -100,5 +114,46 @@ def load_points(
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise InputError(f"cannot read {p}: {msg}") from None
         raise
+    return cloud.scaled(UNIT_METRES[unit], unit).with_warnings(*notes)
+
+
+def _read(p: Path, suffix: str, *, progress: ProgressFn | None, cache: bool) -> PointCloud:
+    if suffix in (".las", ".laz"):
+        return read_las(p, progress=progress, cache=cache and suffix == ".laz")
+    if suffix == ".e57":
+        return read_e57(p, progress=progress)
+    if suffix in TEXT_SUFFIXES:
+        return read_text(p)
+    if suffix == ".npy":
+        return read_npy(p)
+    if suffix == ".ply":
+        return read_ply(p)
+    return read_stl(p)
+
+
+def resolve_units(path: str | os.PathLike[str], units: Unit | None) -> tuple[Unit, tuple[str, ...]]:
+    """The unit a file's coordinates are read in, and warnings about it.
+
+    ``units`` when given (a warning naming the file if the file's CRS declares
+    another linear unit), else the CRS's unit, else metres. A geographic CRS
+    (degrees) or a vertical unit unlike the horizontal one also gives a warning.
+    """
+    return _resolve_units(Path(path), units)
+
+
+def _resolve_units(p: Path, units: Unit | None) -> tuple[Unit, tuple[str, ...]]:
+    info = read_crs(p)
+    notes: list[str] = []
+    if info.geographic:
+        notes.append(f"the CRS of {p} is geographic (degrees): lengths and roughness need "
+                     "projected coordinates; reproject the file first")
+    unit: Unit = units or info.unit or "m"
+    if units is not None and info.unit is not None and info.unit != units:
+        notes.append(f"--units {units} contradicts the CRS of {p} "
+                     f"({UNIT_LABELS[info.unit]}); reading it in {UNIT_LABELS[units]} as asked")
+    if info.vertical_unit is not None and info.vertical_unit != unit:
+        notes.append(f"the CRS of {p} gives z in {UNIT_LABELS[info.vertical_unit]} but x, y "
+                     f"in {UNIT_LABELS[unit]}; z is read in {UNIT_LABELS[unit]} too")
+    return unit, tuple(notes)
 
 

@@ -51,7 +51,7 @@ def read_npy(p: Path) -> PointCloud:
         raise InputError(f"cannot read {p} as a numpy array: {exc}") from None
     if arr.dtype.names and all(k in arr.dtype.names for k in "xyz"):
         cols = [np.asarray(arr[k], dtype=np.float64) for k in "xyz"]
-        return finite_cloud(*cols, None, p)
+        return finite_cloud(cols[0], cols[1], cols[2], None, p)
     if arr.ndim != 2 or arr.shape[1] < 3 or not np.issubdtype(arr.dtype, np.number):
         raise InputError(f"expected an (N, 3) numeric array in {p}, got shape {arr.shape}")
     arr = arr.astype(np.float64, copy=False)

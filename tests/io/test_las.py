@@ -157,3 +157,119 @@ def test_bad_files_raise_one_line_errors_naming_the_file(tmp_path, name, content
         load_points(path)
     text = str(exc.value)
     assert message in text and name in text and "\n" not in text
+
+
+# ----------------------------------------------------------------------------- LAS 1.4
+
+
+def _las14(path, fmt: int, n: int = 120_000, seed: int = 3, compress: bool = True):
+    """A LAS 1.4 file of point format ``fmt`` written by laspy: z varies point to point
+    (a wavy surface), intensity and (where the format has it) RGB random."""
+    rng = np.random.default_rng(seed)
+    xyz = rough_surface(n, seed=seed, size=20.0) + np.array([600_000.0, 4_100_000.0, 50.0])
+    hdr = laspy.LasHeader(point_format=fmt, version="1.4")
+    hdr.scales = np.array([1e-3, 1e-3, 1e-3])
+    hdr.offsets = np.floor(xyz.min(axis=0))
+    las = laspy.LasData(hdr)
+    las.x, las.y, las.z = xyz.T
+    las.intensity = rng.integers(0, 65535, n, dtype=np.uint16)
+    if "red" in las.point_format.dimension_names:
+        for band in ("red", "green", "blue"):
+            las[band] = rng.integers(0, 65535, n, dtype=np.uint16)
+    las.write(str(path), do_compress=compress)
+    return path
+
+
+@pytest.mark.parametrize("fmt", [6, 7, 8])
+def test_las14_laz_matches_laspy_full_decode(tmp_path, fmt):
+    path = _las14(tmp_path / f"pf{fmt}.laz", fmt)
+    full = laspy.read(path)  # laspy's own decode of every layer
+    got = load_points(path, cache=False)
+    np.testing.assert_array_equal(got.x, np.asarray(full.x))
+    np.testing.assert_array_equal(got.y, np.asarray(full.y))
+    np.testing.assert_array_equal(got.z, np.asarray(full.z))
+    assert np.ptp(got.z) > 0.1  # the z layer really was decoded
+    np.testing.assert_array_equal(got.intensity, np.asarray(full.intensity))
+    if fmt == 6:
+        assert got.rgb is None
+    else:
+        want = np.column_stack([np.asarray(full.red), np.asarray(full.green), np.asarray(full.blue)])
+        np.testing.assert_array_equal(got.rgb, want)
+    assert got.warnings == ()
+
+
+def test_copc_like_laz_reads_as_plain_laz(tmp_path):
+    # COPC = LAZ 1.4 PF 6-8 whose first record is the "copc" info VLR (160 bytes)
+    rng = np.random.default_rng(5)
+    xyz = rough_surface(5000, seed=5)
+    hdr = laspy.LasHeader(point_format=7, version="1.4")
+    hdr.scales = np.array([1e-4] * 3)
+    hdr.vlrs.append(laspy.VLR("copc", 1, "COPC info", bytes(160)))
+    las = laspy.LasData(hdr)
+    las.x, las.y, las.z = xyz.T
+    las.red = rng.integers(0, 65535, 5000, dtype=np.uint16)
+    path = tmp_path / "cloud.copc.laz"
+    las.write(str(path))
+    got = load_points(path, cache=False)
+    np.testing.assert_allclose(got.xyz(), xyz, atol=5.1e-5)
+    np.testing.assert_array_equal(got.rgb[:, 0], np.asarray(las.red))
+
+
+def _set_count(path, n: int) -> None:
+    """Overwrite a LAS 1.4 header's point counts (legacy 32-bit at 107, 64-bit at 247)."""
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<I", data, 107, 0)
+    struct.pack_into("<Q", data, 247, n)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("compress", [True, False])
+def test_header_declaring_more_points_than_the_data_is_one_line_error(tmp_path, compress):
+    path = _las14(tmp_path / ("lie.laz" if compress else "lie.las"), 6, n=60_000, compress=compress)
+    _set_count(path, 50_000_000)
+    with pytest.raises(InputError) as exc:
+        load_points(path, cache=False)
+    text = str(exc.value)
+    assert "50,000,000" in text and path.name in text and "\n" not in text
+
+
+def test_truncated_las_is_one_line_error(tmp_path):
+    path = _las14(tmp_path / "cut.las", 6, n=10_000, compress=False)
+    path.write_bytes(path.read_bytes()[:-30 * 1000])
+    with pytest.raises(InputError, match="cut.las.*10,000 points but its point data hold 9,000"):
+        load_points(path)
+
+
+def test_header_declaring_fewer_points_is_a_warning(tmp_path):
+    path = _las14(tmp_path / "few.las", 6, n=10_000, compress=False)
+    _set_count(path, 9_000)
+    got = load_points(path)
+    assert got.n == 9_000
+    assert len(got.warnings) == 1 and "few.las" in got.warnings[0] and "10,000" in got.warnings[0]
+
+
+def test_declared_points_checked_against_memory_before_decoding(tmp_path, monkeypatch):
+    import rough_viewer.memory as memory
+
+    path = _las14(tmp_path / "big.laz", 6, n=20_000)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 100_000.0)
+    with pytest.raises(InputError, match="reading 20,000 points from .*big.laz needs about"):
+        load_points(path, cache=False)
+
+
+def test_cache_key_changes_with_the_decoder_version(tmp_path, monkeypatch, cloud):
+    import rough_viewer.io.cache as cache
+
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    path = _las14(tmp_path / "pf6.laz", 6, n=5_000)
+    key = cache.cache_key(path)
+    # an entry of the old format (flat z, the bug) under the old key is never served
+    monkeypatch.setattr(cache, "CACHE_VERSION", "v1")
+    cache.cache_write(path, cloud)
+    assert cache.cache_key(path) != key
+    monkeypatch.undo()
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    got = load_points(path)
+    np.testing.assert_array_equal(got.z, np.asarray(laspy.read(path).z))
+    again = load_points(path)  # now from the v2 entry, RGB and all
+    np.testing.assert_array_equal(again.z, got.z)

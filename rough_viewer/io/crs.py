@@ -1,0 +1,311 @@
+"""The coordinate reference system (CRS) a point file declares: its name, EPSG code
+and linear unit, read without pyproj.
+
+LAS/LAZ files declare their CRS in variable-length records (VLRs, or extended VLRs
+in LAS 1.4) of user id ``LASF_Projection``: an OGC WKT string (record 2112) or the
+GeoTIFF keys (records 34735 directory, 34736 doubles, 34737 text). E57 coordinates
+are metres by the standard. Text, NPY, PLY and STL files carry no CRS.
+
+>>> info = parse_wkt_crs('PROJCS["NAD83 / UTM zone 11N",GEOGCS["NAD83",'
+...     'UNIT["degree",0.0174532925199433]],UNIT["metre",1],AUTHORITY["EPSG","26911"]]')
+>>> info.unit, info.epsg
+('m', 26911)
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.vocabulary import CrsUnit, InputError
+
+#: EPSG unit-of-measure codes (GeoTIFF ProjLinearUnitsGeoKey) -> unit.
+EPSG_UNITS: dict[int, CrsUnit] = {9001: "m", 9002: "ft", 9003: "us-ft"}
+
+#: GeoTIFF keys read here.
+GT_MODEL_TYPE = 1024          # 1 projected, 2 geographic, 3 geocentric
+GT_CITATION = 1026
+GEOGRAPHIC_TYPE = 2048
+PROJECTED_CS_TYPE = 3072
+PCS_CITATION = 3073
+PROJ_LINEAR_UNITS = 3076
+VERTICAL_CS_TYPE = 4096
+VERTICAL_UNITS = 4099
+
+_USER_DEFINED = 32767
+
+
+@dataclass(frozen=True)
+class CrsInfo:
+    """What a file says about its coordinate reference system; None where it says nothing."""
+
+    description: str | None = None
+    """WKT string, or a readable name (GeoTIFF citation or ``"EPSG:26911"``)."""
+    unit: CrsUnit | None = None
+    """Linear unit of the horizontal coordinates, or None when not declared or angular."""
+    epsg: int | None = None
+    """EPSG code of the (horizontal) CRS, where the file gives one."""
+    vertical_unit: CrsUnit | None = None
+    """Linear unit of z where declared separately (GeoTIFF VerticalUnitsGeoKey, WKT
+    vertical CRS)."""
+    geographic: bool = False
+    """True when the coordinates are longitude/latitude (degrees): no roughness in
+    metres can be computed from them without a projection."""
+    source: str = ""
+    """Where it came from: ``"wkt"``, ``"geotiff"``, ``"e57"`` or ``""`` (nothing)."""
+
+
+NO_CRS = CrsInfo()
+
+
+def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
+    """The CRS a point file declares (header only; no points are decoded).
+
+    Parameters
+    ----------
+    path : path-like
+        Any file :func:`rough_viewer.io.load.load_points` reads.
+
+    Returns
+    -------
+    CrsInfo
+        All fields None for formats without a CRS or files that declare none. A WKT
+        record wins over GeoTIFF keys when a file has both (LAS 1.4 says so).
+
+    Raises
+    ------
+    InputError
+        A LAS/LAZ file whose header cannot be read.
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix in (".las", ".laz"):
+        return _las_crs(p)
+    if suffix == ".e57":
+        return CrsInfo(description=None, unit="m", source="e57")
+    return NO_CRS
+
+
+def _las_crs(p: Path) -> CrsInfo:
+    import laspy
+
+    try:
+        with laspy.open(p) as reader:
+            records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
+    except Exception as exc:  # laspy raises its own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read the header of {p}: {msg}") from None
+    raw: dict[int, bytes] = {}
+    for vlr in records:
+        if vlr.user_id.rstrip("\0") != "LASF_Projection":
+            continue
+        data = vlr.record_data_bytes() if hasattr(vlr, "record_data_bytes") else vlr.record_data
+        raw[int(vlr.record_id)] = bytes(data)
+    if 2112 in raw:
+        text = raw[2112].decode("utf-8", errors="replace").rstrip("\0").strip()
+        if text:
+            return parse_wkt_crs(text)
+    if 34735 in raw:
+        return parse_geotiff_keys(raw[34735], raw.get(34736, b""), raw.get(34737, b""))
+    return NO_CRS
+
+
+# ----------------------------------------------------------------------------- GeoTIFF keys
+
+
+def parse_geotiff_keys(directory: bytes, doubles: bytes = b"", ascii_params: bytes = b"") -> CrsInfo:
+    """A CRS from the GeoTIFF key directory (and its double and ASCII parameters).
+
+    Parameters
+    ----------
+    directory : bytes
+        GeoKeyDirectoryTag: little-endian uint16, a 4-value header then one
+        ``(key id, tag location, count, value or offset)`` entry per key.
+    doubles, ascii_params : bytes
+        GeoDoubleParamsTag (float64) and GeoAsciiParamsTag (text, ``|``-terminated).
+    """
+    words = np.frombuffer(directory[: len(directory) // 2 * 2], dtype="<u2")
+    if words.size < 4:
+        return NO_CRS
+    n_keys = min(int(words[3]), (words.size - 4) // 4)
+    entries = words[4 : 4 + 4 * n_keys].reshape(-1, 4)
+    text = ascii_params.decode("ascii", errors="replace")
+    keys: dict[int, int | str] = {}
+    for key_id, location, count, value in entries.tolist():
+        if location == 0:
+            keys[key_id] = value
+        elif location == 34737:
+            keys[key_id] = text[value : value + count].rstrip("|\0 ")
+    model = keys.get(GT_MODEL_TYPE)
+    epsg = _code(keys.get(PROJECTED_CS_TYPE))
+    geographic = model == 2
+    if geographic and epsg is None:
+        epsg = _code(keys.get(GEOGRAPHIC_TYPE))
+    unit = EPSG_UNITS.get(_code(keys.get(PROJ_LINEAR_UNITS)) or 0)
+    if unit is None and epsg is not None and not geographic:
+        unit = _unit_of_epsg(epsg)
+    vertical = EPSG_UNITS.get(_code(keys.get(VERTICAL_UNITS)) or 0)
+    citation = keys.get(PCS_CITATION) or keys.get(GT_CITATION)
+    description = citation if isinstance(citation, str) and citation else None
+    if description is None and epsg is not None:
+        description = f"EPSG:{epsg}"
+    return CrsInfo(
+        description=description, unit=None if geographic else unit, epsg=epsg,
+        vertical_unit=vertical, geographic=geographic, source="geotiff",
+    )
+
+
+def _code(value: int | str | None) -> int | None:
+    if isinstance(value, int) and 0 < value < _USER_DEFINED:
+        return value
+    return None
+
+
+def _unit_of_epsg(epsg: int) -> CrsUnit | None:
+    """Linear unit of a projected EPSG code: pyproj when installed, else the UTM
+    families (WGS 84, NAD83, NAD27, ETRS89), which are all metres."""
+    try:
+        import pyproj  # optional
+    except ImportError:
+        utm = (32601 <= epsg <= 32660 or 32701 <= epsg <= 32760 or 26901 <= epsg <= 26923
+               or 26701 <= epsg <= 26722 or 25828 <= epsg <= 25838)
+        return "m" if utm else None
+    try:
+        axis = pyproj.CRS.from_epsg(epsg).axis_info
+    except Exception:  # unknown code
+        return None
+    return _unit_of_factor(axis[0].unit_conversion_factor) if axis else None
+
+
+# ----------------------------------------------------------------------------- WKT
+
+_TOKEN = re.compile(r'\s*(?:"((?:[^"]|"")*)"|([\[\](),])|([^\[\](),"\s]+))')
+
+_Node = tuple[str, list]  # (keyword, arguments: str | float | _Node)
+
+
+def _parse_wkt(text: str) -> _Node:
+    """WKT (version 1 or 2) as nested ``(KEYWORD, [args])``; strings stay str,
+    numbers become float."""
+    tokens: list[tuple[str, str]] = []
+    pos = 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if not m or m.end() == pos:
+            break
+        pos = m.end()
+        if m.group(1) is not None:
+            tokens.append(("str", m.group(1).replace('""', '"')))
+        elif m.group(2):
+            tokens.append(("punct", m.group(2)))
+        elif m.group(3):
+            tokens.append(("word", m.group(3)))
+    stack: list[_Node] = [("", [])]
+    last_word: str | None = None
+    for kind, tok in tokens:
+        if kind == "punct":
+            if tok in "[(":
+                node: _Node = (last_word or "", [])
+                stack[-1][1].append(node)
+                stack.append(node)
+                last_word = None
+            elif tok in "])":
+                if last_word is not None:
+                    stack[-1][1].append(_number(last_word))
+                    last_word = None
+                if len(stack) > 1:
+                    stack.pop()
+            elif last_word is not None:  # comma after a bare value
+                stack[-1][1].append(_number(last_word))
+                last_word = None
+        elif kind == "word":
+            last_word = tok
+        else:
+            stack[-1][1].append(tok)
+    roots = [a for a in stack[0][1] if isinstance(a, tuple)]
+    if not roots:
+        raise ValueError("no WKT keyword")
+    return roots[0]
+
+
+def _number(word: str) -> float | str:
+    try:
+        return float(word)
+    except ValueError:
+        return word
+
+
+def _children(node: _Node, *keywords: str) -> list[_Node]:
+    return [a for a in node[1] if isinstance(a, tuple) and a[0].upper() in keywords]
+
+
+_PROJECTED = ("PROJCS", "PROJCRS", "PROJECTEDCRS")
+_GEOGRAPHIC = ("GEOGCS", "GEOGCRS", "GEOGRAPHICCRS", "GEODCRS", "GEODETICCRS", "GEOCCS")
+_VERTICAL = ("VERT_CS", "VERTCS", "VERTCRS", "VERTICALCRS")
+_COMPOUND = ("COMPD_CS", "COMPOUNDCRS")
+_UNITS = ("UNIT", "LENGTHUNIT")
+
+
+def parse_wkt_crs(text: str) -> CrsInfo:
+    """A CRS from OGC WKT (version 1 or 2, ESRI flavour included).
+
+    The horizontal unit is the projected CRS's own UNIT (WKT 1) or LENGTHUNIT
+    (WKT 2, on the CS or on an axis), classified by its conversion factor to
+    metres; a geographic CRS has no linear unit. The EPSG code is the AUTHORITY or
+    ID of the (horizontal) CRS.
+    """
+    try:
+        root = _parse_wkt(text)
+    except ValueError:
+        return CrsInfo(description=text, source="wkt")
+    horizontal, vertical = root, None
+    if root[0].upper() in _COMPOUND:
+        parts = [a for a in root[1] if isinstance(a, tuple)]
+        horizontal = next((a for a in parts if a[0].upper() in _PROJECTED + _GEOGRAPHIC), root)
+        vertical = next((a for a in parts if a[0].upper() in _VERTICAL), None)
+    elif root[0].upper() in _VERTICAL:
+        horizontal, vertical = root, root
+    geographic = horizontal[0].upper() in _GEOGRAPHIC
+    unit = None if geographic else _node_unit(horizontal)
+    return CrsInfo(
+        description=text, unit=unit, epsg=_node_epsg(horizontal),
+        vertical_unit=None if vertical is None else _node_unit(vertical),
+        geographic=geographic, source="wkt",
+    )
+
+
+def _node_unit(node: _Node) -> CrsUnit | None:
+    candidates = _children(node, *_UNITS)
+    for cs in _children(node, "CS", "AXIS"):
+        candidates += _children(cs, *_UNITS)
+    for axis in _children(node, "AXIS"):
+        candidates += _children(axis, *_UNITS)
+    for unit in candidates:
+        factors = [a for a in unit[1] if isinstance(a, float)]
+        if factors:
+            found = _unit_of_factor(factors[0])
+            if found is not None:
+                return found
+    return None
+
+
+def _unit_of_factor(factor: float) -> CrsUnit | None:
+    for unit, metres in (("m", 1.0), ("ft", 0.3048), ("us-ft", 1200.0 / 3937.0)):
+        if abs(factor - metres) <= 1e-9 * metres:
+            return unit  # type: ignore[return-value]
+    return None
+
+
+def _node_epsg(node: _Node) -> int | None:
+    for ident in _children(node, "AUTHORITY", "ID"):
+        args = ident[1]
+        if len(args) >= 2 and str(args[0]).upper() == "EPSG":
+            try:
+                return int(float(args[1]))
+            except (TypeError, ValueError):
+                return None
+    return None

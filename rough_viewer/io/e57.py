@@ -1,0 +1,119 @@
+"""E57 (ASTM E2807), the exchange format of terrestrial laser scanners, read with
+pye57 (the Python binding of libE57Format).
+
+A file holds one or more scans (``data3D``), each in its own frame with a pose
+(rotation quaternion and translation) into the file's frame. Every scan is read,
+its invalid points (``cartesianInvalidState`` != 0) dropped, transformed by its pose
+and merged. The cloud keeps intensity (float, as stored), colour (as stored),
+``scan_index`` (which scan each point came from) and ``scanner_positions`` (each
+pose's translation: the scanner's origin in the file's frame, metres), for later
+use such as range and incidence angle. E57 coordinates are metres by the standard.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.memory import require
+from rough_viewer.vocabulary import InputError, ProgressFn
+
+#: Bytes per point at the peak of a read: pye57's per-scan buffers (x, y, z float64,
+#: intensity float32, 3 colour bytes, invalid state) and the merged columns.
+E57_BYTES_PER_POINT = 24 + 4 + 3 + 1 + 24 + 4 + 3 + 4 + 24
+
+_XYZ = ("cartesianX", "cartesianY", "cartesianZ")
+_RGB = ("colorRed", "colorGreen", "colorBlue")
+
+
+def quaternion_matrix(wxyz: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3x3) of a quaternion ``(w, x, y, z)`` (normalised first).
+
+    >>> quaternion_matrix(np.array([1.0, 0.0, 0.0, 0.0]))
+    array([[1., 0., 0.],
+           [0., 1., 0.],
+           [0., 0., 1.]])
+    """
+    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def read_e57(p: Path, *, progress: ProgressFn | None = None) -> PointCloud:
+    """Read every scan of an E57 file into one cloud in the file's frame (metres).
+
+    Raises
+    ------
+    InputError
+        pye57 not installed, an unreadable file, no scans, a scan without Cartesian
+        coordinates (spherical only), or more points than fit in memory.
+    """
+    try:
+        import pye57
+    except ImportError:
+        raise InputError(f"reading {p} needs pye57 (pip install pye57)") from None
+    try:
+        e57 = pye57.E57(str(p))
+    except Exception as exc:  # libE57Format raises its own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {p} as E57: {msg}") from None
+    try:
+        n_scans = int(e57.scan_count)
+        if n_scans == 0:
+            raise InputError(f"no scans in {p}")
+        headers = [e57.get_header(i) for i in range(n_scans)]
+        for i, h in enumerate(headers):
+            if not all(f in h.point_fields for f in _XYZ):
+                raise InputError(
+                    f"scan {i} of {p} has no Cartesian coordinates (only "
+                    f"{', '.join(sorted(h.point_fields)) or 'nothing'}); export it with x, y, z"
+                )
+        counts = [int(h.point_count) for h in headers]
+        total = sum(counts)
+        require(total * E57_BYTES_PER_POINT, f"reading {total:,} points from {p}",
+                hint="use a smaller file or a machine with more memory")
+        has_int = all("intensity" in h.point_fields for h in headers)
+        has_rgb = all(all(c in h.point_fields for c in _RGB) for h in headers)
+        parts_xyz: list[np.ndarray] = []
+        parts_int: list[np.ndarray] = []
+        parts_rgb: list[np.ndarray] = []
+        parts_idx: list[np.ndarray] = []
+        positions = np.zeros((n_scans, 3))
+        done = 0
+        if progress:
+            progress(0, total)
+        for i, h in enumerate(headers):
+            data = e57.read_scan(i, intensity=has_int, colors=has_rgb, transform=False,
+                                 ignore_missing_fields=True)
+            local = np.column_stack([np.asarray(data[c], dtype=np.float64) for c in _XYZ])
+            if h.has_pose():
+                rot = quaternion_matrix(np.asarray(h.rotation, dtype=np.float64))
+                shift = np.asarray(h.translation, dtype=np.float64)
+                local = local @ rot.T + shift
+                positions[i] = shift
+            parts_xyz.append(local)
+            parts_idx.append(np.full(local.shape[0], i, dtype=np.int32))
+            if has_int:
+                parts_int.append(np.asarray(data["intensity"]))
+            if has_rgb:
+                parts_rgb.append(np.column_stack([np.asarray(data[c]) for c in _RGB]))
+            done += counts[i]
+            if progress:
+                progress(done, total)
+    finally:
+        e57.close()
+    xyz = np.concatenate(parts_xyz)
+    del parts_xyz
+    return finite_cloud(
+        np.ascontiguousarray(xyz[:, 0]), np.ascontiguousarray(xyz[:, 1]),
+        np.ascontiguousarray(xyz[:, 2]),
+        np.concatenate(parts_int) if has_int else None, p,
+        rgb=np.concatenate(parts_rgb) if has_rgb else None,
+        scan_index=np.concatenate(parts_idx),
+        scanner_positions=positions,
+    )

@@ -1,0 +1,93 @@
+"""io/crs.py: the CRS and linear unit of LAS/LAZ files, from WKT and GeoTIFF records
+written here byte by byte."""
+
+from __future__ import annotations
+
+import struct
+
+import laspy
+import numpy as np
+import pytest
+
+from rough_viewer.io.crs import CrsInfo, parse_geotiff_keys, parse_wkt_crs, read_crs
+
+WKT_FT = (
+    'PROJCS["NAD83 / California zone 3 (ftUS)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",'
+    'SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],'
+    'UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4269"]],'
+    'PROJECTION["Lambert_Conformal_Conic_2SP"],UNIT["US survey foot",0.304800609601219,'
+    'AUTHORITY["EPSG","9003"]],AUTHORITY["EPSG","2227"]]'
+)
+WKT2_M = (
+    'PROJCRS["WGS 84 / UTM zone 10N",BASEGEOGCRS["WGS 84",DATUM["World Geodetic System 1984",'
+    'ELLIPSOID["WGS 84",6378137,298.257223563,LENGTHUNIT["metre",1]]],'
+    'ANGLEUNIT["degree",0.0174532925199433]],CONVERSION["UTM zone 10N",METHOD["Transverse Mercator"]],'
+    'CS[Cartesian,2],AXIS["easting",east,ORDER[1],LENGTHUNIT["metre",1]],'
+    'AXIS["northing",north,ORDER[2],LENGTHUNIT["metre",1]],ID["EPSG",32610]]'
+)
+
+
+def _geokeys(entries: list[tuple[int, int, int, int]]) -> bytes:
+    words = [1, 1, 0, len(entries)] + [v for e in entries for v in e]
+    return struct.pack(f"<{len(words)}H", *words)
+
+
+def _las_with(tmp_path, name: str, vlrs: list[laspy.VLR], *, version="1.2", fmt=3):
+    hdr = laspy.LasHeader(point_format=fmt, version=version)
+    hdr.scales = np.array([0.01, 0.01, 0.01])
+    for v in vlrs:
+        hdr.vlrs.append(v)
+    las = laspy.LasData(hdr)
+    las.x = np.array([0.0, 1.0, 2.0])
+    las.y = np.array([0.0, 1.0, 0.0])
+    las.z = np.array([0.0, 0.0, 1.0])
+    path = tmp_path / name
+    las.write(str(path))
+    return path
+
+
+def test_wkt_units_by_conversion_factor():
+    assert parse_wkt_crs(WKT_FT).unit == "us-ft"
+    assert parse_wkt_crs(WKT_FT).epsg == 2227
+    info = parse_wkt_crs(WKT2_M)
+    assert (info.unit, info.epsg, info.geographic) == ("m", 32610, False)
+    geo = parse_wkt_crs('GEOGCS["WGS 84",UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]]')
+    assert (geo.unit, geo.epsg, geo.geographic) == (None, 4326, True)
+    ft = parse_wkt_crs('PROJCS["x",GEOGCS["y",UNIT["degree",0.01745]],UNIT["foot",0.3048]]')
+    assert ft.unit == "ft" and ft.epsg is None
+
+
+def test_geotiff_keys_units_and_codes():
+    # projected, EPSG 2227, ProjLinearUnits 9003 (US survey foot), vertical 9002 (foot)
+    info = parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 2227), (3076, 0, 1, 9003),
+                                        (4099, 0, 1, 9002)]))
+    assert (info.unit, info.epsg, info.vertical_unit) == ("us-ft", 2227, "ft")
+    assert info.description == "EPSG:2227"
+    # citation in the ASCII params, user-defined CRS code, metres
+    text = b"my local grid|\0"
+    info = parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 32767), (3076, 0, 1, 9001),
+                                        (3073, 34737, len(text) - 1, 0)]), b"", text)
+    assert (info.unit, info.epsg, info.description) == ("m", None, "my local grid")
+    # a UTM code alone gives metres
+    assert parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 32611)])).unit == "m"
+
+
+def test_read_crs_from_las_records(tmp_path):
+    wkt = _las_with(tmp_path, "wkt.las", [laspy.VLR("LASF_Projection", 2112, "", WKT_FT.encode() + b"\0")],
+                    version="1.4", fmt=6)
+    assert read_crs(wkt).unit == "us-ft"
+    gt = _las_with(tmp_path, "gt.las", [laspy.VLR("LASF_Projection", 34735, "",
+                                                  _geokeys([(1024, 0, 1, 1), (3072, 0, 1, 26911),
+                                                            (3076, 0, 1, 9002)]))])
+    info = read_crs(gt)
+    assert (info.unit, info.epsg, info.source) == ("ft", 26911, "geotiff")
+    assert read_crs(_las_with(tmp_path, "none.las", [])) == CrsInfo()
+    np.save(tmp_path / "p.npy", np.zeros((3, 3)))
+    assert read_crs(tmp_path / "p.npy") == CrsInfo()
+
+
+def test_unreadable_header_names_the_file(tmp_path):
+    bad = tmp_path / "bad.las"
+    bad.write_bytes(b"LASF" + b"\0" * 20)
+    with pytest.raises(ValueError, match="bad.las"):
+        read_crs(bad)
