@@ -2,11 +2,12 @@
 
 Contract::
 
-    rough-viewer serve [INPUT] [--demo NAME] [--port 8080] [--host 127.0.0.1]
+    rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N]
 
-With no INPUT the bundled demo outcrop opens (``--demo NAME`` picks another demo).
+Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
+bundled demo outcrop opens (``--demo NAME`` picks another demo).
 The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
 printed once the first map is ready. Ctrl-C stops it.
 """
@@ -17,6 +18,7 @@ import argparse
 import sys
 import time
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
 
@@ -26,8 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="open the roughness viewer in the browser",
         description="Start the interactive roughness viewer (viser) on a cloud or a demo.",
     )
-    p.add_argument("input", nargs="?", help="point cloud (.las .laz .xyz .txt .csv .pts .npy "
-                   ".ply .stl); default: the demo outcrop")
+    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)")
     p.add_argument("--demo", metavar="NAME", help="open a bundled demo instead of INPUT")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
     p.add_argument("--host", default="127.0.0.1",
@@ -48,12 +49,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load_cloud(args: argparse.Namespace):
-    if args.input and args.demo:
+    if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
-    if args.input:
-        from rough_viewer.io import load_points
+    if args.inputs:
+        from rough_viewer.cli._inputs import input_paths, load_inputs
 
-        return load_points(args.input)
+        return load_inputs(input_paths(args), units=getattr(args, "units", None), quiet=True)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
