@@ -1,20 +1,28 @@
-"""Benchmark of the compute core: grid roughness stages on synthetic outcrops, and
+"""Benchmark of the compute core: grid roughness stages on synthetic outcrops, the
+whole ``rough-viewer compute`` process against a plain NumPy bincount pipeline, and
 LAS/LAZ read rates.
 
-Prints, for each N and grid size, the median over ``--repeat`` runs of each stage
-(cell keys, moments, plane fits, distances), points per second, and the peak memory
-allocated during the computation beyond the input coordinates (numpy allocations,
-measured with tracemalloc in a separate run so timings are not slowed).
+Prints, for each engine (numba, the NumPy reference), N and grid size, the median
+over ``--repeat`` runs of each stage (cell keys + moments, plane fits, distances,
+assembly), points per second, and the peak memory allocated during the computation
+beyond the input coordinates (numpy allocations, measured with tracemalloc in a
+separate run so timings are not slowed). Then, for ``--whole-points`` points saved
+as .npy, the median wall time of whole processes: ``rough-viewer compute`` with each
+engine and :func:`plain_pipeline` (the same numbers with nothing but NumPy
+bincounts), and their ratio.
 
-    python benchmarks/bench_compute.py                     # 1M, 5M, 20M points
-    python benchmarks/bench_compute.py --sizes 1e6 --repeat 3 --no-io
+    flock /tmp/rough_viewer_heavy.lock python benchmarks/bench_compute.py --sizes 2e7 --grids 0.25 --no-io
+    python benchmarks/bench_compute.py                     # 1M, 5M, 20M points, 4 grids
+    python benchmarks/bench_compute.py --sizes 1e6 --repeat 3 --no-io --no-whole
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -28,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
 from rough_viewer.io import PointCloud, load_points, write_las  # noqa: E402
 
-STAGES = ("cell keys", "moments", "plane fits", "distances")
+STAGES = ("keys+moments", "plane fits", "distances", "assembly")
 
 
 def synthetic_outcrop(n: int, seed: int = 0, *, order: str = "scan") -> PointCloud:
@@ -50,47 +58,134 @@ def synthetic_outcrop(n: int, seed: int = 0, *, order: str = "scan") -> PointClo
     return PointCloud(x=x + 512_000.0, y=y + 4_765_000.0, z=z + 1_200.0)
 
 
-def time_stages(cloud: PointCloud, g: float) -> tuple[float, list[float]]:
+def time_stages(cloud: PointCloud, g: float, engine: str) -> tuple[float, list[float]]:
     marks: list[float] = []
 
     def tick(done: int, total: int) -> None:
         marks.append(time.perf_counter())
 
     t0 = time.perf_counter()
-    grid_roughness(cloud, g, progress=tick)
+    grid_roughness(cloud, g, progress=tick, engine=engine)  # type: ignore[arg-type]
     total = time.perf_counter() - t0
     stages = [marks[i + 1] - marks[i] for i in range(4)]
     return total, stages
 
 
-def peak_bytes(cloud: PointCloud, g: float) -> int:
+def peak_bytes(cloud: PointCloud, g: float, engine: str) -> int:
     tracemalloc.start()
     tracemalloc.reset_peak()
     base = tracemalloc.get_traced_memory()[0]
-    res = grid_roughness(cloud, g)
+    res = grid_roughness(cloud, g, engine=engine)  # type: ignore[arg-type]
     peak = tracemalloc.get_traced_memory()[1] - base
     tracemalloc.stop()
     del res
     return peak
 
 
-def bench_grid(sizes: list[int], grids: list[float], repeat: int, order: str) -> None:
-    print(f"grid roughness, all three models; median of {repeat} runs; {os.cpu_count()} cores; "
-          f"points in {order} order")
-    head = f"{'N':>11} {'g (m)':>6} {'cells':>9} " + " ".join(f"{s:>11}" for s in STAGES)
+def bench_grid(sizes: list[int], grids: list[float], repeat: int, order: str,
+               engines: list[str]) -> None:
+    print(f"grid roughness in-process, all three models; median of {repeat} runs; "
+          f"{os.cpu_count()} cores; points in {order} order")
+    head = (f"{'engine':>6} {'N':>11} {'g (m)':>6} {'cells':>9} "
+            + " ".join(f"{s:>12}" for s in STAGES))
     head += f" {'total s':>8} {'Mpts/s':>7} {'peak B/pt':>9}"
     print(head)
     for n in sizes:
         cloud = synthetic_outcrop(n, order=order)
-        for g in grids:
-            runs = [time_stages(cloud, g) for _ in range(repeat)]
-            total = statistics.median(r[0] for r in runs)
-            stages = [statistics.median(r[1][i] for r in runs) for i in range(4)]
-            cells = grid_roughness(cloud, g).n_cells
-            peak = peak_bytes(cloud, g)
-            print(f"{n:>11,} {g:>6g} {cells:>9,} " + " ".join(f"{s:>10.3f}s" for s in stages)
-                  + f" {total:>8.3f} {n / total / 1e6:>7.2f} {peak / n:>9.1f}", flush=True)
+        for engine in engines:
+            # compile (or load) the kernels before timing
+            grid_roughness(synthetic_outcrop(1000), 1.0, engine=engine)  # type: ignore[arg-type]
+            for g in grids:
+                runs = [time_stages(cloud, g, engine) for _ in range(repeat)]
+                total = statistics.median(r[0] for r in runs)
+                stages = [statistics.median(r[1][i] for r in runs) for i in range(4)]
+                cells = grid_roughness(cloud, g, engine=engine).n_cells  # type: ignore[arg-type]
+                peak = peak_bytes(cloud, g, engine)
+                print(f"{engine:>6} {n:>11,} {g:>6g} {cells:>9,} "
+                      + " ".join(f"{s:>11.3f}s" for s in stages)
+                      + f" {total:>8.3f} {n / total / 1e6:>7.2f} {peak / n:>9.1f}", flush=True)
         del cloud
+
+
+def plain_pipeline(path: str, g: float, out: str) -> None:
+    """The same per-cell roughness (ODR, OLS along the auto axis, hybrid) with nothing
+    but NumPy: keys, ``np.unique``, weighted ``np.bincount`` sums, batched ``eigh``,
+    and a CSV. The whole-process yardstick of the compute core."""
+    xyz = np.load(path)
+    lo = xyz.min(axis=0)
+    ijk = np.floor((xyz - lo) / g).astype(np.int64)
+    dims = ijk.max(axis=0) + 1
+    keys = (ijk[:, 2] * dims[1] + ijk[:, 1]) * dims[0] + ijk[:, 0]
+    cells, inv, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    m = cells.shape[0]
+    centre = lo + (np.stack([cells % dims[0], cells // dims[0] % dims[1],
+                             cells // (dims[0] * dims[1])], axis=1) + 0.5) * g
+    local = xyz - centre[inv]
+    s1 = np.stack([np.bincount(inv, local[:, a], m) for a in range(3)], axis=1)
+    s2 = np.empty((m, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            s2[:, a, b] = s2[:, b, a] = np.bincount(inv, local[:, a] * local[:, b], m)
+    n = counts.astype(float)
+    mean = s1 / n[:, None]
+    cov = s2 / n[:, None, None] - mean[:, :, None] * mean[:, None, :]
+    w, v = np.linalg.eigh(cov)
+    normal = v[:, :, 0]
+    d0 = xyz - xyz.mean(axis=0)
+    axis = int(np.argmax(np.abs(np.linalg.eigh(d0.T @ d0)[1][:, 0])))
+    u, vv = [i for i in range(3) if i != axis]
+    det = cov[:, u, u] * cov[:, vv, vv] - cov[:, u, vv] ** 2
+    safe = np.where(det > 0, det, 1.0)
+    wols = np.zeros((m, 3))
+    wols[:, axis] = 1.0
+    wols[:, u] = -(cov[:, vv, vv] * cov[:, u, axis] - cov[:, u, vv] * cov[:, vv, axis]) / safe
+    wols[:, vv] = -(cov[:, u, u] * cov[:, vv, axis] - cov[:, u, vv] * cov[:, u, axis]) / safe
+    theta = {}
+    for name, vec in (("odr", normal), ("ols", wols)):
+        d = np.einsum("ij,ij->i", local - mean[inv], vec[inv])
+        ma = np.bincount(inv, np.abs(d), m) / n
+        ms = np.bincount(inv, d * d, m) / n
+        theta[name] = np.sqrt(np.clip(ms - ma * ma, 0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        theta["hybrid"] = theta["odr"] / np.abs(normal[:, axis])
+    ok = counts >= 3
+    with open(out, "w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(["cx", "cy", "cz", "n_points", "theta_odr", "theta_ols", "theta_hybrid"])
+        wr.writerows(zip(*(c[ok].tolist() for c in (centre[:, 0], centre[:, 1], centre[:, 2],
+                                                      counts, theta["odr"], theta["ols"],
+                                                      theta["hybrid"])), strict=True))
+
+
+def _wall(argv: list[str], env: dict[str, str]) -> float:
+    t = time.perf_counter()
+    subprocess.run(argv, env=env, check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - t
+
+
+def bench_whole_process(n: int, g: float, repeat: int) -> None:
+    """Whole processes on the same .npy: rough-viewer compute (numba, numpy) and the
+    plain NumPy pipeline."""
+    print(f"\nwhole process, {n:,} points (.npy), grid {g:g} m, all three models; median of "
+          f"{repeat} runs")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "cloud.npy")
+        np.save(path, synthetic_outcrop(n).xyz())
+        out = str(Path(tmp) / "cells.csv")
+        rv = [sys.executable, "-m", "rough_viewer", "compute", path, "--grid", str(g),
+              "--out", out, "--force", "--quiet"]
+        plain = [sys.executable, __file__, "--plain-pipeline", path, str(g), out]
+        rows = [("rough-viewer compute, numba", rv, {"ROUGH_VIEWER_ENGINE": "numba"}),
+                ("rough-viewer compute, numpy", rv, {"ROUGH_VIEWER_ENGINE": "numpy"}),
+                ("plain NumPy bincount pipeline", plain, {})]
+        medians = {}
+        for label, argv, extra in rows:
+            env = dict(os.environ, **extra)
+            _wall(argv, env)  # warm the page cache and numba's disk cache
+            medians[label] = statistics.median(_wall(argv, env) for _ in range(repeat))
+        base = medians["plain NumPy bincount pipeline"]
+        for label, t in medians.items():
+            print(f"{label:<32} {t:7.2f} s   ratio {t / base:.2f}")
 
 
 def bench_io(n: int, repeat: int) -> None:
@@ -128,8 +223,22 @@ def main() -> None:
     ap.add_argument("--io-points", type=float, default=5e6)
     ap.add_argument("--no-io", action="store_true")
     ap.add_argument("--order", choices=("scan", "random"), default="scan")
+    ap.add_argument("--engines", nargs="+", default=["numba", "numpy"])
+    ap.add_argument("--whole-points", type=float, default=2e7)
+    ap.add_argument("--whole-grid", type=float, default=0.25)
+    ap.add_argument("--no-whole", action="store_true")
+    ap.add_argument("--plain-pipeline", nargs=3, metavar=("NPY", "G", "OUT"),
+                    help=argparse.SUPPRESS)
     args = ap.parse_args()
-    bench_grid([int(s) for s in args.sizes], args.grids, args.repeat, args.order)
+    if args.plain_pipeline:
+        plain_pipeline(args.plain_pipeline[0], float(args.plain_pipeline[1]),
+                       args.plain_pipeline[2])
+        return
+    print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    bench_grid([int(s) for s in args.sizes], args.grids, args.repeat, args.order, args.engines)
+    if not args.no_whole:
+        bench_whole_process(int(args.whole_points), args.whole_grid, args.repeat)
+    print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if not args.no_io:
         bench_io(int(args.io_points), max(3, args.repeat // 2))
 

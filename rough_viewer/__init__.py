@@ -54,6 +54,10 @@ _API: dict[str, str] = {
     # grid roughness
     "grid_roughness": "rough_viewer.grid.roughness",
     "prepare_grid": "rough_viewer.grid.roughness",
+    # many files, out of core, Dask
+    "open_sources": "rough_viewer.scale.sources",
+    "load_merged": "rough_viewer.scale.sources",
+    "chunked_roughness": "rough_viewer.scale.chunked",
     "coarsen_prepared": "rough_viewer.grid.roughness",
     "whole_cloud_axis": "rough_viewer.grid.roughness",
     "GridRoughness": "rough_viewer.grid.roughness",
@@ -194,6 +198,8 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.report.export import ReportSettings, report_page
     from rough_viewer.report.view import View, load_view, save_view
+    from rough_viewer.scale.chunked import chunked_roughness
+    from rough_viewer.scale.sources import load_merged, open_sources
     from rough_viewer.synthetic.board import board_scan
     from rough_viewer.synthetic.demos import list_demos, load_demo
     from rough_viewer.synthetic.fbm import fbm_profile

@@ -45,6 +45,9 @@ Model = Literal["odr", "ols", "hybrid"]
 MapName = Literal["odr", "ols", "hybrid", "e_ols"]
 """A per-cell map: the three models and the OLS error ``e_ols = |theta_ols - theta_odr|``."""
 Residual = Literal["absolute", "signed"]
+#: Engine of the grid's point passes: ``numba`` (compiled, optional), ``numpy`` (the
+#: reference), ``auto`` (numba when installed).
+Engine = Literal["auto", "numpy", "numba"]
 """``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
 signed distances."""
 

@@ -1,50 +1,89 @@
-"""A small text progress bar for the command line (stderr), with no dependency.
+"""Progress bars on the command line (stderr), drawn by tqdm.
 
-Core functions take ``progress: Callable[[int, int], None] | None`` and call it
-with (done, total); this module turns such calls into a bar.
+The science takes ``progress: Callable[[int, int], None] | None`` callbacks and calls
+them with (done, total); this module turns such calls into bars. Bars draw only on
+a terminal: when stderr is redirected to a file or pipe they stay silent, so logs
+hold no carriage-return clutter.
 """
 
 from __future__ import annotations
 
 import sys
-import time
+from collections.abc import Sequence
 from typing import TextIO
+
+from tqdm import tqdm
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty and isatty())
 
 
 class ProgressBar:
-    """Callable progress bar: ``bar(done, total)`` redraws at most 10 times a second.
+    """Callable progress bar: ``bar(done, total)`` moves a tqdm bar to ``done``.
 
-    Draws only on a terminal; when the stream is redirected to a file or pipe the bar
-    stays silent, so logs hold no carriage-return clutter.
+    Parameters
+    ----------
+    label : str
+        Text before the bar.
+    stream : text stream, optional
+        Where to draw (default stderr).
+    unit : str
+        What is counted (``"pt"`` for points, ``"step"`` for stages).
+    position : int, optional
+        Line of the bar among several drawn at once (tqdm's ``position``).
     """
 
-    def __init__(self, label: str, *, stream: TextIO | None = None, width: int = 30) -> None:
+    def __init__(self, label: str, *, stream: TextIO | None = None, unit: str = "it",
+                 position: int | None = None, leave: bool = True) -> None:
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
-        self.width = width
-        self._last = 0.0
-        self._start = time.perf_counter()
-        self._done = False
-        isatty = getattr(self.stream, "isatty", None)
-        self.enabled = bool(isatty and isatty())
+        self.enabled = _is_terminal(self.stream)
+        self._bar: tqdm | None = None
+        self._unit = unit
+        self._position = position
+        self._leave = leave
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled:
             return
-        now = time.perf_counter()
-        finished = total > 0 and done >= total
-        if not finished and now - self._last < 0.1:
-            return
-        self._last = now
-        frac = 0.0 if total <= 0 else min(1.0, done / total)
-        filled = int(round(frac * self.width))
-        bar = "#" * filled + "-" * (self.width - filled)
-        elapsed = now - self._start
-        self.stream.write(f"\r{self.label} [{bar}] {frac * 100:5.1f}% {elapsed:6.1f} s")
-        if finished and not self._done:
-            self._done = True
-            self.stream.write("\n")
-        self.stream.flush()
+        if self._bar is None:
+            self._bar = tqdm(total=total, desc=self.label, file=self.stream, unit=self._unit,
+                             unit_scale=self._unit == "pt", position=self._position,
+                             leave=self._leave, dynamic_ncols=True, mininterval=0.1)
+        bar = self._bar
+        if total != bar.total:
+            bar.total = total
+        bar.update(done - bar.n)
+        if total > 0 and done >= total:
+            self.close()
+
+    def close(self) -> None:
+        """Finish the bar (its line stays on screen)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+class FileBars:
+    """An overall bar and one bar per input file, drawn together.
+
+    ``bars.overall`` and ``bars.files[i]`` are ``progress(done, total)`` callbacks.
+    """
+
+    def __init__(self, names: Sequence[str], *, label: str = "all files",
+                 stream: TextIO | None = None, overall_unit: str = "pt") -> None:
+        self.overall = ProgressBar(label, stream=stream, unit=overall_unit, position=0)
+        self.files = [ProgressBar(name, stream=stream, unit="pt", position=i + 1,
+                                  leave=False)
+                      for i, name in enumerate(names)]
+
+    def close(self) -> None:
+        """Finish every bar."""
+        for b in self.files:
+            b.close()
+        self.overall.close()
 
 
 def null_progress(done: int, total: int) -> None:

@@ -2,15 +2,20 @@
 
 Contract (other tools script against it)::
 
-    rough-viewer compute INPUT --grid G [--grid G2 ...] [--method odr|ols|hybrid|all]
-        [--axis auto|x|y|z] [--min-points K] [--origin X,Y,Z] [--signed] [--units U]
-        [--out CELLS.csv|CELLS.parquet] [--summary-json SUMMARY.json]
-        [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply] [--force] [--quiet]
+    rough-viewer compute INPUT [INPUT ...] --grid G [--grid G2 ...]
+        [--method odr|ols|hybrid|all] [--axis auto|x|y|z] [--min-points K]
+        [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
+        [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
+        [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
+        [--units m|mm|ft|us-ft] [--force] [--quiet]
 
-At least one output is required. With several ``--grid`` values each output name
-gets ``_g<G>`` before its extension (``cells.csv`` -> ``cells_g0.5.csv``,
-``cells_g0.25.csv``). ``--las-out`` and ``--ply-out`` write every point with its
-cell's values as extra dimensions / scalar properties (docs/export.md).
+Several inputs (files or quoted globs) are one merged cloud. At least one output is
+required. With several ``--grid`` values each output name gets ``_g<G>`` before its
+extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--las-out``
+and ``--ply-out`` write every point with its cell's values as extra dimensions /
+scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
+that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
+the points, so neither goes with ``--las-out`` or ``--ply-out``.
 
 ``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
 input's coordinates and of ``--grid``, ``--origin``, the table printed, the cell
@@ -23,16 +28,23 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rough_viewer.cli._options import add_units, parse_xyz, per_unit, warn
+from rough_viewer.cli._inputs import add_inputs
+from rough_viewer.cli._options import add_units, parse_xyz, per_unit
+from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_outputs, write_atomic
-from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
+    from rough_viewer.io.cloud import PointCloud
 
 #: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
 CSV_COLUMNS = CELL_COLUMNS
@@ -45,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
         "and write one CSV row per cell.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
                    help="grid cell size in --units (default metres; repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
@@ -67,6 +79,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="every input point with its cell's roughness as LAS extra dimensions")
     p.add_argument("--ply-out", metavar="OUT.ply",
                    help="every point with its cell's roughness as PLY scalar properties")
+    add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -116,10 +129,12 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.io import load_points
+    from rough_viewer.io.load import resolve_units
     from rough_viewer.vocabulary import MODELS
 
     grids = list(dict.fromkeys(args.grid))
@@ -130,36 +145,45 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     several = len(grids) > 1
-    outputs = _outputs(args, grids, several)
+    paths = input_paths(args)
+    outputs = _outputs(args, grids, several, paths)
     quiet = args.quiet
-    cloud = load_points(args.input, units=args.units,
-                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    warn(cloud.warnings)
-    unit = cloud.source_unit  # every length given and shown is in this unit
+    # every length given and shown is in the inputs' unit (--units, else the CRS's)
+    unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
     per = per_unit(unit)
+    metres = [g * per for g in grids]
     if origin is not None:
         origin = origin * per
-    if cloud.dropped_nonfinite:
-        print(
-            f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-            f"coordinates from {args.input}",
-            file=sys.stderr,
-        )
+    source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
-    for i, g in enumerate(grids):
-        result = grid_roughness(
+    residual: Residual = "signed" if args.signed else "absolute"
+    results: Iterable[GridRoughness]
+    cloud: PointCloud | None = None
+    if wants_chunks(args):
+        if args.las_out or args.ply_out:
+            raise InputError("--las-out and --ply-out write every point, which --memory and "
+                             "--scheduler do not keep; run without them for those outputs")
+        results, dropped = chunked_results(args, paths, metres, origin=origin, models=models,
+                                           residual=residual)
+    else:
+        cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+        dropped = cloud.dropped_nonfinite
+        results = (grid_roughness(
             cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
-            models=models, residual="signed" if args.signed else "absolute",
-            progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}"),
-        )
+            models=models, residual=residual,
+            progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}",
+                                                    unit="step"),
+        ) for g in grids)
+    for i, (g, result) in enumerate(zip(grids, results, strict=True)):
         if i:
             print()
-        print(format_table(result, source=str(args.input), unit=unit))
-        _write_outputs(outputs, g, result, cloud, args, unit)
+        print(format_table(result, source=source, unit=unit))
+        _write_outputs(outputs, g, result, cloud, dropped, source, args, unit)
     return 0
 
 
-def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dict[str, dict[float, Path]]:
+def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
+             inputs: list[Path]) -> dict[str, dict[float, Path]]:
     """Every output path of the run by option and grid size, all checked before any work."""
     from rough_viewer.io.las_out import check_las_output
     from rough_viewer.io.table import check_table_output
@@ -177,12 +201,13 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool) -> dic
         check_table_output(args.out)
     outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
-                  force=args.force, inputs=[args.input])
+                  force=args.force, inputs=inputs)
     return outputs
 
 
-def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, cloud, args,
-                   unit: str = "m") -> None:
+def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
+                   cloud: PointCloud | None, dropped: int, source: str,
+                   args: argparse.Namespace, unit: str = "m") -> None:
     """Write every output of one grid size and say so."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
@@ -193,24 +218,30 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result, clou
     written = []
     if "out" in outputs:
         write_table(outputs["out"][g], cell_columns(result, unit=unit),
-                    metadata=table_metadata(result, str(args.input), unit=unit))
+                    metadata=table_metadata(result, source, unit=unit))
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
-        data = summary_dict(result, str(args.input), cloud.dropped_nonfinite, unit,
-                            cloud.warnings)
-        write_atomic(outputs["summary_json"][g], lambda fh: json.dump(data, fh, indent=2))
+        data = summary_dict(result, source, dropped, unit,
+                            cloud.warnings if cloud is not None else ())
+
+        def dump(fh, d: dict = data) -> None:
+            json.dump(d, fh, indent=2)
+
+        write_atomic(outputs["summary_json"][g], dump)
         written.append(str(outputs["summary_json"][g]))
     if written:
         print("wrote " + " and ".join(written))
-    fields = point_fields(result) if ("las_out" in outputs or "ply_out" in outputs) else None
-    if "las_out" in outputs and fields is not None:
+    wants_points = "las_out" in outputs or "ply_out" in outputs
+    fields = point_fields(result) if wants_points and cloud is not None else None
+    if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
         info = write_las_fields(path, cloud, fields,
                                 progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
         print(f"wrote {path}: {info}")
-    if "ply_out" in outputs and fields is not None:
+    if "ply_out" in outputs and fields is not None and cloud is not None:
         path = outputs["ply_out"][g]
         info = write_ply_fields(path, cloud, fields, comments=[
-            f"rough_viewer: {Path(str(args.input)).name}, grid {g:g} {UNIT_LABELS[unit]}, "
-            f"axis {result.axis}, roughness in metres"])
+            f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
+            f"grid {g:g} {UNIT_LABELS[unit]}, axis {result.axis}, "
+            "roughness in metres"])
         print(f"wrote {path}: {info}")

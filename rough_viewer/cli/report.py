@@ -2,7 +2,7 @@
 
 Contract::
 
-    rough-viewer report INPUT [--grid G ...] [--axis auto|x|y|z] [--threshold T]
+    rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
         [--units m|mm|ft|us-ft] [--force] [--quiet]
 
@@ -11,7 +11,8 @@ cell holds 16 points, times 8, 4, 2 and 1 (``rough_viewer.grid.spacing``); the
 paper's are ``--grid 1 --grid 0.5 --grid 0.25 --grid 0.125``. ``--units`` is the unit
 of the input's coordinates and of every length given and shown. ``--format json`` writes
 the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>.png``
-(needs the optional package kaleido; the HTML does not).
+(needs the optional package kaleido; the HTML does not). Several inputs (files or
+quoted globs) are one merged cloud.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import add_units, per_unit, warn
 from rough_viewer.io.output import check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
@@ -32,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Grid roughness report of a cloud at several grid sizes (2011 paper "
         "Table 1 and Figs. 2-4): one self-contained HTML file that works offline.",
     )
-    p.add_argument("input", help="point cloud: .las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=float, action="append", metavar="G",
                    help="grid cell size in --units, repeatable (default: from the point "
                    "spacing: the size at which the typical occupied cell holds 16 points, "
@@ -77,8 +79,8 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
+    from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.io import load_points
     from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import write_figure
@@ -94,14 +96,13 @@ def run(args: argparse.Namespace) -> int:
                              ("min points", "--min-points")):
             text = text.replace(word, option, 1) if text.startswith(word) else text
         raise InputError(text) from None
-    out = check_output_path(args.out, force=args.force, inputs=[args.input])
+    paths = input_paths(args)
+    out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()
 
     quiet = args.quiet
-    cloud = load_points(args.input, units=args.units,
-                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    warn(cloud.warnings)
+    cloud = load_inputs(paths, units=args.units, quiet=quiet)  # prints its warnings
     per = per_unit(cloud.source_unit)
     u = UNIT_LABELS[cloud.source_unit]
     if given is not None:  # lengths given in the input's unit
@@ -109,9 +110,6 @@ def run(args: argparse.Namespace) -> int:
     png_dir = None
     if args.png and given is not None:
         png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force)
-    if cloud.dropped_nonfinite:
-        print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-              f"coordinates from {args.input}", file=sys.stderr)
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     warn(report.warnings[len(cloud.warnings):])
     if given is None:

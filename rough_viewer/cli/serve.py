@@ -2,12 +2,13 @@
 
 Contract::
 
-    rough-viewer serve [INPUT] [--demo NAME] [--port 8080] [--host 127.0.0.1]
+    rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N]
         [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
 
-With no INPUT the bundled demo outcrop opens (``--demo NAME`` picks another demo).
+Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
+bundled demo outcrop opens (``--demo NAME`` picks another demo).
 The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
@@ -24,6 +25,7 @@ import time
 from pathlib import Path
 
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
@@ -34,8 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="open the roughness viewer in the browser",
         description="Start the interactive roughness viewer (viser) on a cloud or a demo.",
     )
-    p.add_argument("input", nargs="?", help="point cloud (.las .laz .xyz .txt .csv .pts .npy "
-                   ".ply .stl); default: the demo outcrop")
+    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)")
     p.add_argument("--demo", metavar="NAME", help="open a bundled demo instead of INPUT")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
     p.add_argument("--host", default="127.0.0.1",
@@ -53,7 +54,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "always uses every point)")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
-                   "folder of INPUT, or the current folder); paths outside are refused")
+                   "folder of the first INPUT, or the current folder); paths outside are "
+                   "refused")
     p.add_argument("--max-upload-mb", type=float, default=DEFAULT_MAX_UPLOAD_MB, metavar="MB",
                    help=f"largest file a browser may upload (default {DEFAULT_MAX_UPLOAD_MB})")
     p.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
@@ -66,12 +68,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load_cloud(args: argparse.Namespace) -> PointCloud:
-    if args.input and args.demo:
+    if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
-    if args.input:
-        from rough_viewer.io import load_points
+    if args.inputs:
+        from rough_viewer.cli._inputs import input_paths, load_inputs
 
-        return load_points(args.input)
+        return load_inputs(input_paths(args), units=getattr(args, "units", None), quiet=True)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
@@ -100,8 +102,10 @@ def _check_options(args: argparse.Namespace) -> Path:
         if not folder.is_dir():
             raise InputError(f"--data-dir is not a folder: {args.data_dir}")
         return folder
-    if args.input:
-        return Path(args.input).expanduser().resolve().parent
+    if args.inputs:
+        from rough_viewer.cli._inputs import expand_inputs
+
+        return expand_inputs(list(args.inputs))[0].expanduser().resolve().parent
     return Path.cwd()
 
 

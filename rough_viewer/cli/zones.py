@@ -2,7 +2,7 @@
 
 Contract (other tools script against it)::
 
-    rough-viewer zones INPUT --grid G [--method odr|ols|hybrid] [--axis auto|x|y|z]
+    rough-viewer zones INPUT [INPUT ...] --grid G [--method odr|ols|hybrid] [--axis auto|x|y|z]
         [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
         [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--force] [--quiet]
 
@@ -11,18 +11,18 @@ ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
 numbers at full precision as ``compute`` writes them). CELLS.csv: ``compute``'s
 columns (all three models; :func:`rough_viewer.grid.table.cell_columns`) plus
 ``zone`` (0 = in no zone). Both go through :func:`rough_viewer.io.table.write_table`
-(a ``.parquet`` name writes Parquet, as ``compute``).
+(a ``.parquet`` name writes Parquet, as ``compute``). Several inputs (files or
+quoted globs) are one merged cloud.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
+from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import positive, positive_int
 from rough_viewer.io.output import check_outputs
 from rough_viewer.vocabulary import (
@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "at or above a threshold (the 2011 paper's binary transform, Fig. 2), and write "
         "one CSV row per zone (size, area, extent, trace, orientation, roughness).",
     )
-    p.add_argument("input", help="point cloud: .las .laz .xyz .txt .csv .pts .npy .ply .stl")
+    add_inputs(p)
     p.add_argument("--grid", type=positive, required=True, metavar="G",
                    help="grid cell size in metres")
     p.add_argument("--method", choices=("odr", "ols", "hybrid"), default="odr",
@@ -104,28 +104,26 @@ def format_zones(zones, result, *, source: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.grid.zones import ZoneLabeller
-    from rough_viewer.io import load_points
     from rough_viewer.io.table import check_table_output, write_table
 
     if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
         raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
     if args.min_points is not None and args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
+    inputs = input_paths(args)
+    source = describe(inputs)
     paths = check_outputs([args.out, *([args.cells_out] if args.cells_out else [])],
-                          force=args.force, inputs=[args.input])
+                          force=args.force, inputs=inputs)
     for path in paths:
         check_table_output(path)
     out, cells_out = paths[0], (paths[1] if len(paths) > 1 else None)
     quiet = args.quiet
-    cloud = load_points(args.input,
-                        progress=None if quiet else ProgressBar(f"reading {Path(args.input).name}"))
-    if cloud.dropped_nonfinite:
-        print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
-              f"coordinates from {args.input}", file=sys.stderr)
+    cloud = load_inputs(inputs, units=getattr(args, "units", None), quiet=quiet)
     options = {} if args.min_points is None else {"min_points": args.min_points}
     result = grid_roughness(cloud, args.grid, axis=args.axis,
                             progress=None if quiet else ProgressBar(f"grid {args.grid:g} m"),
@@ -136,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     if cells_out is not None:
         keep = result.n_points >= result.min_points  # the rows of cell_columns
         write_table(cells_out, {**cell_columns(result), "zone": zones.labels[keep]},
-                    metadata=table_metadata(result, str(args.input)))
-    print(format_zones(zones, result, source=str(args.input)))
+                    metadata=table_metadata(result, source))
+    print(format_zones(zones, result, source=source))
     print(f"wrote {out}" + (f" and {cells_out}" if cells_out is not None else ""))
     return 0

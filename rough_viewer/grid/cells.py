@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import Engine, InputError
 
 #: Largest total number of grid cells (occupied or not) we can key with int64.
 MAX_GRID_CELLS = 2**62
@@ -156,7 +156,8 @@ def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex)
 
 
 def index_points(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *, engine: Engine = "numpy",
+    dense_limit: int = DENSE_LIMIT,
 ) -> CellIndex:
     """Assign every point to its grid cell.
 
@@ -166,6 +167,12 @@ def index_points(
         Point coordinates, metres.
     grid : GridSpec
         The grid (from :func:`make_grid` over these points' bounds).
+    engine : {"numpy", "numba", "auto"}
+        ``numpy``: this module's reference code; ``numba``: the compiled kernels of
+        :mod:`rough_viewer.grid.fast` (same keys).
+    dense_limit : int
+        Dense bookkeeping (two int64 per grid cell) is used up to this many cells of
+        the grid or ``4 N``, whichever is larger; beyond, a sort (the same result).
 
     Returns
     -------
@@ -173,6 +180,41 @@ def index_points(
         Occupied cells (in linear-key order), their point counts and the cell of
         every point.
     """
+    from rough_viewer.grid import fast
+
+    compiled = fast.resolve_engine(engine) == "numba"
+    n = int(x.shape[0])
+    total = grid.n_cells
+    dense = total <= max(int(dense_limit), 4 * n)
+    if compiled:
+        key = fast.cell_keys(x, y, z, grid.origin, grid.cell_size, grid.index_min, grid.shape)
+    else:
+        key = _cell_keys(x, y, z, grid)
+    if dense:
+        counts_dense = fast.dense_counts(key, total) if compiled else np.bincount(key, minlength=total)
+        occupied = np.flatnonzero(counts_dense)
+        counts = counts_dense[occupied]
+        del counts_dense
+        lookup = np.full(total, -1, dtype=np.int64)
+        lookup[occupied] = np.arange(occupied.shape[0], dtype=np.int64)
+        if compiled:
+            fast.relabel(key, lookup)
+        else:
+            for s in _chunks(n, 1 << 21):
+                key[s] = lookup[key[s]]
+        del lookup
+        keys_occ = occupied.astype(np.int64)
+        point_cell = key
+    else:
+        keys_occ, point_cell, counts = np.unique(key, return_inverse=True, return_counts=True)
+        del key
+    ijk = _decode_keys(keys_occ, grid.shape, grid.index_min)
+    return CellIndex(grid=grid, ijk=ijk, counts=counts.astype(np.int64), point_cell=point_cell)
+
+
+def _cell_keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec) -> np.ndarray:
+    """(N,) int64 linear keys ``i + nx (j + ny k)`` (relative to ``index_min``) of every
+    point's cell: the reference computation."""
     n = int(x.shape[0])
     g = grid.cell_size
     nx, ny, _ = grid.shape
@@ -194,24 +236,7 @@ def index_points(
                 if stride != 1:
                     t *= stride
                 kk += t.astype(np.int64)
-    total = grid.n_cells
-    if total <= max(DENSE_LIMIT, 4 * n):
-        counts_dense = np.bincount(key, minlength=total)
-        occupied = np.flatnonzero(counts_dense)
-        counts = counts_dense[occupied]
-        del counts_dense
-        lookup = np.full(total, -1, dtype=np.int64)
-        lookup[occupied] = np.arange(occupied.shape[0], dtype=np.int64)
-        for s in _chunks(n, 1 << 21):
-            key[s] = lookup[key[s]]
-        del lookup
-        keys_occ = occupied.astype(np.int64)
-        point_cell = key
-    else:
-        keys_occ, point_cell, counts = np.unique(key, return_inverse=True, return_counts=True)
-        del key
-    ijk = _decode_keys(keys_occ, grid.shape, grid.index_min)
-    return CellIndex(grid=grid, ijk=ijk, counts=counts.astype(np.int64), point_cell=point_cell)
+    return key
 
 
 @dataclass(frozen=True)
@@ -241,7 +266,7 @@ class CellMoments:
 
 
 def cell_moments(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex, *, engine: Engine = "numpy"
 ) -> CellMoments:
     """Per-cell moment sums of the points' cell-local coordinates.
 
@@ -251,12 +276,20 @@ def cell_moments(
         Point coordinates, metres.
     index : CellIndex
         Cell membership from :func:`index_points`.
+    engine : {"numpy", "numba", "auto"}
+        As :func:`index_points`.
 
     Returns
     -------
     CellMoments
     """
+    from rough_viewer.grid import fast
+
     m_cells = index.n_cells
+    if fast.resolve_engine(engine) == "numba":
+        s1, s2 = fast.moment_sums(x, y, z, index.point_cell, index.grid.centres(index.ijk),
+                                  _chunk_size(m_cells))
+        return CellMoments(counts=index.counts, s1=s1, s2=s2)
     s1 = np.zeros((m_cells, 3))
     s2 = np.zeros((m_cells, 3, 3))
     for pc, local in _local_chunks(x, y, z, index):
@@ -276,6 +309,8 @@ def distance_sums(
     z: np.ndarray,
     index: CellIndex,
     vectors: dict[str, tuple[np.ndarray, np.ndarray]],
+    *,
+    engine: Engine = "numpy",
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
 
@@ -288,6 +323,8 @@ def distance_sums(
     vectors : dict
         name -> (v, c_local): ``v`` (M, 3) per-cell vector, ``c_local`` (M, 3) the
         reference point relative to the cell centre, metres.
+    engine : {"numpy", "numba", "auto"}
+        As :func:`index_points`.
 
     Returns
     -------
@@ -295,11 +332,20 @@ def distance_sums(
         name -> (sum of ``|D|``, sum of ``D^2``), each (M,), in units of ``v`` times
         metres (squared).
     """
+    from rough_viewer.grid import fast
+
     m_cells = index.n_cells
-    out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
+    if fast.resolve_engine(engine) == "numba" and offsets:
+        names = list(offsets)
+        sums = fast.distance_sums(
+            x, y, z, index.point_cell, index.grid.centres(index.ijk),
+            np.stack([offsets[k][0] for k in names]), np.stack([offsets[k][1] for k in names]),
+            _chunk_size(m_cells))
+        return {k: (sums[q, 0], sums[q, 1]) for q, k in enumerate(names)}
+    out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     for pc, local in _local_chunks(x, y, z, index):
         for name, (v, off) in offsets.items():
             d = local[0] * v[:, 0][pc]

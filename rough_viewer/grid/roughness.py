@@ -39,6 +39,7 @@ from rough_viewer.grid.cells import (
     index_points,
     make_grid,
 )
+from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.planes import (
     PlaneFit,
     axis_index,
@@ -57,6 +58,7 @@ from rough_viewer.vocabulary import (
     MODELS,
     Axis,
     AxisChoice,
+    Engine,
     InputError,
     MapName,
     Model,
@@ -88,34 +90,52 @@ class PreparedGrid:
 
     def whole_plane(self) -> PlaneFit:
         """The whole cloud's ODR plane, combined from the per-cell moment sums (no pass
-        over the points); equal to :func:`~rough_viewer.grid.planes.whole_cloud_plane`
-        of the same points up to rounding. Cell means are taken relative to the grid
-        origin, so no precision is lost on large coordinates."""
-        index, mom = self.index, self.moments
-        grid = index.grid
-        n = mom.counts.astype(np.float64)
-        total = n.sum()
-        mean_c = (index.ijk - grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
-        mean_all = (n[:, None] * mean_c).sum(axis=0) / total
-        d = mean_c - mean_all
-        scatter = np.einsum("m,mij->ij", n, mom.covariance()) + np.einsum("m,mi,mj->ij", n, d, d)
-        centroid = grid.origin + grid.index_min * grid.cell_size + mean_all
-        plane = plane_from_scatter(centroid, scatter / total)
-        return replace(plane, normal=orient_normal(plane.normal))
+        over the points); see :func:`whole_plane_from_moments`."""
+        return whole_plane_from_moments(self.index.grid, self.index.ijk, self.moments)
+
+
+def whole_plane_from_moments(grid: GridSpec, ijk: np.ndarray, moments: CellMoments) -> PlaneFit:
+    """The whole cloud's ODR plane from per-cell moment sums (no pass over the points);
+    equal to :func:`~rough_viewer.grid.planes.whole_cloud_plane` of the same points up
+    to rounding. Cell means are taken relative to the grid origin, so no precision is
+    lost on large coordinates.
+
+    Parameters
+    ----------
+    grid : GridSpec
+        The grid (origin and cell edge in metres).
+    ijk : (M, 3) int64
+        Cell indices of the rows of ``moments``.
+    moments : CellMoments
+        Cell-local moment sums.
+    """
+    mom = moments
+    n = mom.counts.astype(np.float64)
+    total = n.sum()
+    mean_c = (ijk - grid.index_min + 0.5) * grid.cell_size + mom.mean_local()
+    mean_all = (n[:, None] * mean_c).sum(axis=0) / total
+    d = mean_c - mean_all
+    scatter = np.einsum("m,mij->ij", n, mom.covariance()) + np.einsum("m,mi,mj->ij", n, d, d)
+    centroid = grid.origin + grid.index_min * grid.cell_size + mean_all
+    plane = plane_from_scatter(centroid, scatter / total)
+    return replace(plane, normal=orient_normal(plane.normal))
 
 
 def prepare_grid(
-    cloud: PointCloud | np.ndarray, cell_size: float, *, origin: np.ndarray | None = None
+    cloud: PointCloud | np.ndarray, cell_size: float, *, origin: np.ndarray | None = None,
+    engine: Engine = "auto",
 ) -> PreparedGrid:
-    """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments."""
+    """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments
+    (``engine``: see :func:`~rough_viewer.grid.cells.index_points`)."""
     x, y, z = as_columns(cloud)
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
+    engine = resolve_engine(engine, n_points=int(x.shape[0]))
     lo = np.array([x.min(), y.min(), z.min()])
     hi = np.array([x.max(), y.max(), z.max()])
     grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
-    index = index_points(x, y, z, grid)
-    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index))
+    index = index_points(x, y, z, grid, engine=engine)
+    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine))
 
 
 def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
@@ -165,7 +185,8 @@ class GridRoughness:
     e_ols: np.ndarray
     """(M,) OLS error ``|theta_ols - theta_odr|``, metres."""
     point_cell: np.ndarray
-    """(N,) int64 row of the cell arrays for every input point."""
+    """(N,) int64 row of the cell arrays for every input point (empty when the cells
+    were computed out of core, :mod:`rough_viewer.scale`: no per-point array is kept)."""
     n_points_total: int
     """Number of points used."""
 
@@ -221,6 +242,7 @@ def grid_roughness(
     residual: Residual = "absolute",
     progress: ProgressFn | None = None,
     prepared: PreparedGrid | None = None,
+    engine: Engine = "auto",
 ) -> GridRoughness:
     """Roughness of every grid cell of a cloud.
 
@@ -251,6 +273,12 @@ def grid_roughness(
         Cell index and moments of this cloud on this grid (from
         :func:`prepare_grid` or :func:`coarsen_prepared`), to skip those passes;
         ``cell_size`` and ``origin`` are then taken from it.
+    engine : {"auto", "numpy", "numba"}
+        Engine of the point passes: ``numpy`` is the reference, ``numba`` the compiled
+        kernels of :mod:`rough_viewer.grid.fast` (same arithmetic, several times
+        faster); ``auto`` = numba when installed, for clouds of millions of points
+        (:func:`~rough_viewer.grid.fast.resolve_engine`; ``$ROUGH_VIEWER_ENGINE``
+        overrides).
 
     Returns
     -------
@@ -270,55 +298,98 @@ def grid_roughness(
     >>> np.round(res.theta_odr * 1e3, 2)
     array([1.21, 1.21, 1.21, 1.22])
     """
-    models_t = _check_options(models, axis, residual, min_points)
+    models_t = check_options(models, axis, residual, min_points)
     x, y, z = as_columns(cloud)
     n_total = int(x.shape[0])
     if n_total < 3:
         raise InputError(f"need at least 3 points, got {n_total}")
     tick = progress or (lambda done, total: None)
+    engine = resolve_engine(engine, n_points=n_total)
 
     tick(0, 5)
     if prepared is None:
-        prepared = prepare_grid(cloud, cell_size, origin=origin)
+        prepared = prepare_grid(cloud, cell_size, origin=origin, engine=engine)
     elif prepared.index.point_cell.shape[0] != n_total:
         raise InputError("prepared grid was made for another cloud")
     tick(2, 5)
     whole = prepared.whole_plane()
     used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
-    planes = _cell_planes(prepared, whole.normal, used_axis, int(min_points), models_t)
+    planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t,
+                         cell_size=prepared.cell_size)
     tick(3, 5)
-    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors())
+    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine)
     tick(4, 5)
-    theta = _thetas(planes, sums, prepared.index.counts, used_axis, models_t,
-                    signed=residual == "signed")
     index = prepared.index
-    centre = index.grid.centres(index.ijk)
+    result = assemble_roughness(
+        index.grid, index.ijk, planes, sums, whole=whole, axis=used_axis,
+        axis_requested=axis, min_points=int(min_points), residual=residual, models=models_t,
+        point_cell=index.point_cell, n_points_total=n_total)
+    tick(5, 5)
+    return result
+
+
+def assemble_roughness(
+    grid: GridSpec,
+    ijk: np.ndarray,
+    planes: CellPlanes,
+    sums: dict[str, tuple[np.ndarray, np.ndarray]],
+    *,
+    whole: PlaneFit,
+    axis: Axis,
+    axis_requested: AxisChoice,
+    min_points: int,
+    residual: Residual,
+    models: tuple[Model, ...],
+    point_cell: np.ndarray,
+    n_points_total: int,
+) -> GridRoughness:
+    """The last stage of :func:`grid_roughness`: roughness of every cell from its planes
+    and distance sums, packed as a :class:`GridRoughness`. Shared with the chunked and
+    Dask paths of :mod:`rough_viewer.scale`, which reach the same sums another way.
+
+    Parameters
+    ----------
+    grid, ijk
+        The grid and the (M, 3) indices of the occupied cells.
+    planes : CellPlanes
+        From :func:`cell_planes`.
+    sums : dict
+        From :func:`~rough_viewer.grid.cells.distance_sums` with
+        ``planes.distance_vectors()``.
+    whole, axis, axis_requested, min_points, residual, models
+        As in :class:`GridRoughness`.
+    point_cell : (N,) or (0,) int64
+        Row of every point's cell (empty out of core).
+    n_points_total : int
+        Number of points.
+    """
+    theta = cell_thetas(planes, sums, planes.counts, axis, models, signed=residual == "signed")
+    centre = grid.centres(ijk)
     centroid = centre + planes.mean_local
     centroid[~planes.enough] = np.nan
-    tick(5, 5)
     return GridRoughness(
-        grid=index.grid,
-        axis=used_axis,
-        axis_requested=axis,
+        grid=grid,
+        axis=axis,
+        axis_requested=axis_requested,
         whole_plane=whole,
         min_points=int(min_points),
         residual=residual,
-        models=models_t,
-        ijk=index.ijk,
+        models=models,
+        ijk=ijk,
         centre=centre,
-        n_points=index.counts,
+        n_points=planes.counts,
         centroid=centroid,
         normal=planes.normal,
         theta_odr=theta["odr"],
         theta_ols=theta["ols"],
         theta_hybrid=theta["hybrid"],
         e_ols=np.abs(theta["ols"] - theta["odr"]),
-        point_cell=index.point_cell,
-        n_points_total=n_total,
+        point_cell=point_cell,
+        n_points_total=int(n_points_total),
     )
 
 
-def _check_options(
+def check_options(
     models: Iterable[Model], axis: AxisChoice, residual: Residual, min_points: int
 ) -> tuple[Model, ...]:
     """The models asked for, without repeats; InputError for any unusable option."""
@@ -336,9 +407,11 @@ def _check_options(
 
 
 @dataclass(frozen=True)
-class _CellPlanes:
+class CellPlanes:
     """The reference planes of every cell, before any distance is taken."""
 
+    counts: np.ndarray
+    """(M,) int64 points per cell."""
     enough: np.ndarray
     """(M,) bool: the cell has at least ``min_points`` points."""
     mean_local: np.ndarray
@@ -369,18 +442,37 @@ class _CellPlanes:
         return vectors
 
 
-def _cell_planes(
-    prepared: PreparedGrid,
+def cell_planes(
+    moments: CellMoments,
     whole_normal: np.ndarray,
     axis: Axis,
     min_points: int,
     models: tuple[Model, ...],
-) -> _CellPlanes:
-    """Batched ODR and OLS planes of every cell from its moment sums."""
-    mom = prepared.moments
-    enough = prepared.index.counts >= min_points
+    *,
+    cell_size: float | None = None,
+) -> CellPlanes:
+    """Batched ODR and OLS planes of every cell from its moment sums.
+
+    Parameters
+    ----------
+    moments : CellMoments
+        Cell-local moment sums (from one pass, or added up over chunks).
+    whole_normal : (3,) array
+        The whole cloud's ODR normal: every cell normal is oriented like it.
+    axis : {"x", "y", "z"}
+        Dependent axis of OLS (and hybrid).
+    min_points : int
+        Cells with fewer points get no plane.
+    models : tuple of str
+        Models asked for (OLS planes only when ``"ols"`` is among them).
+    cell_size : float, optional
+        Grid cell edge, metres: degeneracy is judged against its square (SCIENCE.md:
+        an absolute scale); default each cell's total variance.
+    """
+    mom = moments
+    enough = mom.counts >= min_points
     cov = mom.covariance()
-    scale2 = prepared.cell_size**2  # degeneracy judged on the cell's absolute scale
+    scale2 = None if cell_size is None else cell_size**2  # the cell's absolute scale
     normal, _, valid_odr = odr_from_covariance(cov, scale2)
     valid_odr &= enough
     # Eigenvectors have arbitrary sign: orient every cell normal like the whole face's.
@@ -391,13 +483,13 @@ def _cell_planes(
         w, valid_uv = ols_from_covariance(cov, axis, scale2)
         if "ols" in models:
             w_ols, valid_ols = w, valid_uv & enough
-    return _CellPlanes(enough=enough, mean_local=mom.mean_local(), normal=normal,
+    return CellPlanes(counts=mom.counts, enough=enough, mean_local=mom.mean_local(), normal=normal,
                        valid_odr=valid_odr, w_ols=w_ols, valid_ols=valid_ols,
                        valid_uv=valid_uv, need_odr=any(m in models for m in ("odr", "hybrid")))
 
 
-def _thetas(
-    planes: _CellPlanes,
+def cell_thetas(
+    planes: CellPlanes,
     sums: dict[str, tuple[np.ndarray, np.ndarray]],
     counts: np.ndarray,
     axis: Axis,

@@ -45,3 +45,14 @@ def test_serve_bad_input_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("rough-viewer: error:") == 6 and "Traceback" not in err
     assert "--allow-origin wants an origin" in err and "--data-dir is not a folder" in err
+
+
+def test_serve_merges_several_inputs_and_globs(tmp_path, capsys):
+    rng = np.random.default_rng(1)
+    for i in range(3):
+        xyz = np.column_stack([rng.uniform(0, 2, 2000) + i, rng.uniform(0, 2, 2000),
+                               rng.normal(0, 0.003, 2000)])
+        np.save(tmp_path / f"part{i}.npy", xyz)
+    assert main(["serve", str(tmp_path / "part*.npy"), "--port", "0", "--grid", "0.5",
+                 "--no-block"]) == 0
+    assert "6,000 points, open http://127.0.0.1:" in capsys.readouterr().out

@@ -6,16 +6,18 @@ from __future__ import annotations
 import argparse
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rough_viewer.bias.simulation import BiasPrediction, TargetLayout, paper_target
 from rough_viewer.cli._options import parse_xyz, positive
 from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.io.jsonable import dumps
 from rough_viewer.io.output import check_output_path, write_path_atomic
 from rough_viewer.vocabulary import BIAS_RESIDUAL, RESIDUAL_NAMES, InputError
+
+if TYPE_CHECKING:  # the simulation (and scipy) load when a bias command runs, not on start
+    from rough_viewer.bias.simulation import BiasPrediction, TargetLayout
 
 
 def add_json_option(q: argparse.ArgumentParser) -> None:
@@ -101,6 +103,8 @@ def write_las_atomic(path: Path, xyz: np.ndarray, extra: dict) -> None:
 
 def layout(args: argparse.Namespace, radius: float | None) -> TargetLayout:
     """The paper's target layout (``--target``) with an optional asperity radius."""
+    from rough_viewer.bias.simulation import paper_target
+
     return paper_target(args.target or "A", asperity_radius_m=radius, seed=args.seed)
 
 

@@ -1,0 +1,120 @@
+"""Several input files as one cloud, for every command that reads a cloud
+(``compute``, ``report``, ``zones``, ``serve``).
+
+``INPUT [INPUT ...]``: files and quoted glob patterns (``"scans/*.laz"``, ``**``
+for sub-folders), expanded here in sorted order so the result does not depend on
+the shell. Files whose CRS or units differ are refused
+(:func:`rough_viewer.scale.sources.check_compatible`).
+
+A command registers the argument with :func:`add_inputs`, then calls
+:func:`input_paths` for the list of files and :func:`load_inputs` for the merged
+cloud in memory (with per-file and overall progress bars).
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import sys
+from pathlib import Path
+
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.vocabulary import InputError
+
+FORMATS = ".las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl"
+_GLOB_CHARS = "*?["
+
+
+def add_inputs(parser: argparse.ArgumentParser, *, optional: bool = False,
+               what: str = "point cloud") -> None:
+    """Add the ``inputs`` positional argument (one or more files or quoted globs;
+    none allowed when ``optional``)."""
+    parser.add_argument(
+        "inputs", nargs="*" if optional else "+", metavar="INPUT",
+        help=f"{what}: {FORMATS}; several files and quoted globs (\"scans/*.laz\") "
+        "are merged into one cloud (same CRS and units)")
+
+
+def expand_inputs(patterns: list[str]) -> list[Path]:
+    """Files named by ``patterns``: plain paths as given, glob patterns expanded
+    (sorted). A pattern that matches nothing is an InputError; a plain path is
+    checked when it is read."""
+    out: list[Path] = []
+    for pattern in patterns:
+        if any(c in pattern for c in _GLOB_CHARS) and not Path(pattern).exists():
+            found = sorted(p for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
+            if not found:
+                raise InputError(f"no files match {pattern!r}")
+            out.extend(Path(p) for p in found)
+        else:
+            out.append(Path(pattern))
+    return out
+
+
+def input_paths(args: argparse.Namespace) -> list[Path]:
+    """The files of ``args.inputs``, a warning on stderr for a file given twice (its
+    points then count twice)."""
+    paths = expand_inputs(list(args.inputs))
+    seen: set[Path] = set()
+    for p in paths:
+        key = p.resolve()
+        if key in seen:
+            print(f"rough-viewer: warning: {p} is given more than once; its points count "
+                  "once per mention", file=sys.stderr)
+        seen.add(key)
+    return paths
+
+
+def describe(paths: list[Path], *, shown: int = 4) -> str:
+    """The inputs in one phrase (for tables and summaries): the file, or ``"N files: a,
+    b, ..., z"`` naming at most ``shown`` of them."""
+    if len(paths) == 1:
+        return str(paths[0])
+    names = [str(p) for p in paths]
+    if len(names) > shown:
+        names = [*names[:shown - 1], "...", names[-1]]
+    return f"{len(paths)} files: " + ", ".join(names)
+
+
+def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = False
+                ) -> PointCloud:
+    """Read the files as one cloud in memory, with progress bars (unless ``quiet``)
+    and the usual notes on stderr (dropped rows, warnings)."""
+    from rough_viewer.cli._progress import FileBars, ProgressBar
+    from rough_viewer.scale.sources import load_merged
+
+    if len(paths) == 1:
+        bars = None
+        progress = None if quiet else [ProgressBar(f"reading {paths[0].name}", unit="pt")]
+    else:
+        bars = None if quiet else FileBars([p.name for p in paths], label="reading",
+                                           overall_unit="file")
+        progress = None if bars is None else [_with_overall(bars, i, paths)
+                                              for i in range(len(paths))]
+    try:
+        cloud = load_merged(paths, units=units, progress=progress)  # type: ignore[arg-type]
+    finally:
+        if bars is not None:
+            bars.close()
+    report_cloud(cloud, describe(paths))
+    return cloud
+
+
+def _with_overall(bars, i: int, paths: list[Path]):
+    """Per-file callback that also moves the overall bar, counted in files."""
+
+    def tick(done: int, total: int) -> None:
+        bars.files[i](done, total)
+        if total > 0 and done >= total:
+            bars.overall(i + 1, len(paths))
+
+    return tick
+
+
+def report_cloud(cloud: PointCloud, what: str) -> None:
+    """Print the cloud's dropped-row count and warnings on stderr."""
+    if cloud.dropped_nonfinite:
+        print(f"rough-viewer: dropped {cloud.dropped_nonfinite:,} points with NaN or infinite "
+              f"coordinates from {what}", file=sys.stderr)
+    for w in cloud.warnings:
+        print(f"rough-viewer: warning: {w}", file=sys.stderr)

@@ -1,0 +1,207 @@
+"""The chunk map and the per-cell reduction as a Dask graph (optional dependency
+``rough_viewer[dask]``).
+
+The graph of one pass: one task per chunk (``rv-map-<pass>-<i>``: read the chunk
+with :func:`~rough_viewer.scale.sources.read_chunk`, run the pass on it), then per
+grid a binary tree of :func:`~rough_viewer.scale.partials.merge` tasks, the same
+tree as :func:`~rough_viewer.scale.partials.reduce_partials` (chunk order), so the
+result is the same bits for any number of workers and any order of completion. The
+pass's parameters (grids, and in pass 2 the per-cell planes) are one key of the
+graph, sent once to each worker.
+
+Schedulers:
+
+- ``"threads"``, ``"processes"``: Dask's local schedulers in this process (a thread
+  pool, or one pool of worker processes kept for both passes). Decoding LAZ holds
+  Python's GIL, so threads add little speed; processes do;
+- ``"tcp://HOST:PORT"`` (or any ``dask.distributed`` address): an existing
+  scheduler through a ``distributed.Client``; tasks of a worker that dies are run
+  again elsewhere by Dask (up to its ``allowed-failures``), with the same result.
+  Every worker must be able to read the input paths.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from rough_viewer.scale.chunked import ChunkDone, ChunkTask
+from rough_viewer.scale.partials import Partial, merge
+from rough_viewer.scale.sources import Chunk, Source, chunk_plan, read_chunk
+from rough_viewer.vocabulary import InputError
+
+_RUN = itertools.count()
+
+
+def _map_chunk(source: Source, chunk: Chunk, task: ChunkTask) -> list[Partial]:
+    single = getattr(task, "threads", 0) == 1
+    x, y, z = read_chunk(source, chunk, parallel=not single)
+    return task(x, y, z)
+
+
+def _pick(parts: list[Partial], i: int) -> Partial:
+    return parts[i]
+
+
+def _import_dask() -> Any:
+    try:
+        import dask
+    except ImportError:
+        raise InputError("--scheduler needs Dask: pip install 'rough_viewer[dask]'") from None
+    return dask
+
+
+class DaskRunner:
+    """Runs the passes on a Dask scheduler.
+
+    Parameters
+    ----------
+    scheduler : str
+        ``"threads"``, ``"processes"`` or the address of a ``dask.distributed``
+        scheduler (``"tcp://127.0.0.1:8786"``).
+    workers : int, optional
+        Threads or processes of a local scheduler (default: Dask's, the CPU count).
+    client : distributed.Client, optional
+        A client to use instead of connecting to ``scheduler``.
+
+    Dask runs chunks in parallel, so each task decodes and computes on one thread
+    (:attr:`inner_threads`): points per second then grow with the worker count
+    instead of the tasks competing for the same cores.
+    """
+
+    #: Threads of one task's decoding and kernels.
+    inner_threads = 1
+
+    def __init__(self, scheduler: str = "threads", *, workers: int | None = None,
+                 client: Any = None) -> None:
+        self.scheduler = scheduler
+        self.workers = workers
+        self._client = client
+        self._own_client = False
+        self._pool: Any = None
+        if client is None and scheduler not in ("threads", "processes"):
+            if "://" not in scheduler:
+                raise InputError(f"--scheduler expects threads, processes or tcp://HOST:PORT, "
+                                 f"got {scheduler!r}")
+            _import_dask()
+            try:
+                from distributed import Client
+            except ImportError:
+                raise InputError("a distributed scheduler needs dask.distributed: "
+                                 "pip install 'rough_viewer[dask]'") from None
+            try:
+                self._client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: "
+                                 f"{str(exc).splitlines()[0]}") from None
+            self._own_client = True
+
+    @property
+    def dashboard_link(self) -> str | None:
+        """The distributed scheduler's dashboard URL (None for local schedulers)."""
+        if self._client is None:
+            return None
+        return str(self._client.dashboard_link)
+
+    @property
+    def parallel(self) -> int:
+        """Chunks that may be in memory at once in one process (sizes the chunks)."""
+        if self._client is not None:
+            nthreads = self._client.nthreads()
+            return max(nthreads.values()) if nthreads else 1
+        if self.scheduler == "threads":
+            import os
+
+            return int(self.workers or os.cpu_count() or 1)
+        return 1
+
+    def close(self) -> None:
+        """Close the client or the process pool this runner opened."""
+        if self._own_client and self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def _process_pool(self) -> Any:
+        """One pool of worker processes for every pass of this runner (Dask's
+        ``processes`` scheduler would start a new pool for every pass)."""
+        if self._pool is None:
+            import multiprocessing
+            import os
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(
+                max_workers=int(self.workers or os.cpu_count() or 1),
+                mp_context=multiprocessing.get_context("spawn"))
+        return self._pool
+
+    def __enter__(self) -> DaskRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def map_reduce(self, sources: Sequence[Source], chunk_points: int, task: ChunkTask,
+                   n_out: int, on_chunk: ChunkDone, check: Callable[[int], None]
+                   ) -> list[Partial]:
+        dask = _import_dask()
+        from dask import delayed
+
+        run = next(_RUN)
+        chunks = chunk_plan(sources, chunk_points)
+        task_d = delayed(task, pure=True)
+        maps = [delayed(_map_chunk, pure=True)(sources[c.source], c, task_d,
+                                                dask_key_name=f"rv-map-{run}-{i}")
+                for i, c in enumerate(chunks)]
+        finals = []
+        for g in range(n_out):
+            level = [delayed(_pick, pure=True)(m, g, dask_key_name=f"rv-pick-{run}-{g}-{i}")
+                     for i, m in enumerate(maps)]
+            depth = 0
+            while len(level) > 1:
+                level = [delayed(merge, pure=True)(level[i], level[i + 1],
+                                                   dask_key_name=f"rv-merge-{run}-{g}-{depth}-{i}")
+                         if i + 1 < len(level) else level[i]
+                         for i in range(0, len(level), 2)]
+                depth += 1
+            finals.append(level[0])
+        if self._client is not None:
+            return self._run_distributed(maps, finals, chunks, on_chunk)
+        from dask.callbacks import Callback
+
+        prefix = f"rv-map-{run}-"
+
+        class _Progress(Callback):
+            def _posttask(self, key, result, dsk, state, id):  # noqa: A002
+                if isinstance(key, str) and key.startswith(prefix):
+                    on_chunk(chunks[int(key[len(prefix):])])
+
+        kwargs: dict[str, Any] = {"scheduler": self.scheduler}
+        if self.scheduler == "processes":
+            kwargs["pool"] = self._process_pool()
+        elif self.workers:
+            kwargs["num_workers"] = int(self.workers)
+        with _Progress():
+            out = dask.compute(*finals, **kwargs)
+        return list(out)
+
+    def _run_distributed(self, maps: list, finals: list, chunks: list[Chunk],
+                         on_chunk: ChunkDone) -> list[Partial]:
+        from distributed import as_completed
+
+        client = self._client
+        futures = client.compute([*maps, *finals])
+        map_futures = futures[:len(maps)]
+        index = {f.key: i for i, f in enumerate(map_futures)}
+        try:
+            for f in as_completed(map_futures):
+                if f.status == "error":
+                    f.result()  # raises the task's error here
+                on_chunk(chunks[index[f.key]])
+            return list(client.gather(futures[len(maps):]))
+        except BaseException:
+            client.cancel(futures)
+            raise

@@ -1,0 +1,441 @@
+"""The files of one merged cloud, and reading them in chunks of points.
+
+A :class:`Source` is one input file with what its header says (point count,
+bounding box, unit); :func:`open_sources` checks a list of them; :func:`chunk_plan`
+cuts them into :class:`Chunk` s (file, first point, end) that any process can read
+on its own with :func:`read_chunk` (LAS/LAZ seek to the chunk's first point; LAZ
+decodes through the parallel lazrs backend). Coordinates come out in metres with the
+same arithmetic as :func:`rough_viewer.io.load.load_points` (``X * scale + offset``,
+then the unit's metres-per-unit factor), so a chunk's points are bit for bit the
+points the in-memory path reads.
+
+Only LAS/LAZ files stream. Other formats have no random access, so each is one
+chunk, read whole (it must fit in the memory budget by itself).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn, Unit
+
+#: Suffixes read in chunks straight from the file.
+STREAMED = (".las", ".laz")
+
+
+@dataclass(frozen=True)
+class Source:
+    """One input file of a merged cloud, as its header describes it."""
+
+    path: str
+    """The file."""
+    n_points: int
+    """Points in the file (LAS header count; for other formats the finite points)."""
+    bounds_min: np.ndarray
+    """(3,) smallest x, y, z, metres (LAS: from the header; checked while reading)."""
+    bounds_max: np.ndarray
+    """(3,) largest x, y, z, metres."""
+    unit: str
+    """Unit of the file's coordinates (``m``, ``mm``, ``ft``, ``us-ft``)."""
+    streamed: bool
+    """True for LAS/LAZ (read chunk by chunk); False: read whole."""
+    dropped_nonfinite: int = 0
+    """Rows with NaN or infinite coordinates (formats other than LAS), dropped."""
+    warnings: tuple[str, ...] = ()
+    """What the user should know about this file (units against its CRS, ...)."""
+
+    @property
+    def factor(self) -> float:
+        """Metres per unit of the file's coordinates."""
+        return UNIT_METRES[self.unit]
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Points ``[start, stop)`` of source number ``source``."""
+
+    source: int
+    start: int
+    stop: int
+
+    @property
+    def n(self) -> int:
+        """Number of points."""
+        return self.stop - self.start
+
+
+def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
+    import laspy
+
+    from rough_viewer.io.las import laz_backend
+
+    with laspy.open(p, laz_backend=laz_backend()) as reader:
+        hdr = reader.header
+        n = int(hdr.point_count)
+        lo = np.asarray(hdr.mins, dtype=np.float64)
+        hi = np.asarray(hdr.maxs, dtype=np.float64)
+    if n < 1:
+        raise InputError(f"no points in {p}")
+    f = UNIT_METRES[unit]
+    if f != 1.0:
+        lo, hi = lo * f, hi * f
+    return Source(path=str(p), n_points=n, bounds_min=lo, bounds_max=hi, unit=unit,
+                  streamed=True, warnings=notes)
+
+
+def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
+                 ) -> list[Source]:
+    """Describe the files of one merged cloud from their headers.
+
+    LAS/LAZ headers give the point count and bounding box without decoding a
+    point; other formats are read once here (whole) for theirs.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The files (any format :func:`~rough_viewer.io.load.load_points` reads).
+    units : {"m", "mm", "ft", "us-ft"}, optional
+        Unit of every file's coordinates; default each file's CRS unit, else metres.
+
+    Raises
+    ------
+    InputError
+        A file that cannot be read, has no points, or none at all given.
+    """
+    from rough_viewer.io.load import SUPPORTED_SUFFIXES, load_points, resolve_units
+
+    if not paths:
+        raise InputError("no input files")
+    notes = check_compatible(paths, units=units)
+    out: list[Source] = []
+    for path in paths:
+        p = Path(path)
+        suffix = p.suffix.lower()
+        if suffix in STREAMED:
+            if not p.is_file():
+                raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+            try:
+                unit, notes_p = resolve_units(p, units)
+                out.append(_las_source(p, unit, notes_p))
+            except InputError:
+                raise
+            except Exception as exc:  # laspy and lazrs raise their own types
+                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise InputError(f"cannot read {p}: {msg}") from None
+        else:
+            if suffix not in SUPPORTED_SUFFIXES:
+                load_points(p)  # raises the one message for unknown types
+            cloud = load_points(p, units=units)
+            lo, hi = cloud.bounds()
+            out.append(Source(path=str(p), n_points=cloud.n, bounds_min=lo, bounds_max=hi,
+                              unit=cloud.source_unit, streamed=False,
+                              dropped_nonfinite=cloud.dropped_nonfinite,
+                              warnings=tuple(cloud.warnings)))
+    if notes:
+        out[0] = replace(out[0], warnings=out[0].warnings + notes)
+    return out
+
+
+def chunk_plan(sources: Sequence[Source], chunk_points: int) -> list[Chunk]:
+    """Cut every streamed file into chunks of at most ``chunk_points`` points (other
+    files are one chunk each), in file order."""
+    size = max(1, int(chunk_points))
+    chunks: list[Chunk] = []
+    for i, s in enumerate(sources):
+        if not s.streamed:
+            chunks.append(Chunk(i, 0, s.n_points))
+            continue
+        for start in range(0, s.n_points, size):
+            chunks.append(Chunk(i, start, min(s.n_points, start + size)))
+    return chunks
+
+
+Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _file_columns(points, hdr) -> Columns:
+    """x, y, z as stored (the file's unit) from a laspy point record:
+    ``X * scale + offset`` per axis, as :func:`rough_viewer.io.las.read_las` computes."""
+    scale = np.asarray(hdr.scales, dtype=np.float64)
+    offset = np.asarray(hdr.offsets, dtype=np.float64)
+    cols = []
+    for raw, k in ((points.X, 0), (points.Y, 1), (points.Z, 2)):
+        col = np.multiply(raw, scale[k])
+        col += offset[k]
+        cols.append(col)
+    return cols[0], cols[1], cols[2]
+
+
+def _metres(cols: Columns, factor: float) -> Columns:
+    """Columns in metres (times metres-per-unit, as ``PointCloud.scaled``)."""
+    if factor == 1.0:
+        return cols
+    return cols[0] * factor, cols[1] * factor, cols[2] * factor
+
+
+def _uses_cache(source: Source) -> bool:
+    """LAZ files go through the decode cache (as in :func:`~rough_viewer.io.load.load_points`)."""
+    return source.streamed and source.path.lower().endswith(".laz")
+
+
+def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
+    from rough_viewer.io.cache import cache_read_slice, cached_points
+
+    p = Path(source.path)
+    if not _uses_cache(source) or cached_points(p) != source.n_points:
+        return None
+    cols = cache_read_slice(p, chunk.start, chunk.stop)
+    return None if cols is None else _metres(cols, source.factor)
+
+
+def _open_las(path: str, *, parallel: bool = True):
+    import laspy
+
+    from rough_viewer.io.las import _selection, laz_backend
+
+    backend = laz_backend()
+    if not parallel and backend == laspy.LazBackend.LazrsParallel:
+        backend = laspy.LazBackend.Lazrs
+    reader = laspy.open(path, laz_backend=backend)
+    reader.decompression_selection = _selection(reader.header.point_format)
+    return reader
+
+
+def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Columns:
+    """The points of one chunk as three float64 columns, metres.
+
+    Reads the decode cache's columns where the LAZ file has a complete entry; else
+    opens the file, seeks to the chunk's first point and decodes its points only
+    (on all cores unless ``parallel`` is False); a file of another format is read
+    whole (it is one chunk).
+    """
+    if not source.streamed:
+        from rough_viewer.io.load import load_points
+
+        cloud = load_points(source.path, units=source.unit)  # type: ignore[arg-type]
+        return (cloud.x[chunk.start:chunk.stop], cloud.y[chunk.start:chunk.stop],
+                cloud.z[chunk.start:chunk.stop])
+    cached = _from_cache(source, chunk)
+    if cached is not None:
+        return cached
+    try:
+        with _open_las(source.path, parallel=parallel) as reader:
+            if chunk.start:
+                reader.seek(chunk.start)
+            points = reader.read_points(chunk.n)
+            if len(points) != chunk.n:
+                raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
+                                 f"the {source.n_points:,} points its header declares")
+            return _metres(_file_columns(points, reader.header), source.factor)
+    except InputError:
+        raise
+    except Exception as exc:  # laspy and lazrs raise their own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {source.path}: {msg}") from None
+
+
+def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bool = False
+                ) -> Iterator[tuple[Chunk, Columns]]:
+    """The chunks of one file in order, from one open reader (the sequential path);
+    the same chunks and points as :func:`chunk_plan` and :func:`read_chunk`.
+
+    A LAZ file with a complete decode-cache entry is read from the cache. Without
+    one, ``fill_cache`` writes the entry while decoding (chunk by chunk, nothing held
+    beyond the chunk), so the next pass and the next run read the cache instead of
+    decoding again.
+    """
+    if not source.streamed:
+        c = Chunk(index, 0, source.n_points)
+        yield c, read_chunk(source, c)
+        return
+    size = max(1, int(chunk_points))
+    plan = [Chunk(index, a, min(source.n_points, a + size))
+            for a in range(0, source.n_points, size)]
+    first = _from_cache(source, plan[0])
+    if first is not None:
+        yield plan[0], first
+        del first
+        for c in plan[1:]:
+            cols = _from_cache(source, c)
+            if cols is None:
+                raise InputError(f"the decode cache of {source.path} changed while reading it")
+            yield c, cols
+        return
+    writer = None
+    try:
+        with _open_las(source.path) as reader:
+            if fill_cache and _uses_cache(source):
+                from rough_viewer.io.cache import cache_writer
+
+                dims = reader.header.point_format.dimension_names
+                writer = cache_writer(Path(source.path), source.n_points,
+                                      intensity="intensity" in dims, rgb="red" in dims)
+            for c in plan:
+                points = reader.read_points(c.n)
+                if len(points) != c.n:
+                    raise InputError(f"{source.path} ended after {c.start + len(points):,} of "
+                                     f"the {source.n_points:,} points its header declares")
+                cols = _file_columns(points, reader.header)
+                if writer is not None:
+                    rgb = (np.column_stack([points.red, points.green, points.blue])
+                           if "rgb" in writer.columns else None)
+                    inten = (np.asarray(points.intensity) if "intensity" in writer.columns
+                             else None)
+                    writer.append(*cols, intensity=inten, rgb=rgb)
+                del points
+                yield c, _metres(cols, source.factor)
+        if writer is not None:
+            writer.commit()
+            writer = None
+    except InputError:
+        raise
+    except Exception as exc:  # laspy and lazrs raise their own types
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {source.path}: {msg}") from None
+    finally:
+        if writer is not None:  # abandoned or failed: no half entry
+            writer.abort()
+
+
+def _crs_name(info) -> str:
+    if info.epsg is not None:
+        return f"EPSG:{info.epsg}"
+    text = str(info.description or "")
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
+                     ) -> tuple[str, ...]:
+    """Refuse files that cannot be one cloud: different CRSs or different units.
+
+    Two files differ in CRS when both declare one (LAS/LAZ WKT or GeoTIFF keys, read
+    by :func:`rough_viewer.io.crs.read_crs`) and their EPSG codes (or, without
+    codes, their descriptions) differ; in unit when the units they are read in
+    (``units``, else each CRS's linear unit, else metres) differ.
+
+    Returns
+    -------
+    tuple of str
+        Warnings: files that declare no CRS beside files that do.
+
+    Raises
+    ------
+    InputError
+        Naming the two files and what differs.
+    """
+    from rough_viewer.io.crs import read_crs
+    from rough_viewer.io.load import resolve_units
+
+    if len(paths) < 2:
+        return ()
+    for path in paths:
+        if not Path(path).is_file():
+            p = Path(path)
+            raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+    first_crs: tuple[Path, object] | None = None
+    first_unit: tuple[Path, str] | None = None
+    bare: list[Path] = []
+    for path in paths:
+        p = Path(path)
+        info = read_crs(p)
+        unit, _ = resolve_units(p, units)
+        if first_unit is None:
+            first_unit = (p, unit)
+        elif unit != first_unit[1]:
+            raise InputError(
+                f"{p} is in {unit} but {first_unit[0]} is in {first_unit[1]}: files of "
+                "different units cannot be merged into one cloud (convert them, or give "
+                "--units if the CRS records are wrong)")
+        if info.epsg is None and not info.description:
+            bare.append(p)
+            continue
+        if first_crs is None:
+            first_crs = (p, info)
+            continue
+        ref = first_crs[1]
+        same = (info.epsg == ref.epsg if info.epsg is not None and ref.epsg is not None  # type: ignore[attr-defined]
+                else info.description == ref.description)  # type: ignore[attr-defined]
+        if not same:
+            raise InputError(
+                f"{p} is in {_crs_name(info)} but {first_crs[0]} is in {_crs_name(ref)}: "
+                "files of different coordinate systems cannot be merged into one cloud "
+                "(reproject them to one CRS first)")
+    if first_crs is not None and bare:
+        names = ", ".join(str(b) for b in bare[:3]) + (" ..." if len(bare) > 3 else "")
+        return (f"{names} declare{'s' if len(bare) == 1 else ''} no CRS; taken to be in "
+                f"{_crs_name(first_crs[1])} like {first_crs[0]}",)
+    return ()
+
+
+def merge_clouds(clouds: Sequence[PointCloud]) -> PointCloud:
+    """One cloud of the points of several, in order (coordinates in metres).
+
+    Intensity and colour are kept where every cloud has them (colour of one dtype);
+    scan indices are renumbered so that scans of different files stay apart.
+    """
+    from rough_viewer.memory import require
+
+    if len(clouds) == 1:
+        return clouds[0]
+    n = sum(c.n for c in clouds)
+    require(n * 3 * 8 + sum(c.x.nbytes for c in clouds[:1]),
+            f"merging {len(clouds)} files ({n:,} points)",
+            hint="give --memory to stream the files in chunks instead")
+
+    def cat(get):
+        parts = [get(c) for c in clouds]
+        return None if any(p is None for p in parts) else np.concatenate(parts)
+
+    rgb = None
+    if all(c.rgb is not None for c in clouds) and len({c.rgb.dtype for c in clouds}) == 1:  # type: ignore[union-attr]
+        rgb = np.concatenate([c.rgb for c in clouds if c.rgb is not None])
+    scan_index = scanners = None
+    if all(c.scan_index is not None and c.scanner_positions is not None for c in clouds):
+        offsets: list[int] = np.cumsum(
+            [0] + [len(c.scanner_positions) for c in clouds[:-1]]).tolist()  # type: ignore[arg-type]
+        scan_index = np.concatenate([c.scan_index + o for c, o in zip(clouds, offsets, strict=True)])  # type: ignore[operator]
+        scanners = np.concatenate([c.scanner_positions for c in clouds
+                                   if c.scanner_positions is not None])
+    units = {c.source_unit for c in clouds}
+    return PointCloud(
+        x=np.concatenate([c.x for c in clouds]),
+        y=np.concatenate([c.y for c in clouds]),
+        z=np.concatenate([c.z for c in clouds]),
+        intensity=cat(lambda c: c.intensity),
+        source=" + ".join(c.source for c in clouds),
+        dropped_nonfinite=sum(c.dropped_nonfinite for c in clouds),
+        rgb=rgb,
+        scan_index=scan_index,
+        scanner_positions=scanners,
+        source_unit=units.pop() if len(units) == 1 else "m",
+        warnings=tuple(w for c in clouds for w in c.warnings),
+    )
+
+
+def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None,
+                progress: Sequence[ProgressFn] | None = None) -> PointCloud:
+    """Read several files (after :func:`check_compatible`) as one cloud, in memory.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The files.
+    units : {"m", "mm", "ft", "us-ft"}, optional
+        Unit of their coordinates (default: each file's CRS unit, else metres).
+    progress : sequence of callable, optional
+        One ``progress(done, total)`` per file.
+    """
+    from rough_viewer.io.load import load_points
+
+    if not paths:
+        raise InputError("no input files")
+    notes = check_compatible(paths, units=units)
+    clouds = [load_points(p, units=units, progress=None if progress is None else progress[i])
+              for i, p in enumerate(paths)]
+    return merge_clouds(clouds).with_warnings(*notes)
