@@ -46,6 +46,8 @@ _API: dict[str, str] = {
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
     "write_las": "rough_viewer.io.las",
+    "read_crs": "rough_viewer.io.crs",
+    "CrsInfo": "rough_viewer.io.crs",
     "write_las_fields": "rough_viewer.io.las_out",
     "write_ply_fields": "rough_viewer.io.ply",
     "write_table": "rough_viewer.io.table",
@@ -74,6 +76,10 @@ _API: dict[str, str] = {
     "histogram": "rough_viewer.grid.summary",
     "Summary": "rough_viewer.grid.summary",
     "semivariogram": "rough_viewer.grid.variogram",
+    "plan_semivariogram": "rough_viewer.grid.variogram",
+    "point_spacing": "rough_viewer.grid.spacing",
+    "default_cell_size": "rough_viewer.grid.spacing",
+    "preset_cell_sizes": "rough_viewer.grid.spacing",
     "face_semivariogram": "rough_viewer.grid.variogram",
     "face_maps": "rough_viewer.grid.maps",
     "face_raster": "rough_viewer.grid.maps",
@@ -94,6 +100,7 @@ _API: dict[str, str] = {
     "threshold_value": "rough_viewer.profiles.wavelets",
     "roughness_length": "rough_viewer.profiles.fractal",
     "roughness_length_2d": "rough_viewer.profiles.fractal",
+    "detrend": "rough_viewer.profiles.fractal",
     "compare_denoising": "rough_viewer.profiles.comparison",
     # scanner bias
     "range_noise": "rough_viewer.bias.measurement",
@@ -161,6 +168,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         whole_cloud_axis,
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
+    from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
         binary,
@@ -170,9 +178,10 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         summarise,
     )
     from rough_viewer.grid.table import cell_columns, point_fields
-    from rough_viewer.grid.variogram import face_semivariogram, semivariogram
+    from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
     from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.crs import CrsInfo, read_crs
     from rough_viewer.io.las import write_las
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.load import load_points
@@ -180,7 +189,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.io.table import write_table
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples
-    from rough_viewer.profiles.fractal import roughness_length, roughness_length_2d
+    from rough_viewer.profiles.fractal import detrend, roughness_length, roughness_length_2d
     from rough_viewer.profiles.wavelets import (
         denoise,
         denoise_result,

@@ -51,6 +51,17 @@ Engine = Literal["auto", "numpy", "numba"]
 """``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
 signed distances."""
 
+BIAS_RESIDUAL: Residual = "signed"
+"""Default roughness of the bias toolkit: the bias paper's own definition, the
+standard deviation of the SIGNED orthogonal residuals (so its published numbers come
+out without a flag). Grid roughness keeps SCIENCE.md's absolute distances."""
+RESIDUAL_NAMES: dict[str, str] = {
+    "signed": "std of signed orthogonal distances (the bias paper's definition)",
+    "absolute": "std of absolute orthogonal distances (the grid-roughness convention, "
+                "SCIENCE.md section 1)",
+}
+"""How each residual convention is named in output (text and JSON)."""
+
 AXES: tuple[Axis, Axis, Axis] = ("x", "y", "z")
 AXIS_CHOICES: tuple[AxisChoice, ...] = ("auto", "x", "y", "z")
 MODELS: tuple[Model, ...] = ("odr", "ols", "hybrid")
@@ -81,6 +92,11 @@ MAP_MARKERS: dict[str, str] = {
 }
 """Marker symbols of the 2011 paper's Fig. 4: ODR circles, OLS triangles, e_OLS plus."""
 
+DEFAULT_MIN_POINTS = 4
+"""Cells with fewer points get no value. Three points fix a plane exactly (roughness
+0 by construction, no information), so the default is 4; 3 stays accepted."""
+MIN_POINTS_FLOOR = 3
+"""The smallest ``min_points`` accepted: a plane needs 3 points."""
 DEFAULT_THRESHOLD = 0.05
 """Binary transform threshold on normalised roughness (2011 paper)."""
 HISTOGRAM_BIN = 0.05
@@ -121,6 +137,9 @@ UNIT_METRES: dict[str, float] = {"m": 1.0, "mm": 1e-3, "ft": 0.3048, "us-ft": 12
 """Metres per unit (the US survey foot is exactly 1200/3937 m)."""
 UNIT_LABELS: dict[str, str] = {"m": "m", "mm": "mm", "ft": "ft", "us-ft": "US ft"}
 """How each unit is written after a number."""
+ROUGHNESS_UNIT: dict[str, Unit] = {"m": "mm", "mm": "mm", "ft": "ft", "us-ft": "us-ft"}
+"""Unit roughness (a few mm) is shown in, for each coordinate unit: millimetres for
+metric input (SCIENCE.md: the tools may show mm), the input's own unit otherwise."""
 
 # ----------------------------------------------------------------------------- profiles
 

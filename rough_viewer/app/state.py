@@ -62,7 +62,7 @@ class ViewSettings:
     """Which roughness map colours the points."""
     axis: AxisChoice = "auto"
     """Dependent axis for OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
-    min_points: int = 3
+    min_points: int = 4
     """Cells with fewer points get no value."""
     mode: DisplayMode = "continuous"
     """Continuous normalised roughness, or the binary transform at ``threshold``."""

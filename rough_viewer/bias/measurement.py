@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from rough_viewer.grid.planes import fit_plane
-from rough_viewer.vocabulary import InputError, Residual
+from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, Residual
 
 ClassMethod = Literal["kmeans", "kmeans-3sigma"]
 
@@ -88,7 +88,7 @@ def _orient(normal: np.ndarray, centroid: np.ndarray, scanner: np.ndarray | None
 # Roughness of a whole target
 
 
-def target_roughness(xyz: np.ndarray, *, residual: Residual = "absolute") -> float:
+def target_roughness(xyz: np.ndarray, *, residual: Residual = BIAS_RESIDUAL) -> float:
     """Roughness of a whole target treated as one cell, metres.
 
     The ODR plane of all points (:func:`rough_viewer.grid.planes.fit_plane`), then the
@@ -98,11 +98,12 @@ def target_roughness(xyz: np.ndarray, *, residual: Residual = "absolute") -> flo
     ----------
     xyz : (N, 3) array
         Points, metres.
-    residual : {"absolute", "signed"}
-        ``"absolute"`` (default, SCIENCE.md section 1): standard deviation of the
-        absolute distances ``|n . (p - c)|``. ``"signed"``: standard deviation of the
-        signed distances (their RMS, as the mean is zero); this is the statistic whose
-        values the instrument-bias paper publishes (5.07 mm for its target A).
+    residual : {"signed", "absolute"}
+        ``"signed"`` (default, :data:`rough_viewer.vocabulary.BIAS_RESIDUAL`): standard
+        deviation of the signed distances (their RMS, as the mean is zero), the
+        instrument-bias paper's own definition (5.07 mm for its target A).
+        ``"absolute"``: standard deviation of the absolute distances
+        ``|n . (p - c)|``, the grid-roughness convention of SCIENCE.md section 1.
 
     Returns
     -------
@@ -163,6 +164,9 @@ class RangeNoise:
     """Per-segment values, row-major."""
     normal: np.ndarray
     """(3,) unit normal of the whole-board plane, toward the scanner when known."""
+    warnings: tuple[str, ...] = ()
+    """Plausibility warnings (one line each) when the scan does not look like a flat
+    board: the range noise of a rough or curved surface measures its shape."""
 
 
 def segment_layout(n_segments: int, long_m: float, short_m: float) -> tuple[int, int]:
@@ -286,7 +290,55 @@ def range_noise(
         shape=(rows, cols),
         segments=tuple(parts),
         normal=normal,
+        warnings=flatness_warnings(float(residual.std()), whole.eigenvalues,
+                                   max(p.tilt_deg for p in parts)),
     )
+
+
+#: A board is called flat when the residual std stays under this share of its
+#: shorter in-plane extent (std), and no segment tilts more than FLAT_MAX_TILT_DEG.
+FLAT_MAX_THICKNESS = 0.02
+FLAT_MAX_TILT_DEG = 10.0
+#: A wire is called thin when its second extent (std) stays under this share of its
+#: length (std).
+WIRE_MAX_WIDTH = 0.1
+
+
+def flatness_warnings(sigma: float, eigenvalues: np.ndarray, max_tilt_deg: float
+                      ) -> tuple[str, ...]:
+    """Why a range-noise scan may not be a flat board (empty when it looks like one).
+
+    ``sigma`` is the segmented residual std (metres), ``eigenvalues`` the whole
+    cloud's covariance eigenvalues (descending, m^2), ``max_tilt_deg`` the largest
+    segment tilt against the whole plane. The paper's board (0.61 x 1.24 m, 1.6 mm
+    noise) gives a thickness ratio of about 0.01 and tilts of a degree or two.
+    """
+    out = []
+    short = math.sqrt(max(float(eigenvalues[1]), 0.0))
+    ratio = sigma / short if short > 0 else math.inf
+    if ratio > FLAT_MAX_THICKNESS:
+        out.append(f"the residuals ({sigma * 1e3:.2f} mm) are {ratio * 100:.1f} % of the "
+                   f"scan's shorter in-plane extent (std {short * 1e3:.1f} mm): this does not "
+                   "look like a flat board, and its 'noise' measures the surface's shape")
+    if max_tilt_deg > FLAT_MAX_TILT_DEG:
+        out.append(f"segment planes tilt up to {max_tilt_deg:.1f} degrees against the whole "
+                   "plane: the scan is not flat (a rough or folded surface, or more than one "
+                   "object); crop it to the board")
+    return tuple(out)
+
+
+def wire_warnings(eigenvalues: np.ndarray) -> tuple[str, ...]:
+    """Why an effective-radius scan may not be a thin wire (empty when it looks like
+    one): its second principal extent should be a small share of its length."""
+    length = math.sqrt(max(float(eigenvalues[0]), 0.0))
+    width = math.sqrt(max(float(eigenvalues[1]), 0.0))
+    ratio = width / length if length > 0 else math.inf
+    if ratio > WIRE_MAX_WIDTH:
+        return (f"the points are not a thin line: their second extent (std "
+                f"{width * 1e3:.1f} mm) is {ratio * 100:.0f} % of their length (std "
+                f"{length * 1e3:.1f} mm); the effective radius of a surface measures its "
+                "width, not the beam; crop the scan to the wire",)
+    return ()
 
 
 # --------------------------------------------------------------------------------------
@@ -318,6 +370,9 @@ class EffectiveRadius:
     """(3,) unit direction of the fitted line."""
     plane_normal: np.ndarray
     """(3,) unit normal of the plane through the line and the scanner."""
+    warnings: tuple[str, ...] = ()
+    """Plausibility warnings (one line each) when the points do not look like a thin
+    wire: the effective radius of a surface measures its width, not the beam."""
 
 
 def effective_radius(
@@ -378,6 +433,7 @@ def effective_radius(
         centroid=centroid,
         direction=direction,
         plane_normal=m,
+        warnings=wire_warnings(line.eigenvalues),
     )
 
 
@@ -674,7 +730,7 @@ def normalise_population(
     *,
     ratio: float = 5.0,
     seed: int | np.random.Generator | None = 0,
-    residual: Residual = "absolute",
+    residual: Residual = BIAS_RESIDUAL,
 ) -> NormalisedPopulation:
     """Remove background points at random to a fixed background : asperity ratio, refit.
 
@@ -688,8 +744,8 @@ def normalise_population(
         Background points kept per asperity point (the paper: 5).
     seed : int or numpy Generator, optional
         Randomness of the removal.
-    residual : {"absolute", "signed"}
-        See :func:`target_roughness`.
+    residual : {"signed", "absolute"}
+        See :func:`target_roughness` (default signed, the bias paper's definition).
 
     Returns
     -------

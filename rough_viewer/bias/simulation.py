@@ -25,7 +25,8 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
-from rough_viewer.vocabulary import InputError, Residual
+from rough_viewer.memory import require
+from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, Residual
 
 PaperTarget = Literal["A", "B"]
 Normalisation = Literal["known", "none"]
@@ -54,6 +55,10 @@ __all__ = [
     "smooth_heights",
     "smoothing_curve",
 ]
+
+#: Bytes per raster node held at the peak of a simulation (heights, labels, noise,
+#: the smoothing convolution and the scanned points).
+RASTER_BYTES_PER_NODE = 12 * 8
 
 
 @dataclass(frozen=True)
@@ -128,6 +133,10 @@ def raster_heights(
     ny = int(round(layout.height_m / spacing_m))
     if nx < 1 or ny < 1:
         raise InputError("the board is smaller than one raster cell")
+    # heights, noise, smoothed heights, labels and the simulated points all live on
+    # this raster at once (about 12 float64 per node, FFT convolution included)
+    require(nx * ny * RASTER_BYTES_PER_NODE, f"a simulated target raster of {nx:,} x {ny:,} "
+            f"nodes at {spacing_m * 1e3:g} mm", hint="choose a larger raster spacing")
     x = (np.arange(nx) + 0.5) * spacing_m
     y = (np.arange(ny) + 0.5) * spacing_m
     z = np.zeros((ny, nx))
@@ -329,7 +338,7 @@ def predict_bias(
     normalisation: Normalisation = "known",
     trials: int = 1,
     seed: int | None = 0,
-    residual: Residual = "absolute",
+    residual: Residual = BIAS_RESIDUAL,
 ) -> BiasPrediction:
     """Predict the roughness over- or under-estimate of a scanner on a rough target.
 
@@ -358,8 +367,9 @@ def predict_bias(
         Independent noise / thinning draws to average.
     seed : int, optional
         Seed of all draws.
-    residual : {"absolute", "signed"}
-        Roughness convention.
+    residual : {"signed", "absolute"}
+        Roughness convention (default signed, the bias paper's definition; see
+        :func:`rough_viewer.bias.measurement.target_roughness`).
     """
     if trials < 1:
         raise InputError(f"trials must be >= 1, got {trials}")
@@ -441,7 +451,7 @@ def smoothing_curve(
     ratio: float = 5.0,
     normalisation: Normalisation = "known",
     seed: int | None = 0,
-    residual: Residual = "absolute",
+    residual: Residual = BIAS_RESIDUAL,
 ) -> SmoothingCurve:
     """Roughness error for a series of effective radii on one target.
 

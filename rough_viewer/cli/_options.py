@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_METRES, UNITS, InputError
 
 
 def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
@@ -19,7 +20,7 @@ def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
         values = ()
     if len(values) != 3 or not all(v == v and abs(v) != float("inf") for v in values):
         raise InputError(f"{option} expects three finite numbers X,Y,Z, got {text!r}")
-    return values  # type: ignore[return-value]
+    return values[0], values[1], values[2]
 
 
 @contextmanager
@@ -90,3 +91,22 @@ def segments(text: str) -> int | tuple[int, int]:
     except ValueError:
         pass
     raise argparse.ArgumentTypeError(f"expected a count (8) or rows x cols (4x2), got {text!r}")
+
+
+def add_units(p: argparse.ArgumentParser) -> None:
+    """``--units m|mm|ft|us-ft``: the unit of the input's coordinates and of every
+    length given or shown (grid sizes, origins, points, roughness)."""
+    p.add_argument("--units", choices=UNITS, default=None,
+                   help="unit of the input's coordinates and of every length on the command "
+                   "line and in the output (default: the unit of a LAS file's CRS, else m)")
+
+
+def warn(lines: tuple[str, ...] | list[str]) -> None:
+    """Print warnings from the science (one line each) on stderr."""
+    for line in lines:
+        print(f"rough-viewer: warning: {line}", file=sys.stderr)
+
+
+def per_unit(unit: str) -> float:
+    """Metres per ``unit``."""
+    return UNIT_METRES[unit]

@@ -8,19 +8,20 @@ import math
 
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.summary import summaries
-from rough_viewer.vocabulary import MAP_LABELS
+from rough_viewer.vocabulary import MAP_LABELS, UNIT_LABELS, UNIT_METRES
 
 
 def _num(v: float, fmt: str) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
 
 
-def format_table(result: GridRoughness, *, source: str = "") -> str:
-    """Readable Table-1 style summary of all maps of one grid size."""
-    g = result.grid.cell_size
+def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") -> str:
+    """Readable Table-1 style summary of all maps of one grid size, lengths in ``unit``."""
+    per, u = UNIT_METRES[unit], UNIT_LABELS[unit]
+    g = result.grid.cell_size / per
     axis = result.axis + (" (auto)" if result.axis_requested == "auto" else "")
     head = (
-        f"{source or 'cloud'}: {result.n_points_total:,} points, grid {g:g} m, "
+        f"{source or 'cloud'}: {result.n_points_total:,} points, grid {g:g} {u}, "
         f"dependent axis {axis}, min points {result.min_points}"
         + (", signed residuals" if result.residual == "signed" else "")
     )
@@ -29,7 +30,8 @@ def format_table(result: GridRoughness, *, source: str = "") -> str:
         f"cells: {rep['occupied']:,} occupied, {rep['below_min_points']:,} below min points"
     )
     lines = [head, cells_line, ""]
-    cols = ("model", "cells", "mean pts", "min (m)", "max (m)", "mean (m)", "variance (m2)", "std (m)")
+    cols = ("model", "cells", "mean pts", f"min ({u})", f"max ({u})", f"mean ({u})",
+            f"variance ({u}2)", f"std ({u})")
     widths = (7, 9, 9, 11, 11, 11, 13, 11)
     lines.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths, strict=True))))
     for name, s in summaries(result).items():
@@ -41,11 +43,11 @@ def format_table(result: GridRoughness, *, source: str = "") -> str:
             MAP_LABELS[name].ljust(widths[0]),
             f"{s.cells:,}".rjust(widths[1]),
             _num(s.mean_points, ".1f").rjust(widths[2]),
-            _num(s.min, ".4e").rjust(widths[3]),
-            _num(s.max, ".4e").rjust(widths[4]),
-            _num(s.mean, ".4e").rjust(widths[5]),
-            _num(s.variance, ".4e").rjust(widths[6]),
-            _num(s.std, ".4e").rjust(widths[7]),
+            _num(s.min / per, ".4e").rjust(widths[3]),
+            _num(s.max / per, ".4e").rjust(widths[4]),
+            _num(s.mean / per, ".4e").rjust(widths[5]),
+            _num(s.variance / per**2, ".4e").rjust(widths[6]),
+            _num(s.std / per, ".4e").rjust(widths[7]),
         )
         lines.append("  ".join(row))
         deg = result.cell_report(name)["degenerate"] if name != "e_ols" else 0

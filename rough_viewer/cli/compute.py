@@ -7,7 +7,7 @@ Contract (other tools script against it)::
         [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
         [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
-        [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--force] [--quiet]
 
 Several inputs (files or quoted globs) are one merged cloud. At least one output is
 required. With several ``--grid`` values each output name gets ``_g<G>`` before its
@@ -16,6 +16,11 @@ and ``--ply-out`` write every point with its cell's values as extra dimensions /
 scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
 that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
 the points, so neither goes with ``--las-out`` or ``--ply-out``.
+
+``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
+input's coordinates and of ``--grid``, ``--origin``, the table printed, the cell
+table and the summary JSON (which says ``unit``); the per-point LAS/PLY fields stay
+in metres (their names and comments say so).
 """
 
 from __future__ import annotations
@@ -30,12 +35,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import parse_xyz
+from rough_viewer.cli._options import add_units, parse_xyz, per_unit
 from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_outputs, write_atomic
-from rough_viewer.vocabulary import InputError, Residual
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
     from rough_viewer.grid.roughness import GridRoughness
@@ -54,14 +59,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_inputs(p)
     p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
-                   help="grid cell size in metres (repeat for several sizes)")
+                   help="grid cell size in --units (default metres; repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
                    help="roughness model (default: all)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="dependent axis of OLS and hybrid (default: auto = closest to the "
                    "whole cloud's normal)")
-    p.add_argument("--min-points", type=int, default=3, metavar="K",
-                   help="cells with fewer points get no value (default 3)")
+    p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
+                   help="cells with fewer points get no value (default 4: three points fix a "
+                   "plane exactly, so their roughness is 0 by construction; 3 is accepted)")
     p.add_argument("--origin", metavar="X,Y,Z", help="grid origin (default: bounding-box minimum)")
     p.add_argument("--signed", action="store_true",
                    help="RMS of signed distances instead of the std of absolute distances")
@@ -76,6 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -87,18 +94,26 @@ def output_name(path: str, grid: float, several: bool) -> Path:
     return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
 
 
-def summary_dict(result, cloud_source: str, dropped: int) -> dict:
-    """The SUMMARY.json content for one grid size."""
+def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
+                 warnings: tuple[str, ...] = ()) -> dict:
+    """The SUMMARY.json content for one grid size, lengths in ``unit``."""
     from rough_viewer.grid.summary import summarise
-    from rough_viewer.vocabulary import MAPS
+    from rough_viewer.vocabulary import MAPS, UNIT_METRES
 
+    per = UNIT_METRES[unit]
     out: dict = {}
     for name in MAPS:
-        out[name] = summarise(result, name).as_dict()
+        d = summarise(result, name).as_dict()
+        for k in ("min", "max", "mean", "std"):
+            d[k] = d[k] / per
+        d["variance"] = d["variance"] / per**2
+        out[name] = d
     out.update(
         {
-            "grid_size": result.grid.cell_size,
-            "origin": [float(v) for v in result.grid.origin],
+            "unit": unit,
+            "warnings": list(warnings),
+            "grid_size": result.grid.cell_size / per,
+            "origin": [float(v) / per for v in result.grid.origin],
             "axis": result.axis,
             "axis_requested": result.axis_requested,
             "points": result.n_points_total,
@@ -119,12 +134,13 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.io.load import resolve_units
     from rough_viewer.vocabulary import MODELS
 
     grids = list(dict.fromkeys(args.grid))
     for g in grids:
         if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive number of metres, got {g:g}")
+            raise InputError(f"--grid must be a positive length, got {g:g}")
     if args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
@@ -132,6 +148,12 @@ def run(args: argparse.Namespace) -> int:
     paths = input_paths(args)
     outputs = _outputs(args, grids, several, paths)
     quiet = args.quiet
+    # every length given and shown is in the inputs' unit (--units, else the CRS's)
+    unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
+    per = per_unit(unit)
+    metres = [g * per for g in grids]
+    if origin is not None:
+        origin = origin * per
     source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
     residual: Residual = "signed" if args.signed else "absolute"
@@ -141,21 +163,22 @@ def run(args: argparse.Namespace) -> int:
         if args.las_out or args.ply_out:
             raise InputError("--las-out and --ply-out write every point, which --memory and "
                              "--scheduler do not keep; run without them for those outputs")
-        results, dropped = chunked_results(args, paths, grids, origin=origin, models=models,
+        results, dropped = chunked_results(args, paths, metres, origin=origin, models=models,
                                            residual=residual)
     else:
         cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
         dropped = cloud.dropped_nonfinite
         results = (grid_roughness(
-            cloud, g, origin=origin, min_points=args.min_points, axis=args.axis,
+            cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
             models=models, residual=residual,
-            progress=None if quiet else ProgressBar(f"grid {g:g} m", unit="step"),
+            progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}",
+                                                    unit="step"),
         ) for g in grids)
     for i, (g, result) in enumerate(zip(grids, results, strict=True)):
         if i:
             print()
-        print(format_table(result, source=source))
-        _write_outputs(outputs, g, result, cloud, dropped, source, args)
+        print(format_table(result, source=source, unit=unit))
+        _write_outputs(outputs, g, result, cloud, dropped, source, args, unit)
     return 0
 
 
@@ -184,7 +207,7 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
 
 def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
                    cloud: PointCloud | None, dropped: int, source: str,
-                   args: argparse.Namespace) -> None:
+                   args: argparse.Namespace, unit: str = "m") -> None:
     """Write every output of one grid size and say so."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
@@ -194,11 +217,12 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
 
     written = []
     if "out" in outputs:
-        write_table(outputs["out"][g], cell_columns(result),
-                    metadata=table_metadata(result, source))
+        write_table(outputs["out"][g], cell_columns(result, unit=unit),
+                    metadata=table_metadata(result, source, unit=unit))
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
-        data = summary_dict(result, source, dropped)
+        data = summary_dict(result, source, dropped, unit,
+                            cloud.warnings if cloud is not None else ())
 
         def dump(fh, d: dict = data) -> None:
             json.dump(d, fh, indent=2)
@@ -218,6 +242,6 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         path = outputs["ply_out"][g]
         info = write_ply_fields(path, cloud, fields, comments=[
             f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
-            f"grid {g:g} m, axis {result.axis}, "
+            f"grid {g:g} {UNIT_LABELS[unit]}, axis {result.axis}, "
             "roughness in metres"])
         print(f"wrote {path}: {info}")

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.cli._options import naming, parse_xyz
+from rough_viewer.cli._options import add_units, naming, parse_xyz, per_unit, warn
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
@@ -55,20 +55,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--from", dest="start", metavar="X,Y,Z", help="line start (cloud input); write --from=-1,2,3 when X is negative")
     p.add_argument("--to", dest="end", metavar="X,Y,Z", help="line end (cloud input); --to=-1,2,3 when X is negative")
     p.add_argument("--band", type=float, metavar="M",
-                   help="band half-width around the line, metres (default: local point spacing)")
+                   help="band half-width around the line, in --units (default: local point "
+                   "spacing)")
     p.add_argument("--spacing", type=float, metavar="M",
-                   help="sample spacing, metres (default: local point spacing; for a "
+                   help="sample spacing, in --units (default: local point spacing; for a "
                    "profile file: its median step)")
     p.add_argument("--max-gap", type=float, metavar="M",
-                   help="longest stretch without points interpolated across, metres "
+                   help="longest stretch without points interpolated across, in --units "
                    "(default: 3 spacings); longer gaps are NaN and reported")
+    p.add_argument("--detrend", type=int, metavar="DEGREE",
+                   help="remove a least-squares polynomial trend of this degree from the "
+                   "profile first (2 removes a curvature that makes D < 1)")
     p.add_argument("--wavelet", default="db3", help="PyWavelets discrete wavelet (default db3)")
     p.add_argument("--level", type=int, default=3, help="decomposition levels (default 3)")
     p.add_argument("--profile-file", action="store_true",
                    help="INPUT is a two-column text profile (distance, height)")
-    p.add_argument("--profile-units", choices=("m", "mm"), default="m",
-                   help="units of a profile file's columns (default m)")
-    p.add_argument("--json", action="store_true", help="print the numbers as JSON (metres)")
+    p.add_argument("--profile-units", choices=("m", "mm"), default=None,
+                   help="units of a profile file's columns (default: --units, else m)")
+    add_units(p)
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON (metres, "
+                   "keys ending in _m; 'unit' names the input's unit)")
     p.add_argument("--csv", metavar="OUT.csv", help="write the samples, raw and de-noised")
     p.add_argument("--force", action="store_true", help="overwrite an existing --csv file")
     p.set_defaults(func=run)
@@ -172,29 +178,47 @@ def _d(fit) -> str:
     return "   -" if fit is None else f"{fit.dimension:5.2f}"
 
 
+def display_units(unit: str) -> tuple[float, str, float, str]:
+    """(per metre, label) of the unit for lengths and of the one for small values
+    (thresholds, noise, band): metres and millimetres for a metric input, the
+    input's unit otherwise."""
+    from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES
+
+    if unit in ("m", "mm"):
+        big = "m" if unit == "m" else "mm"
+        return 1.0 / UNIT_METRES[big], big, 1e3, "mm"
+    per = 1.0 / UNIT_METRES[unit]
+    return per, UNIT_LABELS[unit], per, UNIT_LABELS[unit]
+
+
 def format_tables(info: dict, comparison) -> str:
-    """Text report: header and the Tables 1-2 layout (DWT and WP side by side)."""
-    mm = 1e3
+    """Text report: header and the Tables 1-2 layout (DWT and WP side by side); lengths
+    in the input's unit (``info["unit"]``), small values in mm for metric input."""
+    big, ub, mm, uf = display_units(info.get("unit", "m"))
     lines = [f"profile: {info['input']}"]
     if info["source"] == "cloud":
         lines.append(
-            f"  from {tuple(info['from'])} to {tuple(info['to'])}; local normal "
+            f"  from {tuple(info['from_given'])} to {tuple(info['to_given'])}; local normal "
             f"({', '.join(f'{c:.3f}' for c in info['normal'])})"
         )
         lines.append(
-            f"  {info['points']} points in a band of +-{info['band_half_width_m'] * mm:.3f} mm "
-            f"(point spacing {info['point_spacing_m'] * mm:.3f} mm)"
+            f"  {info['points']} points in a band of +-{info['band_half_width_m'] * mm:.3f} "
+            f"{uf} (point spacing {info['point_spacing_m'] * mm:.3f} {uf})"
         )
     lines.append(
-        f"  length {info['length_m']:.4f} m, {info['samples']} samples at "
-        f"{info['spacing_m'] * mm:.3f} mm"
+        f"  length {info['length_m'] * big:.4f} {ub}, {info['samples']} samples at "
+        f"{info['spacing_m'] * mm:.3f} {uf}"
         + (", resampled" if info.get("resampled") else "")
+        + (f", degree-{info['detrend']} trend removed" if info.get("detrend") is not None
+           else "")
     )
     gaps = info["gaps_m"]
     if gaps:
-        spans = ", ".join(f"{a:.4f}-{b:.4f}" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+        spans = ", ".join(f"{a * big:.4f}-{b * big:.4f}" for a, b in gaps[:5]) + (
+            " ..." if len(gaps) > 5 else "")
         lines.append(
-            f"  {len(gaps)} gap(s) not interpolated ({info['nan_samples']} NaN samples): {spans} m"
+            f"  {len(gaps)} gap(s) not interpolated ({info['nan_samples']} NaN samples): "
+            f"{spans} {ub}"
         )
     else:
         lines.append("  no gaps")
@@ -202,14 +226,14 @@ def format_tables(info: dict, comparison) -> str:
     w = comparison.raw.windows
     lines.append(
         f"wavelet {comparison.wavelet}, {comparison.level} levels; noise sigma (MAD of level-1 "
-        f"details) {comparison.sigma * mm:.4f} mm"
+        f"details) {comparison.sigma * mm:.4f} {uf}"
     )
     lines.append(
-        f"roughness length: {w.size} windows {w[0] * mm:.1f}-{w[-1] * mm:.1f} mm; D = 2 - H"
+        f"roughness length: {w.size} windows {w[0] * mm:.1f}-{w[-1] * mm:.1f} {uf}; D = 2 - H"
     )
     lines.append("")
     head = f"{'':34s}{'DWT (Table 1)':>22s}{'Wavelet packets (Table 2)':>28s}"
-    sub = f"{'':34s}{'thresh mm':>12s}{'D':>8s}{'':>4s}{'thresh mm':>14s}{'D':>8s}"
+    sub = f"{'':34s}{'thresh ' + uf:>12s}{'D':>8s}{'':>4s}{'thresh ' + uf:>14s}{'D':>8s}"
     lines += [head, sub]
     lines.append(f"{'Original profile':34s}{'':12s}{_d(raw):>8s}{'':4s}{'':14s}{_d(raw):>8s}")
     for mode, label in (("soft", "Soft thresh."), ("hard", "Hard thresh.")):
@@ -254,8 +278,16 @@ def write_samples_csv(path: Path, distance: np.ndarray, raw: np.ndarray, compari
 
 def _positive_option(value: float | None, option: str) -> float | None:
     if value is not None and not (math.isfinite(value) and value > 0):
-        raise InputError(f"{option} must be a positive number of metres, got {value:g}")
+        raise InputError(f"{option} must be a positive length, got {value:g}")
     return value
+
+
+def _metres(args: argparse.Namespace, per: float) -> None:
+    """Lengths given on the command line (in the input's unit) into metres."""
+    for option in ("band", "spacing", "max_gap"):
+        value = getattr(args, option)
+        if value is not None:
+            setattr(args, option, value * per)
 
 
 def _check_options(args: argparse.Namespace) -> None:
@@ -267,6 +299,8 @@ def _check_options(args: argparse.Namespace) -> None:
         raise InputError(f"--wavelet {args.wavelet!r} is not a discrete PyWavelets wavelet (e.g. db3, sym4, haar)")
     if args.level < 1:
         raise InputError(f"--level must be at least 1, got {args.level}")
+    if args.detrend is not None and not 0 <= args.detrend <= 5:
+        raise InputError(f"--detrend must be a degree from 0 to 5, got {args.detrend}")
 
 
 Samples = tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...], float, dict[str, Any]]
@@ -278,14 +312,19 @@ def _from_profile_file(args: argparse.Namespace, path: Path) -> Samples:
 
     if args.start or args.end:
         raise InputError(f"--from/--to are for point clouds; {path} is a profile file")
-    scale = 1e-3 if args.profile_units == "mm" else 1.0
-    d_in, h_in = read_profile_file(path, scale=scale)
+    from rough_viewer.vocabulary import UNIT_METRES
+
+    unit = args.profile_units or args.units or "m"
+    per = UNIT_METRES[unit]
+    _metres(args, per)
+    d_in, h_in = read_profile_file(path, scale=per)
     with naming(path):
         distance, heights, gaps = regular_samples(d_in, h_in, spacing=args.spacing,
                                                   max_gap=args.max_gap)
     step = float(np.median(np.diff(distance)))
     info: dict[str, Any] = {
         "input": str(path),
+        "unit": unit,
         "source": "profile-file",
         "samples": int(distance.size),
         "spacing_m": step,
@@ -302,17 +341,25 @@ def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
 
     if not (args.start and args.end):
         raise InputError(f"{path} is a point cloud: give the line with --from X,Y,Z --to X,Y,Z")
-    p0 = parse_xyz(args.start, option="--from")
-    p1 = parse_xyz(args.end, option="--to")
-    cloud = load_points(path)
+    g0 = parse_xyz(args.start, option="--from")
+    g1 = parse_xyz(args.end, option="--to")
+    cloud = load_points(path, units=args.units)
+    warn(cloud.warnings)
+    per = per_unit(cloud.source_unit)
+    p0 = tuple(c * per for c in g0)
+    p1 = tuple(c * per for c in g1)
+    _metres(args, per)
     with naming(path):
         prof = extract_profile(cloud, p0, p1, band_half_width=args.band, spacing=args.spacing,
                                max_gap=args.max_gap)
     info: dict[str, Any] = {
         "input": str(path),
+        "unit": cloud.source_unit,
         "source": "cloud",
         "from": list(p0),
         "to": list(p1),
+        "from_given": list(g0),
+        "to_given": list(g1),
         "samples": int(prof.distance.size),
         "spacing_m": prof.spacing,
         "length_m": prof.length,
@@ -340,8 +387,16 @@ def run(args: argparse.Namespace) -> int:
     info["nan_samples"] = int(np.count_nonzero(~np.isfinite(heights)))
     info["max_gap_m"] = args.max_gap if args.max_gap is not None else 3.0 * step
 
+    info["detrend"] = args.detrend
+    if args.detrend is not None:
+        from rough_viewer.profiles.fractal import detrend
+
+        with naming(path):
+            heights = detrend(heights, step, degree=args.detrend)
     with naming(f"{path}: {distance.size} samples"):
         comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level)
+    info["warnings"] = [f"{path}: {w}" for w in comparison.raw.warnings]
+    warn(info["warnings"])
 
     if csv_path is not None:
         write_samples_csv(csv_path, distance, heights, comparison)

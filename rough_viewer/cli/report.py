@@ -4,9 +4,12 @@ Contract::
 
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--force] [--quiet]
 
-Default grid sizes: the paper's 1, 0.5, 0.25 and 0.125 m. ``--format json`` writes
+Default grid sizes: from the point spacing, the size at which the typical occupied
+cell holds 16 points, times 8, 4, 2 and 1 (``rough_viewer.grid.spacing``); the
+paper's are ``--grid 1 --grid 0.5 --grid 0.25 --grid 0.125``. ``--units`` is the unit
+of the input's coordinates and of every length given and shown. ``--format json`` writes
 the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>.png``
 (needs the optional package kaleido; the HTML does not). Several inputs (files or
 quoted globs) are one merged cloud.
@@ -19,8 +22,9 @@ import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
+from rough_viewer.cli._options import add_units, per_unit, warn
 from rough_viewer.io.output import check_output_path, path_in_folder
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,14 +36,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_inputs(p)
     p.add_argument("--grid", type=float, action="append", metavar="G",
-                   help="grid cell size in metres, repeatable (default: 1 0.5 0.25 0.125)")
+                   help="grid cell size in --units, repeatable (default: from the point "
+                   "spacing: the size at which the typical occupied cell holds 16 points, "
+                   "times 8, 4, 2 and 1)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="dependent axis of OLS and hybrid (default: auto = closest to the "
                    "whole cloud's normal)")
     p.add_argument("--threshold", type=float, default=0.05, metavar="T",
                    help="binary transform threshold on normalised roughness (default 0.05)")
-    p.add_argument("--min-points", type=int, default=3, metavar="K",
-                   help="cells with fewer points get no value (default 3)")
+    p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
+                   help="cells with fewer points get no value (default 4: three points fix a "
+                   "plane exactly, so their roughness is 0 by construction; 3 is accepted)")
     p.add_argument("--out", required=True, metavar="REPORT.html", help="output file")
     p.add_argument("--format", choices=("html", "json"), default="html",
                    help="html: the full report (default); json: the numbers alone")
@@ -47,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write every figure as PNG into DIR (needs kaleido)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
@@ -69,14 +77,16 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.report import PAPER_GRIDS, png_figures
+    from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import write_figure
 
-    settings = ReportSettings(min_points=args.min_points,
-                              grid_sizes=tuple(dict.fromkeys(args.grid or PAPER_GRIDS)),
+    given = tuple(dict.fromkeys(args.grid)) if args.grid else None
+    settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
                               axis=args.axis, threshold=args.threshold)
     try:
         settings.check()
@@ -88,16 +98,32 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(text) from None
     paths = input_paths(args)
     out = check_output_path(args.out, force=args.force, inputs=paths)
-    png_dir = None
     if args.png:
-        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes), force=args.force)
+        check_png_export()
 
     quiet = args.quiet
-    cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+    cloud = load_inputs(paths, units=args.units, quiet=quiet)  # prints its warnings
+    per = per_unit(cloud.source_unit)
+    u = UNIT_LABELS[cloud.source_unit]
+    if given is not None:  # lengths given in the input's unit
+        settings = replace(settings, grid_sizes=tuple(g * per for g in given))
+    png_dir = None
+    if args.png and given is not None:
+        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force)
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
+    warn(report.warnings[len(cloud.warnings):])
+    if given is None:
+        print("grid sizes from the point spacing: "
+              + ", ".join(f"{s.grid_size / per:g}" for s in report.sections) + f" {u}")
+        if args.png:
+            png_dir, _ = _png_targets(args.png, [s.grid_size for s in report.sections],
+                                      force=args.force)
     for s in report.sections:
         if s.error is not None:
-            print(f"rough-viewer: grid {s.grid_size:g} m: {s.error}", file=sys.stderr)
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: {s.error}", file=sys.stderr)
+        for key, why in s.figure_errors.items():
+            print(f"rough-viewer: grid {s.grid_size / per:g} {u}: no {key} figure: {why}",
+                  file=sys.stderr)
 
     write_report(out, report, args.format)
     print(f"wrote {out}")

@@ -19,7 +19,7 @@ import sys
 import time
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,8 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="initial map (default odr)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
                    help="initial dependent axis of OLS and hybrid (default auto)")
-    p.add_argument("--min-points", type=int, default=3, metavar="K",
-                   help="initial minimum points per cell (default 3)")
+    p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
+                   help="initial minimum points per cell (default 4)")
     p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",
                    help="most points drawn in the browser (default 2000000; roughness "
                    "always uses every point)")

@@ -4,7 +4,8 @@ and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
 Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
 :mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
 :mod:`.summary`, :mod:`.maps`, :mod:`.variogram`, :mod:`.zones` (connected rough
-cells; :mod:`.orientation` for dips, traces and the stereonet).
+cells; :mod:`.orientation` for dips, traces and the stereonet); :mod:`.spacing`
+chooses the default grid from the point spacing.
 """
 
 from rough_viewer.grid.cells import GridSpec, make_grid
@@ -18,6 +19,7 @@ from rough_viewer.grid.roughness import (
     prepare_grid,
     whole_cloud_axis,
 )
+from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
 from rough_viewer.grid.summary import (
     Histogram,
     Summary,
@@ -27,7 +29,13 @@ from rough_viewer.grid.summary import (
     summaries,
     summarise,
 )
-from rough_viewer.grid.variogram import Semivariogram, face_semivariogram, semivariogram
+from rough_viewer.grid.variogram import (
+    Semivariogram,
+    VariogramPlan,
+    face_semivariogram,
+    plan_semivariogram,
+    semivariogram,
+)
 from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
 
 __all__ = [
@@ -40,10 +48,12 @@ __all__ = [
     "PreparedGrid",
     "Semivariogram",
     "Summary",
+    "VariogramPlan",
     "ZoneLabeller",
     "Zones",
     "binary",
     "coarsen_prepared",
+    "default_cell_size",
     "dominant_axis",
     "face_frame",
     "face_maps",
@@ -55,7 +65,10 @@ __all__ = [
     "histogram",
     "make_grid",
     "normalise",
+    "plan_semivariogram",
+    "point_spacing",
     "prepare_grid",
+    "preset_cell_sizes",
     "semivariogram",
     "summaries",
     "summarise",

@@ -31,9 +31,14 @@ from typing import Literal, Protocol
 
 import numpy as np
 
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
 Reduce = Literal["max", "mean"]
+
+#: Bytes per pixel of one face image at its peak: counts, sums or maxima, the image
+#: and the binary image made from it.
+BYTES_PER_PIXEL = 40
 
 
 class Plane(Protocol):
@@ -165,9 +170,11 @@ def face_image(raster: FaceRaster, values: np.ndarray, *, reduce: Reduce = "max"
     if reduce not in ("max", "mean"):
         raise InputError(f"reduce must be 'max' or 'mean', got {reduce!r}")
     rows, cols = raster.shape
+    size = rows * cols
+    require(size * BYTES_PER_PIXEL, f"a face-plane image of {cols:,} x {rows:,} pixels "
+            f"({raster.cell_size:g} m)", hint="use a larger grid size")
     ok = np.isfinite(values)
     flat = raster.pixel[ok, 1] * cols + raster.pixel[ok, 0]
-    size = rows * cols
     count = np.bincount(flat, minlength=size)
     if reduce == "mean":
         total = np.bincount(flat, weights=values[ok], minlength=size)

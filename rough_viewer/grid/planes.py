@@ -24,8 +24,23 @@ from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import AXES, Axis, InputError
 
-#: Relative size below which a covariance eigenvalue counts as zero.
+#: A covariance eigenvalue (square metres) counts as zero below this share of the
+#: cell's absolute squared length scale (the squared cell size on a grid, else the
+#: total variance, the trace of the covariance): a spread under 1e-6 of the scale.
+#: Round-off leaves a constant coordinate a variance of ~1e-21 m^2 (UTM-sized
+#: coordinates), far below this for any cell larger than a micrometre, while each
+#: axis's own variance is no yardstick: it is itself round-off when the axis is
+#: constant.
 DEGENERATE_RTOL = 1e-12
+
+
+def _scale2(cov: np.ndarray, scale2: np.ndarray | float | None) -> np.ndarray:
+    """Squared length scale per cell: ``scale2`` when given (at least the trace),
+    else the trace of the covariance (total variance)."""
+    trace = np.trace(cov, axis1=1, axis2=2)
+    if scale2 is None:
+        return trace
+    return np.maximum(np.broadcast_to(np.asarray(scale2, dtype=np.float64), trace.shape), trace)
 
 
 @dataclass(frozen=True)
@@ -205,13 +220,18 @@ def dominant_axis(normal: np.ndarray) -> Axis:
     return AXES[int(np.argmax(np.abs(np.asarray(normal, dtype=np.float64))))]
 
 
-def odr_from_covariance(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def odr_from_covariance(
+    cov: np.ndarray, scale2: np.ndarray | float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Batched ODR normals from per-cell covariance matrices.
 
     Parameters
     ----------
     cov : (M, 3, 3) array
         Population covariance of each cell's points (square metres).
+    scale2 : float or (M,) array, optional
+        Absolute squared length scale, square metres (the squared cell size on a
+        grid); default the total variance of each cell.
 
     Returns
     -------
@@ -220,18 +240,20 @@ def odr_from_covariance(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     eigenvalues : (M, 3) array
         Eigenvalues, descending.
     valid : (M,) bool array
-        False where the plane is not unique: points coincident or collinear (the two
-        smallest eigenvalues vanish relative to the largest).
+        False where the plane is not unique: points coincident or collinear (the
+        middle eigenvalue vanishes against ``scale2``).
     """
     w, v = np.linalg.eigh(cov)
     normal = v[:, :, 0]
     eig = w[:, ::-1]
-    scale = np.maximum(eig[:, 0], 0.0)
+    scale = _scale2(cov, scale2)
     valid = (scale > 0) & (eig[:, 1] > DEGENERATE_RTOL * scale)
     return normal, eig, valid
 
 
-def ols_from_covariance(cov: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
+def ols_from_covariance(
+    cov: np.ndarray, axis: Axis, scale2: np.ndarray | float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Batched OLS planes along a dependent axis, from per-cell covariances.
 
     The fitted plane through the centroid is ``w . (p - c) = 0`` with ``w_a = 1`` and
@@ -244,6 +266,9 @@ def ols_from_covariance(cov: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.nda
         Population covariance of each cell's points (square metres).
     axis : {"x", "y", "z"}
         Dependent axis.
+    scale2 : float or (M,) array, optional
+        Absolute squared length scale, square metres (the squared cell size on a
+        grid); default the total variance of each cell.
 
     Returns
     -------
@@ -251,7 +276,10 @@ def ols_from_covariance(cov: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.nda
         Residual vector per cell (dimensionless).
     valid : (M,) bool array
         False where the two independent coordinates are degenerate (collinear or
-        coincident in the u-v plane), so the regression has no unique solution.
+        coincident in the u-v plane), so the regression has no unique solution:
+        the smaller eigenvalue of their 2x2 covariance vanishes against ``scale2``
+        (not against each axis's own variance, which round-off makes ~1e-21 m^2 for
+        a constant coordinate, e.g. one column of a DEM lattice).
     """
     a = axis_index(axis)
     u, v = [i for i in range(3) if i != a]
@@ -261,7 +289,10 @@ def ols_from_covariance(cov: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.nda
     cua = cov[:, u, a]
     cva = cov[:, v, a]
     det = cuu * cvv - cuv * cuv
-    valid = (cuu > 0) & (cvv > 0) & (det > DEGENERATE_RTOL * cuu * cvv)
+    half_gap = np.sqrt((0.5 * (cuu - cvv)) ** 2 + cuv * cuv)
+    smallest = 0.5 * (cuu + cvv) - half_gap  # smaller eigenvalue of the u-v covariance
+    scale = _scale2(cov, scale2)
+    valid = (det > 0) & (smallest > DEGENERATE_RTOL * scale)
     safe = np.where(valid, det, 1.0)
     b1 = (cvv * cua - cuv * cva) / safe
     b2 = (cuu * cva - cuv * cua) / safe

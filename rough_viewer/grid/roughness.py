@@ -53,6 +53,7 @@ from rough_viewer.grid.planes import (
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.vocabulary import (
     AXES,
+    DEFAULT_MIN_POINTS,
     MAPS,
     MODELS,
     Axis,
@@ -235,7 +236,7 @@ def grid_roughness(
     cell_size: float,
     *,
     origin: np.ndarray | None = None,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     axis: AxisChoice = "auto",
     models: Iterable[Model] = MODELS,
     residual: Residual = "absolute",
@@ -254,7 +255,9 @@ def grid_roughness(
     origin : (3,) array_like, optional
         Grid origin, metres; default the bounding-box minimum.
     min_points : int
-        Cells with fewer points get no value (default 3, the fewest that fix a plane).
+        Cells with fewer points get no value (default 4: three points fix a plane
+        exactly, so a 3-point cell's roughness is 0 by construction; 3 is accepted
+        for the bare definition).
     axis : {"auto", "x", "y", "z"}
         Dependent axis of OLS and hybrid; ``"auto"`` = axis closest to the normal of
         the whole cloud's ODR plane.
@@ -311,7 +314,8 @@ def grid_roughness(
     tick(2, 5)
     whole = prepared.whole_plane()
     used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
-    planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t)
+    planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t,
+                         cell_size=prepared.cell_size)
     tick(3, 5)
     sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine)
     tick(4, 5)
@@ -420,6 +424,10 @@ class CellPlanes:
     """(M, 3) OLS residual vector (None when OLS is not asked for)."""
     valid_ols: np.ndarray | None
     """(M,) bool: unique OLS plane and enough points."""
+    valid_uv: np.ndarray | None
+    """(M,) bool: the two independent coordinates are not degenerate (judged on the
+    cell size); where they are, the points lie in a plane containing the dependent
+    axis, so neither OLS nor hybrid has a value. None when neither is asked for."""
     need_odr: bool
     """ODR distances are needed (for odr or hybrid)."""
 
@@ -440,6 +448,8 @@ def cell_planes(
     axis: Axis,
     min_points: int,
     models: tuple[Model, ...],
+    *,
+    cell_size: float | None = None,
 ) -> CellPlanes:
     """Batched ODR and OLS planes of every cell from its moment sums.
 
@@ -455,22 +465,27 @@ def cell_planes(
         Cells with fewer points get no plane.
     models : tuple of str
         Models asked for (OLS planes only when ``"ols"`` is among them).
+    cell_size : float, optional
+        Grid cell edge, metres: degeneracy is judged against its square (SCIENCE.md:
+        an absolute scale); default each cell's total variance.
     """
     mom = moments
     enough = mom.counts >= min_points
     cov = mom.covariance()
-    normal, _, valid_odr = odr_from_covariance(cov)
+    scale2 = None if cell_size is None else cell_size**2  # the cell's absolute scale
+    normal, _, valid_odr = odr_from_covariance(cov, scale2)
     valid_odr &= enough
     # Eigenvectors have arbitrary sign: orient every cell normal like the whole face's.
     normal *= np.where(normal @ whole_normal < 0, -1.0, 1.0)[:, None]
     normal[~valid_odr] = np.nan
-    w_ols = valid_ols = None
-    if "ols" in models:
-        w_ols, valid_ols = ols_from_covariance(cov, axis)
-        valid_ols &= enough
+    w_ols = valid_ols = valid_uv = None
+    if "ols" in models or "hybrid" in models:
+        w, valid_uv = ols_from_covariance(cov, axis, scale2)
+        if "ols" in models:
+            w_ols, valid_ols = w, valid_uv & enough
     return CellPlanes(counts=mom.counts, enough=enough, mean_local=mom.mean_local(), normal=normal,
                        valid_odr=valid_odr, w_ols=w_ols, valid_ols=valid_ols,
-                       need_odr=any(m in models for m in ("odr", "hybrid")))
+                       valid_uv=valid_uv, need_odr=any(m in models for m in ("odr", "hybrid")))
 
 
 def cell_thetas(
@@ -492,9 +507,13 @@ def cell_thetas(
         if "odr" in models:
             theta["odr"] = t
         if "hybrid" in models:
-            # The hybrid distance is the ODR one divided by |n_a|, constant per cell.
+            # The hybrid distance is the ODR one divided by |n_a|, constant per cell;
+            # none where the ODR plane contains the axis (n_a = 0 up to round-off, or
+            # the independent coordinates degenerate on the cell's absolute scale).
             na = np.abs(planes.normal[:, axis_index(axis)])
             ok = planes.valid_odr & (na > HYBRID_MIN_COMPONENT)
+            if planes.valid_uv is not None:
+                ok &= planes.valid_uv
             theta["hybrid"][ok] = t[ok] / na[ok]
     if planes.valid_ols is not None:
         t = _theta(*sums["ols"], n_f, signed=signed)

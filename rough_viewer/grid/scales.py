@@ -45,6 +45,7 @@ from rough_viewer.grid.roughness import GridRoughness, PreparedGrid, grid_roughn
 from rough_viewer.grid.summary import Summary, binary, normalise, summarise
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.vocabulary import (
+    DEFAULT_MIN_POINTS,
     DEFAULT_THRESHOLD,
     MAPS,
     MODELS,
@@ -156,7 +157,7 @@ def point_scales_from_prepared(
     point: int,
     *,
     axis: Axis,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     residual: Residual = "absolute",
 ) -> PointScales:
     """:func:`point_scales` without the full maps: only the cells holding ``point``.

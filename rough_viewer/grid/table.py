@@ -11,7 +11,7 @@ import numpy as np
 
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.point_fields import CellField, PointFields
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 #: Columns of the per-cell table, in order (the ``compute`` contract).
 CELL_COLUMNS: tuple[str, ...] = (
@@ -31,30 +31,36 @@ POINT_FIELD_NAMES: tuple[str, ...] = (
 NO_CELL = np.iinfo(np.int32).min
 
 
-def cell_columns(result: GridRoughness) -> dict[str, np.ndarray]:
+def cell_columns(result: GridRoughness, *, unit: str = "m") -> dict[str, np.ndarray]:
     """The per-cell table: one row per cell with at least ``min_points`` points.
 
     Columns :data:`CELL_COLUMNS`: cell index (``ix, iy, iz``), cell centre (``cx, cy,
-    cz``, metres), points in the cell, the roughness of each model and ``e_ols``
-    (metres, NaN where the cell has no value) and the cell's ODR unit normal.
+    cz``), points in the cell, the roughness of each model and ``e_ols`` (NaN where
+    the cell has no value) and the cell's ODR unit normal. Lengths in ``unit``
+    (default metres; ``rough_viewer.vocabulary.UNITS``).
     """
     keep = result.n_points >= result.min_points
+    per = UNIT_METRES[unit]
+
+    def length(v: np.ndarray) -> np.ndarray:
+        return v[keep] / per if per != 1.0 else v[keep]
+
     return {
         "ix": result.ijk[keep, 0], "iy": result.ijk[keep, 1], "iz": result.ijk[keep, 2],
-        "cx": result.centre[keep, 0], "cy": result.centre[keep, 1],
-        "cz": result.centre[keep, 2],
+        "cx": length(result.centre[:, 0]), "cy": length(result.centre[:, 1]),
+        "cz": length(result.centre[:, 2]),
         "n_points": result.n_points[keep],
-        "theta_odr": result.theta_odr[keep], "theta_ols": result.theta_ols[keep],
-        "theta_hybrid": result.theta_hybrid[keep], "e_ols": result.e_ols[keep],
+        "theta_odr": length(result.theta_odr), "theta_ols": length(result.theta_ols),
+        "theta_hybrid": length(result.theta_hybrid), "e_ols": length(result.e_ols),
         "normal_x": result.normal[keep, 0], "normal_y": result.normal[keep, 1],
         "normal_z": result.normal[keep, 2],
     }
 
 
-def table_metadata(result: GridRoughness, source: str = "") -> dict[str, str]:
+def table_metadata(result: GridRoughness, source: str = "", *, unit: str = "m") -> dict[str, str]:
     """Notes stored with a Parquet cell table: units and the grid's settings."""
     return {
-        "rough_viewer.units": "metres (theta_*, e_ols, cx, cy, cz)",
+        "rough_viewer.units": f"{'metres' if unit == 'm' else unit} (theta_*, e_ols, cx, cy, cz)",
         "rough_viewer.grid_size_m": repr(float(result.grid.cell_size)),
         "rough_viewer.origin_m": ",".join(repr(float(v)) for v in result.grid.origin),
         "rough_viewer.axis": result.axis,

@@ -18,16 +18,43 @@ grid ``Z`` (0 elsewhere), for every lag vector at once::
 
     N(h) = sum_x I(x) I(x + h)
     S(h) = sum_x I(x) I(x + h) (Z(x + h) - Z(x))^2
-         = C[I, Z^2](h) + C[I, Z^2](-h) - 2 C[Z, Z](h)
+         = C[I, Z^2](h) + C[Z^2, I](h) - 2 C[Z, Z](h)
 
 where ``C[A, B](h) = sum_x A(x) B(x + h)`` is a cross-correlation, computed with real
-FFTs of zero-padded grids (no wrap-around for the lags kept). Ordered pairs are then
-summed per bin of ``|h| g``; each unordered pair is seen twice (``h`` and ``-h``),
-which cancels in ``gamma`` and is divided out of the pair count. This is exact: the
-pair counts are whole numbers recovered by rounding, and ``gamma`` equals a
-brute-force loop over all pairs to round-off (the values are centred and scaled
-before the transforms to keep that round-off small). Cost: a few FFTs of the
-occupied bounding box padded by the largest lag kept, not ``O(M^2)``.
+FFTs. Ordered pairs are summed per bin of ``|h| g``; each unordered pair is seen
+twice (``h`` and ``-h``), which cancels in ``gamma`` and is divided out of the pair
+count. This is exact: the pair counts are whole numbers recovered by rounding, and
+``gamma`` equals a brute-force loop over all pairs to round-off (the values are
+centred and scaled before the transforms to keep that round-off small).
+
+Memory follows the occupied cells, not the bounding box (tiled FFT). The occupied
+cells are cut into cubic blocks of ``B`` cells a side; each occupied block is
+correlated with the cells within the largest lag ``r`` (in cells) around it, in an
+FFT frame of ``min(B + 2r, S) + r`` cells per axis (``S`` the extent of the map along
+that axis): the frame holds every partner of the block's cells at lags up to ``r``,
+and its zero margin keeps the circular correlation free of wrap-around. Summed over
+the blocks, every ordered pair within ``r`` is counted once. ``B`` is chosen among
+powers of two (and the whole extent: one block, the plain FFT of the box) to
+minimise the estimated time ``blocks x (frame volume, lag window)`` among the
+sizes that fit the memory budget, so a compact map costs one FFT of its box and
+two patches far apart cost two small frames, not the box between them.
+
+Few cells spread far apart are cheaper counted directly: every ordered pair, a
+chunk of rows at a time (time ``O(M^2)``, memory :data:`PAIR_CHUNK_BYTES` plus
+``O(M)``), exact at any lag. A cost model (:data:`FRAME_SECONDS`,
+:data:`PAIR_SECONDS`) picks the cheaper method; ``method=`` forces one.
+
+Cost of the FFT: time ``O(blocks x F log F)``, memory ``O(F + W + M)`` with ``F`` the frame
+volume (about :data:`BYTES_PER_FRAME_CELL` bytes per frame cell at the peak), ``W =
+prod(2 r_a + 1)`` the lag window (:data:`BYTES_PER_LAG` bytes each) and ``M`` the
+cells with a value. Both follow the occupied cells and the largest lag, never the
+distance between far-apart parts. The estimate is :func:`plan_semivariogram`'s
+``bytes``; it is checked with :func:`rough_viewer.memory.require` before anything
+large is allocated. With the default ``max_lag`` the lag is shortened (halved until
+the estimate fits :data:`MEMORY_BUDGET`, the available memory and
+:data:`TIME_BUDGET` seconds, unless the direct count fits that time at full lag) and
+the result says so (``lag_limited``); a ``max_lag`` given explicitly is never shortened, and
+one that cannot fit is an InputError.
 
 The face-plane variant (:func:`face_semivariogram`) is the 2-D analogue: cell
 centres are projected onto the plane of the face, rasterised at the cell size (the
@@ -37,15 +64,17 @@ mean of the cells falling into one pixel), and the same estimator runs on that
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
 
 from rough_viewer.grid.maps import Plane, face_raster
+from rough_viewer.memory import USABLE_SHARE, available_bytes, require
 from rough_viewer.vocabulary import InputError
 
 Space = Literal["3d", "plane"]
+Method = Literal["auto", "fft", "pairs"]
 
 
 @dataclass(frozen=True)
@@ -73,6 +102,75 @@ class Semivariogram:
     space: Space
     """``"3d"``: distances between cell centres in space; ``"plane"``: distances in
     the plane of the face after projection and rasterisation."""
+    lag_limited: bool = False
+    """True when the default max lag (half the map's extent) was shortened to fit in
+    memory: ``max_lag`` is then the lag actually reached."""
+
+
+#: Bytes per FFT frame cell at the peak of one block: the real frame, six half
+#: spectra (indicator, value, value squared of the block and of its surroundings),
+#: the combined spectrum and two inverse transforms.
+BYTES_PER_FRAME_CELL = 112
+#: Bytes per lag vector of the window: its bin index, mask and the two extracted sums.
+BYTES_PER_LAG = 40
+#: Bytes per cell with a value: indices, values and per-block selections.
+BYTES_PER_CELL = 96
+#: Most memory one semivariogram may take when its lag is chosen by default, bytes.
+MEMORY_BUDGET = 512 * 2**20
+#: Estimated seconds per FFT frame cell and block (eight real transforms), per lag
+#: vector and block (extracting and binning the window) and per ordered pair of the
+#: direct count (measured on the project's 2-core machine): the cost model that
+#: picks the method and, with the default lag, keeps a map's estimate under
+#: :data:`TIME_BUDGET` seconds.
+FRAME_SECONDS = 1.0e-7
+LAG_SECONDS = 1.5e-6
+PAIR_SECONDS = 1.2e-8
+TIME_BUDGET = 10.0
+#: Memory of one chunk of the direct pair count, bytes.
+PAIR_CHUNK_BYTES = 32 * 2**20
+
+
+@dataclass(frozen=True)
+class VariogramPlan:
+    """How a semivariogram will be computed and what it will cost (from
+    :func:`plan_semivariogram`)."""
+
+    n_bins: int
+    """Lag bins ``k = 1 .. n_bins``."""
+    max_lag: float
+    """Largest bin centre used, metres (shortened from the default when
+    ``lag_limited``)."""
+    lag_limited: bool
+    """True when the default max lag was shortened to fit memory."""
+    reach: tuple[int, ...]
+    """Largest lag in cells along each axis that can fall in a bin."""
+    block: tuple[int, ...]
+    """Block edge in cells along each axis."""
+    frame: tuple[int, ...]
+    """FFT frame length along each axis."""
+    n_blocks: int
+    """Occupied blocks (FFT frames computed)."""
+    bytes: float
+    """Estimated peak memory, bytes."""
+    method: Literal["fft", "pairs"] = "fft"
+    """``"fft"``: tiled FFT; ``"pairs"``: every pair counted directly, in chunks
+    (cheaper for few cells spread far apart)."""
+    seconds: float = 0.0
+    """Estimated time, seconds (cost model, not a promise)."""
+
+
+@dataclass(frozen=True)
+class _Cells:
+    """The cells with a value, indices shifted to start at 0."""
+
+    idx: np.ndarray
+    """(M, D) int64 indices, minimum 0 per axis."""
+    z: np.ndarray
+    """(M,) values."""
+    shape: tuple[int, ...]
+    """Extent of the occupied cells per axis (1 when there are none)."""
+    variance: float
+    """Population variance of the values (NaN when there are none)."""
 
 
 def semivariogram(
@@ -84,8 +182,11 @@ def semivariogram(
     max_lag: float | None = None,
     space: Space = "3d",
     workers: int | None = None,
+    method: Method = "auto",
 ) -> Semivariogram:
-    """Experimental semivariogram of a map on a regular grid, exact over all pairs.
+    """Experimental semivariogram of a map on a regular grid, exact over all pairs
+    up to the largest lag, with memory that follows the occupied cells (module
+    docstring: tiled FFT).
 
     Parameters
     ----------
@@ -102,18 +203,63 @@ def semivariogram(
         distances in ``[(k - 0.5) w, (k + 0.5) w)``.
     max_lag : float, optional
         Largest bin centre, metres; default half the longest side of the bounding
-        box of the cells with a value. Bins ``k = 1 .. floor(max_lag / w)``.
+        box of the cells with a value, shortened (``lag_limited``) when that cannot
+        fit in memory. Bins ``k = 1 .. floor(max_lag / w)``.
     space : {"3d", "plane"}
         Label stored in the result (say ``"plane"`` when ``ijk`` are face-plane
         pixels); the computation is the same.
     workers : int, optional
         Threads for :mod:`scipy.fft` (default: all cores).
+    method : {"auto", "fft", "pairs"}
+        Tiled FFT, direct pair count, or the cheaper by the cost model (default).
 
     Returns
     -------
     Semivariogram
         With no bins (K = 0) when fewer than two cells have a value.
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or an explicit ``max_lag`` whose computation cannot fit in
+        the available memory.
     """
+    cells = _finite_cells(ijk, values)
+    g, w = _check_sizes(cell_size, bin_width)
+    plan = _plan(cells, g, w, max_lag, method)
+    if plan.n_bins <= 0:
+        return _assemble(cells, plan, w, space, np.zeros(0), np.zeros(0))
+    require(plan.bytes, f"the semivariogram of {cells.z.size:,} cells at {g:g} m up to "
+            f"lag {plan.max_lag:g} m", hint="give a smaller max lag or a larger grid size")
+    if plan.method == "pairs":
+        ordered, sums = _pair_sums(cells, plan, g, w)
+    else:
+        ordered, sums = _lag_sums(cells, plan, g, w, workers)
+    return _assemble(cells, plan, w, space, ordered, sums)
+
+
+def plan_semivariogram(
+    ijk: np.ndarray,
+    values: np.ndarray,
+    cell_size: float,
+    *,
+    bin_width: float | None = None,
+    max_lag: float | None = None,
+    method: Method = "auto",
+) -> VariogramPlan:
+    """The plan :func:`semivariogram` would follow for these arguments: bins, the
+    (possibly shortened) max lag, blocks, FFT frame and the estimated peak memory in
+    bytes. Cheap: no transform is computed."""
+    cells = _finite_cells(ijk, values)
+    g, w = _check_sizes(cell_size, bin_width)
+    return _plan(cells, g, w, max_lag, method)
+
+
+# ----------------------------------------------------------------------------- stages
+
+
+def _finite_cells(ijk: np.ndarray, values: np.ndarray) -> _Cells:
+    """Stage 1: check the arguments, keep the cells with a finite value."""
     ijk = np.asarray(ijk)
     values = np.asarray(values, dtype=np.float64)
     if ijk.ndim != 2 or ijk.shape[1] not in (2, 3):
@@ -122,103 +268,197 @@ def semivariogram(
         raise InputError(f"values must have shape ({ijk.shape[0]},), got {values.shape}")
     if not np.issubdtype(ijk.dtype, np.integer):
         raise InputError("ijk must be an integer array of cell indices")
+    ok = np.isfinite(values)
+    idx = ijk[ok].astype(np.int64)
+    z = values[ok]
+    if z.size:
+        idx = idx - idx.min(axis=0)
+        shape = tuple(int(s) for s in idx.max(axis=0) + 1)
+    else:
+        shape = (1,) * ijk.shape[1]
+    variance = float(np.var(z)) if z.size else float("nan")
+    return _Cells(idx=idx, z=z, shape=shape, variance=variance)
+
+
+def _check_sizes(cell_size: float, bin_width: float | None) -> tuple[float, float]:
     g = float(cell_size)
     if not g > 0:
         raise InputError(f"cell_size must be positive, got {cell_size}")
     w = g if bin_width is None else float(bin_width)
     if not w > 0:
         raise InputError(f"bin_width must be positive, got {bin_width}")
+    return g, w
 
-    ok = np.isfinite(values)
-    idx = ijk[ok].astype(np.int64)
-    z = values[ok]
-    m = int(z.size)
-    variance = float(np.var(z)) if m else float("nan")
 
-    if m:
-        lo = idx.min(axis=0)
-        idx = idx - lo
-        shape = tuple(int(s) for s in idx.max(axis=0) + 1)
-    else:
-        shape = (1,) * ijk.shape[1]
-    if max_lag is None:
-        max_lag = 0.5 * max(shape) * g
-    n_bins = int(np.floor(max_lag / w + 1e-9)) if m >= 2 else 0
+def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
+          method: Method = "auto") -> VariogramPlan:
+    """Stage 2: bins, the cheaper method (tiled FFT or direct pairs) by the cost
+    model, and the memory estimate; the default max lag halved until the FFT plan
+    fits the memory and time budgets."""
+    explicit = max_lag is not None
+    lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
+    m = int(cells.z.size)
+    limited = False
+    budget = float(MEMORY_BUDGET)
+    avail = available_bytes()
+    if avail is not None:
+        budget = min(budget, USABLE_SHARE * avail)
+    pair_seconds = PAIR_SECONDS * m * max(m - 1, 0)
+    while True:
+        n_bins = int(np.floor(lag / w + 1e-9)) if m >= 2 else 0
+        if n_bins <= 0:
+            return VariogramPlan(n_bins=0, max_lag=lag, lag_limited=limited, reach=(),
+                                 block=(), frame=(), n_blocks=0, bytes=0.0)
+        plan = _blocks(cells, g, w, n_bins, lag, limited, budget)
+        pairs = replace(plan, method="pairs", seconds=pair_seconds, n_blocks=0, frame=(),
+                        bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m)
+        cheaper = pair_seconds <= plan.seconds
+        if method == "pairs" or (method == "auto" and cheaper
+                                 and (explicit or pair_seconds <= TIME_BUDGET or n_bins == 1)):
+            return pairs
+        fits = plan.bytes <= budget and plan.seconds <= TIME_BUDGET
+        if explicit or fits or n_bins == 1:
+            return plan
+        lag = max(w, 0.5 * lag)
+        limited = True
 
-    if n_bins <= 0:
-        empty = np.zeros(0)
-        return Semivariogram(
-            lag=empty, gamma=empty, gamma_normalised=empty,
-            pairs=np.zeros(0, dtype=np.int64), variance=variance, n_cells=m,
-            bin_width=w, max_lag=float(max_lag), space=space,
-        )
 
+def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
+            limited: bool, budget: float = np.inf) -> VariogramPlan:
+    """The block edge (a power of two or the whole extent) that minimises the
+    estimated time ``blocks x (frame volume, lag window)`` for this reach among those
+    whose memory estimate fits ``budget`` bytes (the cheapest overall when none fits)."""
     import scipy.fft  # here, not on import: loading it costs 0.2 s of every command's start
 
-    # Largest lag (in cells) along any axis that can fall in a bin.
-    reach = int(np.floor((n_bins + 0.5) * w / g))
-    lags = tuple(min(n - 1, reach) for n in shape)
-    padded = tuple(scipy.fft.next_fast_len(n + lag, real=True) for n, lag in zip(shape, lags, strict=True))
+    reach_all = int(np.floor((n_bins + 0.5) * w / g))
+    reach = tuple(min(s - 1, reach_all) for s in cells.shape)
+    window = float(np.prod([2 * r + 1 for r in reach]))
+    longest = max(cells.shape)
+    sizes = sorted({*(1 << k for k in range(2, max(2, longest.bit_length()) + 1)), longest})
+    best: VariogramPlan | None = None
+    best_cost = np.inf
+    best_fits = False
+    for b in sizes:
+        block = tuple(min(b, s) for s in cells.shape)
+        frame = tuple(
+            scipy.fft.next_fast_len(min(bl + 2 * r, s) + r, real=True)
+            for bl, r, s in zip(block, reach, cells.shape, strict=True)
+        )
+        n_blocks = int(np.unique(cells.idx // np.array(block), axis=0).shape[0])
+        volume = float(np.prod(frame))
+        cost = n_blocks * (FRAME_SECONDS * volume + LAG_SECONDS * window)
+        est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
+        fits = est <= budget
+        if (fits and not best_fits) or (fits == best_fits and cost < best_cost):
+            best_cost, best_fits = cost, fits
+            best = VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=limited, reach=reach,
+                                 block=block, frame=frame, n_blocks=n_blocks, bytes=est,
+                                 seconds=cost)
+    assert best is not None
+    return best
 
+
+def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
+              workers: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 3: ordered pair counts and sums of squared differences per lag bin,
+    block by block (tiled FFT cross-correlations)."""
+    import scipy.fft  # here, not on import (see _blocks)
+
+    n_bins = plan.n_bins
+    reach = np.array(plan.reach)
+    block = np.array(plan.block)
+    shape = np.array(cells.shape)
+    frame = plan.frame
+    axes = tuple(range(len(frame)))
     # Centre and scale so that the FFT round-off is small relative to the differences.
-    scale = float(np.std(z))
-    if not scale > 0:
-        scale = 1.0
-    zc = (z - z.mean()) / scale
-
-    flat = np.ravel_multi_index(idx.T, padded)
-    grid = np.zeros(padded)
-    axes = tuple(range(len(padded)))
-
-    def forward(a: np.ndarray) -> np.ndarray:
-        return scipy.fft.rfftn(a, s=padded, axes=axes, workers=workers)
-
-    def backward(spec: np.ndarray) -> np.ndarray:
-        return scipy.fft.irfftn(spec, s=padded, axes=axes, workers=workers)
-
-    # Window of lag vectors -lags..lags per axis (negative lags wrap around).
-    window = np.ix_(*[np.r_[0 : lag + 1, -lag:0] for lag in lags])
-    offsets = np.ix_(*[np.r_[0 : lag + 1, -lag:0].astype(np.float64) for lag in lags])
-
-    grid.flat[flat] = 1.0
-    f_ind = forward(grid)
-    counts = np.rint(backward(f_ind * f_ind.conj())[window])
-
-    grid.flat[flat] = zc * zc
-    cross = f_ind.conj() * forward(grid)
-    del f_ind
-    grid.flat[flat] = zc
-    f_val = forward(grid)
-    cross -= f_val * f_val.conj()
-    del f_val, grid
-    # S(h) + S(-h) over the window; S is symmetric in h, so summing over the
-    # symmetric window gives 2 * sum_bin [C_IZ2(h) - C_ZZ(h)] = sum_bin S(h).
-    sums = 2.0 * backward(cross)[window]
-    del cross
-
-    h2 = sum(o * o for o in offsets)
-    k = np.floor(np.sqrt(h2) * (g / w) + 0.5).astype(np.int64)
+    scale = float(np.std(cells.z)) or 1.0
+    zc = (cells.z - cells.z.mean()) / scale
+    # Lag window -reach..reach per axis (negative lags wrap around) and its bins.
+    window = np.ix_(*[np.r_[0 : r + 1, -r:0] for r in plan.reach])
+    offsets = np.ix_(*[np.r_[0 : r + 1, -r:0].astype(np.float64) for r in plan.reach])
+    k = np.floor(np.sqrt(sum(o * o for o in offsets)) * (g / w) + 0.5).astype(np.int64)
     keep = (k >= 1) & (k <= n_bins)
     kb = k[keep]
-    ordered = np.bincount(kb, weights=counts[keep], minlength=n_bins + 1)[1:]
-    ssum = np.bincount(kb, weights=sums[keep], minlength=n_bins + 1)[1:]
+    del k
+    ordered = np.zeros(n_bins)
+    sums = np.zeros(n_bins)
 
+    def spectrum(where: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
+        grid = np.zeros(frame)
+        grid.flat[where] = 1.0 if weights is None else weights
+        return scipy.fft.rfftn(grid, s=frame, axes=axes, workers=workers)
+
+    def back(spec: np.ndarray) -> np.ndarray:
+        return scipy.fft.irfftn(spec, s=frame, axes=axes, workers=workers)[window][keep]
+
+    block_of = cells.idx // block
+    for b in np.unique(block_of, axis=0):
+        lo = np.maximum(b * block - reach, 0)       # frame origin (cells)
+        hi = np.minimum((b + 1) * block + reach, shape)
+        inside = np.all(block_of == b, axis=1)
+        around = np.all((cells.idx >= lo) & (cells.idx < hi), axis=1)
+        a_flat = np.ravel_multi_index((cells.idx[inside] - lo).T, frame)
+        e_flat = np.ravel_multi_index((cells.idx[around] - lo).T, frame)
+        za, ze = zc[inside], zc[around]
+        fa_i, fe_i = spectrum(a_flat, None), spectrum(e_flat, None)
+        ordered += np.bincount(kb, weights=np.rint(back(fa_i.conj() * fe_i)),
+                               minlength=n_bins + 1)[1:]
+        # S = C[I_A, Z2_E] + C[Z2_A, I_E] - 2 C[Z_A, Z_E]
+        cross = spectrum(a_flat, za * za).conj() * fe_i
+        del fe_i
+        cross += fa_i.conj() * spectrum(e_flat, ze * ze)
+        del fa_i
+        cross -= 2.0 * spectrum(a_flat, za).conj() * spectrum(e_flat, ze)
+        sums += np.bincount(kb, weights=back(cross), minlength=n_bins + 1)[1:]
+        del cross
+    return ordered, sums * scale * scale
+
+
+def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float,
+               w: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 3 for few, scattered cells: every ordered pair counted directly, a
+    chunk of rows at a time (memory :data:`PAIR_CHUNK_BYTES`)."""
+    n_bins = plan.n_bins
+    m = int(cells.z.size)
+    pos = cells.idx.astype(np.float64)
+    z = cells.z - cells.z.mean()
+    rows = max(1, int(PAIR_CHUNK_BYTES // (48 * max(m, 1))))
+    ordered = np.zeros(n_bins + 1)
+    sums = np.zeros(n_bins + 1)
+    for start in range(0, m, rows):
+        sl = slice(start, min(start + rows, m))
+        d2 = np.zeros((sl.stop - sl.start, m))
+        for a in range(pos.shape[1]):
+            d2 += (pos[sl, a, None] - pos[None, :, a]) ** 2
+        k = np.floor(np.sqrt(d2) * (g / w) + 0.5).astype(np.int64)
+        del d2
+        keep = (k >= 1) & (k <= n_bins)
+        diff2 = (z[sl, None] - z[None, :]) ** 2
+        ordered += np.bincount(k[keep], minlength=n_bins + 1)
+        sums += np.bincount(k[keep], weights=diff2[keep], minlength=n_bins + 1)
+    return ordered[1:], sums[1:]
+
+
+def _assemble(cells: _Cells, plan: VariogramPlan, w: float, space: Space,
+              ordered: np.ndarray, sums: np.ndarray) -> Semivariogram:
+    """Stage 4: gamma, pair counts and the normalised curve."""
+    n_bins = plan.n_bins
     pairs = np.rint(ordered / 2.0).astype(np.int64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        gamma_scaled = np.where(ordered > 0, np.maximum(ssum, 0.0) / (2.0 * ordered), np.nan)
-    gamma = gamma_scaled * scale * scale
-    with np.errstate(invalid="ignore", divide="ignore"):
-        gamma_normalised = gamma / variance if variance > 0 else np.full(n_bins, np.nan)
+        gamma = np.where(ordered > 0, np.maximum(sums, 0.0) / (2.0 * ordered), np.nan)
+        gamma_normalised = (gamma / cells.variance if cells.variance > 0
+                            else np.full(n_bins, np.nan))
     return Semivariogram(
         lag=np.arange(1, n_bins + 1) * w,
         gamma=gamma,
         gamma_normalised=gamma_normalised,
         pairs=pairs,
-        variance=variance,
-        n_cells=m,
+        variance=cells.variance,
+        n_cells=int(cells.z.size),
         bin_width=w,
-        max_lag=float(max_lag),
+        max_lag=float(plan.max_lag),
         space=space,
+        lag_limited=plan.lag_limited,
     )
 
 

@@ -9,9 +9,10 @@ that names it.
 
 from rough_viewer.io.cache import cache_dir
 from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.crs import CrsInfo, read_crs
 from rough_viewer.io.las import load_las_with_extra, read_las_extra, write_las
 from rough_viewer.io.las_out import write_las_fields
-from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points
+from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points, resolve_units
 from rough_viewer.io.ply import write_ply_fields
 from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.io.table import write_table
@@ -20,12 +21,15 @@ __all__ = [
     "SUPPORTED_SUFFIXES",
     "TEXT_SUFFIXES",
     "CellField",
+    "CrsInfo",
     "PointCloud",
     "PointFields",
     "cache_dir",
     "load_las_with_extra",
     "load_points",
+    "read_crs",
     "read_las_extra",
+    "resolve_units",
     "write_las",
     "write_las_fields",
     "write_ply_fields",

@@ -93,6 +93,8 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
 def _las_crs(p: Path) -> CrsInfo:
     import laspy
 
+    if not p.is_file():
+        raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
     try:
         with laspy.open(p) as reader:
             records = list(reader.header.vlrs) + list(reader.header.evlrs or [])

@@ -52,8 +52,9 @@ def data_point_capacity(p: Path, header, laz_vlr=None) -> tuple[int, bool]:
     """How many points the file's point data can hold, judged from the data, not
     the header's count: ``(count, exact)``.
 
-    LAS: the bytes between the start of the point data and the first extended VLR
-    (or the end of the file), divided by the record length (exact). LAZ: the chunk
+    LAS: the bytes between the start of the point data and the first extended VLR,
+    the internal waveform packets or the end of the file, divided by the record
+    length (exact). LAZ: the chunk
     table's point counts (exact for variable-size chunks such as COPC, an upper
     bound of ``chunks x chunk size`` for fixed-size chunks); ``laz_vlr`` is the
     file's ``lazrs.LazVlr``. ``(-1, False)`` when the data cannot be measured (no
@@ -66,6 +67,9 @@ def data_point_capacity(p: Path, header, laz_vlr=None) -> tuple[int, bool]:
         first_evlr = int(getattr(header, "start_of_first_evlr", 0) or 0)
         if getattr(header, "number_of_evlrs", 0) and start < first_evlr <= size:
             end = first_evlr
+        waveforms = int(getattr(header, "start_of_waveform_data_packet_record", 0) or 0)
+        if start < waveforms < end:  # LAS 1.3 waveform packets stored after the points
+            end = waveforms
         return max(0, end - start) // int(header.point_format.size), True
     if laz_vlr is None:
         return -1, False
@@ -94,6 +98,35 @@ def _laz_vlr(header):
         return None
 
 
+def check_header(p: Path, header, *, extra_bytes_per_point: int = 0) -> tuple[int, list[str]]:
+    """The number of points to read and warnings, after checking the header's count
+    against the data (:func:`data_point_capacity`) and against available memory.
+
+    Raises
+    ------
+    InputError
+        The header declares more points than the data hold, or they cannot fit.
+    """
+    n = int(header.point_count)
+    laz_vlr = _laz_vlr(header)
+    capacity, exact = data_point_capacity(p, header, laz_vlr)
+    if capacity >= 0 and n > capacity:
+        raise InputError(
+            f"the header of {p} declares {n:,} points but its point data hold "
+            f"{'' if exact else 'at most '}{capacity:,}: the file is truncated or damaged"
+        )
+    warnings = []
+    chunk_size = int(laz_vlr.chunk_size()) if laz_vlr is not None else 1
+    if capacity > n and (exact or capacity - n >= chunk_size):
+        warnings.append(
+            f"the header of {p} declares {n:,} points but its point data hold "
+            f"{'' if exact else 'up to '}{capacity:,}; only the declared {n:,} were read"
+        )
+    require(n * (READ_BYTES_PER_POINT + extra_bytes_per_point), f"reading {n:,} points from {p}",
+            hint="use a smaller file or a machine with more memory")
+    return n, warnings
+
+
 def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud:
     """Read a LAS/LAZ (COPC included: read as plain LAZ) file's x, y, z (metres as
     stored), intensity and RGB (where the point format has them).
@@ -111,27 +144,11 @@ def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud
             if progress:
                 progress(cached.n, cached.n)
             return cached
-    warnings: list[str] = []
     # laspy reads the header on open and builds the decoder on the first read, so
     # the data are measured and the decompression selection set in between.
     with laspy.open(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
-        laz_vlr = _laz_vlr(hdr)
-        n = int(hdr.point_count)
-        capacity, exact = data_point_capacity(p, hdr, laz_vlr)
-        if capacity >= 0 and n > capacity:
-            raise InputError(
-                f"the header of {p} declares {n:,} points but its point data hold "
-                f"{'' if exact else 'at most '}{capacity:,}: the file is truncated or damaged"
-            )
-        chunk_size = int(laz_vlr.chunk_size()) if laz_vlr is not None else 1
-        if capacity > n and (exact or capacity - n >= chunk_size):
-            warnings.append(
-                f"the header of {p} declares {n:,} points but its point data hold "
-                f"{'' if exact else 'up to '}{capacity:,}; only the declared {n:,} were read"
-            )
-        require(n * READ_BYTES_PER_POINT, f"reading {n:,} points from {p}",
-                hint="use a smaller file or a machine with more memory")
+        n, warnings = check_header(p, hdr)
         reader.decompression_selection = _selection(hdr.point_format)
         has_rgb = "red" in hdr.point_format.dimension_names
         scale = np.asarray(hdr.scales, dtype=np.float64)
@@ -238,7 +255,12 @@ def load_las_with_extra(
     p = Path(path)
     try:
         with laspy.open(p, laz_backend=laz_backend()) as reader:
+            # the whole record is decoded too
+            check_header(p, reader.header,
+                         extra_bytes_per_point=int(reader.header.point_format.size))
             las = reader.read()
+    except InputError:
+        raise
     except Exception as exc:  # laspy and lazrs raise their own types
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read {p}: {msg}") from None

@@ -46,12 +46,18 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from rough_viewer.grid.planes import fit_plane
+from rough_viewer.grid.spacing import neighbour_distance
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
 _SPACING_NEIGHBOUR = 4
 _SPACING_SAMPLE = 5000
 _STRIP_POINTS = 50000
 DEFAULT_MAX_GAP_SPACINGS = 3.0
+
+#: Bytes per profile sample at the peak of resampling (positions, heights, counts,
+#: bin sums and the interpolation's temporaries).
+PROFILE_BYTES_PER_SAMPLE = 10 * 8
 
 
 @dataclass(frozen=True)
@@ -170,19 +176,11 @@ def segment_distance(xyz: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.
 
 def point_spacing(xyz: np.ndarray, *, k: int = _SPACING_NEIGHBOUR) -> float:
     """Median distance from the points (N, 2 or 3) to their ``k``-th nearest neighbour,
-    metres.
+    metres (:func:`rough_viewer.grid.spacing.neighbour_distance`, the one definition).
 
     At most 5000 evenly strided points are queried (against all points).
     """
-    if xyz.shape[0] <= k:
-        raise InputError(f"need more than {k} points to estimate the point spacing")
-    tree = cKDTree(xyz)
-    step = max(1, xyz.shape[0] // _SPACING_SAMPLE)
-    dist, _ = tree.query(xyz[::step], k=k + 1)
-    value = float(np.median(dist[:, k]))
-    if not value > 0:
-        raise InputError("points are coincident: cannot estimate the point spacing")
-    return value
+    return neighbour_distance(xyz, k=k)
 
 
 def _strip_spacing(along: np.ndarray, across: np.ndarray) -> float:
@@ -368,6 +366,8 @@ def extract_profile(
     n_samples = int(np.rint(length / step)) + 1
     if n_samples < 2:
         raise InputError(f"line ({length:.4g} m) shorter than one sample spacing ({step:.4g} m)")
+    require(n_samples * PROFILE_BYTES_PER_SAMPLE, f"a profile of {n_samples:,} samples at "
+            f"{step:.4g} m", hint="choose a larger spacing or a shorter line")
     in_band = (np.abs(across) <= band) & (along >= -0.5 * step)
     in_band &= np.rint(along / step) <= n_samples - 1
     if np.count_nonzero(in_band) < 3:

@@ -64,6 +64,9 @@ class RoughnessLength:
     """Sample spacing, metres."""
     ndim: Literal[1, 2]
     """1 for a profile, 2 for a patch."""
+    warnings: tuple[str, ...] = ()
+    """Plausibility warnings, one line each: a dimension outside ``[1, 2]`` (profile)
+    or ``[2, 3]`` (patch) says the fit measured something else than roughness."""
 
 
 # ----------------------------------------------------------------------------- windows
@@ -112,6 +115,8 @@ def _fit(
     return RoughnessLength(
         hurst=float(slope),
         dimension=float(top - slope),
+        warnings=plausibility(float(top - slope), float(slope), ndim, int(m[ok].min()),
+                              int(m[ok].max())),
         amplitude=float(np.exp(intercept)),
         r2=r2,
         windows=w,
@@ -121,6 +126,48 @@ def _fit(
         spacing=float(spacing),
         ndim=ndim,
     )
+
+
+def plausibility(dimension: float, hurst: float, ndim: Literal[1, 2], m_min: int,
+                 m_max: int) -> tuple[str, ...]:
+    """Warnings for a fractal dimension outside its range (``[1, 2]`` for a profile,
+    ``[2, 3]`` for a patch), with the likely cause and what to do."""
+    lo = 1.0 if ndim == 1 else 2.0
+    what = "profile" if ndim == 1 else "patch"
+    if dimension < lo:
+        return (f"fractal dimension D = {dimension:.2f} is below {lo:g} (H = {hurst:.2f} > 1): "
+                f"s(w) grows faster than the window, the mark of a trend or curvature in the "
+                f"{what} that each window's linear detrending does not remove; remove the trend "
+                "first (profiles.fractal.detrend, or --detrend 2 on the command line)",)
+    if dimension > lo + 1.0:
+        return (f"fractal dimension D = {dimension:.2f} is above {lo + 1:g} (H = {hurst:.2f} < 0): "
+                f"s(w) falls as the window grows, so the {what} is too short for these windows "
+                f"({m_min}-{m_max} samples) or noise dominates it; use a longer {what}, larger "
+                "windows or de-noise it first",)
+    return ()
+
+
+def detrend(heights: np.ndarray, spacing: float, *, degree: int = 2) -> np.ndarray:
+    """Heights minus their least-squares polynomial trend of ``degree`` along the
+    profile (NaN samples ignored in the fit and kept as NaN), metres.
+
+    >>> x = np.arange(50) * 0.01
+    >>> bool(np.allclose(detrend(3 + 2 * x + 5 * x**2, 0.01), 0.0))
+    True
+    """
+    h = np.asarray(heights, dtype=float)
+    if h.ndim != 1:
+        raise InputError(f"a profile must be one-dimensional, got shape {h.shape}")
+    if degree < 0:
+        raise InputError(f"detrend degree must be >= 0, got {degree}")
+    spacing = _check_spacing(spacing)
+    x = np.arange(h.size) * spacing
+    ok = np.isfinite(h)
+    if np.count_nonzero(ok) <= degree:
+        raise InputError(f"need more than {degree} finite samples to remove a degree-{degree} trend")
+    centre, width = x[ok].mean(), max(float(np.ptp(x[ok])), spacing)
+    coef = np.polynomial.polynomial.polyfit((x[ok] - centre) / width, h[ok], degree)
+    return h - np.polynomial.polynomial.polyval((x - centre) / width, coef)
 
 
 def _scale(a: np.ndarray) -> float:

@@ -8,14 +8,16 @@ import datetime as _dt
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 from rough_viewer import __version__
-from rough_viewer.grid.maps import FaceMaps, face_maps, face_raster
+from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, grid_roughness
+from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.grid.zones import ZoneLabeller, Zones
@@ -23,14 +25,18 @@ from rough_viewer.io.cloud import PointCloud
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
+    DEFAULT_MIN_POINTS,
     HISTOGRAM_BIN,
     MAPS,
-    PAPER_GRIDS,
+    UNIT_LABELS,
+    UNIT_METRES,
     Connectivity,
     InputError,
     MapName,
     ProgressFn,
 )
+
+_T = TypeVar("_T")
 
 MIN_CELLS = 10
 """A grid size leaving fewer cells with an ODR value than this is reported, not drawn."""
@@ -62,6 +68,10 @@ class GridSection:
     """Zones of the ODR map at the report's threshold."""
     stereonet: Stereonet | None = None
     """Poles of every cell's ODR plane."""
+    figure_errors: dict[str, str] = field(default_factory=dict)
+    """Figures that could not be made (``"variogram"``, ``"maps"``, ``"zones"``,
+    ``"stereonet"``), each with why; the rest of the section (Table 1, histograms,
+    other figures) stands."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +103,13 @@ class Report:
     """Zones of fewer cells are dropped."""
     connectivity: Connectivity = "vertex"
     """Which cells of a zone touch."""
+    unit: str = "m"
+    """Unit every length and roughness is shown in (the numbers here are metres)."""
+    grids_chosen: str = "given"
+    """``"given"`` or ``"default"``: sizes from the point spacing
+    (:func:`rough_viewer.grid.spacing.preset_cell_sizes`)."""
+    warnings: tuple[str, ...] = ()
+    """What the reader and the report noticed (one line each)."""
 
 
 def _section(
@@ -122,45 +139,77 @@ def _section(
                    "points); use a smaller grid size"),
             result=result,
         )
-    raster = face_raster(result.centre, plane, g)
     summaries: dict[str, Summary] = {}
     histograms: dict[str, Histogram] = {}
-    variograms: dict[str, Semivariogram] = {}
-    maps: dict[str, FaceMaps] = {}
+    normalised: dict[str, np.ndarray] = {}
     for name in MAPS:
-        values = result.values(name)
-        norm = normalise(values)
         summaries[name] = summarise(result, name)
-        histograms[name] = histogram(norm, HISTOGRAM_BIN)
-        try:
-            variograms[name] = semivariogram(result.ijk, values, g)
-        except MemoryError:
-            shape = tuple(int(v) for v in np.ptp(result.ijk, axis=0) + 1)
-            return GridSection(
-                grid_size=g, result=result,
-                error=(f"not enough memory for the semivariogram of the occupied box "
-                       f"{shape[0]} x {shape[1]} x {shape[2]} cells; use a larger grid size"),
-            )
-        maps[name] = face_maps(raster, norm, threshold=threshold)
+        normalised[name] = normalise(result.values(name))
+        histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
+    figure_errors: dict[str, str] = {}
+    variograms = _figure(figure_errors, "variogram", g, lambda: {
+        str(name): semivariogram(result.ijk, result.values(name), g) for name in MAPS})
+    for _ in MAPS:
         tick()
-    zones = ZoneLabeller.build(result, ZONES_MAP).zones(
-        threshold, connectivity=connectivity, min_cells=min_cells)
-    net = cell_stereonet(result)
+    maps = _figure(figure_errors, "maps", g,
+                   lambda: _face_maps(result, plane, normalised, threshold))
+    zones = _figure(figure_errors, "zones", g, lambda: ZoneLabeller.build(result, ZONES_MAP)
+                    .zones(threshold, connectivity=connectivity, min_cells=min_cells))
+    net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
     tick()
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
-                       variograms=variograms, maps=maps, zones=zones, stereonet=net)
+                       variograms=variograms or {}, maps=maps or {}, zones=zones,
+                       stereonet=net, figure_errors=figure_errors)
+
+
+#: Most pixels of one face-plane image. A face whose image at the grid size would be
+#: larger (parts far apart, a long face at a fine grid) is rasterised at 2, 4, 8 ...
+#: times the grid size, each pixel the max of the cells in it: the same picture the
+#: figure would draw after block reduction, without the dense image in between.
+FACE_IMAGE_MAX_PIXELS = 4_000_000
+
+
+def report_raster(result: GridRoughness, plane: PlaneFit) -> FaceRaster:
+    """The face-plane raster of a result's cells for the report's images: pixels of
+    the grid size, or of 2, 4, 8 ... times it when the image would exceed
+    :data:`FACE_IMAGE_MAX_PIXELS` (each pixel then shows the max of its cells)."""
+    g = result.grid.cell_size
+    raster = face_raster(result.centre, plane, g)
+    k = 1
+    while (raster.shape[0] // k + 1) * (raster.shape[1] // k + 1) > FACE_IMAGE_MAX_PIXELS:
+        k *= 2
+    return raster if k == 1 else face_raster(result.centre, plane, g * k)
+
+
+def _face_maps(result: GridRoughness, plane: PlaneFit, normalised: dict[str, np.ndarray],
+               threshold: float) -> dict[str, FaceMaps]:
+    raster = report_raster(result, plane)
+    return {str(name): face_maps(raster, normalised[name], threshold=threshold) for name in MAPS}
+
+
+def _figure(errors: dict[str, str], key: str, g: float, make: Callable[[], _T]) -> _T | None:
+    """Make one figure's numbers; a failure (memory or bad input) is recorded in
+    ``errors`` and never takes the rest of the section with it."""
+    try:
+        return make()
+    except InputError as exc:
+        errors[key] = str(exc)
+    except MemoryError:
+        errors[key] = f"not enough memory for the {key} at grid {g:g} m; use a larger grid size"
+    return None
 
 
 def build_report(
     cloud: PointCloud,
-    grid_sizes: Sequence[float] = PAPER_GRIDS,
+    grid_sizes: Sequence[float] | None = None,
     *,
     axis: str = "auto",
     threshold: float = 0.05,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     min_cells: int = DEFAULT_MIN_CELLS,
     connectivity: Connectivity = "vertex",
+    unit: str | None = None,
     progress: ProgressFn | None = None,
 ) -> Report:
     """Compute every number of the report.
@@ -169,8 +218,11 @@ def build_report(
     ----------
     cloud : PointCloud
         The points, metres.
-    grid_sizes : sequence of float
-        Cell edges, metres (default the paper's 1, 0.5, 0.25, 0.125).
+    grid_sizes : sequence of float, optional
+        Cell edges, metres; default from the point spacing
+        (:func:`rough_viewer.grid.spacing.preset_cell_sizes`: the size at which the
+        median occupied cell holds 16 points, times 8, 4, 2 and 1). The paper's are
+        :data:`rough_viewer.vocabulary.PAPER_GRIDS`.
     axis : {"auto", "x", "y", "z"}
         Dependent axis of OLS and hybrid.
     threshold : float
@@ -182,6 +234,9 @@ def build_report(
         dropped.
     connectivity : {"vertex", "edge", "face"}
         Which cells of a zone touch.
+    unit : {"m", "mm", "ft", "us-ft"}, optional
+        Unit to show lengths in (default: the unit the file was in,
+        ``cloud.source_unit``); the numbers stay metres.
     progress : callable, optional
         ``progress(done, total)`` over all steps of all grid sizes.
 
@@ -197,6 +252,9 @@ def build_report(
         raise InputError(f"unknown connectivity {connectivity!r}; expected vertex, edge or face")
     if int(min_cells) != min_cells or min_cells < 1:
         raise InputError(f"min cells must be a whole number >= 1, got {min_cells}")
+    chosen = "given" if grid_sizes is not None else "default"
+    if grid_sizes is None:
+        grid_sizes = preset_cell_sizes(cloud)
     sizes = list(dict.fromkeys(float(g) for g in grid_sizes))
     total = STEPS_PER_GRID * len(sizes)
     done = base = 0
@@ -232,6 +290,7 @@ def build_report(
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
+    display_unit = unit or cloud.source_unit
     return Report(
         name=Path(cloud.source).name if cloud.source else "in-memory cloud",
         source=cloud.source,
@@ -248,4 +307,26 @@ def build_report(
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         min_cells=int(min_cells),
         connectivity=connectivity,
+        unit=display_unit,
+        grids_chosen=chosen,
+        warnings=cloud.warnings + _coverage_warnings(sections, display_unit),
     )
+
+
+#: Share of occupied cells with an ODR value below which a grid is called sparse.
+SPARSE_SHARE = 0.5
+
+
+def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...]:
+    """A line for every grid where most occupied cells have no value."""
+    out = []
+    for s in sections:
+        if s.result is None:
+            continue
+        rep = s.result.cell_report("odr")
+        if rep["occupied"] and rep["with_value"] < SPARSE_SHARE * rep["occupied"]:
+            size = s.grid_size / UNIT_METRES[unit]
+            out.append(f"grid {size:g} {UNIT_LABELS[unit]}: only {rep['with_value']:,} of "
+                       f"{rep['occupied']:,} occupied cells have a value (too few points per "
+                       "cell); a larger grid size gives a fuller map")
+    return tuple(out)

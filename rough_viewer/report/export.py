@@ -26,10 +26,11 @@ from rough_viewer.report.numbers import report_json
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
     DEFAULT_THRESHOLD,
-    PAPER_GRIDS,
+    UNITS,
     AxisChoice,
     InputError,
     ProgressFn,
+    Unit,
 )
 
 ReportFormat = Literal["html", "json"]
@@ -41,21 +42,29 @@ class ReportSettings:
 
     min_points: int
     """Cells with fewer points get no value."""
-    grid_sizes: tuple[float, ...] = PAPER_GRIDS
-    """Cell edges, metres, one report section each (default the 2011 paper's)."""
+    grid_sizes: tuple[float, ...] | None = None
+    """Cell edges, metres, one report section each; None (default): from the point
+    spacing (:func:`rough_viewer.grid.spacing.preset_cell_sizes`: the size at which
+    the typical occupied cell holds 16 points, times 8, 4, 2 and 1). The 2011 paper's
+    are :data:`rough_viewer.vocabulary.PAPER_GRIDS`."""
     axis: AxisChoice = "auto"
     """Dependent axis of OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
     threshold: float = DEFAULT_THRESHOLD
     """Binary-transform threshold on normalised roughness, in [0, 1]."""
+    unit: Unit | None = None
+    """Unit lengths are shown in (default: the unit the file was in,
+    ``PointCloud.source_unit``); the numbers stay metres."""
 
     def check(self) -> None:
         """Raise InputError (one line, named as the command-line option) for a setting
         the report cannot use."""
-        if not self.grid_sizes:
+        if self.grid_sizes is not None and not self.grid_sizes:
             raise InputError("a report needs at least one grid size")
-        for g in self.grid_sizes:
+        for g in self.grid_sizes or ():
             if not (isinstance(g, int | float) and math.isfinite(g) and g > 0):
                 raise InputError(f"grid size must be a positive number of metres, got {g!r}")
+        if self.unit is not None and self.unit not in UNITS:
+            raise InputError(f"unknown unit {self.unit!r}; expected one of {', '.join(UNITS)}")
         if self.axis not in AXIS_CHOICES:
             raise InputError(f"unknown dependent axis {self.axis!r}; expected one of "
                              f"{', '.join(AXIS_CHOICES)}")
@@ -71,9 +80,10 @@ def compute_report(cloud: PointCloud, settings: ReportSettings, *,
                    progress: ProgressFn | None = None) -> Report:
     """Every number of the report of ``cloud`` with ``settings`` (checked first)."""
     settings.check()
-    return build_report(cloud, list(dict.fromkeys(float(g) for g in settings.grid_sizes)),
-                        axis=settings.axis, threshold=settings.threshold,
-                        min_points=settings.min_points, progress=progress)
+    grids = (None if settings.grid_sizes is None
+             else list(dict.fromkeys(float(g) for g in settings.grid_sizes)))
+    return build_report(cloud, grids, axis=settings.axis, threshold=settings.threshold,
+                        min_points=settings.min_points, unit=settings.unit, progress=progress)
 
 
 def report_page(cloud: PointCloud, settings: ReportSettings, *,

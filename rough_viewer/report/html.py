@@ -9,15 +9,31 @@ from typing import Any
 import numpy as np
 
 from rough_viewer.grid.maps import face_frame
-from rough_viewer.report.build import FACE_MAP_ORDER, VARIOGRAM_FIGURE_MAPS, GridSection, Report
+from rough_viewer.report.build import (
+    FACE_MAP_ORDER,
+    VARIOGRAM_FIGURE_MAPS,
+    GridSection,
+    Report,
+    report_raster,
+)
 from rough_viewer.visual.colormaps import zone_colour
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     """The plotly figures of one grid section, keyed by a short file-name-safe name:
     ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``,
     ``zones_table``, ``zones_map``, ``stereonet``. Empty when the section has an
-    error."""
+    error; a figure that cannot be drawn (memory) is left out
+    (:func:`figures_and_errors` says why)."""
+    return figures_and_errors(report, section)[0]
+
+
+def figures_and_errors(report: Report, section: GridSection
+                       ) -> tuple[dict[str, Any], dict[str, str]]:
+    """The figures of :func:`report_figures` and, for each one that could not be
+    drawn, why (an InputError from a memory check, or MemoryError): one figure never
+    takes the others with it."""
     from rough_viewer.visual.grid import (
         face_map_figure,
         histogram_figure,
@@ -27,28 +43,41 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
 
     if section.error is not None:
-        return {}
+        return {}, {}
+    errors: dict[str, str] = {}
+
+    def draw(key: str, make: Any) -> None:
+        try:
+            figures[key] = make()
+        except InputError as exc:
+            errors[key] = str(exc)
+        except MemoryError:
+            errors[key] = f"not enough memory to draw the {key} figure"
+
     kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
-                          "n_points": report.n_points}
+                          "n_points": report.n_points, "unit": report.unit}
     maps = {n: section.maps[n] for n in FACE_MAP_ORDER if n in section.maps}
-    figures = {
-        "summary": summary_table_figure(section.summaries, **kw),
-        "maps_normalised": face_map_figure(maps, kind="normalised", **kw),
-        "maps_binary": face_map_figure(maps, kind="binary", **kw),
-        "histogram": histogram_figure(
-            {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw),
-        "variogram": variogram_figure(
-            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw),
-    }
+    figures: dict[str, Any] = {}
+    draw("summary", lambda: summary_table_figure(section.summaries, **kw))
+    if maps:  # absent when the face maps could not be made (section.figure_errors)
+        draw("maps_normalised", lambda: face_map_figure(maps, kind="normalised", **kw))
+        draw("maps_binary", lambda: face_map_figure(maps, kind="binary", **kw))
+    draw("histogram", lambda: histogram_figure(
+        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw))
+    if section.variograms:
+        draw("variogram", lambda: variogram_figure(
+            {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw))
     zones, net, result = section.zones, section.stereonet, section.result
     if zones is not None and net is not None and result is not None:
         shown = range(1, min(zones.n_zones, STEREONET_ZONES) + 1)
-        figures["zones_table"] = zones_table_figure(zones, **kw)
-        figures["zones_map"] = zones_map_figure(zones, result, plane=report.plane)
-        figures["stereonet"] = stereonet_figure(
+        zkw = {k: v for k, v in kw.items() if k != "unit"}  # zone figures are in metres
+        draw("zones_table", lambda: zones_table_figure(zones, **zkw))
+        draw("zones_map", lambda: zones_map_figure(zones, result, plane=report.plane,
+                                                   raster=report_raster(result, report.plane)))
+        draw("stereonet", lambda: stereonet_figure(
             net, highlight={f"zone {k}": zones.labels == k for k in shown},
-            colours={f"zone {k}": zone_colour(k) for k in shown}, **kw)
-    return figures
+            colours={f"zone {k}": zone_colour(k) for k in shown}, **zkw))
+    return figures, errors
 
 
 def png_name(grid_size: float, figure: str) -> str:
@@ -72,8 +101,8 @@ table.meta td { padding: 2px 12px 2px 0; vertical-align: top; }
 """
 
 
-def _fmt_xyz(v: np.ndarray) -> str:
-    return ", ".join(f"{float(c):.3f}" for c in v)
+def _fmt_xyz(v: np.ndarray, per: float = 1.0) -> str:
+    return ", ".join(f"{float(c) / per:.3f}" for c in v)
 
 
 def report_html(report: Report) -> str:
@@ -82,6 +111,7 @@ def report_html(report: Report) -> str:
 
     esc = html.escape
     frame = face_frame(report.plane)
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -95,15 +125,17 @@ def report_html(report: Report) -> str:
         f"<tr><td>points</td><td>{report.n_points:,}"
         + (f" ({report.dropped_nonfinite:,} non-finite rows dropped)"
            if report.dropped_nonfinite else "") + "</td></tr>",
-        f"<tr><td>bounding box (m)</td><td>min ({_fmt_xyz(report.bounds_min)})<br>"
-        f"max ({_fmt_xyz(report.bounds_max)})<br>size "
-        f"({_fmt_xyz(report.bounds_max - report.bounds_min)})</td></tr>",
+        f"<tr><td>bounding box ({u})</td><td>min ({_fmt_xyz(report.bounds_min, per)})<br>"
+        f"max ({_fmt_xyz(report.bounds_max, per)})<br>size "
+        f"({_fmt_xyz(report.bounds_max - report.bounds_min, per)})</td></tr>",
         f"<tr><td>dependent axis (OLS, hybrid)</td><td>{esc(report.axis)}"
         f" (requested: {esc(report.axis_requested)})</td></tr>",
         f"<tr><td>face plane (whole-cloud ODR)</td><td>normal ({_fmt_xyz(frame.normal)}); "
         f"u axis ({_fmt_xyz(frame.u_axis)}); v axis ({_fmt_xyz(frame.v_axis)})</td></tr>",
-        f"<tr><td>grid sizes (m)</td><td>"
-        f"{', '.join(f'{s.grid_size:g}' for s in report.sections)}</td></tr>",
+        f"<tr><td>grid sizes ({u})</td><td>"
+        f"{', '.join(f'{s.grid_size / per:g}' for s in report.sections)}"
+        + (" (default: from the point spacing, the typical occupied cell holds 16 points)"
+           if report.grids_chosen == "default" else "") + "</td></tr>",
         f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness)</td></tr>",
         f"<tr><td>min points per cell</td><td>{report.min_points}</td></tr>",
         f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
@@ -114,7 +146,8 @@ def report_html(report: Report) -> str:
         "hybrid: ODR plane, distance along the dependent axis); e_OLS = |OLS - ODR|. "
         "Face maps: cells projected onto the whole-cloud ODR plane, pixel = cell size, "
         "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
-        "between cell centres, bins of one cell size up to half the largest extent, "
+        "between cell centres, bins of one cell size up to half the largest extent "
+        "(shorter where noted, to fit in memory), "
         "divided by the map's variance. Zones: connected cells (" + esc(report.connectivity)
         + f" connectivity) whose normalised ODR roughness is at or above {report.threshold:g}, "
         f"groups of fewer than {report.min_cells} cells dropped, ids by size; area on the "
@@ -123,9 +156,12 @@ def report_html(report: Report) -> str:
         "clockwise from +y); stereonet: poles of every cell's ODR plane, lower hemisphere, "
         "equal area, contours in multiples of a uniform distribution (MUD).</p>",
     ]
+    for line in report.warnings:
+        parts.append(f'<p class="error">warning: {esc(line)}</p>')
     for s in report.sections:
         sid = f"grid-{s.grid_size:g}".replace(".", "_")
-        parts.append(f'<section id="{sid}" class="grid-section"><h2>Grid {s.grid_size:g} m</h2>')
+        parts.append(f'<section id="{sid}" class="grid-section">'
+                     f'<h2>Grid {s.grid_size / per:g} {u}</h2>')
         if s.error is not None:
             parts.append(f'<p class="error">{esc(s.error)}</p></section>')
             continue
@@ -137,7 +173,15 @@ def report_html(report: Report) -> str:
                 f'{cells["below_min_points"]:,} below {report.min_points} points, '
                 f'{cells["degenerate"]:,} degenerate.</p>'
             )
-        for key, fig in report_figures(report, s).items():
+        figures, drawing_errors = figures_and_errors(report, s)
+        for key, why in {**s.figure_errors, **drawing_errors}.items():
+            parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
+        limited = sorted({f"{vg.max_lag / per:g} {u}" for vg in s.variograms.values()
+                          if vg.lag_limited})
+        if limited:
+            parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
+                         "to fit in memory (default: half the largest extent).</p>")
+        for key, fig in figures.items():
             if key == "zones_table":
                 z = s.zones
                 parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")

@@ -10,22 +10,36 @@ from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.grid.zones import ZONE_COLUMNS, Zones
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.report.build import Report
-from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS
+from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, UNIT_METRES
 
 
-def variogram_dict(vg: Semivariogram) -> dict[str, Any]:
-    """Plain numbers of a semivariogram (the JSON contract)."""
+def variogram_dict(vg: Semivariogram, per: float = 1.0) -> dict[str, Any]:
+    """Plain numbers of a semivariogram (the JSON contract); lengths divided by
+    ``per`` (metres per display unit)."""
     return {
-        "lag": to_jsonable(vg.lag),
-        "gamma": to_jsonable(vg.gamma),
+        "lag": to_jsonable(vg.lag / per),
+        "gamma": to_jsonable(vg.gamma / per**2),
         "gamma_normalised": to_jsonable(vg.gamma_normalised),
         "pairs": to_jsonable(vg.pairs),
-        "variance": to_jsonable(vg.variance),
+        "variance": to_jsonable(vg.variance / per**2),
         "n_cells": int(vg.n_cells),
-        "bin_width": float(vg.bin_width),
-        "max_lag": float(vg.max_lag),
+        "bin_width": float(vg.bin_width / per),
+        "max_lag": float(vg.max_lag / per),
+        "lag_limited": bool(vg.lag_limited),
         "space": vg.space,
     }
+
+
+def _summary(summary: dict[str, float | int], per: float) -> dict[str, Any]:
+    """Table-1 numbers with lengths divided by ``per`` (variance by its square)."""
+    out: dict[str, Any] = {}
+    for k, v in summary.items():
+        if k in ("min", "max", "mean", "std"):
+            v = v / per
+        elif k == "variance":
+            v = v / per**2
+        out[k] = to_jsonable(v)
+    return out
 
 
 def zones_dict(zones: Zones, net: Stereonet | None) -> dict[str, Any]:
@@ -59,30 +73,35 @@ def report_json(report: Report) -> dict[str, Any]:
     """The report's numbers as a JSON-ready dict (NaN -> null).
 
     Layout: ``grids`` is a list (in the order asked) of ``{"grid_size", "error",
-    "cells", "models": {name: {"summary", "histogram", "semivariogram"}}, "zones"}``
-    for the names ``odr``, ``ols``, ``hybrid`` and ``e_ols``; ``zones`` is
-    :func:`zones_dict`.
+    "cells", "models": {name: {"summary", "histogram", "semivariogram"}}, "zones",
+    "figure_errors"}`` for the names ``odr``, ``ols``, ``hybrid`` and ``e_ols``;
+    ``zones`` is :func:`zones_dict`. Every length and roughness is in ``unit`` (the
+    report's display unit; variances in its square); the zone table keeps its own
+    units (metres, square metres, degrees).
     """
     frame = face_frame(report.plane)
+    per = UNIT_METRES[report.unit]
     grids = []
     for s in report.sections:
-        entry: dict[str, Any] = {"grid_size": s.grid_size, "error": s.error}
+        entry: dict[str, Any] = {"grid_size": s.grid_size / per, "error": s.error}
         if s.result is not None:
             entry["cells"] = s.result.cell_report("odr")
-            entry["origin"] = [float(v) for v in s.result.grid.origin]
+            entry["origin"] = [float(v) / per for v in s.result.grid.origin]
         if s.error is None:
             entry["models"] = {
                 name: {
-                    "summary": {k: to_jsonable(v) for k, v in s.summaries[name].as_dict().items()},
+                    "summary": _summary(s.summaries[name].as_dict(), per),
                     "histogram": {
                         "edges": to_jsonable(s.histograms[name].edges),
                         "fractions": to_jsonable(s.histograms[name].fractions),
                         "counts": to_jsonable(s.histograms[name].counts),
                     },
-                    "semivariogram": variogram_dict(s.variograms[name]),
+                    "semivariogram": (variogram_dict(s.variograms[name], per)
+                                      if name in s.variograms else None),
                 }
                 for name in MAPS
             }
+            entry["figure_errors"] = dict(s.figure_errors)
             if s.zones is not None:
                 entry["zones"] = zones_dict(s.zones, s.stereonet)
         grids.append(entry)
@@ -94,9 +113,12 @@ def report_json(report: Report) -> dict[str, Any]:
             "path": report.source,
             "points": report.n_points,
             "dropped_nonfinite": report.dropped_nonfinite,
-            "bounds_min": to_jsonable(report.bounds_min),
-            "bounds_max": to_jsonable(report.bounds_max),
+            "bounds_min": to_jsonable(report.bounds_min / per),
+            "bounds_max": to_jsonable(report.bounds_max / per),
         },
+        "unit": report.unit,
+        "grids_chosen": report.grids_chosen,
+        "warnings": list(report.warnings),
         "axis": report.axis,
         "axis_requested": report.axis_requested,
         "threshold": report.threshold,
@@ -105,7 +127,7 @@ def report_json(report: Report) -> dict[str, Any]:
         "connectivity": report.connectivity,
         "histogram_bin_width": HISTOGRAM_BIN,
         "face_plane": {
-            "centroid": to_jsonable(frame.origin),
+            "centroid": to_jsonable(frame.origin / per),
             "normal": to_jsonable(frame.normal),
             "u_axis": to_jsonable(frame.u_axis),
             "v_axis": to_jsonable(frame.v_axis),

@@ -64,6 +64,7 @@ from rough_viewer.scale.passes import (
 )
 from rough_viewer.scale.sources import Chunk, Source, chunk_plan, iter_chunks
 from rough_viewer.vocabulary import (
+    DEFAULT_MIN_POINTS,
     MODELS,
     Axis,
     AxisChoice,
@@ -214,7 +215,7 @@ def chunked_roughness(
     cell_sizes: Sequence[float],
     *,
     origin: np.ndarray | None = None,
-    min_points: int = 3,
+    min_points: int = DEFAULT_MIN_POINTS,
     axis: AxisChoice = "auto",
     models: Sequence[Model] = MODELS,
     residual: Residual = "absolute",
@@ -353,7 +354,8 @@ def _plan_distances(grid: GridSpec, moments_table: Partial, axis: AxisChoice, mi
     ijk = decode_keys(moments_table.keys, grid)
     whole = whole_plane_from_moments(grid, ijk, moments)
     used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis
-    planes = cell_planes(moments, whole.normal, used_axis, min_points, models)
+    planes = cell_planes(moments, whole.normal, used_axis, min_points, models,
+                         cell_size=grid.cell_size)
     vectors = planes.distance_vectors()
     names = tuple(vectors)
     m = moments_table.n_cells

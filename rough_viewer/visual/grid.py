@@ -7,6 +7,11 @@ the models shown, the dependent axis (of OLS and hybrid) and the point count.
 Inputs are dictionaries keyed by map name (``"odr"``, ``"ols"``, ``"hybrid"``,
 ``"e_ols"``); figures show the maps in the order given, so pass them in the order
 you want them drawn.
+
+Inputs are in metres (the core's unit); ``unit`` (``"m"``, ``"mm"``, ``"ft"``,
+``"us-ft"``, the unit of the input's coordinates) chooses how lengths are shown:
+grid sizes, lags and face-map axes in that unit, roughness in
+:data:`rough_viewer.vocabulary.ROUGHNESS_UNIT` of it (mm for metric input).
 """
 
 from __future__ import annotations
@@ -21,7 +26,15 @@ from plotly.subplots import make_subplots
 from rough_viewer.grid.maps import FaceMaps
 from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import MAP_COLOURS, MAP_LABELS, MAP_MARKERS, InputError
+from rough_viewer.vocabulary import (
+    MAP_COLOURS,
+    MAP_LABELS,
+    MAP_MARKERS,
+    ROUGHNESS_UNIT,
+    UNIT_LABELS,
+    UNIT_METRES,
+    InputError,
+)
 
 
 def label(name: str) -> str:
@@ -29,9 +42,19 @@ def label(name: str) -> str:
     return MAP_LABELS.get(name, name)
 
 
-def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = ()) -> str:
-    """The caption every figure carries: grid size, models, dependent axis, points."""
-    parts = [f"grid {grid_size:g} m"]
+def _per(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) of a display unit."""
+    if unit not in UNIT_METRES:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+    return UNIT_METRES[unit], UNIT_LABELS[unit]
+
+
+def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = (),
+             unit: str = "m") -> str:
+    """The caption every figure carries: grid size (metres in, shown in ``unit``),
+    models, dependent axis, points."""
+    f, u = _per(unit)
+    parts = [f"grid {grid_size / f:g} {u}"]
     if models:
         parts.append("models " + ", ".join(label(m) for m in models))
     parts.append(f"dependent axis {axis}")
@@ -115,8 +138,10 @@ def summary_table_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
-    """Table 1 of the 2011 paper for one grid size, roughness in millimetres.
+    """Table 1 of the 2011 paper for one grid size, roughness in millimetres (in
+    ``ROUGHNESS_UNIT[unit]``: mm for metric input, the input's unit otherwise).
 
     One row per map, columns cells, mean points per cell, minimum, maximum, mean,
     variance (mm²) and standard deviation (mm); numbers by :func:`format_number`
@@ -130,20 +155,22 @@ def summary_table_figure(
     """
     names = list(summaries)
     rows = [summaries[n] for n in names]
-    header = ["map", "cells", "points<br>per cell", "min<br>(mm)", "max<br>(mm)",
-              "mean<br>(mm)", "variance<br>(mm²)", "std<br>(mm)"]
+    rf, ru = _per(ROUGHNESS_UNIT[unit] if unit in ROUGHNESS_UNIT else unit)
+    k = 1.0 / rf
+    header = ["map", "cells", "points<br>per cell", f"min<br>({ru})", f"max<br>({ru})",
+              f"mean<br>({ru})", f"variance<br>({ru}²)", f"std<br>({ru})"]
     cells = [
         [label(n) for n in names],
         [f"{int(s.cells):,}" for s in rows],
         [format_number(s.mean_points) for s in rows],
-        [format_number(1e3 * s.min) for s in rows],
-        [format_number(1e3 * s.max) for s in rows],
-        [format_number(1e3 * s.mean) for s in rows],
-        [format_number(1e6 * s.variance) for s in rows],
-        [format_number(1e3 * s.std) for s in rows],
+        [format_number(k * s.min) for s in rows],
+        [format_number(k * s.max) for s in rows],
+        [format_number(k * s.mean) for s in rows],
+        [format_number(k * k * s.variance) for s in rows],
+        [format_number(k * s.std) for s in rows],
     ]
     title = _title("Roughness summary (Table 1)", grid_size=grid_size, axis=axis,
-                   n_points=n_points, models=names)
+                   n_points=n_points, models=names, unit=unit)
     fig = go.Figure(go.Table(
         columnwidth=[1.05, 1.0, 0.95, 1.0, 1.0, 1.0, 1.25, 1.0],
         header={"values": header, "align": ["left"] + ["right"] * 7, "fill_color": "#e8e8e8",
@@ -165,6 +192,7 @@ def histogram_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
     """Histograms of normalised roughness with the first-bin shares (2011 Fig. 3).
 
@@ -193,7 +221,7 @@ def histogram_figure(
     title = _title(
         "Normalised roughness histogram<br>"
         + wrap_caption(f"first bin (0–{first_edge}): " + " · ".join(shares), 56),
-        grid_size=grid_size, axis=axis, n_points=n_points, models=names)
+        grid_size=grid_size, axis=axis, n_points=n_points, models=names, unit=unit)
     top = title_height(title)
     fig.update_layout(
         title=title,
@@ -213,6 +241,7 @@ def variogram_figure(
     axis: str,
     n_points: int,
     normalised: bool = True,
+    unit: str = "m",
 ) -> go.Figure:
     """Experimental semivariograms overlaid (2011 Fig. 4, one panel per grid size).
 
@@ -226,25 +255,31 @@ def variogram_figure(
     names = list(variograms)
     fig = go.Figure()
     space = "3-D"
+    f, u = _per(unit)
     for name in names:
         vg = variograms[name]
         space = "in the face plane" if vg.space == "plane" else "3-D"
-        y = vg.gamma_normalised if normalised else vg.gamma
+        y = vg.gamma_normalised if normalised else vg.gamma / f**2
         fig.add_trace(go.Scatter(
-            x=vg.lag, y=y, mode="markers", name=label(name),
+            x=vg.lag / f, y=y, mode="markers", name=label(name),
             marker={"symbol": MAP_MARKERS.get(name, "circle-open"), "color": MAP_COLOURS.get(name),
                     "size": 7},
             customdata=vg.pairs,
-            hovertemplate=(label(name) + ": lag %{x:.3f} m, γ %{y:.4g}, "
+            hovertemplate=(label(name) + f": lag %{{x:.3f}} {u}, γ %{{y:.4g}}, "
                            "%{customdata:,} pairs<extra></extra>"),
         ))
+    limited = sorted({vg.max_lag / f for vg in variograms.values() if vg.lag_limited})
+    note = (f" · lags up to {limited[0]:g} {u} (memory)" if limited else "")
     title = _title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
-                   grid_size=grid_size, axis=axis, n_points=n_points, models=names)
+                   grid_size=grid_size, axis=axis, n_points=n_points, models=names,
+                   unit=unit)
+    if note:
+        title["text"] += f"<br><sup>{note[3:]}</sup>"
     top = title_height(title)
     fig.update_layout(
         title=title,
-        xaxis_title="lag (m)",
-        yaxis_title="γ / variance" if normalised else "γ (m²)",
+        xaxis_title=f"lag ({u})",
+        yaxis_title="γ / variance" if normalised else f"γ ({u}²)",
         height=top + 330, margin={"l": 60, "r": 10, "t": top, "b": 50},
         legend={"x": 0.99, "xanchor": "right", "y": 0.01, "yanchor": "bottom",
                 "bgcolor": "rgba(255,255,255,0.7)"},
@@ -254,6 +289,43 @@ def variogram_figure(
     return fig
 
 
+#: Most pixels one face-map panel draws; larger images are shown by the max of
+#: k x k pixel blocks (the binary map by its max too: a block is black when any of
+#: its pixels is), so a report at a fine grid stays a few MB, not hundreds.
+MAX_PANEL_PIXELS = 500_000
+
+
+def _display_image(image: np.ndarray, u: np.ndarray, v: np.ndarray,
+                   max_pixels: int = MAX_PANEL_PIXELS
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The image reduced by the max of k x k blocks so that it has at most
+    ``max_pixels`` pixels, its pixel centres, and k (1 = unchanged)."""
+    rows, cols = image.shape
+    k = 1
+    while (rows // k + 1) * (cols // k + 1) > max_pixels and k < max(rows, cols):
+        k *= 2
+    if k == 1:
+        return image, u, v, 1
+    r2, c2 = -(-rows // k), -(-cols // k)
+    padded = np.full((r2 * k, c2 * k), np.nan)
+    padded[:rows, :cols] = image
+    blocks = padded.reshape(r2, k, c2, k)
+    with np.errstate(all="ignore"):
+        finite = np.isfinite(blocks).any(axis=(1, 3))
+        reduced = np.where(finite, np.nanmax(np.where(np.isfinite(blocks), blocks, -np.inf),
+                                             axis=(1, 3)), np.nan)
+    du = float(u[1] - u[0]) if u.size > 1 else 1.0
+    dv = float(v[1] - v[0]) if v.size > 1 else 1.0
+    u2 = u[0] + (np.arange(c2) * k + 0.5 * (k - 1)) * du
+    v2 = v[0] + (np.arange(r2) * k + 0.5 * (k - 1)) * dv
+    return reduced, u2, v2, k
+
+
+def _block_note(k: int) -> str:
+    """Subtitle note for a panel whose pixels each hold k x k grid cells (their max)."""
+    return f" (each pixel the max of {k} x {k} cells)" if k > 1 else ""
+
+
 def face_map_figure(
     maps: Mapping[str, FaceMaps],
     *,
@@ -261,6 +333,7 @@ def face_map_figure(
     grid_size: float,
     axis: str,
     n_points: int,
+    unit: str = "m",
 ) -> go.Figure:
     """Face-plane maps, one panel per model stacked (2011 Fig. 2: OLS beside ODR).
 
@@ -276,21 +349,27 @@ def face_map_figure(
     if kind not in ("normalised", "binary"):
         raise InputError(f"kind must be 'normalised' or 'binary', got {kind!r}")
     threshold = next(iter(maps.values())).threshold if names else 0.05
+    images = [maps[n].normalised if kind == "normalised" else maps[n].binary for n in names]
+    shown = [_display_image(img.image, img.u, img.v) for img in images]
     subtitles = [
         f"{label(n)}: " + ("normalised roughness" if kind == "normalised"
                            else f"normalised ≥ {threshold:g} in black")
-        for n in names
+        + _block_note(d[3] * max(1, round(img.cell_size / grid_size)))
+        for n, d, img in zip(names, shown, images, strict=True)
     ]
     fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
                         vertical_spacing=0.08 if len(names) > 1 else 0.0)
     aspect = 0.3
+    f, u = _per(unit)
     for row, name in enumerate(names, start=1):
-        img = maps[name].normalised if kind == "normalised" else maps[name].binary
+        img = images[row - 1]
         if img.u.size and img.v.size:
             aspect = (img.v[-1] - img.v[0] + img.cell_size) / (img.u[-1] - img.u[0] + img.cell_size)
+        z_img, u_img, v_img, _ = shown[row - 1]
         heat = {
-            "z": img.image, "x": img.u, "y": img.v, "zmin": 0.0, "zmax": 1.0,
-            "hovertemplate": label(name) + ": u %{x:.2f} m, v %{y:.2f} m, %{z:.3f}<extra></extra>",
+            "z": z_img, "x": u_img / f, "y": v_img / f, "zmin": 0.0, "zmax": 1.0,
+            "hovertemplate": label(name) + f": u %{{x:.2f}} {u}, v %{{y:.2f}} {u}, "
+                             "%{z:.3f}<extra></extra>",
         }
         if kind == "binary":
             heat.update(colorscale=colormaps.PAPER_BINARY_COLORSCALE, showscale=False)
@@ -300,14 +379,14 @@ def face_map_figure(
                                   "yanchor": "top"})
         fig.add_trace(go.Heatmap(**heat), row=row, col=1)
         xref = "x" if row == 1 else f"x{row}"
-        fig.update_yaxes(scaleanchor=xref, scaleratio=1, title_text="v, up the face (m)",
+        fig.update_yaxes(scaleanchor=xref, scaleratio=1, title_text=f"v, up the face ({u})",
                          row=row, col=1)
-        fig.update_xaxes(title_text="u, along the face (m)", row=row, col=1)
+        fig.update_xaxes(title_text=f"u, along the face ({u})", row=row, col=1)
     panel = float(np.clip(900 * aspect, 160, 600))
     what = "Normalised roughness" if kind == "normalised" else f"Binary transform at {threshold:g}"
     fig.update_layout(
         title=_title(f"{what} on the face plane (whole-cloud ODR plane)", grid_size=grid_size,
-                     axis=axis, n_points=n_points, models=names),
+                     axis=axis, n_points=n_points, models=names, unit=unit),
         height=int(110 + len(names) * (panel + 70)), width=1000,
         margin={"l": 60, "r": 10, "t": 90, "b": 40}, plot_bgcolor="white",
     )

@@ -31,8 +31,9 @@ def test_panel_predicts_from_its_values(server):
     panel.er_mm.value = 6.0
     panel.asperity_mm.value = 19.0
     p = panel.update()
+    # the panel's own "Roughness" dropdown (first entry: absolute) decides the convention
     ref = predict_bias(noise_sigma_m=0.0016, effective_radius_m=0.006, asperity_radius_m=0.019,
-                       spacing_m=0.002, trials=1)
+                       spacing_m=0.002, trials=1, residual=str(panel.residual.value))
     assert p is not None and p.measured_m == pytest.approx(ref.measured_m)
     assert f"{ref.measured_m * 1e3:.3f} mm" in panel.result.content
     assert f"{ref.noise_effect_pct:+.2f} %" in panel.result.content

@@ -48,7 +48,7 @@ def test_results_cached_per_grid_key(loaded, monkeypatch):
     assert r1 is r2 and len(calls) == 1
     loaded.result(s.with_(axis="z"))
     loaded.result(s.with_(min_points=10))
-    assert calls == [(0.5, "auto", 3), (0.5, "z", 3), (0.5, "auto", 10)]
+    assert calls == [(0.5, "auto", 4), (0.5, "z", 4), (0.5, "auto", 10)]
     assert loaded.is_cached(s.with_(min_points=10))
 
 

@@ -165,17 +165,18 @@ def test_target_roughness_closed_forms():
     i, j = np.meshgrid(np.arange(40), np.arange(40))
     z = np.where((i + j) % 2 == 0, h, -h)
     pts = np.column_stack((i.ravel() * 0.01, j.ravel() * 0.01, z.ravel())) @ board_rotation(9).T
+    assert target_roughness(pts) == pytest.approx(h, rel=1e-9)  # default: the paper's signed
     assert target_roughness(pts, residual="signed") == pytest.approx(h, rel=1e-9)
-    assert target_roughness(pts) == pytest.approx(0.0, abs=1e-12)
+    assert target_roughness(pts, residual="absolute") == pytest.approx(0.0, abs=1e-12)
     # One point in four at 4h (others 0), placed symmetrically so the plane stays
     # level: residuals 3h (x1) and -h (x3) about the mean.
     sym_i = (i % 4 == 0) | (i % 4 == 3)
     sym_j = (j % 4 == 0) | (j % 4 == 3)
     z2 = np.where(sym_i & sym_j, 4 * h, 0.0)
     pts2 = np.column_stack((i.ravel() * 0.01, j.ravel() * 0.01, z2.ravel()))
-    assert target_roughness(pts2, residual="signed") == pytest.approx(math.sqrt(3) * h)
+    assert target_roughness(pts2) == pytest.approx(math.sqrt(3) * h)
     # |d| is 3h (1/4) or h (3/4): mean 1.5h, std sqrt(0.25*2.25+0.75*0.25) h.
-    assert target_roughness(pts2) == pytest.approx(math.sqrt(0.75) * h)
+    assert target_roughness(pts2, residual="absolute") == pytest.approx(math.sqrt(0.75) * h)
 
 
 def test_normalise_population_thins_background_only():

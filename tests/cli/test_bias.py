@@ -163,3 +163,45 @@ def test_usage_errors_exit_2():
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 2
+
+
+def test_predict_reproduces_the_papers_numbers_without_a_flag(capsys):
+    # the bias paper's target A: 5.07 mm noise-free, 5.31 mm with 1.6 mm range noise
+    p = _json(capsys, ["bias", "predict", "--noise", "0.0016", "--er", "0", "--target", "A",
+                       "--trials", "2", "--json"])
+    assert p["expected_m"] * 1e3 == pytest.approx(5.07, rel=0.01)
+    assert p["noise_only_m"] * 1e3 == pytest.approx(5.31, rel=0.01)
+    assert p["residual"] == "signed" and "bias paper" in p["residual_definition"]
+    assert p["other_residual"].startswith("absolute")
+    grid = _json(capsys, ["bias", "predict", "--noise", "0.0016", "--er", "0", "--target", "A",
+                          "--trials", "2", "--residual", "absolute", "--json"])
+    assert grid["expected_m"] * 1e3 == pytest.approx(3.64, rel=0.01)
+    assert grid["residual"] == "absolute" and "SCIENCE.md" in grid["residual_definition"]
+    assert main(["bias", "predict", "--noise", "0.0016", "--er", "0", "--target", "A",
+                 "--trials", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "signed orthogonal distances (the bias paper's definition)" in text
+    assert "--residual absolute" in text
+
+
+def test_noise_on_a_rough_surface_and_radius_on_a_board_warn(capsys, tmp_path, board_file):
+    board_path, _ = board_file
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 2.0, (20_000, 2))
+    z = 0.05 * np.sin(4 * xy[:, 0]) * np.cos(3 * xy[:, 1]) + 0.01 * rng.normal(size=20_000)
+    rough = tmp_path / "rough.npy"
+    np.save(rough, np.column_stack([xy, z]))
+    data = _json(capsys, ["bias", "noise", str(rough), "--json"])
+    assert data["warnings"] and "flat board" in data["warnings"][0]
+    capsys.readouterr()
+    assert main(["bias", "noise", str(rough)]) == 0
+    err = capsys.readouterr().err
+    assert "warning" in err and "rough.npy" in err
+    # a board is no wire, a wire is
+    data = _json(capsys, ["bias", "radius", str(board_path), "--json"])
+    assert data["warnings"] and "not a thin line" in data["warnings"][0]
+    wire = tmp_path / "wire.npy"
+    np.save(wire, wire_points(er=0.004, wire_r=0.001, range_m=10.0, n=4000, seed=1))
+    assert _json(capsys, ["bias", "radius", str(wire), "--json"])["warnings"] == []
+    flat = _json(capsys, ["bias", "noise", str(board_path), "--json"])
+    assert flat["warnings"] == []

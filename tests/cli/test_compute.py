@@ -154,3 +154,65 @@ def test_parquet_cell_table_equals_csv(tmp_path, cloud_file):
         col = table.column(name).to_pylist()
         for text, value in zip((r[k] for r in rows), col, strict=True):
             assert (text == "" and value is None) or float(text) == value
+
+
+# ----------------------------------------------------------------------------- units
+
+
+def test_units_mm_give_the_same_cells_in_millimetres(tmp_path, cloud_file, capsys):
+    path, xyz = cloud_file
+    mm_path = tmp_path / "face_mm.npy"
+    np.save(mm_path, xyz * 1000.0)
+    a, b = tmp_path / "m.csv", tmp_path / "mm.csv"
+    ja, jb = tmp_path / "m.json", tmp_path / "mm.json"
+    assert main(["compute", str(path), "--grid", "0.5", "--out", str(a), "--summary-json",
+                 str(ja), "--quiet"]) == 0
+    assert main(["compute", str(mm_path), "--units", "mm", "--grid", "500", "--out", str(b),
+                 "--summary-json", str(jb), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "grid 500 mm" in out and "std (mm)" in out
+    head, rows_m = read_csv(a)
+    _, rows_mm = read_csv(b)
+    assert len(rows_m) == len(rows_mm)
+    m = np.array([[float(v) if v else np.nan for v in r] for r in rows_m])
+    mm = np.array([[float(v) if v else np.nan for v in r] for r in rows_mm])
+    lengths = [head.index(c) for c in ("cx", "cy", "cz", "theta_odr", "theta_ols",
+                                       "theta_hybrid", "e_ols")]
+    np.testing.assert_allclose(mm[:, lengths], 1000.0 * m[:, lengths], rtol=1e-9, atol=1e-9)
+    sm, smm = json.loads(ja.read_text()), json.loads(jb.read_text())
+    assert smm["unit"] == "mm" and smm["grid_size"] == 500.0
+    assert smm["odr"]["mean"] == pytest.approx(1000.0 * sm["odr"]["mean"], rel=1e-9)
+    assert smm["odr"]["variance"] == pytest.approx(1e6 * sm["odr"]["variance"], rel=1e-9)
+
+
+def _las_in_feet(path, xyz_ft, *, unit_code: int):
+    import laspy
+
+    words = [1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 2227, 3076, 0, 1, unit_code]
+    hdr = laspy.LasHeader(point_format=3, version="1.2")
+    hdr.scales = np.array([1e-3] * 3)
+    hdr.offsets = np.floor(xyz_ft.min(axis=0))
+    hdr.vlrs.append(laspy.VLR("LASF_Projection", 34735, "", np.array(words, "<u2").tobytes()))
+    las = laspy.LasData(hdr)
+    las.x, las.y, las.z = xyz_ft.T
+    las.write(str(path))
+
+
+def test_las_crs_in_us_feet_sets_the_unit_and_a_contradiction_warns(tmp_path, cloud_file,
+                                                                     capsys):
+    path, xyz = cloud_file
+    per = 1200.0 / 3937.0
+    las = tmp_path / "feet.las"
+    _las_in_feet(las, np.round(xyz / per, 3), unit_code=9003)
+    js = tmp_path / "s.json"
+    assert main(["compute", str(las), "--grid", str(0.5 / per), "--out",
+                 str(tmp_path / "c.csv"), "--summary-json", str(js), "--quiet"]) == 0
+    s = json.loads(js.read_text())
+    assert s["unit"] == "us-ft" and s["warnings"] == []
+    ref = grid_roughness(np.round(xyz / per, 3) * per, 0.5)
+    assert s["odr"]["mean"] * per == pytest.approx(summarise(ref, "odr").mean, rel=1e-6)
+    capsys.readouterr()
+    assert main(["compute", str(las), "--units", "m", "--grid", "0.5", "--out",
+                 str(tmp_path / "c2.csv"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "warning" in err and "contradicts the CRS" in err and "feet.las" in err

@@ -154,3 +154,38 @@ def test_text_clouds_and_two_column_detection(scene, capsys, tmp_path: Path) -> 
     assert data["source"] == "profile-file" and data["samples"] == 300
     code = main(["profile", str(two), *line_args(scene)])
     assert code == 2 and "profile file" in capsys.readouterr().err
+
+
+def test_units_mm_give_the_same_profile(scene, capsys, tmp_path: Path) -> None:
+    mm_cloud = tmp_path / "cloud_mm.npy"
+    np.save(mm_cloud, scene["xyz"] * 1000.0)
+    assert main(["profile", str(scene["cloud"]), *line_args(scene), "--json"]) == 0
+    ref = json.loads(capsys.readouterr().out)
+    assert main(["profile", str(mm_cloud), "--units", "mm", "--from",
+                 xyz_arg(scene["start"] * 1000), "--to", xyz_arg(scene["end"] * 1000),
+                 "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["unit"] == "mm" and got["samples"] == ref["samples"]
+    assert got["spacing_m"] == pytest.approx(ref["spacing_m"], rel=1e-9)
+    assert got["raw"]["dimension"] == pytest.approx(ref["raw"]["dimension"], rel=1e-6)
+    assert main(["profile", str(mm_cloud), "--units", "mm", "--from",
+                 xyz_arg(scene["start"] * 1000), "--to", xyz_arg(scene["end"] * 1000)]) == 0
+    assert "length 370" in capsys.readouterr().out  # 0.37 m shown as 370 mm
+
+
+def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> None:
+    # a parabola (a fold) with a little roughness: D < 1 until the trend is removed
+    x = np.arange(2000) * 1e-3
+    h = 0.5 * x**2 + fbm_profile(2000, 0.7, spacing=1e-3, sigma=1e-4, rng=3)
+    path = tmp_path / "fold.txt"
+    np.savetxt(path, np.column_stack([x, h]))
+    assert main(["profile", str(path), "--json"]) == 0
+    captured = capsys.readouterr()
+    data = json.loads(captured.out)
+    assert data["raw"]["dimension"] < 1.0
+    assert "below 1" in data["warnings"][0] and "--detrend 2" in data["warnings"][0]
+    assert "warning" in captured.err and "fold.txt" in captured.err
+    assert main(["profile", str(path), "--detrend", "2", "--json"]) == 0
+    fixed = json.loads(capsys.readouterr().out)
+    assert 1.0 <= fixed["raw"]["dimension"] <= 2.0 and fixed["warnings"] == []
+    assert fixed["detrend"] == 2

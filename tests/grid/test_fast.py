@@ -75,7 +75,10 @@ def test_degenerate_cells():
             assert r.theta_ols[2] == 0.0 and np.isnan(r.theta_ols[4])
         if axis == "x":
             assert np.isnan(r.theta_ols[2]) and r.theta_ols[4] == 0.0
-        assert r.theta_odr[3] < 1e-15 and r.theta_odr[5] > 0.1   # 3 points fix a plane
+        assert np.isnan(r.theta_odr[3]) and r.theta_odr[5] > 0.1   # 3 points: below min 4
+        f3, r3 = both(xyz, 1.0, axis=axis, origin=UTM, min_points=3)
+        assert_same(f3, r3)
+        assert r3.theta_odr[3] < 1e-15   # 3 points fix a plane: 0 by construction
 
 
 def test_engine_names():

@@ -16,7 +16,7 @@ AX = {"x": 0, "y": 1, "z": 2}
 ATOL = 1e-12
 
 
-def brute_force(xyz, g, *, origin=None, axis="z", min_points=3, signed=False):
+def brute_force(xyz, g, *, origin=None, axis="z", min_points=4, signed=False):
     """Per-cell loop with numpy SVD / lstsq: dict (i, j, k) -> (n, odr, ols, hybrid, normal)."""
     o = xyz.min(axis=0) if origin is None else np.asarray(origin)
     ijk = np.floor((xyz - o) / g).astype(np.int64)
@@ -70,7 +70,7 @@ def test_every_model_matches_brute_force(axis, signed):
     for key, (n, t_odr, t_ols, t_hyb, normal) in ref.items():
         i = keys[key]
         assert res.n_points[i] == n
-        if n < 3:
+        if n < 4:  # the default min_points: 3 points fix a plane exactly
             assert np.isnan(res.theta_odr[i]) and np.isnan(res.theta_ols[i])
             continue
         np.testing.assert_allclose(res.theta_odr[i], t_odr, rtol=1e-9, atol=ATOL)
@@ -209,3 +209,45 @@ def test_coarsened_grid_equals_direct_computation(factor):
     for name in ("odr", "ols", "hybrid", "e_ols"):
         np.testing.assert_allclose(res.values(name), direct.values(name), rtol=1e-9, atol=ATOL)
     np.testing.assert_allclose(res.centroid, direct.centroid, rtol=0, atol=1e-9)
+
+
+def test_dem_lattice_cell_with_one_x_column_has_no_ols_or_hybrid_value():
+    # A DEM lattice at UTM coordinates, 0.3 m in x and 0.05 m in y, cells of 0.25 m:
+    # every cell holds one column of the lattice (x constant up to 1e-10 m of
+    # round-off), so the OLS regression on (x, y) has no unique solution and the ODR
+    # plane (x = const) contains the z axis.
+    rng = np.random.default_rng(4)
+    xs = 512_345.0 + 0.3 * np.arange(12) + 0.01
+    ys = 4_765_432.0 + 0.05 * np.arange(60) + 0.001
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    x = gx.ravel() + rng.normal(0.0, 1e-10, gx.size)
+    z = 100.0 + 0.002 * rng.standard_normal(gx.size)
+    xyz = np.column_stack([x, gy.ravel(), z])
+    res = grid_roughness(PointCloud.from_xyz(xyz), 0.25, axis="z")
+    cols = np.array([len(np.unique(np.round(xyz[res.point_cell == i, 0], 6))) for i in range(res.n_cells)])
+    assert np.all(cols == 1) and np.all(res.n_points >= 4)
+    assert np.all(np.isnan(res.theta_ols)) and np.all(np.isnan(res.theta_hybrid))
+    assert res.cell_report("ols")["degenerate"] == res.n_cells
+    # the same lattice with two x columns per cell (0.1 m apart) gives OLS values
+    xs2 = 512_345.0 + 0.1 * np.arange(30) + 0.01
+    gx2, gy2 = np.meshgrid(xs2, ys, indexing="ij")
+    xyz2 = np.column_stack([gx2.ravel(), gy2.ravel(), 100.0 + 0.002 * rng.standard_normal(gx2.size)])
+    res2 = grid_roughness(PointCloud.from_xyz(xyz2), 0.25, axis="z")
+    assert np.count_nonzero(np.isfinite(res2.theta_ols)) > 0.5 * res2.n_cells
+
+
+def test_three_point_cells_have_no_value_by_default_and_min_points_3_is_accepted():
+    # cells of 1 m on a 2 x 2 x 1 lattice of 3-point triangles and 5-point patches
+    rng = np.random.default_rng(2)
+    tri = np.array([[0.1, 0.1, 0.1], [0.8, 0.2, 0.3], [0.3, 0.9, 0.5]])
+    five = rng.uniform(0.05, 0.95, (5, 3))
+    xyz = np.vstack([tri, five + [1.0, 0.0, 0.0], tri + [0.0, 1.0, 0.0], five + [1.0, 1.0, 0.0]])
+    res = grid_roughness(xyz, 1.0, origin=np.zeros(3))
+    three = res.n_points == 3
+    assert three.sum() == 2
+    for name in ("odr", "ols", "hybrid", "e_ols"):
+        assert np.all(np.isnan(res.values(name)[three]))
+        assert np.all(np.isfinite(res.values(name)[~three]))
+    assert res.cell_report("odr")["below_min_points"] == 2
+    bare = grid_roughness(xyz, 1.0, origin=np.zeros(3), min_points=3)
+    assert np.all(bare.theta_odr[bare.n_points == 3] < 1e-12)  # 0 by construction

@@ -52,7 +52,7 @@ def test_point_scales_equal_each_grid_computed_directly(cloud, nested, direct):
             for name in MAPS:
                 np.testing.assert_allclose(got.values(name)[k], res.values(name)[c],
                                            rtol=1e-9, atol=1e-15)
-    assert got.axis == "y" and got.min_points == 3
+    assert got.axis == "y" and got.min_points == 4  # the default
 
 
 def test_point_scales_brute_force_on_the_points_of_each_cell(cloud, nested):

@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.maps import face_frame
-from rough_viewer.grid.variogram import face_semivariogram, semivariogram
+from rough_viewer.grid.variogram import (
+    MEMORY_BUDGET,
+    face_semivariogram,
+    plan_semivariogram,
+    semivariogram,
+)
+from rough_viewer.vocabulary import InputError
 
 
 def brute_force(ijk, values, g, *, w=None, max_lag=None):
@@ -154,3 +160,61 @@ def test_face_semivariogram_is_the_2d_variogram_of_the_face_pixels():
     ref2 = semivariogram(ab, moved, g)
     np.testing.assert_array_equal(vg2.pairs, ref2.pairs)
     np.testing.assert_allclose(vg2.gamma, ref2.gamma, rtol=1e-9)
+
+
+def _two_patches(gap: int, side: int = 12, seed: int = 3):
+    """Two square patches of cells (a 2.5-D surface each) ``gap`` cells apart in x."""
+    rng = np.random.default_rng(seed)
+    i, j = np.meshgrid(np.arange(side), np.arange(side), indexing="ij")
+    patch = np.column_stack([i.ravel(), j.ravel(), (i.ravel() // 4)])
+    ijk = np.vstack([patch, patch + np.array([gap, 3, 1])])
+    return ijk, rng.normal(size=len(ijk))
+
+
+def test_tiled_blocks_equal_brute_force_on_a_sparse_map():
+    g = 0.5
+    # far apart with short lags: tiles; closer with long lags: one box
+    for gap, max_lag, blocks in ((512, 3.0, 2), (64, 40.0, 1)):
+        ijk, values = _two_patches(gap=gap)
+        plan = plan_semivariogram(ijk, values, g, max_lag=max_lag, method="fft")
+        assert plan.n_blocks == blocks and not plan.lag_limited
+        pairs, gamma = brute_force(ijk, values, g, max_lag=max_lag)
+        for method in ("fft", "pairs", "auto"):
+            vg = semivariogram(ijk, values, g, max_lag=max_lag, method=method)
+            np.testing.assert_array_equal(vg.pairs, pairs)
+            np.testing.assert_allclose(vg.gamma, gamma, rtol=1e-9)
+    assert vg.pairs[60:70].sum() > 0  # cross-patch pairs (about 64 cells apart)
+
+
+def test_sparse_two_patch_map_stays_within_its_memory_estimate():
+    import tracemalloc
+
+    # two patches 1.5 km apart at 0.05 m cells: the box between them would be
+    # 30,000 cells long; the default lag (half of it) is shortened to fit
+    ijk, values = _two_patches(gap=30_000, side=16)
+    g = 0.05
+    pairs, gamma = brute_force(ijk, values, g, max_lag=20 * g)
+    for method in ("fft", "pairs", "auto"):
+        plan = plan_semivariogram(ijk, values, g, method=method)
+        assert plan.bytes <= MEMORY_BUDGET
+        tracemalloc.start()
+        vg = semivariogram(ijk, values, g, method=method)
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        assert peak <= plan.bytes, (method, peak, plan.bytes)
+        assert vg.max_lag == plan.max_lag
+        # the tiled FFT shortens the lag; the direct count (few cells) reaches 750 m
+        assert vg.lag_limited == (plan.method == "fft")
+        # exact up to the lag reached: against the brute force on the first 20 bins
+        np.testing.assert_array_equal(vg.pairs[:20], pairs)
+        np.testing.assert_allclose(vg.gamma[:20], gamma, rtol=1e-9)
+    assert plan.method == "pairs"  # 512 cells: the cost model picks the direct count
+
+
+def test_explicit_max_lag_that_cannot_fit_is_refused(monkeypatch):
+    import rough_viewer.memory as memory
+
+    ijk, values = _two_patches(gap=100)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1e5)
+    with pytest.raises(InputError, match="semivariogram .* needs about"):
+        semivariogram(ijk, values, 0.5, max_lag=40.0)

@@ -69,3 +69,39 @@ def test_not_an_e57_is_one_line_error(tmp_path):
     with pytest.raises(InputError) as exc:
         load_points(path)
     assert "junk.e57" in str(exc.value) and "\n" not in str(exc.value)
+
+
+def _spherical_only(path, n: int = 500) -> None:
+    """An E57 whose one scan stores range, azimuth and elevation only (written with
+    libE57Format's own nodes, as some scanner software does)."""
+    lib = pye57.libe57
+    e57 = pye57.E57(str(path), mode="w")
+    img = e57.image_file
+    scan = lib.StructureNode(img)
+    scan.set("guid", lib.StringNode(img, "{00000000-0000-0000-0000-000000000001}"))
+    proto = lib.StructureNode(img)
+    names = ("sphericalRange", "sphericalAzimuth", "sphericalElevation")
+    for name in names:
+        proto.set(name, lib.FloatNode(img, 0.0, lib.E57_DOUBLE, -10.0, 100.0))
+    points = lib.CompressedVectorNode(img, proto, lib.VectorNode(img, True))
+    scan.set("points", points)
+    e57.data3d.append(scan)
+    arrays, buffers = e57.make_buffers(list(names), n)
+    rng = np.random.default_rng(0)
+    arrays["sphericalRange"][:] = rng.uniform(5.0, 20.0, n)
+    arrays["sphericalAzimuth"][:] = rng.uniform(-1.0, 1.0, n)
+    arrays["sphericalElevation"][:] = rng.uniform(-0.3, 0.3, n)
+    writer = points.writer(buffers)
+    writer.write(n)
+    writer.close()
+    e57.close()
+
+
+def test_e57_without_cartesian_coordinates_is_one_line_error(tmp_path):
+    path = tmp_path / "spherical.e57"
+    _spherical_only(path)
+    assert "sphericalRange" in pye57.E57(str(path)).get_header(0).point_fields
+    with pytest.raises(InputError) as exc:
+        load_points(path)
+    text = str(exc.value)
+    assert "no Cartesian coordinates" in text and "spherical.e57" in text and "\n" not in text

@@ -18,6 +18,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise, summarise
 from rough_viewer.io import PointCloud
 from rough_viewer.report import FIGURE_NAMES, build_report, report_html, report_json
+from rough_viewer.report.build import FACE_IMAGE_MAX_PIXELS
 from rough_viewer.vocabulary import MAPS
 
 GOOD = (0.5, 0.25)
@@ -257,6 +258,84 @@ def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
     assert page.get_by_text("too few cells").count() == 1
     ctx.close()
     assert not errors, errors
+
+
+def test_far_apart_parts_get_coarser_face_pixels_not_a_dense_box():
+    # two rough patches 50 km apart diagonally: at 0.5 m the face image between them
+    # would be 100,000 x 100,000 pixels; it is drawn at 64 x 64 cells per pixel
+    a = rough_tilted_face(4000, seed=1)
+    b = rough_tilted_face(4000, seed=2) + np.array([35_000.0, 35_000.0, 0.0])
+    report = build_report(PointCloud.from_xyz(np.vstack([a, b])), (0.5,))
+    s = report.sections[0]
+    assert s.error is None and s.figure_errors == {}
+    img = s.maps["odr"].normalised
+    assert img.image.size <= FACE_IMAGE_MAX_PIXELS and img.cell_size == 0.5 * 64
+    # the figure may reduce further for display (at most 500,000 pixels a panel)
+    html = report_html(report)
+    found = re.search(r"each pixel the max of (\d+) x \1 cells", html)
+    assert found and int(found.group(1)) >= 64
+    assert "no zones_map figure" not in html  # the zone map uses the same coarse raster
+
+
+def test_a_figure_that_cannot_fit_never_takes_table1_or_histograms_with_it(monkeypatch):
+    import rough_viewer.memory as memory
+
+    # a machine with 60 MB free once the cloud is read: the face-plane images (up to
+    # 160 MB) cannot be made; Table 1, histograms and semivariograms (lag shortened)
+    # still are
+    a = rough_tilted_face(4000, seed=1)
+    b = rough_tilted_face(4000, seed=2) + np.array([3_000.0, 3_000.0, 0.0])
+    cloud = PointCloud.from_xyz(np.vstack([a, b]))
+    monkeypatch.setattr(memory, "available_bytes", lambda: 60e6)
+    report = build_report(cloud, (0.5,))
+    s = report.sections[0]
+    assert s.error is None
+    assert "maps" in s.figure_errors and "face-plane image" in s.figure_errors["maps"]
+    ref = grid_roughness(cloud, 0.5)
+    assert s.summaries["odr"].cells == int(np.isfinite(ref.theta_odr).sum())
+    assert set(s.histograms) == set(MAPS) and set(s.variograms) == set(MAPS)
+    assert all(vg.pairs.sum() > 0 for vg in s.variograms.values())
+    html = report_html(report)
+    assert "no maps figure" in html and 'data-figure="summary"' in html
+    assert 'data-figure="maps_normalised"' not in html
+    assert json.loads(json.dumps(report_json(report)))["grids"][0]["figure_errors"]["maps"]
+
+
+def test_command_without_grid_uses_the_grids_from_the_point_spacing(cloud_file, cloud, tmp_path,
+                                                                    capsys):
+    from rough_viewer.grid.spacing import TARGET_POINTS, median_cell_count, preset_cell_sizes
+
+    out = tmp_path / "d.json"
+    assert main(["report", str(cloud_file), "--format", "json", "--out", str(out),
+                 "--quiet"]) == 0
+    data = json.loads(out.read_text())
+    sizes = [g["grid_size"] for g in data["grids"]]
+    assert sizes == pytest.approx(list(preset_cell_sizes(cloud)))
+    assert data["grids_chosen"] == "default"
+    assert sizes == pytest.approx([8 * sizes[-1], 4 * sizes[-1], 2 * sizes[-1], sizes[-1]])
+    assert median_cell_count(cloud, sizes[-1]) >= TARGET_POINTS
+    assert "grid sizes from the point spacing" in capsys.readouterr().out
+
+
+def test_command_units_mm_scale_every_length(cloud_file, cloud, tmp_path):
+    mm_file = tmp_path / "face_mm.npy"
+    np.save(mm_file, np.load(cloud_file) * 1000.0)
+    a, b = tmp_path / "m.json", tmp_path / "mm.json"
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--format", "json", "--out", str(a),
+                 "--quiet"]) == 0
+    assert main(["report", str(mm_file), "--units", "mm", "--grid", "500", "--format", "json",
+                 "--out", str(b), "--quiet"]) == 0
+    m, mm = json.loads(a.read_text()), json.loads(b.read_text())
+    assert mm["unit"] == "mm" and mm["grids"][0]["grid_size"] == 500.0
+    sm, smm = m["grids"][0]["models"]["odr"], mm["grids"][0]["models"]["odr"]
+    assert smm["summary"]["mean"] == pytest.approx(1000 * sm["summary"]["mean"], rel=1e-9)
+    assert smm["semivariogram"]["lag"] == pytest.approx([1000 * v for v in sm["semivariogram"]["lag"]])
+    html_out = tmp_path / "mm.html"
+    assert main(["report", str(mm_file), "--units", "mm", "--grid", "500", "--out",
+                 str(html_out), "--quiet"]) == 0
+    text = html_out.read_text()
+    assert "Grid 500 mm" in text and "lag (mm)" in text
+    assert "std\\u003cbr\\u003e(mm)" in text  # Table 1 header, as plotly escapes it
 
 
 def test_zones_section_in_json_matches_the_labeller(cloud, report):

@@ -109,3 +109,20 @@ def test_face_map_panels(kind):
     assert_caption(fig, "OLS", "ODR")
     with pytest.raises(ValueError):
         face_map_figure(maps, kind="other", **KW)
+
+
+def test_large_face_images_are_shown_by_block_maxima():
+    from rough_viewer.visual.grid import _display_image
+
+    rng = np.random.default_rng(0)
+    image = rng.random((1500, 1200))
+    image[rng.random(image.shape) < 0.3] = np.nan
+    u = 0.1 * (np.arange(1200) + 0.5)
+    v = 0.1 * (np.arange(1500) + 0.5)
+    small, u2, v2, k = _display_image(image, u, v, max_pixels=200_000)
+    assert k == 4 and small.shape == (375, 300) and small.size <= 200_000
+    np.testing.assert_allclose(small[7, 9], np.nanmax(image[28:32, 36:40]))
+    np.testing.assert_allclose(u2[0], u[:4].mean())
+    np.testing.assert_allclose(v2[1], v[4:8].mean())
+    same, *_, k1 = _display_image(image[:100, :100], u[:100], v[:100], max_pixels=200_000)
+    assert k1 == 1 and same is not None

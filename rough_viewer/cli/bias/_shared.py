@@ -14,7 +14,7 @@ from rough_viewer.cli._options import parse_xyz, positive
 from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.io.jsonable import dumps
 from rough_viewer.io.output import check_output_path, write_path_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import BIAS_RESIDUAL, RESIDUAL_NAMES, InputError
 
 if TYPE_CHECKING:  # the simulation (and scipy) load when a bias command runs, not on start
     from rough_viewer.bias.simulation import BiasPrediction, TargetLayout
@@ -35,9 +35,32 @@ def add_simulation_options(q: argparse.ArgumentParser, *, target_default: str | 
     q.add_argument("--ratio", type=positive, default=5.0,
                    help="background : asperity points after normalisation (default 5)")
     q.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    q.add_argument("--signed", action="store_true",
-                   help="roughness as the std of signed distances (the paper's "
-                   "published numbers) instead of absolute ones")
+    add_residual_option(q)
+
+
+def add_residual_option(q: argparse.ArgumentParser) -> None:
+    """``--residual signed|absolute``: the roughness convention (default signed, the
+    bias paper's own definition); ``--signed`` is kept as an alias of the default."""
+    q.add_argument("--residual", choices=("signed", "absolute"), default=BIAS_RESIDUAL,
+                   help="signed (default): std of the signed orthogonal distances, the bias "
+                   "paper's definition; absolute: std of the absolute distances, the "
+                   "grid-roughness convention (SCIENCE.md section 1)")
+    q.add_argument("--signed", dest="residual", action="store_const", const="signed",
+                   help=argparse.SUPPRESS)
+
+
+def residual_fields(residual: str) -> dict[str, str]:
+    """JSON fields naming the convention used and the other one."""
+    other = "absolute" if residual == "signed" else "signed"
+    return {"residual": residual, "residual_definition": RESIDUAL_NAMES[residual],
+            "other_residual": f"{other}: {RESIDUAL_NAMES[other]} (--residual {other})"}
+
+
+def residual_line(residual: str) -> str:
+    """One text line naming the convention used and how to get the other."""
+    other = "absolute" if residual == "signed" else "signed"
+    return (f"  roughness = {RESIDUAL_NAMES[residual]}; --residual {other}: "
+            f"{RESIDUAL_NAMES[other]}")
 
 
 def emit(args: argparse.Namespace, data: dict[str, Any], text: str) -> None:
@@ -90,8 +113,8 @@ def prediction_dict(p: BiasPrediction) -> dict[str, Any]:
     keys = ("noise_sigma_m", "effective_radius_m", "asperity_radius_m", "er_ratio", "expected_m",
             "noise_only_m", "smoothing_only_m", "measured_m", "measured_std_m",
             "noise_effect_pct", "smoothing_effect_pct", "total_effect_pct", "vs_noisy_pct",
-            "trials", "normalisation", "ratio", "residual")
-    return {k: getattr(p, k) for k in keys}
+            "trials", "normalisation", "ratio")
+    return {**{k: getattr(p, k) for k in keys}, **residual_fields(p.residual)}
 
 
 def prediction_text(p: BiasPrediction, title: str) -> str:
@@ -100,7 +123,8 @@ def prediction_text(p: BiasPrediction, title: str) -> str:
         title,
         f"  noise {mm(p.noise_sigma_m)}, effective radius {mm(p.effective_radius_m)}, "
         f"asperity radius {mm(p.asperity_radius_m)} (ER/r = {p.er_ratio:.3f})",
-        f"  normalised to {p.ratio:.2f} : 1, {p.trials} trial(s), {p.residual} distances",
+        f"  normalised to {p.ratio:.2f} : 1, {p.trials} trial(s)",
+        residual_line(p.residual),
         f"  expected (true surface)   {mm(p.expected_m)}",
         f"  with noise                {mm(p.noise_only_m)}  ({p.noise_effect_pct:+.2f} %)",
         f"  with beam smoothing       {mm(p.smoothing_only_m)}  "

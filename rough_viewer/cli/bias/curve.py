@@ -19,6 +19,8 @@ from rough_viewer.cli.bias._shared import (
     emit,
     layout,
     mm,
+    residual_fields,
+    residual_line,
 )
 
 
@@ -48,15 +50,15 @@ def run(args: argparse.Namespace) -> int:
         check_er(args, ratios * r)
         c = smoothing_curve(ratios * r, layout=layout(args, r), noise_sigma_m=args.noise,
                             spacing_m=args.spacing, ratio=args.ratio, seed=args.seed,
-                            residual="signed" if args.signed else "absolute")
+                            residual=args.residual)
         curves.append({"asperity_radius_m": c.asperity_radius_m, "er_ratio": c.er_ratio,
                        "effective_radius_m": c.effective_radius_m, "expected_m": c.expected_m,
                        "noise_only_m": c.noise_only_m, "measured_m": c.measured_m,
                        "error_pct": c.error_pct, "vs_noisy_pct": c.vs_noisy_pct})
     data = {"noise_sigma_m": args.noise, "ratio": args.ratio,
-            "residual": "signed" if args.signed else "absolute", "curves": curves}
+            **residual_fields(args.residual), "curves": curves}
     lines = [f"roughness error against ER / asperity radius (noise {mm(args.noise)}); "
-             "percent of the noise-free / noisy expected value"]
+             "percent of the noise-free / noisy expected value", residual_line(args.residual)]
     for row in curves:
         lines.append(f"asperity radius {mm(row['asperity_radius_m'])}: expected "
                      f"{mm(row['expected_m'])}, with noise {mm(row['noise_only_m'])}")

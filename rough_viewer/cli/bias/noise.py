@@ -8,6 +8,7 @@ from rough_viewer.cli._options import (
     naming,
     positive_int,
     segments,
+    warn,
 )
 from rough_viewer.cli.bias._shared import (
     add_json_option,
@@ -48,9 +49,10 @@ def run(args: argparse.Namespace) -> int:
          "offset": s.offset, "tilt_deg": s.tilt_deg, "centre": s.centre}
         for s in r.segments
     ]
+    warn([f"{args.input}: {w}" for w in r.warnings])
     data = {"sigma": r.sigma, "sigma_single_plane": r.sigma_single_plane,
             "n_points": r.n_points, "shape": list(r.shape), "segments": segs,
-            "normal": r.normal, "file": str(args.input)}
+            "normal": r.normal, "file": str(args.input), "warnings": list(r.warnings)}
     lines = [
         f"range noise of {args.input}: sigma = {mm(r.sigma)} "
         f"({r.n_points:,} points, {r.shape[0]} x {r.shape[1]} segments)",

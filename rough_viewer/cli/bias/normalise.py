@@ -14,10 +14,13 @@ from rough_viewer.cli._options import (
 )
 from rough_viewer.cli.bias._shared import (
     add_json_option,
+    add_residual_option,
     check_las_out,
     emit,
     load,
     mm,
+    residual_fields,
+    residual_line,
     scanner_position,
     write_las_atomic,
 )
@@ -46,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--scanner", metavar="X,Y,Z",
                    help="scanner position (default: the side asperities stand out on)")
     q.add_argument("--seed", type=int, default=0, help="seed of the thinning (default 0)")
-    q.add_argument("--signed", action="store_true", help="std of signed distances")
+    add_residual_option(q)
     q.add_argument("--out", metavar="OUT.las", help="write the kept points (.las/.laz)")
     q.add_argument("--force", action="store_true", help="overwrite --out")
     add_json_option(q)
@@ -74,9 +77,10 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{args.input} has non-finite points; cannot align --truth-dim")
         truth = read_las_extra(args.input, args.truth_dim) != 0
     xyz = cloud.xyz()
-    residual = "signed" if args.signed else "absolute"
+    residual = args.residual
     with naming(args.input):
         if args.classes == "truth":
+            assert truth is not None  # --classes truth needs --truth-dim (checked above)
             asperity = truth
             cls = None
         else:
@@ -88,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     data: dict = {"roughness": pop.roughness, "roughness_before": pop.roughness_before,
                   "n_points": int(xyz.shape[0]), "n_asperity": pop.n_asperity,
                   "n_background": pop.n_background, "native_ratio": pop.native_ratio,
-                  "ratio": pop.ratio, "classes": args.classes, "residual": residual,
+                  "ratio": pop.ratio, "classes": args.classes, **residual_fields(residual),
                   "file": str(args.input), "out": str(out) if out else None}
     if cls is not None:
         data.update({"kmeans_threshold": cls.threshold, "n_reclassified": cls.n_reclassified,
@@ -103,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     if out:
         write_las_atomic(out, xyz[pop.keep], {"asperity": asperity[pop.keep].astype(np.uint8)})
     lines = [
-        f"population normalisation of {args.input} ({args.classes}, {residual} distances)",
+        f"population normalisation of {args.input} ({args.classes})",
+        residual_line(residual),
         f"  {xyz.shape[0]:,} points: {pop.n_asperity:,} asperity, native ratio "
         f"{pop.native_ratio:.2f} : 1 -> {pop.ratio:.2f} : 1",
         f"  roughness before {mm(pop.roughness_before)}, after {mm(pop.roughness)}",

@@ -44,6 +44,6 @@ def run(args: argparse.Namespace) -> int:
     p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er,
                      layout=layout(args, args.asperity_radius), spacing_m=args.spacing,
                      ratio=args.ratio, trials=args.trials, seed=args.seed,
-                     residual="signed" if args.signed else "absolute")
+                     residual=args.residual)
     emit(args, prediction_dict(p), prediction_text(p, "predicted roughness bias"))
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from rough_viewer.cli._options import (
     non_negative,
     parse_xyz,
     positive,
+    warn,
 )
 from rough_viewer.cli.bias._shared import (
     add_json_option,
@@ -39,19 +41,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_json_option(q)
     q.set_defaults(func=run)
 
-    def sim_options(q: argparse.ArgumentParser, *, target_default: str | None) -> None:
-        q.add_argument("--target", choices=("A", "B"), default=target_default,
-                       help="the paper's layout: 0.609 x 1.244 m board, 36 hemispheres, "
-                       "A r=19 mm, B r=32.5 mm")
-        q.add_argument("--spacing", type=positive, default=1e-3, metavar="M",
-                       help="raster spacing, metres (default 0.001)")
-        q.add_argument("--ratio", type=positive, default=5.0,
-                       help="background : asperity points after normalisation (default 5)")
-        q.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-        q.add_argument("--signed", action="store_true",
-                       help="roughness as the std of signed distances (the paper's "
-                       "published numbers) instead of absolute ones")
-
 
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.measurement import effective_radius, fit_piecewise_linear
@@ -61,21 +50,23 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--top-fraction must be in (0, 1], got {args.top_fraction:g}")
     if args.break_range is not None and len(args.inputs) < 4:
         raise InputError("--break-range needs at least 4 wire scans (a piecewise fit)")
-    scans = []
+    scans: list[dict[str, Any]] = []
     for path in args.inputs:
         cloud = load(path)
         with naming(path):
             e = effective_radius(cloud.xyz(), scanner=scanner, top_fraction=args.top_fraction,
                                  wire_radius=args.wire_radius)
+        warn([f"{path}: {w}" for w in e.warnings])
         scans.append({"file": str(path), "effective_radius": e.effective_radius,
                       "range": e.range, "n_points": e.n_points, "n_top": e.n_top,
                       "top_fraction": e.top_fraction, "residual_std": e.residual_std,
-                      "wire_radius": e.wire_radius, "direction": e.direction})
+                      "wire_radius": e.wire_radius, "direction": e.direction,
+                      "warnings": list(e.warnings)})
     fit = None
     if len(scans) >= 4:
         with naming("piecewise fit of effective radius against range"):
-            f = fit_piecewise_linear([s["range"] for s in scans],
-                                     [s["effective_radius"] for s in scans],
+            f = fit_piecewise_linear(np.array([s["range"] for s in scans]),
+                                     np.array([s["effective_radius"] for s in scans]),
                                      break_range=args.break_range)
         fit = {"break_range": f.break_range, "intercept": f.intercept,
                "slope_near": f.slope_near, "slope_far": f.slope_far, "rmse": f.rmse,
@@ -84,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if len(scans) == 1:
         data.update({k: scans[0][k] for k in ("effective_radius", "range", "n_points", "n_top",
                                               "top_fraction", "residual_std", "wire_radius",
-                                              "file")})
+                                              "file", "warnings")})
     data["scans"] = scans
     data["fit"] = fit
     lines = [f"{'range m':>9} {'ER mm':>8} {'points':>8}  file"]

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     out = check_las_out(args)
     check_er(args, [args.er])
     target = layout(args, args.asperity_radius)
-    residual = "signed" if args.signed else "absolute"
+    residual = args.residual
     p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er, layout=target,
                      spacing_m=args.spacing, ratio=args.ratio, trials=args.trials,
                      seed=args.seed, residual=residual)

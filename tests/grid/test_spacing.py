@@ -1,0 +1,58 @@
+"""grid/spacing.py: point spacing and the default grid of clouds of known spacing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.spacing import (
+    TARGET_POINTS,
+    default_cell_size,
+    median_cell_count,
+    nice_ceil,
+    point_spacing,
+    preset_cell_sizes,
+)
+from tests.helpers import random_rotation
+
+
+def lattice(pitch: float, n: int, *, rotate: int | None = None) -> np.ndarray:
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    xyz = np.column_stack([pitch * i.ravel(), pitch * j.ravel(), np.zeros(i.size)])
+    if rotate is not None:
+        xyz = xyz @ random_rotation(rotate).T
+    return xyz + np.array([512_000.0, 4_100_000.0, 300.0])
+
+
+def test_lattice_spacing_is_its_pitch_and_default_cell_holds_16_points():
+    xyz = lattice(0.02, 150)
+    assert point_spacing(xyz) == pytest.approx(0.02, rel=1e-9)
+    g = default_cell_size(xyz)
+    assert g == pytest.approx(0.08)  # 4 x 4 lattice points: exactly 16 per cell
+    res = grid_roughness(xyz, g)
+    assert np.median(res.n_points) == TARGET_POINTS
+    assert preset_cell_sizes(xyz) == pytest.approx((0.64, 0.32, 0.16, 0.08))
+
+
+def test_random_points_of_known_density_on_a_tilted_face():
+    # 2500 points per square metre (spacing about 2 cm) on a face tilted in space
+    rng = np.random.default_rng(1)
+    n = 250_000
+    uv = rng.uniform(0.0, 10.0, (n, 2))
+    xyz = np.column_stack([uv, 0.003 * rng.standard_normal(n)]) @ random_rotation(5).T
+    assert point_spacing(xyz) == pytest.approx(1.08 / np.sqrt(2500.0), rel=0.08)
+    g = default_cell_size(xyz)
+    assert median_cell_count(xyz, g) >= TARGET_POINTS
+    # not needlessly coarse: one readable step finer would miss the target
+    assert median_cell_count(xyz, g / 1.34) < TARGET_POINTS or g <= 0.1
+    assert 0.06 <= g <= 0.2
+    assert nice_ceil(g) == g
+
+
+def test_units_do_not_change_the_number_of_points_per_cell():
+    xyz = lattice(0.02, 100, rotate=3)
+    g_m = default_cell_size(xyz)
+    g_mm = default_cell_size(xyz * 1000.0)
+    assert g_mm == pytest.approx(1000.0 * g_m, rel=0.35)
+    assert median_cell_count(xyz * 1000.0, g_mm) >= TARGET_POINTS
