@@ -6,42 +6,60 @@ prediction (:func:`rough_viewer.bias.simulation.predict_bias` on the paper's tar
 layout) is shown as a small table, with the smoothing curve against ER / asperity
 radius for the chosen asperity radius (:func:`rough_viewer.visual.bias.
 smoothing_curve_figure`). The panel is self-contained: it needs no loaded cloud.
+
+In the app, :func:`mount` puts the panel in a "Bias" tab and its button queues a
+:class:`BiasJob` on the app's worker; on its own (:func:`add_bias_panel`) the
+button computes at once.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+import viser
 
+from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
+from rough_viewer.vocabulary import RESIDUALS, Residual
+
+if TYPE_CHECKING:
+    from rough_viewer.app.server import App
 
 #: ER / asperity radius values of the panel's curve.
 CURVE_RATIOS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+
+#: Largest values the panel accepts (mm, and the ratio): the simulation raster
+#: grows with the asperity radius and the ratio.
+MAX_NOISE_MM = 50.0
+MAX_ER_MM = 100.0
+MAX_ASPERITY_MM = 100.0
+MAX_RATIO = 20.0
 
 
 @dataclass
 class BiasPanel:
     """Handles of the bias panel; :meth:`update` recomputes from their values."""
 
-    noise_mm: Any
-    """Number handle: range noise sigma, mm."""
-    er_mm: Any
-    """Number handle: beam effective radius, mm."""
-    asperity_mm: Any
-    """Number handle: asperity (hemisphere) radius, mm."""
-    ratio: Any
-    """Number handle: background : asperity ratio of the normalisation."""
-    residual: Any
-    """Dropdown handle: "absolute" (SCIENCE.md) or "signed" (the paper's numbers)."""
-    button: Any
-    """Button handle: runs :meth:`update`."""
-    result: Any
-    """Markdown handle: the prediction table."""
-    plot: Any
-    """Plotly handle: the smoothing curve."""
+    noise_mm: viser.GuiNumberHandle[float]
+    """Range noise sigma, mm."""
+    er_mm: viser.GuiNumberHandle[float]
+    """Beam effective radius, mm."""
+    asperity_mm: viser.GuiNumberHandle[float]
+    """Asperity (hemisphere) radius, mm."""
+    ratio: viser.GuiNumberHandle[float]
+    """Background : asperity ratio of the normalisation."""
+    residual: viser.GuiDropdownHandle[Residual]
+    """"absolute" (SCIENCE.md) or "signed" (the paper's numbers)."""
+    button: viser.GuiButtonHandle
+    """Runs :meth:`update`."""
+    result: viser.GuiMarkdownHandle
+    """The prediction table."""
+    plot: viser.GuiPlotlyHandle
+    """The smoothing curve."""
     spacing_m: float = 1e-3
     """Raster spacing of the simulation, metres."""
     last: BiasPrediction | None = None
@@ -60,8 +78,8 @@ class BiasPanel:
         er = float(self.er_mm.value) * 1e-3
         radius = float(self.asperity_mm.value) * 1e-3
         ratio = float(self.ratio.value)
-        residual = str(self.residual.value)
-        if not (noise >= 0 and er >= 0 and radius > 0 and ratio > 0):
+        residual = _residual(self.residual.value)
+        if residual is None or not (noise >= 0 and er >= 0 and radius > 0 and ratio > 0):
             self.result.content = "**Cannot predict:** values must be positive."
             return None
         if 0 < er < 0.5 * self.spacing_m:
@@ -91,6 +109,13 @@ class BiasPanel:
             return p
 
 
+def _residual(value: str) -> Residual | None:
+    for r in RESIDUALS:
+        if r == value:
+            return r
+    return None
+
+
 def prediction_markdown(p: BiasPrediction) -> str:
     """The prediction as a markdown table (millimetres and percent)."""
     return "\n".join([
@@ -108,7 +133,8 @@ def prediction_markdown(p: BiasPrediction) -> str:
 
 
 def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1e-3,
-                   expand: bool = False) -> BiasPanel:
+                   expand: bool = False,
+                   on_predict: Callable[[BiasPanel], object] | None = None) -> BiasPanel:
     """Add the scanner-bias panel to a viser GUI.
 
     Parameters
@@ -121,6 +147,9 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
         Raster spacing of the simulation, metres.
     expand : bool
         Open the folder at start.
+    on_predict : callable, optional
+        Called with the panel when "Predict bias" is pressed (the app queues a
+        :class:`BiasJob`); default: :meth:`BiasPanel.update` at once.
 
     Returns
     -------
@@ -129,17 +158,17 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
     """
     import plotly.graph_objects as go
 
-    api = getattr(gui, "gui", gui)
+    api: viser.GuiApi = getattr(gui, "gui", gui)
     with api.add_folder("Scanner bias", order=order, expand_by_default=expand):
-        noise = api.add_number("Range noise (mm)", 1.6, min=0.0, step=0.1,
+        noise = api.add_number("Range noise (mm)", 1.6, min=0.0, max=MAX_NOISE_MM, step=0.1,
                                hint="rangefinder noise sigma (bias noise BOARD_SCAN)")
-        er = api.add_number("Effective radius (mm)", 4.0, min=0.0, step=0.1,
+        er = api.add_number("Effective radius (mm)", 4.0, min=0.0, max=MAX_ER_MM, step=0.1,
                             hint="beam effective radius at the scan range (bias radius)")
-        radius = api.add_number("Asperity radius (mm)", 19.0, min=1.0, step=0.5,
-                                hint="hemisphere radius of the features of interest")
-        ratio = api.add_number("Background : asperity", 5.0, min=0.5, step=0.5,
+        radius = api.add_number("Asperity radius (mm)", 19.0, min=1.0, max=MAX_ASPERITY_MM,
+                                step=0.5, hint="hemisphere radius of the features of interest")
+        ratio = api.add_number("Background : asperity", 5.0, min=0.5, max=MAX_RATIO, step=0.5,
                                hint="point-population normalisation ratio")
-        residual = api.add_dropdown("Roughness", ("absolute", "signed"),
+        residual = api.add_dropdown("Roughness", RESIDUALS,
                                     initial_value="absolute",
                                     hint="absolute distances (SCIENCE.md) or signed "
                                     "(the paper's published numbers)")
@@ -149,5 +178,37 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
     panel = BiasPanel(noise_mm=noise, er_mm=er, asperity_mm=radius, ratio=ratio,
                       residual=residual, button=button, result=result, plot=plot,
                       spacing_m=spacing_m)
-    button.on_click(lambda _event: panel.update())
+    def pressed(_event: object) -> None:
+        if on_predict is None:
+            panel.update()
+        else:
+            on_predict(panel)
+
+    button.on_click(pressed)
+    return panel
+
+
+@dataclass(frozen=True)
+class BiasJob(Job["App"]):
+    """Predict the bias from the panel's values (on the app's worker)."""
+
+    panel: BiasPanel = field(compare=False)
+    lane: ClassVar[str] = "bias"
+
+    @property
+    def title(self) -> str:
+        return "bias prediction"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        self.panel.update()
+        yield "predict"
+
+
+def mount(app: App) -> BiasPanel:
+    """Add the "Bias" tab with the scanner-bias panel (predictions run as jobs)."""
+    with app.gui.tabs.add_tab("Bias"):
+        panel = add_bias_panel(app.server, expand=True,
+                               on_predict=lambda p: app.submit(BiasJob(p)))
+    app.controls.allow(panel.noise_mm, panel.er_mm, panel.asperity_mm, panel.ratio,
+                       panel.residual, panel.button)
     return panel

@@ -1,16 +1,30 @@
 """Board teaching view (2012 paper): scan the hemisphere board rotated by
 (alpha, beta), open the scan in the app, and compare each model's roughness of
 the whole board with the closed-form value. OLS and hybrid grow with the
-rotation away from the dependent axis; ODR stays near the true value."""
+rotation away from the dependent axis; ODR stays near the true value.
+
+:func:`mount` adds the "Board" tab; "Scan board" queues a :class:`BoardScanJob`,
+which is a load (it replaces a pending load and takes newer view settings).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
+import viser
 
+from rough_viewer.app.jobs import ViewJob, load_stages
+from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
 from rough_viewer.synthetic.board import BoardScan, board_scan
+from rough_viewer.vocabulary import Axis
+
+if TYPE_CHECKING:
+    from rough_viewer.app.server import App
 
 #: Cell edge that holds the whole 1 m board in one cell, metres.
 WHOLE_BOARD_CELL = 2.0
@@ -28,7 +42,7 @@ class BoardLesson:
     """Points of the unrotated scan times cos(alpha) cos(beta) (2012 paper)."""
 
 
-def board_lesson(alpha_deg: float, beta_deg: float, *, axis: str | None = None) -> BoardLesson:
+def board_lesson(alpha_deg: float, beta_deg: float, *, axis: Axis | None = None) -> BoardLesson:
     """Scan the board at (alpha, beta) degrees and compute the whole-board roughness.
 
     ``axis``: dependent axis of OLS/hybrid; default the axis facing the unrotated
@@ -37,9 +51,9 @@ def board_lesson(alpha_deg: float, beta_deg: float, *, axis: str | None = None) 
     scan = board_scan(alpha_deg, beta_deg)
     flat = board_scan(0.0, 0.0)
     n0 = flat.cloud.n
-    axis = axis or whole_cloud_axis(flat.cloud)
+    used: Axis = axis or whole_cloud_axis(flat.cloud)
     lo = scan.cloud.xyz().min(axis=0)
-    res = grid_roughness(scan.cloud, WHOLE_BOARD_CELL, origin=lo - 0.25, axis=axis)  # type: ignore[arg-type]
+    res = grid_roughness(scan.cloud, WHOLE_BOARD_CELL, origin=lo - 0.25, axis=used)
     cell = int(np.argmax(res.n_points))
     theta = {m: float(res.values(m)[cell]) for m in ("odr", "ols", "hybrid", "e_ols")}
     facing = int(round(n0 * np.cos(np.radians(alpha_deg)) * np.cos(np.radians(beta_deg))))
@@ -47,6 +61,7 @@ def board_lesson(alpha_deg: float, beta_deg: float, *, axis: str | None = None) 
 
 
 def lesson_markdown(lesson: BoardLesson) -> str:
+    """The lesson as Markdown (numbers only)."""
     t = lesson.scan.theoretical_roughness
     rows = [f"**Board α {lesson.scan.alpha_deg:g}°, β {lesson.scan.beta_deg:g}°**: "
             f"{lesson.n_points:,} points (N₀ cos α cos β = {lesson.n_points_facing:,})  ",
@@ -58,25 +73,62 @@ def lesson_markdown(lesson: BoardLesson) -> str:
     return "\n".join(rows)
 
 
-def add_board_tab(app, tabs) -> None:
-    """Board tab: rotation sliders and a button that opens the scan in the app."""
-    gui = app.server.gui
-    with tabs.add_tab("Board"):
-        alpha = gui.add_slider("Board α (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0)
-        beta = gui.add_slider("Board β (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0)
-        scan = gui.add_button("Scan board")
-        note = gui.add_markdown("Scan the 2012 paper's hemisphere board at a rotation and "
-                                "compare the models with the true roughness.")
-    app.board = {"controls": {"alpha": alpha, "beta": beta, "scan": scan, "note": note},
-                 "lesson": None}
+@dataclass
+class BoardMode:
+    """Handles and state of the Board tab."""
 
-    @scan.on_click
-    def _(_event) -> None:
-        try:
-            lesson = board_lesson(float(alpha.value), float(beta.value))
-        except Exception as exc:  # noqa: BLE001 - reported to the user
-            app.show_error(f"board scan: {exc}")
-            return
-        app.board["lesson"] = lesson
-        note.content = lesson_markdown(lesson)
-        app.load(cloud=lesson.scan.cloud)
+    alpha: viser.GuiSliderHandle[float]
+    beta: viser.GuiSliderHandle[float]
+    scan: viser.GuiButtonHandle
+    note: viser.GuiMarkdownHandle
+    lesson: BoardLesson | None = None
+    """The last scan's lesson."""
+
+
+@dataclass(frozen=True)
+class BoardScanJob(Job["App"]):
+    """Scan the board at (alpha, beta) degrees and open the scan (a load)."""
+
+    mode: BoardMode = field(compare=False)
+    alpha_deg: float
+    beta_deg: float
+    settings: ViewSettings
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"view", "panels", "pick"})
+
+    @property
+    def title(self) -> str:
+        return "board scan"
+
+    def absorb(self, newer: Job[App]) -> Job[App] | None:
+        if isinstance(newer, ViewJob):
+            return replace(self, settings=newer.settings)
+        return None
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        lesson = board_lesson(self.alpha_deg, self.beta_deg)
+        yield "scan"
+        self.mode.lesson = lesson
+        self.mode.note.content = lesson_markdown(lesson)
+        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, self.settings)
+
+
+def mount(app: App) -> BoardMode:
+    """Add the Board tab: rotation sliders and a button that opens the scan in the app."""
+    gui = app.server.gui
+    with app.gui.tabs.add_tab("Board"):
+        m = BoardMode(
+            alpha=gui.add_slider("Board α (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
+            beta=gui.add_slider("Board β (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
+            scan=gui.add_button("Scan board"),
+            note=gui.add_markdown("Scan the 2012 paper's hemisphere board at a rotation and "
+                                  "compare the models with the true roughness."),
+        )
+    app.controls.allow(m.alpha, m.beta, m.scan)
+
+    @m.scan.on_click
+    def _(_event: object) -> None:
+        app.submit(BoardScanJob(m, float(m.alpha.value), float(m.beta.value),
+                                app.gui_settings()))
+
+    return m

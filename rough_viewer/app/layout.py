@@ -8,20 +8,34 @@ worker. Labels here are what users and the browser tests look for.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import plotly.graph_objects as go
 import viser
 
-from rough_viewer.app.state import MODEL_LABELS, PRESET_CELL_SIZES, ViewSettings
+from rough_viewer.app.state import (
+    MIN_CELL_SIZE,
+    MODEL_LABELS,
+    PRESET_CELL_SIZES,
+    DisplayMode,
+    ViewSettings,
+)
 from rough_viewer.visual import colormaps
+from rough_viewer.vocabulary import AXIS_CHOICES, AxisChoice, MapName
+
+if TYPE_CHECKING:
+    from viser._gui_handles import GuiProgressBarHandle
 
 #: Grid-size dropdown entries: the presets as text, then "free" (use the number field).
 GRID_PRESET_OPTIONS: tuple[str, ...] = tuple(f"{g:g}" for g in PRESET_CELL_SIZES) + ("free",)
 #: Colour-map dropdown: "auto" = viridis for roughness, coolwarm (diverging) for e_ols.
 COLORMAP_OPTIONS: tuple[str, ...] = ("auto", *colormaps.COLORMAP_NAMES)
 MODEL_OPTIONS: tuple[str, ...] = tuple(MODEL_LABELS.values())
-MODEL_BY_LABEL: dict[str, str] = {label: name for name, label in MODEL_LABELS.items()}
-DISPLAY_OPTIONS: tuple[str, ...] = ("continuous", "binary")
+MODEL_BY_LABEL: dict[str, MapName] = {label: name for name, label in MODEL_LABELS.items()}
+DISPLAY_BY_NAME: dict[str, DisplayMode] = {"continuous": "continuous", "binary": "binary"}
+DISPLAY_OPTIONS: tuple[str, ...] = tuple(DISPLAY_BY_NAME)
+AXIS_BY_NAME: dict[str, AxisChoice] = {a: a for a in AXIS_CHOICES}
+AXIS_OPTIONS: tuple[str, ...] = tuple(AXIS_BY_NAME)
 
 #: Labels (the browser tests find controls by these).
 L_GRID = "Grid size (m)"
@@ -39,6 +53,18 @@ L_SHOW_AXIS = "Show dependent axis"
 L_PATH = "File path"
 L_LOAD = "Load file"
 L_UPLOAD = "Upload file"
+
+
+T = TypeVar("T")
+
+
+def assign(handle: Any, value: T) -> None:
+    """Set a GUI handle's value (its callbacks run at once, on this thread).
+
+    viser 1.1's type hints make ``handle.value`` read-only for mypy although
+    viser assigns it at run time; this one function is where the app does.
+    """
+    setattr(handle, "value", value)  # noqa: B010 - see the docstring
 
 
 def resolve_colormap(choice: str, model: str) -> str:
@@ -61,21 +87,21 @@ class Gui:
 
     status: viser.GuiMarkdownHandle
     error: viser.GuiMarkdownHandle
-    progress: viser.GuiProgressBarHandle
+    progress: GuiProgressBarHandle
     colour_bar: viser.GuiPlotlyHandle
-    grid: viser.GuiDropdownHandle
-    grid_free: viser.GuiNumberHandle
-    model: viser.GuiDropdownHandle
+    grid: viser.GuiDropdownHandle[str]
+    grid_free: viser.GuiNumberHandle[float]
+    model: viser.GuiDropdownHandle[str]
     toggle: viser.GuiButtonHandle
-    axis: viser.GuiDropdownHandle
+    axis: viser.GuiDropdownHandle[str]
     axis_note: viser.GuiMarkdownHandle
     show_axis: viser.GuiCheckboxHandle
-    display: viser.GuiDropdownHandle
-    threshold: viser.GuiSliderHandle
-    min_points: viser.GuiNumberHandle
-    point_size: viser.GuiSliderHandle
-    colormap: viser.GuiDropdownHandle
-    clip: viser.GuiMultiSliderHandle
+    display: viser.GuiDropdownHandle[str]
+    threshold: viser.GuiSliderHandle[float]
+    min_points: viser.GuiNumberHandle[int]
+    point_size: viser.GuiSliderHandle[float]
+    colormap: viser.GuiDropdownHandle[str]
+    clip: viser.GuiMultiSliderHandle[float]
     pick: viser.GuiMarkdownHandle
     histogram: viser.GuiPlotlyHandle
     variogram: viser.GuiPlotlyHandle
@@ -85,6 +111,12 @@ class Gui:
     upload: viser.GuiUploadButtonHandle
     tabs: viser.GuiTabGroupHandle
 
+    def inputs(self) -> tuple[Any, ...]:
+        """The controls a browser may set (the upload button sends files instead)."""
+        return (self.grid, self.grid_free, self.model, self.toggle, self.axis,
+                self.show_axis, self.display, self.threshold, self.min_points,
+                self.point_size, self.colormap, self.clip, self.path, self.load)
+
 
 def build_gui(
     server: viser.ViserServer,
@@ -92,6 +124,7 @@ def build_gui(
     *,
     point_size: float,
     source: str,
+    upload_limit: str = "",
 ) -> Gui:
     """Create the controls (initial values from ``settings``) and empty panels."""
     gui = server.gui
@@ -110,12 +143,12 @@ def build_gui(
             hint="Cell edge of the roughness grid; 'free' uses the number below.",
         )
         grid_free = gui.add_number(
-            L_GRID_FREE, float(settings.cell_size), min=0.001, max=100.0, step=0.001,
+            L_GRID_FREE, float(settings.cell_size), min=MIN_CELL_SIZE, max=100.0, step=0.001,
             hint="Any cell size in metres (switches the grid size to 'free').",
         )
         model = gui.add_dropdown(L_MODEL, MODEL_OPTIONS, initial_value=MODEL_LABELS[settings.model])
         toggle = gui.add_button(L_TOGGLE, hint="Same cells, other reference plane.")
-        axis = gui.add_dropdown(L_AXIS, ("auto", "x", "y", "z"), initial_value=settings.axis,
+        axis = gui.add_dropdown(L_AXIS, AXIS_OPTIONS, initial_value=settings.axis,
                                 hint="Dependent variable of the OLS and hybrid fits.")
         axis_note = gui.add_markdown("")
         show_axis = gui.add_checkbox(L_SHOW_AXIS, True)
@@ -128,17 +161,20 @@ def build_gui(
         clip = gui.add_multi_slider(L_CLIP, min=0.0, max=1.0, step=0.01,
                                     initial_value=tuple(settings.clip), min_range=0.01,
                                     hint="Normalised roughness spread over the colour map.")
-        point_size = gui.add_slider(L_POINT_SIZE, min=point_size / 10, max=point_size * 10,
-                                    step=point_size / 10, initial_value=point_size)
+        size_handle = gui.add_slider(L_POINT_SIZE, min=point_size / 10, max=point_size * 10,
+                                     step=point_size / 10, initial_value=point_size)
         pick = gui.add_markdown("Click a point to see its cell.")
     with tabs.add_tab("Panels"):
         histogram = gui.add_plotly(_empty_figure("histogram"), aspect=0.95)
         variogram = gui.add_plotly(_empty_figure("semivariogram"), aspect=0.95)
         summary = gui.add_plotly(_empty_figure("summary"), aspect=0.75)
     with tabs.add_tab("File"):
-        path = gui.add_text(L_PATH, source)
+        path = gui.add_text(L_PATH, source,
+                            hint="A file in the server's data folder (--data-dir); relative "
+                            "paths start there.")
         load = gui.add_button(L_LOAD)
-        upload = gui.add_upload_button(L_UPLOAD)
+        upload = gui.add_upload_button(
+            L_UPLOAD, hint=f"Send a point-cloud file from this computer{upload_limit}.")
     return Gui(status, error, progress, colour_bar, grid, grid_free, model, toggle, axis,
-               axis_note, show_axis, display, threshold, min_points, point_size, colormap,
+               axis_note, show_axis, display, threshold, min_points, size_handle, colormap,
                clip, pick, histogram, variogram, summary, path, load, upload, tabs)

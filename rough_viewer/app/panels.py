@@ -2,14 +2,18 @@
 
 The histogram, semivariogram and summary table shown in the app are the report's
 figures (:mod:`rough_viewer.visual.grid`) fed with core results
-(:func:`rough_viewer.grid.roughness.histogram`, :func:`summarise`,
+(:func:`rough_viewer.grid.summary.histogram`, :func:`summarise`,
 :func:`rough_viewer.grid.variogram.semivariogram`); nothing is recomputed here.
+The panels job (:class:`rough_viewer.app.jobs.PanelsJob`) builds them in two
+stages: :func:`distribution_figures` (fast), then :func:`variogram_figure_of`
+(can take seconds, or be refused for memory, on fine grids).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import plotly.graph_objects as go
 
@@ -18,41 +22,56 @@ from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.summary import histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.visual.grid import histogram_figure, summary_table_figure, variogram_figure
-
-ALL_MAPS = ("odr", "ols", "hybrid", "e_ols")
+from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, MapName
 
 
 @dataclass(frozen=True)
-class Panels:
-    """The three panel figures for one grid result and model."""
+class Distribution:
+    """The histogram and Table 1 summary figures of one grid result and model."""
 
     histogram: go.Figure
-    variogram: go.Figure | None
     summary: go.Figure
-    histogram_maps: tuple[str, ...]
-    variogram_maps: tuple[str, ...]
+    histogram_maps: tuple[MapName, ...]
 
 
-def histogram_maps(model: str) -> tuple[str, ...]:
+def histogram_maps(model: MapName) -> tuple[MapName, ...]:
     """Maps in the histogram: ODR and OLS (2011 Fig. 3), plus the current one."""
-    return ("odr", "ols") + (() if model in ("odr", "ols") else (model,))
+    base: tuple[MapName, ...] = ("odr", "ols")
+    return base + (() if model in base else (model,))
 
 
-def variogram_maps(model: str) -> tuple[str, ...]:
+def variogram_maps(model: MapName) -> tuple[MapName, ...]:
     """Maps in the semivariogram: the current one, ODR, OLS and e_ols (2011 Fig. 4)."""
-    return (model,) + tuple(m for m in ("odr", "ols", "e_ols") if m != model)
+    others: tuple[MapName, ...] = ("odr", "ols", "e_ols")
+    return (model,) + tuple(m for m in others if m != model)
+
+
+def _figure_kw(result: GridRoughness) -> dict[str, Any]:
+    return dict(grid_size=result.grid.cell_size, axis=result.axis,
+                n_points=result.n_points_total)
+
+
+def distribution_figures(result: GridRoughness, settings: ViewSettings) -> Distribution:
+    """Histogram of normalised roughness (0.05 bins) and the summary table."""
+    kw = _figure_kw(result)
+    h_maps = histogram_maps(settings.model)
+    hist = histogram_figure(
+        {m: histogram(normalise(result.values(m)), HISTOGRAM_BIN) for m in h_maps}, **kw)
+    summary = summary_table_figure({m: summarise(result, m) for m in MAPS}, **kw)
+    return Distribution(hist, summary, h_maps)
 
 
 def variograms(
     result: GridRoughness,
-    maps: tuple[str, ...],
+    maps: tuple[MapName, ...],
     *,
     is_stale: Callable[[], bool] = lambda: False,
 ) -> dict[str, Semivariogram] | None:
     """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell size),
-    or None if ``is_stale()`` turned True between maps (fine grids take seconds)."""
+    or None if ``is_stale()`` turned True between maps (fine grids take seconds).
+    Raises InputError when a semivariogram cannot fit in memory."""
     g = result.grid.cell_size
-    out = {}
+    out: dict[str, Semivariogram] = {}
     for m in maps:
         if is_stale():
             return None
@@ -60,28 +79,12 @@ def variograms(
     return out
 
 
-def build_panels(
+def variogram_figure_of(
     result: GridRoughness,
     settings: ViewSettings,
     *,
-    variogram: bool = True,
     is_stale: Callable[[], bool] = lambda: False,
-) -> Panels | None:
-    """Figures for the panels, or None if ``is_stale()`` turned True on the way."""
-    kw = dict(grid_size=result.grid.cell_size, axis=result.axis,
-              n_points=result.n_points_total)
-    h_maps = histogram_maps(settings.model)
-    hist = histogram_figure(
-        {m: histogram(normalise(result.values(m)), 0.05) for m in h_maps}, **kw
-    )
-    summary = summary_table_figure({m: summarise(result, m) for m in ALL_MAPS}, **kw)
-    if is_stale():
-        return None
-    v_maps = variogram_maps(settings.model) if variogram else ()
-    vfig = None
-    if variogram:
-        vgs = variograms(result, v_maps, is_stale=is_stale)
-        if vgs is None:
-            return None
-        vfig = variogram_figure(vgs, **kw)
-    return Panels(hist, vfig, summary, h_maps, v_maps)
+) -> go.Figure | None:
+    """The semivariogram panel, or None if ``is_stale()`` turned True on the way."""
+    vgs = variograms(result, variogram_maps(settings.model), is_stale=is_stale)
+    return None if vgs is None else variogram_figure(vgs, **_figure_kw(result))

@@ -2,21 +2,43 @@
 wavelets, with its fractal dimension (core: profile, wavelets, fractal).
 
 The pure part (:class:`ProfileSettings`, :func:`analyse`, :func:`profiles_csv`)
-needs no viser; :func:`add_profile_tab` puts the controls in the GUI.
+needs no viser. :func:`mount` adds the "Profile" tab; its work runs as jobs on
+the app's worker: the clicks arrive through the app's pick job
+(:meth:`ProfileMode.on_pick`), :class:`DenoiseJob` redoes the kept profiles with
+new settings, :class:`ClearProfilesJob`, :class:`ProfilePlotJob` and
+:class:`ProfilesCsvJob` clear, redraw and download them.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
+import viser
 
+from rough_viewer.app.jobs import Pick
+from rough_viewer.app.limits import MAX_PROFILES
+from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
 from rough_viewer.profiles.fractal import RoughnessLength, roughness_length
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
-from rough_viewer.vocabulary import PROFILE_COLOURS, THRESHOLD_RULES, hex_to_rgb
+from rough_viewer.vocabulary import (
+    DECOMPOSITIONS,
+    PROFILE_COLOURS,
+    THRESHOLD_RULES,
+    Decomposition,
+    InputError,
+    Mode,
+    ThresholdRule,
+    hex_to_rgb,
+)
+
+if TYPE_CHECKING:
+    from rough_viewer.app.server import App
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
 
@@ -27,9 +49,9 @@ class ProfileSettings:
 
     wavelet: str = "db3"
     level: int = 3
-    decomposition: str = "dwt"
-    threshold: str = "fixed"
-    mode: str = "hard"
+    decomposition: Decomposition = "dwt"
+    threshold: ThresholdRule = "fixed"
+    mode: Mode = "hard"
     band_half_width: float | None = None
     """Metres; None = the local point spacing."""
     exaggeration: float = 1.0
@@ -47,7 +69,8 @@ class ProfileAnalysis:
     settings: ProfileSettings
 
 
-def analyse(points: np.ndarray, start, end, settings: ProfileSettings) -> ProfileAnalysis:
+def analyse(points: np.ndarray, start: np.ndarray, end: np.ndarray,
+            settings: ProfileSettings) -> ProfileAnalysis:
     """Extract the profile between ``start`` and ``end`` (file frame, metres) and
     de-noise it; raises InputError/ValueError from the core for bad picks."""
     prof = extract_profile(points, np.asarray(start, float), np.asarray(end, float),
@@ -58,9 +81,8 @@ def analyse(points: np.ndarray, start, end, settings: ProfileSettings) -> Profil
 def redo(profile: Profile, settings: ProfileSettings) -> ProfileAnalysis:
     """De-noise and fit an extracted profile again with other settings."""
     den = denoise_result(profile.heights, wavelet=settings.wavelet, level=settings.level,
-                         decomposition=settings.decomposition,  # type: ignore[arg-type]
-                         threshold=settings.threshold,  # type: ignore[arg-type]
-                         mode=settings.mode)  # type: ignore[arg-type]
+                         decomposition=settings.decomposition, threshold=settings.threshold,
+                         mode=settings.mode)
     return ProfileAnalysis(profile, den, roughness_length(profile.heights, profile.spacing),
                            roughness_length(den.heights, profile.spacing), settings)
 
@@ -82,6 +104,7 @@ def profiles_csv(analyses: list[ProfileAnalysis]) -> str:
 
 
 def summary_markdown(analyses: list[ProfileAnalysis]) -> str:
+    """The kept profiles as a Markdown table (numbers only)."""
     if not analyses:
         return "Tick *Profile mode* and click two points on the rock."
     rows = ["| # | length (m) | σ noise (mm) | D raw | D de-noised |", "|---|---|---|---|---|"]
@@ -91,99 +114,215 @@ def summary_markdown(analyses: list[ProfileAnalysis]) -> str:
     return "\n".join(rows)
 
 
-def add_profile_tab(app, tabs) -> None:
-    """Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
+@dataclass
+class ProfileMode:
+    """Handles and state of the Profile tab (the worker changes the state)."""
+
+    app: App
+    on: viser.GuiCheckboxHandle
+    wavelet: viser.GuiDropdownHandle[str]
+    level: viser.GuiSliderHandle[int]
+    decomposition: viser.GuiDropdownHandle[str]
+    threshold: viser.GuiDropdownHandle[str]
+    mode: viser.GuiDropdownHandle[str]
+    band: viser.GuiNumberHandle[float]
+    exaggeration: viser.GuiSliderHandle[float]
+    note: viser.GuiMarkdownHandle
+    plot: viser.GuiPlotlyHandle
+    clear: viser.GuiButtonHandle
+    download: viser.GuiButtonHandle
+    items: list[ProfileAnalysis] = field(default_factory=list)
+    """The kept profiles, oldest first (at most :data:`MAX_PROFILES`)."""
+    start: tuple[np.ndarray, np.ndarray] | None = None
+    """The first click of a profile being picked: (file frame, display frame)."""
+    nodes: list[list[viser.SceneNodeHandle]] = field(default_factory=list)
+    """Scene nodes of each kept profile (the pending start's marker last)."""
+
+    def settings(self) -> ProfileSettings:
+        """The de-noising settings the controls show."""
+        bw = float(self.band.value)
+        return ProfileSettings(
+            wavelet=self.wavelet.value, level=int(self.level.value),
+            decomposition=cast(Decomposition, self.decomposition.value),
+            threshold=cast(ThresholdRule, self.threshold.value),
+            mode=cast(Mode, self.mode.value),
+            band_half_width=bw if bw > 0 else None,
+            exaggeration=float(self.exaggeration.value))
+
+    def refresh(self) -> None:
+        """Redraw the table and the plot."""
+        from rough_viewer.visual.profiles import profile_figure
+
+        self.note.content = summary_markdown(self.items)
+        self.plot.figure = profile_figure(self.items, exaggeration=float(self.exaggeration.value))
+
+    def on_pick(self, app: App, pick: Pick) -> bool:
+        """A click while profile mode is on: the start, then the end of a profile
+        (runs in the app's pick job). False when profile mode is off."""
+        if not self.on.value:
+            return False
+        k = len(self.items)
+        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
+        local = (float(pick.local[0]), float(pick.local[1]), float(pick.local[2]))
+        if self.start is None:
+            self.start = (pick.xyz, pick.local)
+            self.nodes.append([app.server.scene.add_icosphere(
+                f"/profiles/{k}/start", radius=0.02, color=colour, position=local)])
+            self.note.content = "Start picked; click the end of the profile."
+            return True
+        (p0, l0), self.start = self.start, None
+        try:
+            a = analyse(app.shown.loaded.cloud.xyz(), p0, pick.xyz, self.settings())
+        except (InputError, ValueError) as exc:
+            for node in self.nodes.pop():
+                node.remove()
+            app.show_error(f"profile: {exc}")
+            return True
+        seg = np.array([[l0, pick.local]], dtype=np.float32)
+        self.nodes[-1] += [
+            app.server.scene.add_line_segments(f"/profiles/{k}/line", seg, colour,
+                                               thickness=4.0, thickness_units="screen"),
+            app.server.scene.add_label(f"/profiles/{k}/label", f"P{k + 1}", position=local),
+        ]
+        self.items.append(a)
+        while len(self.items) > MAX_PROFILES:
+            self.items.pop(0)
+            for node in self.nodes.pop(0):
+                node.remove()
+        self.refresh()
+        return True
+
+    def clear_all(self) -> None:
+        for nodes in self.nodes:
+            for node in nodes:
+                node.remove()
+        self.items, self.nodes, self.start = [], [], None
+        self.refresh()
+
+
+@dataclass(frozen=True)
+class DenoiseJob(Job["App"]):
+    """De-noise and fit every kept profile again with ``settings``."""
+
+    mode: ProfileMode = field(compare=False)
+    settings: ProfileSettings
+    lane: ClassVar[str] = "profile-denoise"
+
+    @property
+    def title(self) -> str:
+        return "profile de-noising"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        redone = []
+        for a in self.mode.items:
+            run.check()
+            redone.append(redo(a.profile, self.settings))
+        yield "denoise"
+        self.mode.items = redone
+        self.mode.refresh()
+        yield "plot"
+
+
+@dataclass(frozen=True)
+class ClearProfilesJob(Job["App"]):
+    """Remove every kept profile."""
+
+    mode: ProfileMode = field(compare=False)
+    lane: ClassVar[str] = "profile-clear"
+    cancels: ClassVar[frozenset[str]] = frozenset({"profile-denoise", "profile-plot"})
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        self.mode.clear_all()
+        yield "clear"
+
+
+@dataclass(frozen=True)
+class ProfilePlotJob(Job["App"]):
+    """Redraw the profile plot (vertical exaggeration changed)."""
+
+    mode: ProfileMode = field(compare=False)
+    lane: ClassVar[str] = "profile-plot"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        self.mode.refresh()
+        yield "plot"
+
+
+@dataclass(frozen=True)
+class ProfilesCsvJob(Job["App"]):
+    """Send the kept profiles as CSV to one browser (or every browser)."""
+
+    mode: ProfileMode = field(compare=False)
+    client_id: int | None
+    lane: ClassVar[str] = "profile-csv"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        data = profiles_csv(self.mode.items).encode()
+        yield "csv"
+        client = ctx.server.get_clients().get(self.client_id) \
+            if self.client_id is not None else None
+        target: Any = client if client is not None else ctx.server
+        target.send_file_download("profiles.csv", data)
+        yield "send"
+
+
+def mount(app: App) -> ProfileMode:
+    """Add the Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
+    m = _add_controls(app)
+    _wire(app, m)
+    app.click_handlers.append(m.on_pick)
+    return m
+
+
+def _add_controls(app: App) -> ProfileMode:
+    """Stage 1: the tab's controls, registered for values from browsers."""
     from rough_viewer.visual.profiles import profile_figure
 
     gui = app.server.gui
-    with tabs.add_tab("Profile"):
-        on = gui.add_checkbox("Profile mode", False,
-                              hint="Clicks pick the two ends of a profile line.")
-        wavelet = gui.add_dropdown("Wavelet", WAVELETS, initial_value="db3")
-        level = gui.add_slider("Level", min=1, max=6, step=1, initial_value=3)
-        decomp = gui.add_dropdown("Decomposition", ("dwt", "wp"), initial_value="dwt")
-        rule = gui.add_dropdown("Threshold rule", THRESHOLD_RULES, initial_value="fixed")
-        mode = gui.add_dropdown("Threshold mode", ("hard", "soft"), initial_value="hard")
-        band = gui.add_number("Band half-width (m)", 0.0, min=0.0, max=10.0, step=0.001,
-                              hint="0 = the local point spacing")
-        exag = gui.add_slider("Vertical exaggeration", min=1.0, max=20.0, step=0.5,
-                              initial_value=1.0)
-        note = gui.add_markdown(summary_markdown([]))
-        plot = gui.add_plotly(profile_figure([], exaggeration=1.0), aspect=1.2)
-        clear = gui.add_button("Clear profiles")
-        download = gui.add_button("Download CSV")
+    with app.gui.tabs.add_tab("Profile"):
+        m = ProfileMode(
+            app=app,
+            on=gui.add_checkbox("Profile mode", False,
+                                hint="Clicks pick the two ends of a profile line."),
+            wavelet=gui.add_dropdown("Wavelet", WAVELETS, initial_value="db3"),
+            level=gui.add_slider("Level", min=1, max=6, step=1, initial_value=3),
+            decomposition=gui.add_dropdown("Decomposition", DECOMPOSITIONS,
+                                           initial_value="dwt"),
+            threshold=gui.add_dropdown("Threshold rule", THRESHOLD_RULES,
+                                       initial_value="fixed"),
+            mode=gui.add_dropdown("Threshold mode", ("hard", "soft"),
+                                  initial_value="hard"),
+            band=gui.add_number("Band half-width (m)", 0.0, min=0.0, max=10.0, step=0.001,
+                                hint="0 = the local point spacing"),
+            exaggeration=gui.add_slider("Vertical exaggeration", min=1.0, max=20.0, step=0.5,
+                                        initial_value=1.0),
+            note=gui.add_markdown(summary_markdown([])),
+            plot=gui.add_plotly(profile_figure([], exaggeration=1.0), aspect=1.2),
+            clear=gui.add_button("Clear profiles"),
+            download=gui.add_button("Download CSV"),
+        )
+    app.controls.allow(m.on, m.wavelet, m.level, m.decomposition, m.threshold, m.mode,
+                       m.band, m.exaggeration, m.clear, m.download)
+    return m
 
-    state = {"start": None, "items": [], "nodes": [],
-             "controls": {"on": on, "wavelet": wavelet, "level": level, "decomposition": decomp,
-                          "threshold": rule, "mode": mode, "band": band,
-                          "exaggeration": exag, "note": note, "plot": plot, "clear": clear,
-                          "download": download}}
-    app.profile = state
 
-    def settings() -> ProfileSettings:
-        bw = float(band.value)
-        return ProfileSettings(wavelet=wavelet.value, level=int(level.value),
-                               decomposition=decomp.value, threshold=rule.value,
-                               mode=mode.value, band_half_width=bw if bw > 0 else None,
-                               exaggeration=float(exag.value))
+def _wire(app: App, m: ProfileMode) -> None:
+    """Stage 2: each control queues its job."""
 
-    def refresh() -> None:
-        note.content = summary_markdown(state["items"])
-        plot.figure = profile_figure(state["items"], exaggeration=float(exag.value))
+    def denoise(_event: object) -> None:
+        app.submit(DenoiseJob(m, m.settings()))
 
-    def rework(_event=None) -> None:
-        s = settings()
-        try:
-            state["items"] = [redo(a.profile, s) for a in state["items"]]
-        except Exception as exc:  # noqa: BLE001 - shown to the user
-            app.show_error(f"profile: {exc}")
-            return
-        refresh()
+    def replot(_event: object) -> None:
+        app.submit(ProfilePlotJob(m))
 
-    for control in (wavelet, level, decomp, rule, mode):
-        control.on_update(rework)
-    exag.on_update(lambda _e: refresh())
+    def clear(_event: object) -> None:
+        app.submit(ClearProfilesJob(m))
 
-    @clear.on_click
-    def _(_event) -> None:
-        for node in state["nodes"]:
-            node.remove()
-        state.update(start=None, items=[], nodes=[])
-        refresh()
+    for control in (m.wavelet, m.level, m.decomposition, m.threshold, m.mode):
+        control.on_update(denoise)
+    m.exaggeration.on_update(replot)
+    m.clear.on_click(clear)
 
-    @download.on_click
-    def _(event) -> None:
-        data = profiles_csv(state["items"]).encode()
-        target = event.client if event.client is not None else app.server
-        target.send_file_download("profiles.csv", data)
-
-    def on_pick(point_file: np.ndarray, local: np.ndarray) -> bool:
-        """Handle a click in profile mode; False when profile mode is off."""
-        if not on.value:
-            return False
-        k = len(state["items"])
-        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        if state["start"] is None:
-            state["start"] = (point_file, local)
-            state["nodes"].append(app.server.scene.add_icosphere(
-                f"/profiles/{k}/start", radius=0.02, color=colour, position=tuple(local)))
-            note.content = "Start picked; click the end of the profile."
-            return True
-        (p0, l0), state["start"] = state["start"], None
-        try:
-            loaded = app.shown.loaded
-            a = analyse(loaded.cloud.xyz(), p0, point_file, settings())
-        except Exception as exc:  # noqa: BLE001 - bad picks are reported, not raised
-            app.show_error(f"profile: {exc}")
-            return True
-        state["items"].append(a)
-        seg = np.array([[l0, local]], dtype=np.float32)
-        state["nodes"].append(app.server.scene.add_line_segments(
-            f"/profiles/{k}/line", seg, colour, thickness=4.0, thickness_units="screen"))
-        state["nodes"].append(app.server.scene.add_label(
-            f"/profiles/{k}/label", f"P{k + 1}", position=tuple(local)))
-        refresh()
-        return True
-
-    app.profile_pick = on_pick
-    app.profile_settings = settings
+    @m.download.on_click
+    def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        app.submit(ProfilesCsvJob(m, event.client_id))

@@ -14,11 +14,12 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from typing import Literal
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
+from rough_viewer.app.limits import CACHE_BYTES
 from rough_viewer.app.sampling import display_subset
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
@@ -31,7 +32,7 @@ from rough_viewer.grid.roughness import (
 from rough_viewer.grid.summary import normalise
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import MAP_TITLES, MAPS, AxisChoice, InputError, MapName
+from rough_viewer.vocabulary import MAP_TITLES, MAPS, AxisChoice, InputError, MapName, ProgressFn
 
 DisplayMode = Literal["continuous", "binary"]
 
@@ -39,7 +40,7 @@ DisplayMode = Literal["continuous", "binary"]
 PRESET_CELL_SIZES: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
 
 #: Maps in the order the GUI lists them; names shown to the user.
-MODEL_LABELS: dict[str, str] = {name: MAP_TITLES[name] for name in MAPS}
+MODEL_LABELS: dict[MapName, str] = {name: MAP_TITLES[name] for name in MAPS}
 
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000
@@ -50,6 +51,7 @@ FINE_CELL_SIZE = min(PRESET_CELL_SIZES)
 
 #: Smallest cell size the app accepts (metres); below it grids get absurdly large.
 MIN_CELL_SIZE = 1e-3
+
 
 
 @dataclass(frozen=True)
@@ -98,6 +100,94 @@ def check_settings(settings: ViewSettings) -> None:
     colormaps.lut(settings.colormap)
 
 
+def nbytes(obj: object) -> int:
+    """Bytes held by the numpy arrays inside ``obj`` (dataclasses, tuples, lists and
+    dicts are walked; an array and its views count once, at their base's size)."""
+    seen: set[int] = set()
+    total = 0
+    stack: list[object] = [obj]
+    while stack:
+        o = stack.pop()
+        if isinstance(o, np.ndarray):
+            base = o
+            while isinstance(base.base, np.ndarray):
+                base = base.base
+            if id(base) not in seen:
+                seen.add(id(base))
+                total += int(base.nbytes)
+        elif is_dataclass(o) and not isinstance(o, type):
+            stack.extend(getattr(o, f.name) for f in fields(o))
+        elif isinstance(o, (tuple, list)):
+            stack.extend(o)
+        elif isinstance(o, dict):
+            stack.extend(o.values())
+    return total
+
+
+K = TypeVar("K")
+V = TypeVar("V")
+
+
+class ByteCache(Generic[K, V]):
+    """A thread-safe least-recently-used cache bounded by the bytes of its values.
+
+    Parameters
+    ----------
+    budget
+        Most bytes (by :func:`nbytes`) the cache holds. A value larger than the
+        whole budget is not kept.
+    pinned
+        Keys never evicted to make room (they still count against the budget).
+    """
+
+    def __init__(self, budget: int, *, pinned: Callable[[K], bool] = lambda _k: False) -> None:
+        self.budget = int(budget)
+        self._pinned = pinned
+        self._items: OrderedDict[K, tuple[V, int]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: K) -> V | None:
+        with self._lock:
+            item = self._items.get(key)
+            if item is None:
+                return None
+            self._items.move_to_end(key)
+            return item[0]
+
+    def __contains__(self, key: object) -> bool:
+        with self._lock:
+            return key in self._items
+
+    def put(self, key: K, value: V) -> bool:
+        """Keep ``value`` (evicting least recently used values to make room);
+        returns False when it does not fit at all."""
+        size = nbytes(value)
+        with self._lock:
+            old = self._items.pop(key, None)
+            if old is not None:
+                self._bytes -= old[1]
+            for k in [k for k in self._items if not self._pinned(k)]:
+                if self._bytes + size <= self.budget:
+                    break
+                self._bytes -= self._items.pop(k)[1]
+            if self._bytes + size > self.budget:
+                return False
+            self._items[key] = (value, size)
+            self._bytes += size
+            return True
+
+    @property
+    def bytes(self) -> int:
+        """Bytes held now."""
+        with self._lock:
+            return self._bytes
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._items)
+
+
 @dataclass
 class LoadedCloud:
     """A cloud prepared for display, with its grid results cached.
@@ -108,22 +198,23 @@ class LoadedCloud:
         The points (file frame, metres).
     max_display
         Most points drawn; roughness is always computed on all ``cloud.n``.
-    cache_size
-        Grid results kept (least recently used dropped first).
+    cache_bytes
+        Memory budget of the cached grids (results and cell membership together),
+        bytes; least recently used ones are dropped first (default
+        :data:`CACHE_BYTES`).
     """
 
     cloud: PointCloud
     max_display: int = DEFAULT_MAX_DISPLAY
-    cache_size: int = 8
+    cache_bytes: int = CACHE_BYTES
     seed: int = 0
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)
     plane: PlaneFit = field(init=False)
     auto_axis: str = field(init=False)
-    _cache: OrderedDict = field(init=False, repr=False)
-    _prepared: OrderedDict = field(init=False, repr=False)
-    _lock: threading.Lock = field(init=False, repr=False)
+    _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid] = \
+        field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
@@ -137,9 +228,9 @@ class LoadedCloud:
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
         self.plane = whole_cloud_plane(self.cloud)
         self.auto_axis = dominant_axis(self.plane.normal)
-        self._cache = OrderedDict()
-        self._prepared = OrderedDict()
-        self._lock = threading.Lock()
+        fine_key = ("prepared", round(FINE_CELL_SIZE, 9))
+        # the fine grid stays: every preset is coarsened from it
+        self._cache = ByteCache(self.cache_bytes, pinned=lambda k: k == fine_key)
 
     @property
     def n_total(self) -> int:
@@ -151,26 +242,29 @@ class LoadedCloud:
         """Points drawn."""
         return len(self.display_index)
 
+    @property
+    def cached_bytes(self) -> int:
+        """Bytes held by the cached grids now (at most ``cache_bytes``)."""
+        return self._cache.bytes
+
     def to_file_frame(self, local: np.ndarray) -> np.ndarray:
         """Local display coordinates -> the file's frame (metres, float64)."""
         return np.asarray(local, dtype=np.float64) + self.origin
 
     def is_cached(self, settings: ViewSettings) -> bool:
-        with self._lock:
-            return settings.grid_key in self._cache
+        return ("result", settings.grid_key) in self._cache
 
     def result(
         self,
         settings: ViewSettings,
         *,
-        progress: Callable[[int, int], None] | None = None,
+        progress: ProgressFn | None = None,
     ) -> GridRoughness:
         """Grid roughness for the settings' (cell size, axis, min points), cached."""
-        key = settings.grid_key
-        with self._lock:
-            if key in self._cache:
-                self._cache.move_to_end(key)
-                return self._cache[key]
+        key = ("result", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
         check_settings(settings)
         res = grid_roughness(
             self.cloud,
@@ -179,38 +273,33 @@ class LoadedCloud:
             axis=settings.axis,
             models=("odr", "ols", "hybrid"),
             progress=progress,
-            prepared=self.prepared(settings.cell_size),
+            prepared=self.prepared(settings.cell_size, progress=progress),
         )
-        with self._lock:
-            self._cache[key] = res
-            while len(self._cache) > self.cache_size:
-                self._cache.popitem(last=False)
+        self._cache.put(key, res)
         return res
 
-
-    def prepared(self, cell_size: float) -> PreparedGrid:
+    def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached.
 
         Sizes that are integer multiples of :data:`FINE_CELL_SIZE` (the presets)
         are coarsened from the fine grid, which shares their origin (the
         bounding-box minimum), instead of indexing the points again.
+        ``progress(0, 1)`` is called before each pass over the points (so a
+        cancelled job stops there).
         """
-        key = round(float(cell_size), 9)
-        with self._lock:
-            if key in self._prepared:
-                self._prepared.move_to_end(key)
-                return self._prepared[key]
+        key = ("prepared", round(float(cell_size), 9))
+        hit = self._cache.get(key)
+        if isinstance(hit, PreparedGrid):
+            return hit
         factor = cell_size / FINE_CELL_SIZE
-        fine_key = round(FINE_CELL_SIZE, 9)
         if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
-            fine = self.prepared(FINE_CELL_SIZE)
+            fine = self.prepared(FINE_CELL_SIZE, progress=progress)
             prep = coarsen_prepared(fine, int(round(factor)))
         else:
+            if progress is not None:
+                progress(0, 1)
             prep = prepare_grid(self.cloud, cell_size)
-        with self._lock:
-            self._prepared[key] = prep
-            while len(self._prepared) > 6:  # keep the fine grid: every preset comes from it
-                self._prepared.pop(next(k for k in self._prepared if k != fine_key))
+        self._cache.put(key, prep)
         return prep
 
 
@@ -298,13 +387,18 @@ class CellInfo:
 def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellInfo:
     """Describe the cell holding cloud point number ``point`` (see :class:`CellInfo`)."""
     c = int(result.point_cell[point])
+
+    def three(a: np.ndarray) -> tuple[float, float, float]:
+        return float(a[0]), float(a[1]), float(a[2])
+
+    i, j, k = (int(v) for v in result.ijk[c])
     return CellInfo(
         cell=c,
-        ijk=tuple(int(v) for v in result.ijk[c]),
-        centre=tuple(float(v) for v in result.centre[c]),
+        ijk=(i, j, k),
+        centre=three(result.centre[c]),
         n_points=int(result.n_points[c]),
         theta={m: float(result.values(m)[c]) for m in MODEL_LABELS},
-        normal=tuple(float(v) for v in result.normal[c]),
-        point=tuple(float(v) for v in point_xyz),
+        normal=three(result.normal[c]),
+        point=three(np.asarray(point_xyz, dtype=np.float64)),
         axis=result.axis,
     )

@@ -5,20 +5,28 @@ Contract::
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N]
+        [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo).
 The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
-printed once the first map is ready. Ctrl-C stops it.
+printed once the first map is ready. It carries a random access token (``/t/<token>/``);
+WebSocket connections without it, or from pages of another origin, are refused
+(see :mod:`rough_viewer.app.gate`). Ctrl-C stops it.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import sys
 import time
+from pathlib import Path
 
+from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.cli._inputs import add_inputs
+from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
 
@@ -44,11 +52,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",
                    help="most points drawn in the browser (default 2000000; roughness "
                    "always uses every point)")
+    p.add_argument("--data-dir", metavar="DIR",
+                   help="folder the File tab's 'Load file' may read from (default: the "
+                   "folder of the first INPUT, or the current folder); paths outside are "
+                   "refused")
+    p.add_argument("--max-upload-mb", type=float, default=DEFAULT_MAX_UPLOAD_MB, metavar="MB",
+                   help=f"largest file a browser may upload (default {DEFAULT_MAX_UPLOAD_MB})")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                   help="also accept connections from pages of this origin, e.g. "
+                   "http://myhost:8080 (repeatable); pages of other origins are refused")
+    p.add_argument("--no-token", action="store_true",
+                   help="do not require the access token in the URL (trusted networks only)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
 
-def _load_cloud(args: argparse.Namespace):
+def _load_cloud(args: argparse.Namespace) -> PointCloud:
     if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
     if args.inputs:
@@ -66,36 +85,61 @@ def _load_cloud(args: argparse.Namespace):
         raise InputError(f"unknown demo {name!r}") from None
 
 
+def _check_options(args: argparse.Namespace) -> Path:
+    """Validate the options that need no file; returns the data folder."""
+    from rough_viewer.app.gate import normalise_origin
+
+    if args.max_points < 1:
+        raise InputError(f"--max-points must be positive, got {args.max_points}")
+    if not 0 <= args.port < 65536:
+        raise InputError(f"--port must be 0-65535, got {args.port}")
+    if not args.max_upload_mb > 0:
+        raise InputError(f"--max-upload-mb must be positive, got {args.max_upload_mb:g}")
+    for origin in args.allow_origin:
+        normalise_origin(origin)
+    if args.data_dir is not None:
+        folder = Path(args.data_dir).expanduser()
+        if not folder.is_dir():
+            raise InputError(f"--data-dir is not a folder: {args.data_dir}")
+        return folder
+    if args.inputs:
+        from rough_viewer.cli._inputs import expand_inputs
+
+        return expand_inputs(list(args.inputs))[0].expanduser().resolve().parent
+    return Path.cwd()
+
+
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.app.state import ViewSettings, check_settings
 
     settings = ViewSettings(cell_size=args.grid, model=args.model, axis=args.axis,
                             min_points=args.min_points)
     check_settings(settings)
-    if args.max_points < 1:
-        raise InputError(f"--max-points must be positive, got {args.max_points}")
-    if not 0 <= args.port < 65536:
-        raise InputError(f"--port must be 0-65535, got {args.port}")
+    data_dir = _check_options(args)
     cloud = _load_cloud(args)
 
-    import viser
-
+    from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app
 
-    server = viser.ViserServer(host=args.host, port=args.port, verbose=False)
-    app = build_app(server, cloud, settings=settings, max_display=args.max_points)
-    app.wait_idle(timeout=None if not args.no_block else 120)
-    host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
-    print(f"rough-viewer: {cloud.n:,} points, open http://{host}:{server.get_port()}/",
-          flush=True)
-    if app.errors:
-        print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner shows a URL without the token
+        server, gate = open_server(args.host, args.port,
+                                   token=None if args.no_token else new_token(),
+                                   allow_origins=args.allow_origin)
+    app = None
     try:
+        app = build_app(server, cloud, settings=settings, max_display=args.max_points,
+                        data_dir=data_dir, max_upload_mb=args.max_upload_mb)
+        app.wait_idle(timeout=None if not args.no_block else 120.0)
+        print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
+              flush=True)
+        if app.errors:
+            print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
     finally:
-        app.stop()
+        if app is not None:
+            app.stop()
         server.stop()
     return 0

@@ -107,6 +107,12 @@ def control(page, label: str):
     return page.locator(f'[id="{lab.get_attribute("for")}"]')
 
 
+def text_input(page, label: str):
+    """The <input> of the text field labelled ``label`` (Mantine gives it its own id)."""
+    lab = page.locator("label", has_text=re.compile(f"^{re.escape(label)}$")).first
+    return lab.locator("xpath=../../..").locator("input").first
+
+
 def choose(page, label: str, option: str) -> None:
     """Pick ``option`` in the dropdown labelled ``label``."""
     control(page, label).click()

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from rough_viewer.app.board_mode import board_lesson
+from rough_viewer.app.board_mode import BoardMode, board_lesson
 from rough_viewer.synthetic.board import PAPER_THEORETICAL_ROUGHNESS_M
 
 
@@ -21,11 +21,13 @@ def test_unrotated_board_matches_the_paper_and_ols_grows_with_rotation():
 
 
 def test_scan_button_opens_the_board_in_the_app(app):
-    ctl = app.board["controls"]
-    ctl["alpha"].value = 30.0
-    ctl["scan"].value = True
+    board = app.mode(BoardMode)
+    board.alpha.value = 30.0
+    board.scan.value = True  # queues a BoardScanJob on the worker
     assert app.wait_idle(60)
-    lesson = app.board["lesson"]
-    assert app.shown.loaded.cloud is lesson.scan.cloud
-    assert "Board α 30°" in ctl["note"].content and "true roughness" in ctl["note"].content
+    lesson = board.lesson
+    assert lesson is not None and app.shown.loaded.cloud is lesson.scan.cloud
+    assert "Board α 30°" in board.note.content and "true roughness" in board.note.content
     assert np.isfinite(lesson.theta["odr"])
+    kinds = [r.kind for r in app.worker.records]
+    assert kinds[-2:] == ["BoardScanJob", "PanelsJob"]

@@ -11,7 +11,9 @@ import os
 import numpy as np
 import pytest
 
-from rough_viewer.visual import colormaps  # noqa: E402
+from rough_viewer.app.bias_panel import BiasPanel
+from rough_viewer.app.profile_mode import ProfileMode
+from rough_viewer.visual import colormaps
 from tests.app import browser as b
 from tests.helpers import face_cloud
 
@@ -144,9 +146,10 @@ def test_click_reports_cell(live):
 def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     app, page = live
     page.get_by_role("tab", name="Profile").click()
+    m = app.mode(ProfileMode)
     control = b.control(page, "Profile mode")
     control.click()
-    b.wait_until(lambda: app.profile["controls"]["on"].value, 20, "profile mode on")
+    b.wait_until(lambda: m.on.value, 20, "profile mode on")
     img = b.to_array(b.png(page))
     h, w = img.shape[:2]
     mask = b.coloured_mask(img)
@@ -160,19 +163,56 @@ def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     assert mask[y, x0] and mask[y, x1]
     try:
         page.mouse.click(x0, y)
-        b.wait_until(lambda: app.profile["start"] is not None, 30, "the profile start")
+        b.wait_until(lambda: m.start is not None, 30, "the profile start")
         page.mouse.click(x1, y)
-        b.wait_until(lambda: len(app.profile["items"]) == 1, 60, "a profile")
-        a = app.profile["items"][0]
+        b.wait_until(lambda: len(m.items) == 1, 60, "a profile")
+        a = m.items[0]
         d_raw, d_den = a.raw_fit.dimension, a.denoised_fit.dimension
         assert a.profile.length > 0.5 and a.profile.n_points > 50
         assert 1.0 < d_raw < 2.5 and np.isfinite(d_den)
         # the panel in the browser shows the values
         page.get_by_text(f"{d_raw:.3f}").first.wait_for()
         page.get_by_text(f"{d_den:.3f}").first.wait_for()
-        fig = app.profile["controls"]["plot"].figure
+        fig = m.plot.figure
         assert len(fig.data) >= 2 and any(len(t.x) == len(a.profile.distance) for t in fig.data)
         page.locator(".js-plotly-plot:visible").first.wait_for()
     finally:
-        app.profile["controls"]["on"].value = False
+        m.on.value = False
         page.get_by_role("tab", name="Map").click()
+
+
+def test_bias_predictions_are_reached_from_the_app(live):
+    app, page = live
+    page.get_by_role("tab", name="Bias").click()
+    page.get_by_role("button", name="Predict bias", exact=True).click()
+    page.get_by_text("ER / r =").first.wait_for(timeout=60_000)
+    page.locator(".js-plotly-plot:visible").first.wait_for()
+    assert app.mode(BiasPanel).last is not None
+    page.get_by_role("tab", name="Map").click()
+
+
+HOSTILE_NAME = '<img src=x onerror="window.__xss=1"> **b** [a](javascript:window.__xss=3).xyz'
+HOSTILE_PATH = "<iframe srcdoc='<script>parent.__xss=2</script>'></iframe>.las"
+
+
+def test_hostile_file_name_and_path_render_as_text(live):
+    """Runs last: it replaces the cloud."""
+    app, page = live
+    page.get_by_role("tab", name="File", exact=True).click()
+    box = b.text_input(page, "File path")
+    box.fill(HOSTILE_PATH)
+    box.press("Enter")
+    b.wait_until(lambda: app.gui.path.value == HOSTILE_PATH, 20, "the typed path")
+    page.get_by_role("button", name="Load file", exact=True).click()
+    page.get_by_text(f"file not found: {HOSTILE_PATH}").first.wait_for()
+    xyz = face_cloud(3000, seed=8).xyz()
+    data = "\n".join(f"{x:.4f} {y:.4f} {z:.4f}" for x, y, z in xyz).encode()
+    page.locator("input[type=file]").set_input_files(
+        files=[{"name": HOSTILE_NAME, "mimeType": "text/plain", "buffer": data}])
+    b.wait_until(lambda: app.shown.loaded.n_total == 3000 and not app.worker.busy, 60,
+                 "the uploaded cloud")
+    page.get_by_text(HOSTILE_NAME).first.wait_for()  # the name, character for character
+    assert page.evaluate("() => window.__xss") is None
+    assert page.locator("img[src=x], iframe[srcdoc]").count() == 0
+    assert page.locator("a[href^='javascript']").count() == 0
+    page.screenshot(path="/tmp/rough-viewer-shots/hostile-names.png", timeout=60_000)

@@ -9,6 +9,7 @@ import pytest
 
 from rough_viewer.app import state as state_mod
 from rough_viewer.app.server import build_app, on_scene_click
+from rough_viewer.app.uploads import UploadedFile
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise
 from rough_viewer.io import PointCloud
@@ -22,7 +23,7 @@ def expected_colours(app, cloud, cell, name, cmap="viridis"):
 
 
 def test_first_view_is_odr_at_quarter_metre(app, cloud):
-    assert app.errors == []
+    assert list(app.errors) == []
     assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.25, "odr"))
     assert "40,000 points shown of 40,000 used" in app.gui.status.content
     assert "auto chose **y**" in app.gui.axis_note.content
@@ -77,7 +78,7 @@ def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
     assert {tuple(c) for c in np.unique(app.cloud_handle.colors, axis=0)} <= {
         tuple(colormaps.lut("magma")[0]), tuple(colormaps.lut("magma")[-1])}
     assert calls == []  # every change above reused the cached planes
-    assert all(t["cached"] for t in app.timings[-3:])
+    assert all(t["cached"] for t in list(app.timings)[-3:])
 
 
 def test_e_ols_gets_diverging_map_and_toggle_button(app, cloud):
@@ -116,27 +117,46 @@ def test_bad_grid_keeps_previous_view(app):
     assert not app.gui.error.visible
 
 
-def test_load_files_from_path_and_upload(app, tmp_path, cloud):
-    app.load(path=str(tmp_path / "missing.las"))
+def test_load_files_from_the_data_folder_and_an_upload(server, cloud, tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    app = build_app(server, cloud, prefetch=False, data_dir=data)
+    assert app.wait_idle(60)
+    app.load(path="missing.las")
     assert app.wait_idle(60)
     assert "not found" in app.errors[-1] and app.shown.loaded.cloud is cloud
-    bad = tmp_path / "bad.xyz"
-    bad.write_text("not numbers\n")
-    app.load(path=str(bad))
+    (data / "bad.xyz").write_text("x y z\n1 2 admin\n")
+    app.load(path="bad.xyz")
     assert app.wait_idle(60)
     assert len(app.errors) == 2 and app.shown.loaded.cloud is cloud
+    # the message names the file as typed and never echoes its content or a server path
+    assert "bad.xyz" in app.errors[-1] and "admin" not in app.errors[-1]
+    assert str(data) not in app.errors[-1]
+    # outside the data folder: refused, whatever the path's spelling
+    outside = tmp_path / "outside.npy"
+    np.save(outside, cloud.xyz()[:100])
+    (data / "link.npy").symlink_to(outside)
+    for typed in (str(outside), "../outside.npy", "link.npy"):
+        app.load(path=typed)
+        assert app.wait_idle(60)
+        assert "outside the data folder" in app.errors[-1], typed
+        assert app.shown.loaded.cloud is cloud
     xyz = cloud.xyz()[::4]
-    good = tmp_path / "quarter.npy"
-    np.save(good, xyz)
-    app.load(path=str(good))
+    np.save(data / "quarter.npy", xyz)
+    app.load(path="quarter.npy")
     assert app.wait_idle(60)
     assert app.shown.loaded.n_total == len(xyz)
     assert "quarter.npy" in app.gui.status.content
     assert len(app.cloud_handle.colors) == len(xyz)
-    text = "\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz[:3000])
-    app.load(upload=("up.xyz", text.encode()))
+    app.load(path=str(data / "quarter.npy"))  # an absolute path inside is fine
+    assert app.wait_idle(60) and app.shown.loaded.n_total == len(xyz)
+    up = tmp_path / "upload-1.xyz"
+    up.write_text("\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz[:3000]))
+    app.load(upload=UploadedFile(up, "up.xyz", up.stat().st_size))
     assert app.wait_idle(60)
     assert app.shown.loaded.n_total == 3000 and "up.xyz" in app.gui.status.content
+    assert not up.exists()  # the uploaded file is deleted once read
+    app.stop()
 
 
 def test_click_reports_cell(app, cloud):

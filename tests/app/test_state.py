@@ -5,11 +5,13 @@ import pytest
 
 from rough_viewer.app import state as state_mod
 from rough_viewer.app.state import (
+    ByteCache,
     LoadedCloud,
     ViewSettings,
     cell_info,
     check_settings,
     map_stats,
+    nbytes,
     point_colours,
 )
 from rough_viewer.grid.roughness import grid_roughness
@@ -127,3 +129,20 @@ def test_presets_coarsened_from_fine_grid_equal_direct_core(cloud):
         for m in ("odr", "ols", "hybrid", "e_ols"):
             assert np.allclose(got.values(m), want.values(m), rtol=1e-9, atol=1e-15,
                                equal_nan=True)
+
+
+def test_the_grid_cache_is_bounded_by_bytes(cloud):
+    loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
+    sizes = []
+    for g in (0.3, 0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
+        loaded.result(ViewSettings(cell_size=g))
+        sizes.append(loaded.cached_bytes)
+    assert max(sizes) <= 2_000_000 and loaded.cached_bytes > 0
+    assert loaded.is_cached(ViewSettings(cell_size=0.7))
+    assert not loaded.is_cached(ViewSettings(cell_size=0.3))  # least recently used went
+    one = nbytes(loaded.result(ViewSettings(cell_size=0.7)))
+    assert one > 8 * cloud.n  # the per-point cell index alone is 8 bytes a point
+    cache: ByteCache[str, np.ndarray] = ByteCache(100)
+    assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
+    a = np.zeros(5)
+    assert nbytes((a, a[1:], {"x": a})) == a.nbytes  # views count once

@@ -1,0 +1,258 @@
+"""Who may connect: an Origin check and an access token on viser's WebSocket.
+
+A server on 127.0.0.1 is reachable by every web page the user opens and by every
+local user. Like Jupyter's token and Bokeh's ``--allow-websocket-origin``, the app
+refuses a WebSocket handshake unless
+
+1. its ``Origin`` header is the server's own (``http://127.0.0.1:PORT``,
+   ``http://localhost:PORT``, ``http://[::1]:PORT``, the ``--host`` address, and
+   for ``--host 0.0.0.0`` this machine's names and addresses) or one given with
+   ``--allow-origin``. A page from another origin (another port counts) is
+   refused; browsers always send ``Origin`` and pages cannot forge it. A
+   handshake without ``Origin`` comes from a program, not a page; the token
+   decides for it.
+2. its path carries the token: the page lives at ``/t/<token>/`` and viser's
+   client opens its WebSocket on the page's path, so the URL ``serve`` prints
+   opens the app as before, and nothing else does. ``--no-token`` turns the
+   token off for a trusted network.
+
+Plain HTTP requests outside ``/t/<token>/`` get a short page saying the URL with
+the token is needed (the client page itself holds no data; the data flows only
+through the WebSocket).
+"""
+
+from __future__ import annotations
+
+import hmac
+import secrets
+import socket
+import sys
+import threading
+import weakref
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import urlsplit
+
+import viser
+from websockets.asyncio.server import ServerConnection
+from websockets.http11 import Request, Response
+
+from rough_viewer.app import hooks
+from rough_viewer.app.limits import MAX_REFUSALS
+from rough_viewer.vocabulary import InputError
+
+#: URL path prefix of the app when a token is used: ``/t/<token>/``.
+TOKEN_PREFIX = "/t/"
+
+_LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
+_WILDCARD_HOSTS = ("", "0.0.0.0", "::")
+
+_NEEDS_TOKEN_PAGE = b"""<!doctype html><meta charset="utf-8"><title>rough-viewer</title>
+<p>This rough-viewer server needs the address that <code>rough-viewer serve</code>
+printed when it started (it ends in <code>/t/&lt;token&gt;/</code>).</p>
+"""
+
+
+def new_token() -> str:
+    """A random access token (32 URL-safe characters, 192 bits)."""
+    return secrets.token_urlsafe(24)
+
+
+def normalise_origin(origin: str) -> str:
+    """``scheme://host[:port]`` in lower case, without a trailing slash.
+
+    Raises InputError for a value that is not an http(s) origin.
+    """
+    text = origin.strip().rstrip("/")
+    parts = urlsplit(text)
+    if parts.scheme not in ("http", "https") or not parts.netloc or parts.path or \
+            parts.query or parts.fragment or "@" in parts.netloc:
+        raise InputError(f"--allow-origin wants an origin like http://host:8080, got {origin!r}")
+    return f"{parts.scheme}://{parts.netloc}".lower()
+
+
+def own_origins(host: str, port: int) -> frozenset[str]:
+    """The origins of pages this server serves itself (see the module docstring)."""
+    names = set(_LOOPBACK_NAMES)
+    if host not in _WILDCARD_HOSTS:
+        names.add(f"[{host}]" if ":" in host and not host.startswith("[") else host)
+    else:
+        for name in {socket.gethostname(), socket.getfqdn()}:
+            names.add(name)
+            try:
+                infos = socket.getaddrinfo(name, None)
+            except OSError:
+                continue
+            for info in infos:
+                addr = str(info[4][0])
+                names.add(f"[{addr}]" if ":" in addr else addr)
+    out = set()
+    for name in names:
+        out.add(f"http://{name}:{port}".lower())
+        if port == 80:
+            out.add(f"http://{name}".lower())
+    return frozenset(out)
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """A refused request (kept for the log and the tests)."""
+
+    reason: str
+    origin: str | None
+    path: str
+
+
+@dataclass
+class Gate:
+    """The check in front of viser's HTTP server and WebSocket (see :func:`guard`).
+
+    Attributes
+    ----------
+    token
+        The access token, or None (``--no-token``).
+    origins
+        Origins whose pages may open the WebSocket.
+    refused
+        The last refused WebSocket handshakes (at most 100).
+    """
+
+    token: str | None
+    origins: frozenset[str]
+    log: bool = False
+    refused: deque[Refusal] = field(default_factory=lambda: deque(maxlen=MAX_REFUSALS))
+    _admitted: weakref.WeakSet[ServerConnection] = field(default_factory=weakref.WeakSet)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @property
+    def path(self) -> str:
+        """URL path of the app: ``/t/<token>/``, or ``/`` without a token."""
+        return f"{TOKEN_PREFIX}{self.token}/" if self.token else "/"
+
+    def url(self, host: str, port: int) -> str:
+        """The address to open (loopback when listening on every interface)."""
+        shown = "127.0.0.1" if host in _WILDCARD_HOSTS else host
+        if ":" in shown and not shown.startswith("["):
+            shown = f"[{shown}]"
+        return f"http://{shown}:{port}{self.path}"
+
+    # ------------------------------------------------------------------ checks
+    def websocket_refusal(self, request: Request) -> str | None:
+        """Why a WebSocket handshake is refused, or None to let it through."""
+        origin = request.headers.get("Origin")
+        if origin is not None and origin.strip().rstrip("/").lower() not in self.origins:
+            return "origin not allowed"
+        if self.token is not None:
+            path = request.path.partition("?")[0].rstrip("/")
+            given = path[len(TOKEN_PREFIX):] if path.startswith(TOKEN_PREFIX) else ""
+            if not hmac.compare_digest(given.encode(), self.token.encode()):
+                return "missing or wrong token"
+        return None
+
+    def admitted(self, connection: ServerConnection) -> bool:
+        with self._lock:
+            return connection in self._admitted
+
+    def wrap(self, original: hooks.ProcessRequest | None) -> hooks.ProcessRequest:
+        """The hook that runs before viser's own for every request."""
+
+        def process_request(connection: ServerConnection, request: Request) -> Any:
+            if "websocket" in request.headers.get("Upgrade", "").lower():
+                reason = self.websocket_refusal(request)
+                if reason is not None:
+                    return self._refuse(reason, request)
+                with self._lock:
+                    self._admitted.add(connection)
+                return None
+            with self._lock:
+                self._admitted.add(connection)
+            path = request.path
+            if self.token is not None:
+                prefix = self.path
+                if path.partition("?")[0] == prefix.rstrip("/"):
+                    return _redirect(prefix)
+                if not path.startswith(prefix):
+                    return hooks.http_response(403, "Forbidden", _NEEDS_TOKEN_PAGE,
+                                               "text/html; charset=utf-8")
+                path = "/" + path[len(prefix):]
+            response = None if original is None else original(
+                connection, Request(path=path, headers=request.headers))
+            if response is None:  # never let a plain request become a handshake
+                return hooks.http_response(404, "Not Found", b"not found", "text/plain")
+            return response
+
+        return process_request
+
+    def _refuse(self, reason: str, request: Request) -> Response:
+        origin = request.headers.get("Origin")
+        path = request.path.partition("?")[0]
+        if self.token is not None and self.token in path:
+            path = path.replace(self.token, "<token>")
+        self.refused.append(Refusal(reason, origin, path))
+        if self.log:
+            hint = (" (allow it with --allow-origin)" if reason.startswith("origin") else "")
+            print(f"rough-viewer: refused a connection from origin {origin or '(none)'}: "
+                  f"{reason}{hint}", file=sys.stderr, flush=True)
+        return hooks.http_response(403, "Forbidden", reason.encode(), "text/plain")
+
+
+def _redirect(location: str) -> Response:
+    from websockets.datastructures import Headers
+
+    return Response(302, "Found", Headers({"Location": location, "Content-Length": "0"}), b"")
+
+
+def guard(
+    server: viser.ViserServer,
+    *,
+    token: str | None,
+    allow_origins: Iterable[str] = (),
+    host: str | None = None,
+    log: bool = False,
+) -> Gate:
+    """Put the Origin check and the token in front of a running viser server.
+
+    Parameters
+    ----------
+    server
+        A started :class:`viser.ViserServer`.
+    token
+        Access token the URL path must carry (:func:`new_token`), or None.
+    allow_origins
+        More origins whose pages may connect (``http://host:port``).
+    host
+        The address the server listens on (default: the server's own).
+    log
+        Print each refused handshake on stderr.
+
+    Returns
+    -------
+    Gate
+        Its ``url(host, port)`` is the address to open.
+    """
+    port = server.get_port()
+    extra = {normalise_origin(o) for o in allow_origins}
+    gate = Gate(token=token, origins=own_origins(host or server.get_host(), port) | extra, log=log)
+    hooks.set_process_request(server, gate.wrap, admitted=gate.admitted)
+    return gate
+
+
+def open_server(
+    host: str,
+    port: int,
+    *,
+    token: str | None,
+    allow_origins: Iterable[str] = (),
+    log: bool = True,
+) -> tuple[viser.ViserServer, Gate]:
+    """Start a viser server with the gate in front of it (what ``serve`` does)."""
+    extra = [normalise_origin(o) for o in allow_origins]  # bad values: before listening
+    server = viser.ViserServer(host=host, port=port, verbose=False)
+    try:
+        gate = guard(server, token=token, allow_origins=extra, host=host, log=log)
+    except BaseException:
+        server.stop()
+        raise
+    return server, gate

@@ -1,0 +1,126 @@
+"""Where the app reaches into viser 1.1 (pinned ``viser==1.1.*``), in one module.
+
+viser has no public hook for three things a web server must do, so this module
+uses its internals, and nothing else in the app does:
+
+- **The WebSocket handshake** (:func:`set_process_request`): viser serves its
+  client page and the WebSocket with ``websockets.asyncio.server.serve(...,
+  process_request=<its file server>)``. The ``websockets`` ``Server`` object reads
+  ``server.process_request`` for every new connection, so wrapping that attribute
+  puts a check in front of every HTTP request and handshake. The object is found
+  among live objects by its event loop (``ViserServer._websock_server.
+  _background_event_loop``), and connections accepted before the wrapper was in
+  place are closed.
+- **Messages from clients** (:func:`replace_handlers`): viser's
+  ``WebsockServer.register_handler`` / ``unregister_handler`` (public methods of
+  the private ``ViserServer._websock_server``) let the app put a filter before
+  viser's own handler of a message type, or drop a type altogether.
+- **Sending a raw message** (:func:`broadcast`): to put a control's value back in
+  the one browser that sent a bad one, and to acknowledge upload parts.
+
+Each of these is exercised by the tests (tests/app/test_gate.py, test_controls.py,
+test_uploads.py), so a viser release that moves them fails there first.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+from collections.abc import Callable, Coroutine
+from typing import Any, TypeVar, cast
+
+import viser
+import viser.infra
+from viser import _messages
+from websockets.asyncio.server import Server, ServerConnection
+from websockets.http11 import Request, Response
+
+M = TypeVar("M", bound=_messages.Message)
+Handler = Callable[[int, M], "None | Coroutine[Any, Any, None]"]
+ProcessRequest = Callable[[ServerConnection, Request], Any]
+
+
+def _websock(server: viser.ViserServer) -> viser.infra.WebsockServer:
+    return server._websock_server
+
+
+def event_loop(server: viser.ViserServer) -> asyncio.AbstractEventLoop:
+    """The asyncio loop viser's server thread runs."""
+    loop = _websock(server)._background_event_loop
+    if loop is None:
+        raise RuntimeError("viser server is not running")
+    return loop
+
+
+def _ws_server(server: viser.ViserServer) -> Server:
+    loop = event_loop(server)
+    found = [o for o in gc.get_objects() if isinstance(o, Server) and o.loop is loop]
+    if len(found) != 1:
+        raise RuntimeError(f"cannot find viser's WebSocket server ({len(found)} candidates)")
+    return found[0]
+
+
+def set_process_request(
+    server: viser.ViserServer,
+    wrap: Callable[[ProcessRequest | None], ProcessRequest],
+    *,
+    admitted: Callable[[ServerConnection], bool],
+    timeout: float = 10.0,
+) -> None:
+    """Replace the HTTP/handshake hook of viser's server by ``wrap(original)``.
+
+    Runs on viser's event loop, so no connection can start between the swap and
+    the sweep that follows it: every open connection for which ``admitted`` is
+    False (it started before the swap) is closed.
+
+    Raises RuntimeError if viser's server cannot be found (then nothing changed).
+    """
+    ws = _ws_server(server)
+
+    async def install() -> None:
+        ws.process_request = wrap(ws.process_request)
+        for connection in list(ws.handlers):
+            if not admitted(connection):
+                connection.transport.abort()
+
+    asyncio.run_coroutine_threadsafe(install(), event_loop(server)).result(timeout)
+
+
+def replace_handlers(
+    server: viser.ViserServer,
+    message_cls: type[M],
+    make: Callable[[list[Handler[M]]], Handler[M] | None],
+) -> None:
+    """Put ``make(viser's handlers)`` in place of viser's handlers of ``message_cls``
+    (None: drop messages of that type)."""
+    ws = _websock(server)
+    existing = cast(list[Handler[M]], list(ws._incoming_handlers.get(message_cls, [])))
+    if existing:
+        ws.unregister_handler(message_cls)
+    new = make(existing)
+    if new is not None:
+        ws.register_handler(message_cls, new)
+
+
+def broadcast(server: viser.ViserServer, message: _messages.Message) -> None:
+    """Send ``message`` to every connected browser (and later ones)."""
+    _websock(server).queue_message(message)
+
+
+def uuid_of(handle: Any) -> str:
+    """The id viser gives a GUI handle (and the browser's element id)."""
+    return str(handle._impl.uuid)
+
+
+def input_handles(server: viser.ViserServer) -> dict[str, Any]:
+    """Every GUI input handle of the server's GUI, by uuid (tests, checks)."""
+    return dict(server.gui._gui_input_handle_from_uuid)
+
+
+def http_response(status: int, reason: str, body: bytes, content_type: str) -> Response:
+    """A complete HTTP response for the handshake hook."""
+    from websockets.datastructures import Headers
+
+    headers = Headers({"Content-Type": content_type, "Content-Length": str(len(body)),
+                       "Cache-Control": "no-store"})
+    return Response(status, reason, headers, body)

@@ -1,0 +1,38 @@
+"""The app's limits in one place: what one browser, one upload or one long-running
+server may cost. Everything the app keeps for long is bounded by one of these.
+
+This module imports nothing, so the command line can read the defaults cheaply.
+"""
+
+from __future__ import annotations
+
+#: Largest upload accepted by default, megabytes (``serve --max-upload-mb``).
+DEFAULT_MAX_UPLOAD_MB = 2048
+#: Uploads received at the same time, at most.
+MAX_ACTIVE_UPLOADS = 2
+#: Free disk space kept beyond an upload, bytes.
+UPLOAD_DISK_MARGIN = 256 << 20
+#: Longest upload file name shown, characters.
+MAX_UPLOAD_NAME = 200
+
+#: Memory budget of the cached grids of one loaded cloud (grid results and cell
+#: membership together), bytes: 1 GiB. Least recently used grids go first.
+CACHE_BYTES = 1 << 30
+
+#: Jobs waiting for the worker at once (a flood of clicks is refused beyond).
+MAX_PENDING_JOBS = 64
+#: Finished jobs whose stage times the worker keeps.
+MAX_JOB_RECORDS = 500
+#: Error messages the app keeps (``App.errors``).
+MAX_ERRORS = 100
+#: View timing records the app keeps (``App.timings``).
+MAX_TIMINGS = 200
+#: Kept profiles in profile mode (the oldest is dropped first).
+MAX_PROFILES = 20
+#: Refused requests and values kept for diagnostics (gate, controls, uploads).
+MAX_REFUSALS = 100
+
+#: Longest text a browser may put in a text field, characters.
+MAX_TEXT = 4096
+#: Longest message shown to a browser, characters.
+MAX_MESSAGE = 300

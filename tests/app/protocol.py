@@ -1,0 +1,119 @@
+"""A small client that speaks viser 1.1's WebSocket protocol, for tests that act
+as a (possibly hostile) browser without Chromium.
+
+Server -> client frames: ``[u64 msgpack length][u64 zstd length][zstd(msgpack
+{"messages": [...], ...})][binary buffers]``; client -> server: one msgpack map
+per message with its ``type``. Only what the tests need is decoded (messages,
+not their binary buffers).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid as uuidlib
+from typing import Any
+
+import msgspec
+import viser
+import zstandard
+from websockets.sync.client import connect
+
+SUBPROTOCOL = "viser-v" + viser.__version__
+
+
+class ProtocolClient:
+    """Connect to a viser server at ``ws://127.0.0.1:PORT{path}`` and record what it sends.
+
+    Parameters
+    ----------
+    port, path
+        Where to connect (``path`` carries the token, e.g. ``/t/abc``).
+    origin
+        ``Origin`` header to send (None: none, as a non-browser program).
+    """
+
+    def __init__(self, port: int, path: str = "/", *, origin: str | None = None,
+                 timeout: float = 10.0) -> None:
+        headers = {"Origin": origin} if origin is not None else {}
+        self.ws = connect(f"ws://127.0.0.1:{port}{path}", subprotocols=[SUBPROTOCOL],
+                          additional_headers=headers, open_timeout=timeout,
+                          max_size=None)
+        self.messages: list[dict[str, Any]] = []
+        self._lock = threading.Lock()
+        self._zstd = zstandard.ZstdDecompressor()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+        self.send({"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0],
+                   "position": [0.0, -3.0, 1.0], "fov": 1.0, "near": 0.01, "far": 1000.0,
+                   "image_height": 800, "image_width": 1280, "look_at": [0.0, 0.0, 0.0],
+                   "up_direction": [0.0, 0.0, 1.0]})
+
+    def _read(self) -> None:
+        try:
+            for frame in self.ws:
+                if not isinstance(frame, bytes) or len(frame) < 16:
+                    continue
+                n_raw = int.from_bytes(frame[:8], "little")
+                n_zip = int.from_bytes(frame[8:16], "little")
+                inner = self._zstd.decompress(frame[16:16 + n_zip], max_output_size=n_raw)
+                payload = msgspec.msgpack.decode(inner)
+                with self._lock:
+                    self.messages.extend(payload["messages"])
+        except Exception:  # noqa: BLE001 - the connection ended
+            pass
+
+    def send(self, message: dict[str, Any]) -> None:
+        self.ws.send(msgspec.msgpack.encode(message))
+
+    def close(self) -> None:
+        self.ws.close()
+        self._thread.join(5)
+
+    # ------------------------------------------------------------------ reading
+    def of_type(self, kind: str) -> list[dict[str, Any]]:
+        with self._lock:
+            return [m for m in self.messages if m.get("type") == kind]
+
+    def wait_for(self, predicate, timeout: float = 20.0, what: str = "a message") -> Any:
+        end = time.time() + timeout
+        while time.time() < end:
+            with self._lock:
+                found = [m for m in self.messages if predicate(m)]
+            if found:
+                return found[-1]
+            time.sleep(0.05)
+        raise TimeoutError(f"timed out waiting for {what}")
+
+    def uuid(self, label: str) -> str:
+        """The id of the control labelled ``label`` (from its creation message)."""
+        msg = self.wait_for(lambda m: m.get("type", "").startswith("Gui")
+                            and isinstance(m.get("props"), dict)
+                            and m["props"].get("label") == label, what=f"control {label!r}")
+        return str(msg["uuid"])
+
+    # ------------------------------------------------------------------ acting
+    def set_value(self, label: str, value: Any) -> None:
+        self.send({"type": "GuiUpdateMessage", "uuid": self.uuid(label), "updates": {"value": value}})
+
+    def upload(self, label: str, name: str, data: bytes, *, declared: int | None = None,
+               chunk: int = 512 * 1024) -> str:
+        """Send ``data`` as viser's upload button does; returns the transfer id."""
+        source = self.uuid(label)
+        transfer = str(uuidlib.uuid4())
+        parts = max(1, -(-len(data) // chunk)) if data else 0
+        self.send({"type": "FileTransferStartUpload", "source_component_uuid": source,
+                   "transfer_uuid": transfer, "filename": name, "mime_type": "",
+                   "size_bytes": len(data) if declared is None else declared,
+                   "part_count": parts})
+        for i in range(parts):
+            self.send({"type": "FileTransferPart", "source_component_uuid": source,
+                       "transfer_uuid": transfer, "part_index": i,
+                       "content": data[i * chunk:(i + 1) * chunk]})
+        return transfer
+
+    def click(self, origin, direction) -> None:
+        self.send({"type": "ScenePointerMessage", "event_type": "click",
+                   "ray_origin": [float(v) for v in origin],
+                   "ray_direction": [float(v) for v in direction],
+                   "screen_pos": [[0.5, 0.5]], "modifier": None})

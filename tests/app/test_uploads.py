@@ -1,0 +1,146 @@
+"""Uploads arrive through viser's protocol and go straight to disk, within limits."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from rough_viewer.app.gate import open_server
+from rough_viewer.app.server import build_app
+from rough_viewer.app.uploads import clean_name
+from tests.app.protocol import ProtocolClient
+from tests.helpers import face_cloud
+
+LIMIT_MB = 1
+
+
+@pytest.fixture
+def live():
+    server, _gate = open_server("127.0.0.1", 0, token=None, log=False)
+    cloud = face_cloud(8_000)
+    app = build_app(server, cloud, prefetch=False, max_upload_mb=LIMIT_MB)
+    assert app.wait_idle(60)
+    client = ProtocolClient(server.get_port(), "/")
+    end = time.time() + 10
+    while not server.get_clients() and time.time() < end:
+        time.sleep(0.02)
+    yield app, client, cloud
+    client.close()
+    app.stop()
+    server.stop()
+
+
+def xyz_text(n: int, seed: int = 1) -> bytes:
+    xyz = face_cloud(n, seed=seed).xyz()
+    return "\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz).encode()
+
+
+def settle(app, client=None, seconds: float = 0.3) -> None:
+    time.sleep(seconds)
+    assert app.wait_idle(60)
+
+
+def test_an_upload_is_loaded_and_its_file_removed(live):
+    app, client, _ = live
+    data = xyz_text(3000)
+    client.upload("Upload file", "my scan.xyz", data, chunk=64 * 1024)  # 4+ parts
+    end = time.time() + 30
+    while app.shown.loaded.n_total != 3000 and time.time() < end:
+        time.sleep(0.05)
+    assert app.wait_idle(60)
+    assert app.shown.loaded.n_total == 3000 and app.shown.loaded.cloud.source == "my scan.xyz"
+    assert "my scan.xyz" in app.gui.status.content
+    assert list(app.uploads.folder.iterdir()) == []  # deleted once read
+    acks = client.of_type("FileTransferPartAck")
+    assert acks and acks[-1]["transferred_bytes"] == len(data) == acks[-1]["total_bytes"]
+
+
+@pytest.mark.parametrize("name, declared, message", [
+    ("big.xyz", 5 << 20, "more than the upload limit of 1.0 MiB"),
+    ("tool.exe", None, "not a point-cloud file"),
+    ("noext", None, "not a point-cloud file"),
+])
+def test_refused_at_the_start(live, name, declared, message):
+    app, client, cloud = live
+    data = b"0 0 0\n" * 1000
+    transfer = client.upload("Upload file", name, data, declared=declared)
+    settle(app)
+    assert message in app.uploads.refused[-1]
+    assert app.shown.loaded.cloud is cloud and list(app.uploads.folder.iterdir()) == []
+    body = client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
+                           and m["props"]["title"] == "Upload refused")["props"]["body"]
+    assert message in body
+    # the browser's progress bar is ended, so its button works again
+    client.wait_for(lambda m: m.get("type") == "FileTransferPartAck"
+                    and m["transfer_uuid"] == transfer
+                    and m["transferred_bytes"] == m["total_bytes"])
+
+
+def test_a_client_sending_more_than_it_announced_is_cut_off(live):
+    app, client, cloud = live
+    data = xyz_text(60_000)  # about 1.9 MB, above the 1 MiB limit
+    assert len(data) > (LIMIT_MB << 20)
+    client.upload("Upload file", "liar.xyz", data, declared=100_000)
+    settle(app)
+    assert "larger than announced" in app.uploads.refused[-1]
+    assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
+    assert app.shown.loaded.cloud is cloud
+
+
+def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
+    app, client, cloud = live
+    source = client.uuid("Upload file")
+    client.send({"type": "FileTransferStartUpload", "source_component_uuid": source,
+                 "transfer_uuid": "t1", "filename": "a.xyz", "mime_type": "",
+                 "size_bytes": 20, "part_count": 2})
+    client.send({"type": "FileTransferPart", "source_component_uuid": source,
+                 "transfer_uuid": "t1", "part_index": 1, "content": b"0 0 0\n"})
+    settle(app)
+    assert "out of order" in app.uploads.refused[-1]
+    client.send({"type": "FileTransferStartUpload", "source_component_uuid": source,
+                 "transfer_uuid": "t2", "filename": "b.xyz", "mime_type": "",
+                 "size_bytes": 20, "part_count": 2})
+    client.send({"type": "FileTransferPart", "source_component_uuid": source,
+                 "transfer_uuid": "t2", "part_index": 0, "content": b"0 0 0\n"})
+    settle(app)
+    assert app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1
+    client.close()
+    end = time.time() + 10
+    while (app.uploads.active or list(app.uploads.folder.iterdir())) and time.time() < end:
+        time.sleep(0.05)
+    assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
+    assert app.shown.loaded.cloud is cloud
+
+
+def test_a_hostile_file_name_is_shown_as_text(live):
+    app, client, _ = live
+    name = '<img src=x onerror="alert(1)">/../../etc/x **b** [a](javascript:1).xyz'
+    client.upload("Upload file", name, xyz_text(2000))
+    end = time.time() + 30
+    while app.shown.loaded.n_total != 2000 and time.time() < end:
+        time.sleep(0.05)
+    assert app.wait_idle(60)
+    status = app.gui.status.content
+    assert "<img" not in status and "&lt;img" in status
+    assert "\\*\\*b\\*\\*" in status and "\\[a\\]\\(javascript:1\\)" in status
+    assert "/" not in clean_name(name) and app.shown.loaded.cloud.source == clean_name(name)
+
+
+def test_file_content_never_reaches_the_browser(live):
+    app, client, cloud = live
+    secret = b"x y z\n1 2 hunter2-password\n3 4 5\n"
+    client.upload("Upload file", "secret.xyz", secret)
+    settle(app, seconds=0.6)
+    assert app.shown.loaded.cloud is cloud
+    assert "secret.xyz" in app.errors[-1]
+    assert "hunter2" not in app.errors[-1] and str(app.uploads.folder) not in app.errors[-1]
+    notes = [m["props"]["body"] for m in client.of_type("NotificationShowMessage")]
+    assert notes and not any("hunter2" in n or "rough-viewer-uploads" in n for n in notes)
+
+
+def test_names_are_cleaned():
+    assert clean_name("a/b\\c.las") == "a_b_c.las"
+    assert clean_name("x\ny\x00.laz") == "x y .laz"
+    assert clean_name("") == "upload"
+    assert len(clean_name("n" * 1000)) == 200

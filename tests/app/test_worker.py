@@ -1,0 +1,268 @@
+"""The one worker: lanes, merging a view into a pending load, cancellation between
+stages, bounded queue and records, idle work (no viser here)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import pytest
+
+from rough_viewer.app.worker import Cancelled, Job, QueueFull, Run, Worker
+
+
+@dataclass
+class Log:
+    done: list[str] = field(default_factory=list)
+    released: list[str] = field(default_factory=list)
+    gate: threading.Event = field(default_factory=threading.Event)
+    entered: threading.Event = field(default_factory=threading.Event)
+
+
+@dataclass(frozen=True)
+class Block(Job[Log]):
+    """Holds the worker until the log's gate opens."""
+
+    lane: ClassVar[str] = "block"
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.entered.set()
+        assert ctx.gate.wait(10)
+        ctx.done.append("block")
+        yield "blocked"
+
+
+@dataclass(frozen=True)
+class View(Job[Log]):
+    value: int
+    lane: ClassVar[str] = "view"
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.done.append(f"view {self.value}")
+        yield "view"
+
+
+@dataclass(frozen=True)
+class Load(Job[Log]):
+    name: str
+    view: int = 0
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"view"})
+
+    def absorb(self, newer: Job[Log]) -> Job[Log] | None:
+        return replace(self, view=newer.value) if isinstance(newer, View) else None
+
+    def release(self) -> None:
+        pass
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.done.append(f"load {self.name} with view {self.view}")
+        yield "load"
+
+
+@dataclass(frozen=True)
+class Click(Job[Log]):
+    n: int
+    lane: ClassVar[str] = "click"
+    keep_all: ClassVar[bool] = True
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.done.append(f"click {self.n}")
+        yield "click"
+
+
+@dataclass(frozen=True)
+class Upload(Job[Log]):
+    name: str
+    lane: ClassVar[str] = "load"
+
+    def release(self) -> None:
+        self._log.released.append(self.name)
+
+    _log: Log = field(default_factory=Log, compare=False)
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.done.append(f"upload {self.name}")
+        yield "upload"
+
+
+@dataclass(frozen=True)
+class Stages(Job[Log]):
+    """Three stages; the second waits on the gate so the test can cancel it."""
+
+    lane: ClassVar[str] = "view"
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        try:
+            ctx.done.append("stage 1")
+            yield "one"
+            ctx.entered.set()
+            assert ctx.gate.wait(10)
+            ctx.done.append("stage 2")
+            yield "two"
+            ctx.done.append("stage 3")
+            yield "three"
+        finally:
+            ctx.done.append("cleaned up")
+
+
+@pytest.fixture
+def log():
+    return Log()
+
+
+@pytest.fixture
+def worker(log):
+    w: Worker[Log] = Worker(log, on_error=lambda job, exc: log.done.append(f"error {exc}"))
+    yield w
+    log.gate.set()
+    w.stop()
+
+
+def hold(worker, log):
+    worker.submit(Block())
+    assert log.entered.wait(5)
+    log.entered.clear()
+
+
+def test_newest_view_wins_and_a_pending_load_absorbs_views(worker, log):
+    hold(worker, log)
+    for i in range(20):  # a slider drag while busy
+        worker.submit(View(i))
+    assert worker.pending_kinds() == ["View"]
+    worker.submit(Load("a.las"))  # replaces the pending view (the load shows the newest)
+    worker.submit(View(42))  # merged into the pending load, not queued after it
+    worker.submit(View(43))
+    assert worker.pending_kinds() == ["Load"]
+    log.gate.set()
+    assert worker.wait_idle(5)
+    assert log.done == ["block", "load a.las with view 43"]
+
+
+def test_keep_all_lane_runs_every_job_in_order(worker, log):
+    hold(worker, log)
+    for i in range(3):
+        worker.submit(Click(i))
+    worker.submit(View(1))
+    log.gate.set()
+    assert worker.wait_idle(5)
+    assert log.done == ["block", "click 0", "click 1", "click 2", "view 1"]
+
+
+def test_a_newer_job_cancels_the_running_one_between_stages(worker, log):
+    worker.submit(Stages())
+    assert log.entered.wait(5)
+    worker.submit(View(7))  # same lane: the running job stops after its stage
+    log.gate.set()
+    assert worker.wait_idle(5)
+    assert log.done == ["stage 1", "stage 2", "cleaned up", "view 7"]
+    rec = [r for r in worker.records if r.kind == "Stages"][0]
+    assert rec.outcome == "cancelled" and [s for s, _ in rec.stages] == ["one", "two"]
+
+
+def test_run_check_stops_a_long_stage(log):
+    started = threading.Event()
+
+    @dataclass(frozen=True)
+    class Long(Job[Log]):
+        lane: ClassVar[str] = "view"
+
+        def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+            progress = run.progress()
+            started.set()
+            for i in range(1000):
+                progress(i, 1000)  # raises Cancelled once cancelled
+                time.sleep(0.005)
+            ctx.done.append("finished")
+            yield "long"
+
+    w: Worker[Log] = Worker(log)
+    w.submit(Long())
+    assert started.wait(5)
+    t = time.perf_counter()
+    w.submit(View(1))
+    assert w.wait_idle(5)
+    assert time.perf_counter() - t < 1.0
+    assert log.done == ["view 1"] and w.records[0].outcome == "cancelled"
+    w.stop()
+
+
+def test_dropped_and_finished_jobs_are_released(worker, log):
+    hold(worker, log)
+    a, b = Upload("a", _log=log), Upload("b", _log=log)
+    worker.submit(a)
+    worker.submit(b)  # replaces a, which never runs
+    assert log.released == ["a"]
+    log.gate.set()
+    assert worker.wait_idle(5)
+    assert log.done == ["block", "upload b"] and log.released == ["a", "b"]
+
+
+def test_errors_are_reported_and_the_worker_goes_on(worker, log):
+    @dataclass(frozen=True)
+    class Boom(Job[Log]):
+        def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+            raise ValueError("boom")
+            yield "never"
+
+    worker.submit(Boom())
+    worker.submit(Click(1))
+    assert worker.wait_idle(5)
+    assert log.done == ["error boom", "click 1"]
+    assert [r.outcome for r in worker.records] == ["failed", "done"]
+
+
+def test_queue_and_records_are_bounded(log):
+    w: Worker[Log] = Worker(log, max_pending=4, max_records=3)
+    hold(w, log)
+    for i in range(4):
+        w.submit(Click(i))
+    with pytest.raises(QueueFull):
+        w.submit(Click(99))
+    log.gate.set()
+    assert w.wait_idle(5)
+    assert log.done == ["block", "click 0", "click 1", "click 2", "click 3"]
+    assert len(w.records) == 3 and [r.kind for r in w.records] == ["Click"] * 3
+    w.stop()
+
+
+def test_idle_work_runs_when_nothing_waits_and_yields_to_jobs(log):
+    calls: list[bool] = []
+    release = threading.Event()
+
+    def idle(run: Run) -> bool:
+        if len(calls) >= 3:
+            return False
+        calls.append(run.cancelled)
+        if len(calls) == 2:
+            release.wait(5)
+            run.check()  # a job came in: stop here
+        return True
+
+    w: Worker[Log] = Worker(log, idle=idle)
+    w.submit(View(1))
+    end = time.time() + 5
+    while len(calls) < 2 and time.time() < end:
+        time.sleep(0.01)
+    w.submit(View(2))  # cancels the idle work, runs, then idle work resumes
+    release.set()
+    end = time.time() + 5
+    while len(calls) < 3 and time.time() < end:
+        time.sleep(0.01)
+    assert log.done == ["view 1", "view 2"] and len(calls) == 3
+    w.stop()
+
+
+def test_stop_drops_waiting_jobs_and_cancelled_is_an_exception():
+    log = Log()
+    w: Worker[Log] = Worker(log)
+    hold(w, log)
+    w.submit(Upload("x", _log=log))
+    w.stop(timeout=0.1)
+    assert log.released == ["x"]
+    assert w.submit(View(1)) == 0
+    log.gate.set()
+    assert issubclass(Cancelled, Exception)
