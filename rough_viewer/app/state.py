@@ -32,7 +32,15 @@ from rough_viewer.grid.roughness import (
 from rough_viewer.grid.summary import normalise
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from rough_viewer.vocabulary import MAP_TITLES, MAPS, AxisChoice, InputError, MapName, ProgressFn
+from rough_viewer.vocabulary import (
+    MAP_TITLES,
+    MAPS,
+    AxisChoice,
+    ColourLayerName,
+    InputError,
+    MapName,
+    ProgressFn,
+)
 
 DisplayMode = Literal["continuous", "binary"]
 
@@ -74,6 +82,12 @@ class ViewSettings:
     """Colour map name (see :mod:`rough_viewer.visual.colormaps`)."""
     clip: tuple[float, float] = (0.0, 1.0)
     """Normalised range spread over the colour map; values outside get the end colours."""
+    stretch: colormaps.Stretch = colormaps.ROUGHNESS_STRETCH
+    """How roughness spreads over the colour map (percentiles of the cells or absolute
+    limits in metres, linear or log): :class:`rough_viewer.visual.colormaps.Stretch`."""
+    layer: ColourLayerName = "roughness"
+    """What colours the points: the roughness map, the scan's RGB, its intensity, or
+    the distance to the whole-cloud face plane."""
 
     @property
     def grid_key(self) -> tuple[float, str, int]:
