@@ -36,7 +36,9 @@ import viser
 from rough_viewer.app import scene
 from rough_viewer.app.files import read_cloud
 from rough_viewer.app.layout import (
+    PICK_PROMPT,
     assign,
+    scales_placeholder,
     grid_options,
     l_grid,
     l_grid_free,
@@ -224,7 +226,7 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
     if layer.colour_range is None or layer.colormap is None:
         fig = go.Figure()
         fig.update_layout(
-            title={"text": f"{layer.label.capitalize()} · {shown}<br><sup>the scan's own "
+            title={"text": f"{layer.label[:1].upper()}{layer.label[1:]} · {shown}<br><sup>the scan's own "
                    "colours; no colour scale</sup>", "font": {"size": 12}, "x": 0.01,
                    "xanchor": "left"},
             height=70, margin={"l": 12, "r": 12, "t": 50, "b": 4},
@@ -234,10 +236,13 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
         return colour_scale_figure(layer.colour_range, colormap=layer.colormap,
                                    title=f"Intensity as stored in the file · {shown}",
                                    quantity="intensity", unit="", scale=1.0)
+    # distances in the roughness unit (mm) unless the face bends by metres
+    big = abs(layer.colour_range.hi) / u.rough_per >= 1000.0
     return colour_scale_figure(
         layer.colour_range, colormap=layer.colormap,
         title=f"Distance to the whole-cloud face plane · {shown}",
-        quantity="distance", unit=u.rough_label, scale=scale)
+        quantity="distance", unit=u.label if big else u.rough_label,
+        scale=1.0 / u.per if big else scale)
 
 
 def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
@@ -453,8 +458,8 @@ def show_cloud(app: App, loaded: LoadedCloud, settings: ViewSettings | None = No
         scene.clear_pick(app.pick_nodes)
         app.pick_nodes = []
         app.last_pick = None
-        gui.pick.content = "Click a point to see its cell."
-        gui.scales.visible = False
+        gui.pick.content = PICK_PROMPT
+        _set_figure(gui.scales, scales_placeholder())
         scene.initial_camera(app.server, loaded)
         scene.reset_cameras(app.server)
         app.panel_key = None
@@ -590,7 +595,6 @@ def on_scene_click(app: App, origin: object, direction: object) -> CellInfo | No
     fig = point_scales_figure(scales, point_xyz=pick.xyz.tolist(), n_points=shown.loaded.n_total,
                               unit=u.unit)
     _set_figure(app.gui.scales, fig)
-    app.gui.scales.visible = True
     app.pick_scales = scales
     app.pick_timings.append({"cell_s": t_cell, "pick_s": time.perf_counter() - t0,
                              "grids": len(scales.cell_sizes)})

@@ -7,6 +7,7 @@ worker. Labels here are what users and the browser tests look for.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -22,7 +23,7 @@ from rough_viewer.app.state import (
     ViewSettings,
 )
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.app import PANEL_WIDTH
+from rough_viewer.visual.app import PANEL_WIDTH, panel_aspect
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
     COLOUR_LAYER_LABELS,
@@ -75,6 +76,8 @@ L_PATH = "File path"
 L_UNITS = "Units"
 L_LOAD = "Load file"
 L_UPLOAD = "Upload file"
+#: What the Map tab says before a click.
+PICK_PROMPT = "Click a point to see its cell and its roughness across grid sizes."
 
 
 def l_grid(units: Units) -> str:
@@ -130,6 +133,18 @@ def grid_options(presets: tuple[float, ...], units: Units) -> dict[str, float]:
     return {f"{units.length(g):g}": g for g in presets}
 
 
+def scales_placeholder() -> go.Figure:
+    """The across-scales panel before a click: one line of title, no axes."""
+    fig = go.Figure()
+    fig.update_layout(
+        title={"text": "Roughness of a clicked point's cells across grid sizes<br><sup>"
+               "click a point on the rock</sup>", "font": {"size": 12}, "x": 0.01,
+               "xanchor": "left"},
+        height=56, margin={"l": 10, "r": 10, "t": 44, "b": 4},
+        xaxis={"visible": False}, yaxis={"visible": False}, plot_bgcolor="white")
+    return fig
+
+
 def _empty_figure(title: str) -> go.Figure:
     fig = go.Figure()
     fig.update_layout(title=dict(text=title, font=dict(size=12)), height=200,
@@ -168,7 +183,8 @@ class Gui:
     camera: viser.GuiButtonGroupHandle
     pick: viser.GuiMarkdownHandle
     scales: viser.GuiPlotlyHandle
-    """Roughness of the clicked point's cells against grid size (hidden until a click)."""
+    """Roughness of the clicked point's cells against grid size (a placeholder until
+    a click)."""
     histogram: viser.GuiPlotlyHandle
     variogram: viser.GuiPlotlyHandle
     summary: viser.GuiPlotlyHandle
@@ -206,13 +222,13 @@ def build_gui(
 ) -> Gui:
     """Create the controls (initial values from ``settings``) and empty panels.
 
-    The control panel is docked to the right and :data:`CONTROL_WIDTH` px wide, so
-    every plot in it is at least :data:`rough_viewer.visual.app.PANEL_WIDTH` px
-    wide; the person can collapse it or drag its edge.
+    The control panel floats at the top right and is :data:`CONTROL_WIDTH` px wide,
+    so every plot in it is at least :data:`rough_viewer.visual.app.PANEL_WIDTH` px
+    wide; the person can move or minimise it. (Docking it, viser's other layout,
+    makes its plotly panels throw errors in the browser when the page loads.)
     """
     gui = server.gui
     gui.configure_theme(control_width="large", show_share_button=False)
-    gui.main_panel.dock_right()
     gui.main_panel.set_width(CONTROL_WIDTH)
     status = gui.add_markdown("Loading…")
     error = gui.add_markdown("", visible=False)
@@ -225,6 +241,11 @@ def build_gui(
 
     tabs = gui.add_tab_group()
     with tabs.add_tab("Map"):
+        # what a click reports comes first: it is what the person looks for next
+        pick = gui.add_markdown(PICK_PROMPT)
+        # never hidden: viser's client fails to lay out a plot that was created hidden
+        placeholder = scales_placeholder()
+        scales = gui.add_plotly(placeholder, aspect=panel_aspect(placeholder))
         layer = gui.add_dropdown(
             L_LAYER, tuple(COLOUR_LAYER_LABELS[n] for n in layers),
             initial_value=COLOUR_LAYER_LABELS[settings.layer if settings.layer in layers
@@ -278,8 +299,6 @@ def build_gui(
         camera = gui.add_button_group(L_VIEW, VIEW_OPTIONS,
                                       hint="Look at the face straight on, from above, "
                                       "or from the side.")
-        pick = gui.add_markdown("Click a point to see its cell.")
-        scales = gui.add_plotly(_empty_figure("across scales"), aspect=0.8, visible=False)
     with tabs.add_tab("Panels"):
         histogram = gui.add_plotly(_empty_figure("histogram"), aspect=0.85)
         variogram = gui.add_plotly(_empty_figure("semivariogram"), aspect=0.81)
@@ -314,6 +333,19 @@ def _absolute_limits(stretch: colormaps.Stretch, units: Units) -> tuple[float, f
     if stretch.mode == "absolute":
         return round_limit(units.rough(stretch.lo)), round_limit(units.rough(stretch.hi))
     return 0.0, 0.0
+
+
+def limit_step(value: float) -> float:
+    """The step of a colour-limit field holding ``value``: its third significant
+    digit (the field shows as many decimals as its step has), at most 0.001.
+
+    >>> limit_step(6.22), limit_step(0.00131), limit_step(0.0)
+    (0.001, 1e-05, 0.001)
+    """
+    v = abs(float(value))
+    if not v or v != v:
+        return 0.001
+    return min(0.001, 10.0 ** (math.floor(math.log10(v)) - 2))
 
 
 def round_limit(value: float) -> float:

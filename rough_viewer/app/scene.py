@@ -15,8 +15,14 @@ PICK_COLOUR = (255, 30, 200)
 GREY = 190
 
 
-#: Vertical field of view of viser's camera, degrees (its default).
-FOV_DEG = 50.0
+#: Camera distance from the cloud's centre, in units of its largest extent: the
+#: cloud then fills most of the view left of the control panel (measured in
+#: Chromium at viser's default field of view, 1600 x 1000).
+CAMERA_DISTANCE = 0.95
+#: The camera looks this far (in units of the largest extent) right of the cloud's
+#: centre, so the cloud sits left of the control panel, which floats over the
+#: right third of the view.
+PANEL_SHIFT = 0.22
 #: Text of the scene markers: labels are drawn on top of the points and sized in
 #: screen pixels (viser draws labels without depth test), so a marker never hides
 #: inside a dense cloud and keeps its size when zoomed out.
@@ -33,36 +39,41 @@ def camera_pose(loaded: LoadedCloud, preset: str = "face-on"
     keeps +x, or +y, to the right; near-horizontal surfaces from above); ``top``:
     straight down, north up; ``side``: along the face, horizontally (the strike
     direction), so the relief shows in profile. The camera stands far enough for the
-    whole cloud to fit the view.
+    whole cloud to fit the view, shifted right by :data:`PANEL_SHIFT` so that the
+    cloud sits left of the control panel.
     """
     pts = loaded.display_points.astype(np.float64)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre = 0.5 * (lo + hi)
     extent = float(np.max(hi - lo)) or 1.0
-    distance = 0.62 * extent / np.tan(np.radians(FOV_DEG / 2))
     normal = np.asarray(loaded.plane.normal, dtype=np.float64)
     z = np.array([0.0, 0.0, 1.0])
     horizontal = abs(normal[2]) > 0.8
     if preset == "top":
-        return centre + distance * z, centre, np.array([0.0, 1.0, 0.0])
-    if preset == "side":
-        strike = np.cross(normal, z) if not horizontal else np.array([1.0, 0.0, 0.0])
-        strike /= np.linalg.norm(strike)
-        if strike[0] + strike[1] < 0:
-            strike = -strike
-        return centre + distance * strike, centre, z
-    if preset != "face-on":
-        raise ValueError(f"unknown camera preset {preset!r}")
-    if horizontal:  # near-horizontal surface: from above, tilted so it reads as ground
-        direction = np.array([0.0, -0.6, 0.8])
-    else:
-        direction = normal.copy()
-        horiz = np.array([normal[0], normal[1], 0.0])
-        if horiz[0] - horiz[1] < 0:  # keep +x (or +y) to the right on screen
+        direction, up = z.copy(), np.array([0.0, 1.0, 0.0])
+    elif preset == "side":
+        direction = np.cross(normal, z) if not horizontal else np.array([1.0, 0.0, 0.0])
+        if direction[0] + direction[1] < 0:
             direction = -direction
-        direction += np.array([0.0, 0.0, 0.1])  # slightly from above
-    direction /= np.linalg.norm(direction)
-    return centre + distance * direction, centre, z
+        up = z
+    elif preset == "face-on":
+        if horizontal:  # near-horizontal surface: from above, tilted so it reads as ground
+            direction = np.array([0.0, -0.6, 0.8])
+        else:
+            direction = normal.copy()
+            if normal[0] - normal[1] < 0:  # keep +x (or +y) to the right on screen
+                direction = -direction
+            direction[2] = 0.1 * float(np.hypot(direction[0], direction[1]))  # a little from above
+        up = z
+    else:
+        raise ValueError(f"unknown camera preset {preset!r}")
+    direction = direction / np.linalg.norm(direction)
+    right = np.cross(-direction, up)
+    right /= np.linalg.norm(right)
+    target = centre + PANEL_SHIFT * extent * right
+    # along the face the cloud reaches towards the camera: stand back further
+    distance = CAMERA_DISTANCE * extent * (1.6 if preset == "side" else 1.0)
+    return target + distance * direction, target, up
 
 
 def initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
@@ -77,17 +88,26 @@ def move_cameras(server: viser.ViserServer, loaded: LoadedCloud, preset: str) ->
     """Move every connected browser's camera to a preset (:func:`camera_pose`)."""
     eye, target, up = camera_pose(loaded, preset)
     for client in server.get_clients().values():
-        with client.atomic():
-            client.camera.up_direction = (float(up[0]), float(up[1]), float(up[2]))
-            client.camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
-            client.camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
+        _place(client, eye, target, up)
 
 
 def reset_cameras(server: viser.ViserServer) -> None:
     """Move every connected browser's camera to the initial camera."""
+    cam = server.initial_camera
+    up = cam.up if cam.up is not None else np.array([0.0, 0.0, 1.0])
     for client in server.get_clients().values():
-        client.camera.position = server.initial_camera.position
-        client.camera.look_at = server.initial_camera.look_at
+        _place(client, cam.position, cam.look_at, up)
+
+
+def _place(client: viser.ClientHandle, eye: np.ndarray, target: np.ndarray,
+           up: np.ndarray) -> None:
+    """Put one browser's camera at ``eye`` looking at ``target``. Order matters in
+    viser: setting the position moves the look-at point along, so the position goes
+    first, then the look-at point, then the up direction."""
+    with client.atomic():
+        client.camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
+        client.camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
+        client.camera.up_direction = (float(up[0]), float(up[1]), float(up[2]))
 
 
 def default_point_size(loaded: LoadedCloud) -> float:

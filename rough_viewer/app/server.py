@@ -50,6 +50,7 @@ from rough_viewer.app.layout import (
     Gui,
     assign,
     build_gui,
+    limit_step,
     resolve_colormap,
     round_limit,
 )
@@ -320,8 +321,10 @@ class App:
             assign(g.stretch, st.mode)
             assign(g.log, bool(st.log))
             if st.mode == "absolute":
-                assign(g.range_lo, round_limit(u.rough(st.lo)))
-                assign(g.range_hi, round_limit(u.rough(st.hi)))
+                for handle, metres in ((g.range_lo, st.lo), (g.range_hi, st.hi)):
+                    value = round_limit(u.rough(metres))
+                    handle.step = limit_step(value)
+                    assign(handle, value)
             else:
                 assign(g.percentiles, (float(st.lo), float(st.hi)))
         finally:
@@ -337,8 +340,10 @@ class App:
             return
         self._local.syncing = True
         try:
-            assign(g.range_lo, lo)
-            assign(g.range_hi, hi)
+            # the fields show as many decimals as their step has: 3 digits of each
+            for handle, value in ((g.range_lo, lo), (g.range_hi, hi)):
+                handle.step = limit_step(value)
+                assign(handle, value)
         finally:
             self._local.syncing = False
 

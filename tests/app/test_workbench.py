@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import laspy
 import numpy as np
 import pytest
 
@@ -17,28 +16,8 @@ from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.profile_mode import ProfileMode
 from rough_viewer.app.server import build_app, on_scene_click
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from tests.helpers import face_cloud
-
-
-def write_las_with_colours(path, cloud: PointCloud, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """A LAS (point format 3) of ``cloud`` with 16-bit RGB (8-bit values times 257, as
-    most writers scale) and intensity; returns the 8-bit colours and the intensity."""
-    rng = np.random.default_rng(seed)
-    rgb8 = rng.integers(0, 256, (cloud.n, 3)).astype(np.uint16)
-    rgb8[:, 0] = np.clip(np.round(255 * (cloud.x - cloud.x.min()) / np.ptp(cloud.x)), 0, 255)
-    intensity = rng.integers(100, 4000, cloud.n).astype(np.uint16)
-    hdr = laspy.LasHeader(point_format=3, version="1.2")
-    hdr.scales = np.array([1e-4] * 3)
-    hdr.offsets = np.floor(cloud.xyz().min(axis=0))
-    las = laspy.LasData(hdr)
-    las.x, las.y, las.z = cloud.xyz().T
-    las.red, las.green, las.blue = (rgb8 * 257).T
-    las.intensity = intensity
-    las.write(str(path))
-    return rgb8.astype(np.uint8), intensity
-
+from tests.helpers import face_cloud, write_las_with_colours
 
 # ----------------------------------------------------------------------------- colours
 
@@ -264,14 +243,21 @@ def test_the_board_lesson_keeps_the_scan_and_has_its_own_colour_range(app):
 
 
 def test_camera_presets_look_along_the_face_normal_down_and_along_the_face(app):
-    loaded = app.shown.loaded  # a face looking along -y
+    loaded = app.shown.loaded  # a face looking along -y, 4 m along x
+    pts = loaded.display_points.astype(float)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    extent = np.ptp(pts, axis=0).max()
     for preset, axis in (("face-on", 1), ("top", 2), ("side", 0)):
         eye, target, up = scene.camera_pose(loaded, preset)
         view = (eye - target) / np.linalg.norm(eye - target)
-        assert abs(view[axis]) > 0.99 or (preset == "face-on" and abs(view[axis]) > 0.98)
+        assert abs(view[axis]) > 0.98, (preset, view)
         assert abs(np.dot(view, up)) < 0.2  # the up vector is across the view
-        extent = np.ptp(loaded.display_points, axis=0).max()
-        assert np.linalg.norm(eye - target) > extent  # the whole cloud fits
+        # the camera stands back from the cloud and looks a little right of its
+        # centre (the cloud sits left of the control panel)
+        assert np.linalg.norm(eye - target) >= scene.CAMERA_DISTANCE * extent - 1e-9
+        shift = target - centre
+        assert np.linalg.norm(shift) == pytest.approx(scene.PANEL_SHIFT * extent)
+        assert abs(np.dot(shift, view)) < 1e-9 and abs(np.dot(shift, up)) < 1e-9
     app.gui.camera.value = "top"
     assert app.wait_idle(30)
     assert [r.kind for r in app.worker.records][-1] == "CameraJob"
