@@ -38,12 +38,12 @@ from rough_viewer.app.files import read_cloud
 from rough_viewer.app.layout import (
     PICK_PROMPT,
     assign,
-    scales_placeholder,
     grid_options,
     l_grid,
     l_grid_free,
     l_range_hi,
     l_range_lo,
+    scales_placeholder,
 )
 from rough_viewer.app.markup import md
 from rough_viewer.app.panels import distribution_figures, face_scales_figure_of, variogram_figure_of
@@ -150,9 +150,18 @@ def view_stages(app: App, run: Run, settings: ViewSettings, *,
         app.notify("Most cells have no value", sparse_message(loaded, stats, settings),
                    color="yellow", seconds=10.0)
     yield "colours"
-    key = (settings.grid_key, settings.model, settings.threshold, app.options.variogram)
-    if key != app.panel_key:
+    if panel_key(app, settings) != app.panel_key or face_key(settings) != app.face_key:
         app.submit(PanelsJob(settings, result, record))
+
+
+def panel_key(app: App, settings: ViewSettings) -> tuple[object, ...]:
+    """What the grid's panels (histogram, semivariogram, Table 1) depend on."""
+    return (settings.grid_key, settings.model, app.options.variogram)
+
+
+def face_key(settings: ViewSettings) -> tuple[object, ...]:
+    """What the whole-face trend against the preset grids depends on."""
+    return (settings.axis, settings.min_points, settings.threshold)
 
 
 def _grid(app: App, run: Run, loaded: LoadedCloud, settings: ViewSettings,
@@ -309,19 +318,20 @@ class PanelsJob(Job["App"]):
             return
         loaded = app.shown.loaded
         unit = loaded.units.unit
-        dist = distribution_figures(self.result, self.settings, unit=unit)
-        yield "distribution"
         s = self.settings
-        face_key = (s.axis, s.min_points, s.threshold)
-        if face_key != app.face_key and loaded.presets:
+        if face_key(s) != app.face_key and loaded.presets:
             results = []
             for g in loaded.presets:  # cached after prefetching; each stops if cancelled
                 results.append(loaded.result(s.with_(cell_size=g), progress=run.progress()))
                 yield f"grid {g:g}"
             trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit)
             _set_figure(gui.face_scales, trend)
-            app.face_key = face_key
+            app.face_key = face_key(s)
             yield "grid sizes"
+        if panel_key(app, s) == app.panel_key:
+            return  # only the trend changed (the binary threshold)
+        dist = distribution_figures(self.result, s, unit=unit)
+        yield "distribution"
         fig = None
         if app.options.variogram:
             try:
@@ -341,7 +351,7 @@ class PanelsJob(Job["App"]):
         _set_figure(gui.summary, dist.summary)
         if fig is not None:
             _set_figure(gui.variogram, fig)
-        app.panel_key = (s.grid_key, s.model, s.threshold, app.options.variogram)
+        app.panel_key = panel_key(app, s)
         self.record["panels_s"] = time.perf_counter() - t0
 
 

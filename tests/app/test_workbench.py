@@ -349,3 +349,14 @@ def test_click_timings_and_values_on_a_free_grid(app, cloud):
     # the cell report is of the grid shown; the plot still has one value per preset
     assert info.theta["odr"] == pytest.approx(grid_roughness(cloud, 0.1).theta_odr[info.cell])
     assert list(app.pick_scales.cell_sizes) == sorted(loaded.presets)
+
+
+def test_a_threshold_change_redraws_only_the_face_trend(app):
+    before = app.gui.variogram.figure
+    app.gui.threshold.value = 0.2
+    assert app.wait_idle(60)
+    last = [r for r in app.worker.records if r.kind == "PanelsJob"][-1]
+    names = [n for n, _ in last.stages]
+    assert "grid sizes" in names and "variogram" not in names and "distribution" not in names
+    assert "binary cells ≥ 0.2" in app.gui.face_scales.figure.layout.yaxis2.title.text
+    assert app.gui.variogram.figure is before
