@@ -31,7 +31,7 @@ def synthetic_face(n: int, seed: int = 0):
     return PointCloud.from_xyz(xyz, source=f"synthetic-{n}")
 
 
-def run(cloud, label: str, *, prefetch: bool) -> None:
+def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None:
     import viser
 
     from rough_viewer.app.server import build_app, on_scene_click
@@ -85,6 +85,24 @@ def run(cloud, label: str, *, prefetch: bool) -> None:
         clicks.append(app.pick_timings[-1]["pick_s"])
     print(f"  click (cell + {len(presets)} grids across scales): median "
           f"{np.median(clicks):.3f} s of {len(clicks)}")
+    if fine:
+        # a grid change while the panels compute a fine grid's semivariograms: the
+        # semivariogram stops at its next block (progress callback), not at its end
+        g.grid_free.value = fine
+        while app.shown.settings.cell_size != fine:
+            time.sleep(0.01)
+        time.sleep(3.0)  # well into the semivariograms
+        t = time.perf_counter()
+        g.grid.value = opts[2]
+        while app.shown.settings.cell_size != presets[2]:
+            time.sleep(0.005)
+        shown = time.perf_counter() - t
+        app.wait_idle(None)
+        stopped = [r for r in app.worker.records
+                   if r.kind == "PanelsJob" and r.outcome == "cancelled"]
+        what = f"stopped after {stopped[-1].seconds:.1f} s" if stopped else "none stopped"
+        print(f"  grid {opts[2]} during the semivariograms of grid {fine:g}: shown after "
+              f"{shown:.2f} s (fine-grid panels {what})")
     app.stop()
     server.stop()
 
@@ -99,7 +117,7 @@ def main() -> None:
 
         demo = demos.load_demo("outcrop")
         run(demo, "demo outcrop", prefetch=False)
-        run(demo, "demo outcrop", prefetch=True)
+        run(demo, "demo outcrop", prefetch=True, fine=0.02)
     t = time.perf_counter()
     cloud = synthetic_face(args.points)
     print(f"synthetic cloud made in {time.perf_counter() - t:.1f} s")
