@@ -169,10 +169,11 @@ def _zones_mode(app: App) -> Any | None:
 
 
 def zone_settings(app: App) -> ZoneSettings | None:
-    """The zones mode's settings (its ``settings()``), or None without a zones mode."""
+    """The zones mode's settings (its ``settings()``), or None without a zones mode or
+    while it shows no zones (its ``active`` is False)."""
     mode = _zones_mode(app)
     get = getattr(mode, "settings", None)
-    if get is None:
+    if get is None or getattr(mode, "active", True) is False:
         return None
     value = get()
     return value if isinstance(value, ZoneSettings) else None
@@ -263,7 +264,12 @@ def apply_view(app: App, view: View, *, source: str = "(in memory)", notice: str
     if mode is not None and view.profiles:
         _set_profile_controls(mode, view.profiles[0])
         app.submit(RestoreProfilesJob(mode, view.profiles))
-    zones_kept = view.zones is not None and restore_zones(app, view.zones)
+    zones_kept = False
+    if view.zones is not None:
+        try:
+            zones_kept = restore_zones(app, view.zones)
+        except InputError as exc:
+            app.show_error(f"saved view: zones: {exc}", kept="The map is shown without zones.")
     from rough_viewer.app.export_mode import ExportMode
 
     try:
