@@ -66,7 +66,12 @@ from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.memory import require
 from rough_viewer.report.view import ZoneSettings
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.zones import stereonet_figure, zones_table_figure
+from rough_viewer.visual.zones import (
+    COMPACT_COLUMNS,
+    azimuth_text,
+    stereonet_figure,
+    zones_table_figure,
+)
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
@@ -142,11 +147,16 @@ class ZoneBasis:
 
 def zone_basis(result: GridRoughness, map_name: MapName, display_index: np.ndarray) -> ZoneBasis:
     """Build the labeller of ``result``'s map and the cells of the displayed points."""
+    # the cells of the shown points (int32), and a colour and a zone id per point per
+    # re-label
     require(16.0 * display_index.shape[0], f"zones of {display_index.shape[0]:,} shown points")
     labeller = ZoneLabeller.build(result, map_name)
     valid = np.zeros(result.n_cells, dtype=bool)
     valid[labeller.rows] = True
-    return ZoneBasis(labeller, result.point_cell[display_index], valid)
+    cell = result.point_cell[display_index]
+    if result.n_cells < 2**31:
+        cell = cell.astype(np.int32, copy=False)
+    return ZoneBasis(labeller, cell, valid)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,7 +243,8 @@ def status_markdown(lab: Labelling, seconds: float, cached: bool) -> str:
     in_zones = int((lab.labels > 0).sum())
     share = 100.0 * in_zones / valid if valid else 0.0
     how = "labeller cached" if cached else "labeller built"
-    return (f"**{lab.n_zones:,} zones** at {describe_params(lab.params)}, grid "
+    zones = "1 zone" if lab.n_zones == 1 else f"{lab.n_zones:,} zones"
+    return (f"**{zones}** at {describe_params(lab.params)}, grid "
             f"{lab.result.grid.cell_size:g} m: {in_zones:,} of {valid:,} cells with a value "
             f"({share:.1f} %)  \nre-labelled and coloured in {seconds:.2f} s ({how})")
 
@@ -249,8 +260,9 @@ def zone_markdown(zones: Zones, zone: int) -> str:
         ("area on the face", f"{zones.area_m2[i]:.3g} m²"),
         ("length × width", f"{zones.length_m[i]:.3g} × {zones.width_m[i]:.3g} m"),
         ("trace azimuth / plunge",
-         f"{zones.trace_azimuth_deg[i]:03.0f}° / {zones.trace_plunge_deg[i]:02.0f}°"),
-        ("dip / dip direction", f"{zones.dip_deg[i]:02.0f}° / {zones.dip_direction_deg[i]:03.0f}°"),
+         f"{azimuth_text(zones.trace_azimuth_deg[i])}° / {zones.trace_plunge_deg[i]:02.0f}°"),
+        ("dip / dip direction",
+         f"{zones.dip_deg[i]:02.0f}° / {azimuth_text(zones.dip_direction_deg[i])}°"),
         (f"mean / max θ {MAP_LABELS[zones.map_name]}",
          f"{1e3 * zones.mean_theta[i]:.3g} / {1e3 * zones.max_theta[i]:.3g} mm"),
         ("centroid x, y, z", f"{c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f} m"),
@@ -261,9 +273,10 @@ def zone_markdown(zones: Zones, zone: int) -> str:
 
 
 def table_aspect(n_rows: int) -> float:
-    """Height / width of the table panel for ``n_rows`` rows (about 31 px a row in
-    a panel about 480 px wide, at most a screen)."""
-    return float(min(2.2, (150 + 31 * max(n_rows, 1)) / 480))
+    """Height / width of the table panel for ``n_rows`` rows: the title and the
+    header about 170 px, a row up to 44 px (two lines), in a panel about 360 px
+    wide; at most 2.2 (longer tables scroll)."""
+    return float(min(2.2, (170 + 44 * max(n_rows, 1)) / 360))
 
 
 # ----------------------------------------------------------------------------- the mode
@@ -482,7 +495,7 @@ class ZonesMode:
         res = lab.result
         self.table.figure = _compact(zones_table_figure(
             zones, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
-            selected=zone or None, max_rows=MAX_ZONE_ROWS))
+            selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS))
         self.table.aspect = table_aspect(min(zones.n_zones, MAX_ZONE_ROWS))
         self._sync_dropdown(zones, zone)
 
