@@ -320,3 +320,33 @@ def test_values_from_a_browser_are_checked(hostile):
     time.sleep(0.4)
     assert app.wait_idle(60)
     assert m.labelling.zone_at(m.anchor) == 2
+
+
+def test_labellers_are_cached_within_a_byte_budget(server, banded):
+    from rough_viewer.app.state import nbytes
+    from rough_viewer.app.zones_mode import zone_basis
+    from rough_viewer.grid.roughness import grid_roughness
+
+    cloud = banded[0]
+    one = nbytes(zone_basis(grid_roughness(cloud, 0.25), "odr", np.arange(cloud.n)))
+    # room for one basis and a stereonet, not for two bases
+    app = build_app(server, cloud, prefetch=False, cache_bytes=int(2 * 1.5 * one))
+    try:
+        assert app.wait_idle(60)
+        m = app.mode(ZonesMode)
+        assert m.cache.budget == int(1.5 * one)
+        m.on.value = True
+        assert app.wait_idle(60)
+        assert m.timings[-1]["basis_s"] > 0  # built
+        app.gui.threshold.value = 0.3
+        assert app.wait_idle(60)
+        assert m.timings[-1]["basis_s"] == 0.0  # kept: a threshold change only re-labels
+        app.gui.grid.value = "0.5"
+        assert app.wait_idle(60)
+        app.gui.grid.value = "0.25"
+        assert app.wait_idle(60)
+        assert m.timings[-1]["basis_s"] > 0  # the 0.25 m basis made room for the 0.5 m one
+        assert m.cache.bytes <= m.cache.budget
+        assert np.array_equal(m.labelling.labels, core_labels(app, 0.3))
+    finally:
+        app.stop()
