@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -145,7 +146,7 @@ def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
     return PreparedGrid(index=index, moments=moments)
 
 
-def map_values(holder: object, name: MapName) -> np.ndarray:
+def map_values(holder: Any, name: MapName) -> np.ndarray:
     """The map ``name`` of anything holding ``theta_odr``, ``theta_ols``,
     ``theta_hybrid`` and ``e_ols`` arrays (a grid result, an across-scales series)."""
     if name == "e_ols":
