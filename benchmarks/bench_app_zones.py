@@ -61,6 +61,7 @@ def main() -> None:
 
     import viser
 
+    from rough_viewer.app.layout import assign
     from rough_viewer.app.server import build_app
     from rough_viewer.app.zones_mode import ZonesMode
     from rough_viewer.io.load import load_points
@@ -78,16 +79,16 @@ def main() -> None:
           f"{'slider->zones':>13} {'view':>6} {'label':>6} {'zones job':>9} {'table':>6} "
           f"{'RSS MiB (zones off -> on)':>25}")
     for cell in args.grids:
-        g.grid_free.value = cell
+        assign(g.grid_free, cell)
         app.wait_idle(None)
         for display in args.display:
-            g.display.value = display
+            assign(g.display, display)
             app.wait_idle(None)
-            g.threshold.value = 0.5  # not among the thresholds timed
+            assign(g.threshold, 0.5)  # not among the thresholds timed
             app.wait_idle(None)
             rss0 = rss_mb()
             t0 = time.perf_counter()
-            m.on.value = True
+            assign(m.on, True)
             app.wait_idle(None)
             first = time.perf_counter() - t0
             rows: dict[str, list[float]] = {k: [] for k in ("wall", "view", "label", "job",
@@ -97,7 +98,7 @@ def main() -> None:
                 for thr in args.thresholds:
                     n = len(m.timings)
                     t0 = time.perf_counter()
-                    g.threshold.value = thr
+                    assign(g.threshold, thr)
                     app.wait_idle(None)
                     assert len(m.timings) == n + 1, "no re-label"
                     rec = m.timings[-1]
@@ -106,13 +107,15 @@ def main() -> None:
                     rows["label"].append(rec["label_s"])
                     rows["job"].append(last(app, "ZonesJob").seconds)
                     rows["table"].append(last(app, "ZoneTableJob").seconds)
+                    assert m.labelling is not None
                     counts.append(m.labelling.n_zones)
             med = {k: statistics.median(v) for k, v in rows.items()}
+            assert app.shown.result is not None
             print(f"{cell:7g} {app.shown.result.n_cells:9,} {display:>10} "
                   f"{min(counts):>5,}-{max(counts):<5,} {first:9.2f} {med['wall']:13.3f} "
                   f"{med['view']:6.3f} {med['label']:6.3f} {med['job']:9.3f} "
                   f"{med['table']:6.3f} {rss0:12.0f} -> {rss_mb():<9.0f}")
-            m.on.value = False
+            assign(m.on, False)
             app.wait_idle(None)
     print(f"zone cache {m.cache.bytes / 2**20:.0f} MiB of {m.cache.budget / 2**20:.0f} MiB; "
           f"grid cache {app.shown.loaded.cached_bytes / 2**20:.0f} MiB")

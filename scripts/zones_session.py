@@ -111,8 +111,9 @@ def main() -> None:
                 page.mouse.click(int(xs[k]), int(ys[k]))
                 wait(lambda: m.anchor is not None and not app.worker.busy, 120, "a selection")
                 lab = m.labelling
-                print(f"clicked zone {lab.zone_at(m.anchor)} "
-                      f"({int((lab.labels == lab.zone_at(m.anchor)).sum()):,} cells)")
+                assert lab is not None
+                zone = lab.zone_at(m.anchor)
+                print(f"clicked zone {zone} ({int(np.count_nonzero(lab.labels == zone)):,} cells)")
                 time.sleep(3.0)
                 page.screenshot(path=str(out / "selected.png"), timeout=300_000)
             else:
@@ -128,6 +129,7 @@ def main() -> None:
                 t_col = m.timings[-1]["done"] - t0
                 wait(lambda: not app.worker.busy, 120, "idle")
                 rec = m.timings[-1]
+                assert m.labelling is not None
                 print(f"threshold {thr:.2f}: {m.labelling.n_zones:,} zones; typed -> zone colours "
                       f"{t_col:.2f} s (re-label {rec['label_s']:.3f} s, labels + colours "
                       f"{rec['colours_s']:.3f} s), table + stereonet {rec.get('table_s', 0):.2f} s")
