@@ -122,6 +122,8 @@ def view_stages(app: App, run: Run, settings: ViewSettings, *,
     record: dict[str, object] = {"cell_size": settings.cell_size, "model": settings.model,
                                  "cached": cached, "colours_s": t_colours}
     app.timings.append(record)
+    for listener in app.view_listeners:  # modes that follow the view (e.g. zones)
+        listener(app)
     yield "colours"
     key = (settings.grid_key, settings.model, app.options.variogram)
     if key != app.panel_key:

@@ -251,6 +251,14 @@ def apply_view(app: App, view: View, *, source: str = "(in memory)", notice: str
     from rough_viewer.app.jobs import ViewJob
 
     settings = check_view_for_app(view, source)
+    # zones first: the zones mode sets its controls and may set the Map tab's model;
+    # the view's own settings below are then shown last, and the zones follow them
+    zones_kept = False
+    if view.zones is not None:
+        try:
+            zones_kept = restore_zones(app, view.zones)
+        except InputError as exc:
+            app.show_error(f"saved view: zones: {exc}", kept="The map is shown without zones.")
     g = app.gui
     app.sync_controls(settings)  # grid, model, axis, min points, display (quietly)
     # controls sync_controls leaves alone; each queues a view, which the next replaces
@@ -264,12 +272,6 @@ def apply_view(app: App, view: View, *, source: str = "(in memory)", notice: str
     if mode is not None and view.profiles:
         _set_profile_controls(mode, view.profiles[0])
         app.submit(RestoreProfilesJob(mode, view.profiles))
-    zones_kept = False
-    if view.zones is not None:
-        try:
-            zones_kept = restore_zones(app, view.zones)
-        except InputError as exc:
-            app.show_error(f"saved view: zones: {exc}", kept="The map is shown without zones.")
     from rough_viewer.app.export_mode import ExportMode
 
     try:

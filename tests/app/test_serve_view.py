@@ -10,6 +10,7 @@ import pytest
 
 from rough_viewer.io import load_points
 from rough_viewer.report.view import Camera, ColourSettings, ProfilePick, View, input_ref, save_view
+from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient
 from tests.app.serve_process import ServeProcess
 from tests.io.test_las_out import make_pf3
@@ -55,7 +56,8 @@ def test_serve_view_reopens_the_view(tmp_path):
     proc = ServeProcess("--view", str(moved / "scan.view.json"))
     try:
         assert proc.path.startswith("/t/")
-        assert any("note: input moved" in line for line in proc.stderr)
+        wait_until(lambda: any("note: input moved" in line for line in proc.stderr), 10,
+                   "the note on stderr")
         client = ProtocolClient(proc.port, proc.path)
         try:
             client.wait_for(lambda m: "grid 0.5 m" in _text(m) and "OLS" in _text(m),

@@ -146,27 +146,58 @@ def _view(scan: Path, **changes) -> View:
     base = View(input=input_ref(scan), cell_size_m=0.5, min_points=5, axis="z", model="hybrid",
                 threshold=0.2, colour=ColourSettings("magma", "continuous",
                                                      Stretch("percentile", 5.0, 95.0, log=False)),
-                zones=ZoneSettings(map="ols", connectivity="face", min_cells=4, selected=2))
+                zones=ZoneSettings(map="hybrid", connectivity="face", min_cells=4, selected=2))
     return base.with_(**changes) if changes else base
 
 
-def test_zones_kept_as_data_and_saved_again(scan, server):
-    view_file = save_view(scan.parent / "v.json", _view(scan))
-    app, _ = _reopen(server, view_file)
+def _saved_again(app, server) -> dict:
     client = ProtocolClient(server.get_port())
     try:
         client.wait_for(lambda m: m.get("props", {}).get("label") == em.L_VIEW, what="Export")
-        assert app.shown.settings.colormap == "magma"
-        assert app.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
         client.press(em.L_VIEW)
         _, data = client.wait_download(".view.json")
-        again = json.loads(data)
-        assert again["zones"] == {"map": "ols", "connectivity": "face", "min_cells": 4,
+        return json.loads(data)
+    finally:
+        client.close()
+
+
+def test_zones_restored_through_the_zones_mode(scan, server):
+    from rough_viewer.app.zones_mode import ZonesMode
+
+    view_file = save_view(scan.parent / "v.json", _view(scan))
+    app, _ = _reopen(server, view_file)
+    try:
+        zm = app.mode(ZonesMode)
+        assert zm.active and app.mode(ExportMode).zones is None
+        z = zm.settings()
+        assert (z.map, z.connectivity, z.min_cells) == ("hybrid", "face", 4)
+        assert app.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
+        again = _saved_again(app, server)
+        assert {k: again["zones"][k] for k in ("map", "connectivity", "min_cells")} == \
+            {"map": "hybrid", "connectivity": "face", "min_cells": 4}
+        assert again["zones"]["selected"] in (2, None)  # 2 once labelled, if it exists
+    finally:
+        app.stop()
+
+
+def test_zones_kept_as_data_without_a_zones_mode(scan, server, monkeypatch):
+    from rough_viewer.app import server as server_module
+    from rough_viewer.app import zones_mode
+
+    monkeypatch.setattr(server_module, "MODES", tuple(
+        m for m in server_module.MODES if m is not zones_mode.mount))
+    view_file = save_view(scan.parent / "v.json", _view(scan))
+    app, _ = _reopen(server, view_file)
+    try:
+        assert app.mode(ExportMode).zones == _view(scan).zones
+        assert app.shown.settings.colormap == "magma"
+        assert app.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
+        again = _saved_again(app, server)
+        assert again["zones"] == {"map": "hybrid", "connectivity": "face", "min_cells": 4,
                                   "selected": 2}
         assert again["colour"]["stretch"] == "percentile" and again["colour"]["range"] == [5, 95]
         assert again["grid"] == {"cell_size_m": 0.5, "min_points": 5, "axis": "z"}
     finally:
-        client.close()
         app.stop()
 
 
