@@ -33,6 +33,7 @@ from rough_viewer.report.view import (
 )
 from rough_viewer.visual.colormaps import Stretch
 from rough_viewer.vocabulary import InputError
+from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient
 from tests.io.test_las_out import make_pf3
 
@@ -292,3 +293,25 @@ def test_malformed_view_file_is_one_line(tmp_path, capsys, text):
 def test_view_file_round_trip_keeps_the_layer(scan, tmp_path):
     view = _view(scan, colour=ColourSettings("viridis", layer="intensity"))
     assert load_view(save_view(tmp_path / "l.json", view)).view.colour.layer == "intensity"
+
+
+def test_save_view_beside_the_input_only_when_allowed(scan, server):
+    app = _app(server, scan)
+    client = ProtocolClient(server.get_port())
+    try:
+        mode = app.mode(ExportMode)
+        assert not mode.save_view.visible
+        client.wait_for(lambda m: m.get("props", {}).get("label") == em.L_SAVE_VIEW, what="it")
+        client.press(em.L_SAVE_VIEW)  # a page that presses the hidden button anyway
+        wait_until(lambda: "does not save views" in mode.status.content, 20, "the refusal")
+        assert not list(scan.parent.glob("*.json"))
+        mode.enable_save_views()
+        assert mode.save_view.visible
+        for expected in ("scan.view.json", "scan.view-2.json"):  # never replaces one
+            client.press(em.L_SAVE_VIEW)
+            wait_until(lambda e=expected: (scan.parent / e).is_file(), 20, expected)
+        assert load_view(scan.parent / "scan.view.json").input_check.status == "unchanged"
+        assert "Saved" in mode.status.content and str(scan.parent) not in mode.status.content
+    finally:
+        client.close()
+        app.stop()
