@@ -18,7 +18,10 @@ control's options and range), :mod:`.uploads` (uploads streamed to disk with a
 limit), :mod:`.hooks` (the only module that touches viser's internals).
 
 Modes: :mod:`.profile_mode` (Profile tab), :mod:`.board_mode` (Board tab),
-:mod:`.bias_panel` (Bias tab), :mod:`.zones_mode` (Zones tab).
+:mod:`.bias_panel` (Bias tab), :mod:`.zones_mode` (Zones tab), :mod:`.export_mode`
+(the Export folder: downloads sent to the browser, saved views). Saved views
+(``serve --view``): :mod:`.views` (what the app shows as a
+:class:`rough_viewer.report.view.View`, and back).
 
 Adding a mode (a "Zones" tab, an "Export" folder, ...) is one new module and one
 line of wiring:

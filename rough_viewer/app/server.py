@@ -26,7 +26,7 @@ from typing import Any, TypeVar
 
 import viser
 
-from rough_viewer.app import bias_panel, board_mode, profile_mode, scene, zones_mode
+from rough_viewer.app import bias_panel, board_mode, export_mode, profile_mode, scene, zones_mode
 from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.jobs import (
@@ -86,6 +86,7 @@ MODES: tuple[Mount, ...] = (
     board_mode.mount,
     bias_panel.mount,
     zones_mode.mount,
+    export_mode.mount,  # the Export folder (below the tabs): keep it last
 )
 
 T = TypeVar("T")

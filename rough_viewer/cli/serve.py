@@ -6,6 +6,7 @@ Contract::
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N]
         [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
+        [--view VIEW.json] [--save-views]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo).
@@ -13,6 +14,14 @@ The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL i
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
 (see :mod:`rough_viewer.app.gate`). Ctrl-C stops it.
+
+``--view VIEW.json`` reopens a saved view (the Export folder's "Download view"): its
+input, grid, model, axis, units, threshold, colours, profiles, zone settings and
+camera; the view's settings replace ``--grid``, ``--model``, ``--axis`` and
+``--min-points``. The view's input must lie in the data folder (``--data-dir``,
+default the view file's folder; bundled demos always open), or be given as INPUT. A
+view whose input moved or changed says so (stderr and the app). ``--save-views`` lets
+the Export folder also write views next to the input in the data folder.
 """
 
 from __future__ import annotations
@@ -63,6 +72,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "http://myhost:8080 (repeatable); pages of other origins are refused")
     p.add_argument("--no-token", action="store_true",
                    help="do not require the access token in the URL (trusted networks only)")
+    p.add_argument("--view", metavar="VIEW.json",
+                   help="reopen a saved view (input, grid, model, colours, profiles, camera); "
+                   "its input must lie in the data folder (default: the view file's folder) "
+                   "or be given as INPUT")
+    p.add_argument("--save-views", action="store_true",
+                   help="let the Export folder also save views next to the input in the data "
+                   "folder (without it views are only downloaded)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
@@ -112,11 +128,29 @@ def _check_options(args: argparse.Namespace) -> Path:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.app.state import ViewSettings, check_settings
 
-    settings = ViewSettings(cell_size=args.grid, model=args.model, axis=args.axis,
-                            min_points=args.min_points)
-    check_settings(settings)
+    opened = None
+    if args.view:
+        from rough_viewer.app.views import open_view
+        from rough_viewer.cli._inputs import input_paths
+
+        if args.demo:
+            raise InputError("give either --view or --demo, not both")
+        opened = open_view(args.view, inputs=input_paths(args) if args.inputs else (),
+                           data_dir=args.data_dir)
+        settings = opened.settings
+    else:
+        settings = ViewSettings(cell_size=args.grid, model=args.model, axis=args.axis,
+                                min_points=args.min_points)
+        check_settings(settings)
     data_dir = _check_options(args)
-    cloud = _load_cloud(args)
+    if opened is not None and opened.data_dir is not None and args.data_dir is None:
+        data_dir = opened.data_dir
+    if opened is not None:
+        from rough_viewer.cli._inputs import load_inputs
+
+        cloud = load_inputs([opened.input_path], units=opened.view.units, quiet=True)
+    else:
+        cloud = _load_cloud(args)
 
     from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app
@@ -130,6 +164,17 @@ def run(args: argparse.Namespace) -> int:
         app = build_app(server, cloud, settings=settings, max_display=args.max_points,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
+        if args.save_views:
+            from rough_viewer.app.export_mode import ExportMode
+
+            app.mode(ExportMode).enable_save_views()
+        if opened is not None:
+            from rough_viewer.app.views import apply_view
+
+            apply_view(app, opened.view, source=args.view, notice=opened.notice)
+            app.wait_idle(timeout=None if not args.no_block else 120.0)
+            if opened.notice:
+                print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
         print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
               flush=True)
         if app.errors:
