@@ -173,3 +173,9 @@ def write_las_with_colours(path, cloud: PointCloud, seed: int = 1) -> tuple[np.n
     las.intensity = intensity
     las.write(str(path))
     return rgb8.astype(np.uint8), intensity
+
+
+#: The 2011 paper's grid sizes, metres: tests about other things than the grid pass
+#: them as the app's presets (``build_app(..., presets=PAPER_PRESETS)``) instead of the
+#: presets the app derives from each cloud's point spacing.
+PAPER_PRESETS = (1.0, 0.5, 0.25, 0.125)

@@ -18,7 +18,10 @@ control's options and range), :mod:`.uploads` (uploads streamed to disk with a
 limit), :mod:`.hooks` (the only module that touches viser's internals).
 
 Modes: :mod:`.profile_mode` (Profile tab), :mod:`.board_mode` (Board tab),
-:mod:`.bias_panel` (Bias tab).
+:mod:`.bias_panel` (Bias tab), :mod:`.zones_mode` (Zones tab), :mod:`.export_mode`
+(the Export folder: downloads sent to the browser, saved views). Saved views
+(``serve --view``): :mod:`.views` (what the app shows as a
+:class:`rough_viewer.report.view.View`, and back).
 
 Adding a mode (a "Zones" tab, an "Export" folder, ...) is one new module and one
 line of wiring:
@@ -35,6 +38,9 @@ line of wiring:
    cloud, the settings and grid result on screen), show problems with
    ``app.show_error``, escape any user or file text with :func:`.markup.md`, and may
    add a click handler to ``app.click_handlers`` (``handler(app, pick) -> bool``).
+   A mode that follows the map (grid, model, threshold, file) adds
+   ``listener(app)`` to ``app.view_listeners``: it is called on the worker after
+   every view's colours are shown, and should only submit its own job.
    Uploads go through ``app.uploads.register(handle, on_file)``.
 3. Add ``zones_mode.mount`` to :data:`.server.MODES`. Tests reach the mode with
    ``app.mode(ZonesMode)``.

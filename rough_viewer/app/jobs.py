@@ -137,6 +137,7 @@ def view_stages(app: App, run: Run, settings: ViewSettings, *,
     with app.lock:
         app.cloud_handle.colors = colours
         app.shown = Shown(loaded, settings, result, stats)
+        loaded.mark_shown(settings)
     t_colours = time.perf_counter() - t0
     # the colour bar and status always go with the colours (no stage in between)
     if not keep_error:
@@ -149,6 +150,8 @@ def view_stages(app: App, run: Run, settings: ViewSettings, *,
     if stats.sparse and not cached:
         app.notify("Most cells have no value", sparse_message(loaded, stats, settings),
                    color="yellow", seconds=10.0)
+    for listener in app.view_listeners:  # modes that follow the view (e.g. zones)
+        listener(app)
     yield "colours"
     if panel_key(app, settings) != app.panel_key or face_key(settings) != app.face_key:
         app.submit(PanelsJob(settings, result, record))

@@ -216,6 +216,36 @@ class ProfileMode:
         self.refresh()
         return True
 
+    def add_profile(self, app: App, start: np.ndarray, end: np.ndarray,
+                    settings: ProfileSettings) -> ProfileAnalysis:
+        """Analyse the line from ``start`` to ``end`` (file frame, metres) with
+        ``settings`` and keep it, drawn as two clicks draw it (a saved view's
+        profiles come back this way; worker thread).
+
+        Raises InputError or ValueError from the core (e.g. no points near the line).
+        """
+        a = analyse(app.shown.loaded.cloud.xyz(), start, end, settings)
+        k = len(self.items)
+        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
+        origin = app.shown.loaded.origin
+        l0, l1 = (np.asarray(p, dtype=np.float64) - origin for p in (start, end))
+        self.nodes.append([
+            app.server.scene.add_icosphere(f"/profiles/{k}/start", radius=0.02, color=colour,
+                                           position=(float(l0[0]), float(l0[1]), float(l0[2]))),
+            app.server.scene.add_line_segments(f"/profiles/{k}/line",
+                                               np.array([[l0, l1]], dtype=np.float32), colour,
+                                               thickness=4.0, thickness_units="screen"),
+            app.server.scene.add_label(f"/profiles/{k}/label", f"P{k + 1}",
+                                       position=(float(l1[0]), float(l1[1]), float(l1[2]))),
+        ])
+        self.items.append(a)
+        while len(self.items) > MAX_PROFILES:
+            self.items.pop(0)
+            for node in self.nodes.pop(0):
+                node.remove()
+        self.refresh()
+        return a
+
     def clear_all(self) -> None:
         for nodes in self.nodes:
             for node in nodes:

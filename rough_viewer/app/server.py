@@ -26,7 +26,7 @@ from typing import Any, TypeVar
 
 import viser
 
-from rough_viewer.app import bias_panel, board_mode, profile_mode, scene
+from rough_viewer.app import bias_panel, board_mode, export_mode, profile_mode, scene, zones_mode
 from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.jobs import (
@@ -91,6 +91,8 @@ MODES: tuple[Mount, ...] = (
     profile_mode.mount,
     board_mode.mount,
     bias_panel.mount,
+    zones_mode.mount,
+    export_mode.mount,  # the Export folder (below the tabs): keep it last
 )
 
 T = TypeVar("T")
@@ -152,6 +154,9 @@ class App:
     """Modes that take scene clicks, asked in order before the cell report."""
     cloud_handlers: list[Callable[[App], None]] = field(default_factory=list)
     """Called (on the worker) each time another cloud is put in the scene."""
+    view_listeners: list[Callable[[App], None]] = field(default_factory=list)
+    """Modes that follow the view: each is called (on the worker, inside the view job,
+    so keep it quick: submit a job) after a view's colours are shown."""
     panel_key: tuple[object, ...] | None = None
     face_key: tuple[object, ...] | None = None
     """(axis, min points, threshold) of the whole-face trend shown in the Panels."""

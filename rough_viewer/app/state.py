@@ -311,6 +311,7 @@ class LoadedCloud:
     _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid] = \
         field(init=False, repr=False)
     _layers: dict[str, ColourLayer] = field(init=False, repr=False)
+    _shown_key: tuple[str, tuple[float, str, int]] | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
@@ -331,8 +332,11 @@ class LoadedCloud:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
         fine_key = ("prepared", round(self.fine_cell_size, 9))
-        # the fine grid stays: every preset is coarsened from it
-        self._cache = ByteCache(self.cache_bytes, pinned=lambda k: k == fine_key)
+        # the fine grid stays (every preset is coarsened from it), and so does the
+        # grid on screen (the panels' preset grids must not push it out)
+        self._shown_key = None
+        self._cache = ByteCache(self.cache_bytes,
+                                pinned=lambda k: k == fine_key or k == self._shown_key)
         self._layers = {}
 
     @property
@@ -412,6 +416,11 @@ class LoadedCloud:
 
     def is_cached(self, settings: ViewSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
+
+    def mark_shown(self, settings: ViewSettings) -> None:
+        """The grid of ``settings`` is on screen: keep its result in the cache while
+        other grids come and go (it is pinned, like the finest preset's cells)."""
+        self._shown_key = ("result", settings.grid_key)
 
     def result(
         self,

@@ -6,6 +6,7 @@ Contract::
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
+        [--view VIEW.json] [--save-views]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
@@ -18,6 +19,14 @@ The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL i
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
 (see :mod:`rough_viewer.app.gate`). Ctrl-C stops it.
+
+``--view VIEW.json`` reopens a saved view (the Export folder's "Download view"): its
+input, grid, model, axis, units, threshold, colours, profiles, zone settings and
+camera; the view's settings replace ``--grid``, ``--model``, ``--axis`` and
+``--min-points``. The view's input must lie in the data folder (``--data-dir``,
+default the view file's folder; bundled demos always open), or be given as INPUT. A
+view whose input moved or changed says so (stderr and the app). ``--save-views`` lets
+the Export folder also write views next to the input in the data folder.
 """
 
 from __future__ import annotations
@@ -72,6 +81,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-token", action="store_true",
                    help="do not require the access token in the URL (trusted networks only)")
     add_units(p)
+    p.add_argument("--view", metavar="VIEW.json",
+                   help="reopen a saved view (input, grid, model, colours, profiles, camera); "
+                   "its input must lie in the data folder (default: the view file's folder) "
+                   "or be given as INPUT")
+    p.add_argument("--save-views", action="store_true",
+                   help="let the Export folder also save views next to the input in the data "
+                   "folder (without it views are only downloaded)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
@@ -126,13 +142,31 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--grid must be a positive length, got {args.grid:g}")
     if args.demo and args.units:
         raise InputError("--units applies to INPUT files; the demos are in metres")
-    data_dir = _check_options(args)
-    cloud = _load_cloud(args)
+    opened = None
     settings: ViewSettings | None = None
-    if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
-        settings = ViewSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
-                                model=args.model, axis=args.axis, min_points=args.min_points)
-        check_settings(settings)
+    if args.view:
+        from rough_viewer.app.views import open_view
+        from rough_viewer.cli._inputs import input_paths
+
+        if args.demo:
+            raise InputError("give either --view or --demo, not both")
+        opened = open_view(args.view, inputs=input_paths(args) if args.inputs else (),
+                           data_dir=args.data_dir)
+        settings = opened.settings
+    data_dir = _check_options(args)
+    if opened is not None and opened.data_dir is not None and args.data_dir is None:
+        data_dir = opened.data_dir
+    if opened is not None:
+        from rough_viewer.cli._inputs import load_inputs
+
+        cloud = load_inputs([opened.input_path], units=opened.view.units, quiet=True)
+    else:
+        cloud = _load_cloud(args)
+        if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
+            settings = ViewSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+                                    model=args.model, axis=args.axis,
+                                    min_points=args.min_points)
+            check_settings(settings)
     for warning in cloud.warnings:
         print(f"rough-viewer: warning: {warning}", file=sys.stderr)
 
@@ -154,6 +188,17 @@ def run(args: argparse.Namespace) -> int:
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
                         units=args.units, presets=presets)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
+        if args.save_views:
+            from rough_viewer.app.export_mode import ExportMode
+
+            app.mode(ExportMode).enable_save_views()
+        if opened is not None:
+            from rough_viewer.app.views import apply_view
+
+            apply_view(app, opened.view, source=args.view, notice=opened.notice)
+            app.wait_idle(timeout=None if not args.no_block else 120.0)
+            if opened.notice:
+                print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
         print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
               flush=True)
         if app.errors:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -145,6 +146,16 @@ def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
     return PreparedGrid(index=index, moments=moments)
 
 
+def map_values(holder: Any, name: MapName) -> np.ndarray:
+    """The map ``name`` of anything holding ``theta_odr``, ``theta_ols``,
+    ``theta_hybrid`` and ``e_ols`` arrays (a grid result, an across-scales series)."""
+    if name == "e_ols":
+        return np.asarray(holder.e_ols)
+    if name in MODELS:
+        return np.asarray(getattr(holder, f"theta_{name}"))
+    raise InputError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+
+
 @dataclass(frozen=True)
 class GridRoughness:
     """Roughness maps of one cloud on one grid. Cell arrays have one row per occupied
@@ -202,11 +213,7 @@ class GridRoughness:
 
     def values(self, name: MapName) -> np.ndarray:
         """The (M,) map ``"odr"``, ``"ols"``, ``"hybrid"`` or ``"e_ols"``, metres."""
-        if name == "e_ols":
-            return self.e_ols
-        if name in MODELS:
-            return getattr(self, f"theta_{name}")
-        raise InputError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+        return map_values(self, name)
 
     def point_values(self, name: MapName) -> np.ndarray:
         """(N,) the map's value of each point's cell (NaN where the cell has none)."""

@@ -41,14 +41,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from rough_viewer.grid.cells import CellIndex, cell_moments
-from rough_viewer.grid.roughness import GridRoughness, PreparedGrid, grid_roughness
+from rough_viewer.grid.roughness import GridRoughness, PreparedGrid, grid_roughness, map_values
 from rough_viewer.grid.summary import Summary, binary, normalise, summarise
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.vocabulary import (
     DEFAULT_MIN_POINTS,
     DEFAULT_THRESHOLD,
     MAPS,
-    MODELS,
     Axis,
     InputError,
     MapName,
@@ -83,11 +82,7 @@ class PointScales:
 
     def values(self, name: MapName) -> np.ndarray:
         """The (K,) series of map ``"odr"``, ``"ols"``, ``"hybrid"`` or ``"e_ols"``, metres."""
-        if name == "e_ols":
-            return self.e_ols
-        if name in MODELS:
-            return getattr(self, f"theta_{name}")
-        raise InputError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
+        return map_values(self, name)
 
 
 def _sorted_results(results: Sequence[GridRoughness]) -> list[GridRoughness]:

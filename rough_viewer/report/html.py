@@ -110,8 +110,6 @@ def report_html(report: Report) -> str:
     from plotly.offline import get_plotlyjs
 
     esc = html.escape
-    frame = face_frame(report.plane)
-    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -120,6 +118,23 @@ def report_html(report: Report) -> str:
         f'<script type="text/javascript">{get_plotlyjs()}</script>',
         "</head><body>",
         f"<h1>Surface roughness report: {esc(report.name)}</h1>",
+        *_meta_table(report),
+        _method_note(report),
+    ]
+    for line in report.warnings:
+        parts.append(f'<p class="error">warning: {esc(line)}</p>')
+    for s in report.sections:
+        parts += _section_html(report, s)
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def _meta_table(report: Report) -> list[str]:
+    """The table of what was measured and how: input, points, box, axis, plane, grids."""
+    esc = html.escape
+    frame = face_frame(report.plane)
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
+    return [
         '<table class="meta">',
         f"<tr><td>input</td><td>{esc(report.source or report.name)}</td></tr>",
         f"<tr><td>points</td><td>{report.n_points:,}"
@@ -141,6 +156,12 @@ def report_html(report: Report) -> str:
         f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
         f"<tr><td>created (UTC)</td><td>{esc(report.created)}</td></tr>",
         "</table>",
+    ]
+
+
+def _method_note(report: Report) -> str:
+    """One paragraph on how every number and figure of the page was made."""
+    return (
         '<p class="note">Roughness: population standard deviation of the absolute '
         "point-to-plane distances per cell (ODR: orthogonal; OLS: along the dependent axis; "
         "hybrid: ODR plane, distance along the dependent axis); e_OLS = |OLS - ODR|. "
@@ -148,52 +169,53 @@ def report_html(report: Report) -> str:
         "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
         "between cell centres, bins of one cell size up to half the largest extent "
         "(shorter where noted, to fit in memory), "
-        "divided by the map's variance. Zones: connected cells (" + esc(report.connectivity)
+        "divided by the map's variance. Zones: connected cells (" + html.escape(report.connectivity)
         + f" connectivity) whose normalised ODR roughness is at or above {report.threshold:g}, "
         f"groups of fewer than {report.min_cells} cells dropped, ids by size; area on the "
         "whole-cloud ODR plane; trace = long axis of the cell centres as azimuth/plunge, "
         "orientation = point-weighted mean ODR normal as dip/dip direction (z up, azimuths "
         "clockwise from +y); stereonet: poles of every cell's ODR plane, lower hemisphere, "
-        "equal area, contours in multiples of a uniform distribution (MUD).</p>",
-    ]
-    for line in report.warnings:
-        parts.append(f'<p class="error">warning: {esc(line)}</p>')
-    for s in report.sections:
-        sid = f"grid-{s.grid_size:g}".replace(".", "_")
-        parts.append(f'<section id="{sid}" class="grid-section">'
-                     f'<h2>Grid {s.grid_size / per:g} {u}</h2>')
-        if s.error is not None:
-            parts.append(f'<p class="error">{esc(s.error)}</p></section>')
-            continue
-        cells = s.result.cell_report("odr") if s.result is not None else {}
-        if cells:
-            parts.append(
-                f'<p class="note">{cells["occupied"]:,} occupied cells, '
-                f'{cells["with_value"]:,} with an ODR value, '
-                f'{cells["below_min_points"]:,} below {report.min_points} points, '
-                f'{cells["degenerate"]:,} degenerate.</p>'
-            )
-        figures, drawing_errors = figures_and_errors(report, s)
-        for key, why in {**s.figure_errors, **drawing_errors}.items():
-            parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
-        limited = sorted({f"{vg.max_lag / per:g} {u}" for vg in s.variograms.values()
-                          if vg.lag_limited})
-        if limited:
-            parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
-                         "to fit in memory (default: half the largest extent).</p>")
-        for key, fig in figures.items():
-            if key == "zones_table":
-                z = s.zones
-                parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
-                if z is not None:
-                    parts.append(f'<p class="note">{z.n_zones:,} zones holding '
-                                 f'{int(z.cells.sum()):,} cells.</p>')
-            div = fig.to_html(full_html=False, include_plotlyjs=False,
-                              div_id=f"{sid}-{key}", config={"displaylogo": False})
-            parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
-        parts.append("</section>")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+        "equal area, contours in multiples of a uniform distribution (MUD).</p>"
+    )
+
+
+def _section_html(report: Report, s: GridSection) -> list[str]:
+    """One grid size: its cell counts, what could not be drawn, and its figures."""
+    esc = html.escape
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
+    sid = f"grid-{s.grid_size:g}".replace(".", "_")
+    parts = [f'<section id="{sid}" class="grid-section">'
+             f'<h2>Grid {s.grid_size / per:g} {u}</h2>']
+    if s.error is not None:
+        return parts + [f'<p class="error">{esc(s.error)}</p></section>']
+    cells = s.result.cell_report("odr") if s.result is not None else {}
+    if cells:
+        parts.append(
+            f'<p class="note">{cells["occupied"]:,} occupied cells, '
+            f'{cells["with_value"]:,} with an ODR value, '
+            f'{cells["below_min_points"]:,} below {report.min_points} points, '
+            f'{cells["degenerate"]:,} degenerate.</p>'
+        )
+    figures, drawing_errors = figures_and_errors(report, s)
+    for key, why in {**s.figure_errors, **drawing_errors}.items():
+        parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
+    limited = sorted({f"{vg.max_lag / per:g} {u}" for vg in s.variograms.values()
+                      if vg.lag_limited})
+    if limited:
+        parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
+                     "to fit in memory (default: half the largest extent).</p>")
+    for key, fig in figures.items():
+        if key == "zones_table":
+            z = s.zones
+            parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
+            if z is not None:
+                parts.append(f'<p class="note">{z.n_zones:,} zones holding '
+                             f'{int(z.cells.sum()):,} cells.</p>')
+        div = fig.to_html(full_html=False, include_plotlyjs=False,
+                          div_id=f"{sid}-{key}", config={"displaylogo": False})
+        parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
+    parts.append("</section>")
+    return parts
 
 
 def check_png_export() -> None:

@@ -25,7 +25,7 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "grid": {"cell_size_m": 0.25, "min_points": 4, "axis": "auto"},
      "model": "odr", "threshold": 0.05,
      "colour": {"colormap": "viridis", "mode": "continuous", "stretch": "percentile",
-                "range": [2.0, 98.0], "log": true},
+                "range": [2.0, 98.0], "log": true, "layer": "roughness"},
      "panels": ["table", "histogram"],
      "profiles": [{"start": [x, y, z], "end": [x, y, z], "band_half_width_m": null,
                    "wavelet": "db3", "level": 3, "decomposition": "dwt",
@@ -55,12 +55,14 @@ from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
+    COLOUR_LAYERS,
     DECOMPOSITIONS,
     MAPS,
     MODES,
     THRESHOLD_RULES,
     UNITS,
     AxisChoice,
+    ColourLayerName,
     Decomposition,
     InputError,
     MapName,
@@ -122,6 +124,9 @@ class ColourSettings:
     """How values spread over the map (:class:`rough_viewer.visual.colormaps.Stretch`:
     percentiles of the cells or absolute limits in metres, linear or log). In the
     file: ``"stretch"`` (its mode), ``"range"`` (its limits) and ``"log"``."""
+    layer: ColourLayerName = "roughness"
+    """What colours the points (:data:`rough_viewer.vocabulary.COLOUR_LAYERS`): the
+    roughness map, the scan's RGB, its intensity or the distance to the face plane."""
 
 
 @dataclass(frozen=True)
@@ -323,7 +328,8 @@ def view_to_dict(view: View) -> dict[str, Any]:
                  "axis": d.pop("axis")}
     s = view.colour.stretch
     d["colour"] = {"colormap": view.colour.colormap, "mode": view.colour.mode,
-                   "stretch": s.mode, "range": [s.lo, s.hi], "log": s.log}
+                   "stretch": s.mode, "range": [s.lo, s.hi], "log": s.log,
+                   "layer": view.colour.layer}
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
@@ -483,7 +489,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
 
 
 def _colour(r: _Reader, value: Any) -> ColourSettings:
-    c = r.obj(value, "colour", [], ["colormap", "mode", "stretch", "range", "log"])
+    c = r.obj(value, "colour", [], ["colormap", "mode", "stretch", "range", "log", "layer"])
     default = ColourSettings()
     mode = r.choice(c.get("stretch", default.stretch.mode), "colour.stretch", STRETCH_MODES)
     bounds = {"percentile": (0.0, 100.0), "absolute": (0.0, 1e6)}[mode]
@@ -504,7 +510,8 @@ def _colour(r: _Reader, value: Any) -> ColourSettings:
     return ColourSettings(
         colormap=r.choice(c.get("colormap", default.colormap), "colour.colormap", COLORMAP_NAMES),
         mode=r.choice(c.get("mode", default.mode), "colour.mode", COLOUR_MODES),
-        stretch=stretch)
+        stretch=stretch,
+        layer=r.choice(c.get("layer", default.layer), "colour.layer", COLOUR_LAYERS))
 
 
 def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
@@ -561,6 +568,27 @@ def _camera(r: _Reader, value: Any) -> Camera:
 # ----------------------------------------------------------------------------- files
 
 
+def view_text(view: View, *, folder: str | os.PathLike[str] | None = None) -> str:
+    """The JSON text of a view file (validated first).
+
+    ``folder`` is where the file will be kept: the input's path relative to it is
+    stored too, so a folder moved whole still finds its scan. None (a view sent to a
+    browser, whose folder is unknown): no relative path.
+    """
+    check_view(view)
+    data = view_to_dict(view)
+    relative: str | None = None
+    if folder is not None:
+        try:
+            relative = os.path.relpath(Path(view.input.path).resolve(), Path(folder).resolve())
+        except ValueError:  # another drive on Windows
+            relative = None
+    data["input"]["relative_path"] = relative
+    doc = {"format": VIEW_FORMAT, "version": VIEW_VERSION, "software": f"rough_viewer {__version__}",
+           "saved_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(), **data}
+    return json.dumps(doc, indent=2, allow_nan=False) + "\n"
+
+
 def save_view(path: str | os.PathLike[str], view: View, *, force: bool = False) -> Path:
     """Write a view file atomically (nothing overwritten without ``force``; never the
     input itself). The input's path is also stored relative to the view file, so a
@@ -572,17 +600,8 @@ def save_view(path: str | os.PathLike[str], view: View, *, force: bool = False) 
         ``path``.
     """
     check_view(view)
-    data = view_to_dict(view)
     p = check_output_path(path, force=force, inputs=[view.input.path])
-    try:
-        relative: str | None = os.path.relpath(Path(view.input.path).resolve(),
-                                               p.parent.resolve())
-    except ValueError:  # another drive on Windows
-        relative = None
-    data["input"]["relative_path"] = relative
-    doc = {"format": VIEW_FORMAT, "version": VIEW_VERSION, "software": f"rough_viewer {__version__}",
-           "saved_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(), **data}
-    text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
+    text = view_text(view, folder=p.parent)
     write_atomic(p, lambda fh: fh.write(text))
     return p
 

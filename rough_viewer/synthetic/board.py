@@ -257,6 +257,84 @@ def _default_board() -> HemisphereBoard:
     return hemisphere_board()
 
 
+@dataclass(frozen=True)
+class _Pose:
+    """Where the board and the scanner stand (world frame, metres)."""
+
+    scanner: np.ndarray
+    centre: np.ndarray
+    axes: np.ndarray
+    """(3, 3) board axes u, v, w as columns."""
+
+
+def _ray_window(board: HemisphereBoard, pose: _Pose, step: float) -> np.ndarray:
+    """(R, 3) unit ray directions on a regular angular grid of ``step`` radians over
+    the board's corners, raised by r towards the scanner, plus a margin."""
+    eu, ev, ew = pose.axes[:, 0], pose.axes[:, 1], pose.axes[:, 2]
+    half, r = board.size_m / 2, board.radius_m
+    corners = np.array(
+        [pose.centre + su * half * eu + sv * half * ev + sw * r * ew
+         for su in (-1, 1) for sv in (-1, 1) for sw in (0, 1)]
+    )
+    rel = corners - pose.scanner
+    phi_c = np.arctan2(rel[:, 0], rel[:, 1])
+    theta_c = np.arctan2(rel[:, 2], np.hypot(rel[:, 0], rel[:, 1]))
+    phi, theta = ray_grid(
+        (phi_c.min() - 2 * step, phi_c.max() + 2 * step),
+        (theta_c.min() - 2 * step, theta_c.max() + 2 * step),
+        step,
+    )
+    return directions(phi, theta)
+
+
+def _hit_hemispheres(
+    board: HemisphereBoard, pose: _Pose, d: np.ndarray, t_best: np.ndarray,
+    sphere_id: np.ndarray, u: np.ndarray, v: np.ndarray,
+) -> None:
+    """Lower ``t_best`` (in place) where a ray meets a hemisphere first, and record
+    which one in ``sphere_id``.
+
+    A ray can only meet hemispheres near the stretch of it between w = r and w = 0;
+    the nodes around that stretch's midpoint are tested one node offset at a time.
+    """
+    eu, ev, ew = pose.axes[:, 0], pose.axes[:, 1], pose.axes[:, 2]
+    half, r, g = board.size_m / 2, board.radius_m, board.node_spacing_m
+    du, dv, dw = d @ eu, d @ ev, d @ ew
+    back = r / (2.0 * -dw)
+    mu, mv = u - back * du, v - back * dv
+    half_seg = np.max(back * np.hypot(du, dv))
+    reach = int(np.ceil((r + half_seg) / g + 0.5))
+    n_nodes = int(round(board.size_m / g))
+    occupied = np.full((n_nodes + 1, n_nodes + 1), -1, dtype=np.int64)
+    occupied[board.node_ij[:, 0], board.node_ij[:, 1]] = np.arange(board.n_spheres)
+    i0 = np.rint((mu + half) / g).astype(np.int64)
+    j0 = np.rint((mv + half) / g).astype(np.int64)
+    centres_world = (
+        pose.centre + board.centres_uv[:, :1] * eu + board.centres_uv[:, 1:] * ev
+    )
+    for di in range(-reach, reach + 1):
+        for dj in range(-reach, reach + 1):
+            ii, jj = i0 + di, j0 + dj
+            inside = (ii >= 0) & (ii <= n_nodes) & (jj >= 0) & (jj <= n_nodes)
+            cand = np.flatnonzero(inside)
+            sid = occupied[ii[cand], jj[cand]]
+            cand, sid = cand[sid >= 0], sid[sid >= 0]
+            if cand.size == 0:
+                continue
+            oc = pose.scanner - centres_world[sid]
+            dc = d[cand]
+            bq = np.einsum("ij,ij->i", dc, oc)
+            cq = np.einsum("ij,ij->i", oc, oc) - r * r
+            disc = bq * bq - cq
+            ok = disc >= 0
+            t = -bq - np.sqrt(np.where(ok, disc, 0.0))
+            w_hit = (pose.scanner + t[:, None] * dc - pose.centre) @ ew
+            ok &= w_hit >= 0.0
+            better = ok & (t < t_best[cand])
+            t_best[cand[better]] = t[better]
+            sphere_id[cand[better]] = sid[better]
+
+
 @functools.lru_cache(maxsize=32)
 def _board_scan_cached(
     alpha_deg: float,
@@ -273,72 +351,19 @@ def _board_scan_cached(
     scanner = np.array([0.0, 0.0, MOUNT_HEIGHT_M])
     centre = np.array([0.0, range_m, MOUNT_HEIGHT_M])
     axes = board_rotation(alpha_deg, beta_deg)
-    eu, ev, ew = axes[:, 0], axes[:, 1], axes[:, 2]
-    half = board.size_m / 2
-    r = board.radius_m
-    g = board.node_spacing_m
-    step = spacing / range_m
-
-    # Angular window: the board corners, raised by r towards the scanner, plus a margin.
-    corners = np.array(
-        [centre + su * half * eu + sv * half * ev + sw * r * ew
-         for su in (-1, 1) for sv in (-1, 1) for sw in (0, 1)]
-    )
-    rel = corners - scanner
-    phi_c = np.arctan2(rel[:, 0], rel[:, 1])
-    theta_c = np.arctan2(rel[:, 2], np.hypot(rel[:, 0], rel[:, 1]))
-    phi, theta = ray_grid(
-        (phi_c.min() - 2 * step, phi_c.max() + 2 * step),
-        (theta_c.min() - 2 * step, theta_c.max() + 2 * step),
-        step,
-    )
-    d = directions(phi, theta)
+    pose = _Pose(scanner=scanner, centre=centre, axes=axes)
+    d = _ray_window(board, pose, spacing / range_m)
 
     # Board plane w = 0: every ray of the window meets it in front of the scanner.
-    dw = d @ ew
-    t_plane = ((centre - scanner) @ ew) / dw
+    eu, ev, ew = axes[:, 0], axes[:, 1], axes[:, 2]
+    half = board.size_m / 2
+    t_plane = ((centre - scanner) @ ew) / (d @ ew)
     hit = scanner + t_plane[:, None] * d - centre
     u = hit @ eu
     v = hit @ ev
     t_best = np.where((np.abs(u) <= half) & (np.abs(v) <= half), t_plane, np.inf)
     sphere_id = np.full(d.shape[0], -1, dtype=np.int64)
-
-    # Spheres: a ray can only meet hemispheres near the stretch of it between w = r and
-    # w = 0; test the nodes around that stretch's midpoint, one node offset at a time.
-    du, dv = d @ eu, d @ ev
-    back = r / (2.0 * -dw)
-    mu, mv = u - back * du, v - back * dv
-    half_seg = np.max(back * np.hypot(du, dv))
-    reach = int(np.ceil((r + half_seg) / g + 0.5))
-    n_nodes = int(round(board.size_m / g))
-    occupied = np.full((n_nodes + 1, n_nodes + 1), -1, dtype=np.int64)
-    occupied[board.node_ij[:, 0], board.node_ij[:, 1]] = np.arange(board.n_spheres)
-    i0 = np.rint((mu + half) / g).astype(np.int64)
-    j0 = np.rint((mv + half) / g).astype(np.int64)
-    centres_world = (
-        centre + board.centres_uv[:, :1] * eu + board.centres_uv[:, 1:] * ev
-    )
-    for di in range(-reach, reach + 1):
-        for dj in range(-reach, reach + 1):
-            ii, jj = i0 + di, j0 + dj
-            inside = (ii >= 0) & (ii <= n_nodes) & (jj >= 0) & (jj <= n_nodes)
-            cand = np.flatnonzero(inside)
-            sid = occupied[ii[cand], jj[cand]]
-            cand, sid = cand[sid >= 0], sid[sid >= 0]
-            if cand.size == 0:
-                continue
-            oc = scanner - centres_world[sid]
-            dc = d[cand]
-            bq = np.einsum("ij,ij->i", dc, oc)
-            cq = np.einsum("ij,ij->i", oc, oc) - r * r
-            disc = bq * bq - cq
-            ok = disc >= 0
-            t = -bq - np.sqrt(np.where(ok, disc, 0.0))
-            w_hit = (scanner + t[:, None] * dc - centre) @ ew
-            ok &= w_hit >= 0.0
-            better = ok & (t < t_best[cand])
-            t_best[cand[better]] = t[better]
-            sphere_id[cand[better]] = sid[better]
+    _hit_hemispheres(board, pose, d, t_best, sphere_id, u, v)
 
     seen = np.isfinite(t_best)
     t_seen = t_best[seen]

@@ -11,7 +11,7 @@ point count.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import plotly.graph_objects as go
@@ -33,9 +33,51 @@ def _title(what: str, *, grid_size: float, axis: str, n_points: int, map_name: s
     return {"text": f"{what}<br><sup>{sub}</sup>", "x": 0.01, "xanchor": "left"}
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 zone``, ``2 zones``."""
+    return f"1 {noun}" if n == 1 else f"{n:,} {noun}s"
+
+
 def _zone_settings(zones: Zones) -> str:
     return (f"{MAP_LABELS[zones.map_name]} normalised ≥ {zones.threshold:g}, "
             f"{zones.connectivity} connectivity, ≥ {zones.min_cells} cells")
+
+
+def azimuth_text(deg: float) -> str:
+    """An azimuth as three whole degrees in [000, 359] (359.7 is ``000``, not ``360``)."""
+    return f"{int(round(float(deg))) % 360:03d}"
+
+
+def _table_columns(zones: Zones, n: int) -> dict[str, tuple[str, int, list[str]]]:
+    """Every table column of the ``n`` largest zones: key -> (header, width, cells)."""
+    return {
+        "zone": ("zone", 32, [f"<b>{i}</b>" for i in range(1, n + 1)]),
+        "cells": ("cells", 55, [f"{c:,}" for c in zones.cells[:n]]),
+        "points": ("points", 70, [f"{p:,}" for p in zones.points[:n]]),
+        "area": ("area (m²)", 60, [f"{a:.3g}" for a in zones.area_m2[:n]]),
+        "length": ("length (m)", 60, [f"{v:.3g}" for v in zones.length_m[:n]]),
+        "width": ("width (m)", 60, [f"{v:.3g}" for v in zones.width_m[:n]]),
+        "size": ("length × width (m)", 100,
+                 [f"{a:.3g} × {b:.3g}" for a, b in zip(zones.length_m[:n], zones.width_m[:n], strict=True)]),
+        "trace": ("trace (az/plunge °)", 90,
+                  [f"{azimuth_text(t)} / {p:02.0f}" for t, p in zip(zones.trace_azimuth_deg[:n],
+                                                          zones.trace_plunge_deg[:n], strict=True)]),
+        "dip": ("dip / direction (°)", 95,
+                [f"{d:02.0f} / {azimuth_text(a)}" for d, a in zip(zones.dip_deg[:n],
+                                                        zones.dip_direction_deg[:n], strict=True)]),
+        "mean_theta": ("mean θ (mm)", 65, [f"{v * 1e3:.3g}" for v in zones.mean_theta[:n]]),
+        "max_theta": ("max θ (mm)", 65, [f"{v * 1e3:.3g}" for v in zones.max_theta[:n]]),
+        "centroid": ("centroid x, y, z (m)", 170,
+                     [", ".join(f"{c:.2f}" for c in row) for row in zones.centroid[:n]]),
+    }
+
+
+#: Columns of the full zone table (the report).
+TABLE_COLUMNS: tuple[str, ...] = ("zone", "cells", "points", "area", "length", "width", "trace",
+                                  "dip", "mean_theta", "max_theta", "centroid")
+#: Columns of the compact table (a narrow panel, e.g. the app's Zones tab).
+COMPACT_COLUMNS: tuple[str, ...] = ("zone", "cells", "area", "size", "trace", "dip",
+                                    "mean_theta")
 
 
 def zones_table_figure(
@@ -46,6 +88,7 @@ def zones_table_figure(
     n_points: int,
     selected: int | None = None,
     max_rows: int = 50,
+    columns: Sequence[str] = TABLE_COLUMNS,
 ) -> go.Figure:
     """The zone table, largest zone first (ids 1..Z), each id in its zone colour.
 
@@ -57,38 +100,29 @@ def zones_table_figure(
         A zone id whose row is highlighted.
     max_rows : int
         Rows shown (the largest zones); the title says how many there are.
+    columns : sequence of str
+        Which columns, in order (:data:`TABLE_COLUMNS`, the default, or
+        :data:`COMPACT_COLUMNS`; also ``size``: length x width); ``zone`` first.
     """
     n = min(zones.n_zones, int(max_rows))
     ids = np.arange(1, n + 1)
-    header = ["zone", "cells", "points", "area (m²)", "length (m)", "width (m)",
-              "trace (az/plunge °)", "dip / direction (°)", "mean θ (mm)", "max θ (mm)",
-              "centroid x, y, z (m)"]
-    cells = [
-        [f"<b>{i}</b>" for i in ids],
-        [f"{c:,}" for c in zones.cells[:n]],
-        [f"{p:,}" for p in zones.points[:n]],
-        [f"{a:.3g}" for a in zones.area_m2[:n]],
-        [f"{v:.3g}" for v in zones.length_m[:n]],
-        [f"{v:.3g}" for v in zones.width_m[:n]],
-        [f"{t:03.0f} / {p:02.0f}" for t, p in zip(zones.trace_azimuth_deg[:n],
-                                                   zones.trace_plunge_deg[:n], strict=True)],
-        [f"{d:02.0f} / {a:03.0f}" for d, a in zip(zones.dip_deg[:n],
-                                                  zones.dip_direction_deg[:n], strict=True)],
-        [f"{v * 1e3:.3g}" for v in zones.mean_theta[:n]],
-        [f"{v * 1e3:.3g}" for v in zones.max_theta[:n]],
-        [", ".join(f"{c:.2f}" for c in row) for row in zones.centroid[:n]],
-    ]
+    every = _table_columns(zones, n)
+    unknown = [c for c in columns if c not in every]
+    if unknown or not columns or columns[0] != "zone":
+        raise InputError(f"table columns must start with 'zone' and be among {', '.join(every)}")
+    header = [every[c][0] for c in columns]
+    cells = [every[c][2] for c in columns]
     row_fill = ["#fff3b0" if selected == i else "white" for i in ids]
     fill = [[colormaps.zone_colour(int(i)) for i in ids]] + [row_fill] * (len(header) - 1)
     font = [["white"] * n] + [["#222"] * n] * (len(header) - 1)
     fig = go.Figure(go.Table(
-        columnwidth=[40, 55, 70, 60, 60, 60, 90, 95, 65, 65, 170],
+        columnwidth=[every[c][1] for c in columns],
         header={"values": header, "align": "left", "fill_color": "#e8e8e8"},
         cells={"values": cells, "align": "left", "fill_color": fill, "font": {"color": font}},
     ))
     more = f" (the {n} largest shown)" if n < zones.n_zones else ""
     fig.update_layout(
-        title=_title(f"{zones.n_zones:,} zones{more}: {_zone_settings(zones)}",
+        title=_title(f"{_count(zones.n_zones, 'zone')}{more}: {_zone_settings(zones)}",
                      grid_size=grid_size, axis=axis, n_points=n_points, map_name=zones.map_name),
         # rows are about 31 px; beyond 1000 px the table scrolls
         height=int(min(1000, 170 + 31 * max(n, 1))), margin={"l": 10, "r": 10, "t": 80, "b": 10},
@@ -224,10 +258,11 @@ def stereonet_figure(
         sel = np.asarray(subset)
         rows = np.flatnonzero(sel) if sel.dtype == bool else sel.astype(np.int64)
         on = np.flatnonzero(np.isin(net.rows, rows))
-        on = on[_subset(on.shape[0], max_poles)]
+        count = on.shape[0]  # the legend counts every pole, not only those drawn
+        on = on[_subset(count, max_poles)]
         colour = (colours or {}).get(name, colormaps.ZONE_PALETTE[i % len(colormaps.ZONE_PALETTE)])
         fig.add_trace(go.Scatter(
-            x=net.x[on], y=net.y[on], mode="markers", name=f"{name} ({on.shape[0]:,})",
+            x=net.x[on], y=net.y[on], mode="markers", name=f"{name} ({count:,})",
             marker={"size": 5, "color": colour, "line": {"width": 0.5, "color": "white"}},
             customdata=_pole_hover(net.x[on], net.y[on]),
             hovertemplate=(name + ": plane dip %{customdata[0]:.0f}° / "

@@ -92,7 +92,39 @@ class ProtocolClient:
                             and m["props"].get("label") == label, what=f"control {label!r}")
         return str(msg["uuid"])
 
+    def downloads(self) -> dict[str, bytes]:
+        """Files the server sent for download, by name, once all their parts arrived
+        (a name sent twice: the last complete one)."""
+        with self._lock:
+            starts = [m for m in self.messages if m.get("type") == "FileTransferStartDownload"]
+            parts: dict[str, dict[int, bytes]] = {}
+            for m in self.messages:
+                if m.get("type") == "FileTransferPart":
+                    parts.setdefault(m["transfer_uuid"], {})[m["part_index"]] = m["content"]
+        out = {}
+        for start in starts:
+            got = parts.get(start["transfer_uuid"], {})
+            if len(got) == start["part_count"]:
+                data = b"".join(got[i] for i in range(start["part_count"]))
+                if len(data) == start["size_bytes"]:
+                    out[start["filename"]] = data
+        return out
+
+    def wait_download(self, name_part: str, timeout: float = 60.0) -> tuple[str, bytes]:
+        """The first complete download whose name contains ``name_part``."""
+        end = time.time() + timeout
+        while time.time() < end:
+            for name, data in self.downloads().items():
+                if name_part in name:
+                    return name, data
+            time.sleep(0.05)
+        raise TimeoutError(f"no download named *{name_part}*")
+
     # ------------------------------------------------------------------ acting
+    def press(self, label: str) -> None:
+        """Click the button labelled ``label``."""
+        self.set_value(label, True)
+
     def set_value(self, label: str, value: Any) -> None:
         self.send({"type": "GuiUpdateMessage", "uuid": self.uuid(label), "updates": {"value": value}})
 

@@ -203,3 +203,15 @@ def test_the_grid_cache_is_bounded_by_bytes(cloud):
     assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
     a = np.zeros(5)
     assert nbytes((a, a[1:], {"x": a})) == a.nbytes  # views count once
+
+
+def test_the_grid_on_screen_stays_cached_while_others_come_and_go(cloud):
+    loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
+    shown = ViewSettings(cell_size=0.3)
+    first = loaded.result(shown)
+    loaded.mark_shown(shown)
+    for g in (0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
+        loaded.result(ViewSettings(cell_size=g))
+    assert loaded.cached_bytes <= 2_000_000
+    assert loaded.is_cached(shown) and loaded.result(shown) is first
+    assert not loaded.is_cached(ViewSettings(cell_size=0.35))  # the others were evicted

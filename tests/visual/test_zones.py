@@ -10,8 +10,13 @@ from rough_viewer.grid.orientation import cell_stereonet
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
-from rough_viewer.vocabulary import hex_to_rgb
+from rough_viewer.visual.zones import (
+    COMPACT_COLUMNS,
+    stereonet_figure,
+    zones_map_figure,
+    zones_table_figure,
+)
+from rough_viewer.vocabulary import InputError, hex_to_rgb
 from tests.helpers import banded_face
 
 BANDS = [(-1.3, -1.6, 5.0, 0.6, 0.0), (2.3, 1.0, 3.4, 0.6, 60.0)]
@@ -87,3 +92,29 @@ def test_stereonet_draws_every_pole_and_the_highlighted_zone(zoned):
                                 max_poles=10, **kw(res))
     assert len(rows_fig.data[1].x) == 10 and len(rows_fig.data[2].x) == 10
     assert "lower hemisphere, equal area" in fig.layout.title.text
+
+
+def test_compact_table_and_legend_counts(zoned):
+    res, zones = zoned
+    fig = zones_table_figure(zones, columns=COMPACT_COLUMNS, **kw(res))
+    table = fig.data[0]
+    assert list(table.header.values) == ["zone", "cells", "area (m²)", "length × width (m)",
+                                         "trace (az/plunge °)", "dip / direction (°)",
+                                         "mean θ (mm)"]
+    assert table.cells.values[3][0] == f"{zones.length_m[0]:.3g} × {zones.width_m[0]:.3g}"
+    with pytest.raises(InputError):
+        zones_table_figure(zones, columns=("cells", "zone"), **kw(res))
+    with pytest.raises(InputError):
+        zones_table_figure(zones, columns=("zone", "colour"), **kw(res))
+    # a legend counts every pole of a subset, also when fewer are drawn
+    net = cell_stereonet(res)
+    fig = stereonet_figure(net, highlight={"zone 1": zones.labels == 1}, max_poles=10, **kw(res))
+    n1 = int(np.isin(net.rows, np.flatnonzero(zones.labels == 1)).sum())
+    assert n1 > 10 and len(fig.data[2].x) == 10 and fig.data[2].name == f"zone 1 ({n1:,})"
+
+
+def test_azimuths_are_written_in_000_to_359():
+    from rough_viewer.visual.zones import azimuth_text
+
+    assert [azimuth_text(a) for a in (0.0, 5.2, 89.6, 359.4, 359.7, 360.0)] == \
+        ["000", "005", "090", "359", "000", "000"]

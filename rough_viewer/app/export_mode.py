@@ -1,0 +1,617 @@
+"""The Export folder: the shown result as files the browser downloads, and saved views.
+
+Downloads (the file comes to the browser that pressed the button, through viser's
+file transfer on the app's WebSocket, so it works when the server runs on another
+machine; the browser saves it at once, no link to click):
+
+- **points**: every point with its cell's roughness as LAS/LAZ extra dimensions or
+  PLY properties (:mod:`rough_viewer.io.las_out`, :mod:`rough_viewer.io.ply`); a
+  cloud read from a LAS/LAZ file on the server is copied from that file with all its
+  dimensions, VLRs (the CRS) and EVLRs, as ``compute --las-out`` does;
+- **cell table**: CSV, or Parquet when pyarrow is installed (the ``compute --out``
+  table, lengths in the input's unit);
+- **figures**: any panel of the app (found on the app's and the modes' handles, so
+  new panels come by themselves), or all of them in one ZIP, as HTML, or PNG/SVG when
+  kaleido is installed;
+- **report**: the HTML report of ``rough-viewer report`` for the shown grid, axis,
+  minimum points and threshold;
+- **view**: the saved view (JSON) of what is shown (:mod:`rough_viewer.app.views`),
+  and, when ``serve --save-views`` allows it, "Save view beside the input" writes it
+  next to the input in the data folder.
+
+Each download is an :class:`ExportJob` on the worker (lane ``export``: every request
+runs, in order; a repeated identical one still waiting is merged). Stages: check
+(something is shown; the estimated file fits the disk and the memory needed to send
+it, :func:`rough_viewer.memory.require`), write (into a private temporary folder,
+``0700``, atomically, with progress), read (the size checked again), send. The
+temporary folder is removed whatever happens, and only a complete file is sent: a
+failed export offers nothing. Names are made of the input's name and the settings,
+reduced to ``[A-Za-z0-9._-]`` (:func:`safe_name`) and put in the folder with
+:func:`rough_viewer.io.output.path_in_folder`.
+
+Memory: viser keeps a download in memory until the browser has it: the file's bytes,
+a copy cut in 1 MiB parts per browser, and the message windows it encodes (msgpack,
+zstd) while sending; :data:`SEND_FACTOR` covers that.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import shutil
+import tempfile
+import time
+import weakref
+import zipfile
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+import viser
+
+from rough_viewer.app.jobs import Shown
+from rough_viewer.app.layout import assign
+from rough_viewer.app.markup import md, public_message
+from rough_viewer.app.views import camera_of, view_of_app
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
+from rough_viewer.memory import format_bytes, require
+from rough_viewer.report.view import Camera, InputRef, ZoneSettings, file_sha256, view_text
+from rough_viewer.vocabulary import InputError
+
+if TYPE_CHECKING:
+    from viser._gui_handles import GuiProgressBarHandle
+
+    from rough_viewer.app.server import App
+    from rough_viewer.io import PointCloud
+
+ExportKind = Literal["points", "table", "figure", "report", "view"]
+
+#: Labels (tests and users find the controls by them).
+L_POINTS_FORMAT = "Points file"
+L_POINTS = "Download points"
+L_TABLE_FORMAT = "Cell table"
+L_TABLE = "Download cell table"
+L_FIGURE = "Figure"
+L_FIGURE_FORMAT = "Figure format"
+L_FIGURE_BUTTON = "Download figure"
+L_REPORT = "Download report (HTML)"
+L_VIEW = "Download view (JSON)"
+L_SAVE_VIEW = "Save view beside the input"
+
+POINTS_OPTIONS: tuple[str, ...] = ("LAZ", "LAS", "PLY")
+ALL_FIGURES = "all panels (ZIP)"
+
+#: Bytes of server memory per byte of a download, per browser it goes to, while viser
+#: sends it (its 1 MiB parts, then each window of up to 128 parts as msgpack and as
+#: zstd); the file's own bytes come on top.
+SEND_FACTOR = 3.0
+#: Largest download offered, bytes (a browser holds it in memory as well).
+MAX_DOWNLOAD_BYTES = 4 << 30
+#: Free disk space kept beside a temporary export file, bytes.
+DISK_MARGIN = 256 << 20
+#: Estimated file bytes per point (LAS/PLY: a PF 3 record and the eight fields; LAZ:
+#: compressed, the check after writing is the exact one) and per cell (CSV, Parquet).
+BYTES_PER_POINT = {"las": 64.0, "laz": 16.0, "ply": 60.0}
+BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
+#: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes.
+FIGURE_BYTES = 5 << 20
+REPORT_BYTES = 12 << 20
+#: Finished downloads kept in :attr:`ExportMode.sent`.
+MAX_SENT_RECORDS = 100
+
+
+def _has(module: str) -> bool:
+    return importlib.util.find_spec(module) is not None
+
+
+def safe_name(text: str, default: str = "cloud") -> str:
+    """``text`` as a file-name part of at most 60 characters from ``[A-Za-z0-9._-]``.
+
+    >>> safe_name("../../etc/pass wd<script>.laz")
+    'etc_pass_wd_script_.laz'
+    >>> safe_name("...")
+    'cloud'
+    """
+    s = re.sub(r"[^A-Za-z0-9._-]+", "_", text)
+    s = re.sub(r"\.{2,}", ".", s).strip("._-")
+    return s[:60].rstrip("._-") or default
+
+
+def _prefix(owner: object) -> str:
+    name = type(owner).__name__
+    for suffix in ("Mode", "Panel"):
+        if name.endswith(suffix) and len(name) > len(suffix):
+            name = name[: -len(suffix)]
+    return name.lower()
+
+
+def panel_figures(app: App) -> dict[str, viser.GuiPlotlyHandle]:
+    """Every plotly panel of the app by name: the map's (``colour_bar``,
+    ``histogram``, ``variogram``, ``summary``) and each mode's (``profile``,
+    ``bias``, ``<mode>_<field>``), found on their handle dataclasses."""
+    out: dict[str, viser.GuiPlotlyHandle] = {}
+    owners: list[tuple[object, str]] = [(app.gui, "")]
+    owners += [(m, _prefix(m)) for m in app.modes]
+    for owner, prefix in owners:
+        if not is_dataclass(owner):
+            continue
+        for f in fields(owner):
+            handle = getattr(owner, f.name, None)
+            if isinstance(handle, viser.GuiPlotlyHandle):
+                name = f.name if not prefix else prefix if f.name == "plot" \
+                    else f"{prefix}_{f.name}"
+                out[name] = handle
+    return out
+
+
+def _has_data(fig: Any) -> bool:
+    """Whether a plotly figure shows anything (a trace with values)."""
+    for trace in fig.data:
+        if getattr(trace, "type", "") == "table":
+            values = trace.cells.values
+        else:
+            values = next((v for v in (getattr(trace, a, None) for a in ("x", "y", "z", "values"))
+                           if v is not None), None)
+        if values is not None and len(values) > 0:
+            return True
+    return False
+
+
+@dataclass(frozen=True)
+class Sent:
+    """A finished download."""
+
+    name: str
+    size_bytes: int
+    clients: int
+    seconds: float
+    """From the job's start to the file handed to viser."""
+
+
+@dataclass
+class ExportMode:
+    """Handles and state of the Export folder."""
+
+    app: App
+    points_format: viser.GuiDropdownHandle[str]
+    points: viser.GuiButtonHandle
+    table_format: viser.GuiDropdownHandle[str]
+    table: viser.GuiButtonHandle
+    figure: viser.GuiDropdownHandle[str]
+    figure_format: viser.GuiDropdownHandle[str]
+    figure_button: viser.GuiButtonHandle
+    report: viser.GuiButtonHandle
+    view: viser.GuiButtonHandle
+    save_view: viser.GuiButtonHandle
+    status: viser.GuiMarkdownHandle
+    progress: GuiProgressBarHandle
+    notice: viser.GuiMarkdownHandle
+    """A saved view's note on its input (moved, changed), shown above the tabs."""
+    notice_text: str = ""
+    sent: deque[Sent] = field(default_factory=lambda: deque(maxlen=MAX_SENT_RECORDS))
+    zones: ZoneSettings | None = None
+    """Zone settings of the opened view, kept as data when no zones mode takes them."""
+    save_views: bool = False
+    """Whether "Save view beside the input" may write (``serve --save-views``)."""
+    _initial: Callable[[], PointCloud | None] = field(default=lambda: None, repr=False)
+    _hashes: dict[tuple[str, int, int], InputRef] = field(default_factory=dict, repr=False)
+
+    # ------------------------------------------------------------------ input
+    def input_file(self, cloud: PointCloud) -> Path | None:
+        """The file ``cloud`` was read from on the server, or None (an upload, which
+        is deleted once read; several merged files; a cloud made in memory)."""
+        if not cloud.source:
+            return None
+        p = Path(cloud.source)
+        if not p.is_absolute():
+            # only the cloud given to serve may name a file relative to the server's
+            # folder; an upload's name is a bare name and no file here
+            if cloud is not self._initial():
+                return None
+            p = p.resolve()
+        return p if p.is_file() else None
+
+    def input_ref(self, path: Path, progress: Callable[[int, int], None] | None = None
+                  ) -> InputRef:
+        """Path, size and content hash of the input (hashed once per file version)."""
+        st = path.stat()
+        key = (str(path), st.st_size, st.st_mtime_ns)
+        ref = self._hashes.get(key)
+        if ref is None:
+            ref = InputRef(path=str(path.resolve()), sha256=file_sha256(path, progress=progress),
+                           size_bytes=st.st_size)
+            self._hashes = {key: ref}
+        return ref
+
+    def enable_save_views(self) -> None:
+        """Let "Save view beside the input" write into the data folder."""
+        self.save_views = True
+        self.save_view.visible = True
+
+    def show_notice(self, text: str) -> None:
+        """A note above the tabs (escaped), also sent to each browser that connects."""
+        self.notice_text = text[:400]
+        self.notice.content = f"**Saved view:** {md(text, max_chars=400)}"
+        self.notice.visible = True
+
+    def say(self, text: str) -> None:
+        """The Export folder's status line (Markdown; escape user text first)."""
+        self.status.content = text
+
+    def refresh_figures(self) -> None:
+        """List every panel in the figure dropdown (modes mounted after this one too)."""
+        options = (*panel_figures(self.app), ALL_FIGURES)
+        if tuple(self.figure.options) != options:
+            current = self.figure.value
+            self.figure.options = options
+            if current in options:
+                assign(self.figure, current)
+
+
+# ----------------------------------------------------------------------------- plans
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What one export writes."""
+
+    name: str
+    """File name offered to the browser (safe)."""
+    estimate_bytes: float
+    """Expected file size, bytes (checked against memory and disk before writing)."""
+    write: Callable[[Path, Callable[[int, int], None]], None]
+    """Write the whole file at the path (atomically), reporting progress(done, total)."""
+
+
+def _stem(cloud: PointCloud) -> str:
+    return safe_name(Path(cloud.source).stem if cloud.source else "cloud")
+
+
+def _points_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
+    from rough_viewer.grid.table import point_fields
+    from rough_viewer.io.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
+    from rough_viewer.io.ply import write_ply_fields
+
+    assert shown.result is not None
+    cloud, result = shown.loaded.cloud, shown.result
+    source = mode.input_file(cloud)
+    g = f"{result.grid.cell_size:g}"
+    name = f"{_stem(cloud)}_g{g}_points.{fmt}"
+    n_rows = cloud.n + cloud.dropped_nonfinite
+
+    def write(path: Path, progress: Callable[[int, int], None]) -> None:
+        pf = point_fields(result)
+        if fmt == "ply":
+            write_ply_fields(path, cloud, pf, comments=[
+                f"rough_viewer: {Path(cloud.source).name or 'cloud'}, grid {g} m, "
+                f"axis {result.axis}, roughness in metres"])
+        elif source is not None and source.suffix.lower() in LAS_SUFFIXES:
+            copy_las_with_fields(source, path, cloud, pf, progress=progress)
+        else:
+            write_las_points(path, cloud, pf, progress=progress)
+
+    return Plan(name, n_rows * BYTES_PER_POINT[fmt], write)
+
+
+def _table_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
+    from rough_viewer.grid.table import cell_columns, table_metadata
+    from rough_viewer.io.table import check_table_output, write_table
+
+    assert shown.result is not None
+    cloud, result = shown.loaded.cloud, shown.result
+    name = f"{_stem(cloud)}_g{result.grid.cell_size:g}_cells.{fmt}"
+    check_table_output(name)
+    unit = cloud.source_unit
+
+    def write(path: Path, progress: Callable[[int, int], None]) -> None:
+        write_table(path, cell_columns(result, unit=unit),
+                    metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
+
+    return Plan(name, len(result.n_points) * BYTES_PER_CELL[fmt], write)
+
+
+def _figure_plan(shown: Shown, fmt: str, panel: str,
+                 figures: tuple[tuple[str, Any], ...]) -> Plan:
+    from rough_viewer.visual.export import check_figure_export, figure_bytes
+
+    check_figure_export(fmt)  # type: ignore[arg-type]
+    assert shown.result is not None
+    base = f"{_stem(shown.loaded.cloud)}_g{shown.result.grid.cell_size:g}"
+    chosen = [(n, f) for n, f in figures if _has_data(f)]
+    if panel != ALL_FIGURES:
+        chosen = [(n, f) for n, f in chosen if n == panel]
+        if not chosen:
+            raise InputError(f"the {panel} panel has nothing to export yet")
+        n, fig = chosen[0]
+
+        def write_one(path: Path, progress: Callable[[int, int], None]) -> None:
+            data = figure_bytes(fig, fmt)  # type: ignore[arg-type]
+            write_atomic(path, lambda fh: fh.write(data), mode="wb")
+
+        return Plan(f"{base}_{safe_name(n)}.{fmt}", FIGURE_BYTES, write_one)
+    if not chosen:
+        raise InputError("no panel has anything to export yet")
+
+    def write_all(path: Path, progress: Callable[[int, int], None]) -> None:
+        def fill(fh: Any) -> None:
+            with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+                for k, (n, fig) in enumerate(chosen):
+                    progress(k, len(chosen))
+                    zf.writestr(f"{base}_{safe_name(n)}.{fmt}",
+                                figure_bytes(fig, fmt))  # type: ignore[arg-type]
+                progress(len(chosen), len(chosen))
+
+        write_atomic(path, fill, mode="wb")
+
+    return Plan(f"{base}_figures_{fmt}.zip", FIGURE_BYTES * len(chosen), write_all)
+
+
+def _report_plan(shown: Shown) -> Plan:
+    from rough_viewer.report.export import ReportSettings, report_page
+
+    s = shown.settings
+    cloud = shown.loaded.cloud
+    settings = ReportSettings(min_points=int(s.min_points), grid_sizes=(float(s.cell_size),),
+                              axis=s.axis, threshold=float(s.threshold))
+    settings.check()
+
+    def write(path: Path, progress: Callable[[int, int], None]) -> None:
+        text = report_page(cloud, settings, progress=progress)
+        write_atomic(path, lambda fh: fh.write(text))
+
+    return Plan(f"{_stem(cloud)}_g{s.cell_size:g}_report.html", REPORT_BYTES, write)
+
+
+def _view_plan(app: App, mode: ExportMode, shown: Shown, camera: Camera | None) -> Plan:
+    source = mode.input_file(shown.loaded.cloud)
+    if source is None:
+        raise InputError("a view records the input file on the server; this cloud was "
+                         "uploaded, merged from several files or made in memory: put its "
+                         "file in the data folder and load it from there")
+
+    def write(path: Path, progress: Callable[[int, int], None]) -> None:
+        ref = mode.input_ref(source, progress)
+        text = view_text(view_of_app(app, ref, camera=camera, zones=mode.zones))
+        write_atomic(path, lambda fh: fh.write(text))
+
+    return Plan(f"{_stem(shown.loaded.cloud)}.view.json", 64 << 10, write)
+
+
+# ----------------------------------------------------------------------------- jobs
+
+
+def _targets(app: App, client_id: int | None) -> list[viser.ClientHandle]:
+    clients = app.server.get_clients()
+    if client_id is None:
+        return list(clients.values())
+    client = clients.get(client_id)
+    return [client] if client is not None else []
+
+
+def _room(size: float, clients: int, what: str, folder: Path | None = None) -> None:
+    """Refuse (InputError) a download the server cannot hold while sending, or whose
+    temporary file the disk cannot take."""
+    if size > MAX_DOWNLOAD_BYTES:
+        raise InputError(f"{what} would be about {format_bytes(size)}, more than the "
+                         f"{format_bytes(MAX_DOWNLOAD_BYTES)} a download may be; use "
+                         "rough-viewer compute on the server")
+    require(size * (1.0 + SEND_FACTOR * max(1, clients)), f"sending {what} "
+            f"({format_bytes(size)}) to the browser",
+            hint="use rough-viewer compute on the server, or a larger grid")
+    if folder is not None and shutil.disk_usage(folder).free < size + DISK_MARGIN:
+        raise InputError(f"not enough free disk space on the server for {what} "
+                         f"({format_bytes(size)})")
+
+
+@dataclass(frozen=True)
+class ExportJob(Job["App"]):
+    """Write one export into a private temporary folder and send it to a browser."""
+
+    mode: ExportMode = field(compare=False)
+    kind: ExportKind
+    fmt: str
+    client_id: int | None
+    """The browser that asked (None: every connected browser)."""
+    shown: Shown = field(compare=False)
+    """What was shown when the button was pressed."""
+    panel: str = ""
+    figures: tuple[tuple[str, Any], ...] = field(default=(), compare=False)
+    """(name, figure) of every panel when the button was pressed (figure exports)."""
+    camera: Camera | None = None
+    """The asking browser's camera (view exports)."""
+    lane: ClassVar[str] = "export"
+    keep_all: ClassVar[bool] = True
+
+    @property
+    def title(self) -> str:
+        return f"export ({self.kind})"
+
+    def absorb(self, newer: Job[App]) -> Job[App] | None:
+        if isinstance(newer, ExportJob) and newer == self and newer.shown is self.shown:
+            return self  # the same request twice while it waits: once is enough
+        return None
+
+    def plan(self, app: App) -> Plan:
+        if self.shown.result is None:
+            raise InputError("nothing to export yet: the map is still being computed")
+        if self.kind == "points":
+            return _points_plan(self.mode, self.shown, self.fmt)
+        if self.kind == "table":
+            return _table_plan(self.mode, self.shown, self.fmt)
+        if self.kind == "figure":
+            return _figure_plan(self.shown, self.fmt, self.panel, self.figures)
+        if self.kind == "report":
+            return _report_plan(self.shown)
+        return _view_plan(app, self.mode, self.shown, self.camera)
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m, t0 = self.mode, time.perf_counter()
+        paths: dict[str, str] = {}
+        source = self.mode.input_file(self.shown.loaded.cloud)
+        if source is not None:
+            paths[str(source)] = source.name
+        try:
+            plan = self.plan(ctx)
+            targets = _targets(ctx, self.client_id)
+            if not targets:
+                m.say("The browser that asked has left; nothing sent.")
+                return
+            m.say(f"Preparing **{md(plan.name)}**…")
+            assign(m.progress, 0.0)
+            m.progress.visible = True
+            _room(plan.estimate_bytes, len(targets), plan.name, Path(tempfile.gettempdir()))
+            yield "check"
+            with tempfile.TemporaryDirectory(prefix="rough-viewer-export-") as tmp:
+                path = path_in_folder(tmp, plan.name)
+                paths.update({str(path): plan.name, tmp: "the export folder"})
+
+                def report(done: int, total: int) -> None:
+                    if total > 0:
+                        assign(m.progress, float(min(99.0, 100.0 * done / total)))
+
+                plan.write(path, run.progress(report))
+                yield "write"
+                size = path.stat().st_size
+                _room(size, len(targets), plan.name)
+                data = path.read_bytes()
+            yield "read"
+            for client in _targets(ctx, self.client_id):
+                client.send_file_download(plan.name, data, save_immediately=True)
+            del data
+            seconds = time.perf_counter() - t0
+            m.sent.append(Sent(plan.name, size, len(targets), seconds))
+            m.say(f"Sent **{md(plan.name)}** ({format_bytes(size)}, {seconds:.1f} s).")
+            yield "send"
+        except (InputError, MemoryError, OSError) as exc:
+            what = "not enough memory" if isinstance(exc, MemoryError) else \
+                public_message(str(exc), paths=paths)
+            m.say(f"Export failed: {md(what)}")
+            ctx.show_error(f"export: {what}", kept="Nothing was sent.")
+        finally:
+            m.progress.visible = False
+
+
+@dataclass(frozen=True)
+class SaveViewJob(Job["App"]):
+    """Write the view beside the input, in the data folder (``serve --save-views``)."""
+
+    mode: ExportMode = field(compare=False)
+    camera: Camera | None = None
+    lane: ClassVar[str] = "export"
+    keep_all: ClassVar[bool] = True
+
+    @property
+    def title(self) -> str:
+        return "saving the view"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m = self.mode
+        source = m.input_file(ctx.shown.loaded.cloud)
+        try:
+            if not m.save_views:
+                raise InputError("this server does not save views (start it with "
+                                 "--save-views); download the view instead")
+            if ctx.shown.result is None:
+                raise InputError("nothing to save yet: the map is still being computed")
+            plan = _view_plan(ctx, m, ctx.shown, self.camera)
+            assert source is not None
+            relative = source.resolve().parent.relative_to(ctx.data.root) \
+                if source.resolve().is_relative_to(ctx.data.root) else None
+            if relative is None:
+                raise InputError(f"{source.name} is not in the data folder; the server "
+                                 "only writes there")
+            stem = plan.name.removesuffix(".view.json")
+            path = None
+            for k in range(1, 100):
+                name = f"{stem}.view.json" if k == 1 else f"{stem}.view-{k}.json"
+                candidate = path_in_folder(ctx.data.root, relative / name)
+                if not candidate.exists() and not candidate.is_symlink():
+                    path = check_output_path(candidate, force=False, inputs=[source])
+                    break
+            if path is None:
+                raise InputError(f"{stem}.view-99.json exists: too many saved views")
+            yield "check"
+            plan.write(path, run.progress())
+            shown = ctx.data.shown(path)
+            m.say(f"Saved **{md(shown)}** in the data folder.")
+            yield "write"
+        except (InputError, OSError) as exc:
+            what = public_message(str(exc), paths={str(ctx.data.root): "the data folder"})
+            m.say(f"Saving the view failed: {md(what)}")
+            ctx.show_error(f"save view: {what}", kept="Nothing was written.")
+
+
+# ----------------------------------------------------------------------------- mount
+
+
+def mount(app: App) -> ExportMode:
+    """Add the Export folder (downloads, saved views) and the saved-view notice."""
+    gui = app.server.gui
+    has_kaleido = _has("kaleido")
+    notice = gui.add_markdown("", visible=False, order=app.gui.error.order + 0.01)
+    with gui.add_folder("Export"):
+        points_format = gui.add_dropdown(L_POINTS_FORMAT, POINTS_OPTIONS, initial_value="LAZ",
+                                         hint="Every point with its cell's roughness: LAS/LAZ "
+                                         "extra dimensions or PLY properties (CloudCompare "
+                                         "scalar fields).")
+        points = gui.add_button(L_POINTS)
+        table_format = gui.add_dropdown(L_TABLE_FORMAT, ("CSV", "Parquet") if _has("pyarrow")
+                                        else ("CSV",), initial_value="CSV",
+                                        hint="One row per cell (rough-viewer compute --out).")
+        table = gui.add_button(L_TABLE)
+        figure = gui.add_dropdown(L_FIGURE, (ALL_FIGURES,), initial_value=ALL_FIGURES)
+        figure_format = gui.add_dropdown(L_FIGURE_FORMAT, ("HTML", "PNG", "SVG") if has_kaleido
+                                         else ("HTML",), initial_value="HTML")
+        if not has_kaleido:
+            gui.add_markdown("PNG and SVG need the optional package kaleido on the server "
+                             "(`pip install 'rough_viewer[images]'`); HTML works offline.")
+        figure_button = gui.add_button(L_FIGURE_BUTTON)
+        report = gui.add_button(L_REPORT, hint="The page of rough-viewer report for the "
+                                "shown grid, axis, minimum points and threshold.")
+        view = gui.add_button(L_VIEW, hint="Reopen it with rough-viewer serve --view FILE.")
+        save_view = gui.add_button(L_SAVE_VIEW, visible=False,
+                                   hint="Write the view next to the input on the server.")
+        status = gui.add_markdown("")
+        progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+    m = ExportMode(app, points_format, points, table_format, table, figure, figure_format,
+                   figure_button, report, view, save_view, status, progress, notice)
+    m._initial = weakref.ref(app.shown.loaded.cloud)
+    m.refresh_figures()
+    app.controls.allow(points_format, points, table_format, table, figure, figure_format,
+                       figure_button, report, view, save_view)
+    _wire(app, m)
+    return m
+
+
+def _wire(app: App, m: ExportMode) -> None:
+    def export(kind: ExportKind, fmt: Callable[[], str], *, panel: Callable[[], str] = str,
+               figures: bool = False, camera: bool = False) -> Callable[[Any], None]:
+        def on_click(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+            client = event.client
+            app.submit(ExportJob(
+                m, kind, fmt(), event.client_id, app.shown, panel=panel(),
+                figures=tuple((n, h.figure) for n, h in panel_figures(app).items())
+                if figures else (),
+                camera=camera_of(app, client) if camera else None))
+        return on_click
+
+    m.points.on_click(export("points", lambda: m.points_format.value.lower()))
+    m.table.on_click(export("table", lambda: m.table_format.value.lower()))
+    m.figure_button.on_click(export("figure", lambda: m.figure_format.value.lower(),
+                                    panel=lambda: m.figure.value, figures=True))
+    m.report.on_click(export("report", lambda: "html"))
+    m.view.on_click(export("view", lambda: "json", camera=True))
+
+    @m.save_view.on_click
+    def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        app.submit(SaveViewJob(m, camera_of(app, event.client)))
+
+    @app.server.on_client_connect
+    def _(client: viser.ClientHandle) -> None:
+        m.refresh_figures()
+        if m.notice_text:
+            client.add_notification("Saved view", m.notice_text, auto_close_seconds=15.0,
+                                    color="yellow")

@@ -1,0 +1,800 @@
+"""Zones tab: fracture and rubble zones of the shown map, in the scene and as a table.
+
+A zone (:mod:`rough_viewer.grid.zones`, docs/zones.md) is a connected group of
+cells whose normalised roughness is at or above a threshold. The tab follows the
+view: zones are always of the **Map tab's** map (model), grid and binary
+threshold, so moving the threshold slider (on the Map tab, or its twin here)
+re-labels the zones live. The tab adds connectivity and a minimum zone size.
+
+Scene. "Show zones" swaps the map's cloud for a second cloud of the same
+displayed points coloured by zone (:func:`rough_viewer.visual.colormaps.
+zone_colours`; light grey: a cell with a value in no zone; neutral grey: no
+value). Both clouds stay on the browser; switching is a ``visible`` flag, and a
+re-label sends only the zone cloud's colours (3 bytes a point). The selected
+zone is drawn on top as a small third cloud of its own points (magenta, larger
+points) with its name at its centroid.
+
+Selecting. A click on the rock (:attr:`App.click_handlers`) or the "Selected
+zone" dropdown selects a zone (viser 1.1's plotly element reports no clicks,
+so the table cannot be clicked). A selection is kept as a point of the cloud
+(the anchor), so it follows the zone under that point through re-labels,
+connectivity and grid changes; its numbers, its table row and its poles on the
+stereonet are highlighted.
+
+Jobs (on the app's worker; callbacks only submit them):
+
+==============  ===========================================  =======================
+job             stages                                       lane (cancels)
+==============  ===========================================  =======================
+ZonesJob        basis, label, colours (queues ZoneTableJob)  zones (zones-table)
+ZoneTableJob    measure, table, stereonet                    zones-table
+SelectZoneJob   select                                       zones-select
+ZonePointsJob   points                                       zones-points
+==============  ===========================================  =======================
+
+Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.grid.zones.
+ZoneLabeller`, built once, and the cell of every displayed point) is kept in a
+byte-bounded cache (:class:`~rough_viewer.app.state.ByteCache`, half the grid
+cache's budget), so a threshold change only re-labels and recolours.
+
+Saved views read and restore the zone settings with :meth:`ZonesMode.settings`
+and :meth:`ZonesMode.apply` (:class:`rough_viewer.report.view.ZoneSettings`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+import plotly.graph_objects as go
+import viser
+
+from rough_viewer.app.jobs import Pick
+from rough_viewer.app.layout import assign
+from rough_viewer.app.limits import MAX_TIMINGS
+from rough_viewer.app.markup import md
+from rough_viewer.app.state import ByteCache, LoadedCloud
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.orientation import Stereonet, cell_stereonet
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.zones import ZoneLabeller, Zones
+from rough_viewer.memory import require
+from rough_viewer.report.view import ZoneSettings
+from rough_viewer.visual import colormaps
+from rough_viewer.visual.zones import (
+    COMPACT_COLUMNS,
+    azimuth_text,
+    stereonet_figure,
+    zones_table_figure,
+)
+from rough_viewer.vocabulary import (
+    CONNECTIVITIES,
+    DEFAULT_MIN_CELLS,
+    MAP_LABELS,
+    MAPS,
+    Connectivity,
+    InputError,
+    MapName,
+)
+
+if TYPE_CHECKING:
+    from rough_viewer.app.server import App
+
+#: Labels (the browser tests find controls by these).
+L_ON = "Show zones"
+L_THRESHOLD = "Zone threshold"
+L_CONNECTIVITY = "Connectivity"
+L_MIN_CELLS = "Min zone cells"
+L_SELECTED = "Selected zone"
+
+#: Connectivity dropdown entries.
+CONNECTIVITY_LABELS: dict[Connectivity, str] = {
+    "vertex": "vertex (26)", "edge": "edge (18)", "face": "face (6)"}
+CONNECTIVITY_BY_LABEL: dict[str, Connectivity] = {v: k for k, v in CONNECTIVITY_LABELS.items()}
+#: The "Selected zone" entry for no selection.
+NO_ZONE = "none"
+#: Zones listed in the table and the dropdown (the largest; a zone picked in the
+#: scene beyond them is added to the dropdown).
+MAX_ZONE_ROWS = 50
+#: Largest "Min zone cells" value.
+MAX_MIN_CELLS = 1_000_000
+#: Colour of a displayed point in a cell with a value but in no zone (as the zone
+#: map figure's light grey); cells without a value keep the neutral grey.
+NO_ZONE_RGB: tuple[int, int, int] = (227, 227, 227)
+#: Colour of the selected zone's points (not in the zone palette).
+HIGHLIGHT_RGB: tuple[int, int, int] = (255, 0, 255)
+#: Selected-zone points are drawn this much larger than the cloud's.
+HIGHLIGHT_SIZE = 1.6
+#: Poles drawn per stereonet trace in the panel (the density uses every cell).
+PANEL_POLES = 5000
+#: Zones highlighted on the stereonet when none is selected (the largest).
+NET_ZONES = 6
+#: Scene nodes of the mode.
+NODE_CLOUD = "/zones/cloud"
+NODE_SELECTED = "/zones/selected"
+NODE_LABEL = "/zones/label"
+
+
+# ----------------------------------------------------------------------------- plain data
+
+
+@dataclass(frozen=True)
+class ZoneParams:
+    """How the shown zones were formed."""
+
+    map_name: MapName
+    threshold: float
+    """Cells with normalised roughness ``>= threshold`` are rough (the Map tab's)."""
+    connectivity: Connectivity
+    min_cells: int
+
+
+@dataclass(frozen=True, eq=False)
+class ZoneBasis:
+    """What zones of one grid result and map need, computed once (cached)."""
+
+    labeller: ZoneLabeller
+    display_cell: np.ndarray
+    """(K,) cell row of every displayed point."""
+    valid: np.ndarray
+    """(M,) bool: the cell has a value (a plane and the map)."""
+
+
+def zone_basis(result: GridRoughness, map_name: MapName, display_index: np.ndarray) -> ZoneBasis:
+    """Build the labeller of ``result``'s map and the cells of the displayed points."""
+    # the cells of the shown points (int32), and a colour and a zone id per point per
+    # re-label
+    require(16.0 * display_index.shape[0], f"zones of {display_index.shape[0]:,} shown points")
+    labeller = ZoneLabeller.build(result, map_name)
+    valid = np.zeros(result.n_cells, dtype=bool)
+    valid[labeller.rows] = True
+    cell = result.point_cell[display_index]
+    if result.n_cells < 2**31:
+        cell = cell.astype(np.int32, copy=False)
+    return ZoneBasis(labeller, cell, valid)
+
+
+@dataclass(frozen=True, eq=False)
+class Labelling:
+    """The zones on screen: the labels of one grid result under :class:`ZoneParams`."""
+
+    loaded: LoadedCloud
+    result: GridRoughness
+    grid_key: tuple[object, ...]
+    """The view's grid key (cell size, axis, min points) of ``result``."""
+    basis: ZoneBasis
+    params: ZoneParams
+    labels: np.ndarray
+    """(M,) int32 zone id of every cell (0 = none), ids 1..Z by size."""
+
+    @property
+    def n_zones(self) -> int:
+        return int(self.labels.max()) if self.labels.size else 0
+
+    def zone_at(self, point: int | None) -> int:
+        """Zone id of cloud point ``point`` (0: none, or no point)."""
+        if point is None or not 0 <= point < self.result.point_cell.shape[0]:
+            return 0
+        return int(self.labels[self.result.point_cell[point]])
+
+    def anchor_of(self, zone: int) -> int | None:
+        """A cloud point of zone ``zone`` (in its cell nearest the zone's mean cell
+        centre), or None when there is no such zone."""
+        cells = np.flatnonzero(self.labels == zone) if zone > 0 else np.zeros(0, np.int64)
+        if cells.size == 0:
+            return None
+        centre = self.result.centre[cells]
+        c = int(cells[np.argmin(((centre - centre.mean(axis=0)) ** 2).sum(axis=1))])
+        return int(np.argmax(self.result.point_cell == c))
+
+    def display_mask(self, zone: int) -> np.ndarray:
+        """(K,) bool: displayed points in zone ``zone``."""
+        return self.labels[self.basis.display_cell] == zone
+
+
+def zone_point_colours(labels: np.ndarray, valid: np.ndarray, display_cell: np.ndarray) -> np.ndarray:
+    """(K, 3) uint8 colour of every displayed point: its cell's zone colour,
+    :data:`NO_ZONE_RGB` in a cell with a value in no zone, the neutral grey in a
+    cell without a value.
+
+    Parameters
+    ----------
+    labels : (M,) int
+        Zone id of every cell (0 = none).
+    valid : (M,) bool
+        Cells with a value.
+    display_cell : (K,) int
+        Cell row of every displayed point.
+    """
+    per_cell = colormaps.zone_colours(labels, none_rgb=NO_ZONE_RGB)
+    per_cell[~valid] = np.asarray(colormaps.NEUTRAL_RGB, dtype=np.uint8)
+    return per_cell[display_cell]
+
+
+def zone_option(zone: int, cells: int) -> str:
+    """The dropdown entry of a zone."""
+    return f"Zone {zone} — {cells:,} cells"
+
+
+def zone_options(zones: Zones, selected: int = 0) -> tuple[str, ...]:
+    """Dropdown entries: none, then the :data:`MAX_ZONE_ROWS` largest zones (and the
+    selected one if it is smaller)."""
+    n = min(zones.n_zones, MAX_ZONE_ROWS)
+    options = [NO_ZONE] + [zone_option(k, int(zones.cells[k - 1])) for k in range(1, n + 1)]
+    if selected > n and selected <= zones.n_zones:
+        options.append(zone_option(selected, int(zones.cells[selected - 1])))
+    return tuple(options)
+
+
+def describe_params(p: ZoneParams) -> str:
+    """Markdown of the zone settings (escaped)."""
+    return md(f"{MAP_LABELS[p.map_name]} normalised ≥ {p.threshold:g}, {p.connectivity} "
+              f"connectivity, ≥ {p.min_cells} cells")
+
+
+def status_markdown(lab: Labelling, seconds: float, cached: bool) -> str:
+    """The tab's status line: zone count and cells in zones."""
+    valid = int(lab.basis.valid.sum())
+    in_zones = int((lab.labels > 0).sum())
+    share = 100.0 * in_zones / valid if valid else 0.0
+    how = "labeller cached" if cached else "labeller built"
+    zones = "1 zone" if lab.n_zones == 1 else f"{lab.n_zones:,} zones"
+    return (f"**{zones}** at {describe_params(lab.params)}, grid "
+            f"{lab.result.grid.cell_size:g} m: {in_zones:,} of {valid:,} cells with a value "
+            f"({share:.1f} %)  \nre-labelled and coloured in {seconds:.2f} s ({how})")
+
+
+def zone_markdown(zones: Zones, zone: int) -> str:
+    """Markdown of one zone's numbers (lengths m, areas m², angles °, roughness mm)."""
+    if not 1 <= zone <= zones.n_zones:
+        return "No zone selected: click a zone on the rock or pick one in the list."
+    i = zone - 1
+    c = zones.centroid[i]
+    rows = [
+        ("cells / points", f"{int(zones.cells[i]):,} / {int(zones.points[i]):,}"),
+        ("area on the face", f"{zones.area_m2[i]:.3g} m²"),
+        ("length × width", f"{zones.length_m[i]:.3g} × {zones.width_m[i]:.3g} m"),
+        ("trace azimuth / plunge",
+         f"{azimuth_text(zones.trace_azimuth_deg[i])}° / {zones.trace_plunge_deg[i]:02.0f}°"),
+        ("dip / dip direction",
+         f"{zones.dip_deg[i]:02.0f}° / {azimuth_text(zones.dip_direction_deg[i])}°"),
+        (f"mean / max θ {MAP_LABELS[zones.map_name]}",
+         f"{1e3 * zones.mean_theta[i]:.3g} / {1e3 * zones.max_theta[i]:.3g} mm"),
+        ("centroid x, y, z", f"{c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f} m"),
+    ]
+    lines = [f"**Zone {zone}** of {zones.n_zones:,}", "", "| | |", "|---|---|"]
+    lines += [f"| {md(k)} | {md(v)} |" for k, v in rows]
+    return "\n".join(lines)
+
+
+def table_aspect(n_rows: int) -> float:
+    """Height / width of the table panel for ``n_rows`` rows: the title and the
+    header about 170 px, a row up to 44 px (two lines), in a panel about 360 px
+    wide; at most 2.2 (longer tables scroll)."""
+    return float(min(2.2, (170 + 44 * max(n_rows, 1)) / 360))
+
+
+# ----------------------------------------------------------------------------- the mode
+
+
+@dataclass(eq=False)
+class ZonesMode:
+    """Handles and state of the Zones tab (the state is changed by the worker only)."""
+
+    app: App
+    on: viser.GuiCheckboxHandle
+    threshold: viser.GuiSliderHandle[float]
+    """Twin of the Map tab's threshold slider (moving either moves both)."""
+    connectivity: viser.GuiDropdownHandle[str]
+    min_cells: viser.GuiNumberHandle[int]
+    status: viser.GuiMarkdownHandle
+    selected: viser.GuiDropdownHandle[str]
+    numbers: viser.GuiMarkdownHandle
+    table: viser.GuiPlotlyHandle
+    stereonet: viser.GuiPlotlyHandle
+    labelling: Labelling | None = None
+    """The zones on screen (None before the first labelling)."""
+    zones: Zones | None = None
+    """The table of :attr:`labelling` (None until :class:`ZoneTableJob` has run)."""
+    anchor: int | None = None
+    """Cloud point of the selected zone (None: no selection)."""
+    pending_selection: int | None = None
+    """Zone id to select at the next labelling (:meth:`apply`)."""
+    timings: deque[dict[str, float]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
+    """One record per labelling: ``label_s`` (labels), ``colours_s`` (labels and the
+    scene's colours), ``basis_s`` (0 when cached), ``done`` (``perf_counter`` when the
+    colours were assigned); ``table_s`` is added by the table job."""
+    cloud_node: viser.PointCloudHandle | None = None
+    node_for: LoadedCloud | None = None
+    """The loaded cloud whose points :attr:`cloud_node` shows."""
+    cloud_for: LoadedCloud | None = None
+    """The loaded cloud whose grids :attr:`cache` holds."""
+    selected_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
+    cache: ByteCache[tuple[object, ...], ZoneBasis | Stereonet] = field(
+        default_factory=lambda: ByteCache(0))
+    _local: threading.local = field(default_factory=threading.local)
+
+    # ------------------------------------------------------------------ saved views
+    @property
+    def active(self) -> bool:
+        """Zones are shown ("Show zones" ticked)."""
+        return bool(self.on.value)
+
+    def settings(self) -> ZoneSettings:
+        """The zone settings on screen, for a saved view: the map (the Map tab's
+        model), connectivity, minimum cells and the selected zone id (or None)."""
+        lab = self.labelling
+        selected = self.pending_selection
+        if selected is None and lab is not None:
+            selected = lab.zone_at(self.anchor) or None
+        p = self.params()
+        return ZoneSettings(map=p.map_name, connectivity=p.connectivity,
+                            min_cells=p.min_cells, selected=selected)
+
+    def apply(self, zones: ZoneSettings | None) -> None:
+        """Restore saved zone settings (None: hide the zones).
+
+        Sets the connectivity and minimum cells, ticks "Show zones", sets the Map
+        tab's model to ``zones.map`` when it differs (that queues a view), and
+        queues the zones; ``zones.selected`` is selected once they are labelled.
+        Call it after the Map tab's settings are restored. Raises InputError for
+        settings the tab cannot show.
+        """
+        from rough_viewer.app.layout import MODEL_BY_LABEL
+        from rough_viewer.app.state import MODEL_LABELS
+
+        app = self.app
+        if zones is None:
+            self._sync(self.on, False)
+            app.submit(ZonesJob(self))
+            return
+        if zones.map not in MAPS or zones.connectivity not in CONNECTIVITY_LABELS:
+            raise InputError("zone settings name an unknown map or connectivity")
+        if not 1 <= int(zones.min_cells) <= MAX_MIN_CELLS:
+            raise InputError(f"min zone cells must lie in [1, {MAX_MIN_CELLS:,}]")
+        if zones.selected is not None and int(zones.selected) < 1:
+            raise InputError("a selected zone id starts at 1")
+        self._sync(self.connectivity, CONNECTIVITY_LABELS[zones.connectivity])
+        self._sync(self.min_cells, int(zones.min_cells))
+        self._sync(self.on, True)
+        self.pending_selection = zones.selected
+        self.anchor = None
+        if MODEL_BY_LABEL.get(app.gui.model.value) != zones.map:
+            assign(app.gui.model, MODEL_LABELS[zones.map])  # queues the view, then zones
+        app.submit(ZonesJob(self))
+
+    # ------------------------------------------------------------------ controls
+    @property
+    def syncing(self) -> bool:
+        """True while this thread sets the tab's controls (their callbacks queue nothing)."""
+        return bool(getattr(self._local, "syncing", False))
+
+    def _sync(self, handle: Any, value: object) -> None:
+        self._local.syncing = True
+        try:
+            assign(handle, value)
+        finally:
+            self._local.syncing = False
+
+    def params(self) -> ZoneParams:
+        """The zones the controls and the shown view ask for."""
+        shown = self.app.shown.settings
+        conn = CONNECTIVITY_BY_LABEL.get(self.connectivity.value)
+        if conn is None:
+            raise InputError("the connectivity control holds a value that is not one of its options")
+        return ZoneParams(map_name=shown.model, threshold=float(shown.threshold),
+                          connectivity=conn, min_cells=int(self.min_cells.value))
+
+    # ------------------------------------------------------------------ worker side
+    def basis(self, loaded: LoadedCloud, result: GridRoughness, map_name: MapName,
+              grid_key: tuple[object, ...]) -> tuple[ZoneBasis, bool]:
+        """The cached :class:`ZoneBasis` of ``result`` and ``map_name`` (built if
+        needed); True when it was cached."""
+        self._own(loaded)
+        key = ("basis", grid_key, map_name)
+        hit = self.cache.get(key)
+        if isinstance(hit, ZoneBasis) and hit.labeller.result is result:
+            return hit, True
+        basis = zone_basis(result, map_name, loaded.display_index)
+        self.cache.put(key, basis)
+        return basis, False
+
+    def net(self, lab: Labelling) -> Stereonet:
+        """The stereonet of every cell's pole of the labelling's grid (cached)."""
+        key = ("net", lab.grid_key)
+        hit = self.cache.get(key)
+        if isinstance(hit, Stereonet) and hit.rows.shape[0] <= lab.result.n_cells:
+            return hit
+        net = cell_stereonet(lab.result)
+        self.cache.put(key, net)
+        return net
+
+    def _own(self, loaded: LoadedCloud) -> None:
+        """Forget the cache when another cloud is shown."""
+        if self.cloud_for is not loaded:
+            self.cache = ByteCache(self.app.options.cache_bytes // 2)
+            self.cloud_for = loaded
+            self.labelling, self.zones = None, None
+
+    def show_cloud(self, loaded: LoadedCloud, colours: np.ndarray | None) -> None:
+        """Show the zone cloud with ``colours`` (None: as it is; a new zone cloud
+        for a new cloud) and hide the map's cloud."""
+        app = self.app
+        with app.lock:
+            node = self.cloud_node
+            if node is None or self.node_for is not loaded:
+                if node is not None:
+                    node.remove()
+                if colours is None:
+                    colours = np.full((loaded.n_display, 3), colormaps.NEUTRAL_RGB, np.uint8)
+                node = app.server.scene.add_point_cloud(
+                    NODE_CLOUD, points=loaded.display_points, colors=colours,
+                    point_size=float(app.gui.point_size.value), point_shape="square",
+                    point_shading="flat", precision="float32")
+                self.cloud_node, self.node_for = node, loaded
+            else:
+                if colours is not None:
+                    node.colors = colours
+                node.visible = True
+            app.cloud_handle.visible = False
+
+    def hide(self) -> None:
+        """Show the map's cloud again; hide the zones."""
+        app = self.app
+        with app.lock:
+            if self.cloud_node is not None:
+                self.cloud_node.visible = False
+            self._clear_highlight()
+            app.cloud_handle.visible = True
+
+    def _clear_highlight(self) -> None:
+        for node in self.selected_nodes:
+            node.remove()
+        self.selected_nodes = []
+
+    def draw_highlight(self) -> int:
+        """Draw the selected zone's displayed points; returns its id (0: none)."""
+        lab = self.labelling
+        self._clear_highlight()
+        if lab is None or not self.active:
+            return 0
+        zone = lab.zone_at(self.anchor)
+        if zone == 0:
+            return 0
+        mask = lab.display_mask(zone)
+        pts = lab.loaded.display_points[mask]
+        if pts.shape[0] == 0:
+            return zone
+        size = HIGHLIGHT_SIZE * float(self.app.gui.point_size.value)
+        rgb = np.tile(np.asarray(HIGHLIGHT_RGB, dtype=np.uint8), (pts.shape[0], 1))
+        centre = pts.astype(np.float64).mean(axis=0)
+        with self.app.lock:
+            self.selected_nodes = [
+                self.app.server.scene.add_point_cloud(
+                    NODE_SELECTED, points=pts, colors=rgb, point_size=size,
+                    point_shape="square", point_shading="flat", precision="float32"),
+                self.app.server.scene.add_label(
+                    NODE_LABEL, f"Zone {zone}",
+                    position=(float(centre[0]), float(centre[1]), float(centre[2]))),
+            ]
+        return zone
+
+    def show_selection(self) -> None:
+        """The selected zone's numbers, its row in the table, its poles on the
+        stereonet and the dropdown (when the table is of the shown labelling)."""
+        lab, zones = self.labelling, self.zones
+        if lab is None or zones is None or zones.labels is not lab.labels:
+            return
+        zone = lab.zone_at(self.anchor)
+        self.numbers.content = zone_markdown(zones, zone)
+        res = lab.result
+        self.table.figure = _compact(zones_table_figure(
+            zones, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
+            selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS))
+        self.table.aspect = table_aspect(min(zones.n_zones, MAX_ZONE_ROWS))
+        self._sync_dropdown(zones, zone)
+
+    def show_stereonet(self, net: Stereonet) -> None:
+        """The stereonet with the selected zone's poles (or the largest zones')."""
+        lab = self.labelling
+        if lab is None:
+            return
+        zone = lab.zone_at(self.anchor)
+        ids = [zone] if zone else list(range(1, min(lab.n_zones, NET_ZONES) + 1))
+        res = lab.result
+        fig = stereonet_figure(
+            net, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
+            highlight={f"zone {k}": lab.labels == k for k in ids},
+            colours={f"zone {k}": colormaps.zone_colour(k) for k in ids},
+            max_poles=PANEL_POLES)
+        self.stereonet.figure = _compact(fig)
+
+    def _sync_dropdown(self, zones: Zones, zone: int) -> None:
+        options = zone_options(zones, zone)
+        value = zone_option(zone, int(zones.cells[zone - 1])) if zone else NO_ZONE
+        self._local.syncing = True
+        try:
+            if tuple(self.selected.options) != options:
+                self.selected.options = options
+            if self.selected.value != value:
+                assign(self.selected, value)
+        finally:
+            self._local.syncing = False
+
+    def on_pick(self, app: App, pick: Pick) -> bool:
+        """A click while zones are shown selects the zone under it (none on a point
+        in no zone); runs in the app's pick job. False when zones are hidden."""
+        if not self.active or self.labelling is None:
+            return False
+        lab = self.labelling
+        self.anchor = pick.point if lab.zone_at(pick.point) else None
+        self.pending_selection = None
+        self.draw_highlight()
+        self.show_selection()
+        if self.zones is not None and self.zones.labels is lab.labels:
+            app.submit(SelectZoneJob(self, lab, lab.zone_at(self.anchor), stereonet_only=True))
+        return True
+
+    def on_view(self, app: App) -> None:
+        """After every view (new grid, model, threshold or cloud): re-label if shown."""
+        if self.active:
+            if app.shown.loaded is not self.node_for and self.cloud_node is not None:
+                self.cloud_node.visible = False  # old points: hide until re-made
+            app.submit(ZonesJob(self))
+
+
+def _compact(fig: go.Figure) -> go.Figure:
+    """A report figure fitted to the control panel (smaller title and margins)."""
+    fig.update_layout(width=None, height=None, margin={"l": 4, "r": 4, "t": 56, "b": 4},
+                      title_font_size=11)
+    return fig
+
+
+# ----------------------------------------------------------------------------- jobs
+
+
+@dataclass(frozen=True)
+class ZonesJob(Job["App"]):
+    """Label the zones of the shown view and colour the zone cloud (or hide the
+    zones when "Show zones" is off); then queue the table."""
+
+    mode: ZonesMode = field(compare=False)
+    lane: ClassVar[str] = "zones"
+    cancels: ClassVar[frozenset[str]] = frozenset({"zones-table", "zones-select"})
+
+    @property
+    def title(self) -> str:
+        return "zones"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m, shown = self.mode, ctx.shown
+        if not m.active:
+            m.hide()
+            yield "hide"
+            return
+        if shown.result is None:
+            return
+        try:
+            params = m.params()
+        except InputError as exc:
+            ctx.show_error(str(exc))
+            return
+        lab = m.labelling
+        if (lab is not None and lab.result is shown.result and lab.params == params
+                and lab.loaded is shown.loaded and m.node_for is shown.loaded
+                and m.pending_selection is None):
+            m.show_cloud(shown.loaded, None)  # e.g. after "Show zones" off and on
+            if not m.selected_nodes:
+                m.draw_highlight()
+            yield "unchanged"
+            return
+        t0 = time.perf_counter()
+        basis, cached = m.basis(shown.loaded, shown.result, params.map_name,
+                                shown.settings.grid_key)
+        t_basis = time.perf_counter() - t0
+        yield "basis"
+        t1 = time.perf_counter()
+        labels = basis.labeller.label(params.threshold, connectivity=params.connectivity,
+                                      min_cells=params.min_cells)
+        t_label = time.perf_counter() - t1
+        yield "label"
+        lab = Labelling(shown.loaded, shown.result, shown.settings.grid_key, basis, params,
+                        labels)
+        colours = zone_point_colours(labels, basis.valid, basis.display_cell)
+        m.show_cloud(shown.loaded, colours)
+        m.labelling, m.zones = lab, None
+        if m.pending_selection is not None:
+            m.anchor = lab.anchor_of(m.pending_selection)
+            m.pending_selection = None
+        m.draw_highlight()
+        done = time.perf_counter()
+        m.status.content = status_markdown(lab, done - t0, cached)
+        record = {"basis_s": 0.0 if cached else t_basis, "label_s": t_label,
+                  "colours_s": done - t1, "done": done}
+        m.timings.append(record)
+        yield "colours"
+        ctx.submit(ZoneTableJob(m, lab, record))
+
+
+@dataclass(frozen=True)
+class ZoneTableJob(Job["App"]):
+    """The zone table, the selected zone's numbers and the stereonet of ``labelling``."""
+
+    mode: ZonesMode = field(compare=False)
+    labelling: Labelling = field(compare=False)
+    record: dict[str, float] = field(compare=False)
+    lane: ClassVar[str] = "zones-table"
+
+    @property
+    def title(self) -> str:
+        return "zone table"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m, lab = self.mode, self.labelling
+        if m.labelling is not lab:
+            return
+        t0 = time.perf_counter()
+        p = lab.params
+        zones = lab.basis.labeller.measure(lab.labels, threshold=p.threshold,
+                                           connectivity=p.connectivity, min_cells=p.min_cells)
+        yield "measure"
+        m.zones = zones
+        m.show_selection()
+        yield "table"
+        m.show_stereonet(m.net(lab))
+        self.record["table_s"] = time.perf_counter() - t0
+        yield "stereonet"
+
+
+@dataclass(frozen=True)
+class SelectZoneJob(Job["App"]):
+    """Select zone ``zone`` of ``labelling`` (0: none): highlight it in the scene,
+    its numbers, its table row and its poles on the stereonet."""
+
+    mode: ZonesMode = field(compare=False)
+    labelling: Labelling = field(compare=False)
+    zone: int
+    stereonet_only: bool = False
+    """The scene, numbers and table are drawn already (a click): only the stereonet."""
+    lane: ClassVar[str] = "zones-select"
+
+    @property
+    def title(self) -> str:
+        return "zone selection"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m = self.mode
+        if m.labelling is not self.labelling:
+            return  # re-labelled since: the ids the user saw are gone
+        if not self.stereonet_only:
+            m.anchor = self.labelling.anchor_of(self.zone)
+            m.pending_selection = None
+            m.draw_highlight()
+            m.show_selection()
+        yield "select"
+        if m.zones is not None and m.zones.labels is self.labelling.labels:
+            m.show_stereonet(m.net(self.labelling))
+        yield "stereonet"
+
+
+@dataclass(frozen=True)
+class ZonePointsJob(Job["App"]):
+    """The zone clouds follow the Map tab's point size."""
+
+    mode: ZonesMode = field(compare=False)
+    size: float
+    lane: ClassVar[str] = "zones-points"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        m = self.mode
+        with ctx.lock:
+            if m.cloud_node is not None:
+                m.cloud_node.point_size = self.size
+            for node in m.selected_nodes:
+                if isinstance(node, viser.PointCloudHandle):
+                    node.point_size = HIGHLIGHT_SIZE * self.size
+        yield "points"
+
+
+# ----------------------------------------------------------------------------- mount
+
+
+def _empty(title: str) -> go.Figure:
+    fig = go.Figure()
+    fig.update_layout(title={"text": title, "font": {"size": 12}},
+                      margin={"l": 10, "r": 10, "t": 30, "b": 10})
+    return fig
+
+
+def mount(app: App) -> ZonesMode:
+    """Add the Zones tab; zones follow every view and take scene clicks while shown."""
+    m = _add_controls(app)
+    m.cache = ByteCache(app.options.cache_bytes // 2)
+    _wire(app, m)
+    app.click_handlers.append(m.on_pick)
+    app.view_listeners.append(m.on_view)
+    return m
+
+
+def _add_controls(app: App) -> ZonesMode:
+    gui = app.server.gui
+    g = app.gui
+    with g.tabs.add_tab("Zones"):
+        m = ZonesMode(
+            app=app,
+            on=gui.add_checkbox(L_ON, False, hint="Colour the rock by fracture zone: connected "
+                                "cells at or above the threshold (Map tab's model and grid)."),
+            threshold=gui.add_slider(L_THRESHOLD, min=0.0, max=1.0, step=0.01,
+                                     initial_value=float(g.threshold.value),
+                                     hint="The Map tab's threshold: cells with normalised "
+                                     "roughness ≥ this are rough."),
+            connectivity=gui.add_dropdown(L_CONNECTIVITY, tuple(CONNECTIVITY_LABELS.values()),
+                                          initial_value=CONNECTIVITY_LABELS[CONNECTIVITIES[0]],
+                                          hint="Rough cells touching by a corner, an edge or "
+                                          "a face belong to one zone."),
+            min_cells=gui.add_number(L_MIN_CELLS, DEFAULT_MIN_CELLS, min=1, max=MAX_MIN_CELLS,
+                                     step=1, hint="Smaller groups of rough cells are no zone."),
+            status=gui.add_markdown("Tick **Show zones** to label the fracture and rubble "
+                                    "zones of the map."),
+            selected=gui.add_dropdown(L_SELECTED, (NO_ZONE,), initial_value=NO_ZONE,
+                                      hint="Or click a zone on the rock."),
+            numbers=gui.add_markdown(""),
+            table=gui.add_plotly(_empty("zones"), aspect=0.4),
+            stereonet=gui.add_plotly(_empty("stereonet"), aspect=0.95),
+        )
+    app.controls.allow(m.on, m.threshold, m.connectivity, m.min_cells, m.selected)
+    return m
+
+
+def _wire(app: App, m: ZonesMode) -> None:
+    g = app.gui
+
+    def relabel(_event: object) -> None:
+        if not m.syncing:
+            app.submit(ZonesJob(m))
+
+    for control in (m.on, m.connectivity, m.min_cells):
+        control.on_update(relabel)
+
+    @m.threshold.on_update
+    def _(_event: object) -> None:
+        # the twin moves the Map tab's slider, whose callback queues the view (and zones)
+        if not m.syncing and float(g.threshold.value) != float(m.threshold.value):
+            assign(g.threshold, float(m.threshold.value))
+
+    @g.threshold.on_update
+    def _(_event: object) -> None:
+        if float(m.threshold.value) != float(g.threshold.value):
+            m._sync(m.threshold, float(g.threshold.value))
+
+    @m.selected.on_update
+    def _(_event: object) -> None:
+        lab = m.labelling
+        if m.syncing or lab is None:
+            return
+        value = m.selected.value
+        zone = 0 if value == NO_ZONE else _zone_of_option(value)
+        if zone is not None:
+            app.submit(SelectZoneJob(m, lab, zone))
+
+    @g.point_size.on_update
+    def _(_event: object) -> None:
+        if m.cloud_node is not None:  # no zone cloud yet: it takes the size when made
+            app.submit(ZonePointsJob(m, float(g.point_size.value)))
+
+
+def _zone_of_option(value: str) -> int | None:
+    """Zone id of a dropdown entry (``Zone 3 — 412 cells``), None if it is not one."""
+    parts = value.split(" ", 2)
+    if len(parts) >= 2 and parts[0] == "Zone" and parts[1].isdigit():
+        return int(parts[1])
+    return None
+
+
+__all__ = ["ZonesMode", "ZoneParams", "ZoneBasis", "Labelling", "ZonesJob", "ZoneTableJob",
+           "SelectZoneJob", "ZonePointsJob", "mount", "zone_point_colours", "zone_basis"]

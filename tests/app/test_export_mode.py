@@ -1,0 +1,300 @@
+"""The Export folder: every download arrives in a (protocol-level) browser through
+viser's file transfer, and its content is the app's result; a failed or refused
+export sends nothing and leaves no temporary file (issue 15, items 4 and 5)."""
+
+from __future__ import annotations
+
+import csv
+import errno
+import io
+import json
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+
+from rough_viewer.app import export_mode as em
+from rough_viewer.app.export_mode import ExportMode, panel_figures, safe_name
+from rough_viewer.app.state import ViewSettings
+from rough_viewer.grid.table import cell_columns, point_fields
+from rough_viewer.io import load_points
+from rough_viewer.report.view import file_sha256, load_view
+from tests.app.protocol import ProtocolClient
+from tests.helpers import PAPER_PRESETS, face_cloud
+from tests.io.test_las_out import GEOKEYS, _check_fields_equal_table, make_pf3
+
+N_POINTS = 6000
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """An app on a LAS 1.2 PF 3 file with RGB, GPS time and a CRS, and a browser."""
+    import viser
+
+    from rough_viewer.app.server import build_app
+
+    folder = tmp_path_factory.mktemp("export")
+    path = folder / "scan site.las"  # a space: the download's name is made safe
+    make_pf3(path, n=N_POINTS)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = build_app(server, load_points(path), prefetch=False, data_dir=folder,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+    assert app.wait_idle(60)
+    client = ProtocolClient(server.get_port())
+    client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
+                    and m["props"].get("label") == em.L_VIEW, what="the Export folder")
+    yield app, client, path
+    client.close()
+    app.stop()
+    server.stop()
+
+
+def _download(client: ProtocolClient, app, label: str, name_part: str) -> tuple[str, bytes]:
+    before = set(client.downloads())
+    client.press(label)
+    name, data = client.wait_download(name_part)
+    assert name not in before or True
+    app.wait_idle(60)
+    return name, data
+
+
+def _said(client: ProtocolClient, text: str, what: str = "a message", *, after: int = 0) -> None:
+    """Wait for a control created or updated with ``text`` in it (Markdown escaped),
+    among the messages after the first ``after``."""
+    def said(m) -> bool:
+        return text in str(m.get("updates", m.get("props", ""))).replace("\\", "")
+
+    end = time.time() + 30
+    while time.time() < end:
+        with client._lock:
+            if any(said(m) for m in client.messages[after:]):
+                return
+        time.sleep(0.05)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def _csv_rows(data: bytes) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(data.decode())))
+
+
+def test_cell_table_csv_is_the_shown_grid(exported):
+    app, client, _ = exported
+    name, data = _download(client, app, em.L_TABLE, "_cells.csv")
+    assert name == "scan_site_g0.25_cells.csv"
+    rows = _csv_rows(data)
+    want = cell_columns(app.shown.result)
+    assert len(rows) == len(want["ix"]) > 100
+    for col, values in want.items():
+        got = np.array([float(r[col]) if r[col] else np.nan for r in rows])
+        np.testing.assert_array_equal(got, values.astype(np.float64), err_msg=col)
+
+
+def test_cell_table_parquet(exported):
+    pq = pytest.importorskip("pyarrow.parquet")
+    app, client, _ = exported
+    client.set_value(em.L_TABLE_FORMAT, "Parquet")
+    try:
+        _, data = _download(client, app, em.L_TABLE, "_cells.parquet")
+    finally:
+        client.set_value(em.L_TABLE_FORMAT, "CSV")
+    table = pq.read_table(io.BytesIO(data))
+    want = cell_columns(app.shown.result)
+    assert table.column_names == list(want)
+    for col, values in want.items():
+        got = table.column(col).to_numpy(zero_copy_only=False).astype(np.float64)
+        np.testing.assert_array_equal(np.nan_to_num(got, nan=-1.0),
+                                      np.nan_to_num(values.astype(np.float64), nan=-1.0))
+    assert table.schema.metadata[b"rough_viewer.grid_size_m"] == b"0.25"
+
+
+def test_laz_download_is_the_input_with_its_roughness(exported):
+    app, client, path = exported
+    name, data = _download(client, app, em.L_POINTS, "_points.laz")
+    assert name == "scan_site_g0.25_points.laz"
+    out = laspy.read(io.BytesIO(data))
+    src = laspy.read(path)
+    # every point in order with every original dimension, same format, CRS kept
+    assert out.header.point_format.id == 3 and len(out.points) == N_POINTS
+    for dim in src.point_format.dimension_names:
+        np.testing.assert_array_equal(out[dim], src[dim], err_msg=dim)
+    np.testing.assert_array_equal(out.header.scales, src.header.scales)
+    geo = [v for v in out.header.vlrs if v.record_id == 34735]
+    assert len(geo) == 1 and geo[0].record_data_bytes() == GEOKEYS
+    # the added dimensions equal the app's cell table (downloaded as CSV)
+    _, table_bytes = _download(client, app, em.L_TABLE, "_cells.csv")
+    table = {(int(r["ix"]), int(r["iy"]), int(r["iz"])): r for r in _csv_rows(table_bytes)}
+    result = app.shown.result
+    _check_fields_equal_table(out, table, grid=0.25, origin=result.grid.origin,
+                              min_points=result.min_points,
+                              xyz=app.shown.loaded.cloud.xyz())
+
+
+def test_ply_download(exported):
+    from plyfile import PlyData
+
+    app, client, _ = exported
+    client.set_value(em.L_POINTS_FORMAT, "PLY")
+    try:
+        _, data = _download(client, app, em.L_POINTS, "_points.ply")
+    finally:
+        client.set_value(em.L_POINTS_FORMAT, "LAZ")
+    vertex = PlyData.read(io.BytesIO(data))["vertex"]
+    cloud = app.shown.loaded.cloud
+    np.testing.assert_array_equal(vertex["x"], cloud.x)
+    np.testing.assert_array_equal(vertex["z"], cloud.z)
+    fields = point_fields(app.shown.result)
+    theta = fields.gather(0, cloud.n)[0]
+    np.testing.assert_array_equal(vertex["theta_odr"], theta)
+
+
+def test_figure_html_and_all_panels(exported):
+    app, client, _ = exported
+    client.set_value(em.L_FIGURE, "histogram")
+    _, data = _download(client, app, em.L_FIGURE_BUTTON, "_histogram.html")
+    html = data.decode()
+    hist = app.gui.histogram.figure
+    assert "plotly" in html.lower() and len(html) > 1_000_000  # plotly.js inlined: offline
+    # the page draws the panel's own data (plotly's JSON of its traces, as embedded)
+    from plotly.io.json import to_json_plotly
+
+    assert to_json_plotly(hist.to_plotly_json()["data"]) in html
+    assert "Normalised roughness histogram" in hist.layout.title.text and \
+        "Normalised roughness histogram" in html
+    client.set_value(em.L_FIGURE, em.ALL_FIGURES)
+    _, data = _download(client, app, em.L_FIGURE_BUTTON, "_figures_html.zip")
+    names = zipfile.ZipFile(io.BytesIO(data)).namelist()
+    assert {n.rsplit("_", 1)[-1] for n in names} >= {"histogram.html", "variogram.html",
+                                                      "summary.html", "bar.html"}
+    # the profile panel is empty (no profile picked): left out
+    assert not any("profile" in n for n in names)
+
+
+def test_report_download(exported):
+    app, client, _ = exported
+    _, data = _download(client, app, em.L_REPORT, "_report.html")
+    html = data.decode()
+    assert "<html" in html.lower() and "0.25" in html
+    assert html.count("Plotly.newPlot") >= 3  # the report's figures, drawn offline
+
+
+def test_view_download_reopens(exported, tmp_path):
+    app, client, path = exported
+    name, data = _download(client, app, em.L_VIEW, ".view.json")
+    assert name == "scan_site.view.json"
+    saved = tmp_path / name
+    saved.write_bytes(data)
+    loaded = load_view(saved)
+    view = loaded.view
+    assert view.input.sha256 == file_sha256(path) and view.input.path == str(path.resolve())
+    assert loaded.input_check.status == "unchanged"
+    s = app.shown.settings
+    assert (view.cell_size_m, view.model, view.axis, view.min_points, view.threshold) == \
+        (s.cell_size, s.model, s.axis, s.min_points, s.threshold)
+    assert view.colour.colormap == s.colormap and view.colour.stretch == s.stretch
+    # the camera of the browser that asked (the protocol client's), in the file frame
+    assert view.camera is not None
+    np.testing.assert_allclose(view.camera.position,
+                               np.array([0.0, -3.0, 1.0]) + app.shown.loaded.origin)
+    assert json.loads(data)["input"]["relative_path"] is None  # unknown on the browser's side
+
+
+def _export_dirs() -> set[str]:
+    return {p.name for p in Path(tempfile.gettempdir()).glob("rough-viewer-export-*")}
+
+
+def test_a_failure_mid_write_sends_nothing_and_leaves_nothing(exported, monkeypatch):
+    from rough_viewer.io import las_out
+    from rough_viewer.io.output import write_path_atomic
+
+    app, client, _ = exported
+    written: list[Path] = []
+
+    def half_then_full_disk(source, path, cloud, fields, **kw):
+        def write_to(tmp: Path) -> None:
+            tmp.write_bytes(b"LASF" + b"\0" * 100_000)  # half a file is on disk...
+            written.append(tmp)
+            raise OSError(errno.ENOSPC, "No space left on device")  # ...then the disk is full
+
+        write_path_atomic(path, write_to)
+
+    monkeypatch.setattr(las_out, "copy_las_with_fields", half_then_full_disk)
+    before_dirs, starts = _export_dirs(), len(client.of_type("FileTransferStartDownload"))
+    seen = len(client.messages)
+    client.press(em.L_POINTS)
+    mode = app.mode(ExportMode)
+    _said(client, "Export failed", "the failure", after=seen)
+    app.wait_idle(30)
+    assert written and not written[0].exists()
+    assert app.errors[-1] == ("export: cannot write scan_site_g0.25_points.laz: no space "
+                              "left on device")
+    assert "/tmp" not in app.errors[-1] and "rough-viewer-export" not in app.errors[-1]
+    assert "Export failed" in mode.status.content
+    assert len(client.of_type("FileTransferStartDownload")) == starts  # nothing offered
+    assert _export_dirs() <= before_dirs  # the private folder is gone
+
+
+def test_a_download_that_cannot_fit_in_memory_is_refused(exported, monkeypatch):
+    from rough_viewer import memory
+
+    app, client, _ = exported
+    starts = len(client.of_type("FileTransferStartDownload"))
+    monkeypatch.setattr(memory, "available_bytes", lambda: 200_000.0)  # 200 kB free
+    seen = len(client.messages)
+    client.press(em.L_POINTS)
+    _said(client, "Export failed", "the refusal", after=seen)
+    app.wait_idle(30)
+    assert "sending scan_site_g0.25_points.laz" in app.errors[-1]
+    assert "of memory available" in app.errors[-1]
+    assert len(client.of_type("FileTransferStartDownload")) == starts
+
+
+def test_panels_are_found_on_every_mode():
+    class ZonesMode:  # noqa: B903 - a stand-in for a mode mounted by another module
+        pass
+
+    assert safe_name("../../etc/<x> y.laz") == "etc_x_y.laz"
+    assert em._prefix(ZonesMode()) == "zones"
+
+
+def test_figure_dropdown_lists_every_panel(exported):
+    app, _, _ = exported
+    names = set(panel_figures(app))
+    assert {"colour_bar", "histogram", "variogram", "summary", "profile", "bias"} <= names
+    assert set(app.mode(ExportMode).figure.options) == names | {em.ALL_FIGURES}
+
+
+def test_in_memory_cloud_points_and_no_view(server, tmp_path):
+    """A cloud with no file on the server: LAS 1.4 from its coordinates; a view is
+    refused with one line (it must name an input file)."""
+    from rough_viewer.app.server import build_app
+
+    cloud = face_cloud(5000, seed=4)
+    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+    try:
+        assert app.wait_idle(60)
+        client = ProtocolClient(server.get_port())
+        try:
+            _, data = _download(client, app, em.L_POINTS, "_points.laz")
+            las = laspy.read(io.BytesIO(data))
+            assert las.header.version.minor == 4 and las.header.point_format.id == 6
+            np.testing.assert_allclose(las.x, cloud.x, atol=1e-6)
+            client.press(em.L_VIEW)
+            _said(client, "a view records the input file", "the refusal")
+            assert not any(n.endswith(".view.json") for n in client.downloads())
+        finally:
+            client.close()
+    finally:
+        app.stop()
+
+
+@pytest.mark.skipif(em._has("kaleido"), reason="kaleido installed")
+def test_without_kaleido_the_folder_says_so(exported):
+    app, client, _ = exported
+    mode = app.mode(ExportMode)
+    assert tuple(mode.figure_format.options) == ("HTML",)
+    _said(client, "need the optional package kaleido", "the kaleido note")
