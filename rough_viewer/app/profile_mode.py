@@ -183,8 +183,6 @@ class ProfileMode:
         if not self.on.value:
             return False
         k = len(self.items)
-        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        local = (float(pick.local[0]), float(pick.local[1]), float(pick.local[2]))
         if self.start is None:
             self.start = (pick.xyz, pick.local)
             self.nodes.append([scene.marker(app.server, f"/profiles/{k}/start", pick.local,
@@ -199,22 +197,39 @@ class ProfileMode:
                 node.remove()
             app.show_error(f"profile: {exc}")
             return True
-        loaded = app.shown.loaded
-        on_surface = loaded.to_local(a.profile.sample_xyz(a.denoised.heights))
+        self.nodes[-1] += self._draw(app, a, k, None, np.asarray(pick.local, dtype=np.float64))
+        self._keep(a)
+        return True
+
+    def _draw(self, app: App, a: ProfileAnalysis, k: int, start: np.ndarray | None,
+              end: np.ndarray) -> list[viser.SceneNodeHandle]:
+        """Scene nodes of profile ``k``: the line along the surface (its de-noised
+        samples, drawn on both sides of the rock a little off the surface so the
+        points in front cannot hide it) and markers at its ends (labels: on top,
+        sized in pixels); ``start`` None when its marker is drawn already. Points in
+        the display frame."""
+        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
+        on_surface = app.shown.loaded.to_local(a.profile.sample_xyz(a.denoised.heights))
         lift = float(app.gui.point_size.value) + 3.0 * float(a.denoised.sigma)
-        self.nodes[-1] += [
-            *scene.surface_line(app.server, f"/profiles/{k}/line", on_surface,
-                                a.profile.frame.normal, lift, colour),
-            scene.marker(app.server, f"/profiles/{k}/end", np.asarray(local),
-                         f"{scene.MARKER} P{k + 1} end"),
-        ]
+        nodes: list[viser.SceneNodeHandle] = []
+        if start is not None:
+            nodes.append(scene.marker(app.server, f"/profiles/{k}/start", start,
+                                      f"{scene.MARKER} P{k + 1}"))
+        nodes += scene.surface_line(app.server, f"/profiles/{k}/line", on_surface,
+                                    a.profile.frame.normal, lift, colour)
+        nodes.append(scene.marker(app.server, f"/profiles/{k}/end", end,
+                                  f"{scene.MARKER} P{k + 1} end"))
+        return nodes
+
+    def _keep(self, a: ProfileAnalysis) -> None:
+        """Keep ``a`` (its nodes are the last of :attr:`nodes`), drop the oldest beyond
+        :data:`MAX_PROFILES`, redraw the panel."""
         self.items.append(a)
         while len(self.items) > MAX_PROFILES:
             self.items.pop(0)
             for node in self.nodes.pop(0):
                 node.remove()
         self.refresh()
-        return True
 
     def add_profile(self, app: App, start: np.ndarray, end: np.ndarray,
                     settings: ProfileSettings) -> ProfileAnalysis:
@@ -226,24 +241,9 @@ class ProfileMode:
         """
         a = analyse(app.shown.loaded.cloud.xyz(), start, end, settings)
         k = len(self.items)
-        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        origin = app.shown.loaded.origin
-        l0, l1 = (np.asarray(p, dtype=np.float64) - origin for p in (start, end))
-        self.nodes.append([
-            app.server.scene.add_icosphere(f"/profiles/{k}/start", radius=0.02, color=colour,
-                                           position=(float(l0[0]), float(l0[1]), float(l0[2]))),
-            app.server.scene.add_line_segments(f"/profiles/{k}/line",
-                                               np.array([[l0, l1]], dtype=np.float32), colour,
-                                               thickness=4.0, thickness_units="screen"),
-            app.server.scene.add_label(f"/profiles/{k}/label", f"P{k + 1}",
-                                       position=(float(l1[0]), float(l1[1]), float(l1[2]))),
-        ])
-        self.items.append(a)
-        while len(self.items) > MAX_PROFILES:
-            self.items.pop(0)
-            for node in self.nodes.pop(0):
-                node.remove()
-        self.refresh()
+        l0, l1 = (app.shown.loaded.to_local(np.asarray(p, dtype=np.float64)) for p in (start, end))
+        self.nodes.append(self._draw(app, a, k, l0, l1))
+        self._keep(a)
         return a
 
     def clear_all(self) -> None:
