@@ -117,8 +117,8 @@ class Units:
     >>> u = Units("ft")
     >>> u.length(0.3048), u.label, u.rough_label
     (1.0, 'ft', 'ft')
-    >>> Units("m").rough(0.0021), Units("m").rough_label
-    (2.1, 'mm')
+    >>> Units("m").rough(0.002), Units("m").rough_label
+    (2.0, 'mm')
     """
 
     unit: str = "m"
