@@ -40,7 +40,9 @@ line of wiring:
    add a click handler to ``app.click_handlers`` (``handler(app, pick) -> bool``).
    A mode that follows the map (grid, model, threshold, file) adds
    ``listener(app)`` to ``app.view_listeners``: it is called on the worker after
-   every view's colours are shown, and should only submit its own job.
+   every view's colours are shown, and should only submit its own job. A mode
+   that must know when another cloud is put in the scene (a file loaded, the board
+   opened or put back) adds ``handler(app)`` to ``app.cloud_handlers``.
    Uploads go through ``app.uploads.register(handle, on_file)``.
 3. Add ``zones_mode.mount`` to :data:`.server.MODES`. Tests reach the mode with
    ``app.mode(ZonesMode)``.

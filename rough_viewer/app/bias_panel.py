@@ -24,7 +24,7 @@ import viser
 
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
-from rough_viewer.vocabulary import RESIDUALS, Residual
+from rough_viewer.vocabulary import BIAS_RESIDUAL, RESIDUALS, Residual
 
 if TYPE_CHECKING:
     from rough_viewer.app.server import App
@@ -169,9 +169,10 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
         ratio = api.add_number("Background : asperity", 5.0, min=0.5, max=MAX_RATIO, step=0.5,
                                hint="point-population normalisation ratio")
         residual = api.add_dropdown("Roughness", RESIDUALS,
-                                    initial_value="absolute",
-                                    hint="absolute distances (SCIENCE.md) or signed "
-                                    "(the paper's published numbers)")
+                                    initial_value=BIAS_RESIDUAL,
+                                    hint="signed distances (the bias paper's definition "
+                                    "and published numbers; default) or absolute (the "
+                                    "grid maps' convention, SCIENCE.md)")
         button = api.add_button("Predict bias")
         result = api.add_markdown("Set the scanner values and press **Predict bias**.")
         plot = api.add_plotly(go.Figure(), aspect=1.2)

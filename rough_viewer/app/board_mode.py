@@ -4,23 +4,29 @@ the whole board with the closed-form value. OLS and hybrid grow with the
 rotation away from the dependent axis; ODR stays near the true value.
 
 :func:`mount` adds the "Board" tab; "Scan board" queues a :class:`BoardScanJob`,
-which is a load (it replaces a pending load and takes newer view settings).
+which is a load (it replaces a pending load and takes newer view settings). The
+scan that was shown is put aside, not dropped (:attr:`App.stashed`, with its cached
+grids and settings): "Back to the scan" (:class:`RestoreScanJob`) shows it again as
+it was. The board opens with its own colour range (the default stretch, at its own
+default grid), whatever range the scan was pinned to.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import viser
 
-from rough_viewer.app.jobs import ViewJob, load_stages
+from rough_viewer.app.jobs import ViewJob, load_stages, show_cloud, view_stages
 from rough_viewer.app.state import ViewSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
 from rough_viewer.synthetic.board import BoardScan, board_scan
+from rough_viewer.visual.colormaps import ROUGHNESS_STRETCH
 from rough_viewer.vocabulary import Axis
 
 if TYPE_CHECKING:
@@ -28,6 +34,8 @@ if TYPE_CHECKING:
 
 #: Cell edge that holds the whole 1 m board in one cell, metres.
 WHOLE_BOARD_CELL = 2.0
+#: The button that shows the scan put aside again (its name follows in brackets).
+BACK_LABEL = "Back to the scan"
 
 
 @dataclass(frozen=True)
@@ -80,9 +88,23 @@ class BoardMode:
     alpha: viser.GuiSliderHandle[float]
     beta: viser.GuiSliderHandle[float]
     scan: viser.GuiButtonHandle
+    back: viser.GuiButtonHandle
+    """Shows the scan put aside when the board opened (visible while there is one)."""
     note: viser.GuiMarkdownHandle
     lesson: BoardLesson | None = None
     """The last scan's lesson."""
+
+    def update_back(self, app: App) -> None:
+        """Show the "Back to ..." button while a scan is put aside (a button label is
+        plain text, never Markdown)."""
+        stashed = app.stashed
+        if stashed is None:
+            self.back.visible = False
+            return
+        source = stashed.loaded.cloud.source
+        name = Path(source).name if source else "the scan"
+        self.back.label = f"{BACK_LABEL} ({name[:60]})"
+        self.back.visible = True
 
 
 @dataclass(frozen=True)
@@ -110,7 +132,32 @@ class BoardScanJob(Job["App"]):
         yield "scan"
         self.mode.lesson = lesson
         self.mode.note.content = lesson_markdown(lesson)
-        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, self.settings)
+        # its own colour range: the default stretch on its own cells
+        own = self.settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
+        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, own, stash=True)
+
+
+@dataclass(frozen=True)
+class RestoreScanJob(Job["App"]):
+    """Show the scan put aside when the board opened, with its settings and cached
+    grids (a load: it cancels views, panels and picks of the board)."""
+
+    mode: BoardMode = field(compare=False)
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"view", "panels", "pick"})
+
+    @property
+    def title(self) -> str:
+        return "back to the scan"
+
+    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+        stashed, ctx.stashed = ctx.stashed, None
+        if stashed is None:
+            self.mode.update_back(ctx)
+            return
+        show_cloud(ctx, stashed.loaded, stashed.settings)
+        yield "show"
+        yield from view_stages(ctx, run, stashed.settings)
 
 
 def mount(app: App) -> BoardMode:
@@ -120,15 +167,24 @@ def mount(app: App) -> BoardMode:
         m = BoardMode(
             alpha=gui.add_slider("Board α (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
             beta=gui.add_slider("Board β (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
-            scan=gui.add_button("Scan board"),
+            scan=gui.add_button("Scan board",
+                                hint="Opens the scan; the cloud shown now is kept aside."),
+            back=gui.add_button(BACK_LABEL, visible=False,
+                                hint="Show the scan that was open before the board again."),
             note=gui.add_markdown("Scan the 2012 paper's hemisphere board at a rotation and "
                                   "compare the models with the true roughness."),
         )
-    app.controls.allow(m.alpha, m.beta, m.scan)
+    app.controls.allow(m.alpha, m.beta, m.scan, m.back)
 
     @m.scan.on_click
     def _(_event: object) -> None:
         app.submit(BoardScanJob(m, float(m.alpha.value), float(m.beta.value),
                                 app.gui_settings()))
+
+    @m.back.on_click
+    def _(_event: object) -> None:
+        app.submit(RestoreScanJob(m))
+
+    app.cloud_handlers.append(m.update_back)
 
     return m

@@ -62,7 +62,7 @@ def check_value(handle: Any, value: Any) -> Any:
         if value is not True:
             raise InputError(f"{what}: a button press must be true")
         return True
-    if isinstance(handle, viser.GuiDropdownHandle):
+    if isinstance(handle, (viser.GuiDropdownHandle, viser.GuiButtonGroupHandle)):
         if not isinstance(value, str) or value not in handle.options:
             raise InputError(f"{what} must be one of its options")
         return value

@@ -13,14 +13,14 @@ the user gave it and never carry server paths or text read from the file
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError, ProgressFn
+from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
 #: Bytes of memory per byte of file a reader may need at its peak, by format. Text
 #: rows can be as short as "1 2 3\n" (6 bytes for 24 bytes of float64, parsed in
@@ -86,17 +86,26 @@ def read_estimate(path: Path) -> float:
     return factor * path.stat().st_size
 
 
-def read_cloud(path: Path, shown: str, *, cache: bool = True,
+def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None = None,
                progress: ProgressFn | None = None) -> PointCloud:
-    """Read ``path`` after checking that it fits in memory; errors mention ``shown``
-    (the name the user knows), never the server path or the file's content.
+    """Read ``path`` after checking that it fits in memory; errors and the reader's
+    warnings mention ``shown`` (the name the user knows), never the server path or
+    the file's content.
+
+    ``units``: the unit of the file's coordinates (None: the CRS's, else metres;
+    see :func:`rough_viewer.io.load.load_points`).
 
     Raises InputError.
     """
     try:
         require(read_estimate(path), f"reading {shown}",
                 hint="the file is too large for this server's memory")
-        return load_points(path, cache=cache, progress=progress)
+        cloud = load_points(path, units=units, cache=cache, progress=progress)
+        if cloud.warnings:
+            paths = _variants(path, shown)
+            cloud = replace(cloud, warnings=tuple(public_message(w, paths=paths, quoted=False)
+                                                  for w in cloud.warnings))
+        return cloud
     except InputError as exc:
         raise InputError(public_message(str(exc), paths=_variants(path, shown),
                                         quoted=False)) from None

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, cast
 import numpy as np
 import viser
 
+from rough_viewer.app import scene
 from rough_viewer.app.jobs import Pick
 from rough_viewer.app.limits import MAX_PROFILES
 from rough_viewer.app.worker import Job, Run
@@ -41,6 +42,20 @@ if TYPE_CHECKING:
     from rough_viewer.app.server import App
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
+#: Vertical exaggeration choices of the profile plot: "auto" (fitted height range)
+#: or E times (heights drawn E times as long as distances along the line).
+EXAGGERATIONS: tuple[str, ...] = ("auto", "1×", "2×", "5×", "10×", "20×", "50×", "100×")
+
+
+def exaggeration_of(choice: str) -> float | None:
+    """The exaggeration of a dropdown entry: None for ``auto``, else E of ``"E×"``.
+
+    >>> exaggeration_of("auto"), exaggeration_of("20×")
+    (None, 20.0)
+    """
+    if choice not in EXAGGERATIONS:
+        raise InputError(f"unknown vertical exaggeration {choice!r}")
+    return None if choice == "auto" else float(choice.rstrip("×"))
 
 
 @dataclass(frozen=True)
@@ -54,8 +69,10 @@ class ProfileSettings:
     mode: Mode = "hard"
     band_half_width: float | None = None
     """Metres; None = the local point spacing."""
-    exaggeration: float = 1.0
-    """Vertical exaggeration of the profile plot (display only)."""
+    exaggeration: float | None = None
+    """Vertical exaggeration of the profile plot (display only): None = the height
+    axis fitted to the data (default); a number E draws 1 mm of height E times as
+    long as 1 mm along the line (1 = true scale)."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +143,7 @@ class ProfileMode:
     threshold: viser.GuiDropdownHandle[str]
     mode: viser.GuiDropdownHandle[str]
     band: viser.GuiNumberHandle[float]
-    exaggeration: viser.GuiSliderHandle[float]
+    exaggeration: viser.GuiDropdownHandle[str]
     note: viser.GuiMarkdownHandle
     plot: viser.GuiPlotlyHandle
     clear: viser.GuiButtonHandle
@@ -147,14 +164,18 @@ class ProfileMode:
             threshold=cast(ThresholdRule, self.threshold.value),
             mode=cast(Mode, self.mode.value),
             band_half_width=bw if bw > 0 else None,
-            exaggeration=float(self.exaggeration.value))
+            exaggeration=exaggeration_of(self.exaggeration.value))
 
     def refresh(self) -> None:
-        """Redraw the table and the plot."""
+        """Redraw the table and the plot (at the height its builder laid it out for)."""
+        from rough_viewer.visual.app import panel_aspect
         from rough_viewer.visual.profiles import profile_figure
 
         self.note.content = summary_markdown(self.items)
-        self.plot.figure = profile_figure(self.items, exaggeration=float(self.exaggeration.value))
+        fig = profile_figure(self.items, exaggeration=exaggeration_of(self.exaggeration.value))
+        if fig.layout.height is not None:
+            self.plot.aspect = panel_aspect(fig)
+        self.plot.figure = fig
 
     def on_pick(self, app: App, pick: Pick) -> bool:
         """A click while profile mode is on: the start, then the end of a profile
@@ -162,15 +183,13 @@ class ProfileMode:
         if not self.on.value:
             return False
         k = len(self.items)
-        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        local = (float(pick.local[0]), float(pick.local[1]), float(pick.local[2]))
         if self.start is None:
             self.start = (pick.xyz, pick.local)
-            self.nodes.append([app.server.scene.add_icosphere(
-                f"/profiles/{k}/start", radius=0.02, color=colour, position=local)])
+            self.nodes.append([scene.marker(app.server, f"/profiles/{k}/start", pick.local,
+                                            f"{scene.MARKER} P{k + 1}")])
             self.note.content = "Start picked; click the end of the profile."
             return True
-        (p0, l0), self.start = self.start, None
+        (p0, _l0), self.start = self.start, None
         try:
             a = analyse(app.shown.loaded.cloud.xyz(), p0, pick.xyz, self.settings())
         except (InputError, ValueError) as exc:
@@ -178,19 +197,39 @@ class ProfileMode:
                 node.remove()
             app.show_error(f"profile: {exc}")
             return True
-        seg = np.array([[l0, pick.local]], dtype=np.float32)
-        self.nodes[-1] += [
-            app.server.scene.add_line_segments(f"/profiles/{k}/line", seg, colour,
-                                               thickness=4.0, thickness_units="screen"),
-            app.server.scene.add_label(f"/profiles/{k}/label", f"P{k + 1}", position=local),
-        ]
+        self.nodes[-1] += self._draw(app, a, k, None, np.asarray(pick.local, dtype=np.float64))
+        self._keep(a)
+        return True
+
+    def _draw(self, app: App, a: ProfileAnalysis, k: int, start: np.ndarray | None,
+              end: np.ndarray) -> list[viser.SceneNodeHandle]:
+        """Scene nodes of profile ``k``: the line along the surface (its de-noised
+        samples, drawn on both sides of the rock a little off the surface so the
+        points in front cannot hide it) and markers at its ends (labels: on top,
+        sized in pixels); ``start`` None when its marker is drawn already. Points in
+        the display frame."""
+        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
+        on_surface = app.shown.loaded.to_local(a.profile.sample_xyz(a.denoised.heights))
+        lift = float(app.gui.point_size.value) + 3.0 * float(a.denoised.sigma)
+        nodes: list[viser.SceneNodeHandle] = []
+        if start is not None:
+            nodes.append(scene.marker(app.server, f"/profiles/{k}/start", start,
+                                      f"{scene.MARKER} P{k + 1}"))
+        nodes += scene.surface_line(app.server, f"/profiles/{k}/line", on_surface,
+                                    a.profile.frame.normal, lift, colour)
+        nodes.append(scene.marker(app.server, f"/profiles/{k}/end", end,
+                                  f"{scene.MARKER} P{k + 1} end"))
+        return nodes
+
+    def _keep(self, a: ProfileAnalysis) -> None:
+        """Keep ``a`` (its nodes are the last of :attr:`nodes`), drop the oldest beyond
+        :data:`MAX_PROFILES`, redraw the panel."""
         self.items.append(a)
         while len(self.items) > MAX_PROFILES:
             self.items.pop(0)
             for node in self.nodes.pop(0):
                 node.remove()
         self.refresh()
-        return True
 
     def add_profile(self, app: App, start: np.ndarray, end: np.ndarray,
                     settings: ProfileSettings) -> ProfileAnalysis:
@@ -202,24 +241,9 @@ class ProfileMode:
         """
         a = analyse(app.shown.loaded.cloud.xyz(), start, end, settings)
         k = len(self.items)
-        colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        origin = app.shown.loaded.origin
-        l0, l1 = (np.asarray(p, dtype=np.float64) - origin for p in (start, end))
-        self.nodes.append([
-            app.server.scene.add_icosphere(f"/profiles/{k}/start", radius=0.02, color=colour,
-                                           position=(float(l0[0]), float(l0[1]), float(l0[2]))),
-            app.server.scene.add_line_segments(f"/profiles/{k}/line",
-                                               np.array([[l0, l1]], dtype=np.float32), colour,
-                                               thickness=4.0, thickness_units="screen"),
-            app.server.scene.add_label(f"/profiles/{k}/label", f"P{k + 1}",
-                                       position=(float(l1[0]), float(l1[1]), float(l1[2]))),
-        ])
-        self.items.append(a)
-        while len(self.items) > MAX_PROFILES:
-            self.items.pop(0)
-            for node in self.nodes.pop(0):
-                node.remove()
-        self.refresh()
+        l0, l1 = (app.shown.loaded.to_local(np.asarray(p, dtype=np.float64)) for p in (start, end))
+        self.nodes.append(self._draw(app, a, k, l0, l1))
+        self._keep(a)
         return a
 
     def clear_all(self) -> None:
@@ -324,10 +348,12 @@ def _add_controls(app: App) -> ProfileMode:
                                   initial_value="hard"),
             band=gui.add_number("Band half-width (m)", 0.0, min=0.0, max=10.0, step=0.001,
                                 hint="0 = the local point spacing"),
-            exaggeration=gui.add_slider("Vertical exaggeration", min=1.0, max=20.0, step=0.5,
-                                        initial_value=1.0),
+            exaggeration=gui.add_dropdown(
+                "Vertical exaggeration", EXAGGERATIONS, initial_value="auto",
+                hint="auto: the height axis spans the profile's relief; 1× is true scale; "
+                "E× draws heights E times as long as distances along the line."),
             note=gui.add_markdown(summary_markdown([])),
-            plot=gui.add_plotly(profile_figure([], exaggeration=1.0), aspect=1.2),
+            plot=gui.add_plotly(profile_figure([]), aspect=1.29),
             clear=gui.add_button("Clear profiles"),
             download=gui.add_button("Download CSV"),
         )

@@ -19,7 +19,7 @@ import sys
 import threading
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -31,6 +31,7 @@ from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.jobs import (
     AxisJob,
+    CameraJob,
     ClickHandler,
     LoadJob,
     PickJob,
@@ -43,11 +44,15 @@ from rough_viewer.app.jobs import (
 from rough_viewer.app.layout import (
     AXIS_BY_NAME,
     DISPLAY_BY_NAME,
+    LAYER_BY_LABEL,
     MODEL_BY_LABEL,
+    VIEW_OPTIONS,
     Gui,
     assign,
     build_gui,
+    limit_step,
     resolve_colormap,
+    round_limit,
 )
 from rough_viewer.app.limits import (
     CACHE_BYTES,
@@ -62,17 +67,18 @@ from rough_viewer.app.markup import md
 from rough_viewer.app.state import (
     DEFAULT_MAX_DISPLAY,
     MODEL_LABELS,
-    PRESET_CELL_SIZES,
     CellInfo,
     LoadedCloud,
     ViewSettings,
 )
 from rough_viewer.app.uploads import UploadedFile, Uploads
 from rough_viewer.app.worker import Job, QueueFull, Run, Worker
+from rough_viewer.grid.scales import PointScales
 from rough_viewer.io import PointCloud
 from rough_viewer.io.load import SUPPORTED_SUFFIXES
 from rough_viewer.memory import format_bytes
-from rough_viewer.vocabulary import InputError
+from rough_viewer.visual import colormaps
+from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, UNITS, InputError, Unit
 
 __all__ = ["App", "AppOptions", "MODES", "build_app", "on_scene_click"]
 
@@ -108,6 +114,9 @@ class AppOptions:
     """Largest upload accepted, bytes."""
     cache_bytes: int = CACHE_BYTES
     """Memory budget of the cached grids of the loaded cloud, bytes."""
+    units: Unit | None = None
+    """Unit of the coordinates of files loaded from the File tab (``serve --units``;
+    None: each file's CRS unit, else metres)."""
 
 
 @dataclass(eq=False, repr=False)
@@ -130,16 +139,29 @@ class App:
     (``panels_s``), cached or not; the last :data:`MAX_TIMINGS`."""
     errors: deque[str] = field(default_factory=lambda: deque(maxlen=MAX_ERRORS))
     """Error messages shown to the user, oldest first (the last :data:`MAX_ERRORS`)."""
+    pick_timings: deque[dict[str, object]] = field(
+        default_factory=lambda: deque(maxlen=MAX_TIMINGS))
+    """One record per reported click: seconds to the cell report and the
+    across-scales plot (``pick_s``); the last :data:`MAX_TIMINGS`."""
     last_pick: CellInfo | None = None
+    stashed: Shown | None = None
+    """The scan put aside while the board lesson is shown (restored by the Board
+    tab's button); None when nothing is put aside."""
     pick_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
     modes: list[object] = field(default_factory=list)
     """The state each mode's ``mount`` returned, in :data:`MODES` order."""
     click_handlers: list[ClickHandler] = field(default_factory=list)
     """Modes that take scene clicks, asked in order before the cell report."""
+    cloud_handlers: list[Callable[[App], None]] = field(default_factory=list)
+    """Called (on the worker) each time another cloud is put in the scene."""
     view_listeners: list[Callable[[App], None]] = field(default_factory=list)
     """Modes that follow the view: each is called (on the worker, inside the view job,
     so keep it quick: submit a job) after a view's colours are shown."""
     panel_key: tuple[object, ...] | None = None
+    face_key: tuple[object, ...] | None = None
+    """(axis, min points, threshold) of the whole-face trend shown in the Panels."""
+    pick_scales: PointScales | None = None
+    """The last clicked point's roughness across the preset grids."""
     lock: threading.RLock = field(default_factory=threading.RLock)
     _local: threading.local = field(default_factory=threading.local)
 
@@ -153,15 +175,22 @@ class App:
 
     def settings_from_gui(self) -> ViewSettings:
         """The settings the controls currently ask for (InputError if a control holds
-        a value the app cannot use)."""
+        a value the app cannot use). Lengths typed in the cloud's unit become metres."""
         g = self.gui
-        cell = float(g.grid_free.value) if g.grid.value == "free" else float(g.grid.value)
+        u = g.length_units
+        if g.grid.value == "free":
+            cell = float(g.grid_free.value) * u.per
+        else:
+            preset = g.grid_values.get(g.grid.value)
+            if preset is None:
+                raise InputError("the grid size is not one of this cloud's presets")
+            cell = preset
         model = MODEL_BY_LABEL.get(g.model.value)
         axis = AXIS_BY_NAME.get(g.axis.value)
         mode = DISPLAY_BY_NAME.get(g.display.value)
-        if model is None or axis is None or mode is None:
+        layer = LAYER_BY_LABEL.get(g.layer.value)
+        if model is None or axis is None or mode is None or layer is None:
             raise InputError("a control holds a value that is not one of its options")
-        lo, hi = (float(v) for v in g.clip.value)
         return ViewSettings(
             cell_size=cell,
             model=model,
@@ -170,8 +199,23 @@ class App:
             mode=mode,
             threshold=float(g.threshold.value),
             colormap=resolve_colormap(g.colormap.value, model),
-            clip=(lo, hi),
+            stretch=self.stretch_from_gui(),
+            layer=layer,
         )
+
+    def stretch_from_gui(self) -> colormaps.Stretch:
+        """The colour stretch the controls ask for: percentiles of the cells, or the
+        absolute limits typed in the roughness unit (InputError if unusable)."""
+        g = self.gui
+        log = bool(g.log.value)
+        if g.stretch.value == "absolute":
+            per = g.length_units.rough_per
+            lo, hi = float(g.range_lo.value), float(g.range_hi.value)
+            if log and lo <= 0:
+                raise InputError("a log colour scale needs a lowest θ above 0")
+            return colormaps.Stretch("absolute", lo * per, hi * per, log=log)
+        p_lo, p_hi = (float(v) for v in g.percentiles.value)
+        return colormaps.Stretch("percentile", p_lo, p_hi, log=log)
 
     def gui_settings(self) -> ViewSettings:
         """:meth:`settings_from_gui`, or the shown settings if a control is unusable."""
@@ -204,14 +248,17 @@ class App:
     def load(self, path: str | None = None, *, upload: UploadedFile | None = None,
              cloud: PointCloud | None = None) -> int:
         """Queue showing another cloud: a path in the data folder (as typed), a
-        finished upload, or an in-memory cloud."""
+        finished upload, or an in-memory cloud. Files are read in the File tab's
+        unit (``auto``: the CRS's unit, else metres)."""
         settings = self.gui_settings()
+        choice: str = self.gui.units.value
+        units: Unit | None = next((u for u in UNITS if u == choice), None)
         if cloud is not None:
             job = LoadJob(settings, cloud=cloud, shown_as=cloud.source)
         elif upload is not None:
-            job = LoadJob(settings, upload=upload, shown_as=upload.name)
+            job = LoadJob(settings, upload=upload, shown_as=upload.name, units=units)
         else:
-            job = LoadJob(settings, typed=path or "", shown_as=path or "")
+            job = LoadJob(settings, typed=path or "", shown_as=path or "", units=units)
         return self.submit(job)
 
     def wait_idle(self, timeout: float | None = 120.0) -> bool:
@@ -257,16 +304,51 @@ class App:
         return bool(getattr(self._local, "syncing", False))
 
     def sync_controls(self, settings: ViewSettings) -> None:
-        """Set the controls to ``settings`` without queuing work (after an error)."""
+        """Set the controls to ``settings`` without queuing work (after an error, a
+        restored view, or a cloud with other presets)."""
         g = self.gui
+        u = g.length_units
         self._local.syncing = True
         try:
-            assign(g.grid, grid_choice(settings.cell_size))
-            assign(g.grid_free, float(settings.cell_size))
+            assign(g.grid, grid_choice(settings.cell_size, g.grid_values))
+            assign(g.grid_free, u.length(settings.cell_size))
             assign(g.model, MODEL_LABELS[settings.model])
             assign(g.axis, settings.axis)
             assign(g.min_points, int(settings.min_points))
             assign(g.display, settings.mode)
+            assign(g.threshold, float(settings.threshold))
+            auto = resolve_colormap("auto", settings.model)
+            assign(g.colormap, "auto" if settings.colormap == auto else settings.colormap)
+            label = COLOUR_LAYER_LABELS[settings.layer]
+            if label in g.layer.options:
+                assign(g.layer, label)
+            st = settings.stretch
+            assign(g.stretch, st.mode)
+            assign(g.log, bool(st.log))
+            if st.mode == "absolute":
+                for handle, metres in ((g.range_lo, st.lo), (g.range_hi, st.hi)):
+                    value = round_limit(u.rough(metres))
+                    handle.step = limit_step(value)
+                    assign(handle, value)
+            else:
+                assign(g.percentiles, (float(st.lo), float(st.hi)))
+        finally:
+            self._local.syncing = False
+
+    def show_range(self, colour_range: colormaps.ColourRange) -> None:
+        """Put the roughness range the colours span into the lowest/highest fields
+        (roughness unit, 3 digits), so switching to an absolute stretch pins it."""
+        g = self.gui
+        u = g.length_units
+        lo, hi = round_limit(u.rough(colour_range.lo)), round_limit(u.rough(colour_range.hi))
+        if hi <= lo:
+            return
+        self._local.syncing = True
+        try:
+            # the fields show as many decimals as their step has: 3 digits of each
+            for handle, value in ((g.range_lo, lo), (g.range_hi, hi)):
+                handle.step = limit_step(value)
+                assign(handle, value)
         finally:
             self._local.syncing = False
 
@@ -289,6 +371,8 @@ def build_app(
     data_dir: str | os.PathLike[str] | None = None,
     max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB,
     cache_bytes: int = CACHE_BYTES,
+    units: Unit | None = None,
+    presets: Sequence[float] | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start computing the first map.
 
@@ -300,7 +384,9 @@ def build_app(
     cloud
         Points in the file frame (metres).
     settings
-        Initial view (default :class:`ViewSettings`).
+        Initial view. Default: :class:`ViewSettings` at the cloud's default grid
+        (the finest of its presets, from the point spacing:
+        :func:`rough_viewer.app.state.grid_presets`).
     max_display
         Most points drawn in the browser (roughness uses every point).
     variogram
@@ -315,23 +401,37 @@ def build_app(
         Largest upload accepted, megabytes.
     cache_bytes
         Memory budget of the cached grids, bytes (default 1 GiB).
+    units
+        Unit of the coordinates of files loaded later from the File tab
+        (``serve --units``; default: each file's CRS unit, else metres). The
+        shown cloud's own unit is ``cloud.source_unit``.
+    presets
+        Grid presets of ``cloud``, metres (default
+        :func:`rough_viewer.app.state.grid_presets`: from its point spacing). Files
+        loaded later get their own.
 
     Returns
     -------
     App
         Handles; ``app.wait_idle()`` blocks until the first map is shown.
     """
-    settings = settings or ViewSettings()
+    if units is not None and units not in UNITS:
+        raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNITS)}")
     options = AppOptions(max_display=max_display, variogram=variogram, prefetch=prefetch,
                          data_dir=Path(data_dir) if data_dir is not None else None,
                          max_upload_bytes=int(max_upload_mb * (1 << 20)),
-                         cache_bytes=int(cache_bytes))
+                         cache_bytes=int(cache_bytes), units=units)
     data = DataFolder.of(options.data_dir or _default_data_dir(cloud))
-    loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes)
+    loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
+                         presets=tuple(presets) if presets is not None else None)
+    settings = settings or ViewSettings(cell_size=loaded.default_cell_size)
     server.scene.set_up_direction("+z")
     scene.initial_camera(server, loaded)
     size = scene.default_point_size(loaded)
+    assert loaded.presets is not None
     gui = build_gui(server, settings, point_size=size, source=cloud.source,
+                    presets=loaded.presets, units=loaded.units, layers=loaded.layers,
+                    file_units=units or "auto",
                     upload_limit=f", at most {format_bytes(options.max_upload_bytes)}")
     app = App(server, gui, options, Shown(loaded, settings),
               scene.add_cloud(server, loaded, size), data)
@@ -365,9 +465,9 @@ def _on_error(app: App, job: Job[App], exc: BaseException) -> None:
 def _prefetch_presets(app: App, run: Run) -> bool:
     """Compute one preset grid not yet cached; True if it did (call again)."""
     shown = app.shown
-    if shown.result is None:
+    if shown.result is None or shown.loaded.presets is None:
         return False
-    for size in PRESET_CELL_SIZES:
+    for size in shown.loaded.presets:
         candidate = shown.settings.with_(cell_size=size)
         if not shown.loaded.is_cached(candidate):
             if run.cancelled:
@@ -393,36 +493,55 @@ def _wire(app: App) -> None:
 
 
 def _wire_map(app: App) -> None:
-    """The Map tab: every change queues a view; grid and free grid follow each other."""
+    """The Map tab: every change queues a view; grid and free grid follow each other,
+    and so do the colour stretch and its limits."""
     g = app.gui
 
     def update(_event: object) -> None:
         app.request_update()
 
-    for control in (g.grid, g.model, g.axis, g.display, g.threshold, g.min_points,
-                    g.colormap, g.clip):
+    for control in (g.layer, g.grid, g.model, g.axis, g.display, g.threshold, g.min_points,
+                    g.colormap, g.stretch, g.log):
         control.on_update(update)
+
+    def set_quietly(handle: Any, value: object) -> None:
+        app._local.syncing = True
+        try:
+            assign(handle, value)
+        finally:
+            app._local.syncing = False
 
     @g.grid_free.on_update
     def _(_event: object) -> None:
         if app.syncing:
             return
         if g.grid.value != "free":
-            app._local.syncing = True
-            try:
-                assign(g.grid, "free")
-            finally:
-                app._local.syncing = False
+            set_quietly(g.grid, "free")
         app.request_update()
 
     @g.grid.on_update
     def _(_event: object) -> None:
-        if g.grid.value != "free" and not app.syncing:
-            app._local.syncing = True
-            try:
-                assign(g.grid_free, float(g.grid.value))
-            finally:
-                app._local.syncing = False
+        size = g.grid_values.get(g.grid.value)
+        if size is not None and not app.syncing:
+            set_quietly(g.grid_free, g.length_units.length(size))
+
+    @g.percentiles.on_update
+    def _(_event: object) -> None:
+        if app.syncing:
+            return
+        if g.stretch.value != "percentile":
+            set_quietly(g.stretch, "percentile")
+        app.request_update()
+
+    def typed_limit(_event: object) -> None:
+        if app.syncing:
+            return
+        if g.stretch.value != "absolute":
+            set_quietly(g.stretch, "absolute")
+        app.request_update()
+
+    g.range_lo.on_update(typed_limit)
+    g.range_hi.on_update(typed_limit)
 
     @g.point_size.on_update
     def _(_event: object) -> None:
@@ -436,6 +555,11 @@ def _wire_map(app: App) -> None:
     @g.show_axis.on_update
     def _(_event: object) -> None:
         app.submit(AxisJob(bool(g.show_axis.value)))
+
+    @g.camera.on_click
+    def _(_event: object) -> None:
+        if g.camera.value in VIEW_OPTIONS:
+            app.submit(CameraJob(g.camera.value))
 
 
 def _wire_file(app: App) -> None:

@@ -29,12 +29,25 @@ from rough_viewer.grid.roughness import (
     grid_roughness,
     prepare_grid,
 )
+from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.grid.summary import normalise
 from rough_viewer.io import PointCloud
+from rough_viewer.report.build import SPARSE_SHARE
 from rough_viewer.visual import colormaps
+from rough_viewer.visual.layers import (
+    ColourLayer,
+    face_plane_distance,
+    intensity_layer,
+    plane_distance_layer,
+    rgb_layer,
+)
 from rough_viewer.vocabulary import (
+    COLOUR_LAYERS,
     MAP_TITLES,
     MAPS,
+    ROUGHNESS_UNIT,
+    UNIT_LABELS,
+    UNIT_METRES,
     AxisChoice,
     ColourLayerName,
     InputError,
@@ -44,22 +57,17 @@ from rough_viewer.vocabulary import (
 
 DisplayMode = Literal["continuous", "binary"]
 
-#: Grid sizes offered as one-click presets (metres), as in the 2011 paper.
-PRESET_CELL_SIZES: tuple[float, ...] = (1.0, 0.5, 0.25, 0.125)
-
 #: Maps in the order the GUI lists them; names shown to the user.
 MODEL_LABELS: dict[MapName, str] = {name: MAP_TITLES[name] for name in MAPS}
 
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000
 
-#: Finest preset: the other presets are integer multiples of it, so their cell
-#: membership and moments come from coarsening this grid (no pass over the points).
-FINE_CELL_SIZE = min(PRESET_CELL_SIZES)
-
 #: Smallest cell size the app accepts (metres); below it grids get absurdly large.
 MIN_CELL_SIZE = 1e-3
 
+#: Largest cell size the app accepts (metres).
+MAX_CELL_SIZE = 10_000.0
 
 
 @dataclass(frozen=True)
@@ -80,8 +88,6 @@ class ViewSettings:
     """Binary threshold on normalised roughness (0-1)."""
     colormap: str = "viridis"
     """Colour map name (see :mod:`rough_viewer.visual.colormaps`)."""
-    clip: tuple[float, float] = (0.0, 1.0)
-    """Normalised range spread over the colour map; values outside get the end colours."""
     stretch: colormaps.Stretch = colormaps.ROUGHNESS_STRETCH
     """How roughness spreads over the colour map (percentiles of the cells or absolute
     limits in metres, linear or log): :class:`rough_viewer.visual.colormaps.Stretch`."""
@@ -99,6 +105,71 @@ class ViewSettings:
         return replace(self, **changes)  # type: ignore[arg-type]
 
 
+# ----------------------------------------------------------------------------- units
+
+
+@dataclass(frozen=True)
+class Units:
+    """How lengths are shown: grid sizes and coordinates in the cloud's unit,
+    roughness in :data:`rough_viewer.vocabulary.ROUGHNESS_UNIT` of it (mm for metric
+    input). The app computes in metres; only what is shown or typed is converted.
+
+    >>> u = Units("ft")
+    >>> u.length(0.3048), u.label, u.rough_label
+    (1.0, 'ft', 'ft')
+    >>> Units("m").rough(0.002), Units("m").rough_label
+    (2.0, 'mm')
+    """
+
+    unit: str = "m"
+    """Unit of the cloud's coordinates (``PointCloud.source_unit``)."""
+
+    @property
+    def per(self) -> float:
+        """Metres per length unit."""
+        return UNIT_METRES[self.unit]
+
+    @property
+    def label(self) -> str:
+        return UNIT_LABELS[self.unit]
+
+    @property
+    def rough_unit(self) -> str:
+        return ROUGHNESS_UNIT[self.unit] if self.unit in ROUGHNESS_UNIT else self.unit
+
+    @property
+    def rough_per(self) -> float:
+        """Metres per roughness unit."""
+        return UNIT_METRES[self.rough_unit]
+
+    @property
+    def rough_label(self) -> str:
+        return UNIT_LABELS[self.rough_unit]
+
+    def length(self, metres: float) -> float:
+        """A length in metres, in the cloud's unit (rounded to 9 significant digits)."""
+        return float(f"{metres / self.per:.9g}")
+
+    def rough(self, metres: float) -> float:
+        """A roughness in metres, in the roughness unit."""
+        return float(metres) / self.rough_per
+
+    def size_text(self, metres: float) -> str:
+        """``"0.25 m"``, ``"12.5 mm"``: a grid size as shown."""
+        return f"{self.length(metres):g} {self.label}"
+
+
+def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
+    """The app's grid presets for ``cloud``, metres, coarsest first: the default
+    grid from the point spacing (:func:`rough_viewer.grid.spacing.default_cell_size`,
+    a readable size in the cloud's own unit) times 8, 4, 2, 1. Nested, so every
+    coarser preset is the finest coarsened by a whole factor."""
+    per = UNIT_METRES[cloud.source_unit]
+    xyz = cloud.xyz()
+    finest = default_cell_size(xyz if per == 1.0 else xyz / per) * per
+    return cell_sizes_from(finest)
+
+
 def check_settings(settings: ViewSettings) -> None:
     """Raise InputError for settings the core cannot use (message for the GUI)."""
     if not np.isfinite(settings.cell_size) or settings.cell_size < MIN_CELL_SIZE:
@@ -111,6 +182,13 @@ def check_settings(settings: ViewSettings) -> None:
         raise InputError(f"unknown model {settings.model!r}")
     if settings.axis not in ("auto", "x", "y", "z"):
         raise InputError(f"unknown dependent axis {settings.axis!r}")
+    if settings.cell_size > MAX_CELL_SIZE:
+        raise InputError(f"grid size {settings.cell_size:g} m is too large "
+                         f"(maximum {MAX_CELL_SIZE:g} m)")
+    if settings.layer not in COLOUR_LAYERS:
+        raise InputError(f"unknown colour layer {settings.layer!r}")
+    if not isinstance(settings.stretch, colormaps.Stretch):
+        raise InputError("the colour stretch must be a Stretch")
     colormaps.lut(settings.colormap)
 
 
@@ -222,6 +300,9 @@ class LoadedCloud:
     max_display: int = DEFAULT_MAX_DISPLAY
     cache_bytes: int = CACHE_BYTES
     seed: int = 0
+    presets: tuple[float, ...] | None = None
+    """Grid presets, metres, coarsest first and nested (each a whole multiple of the
+    finest); default :func:`grid_presets` of the cloud."""
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)
@@ -229,6 +310,8 @@ class LoadedCloud:
     auto_axis: str = field(init=False)
     _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid] = \
         field(init=False, repr=False)
+    _layers: dict[str, ColourLayer] = field(init=False, repr=False)
+    _shown_key: tuple[str, tuple[float, str, int]] | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
@@ -242,9 +325,71 @@ class LoadedCloud:
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
         self.plane = whole_cloud_plane(self.cloud)
         self.auto_axis = dominant_axis(self.plane.normal)
-        fine_key = ("prepared", round(FINE_CELL_SIZE, 9))
-        # the fine grid stays: every preset is coarsened from it
-        self._cache = ByteCache(self.cache_bytes, pinned=lambda k: k == fine_key)
+        if self.presets is None:
+            self.presets = grid_presets(self.cloud)
+        self.presets = tuple(sorted((float(g) for g in self.presets), reverse=True))
+        if not self.presets or self.presets[-1] < MIN_CELL_SIZE:
+            raise InputError("grid presets must be at least "
+                             f"{MIN_CELL_SIZE:g} m, got {self.presets}")
+        fine_key = ("prepared", round(self.fine_cell_size, 9))
+        # the fine grid stays (every preset is coarsened from it), and so does the
+        # grid on screen (the panels' preset grids must not push it out)
+        self._shown_key = None
+        self._cache = ByteCache(self.cache_bytes,
+                                pinned=lambda k: k == fine_key or k == self._shown_key)
+        self._layers = {}
+
+    @property
+    def fine_cell_size(self) -> float:
+        """The finest preset (metres): the others are coarsened from it."""
+        assert self.presets is not None
+        return self.presets[-1]
+
+    @property
+    def default_cell_size(self) -> float:
+        """The grid shown first (metres): the finest preset, the size at which the
+        typical occupied cell holds 16 points."""
+        return self.fine_cell_size
+
+    @property
+    def units(self) -> Units:
+        """How this cloud's lengths are shown (its file's unit)."""
+        return Units(self.cloud.source_unit)
+
+    @property
+    def layers(self) -> tuple[ColourLayerName, ...]:
+        """The colour layers this cloud has: always the roughness map and the
+        distance to the face plane; the scan's RGB and intensity where the file has
+        them."""
+        out: list[ColourLayerName] = ["roughness"]
+        if self.cloud.rgb is not None:
+            out.append("rgb")
+        if self.cloud.intensity is not None:
+            out.append("intensity")
+        out.append("distance")
+        return tuple(out)
+
+    def layer(self, name: ColourLayerName) -> ColourLayer:
+        """The colours of the displayed points for colour layer ``name`` (not
+        ``roughness``), computed once per cloud. InputError when the cloud lacks it."""
+        if name not in self.layers or name == "roughness":
+            what = {"rgb": "RGB colours", "intensity": "intensities"}.get(name, repr(name))
+            raise InputError(f"{self.cloud.source or 'this cloud'} has no {what}")
+        hit = self._layers.get(name)
+        if hit is not None:
+            return hit
+        idx = self.display_index
+        if name == "rgb":
+            assert self.cloud.rgb is not None
+            made = rgb_layer(np.asarray(self.cloud.rgb)[idx])
+        elif name == "intensity":
+            assert self.cloud.intensity is not None
+            made = intensity_layer(np.asarray(self.cloud.intensity)[idx])
+        else:
+            local = self.display_points.astype(np.float64) + self.origin
+            made = plane_distance_layer(face_plane_distance(local, self.plane))
+        self._layers[name] = made
+        return made
 
     @property
     def n_total(self) -> int:
@@ -265,8 +410,17 @@ class LoadedCloud:
         """Local display coordinates -> the file's frame (metres, float64)."""
         return np.asarray(local, dtype=np.float64) + self.origin
 
+    def to_local(self, xyz: np.ndarray) -> np.ndarray:
+        """File-frame coordinates (metres) -> the display frame (float64)."""
+        return np.asarray(xyz, dtype=np.float64) - self.origin
+
     def is_cached(self, settings: ViewSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
+
+    def mark_shown(self, settings: ViewSettings) -> None:
+        """The grid of ``settings`` is on screen: keep its result in the cache while
+        other grids come and go (it is pinned, like the finest preset's cells)."""
+        self._shown_key = ("result", settings.grid_key)
 
     def result(
         self,
@@ -295,7 +449,7 @@ class LoadedCloud:
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached.
 
-        Sizes that are integer multiples of :data:`FINE_CELL_SIZE` (the presets)
+        Sizes that are integer multiples of :attr:`fine_cell_size` (the presets)
         are coarsened from the fine grid, which shares their origin (the
         bounding-box minimum), instead of indexing the points again.
         ``progress(0, 1)`` is called before each pass over the points (so a
@@ -305,9 +459,9 @@ class LoadedCloud:
         hit = self._cache.get(key)
         if isinstance(hit, PreparedGrid):
             return hit
-        factor = cell_size / FINE_CELL_SIZE
+        factor = cell_size / self.fine_cell_size
         if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
-            fine = self.prepared(FINE_CELL_SIZE, progress=progress)
+            fine = self.prepared(self.fine_cell_size, progress=progress)
             prep = coarsen_prepared(fine, int(round(factor)))
         else:
             if progress is not None:
@@ -322,30 +476,40 @@ def normalised_map(result: GridRoughness, model: MapName) -> np.ndarray:
     return normalise(result.values(model))
 
 
+def colour_range(result: GridRoughness, settings: ViewSettings) -> colormaps.ColourRange:
+    """The stretch of ``settings`` resolved on the cells of the shown map (one vote
+    per cell with a value, as Table 1 counts), metres."""
+    return colormaps.resolve(result.values(settings.model), settings.stretch)
+
+
 def point_colours(
     result: GridRoughness,
     settings: ViewSettings,
     point_index: np.ndarray,
     *,
     normalised: np.ndarray | None = None,
+    colours_range: colormaps.ColourRange | None = None,
 ) -> np.ndarray:
     """RGB colour (``(K, 3)`` uint8) of the points ``point_index`` of the cloud.
 
-    Each point takes the colour of its cell's normalised roughness under
-    ``settings`` (model, continuous or binary, threshold, colour map, clip
-    range); points in cells without a value get :data:`colormaps.NEUTRAL_RGB`.
-    ``normalised`` may pass a precomputed :func:`normalised_map`.
+    Continuous display: each point takes the colour of its cell's roughness under
+    the settings' stretch (:func:`colour_range`; robust log percentiles by default,
+    or absolute limits) on ``settings.colormap``. Binary display: the 2011 paper's
+    transform, min-max normalised roughness ``>= threshold`` in the map's last
+    colour, the rest in its first. Points in cells without a value get
+    :data:`colormaps.NEUTRAL_RGB`. ``normalised`` may pass a precomputed
+    :func:`normalised_map`, ``colours_range`` a precomputed :func:`colour_range`.
     """
-    norm = normalised_map(result, settings.model) if normalised is None else normalised
     cell = result.point_cell[point_index]
-    per_point = norm[cell]
     if settings.mode == "binary":
+        norm = normalised_map(result, settings.model) if normalised is None else normalised
+        per_point = norm[cell]
         valid = np.isfinite(per_point)
         with np.errstate(invalid="ignore"):
             flags = per_point >= settings.threshold
         return colormaps.apply_binary(flags, valid, settings.colormap)
-    lo, hi = settings.clip
-    return colormaps.apply(per_point, settings.colormap, vmin=float(lo), vmax=float(hi))
+    rng = colours_range if colours_range is not None else colour_range(result, settings)
+    return colormaps.stretch_colours(result.values(settings.model)[cell], rng, settings.colormap)
 
 
 @dataclass(frozen=True)
@@ -362,6 +526,14 @@ class MapStats:
     """Cells with a value for this model."""
     rough_share: float
     """Share of valid cells at or above the binary threshold."""
+    colour_range: colormaps.ColourRange
+    """The stretch resolved on this map (what the colours' ends mean)."""
+
+    @property
+    def sparse(self) -> bool:
+        """Most occupied cells have no value (fewer than ``SPARSE_SHARE`` of them):
+        the grid is too fine for the point density."""
+        return self.cells > 0 and self.valid_cells < SPARSE_SHARE * self.cells
 
 
 def map_stats(result: GridRoughness, settings: ViewSettings) -> MapStats:
@@ -375,7 +547,8 @@ def map_stats(result: GridRoughness, settings: ViewSettings) -> MapStats:
         rough = float(np.mean(norm[finite] >= settings.threshold))
     else:
         lo = hi = rough = float("nan")
-    return MapStats(lo, hi, len(values), valid, rough)
+    return MapStats(lo, hi, len(values), valid, rough,
+                    colormaps.resolve(values, settings.stretch))
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ import numpy as np
 
 from rough_viewer.app.layout import assign, resolve_colormap
 from rough_viewer.app.limits import MAX_PROFILES
-from rough_viewer.app.state import MIN_CELL_SIZE, ViewSettings, check_settings
+from rough_viewer.app.state import MAX_CELL_SIZE, MIN_CELL_SIZE, ViewSettings, check_settings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.report.view import (
     Camera,
@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from rough_viewer.app.server import App
 
 #: Largest cell size the app's "Free grid size" control takes, metres (layout.build_gui).
-APP_MAX_CELL_SIZE = 100.0
+APP_MAX_CELL_SIZE = MAX_CELL_SIZE
 #: Largest "Min points per cell" the app's control takes (layout.build_gui).
 APP_MAX_MIN_POINTS = 100_000
 #: Names of the analysis panels a view lists (the app draws all of them).

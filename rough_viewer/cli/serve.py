@@ -4,12 +4,17 @@ Contract::
 
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
-        [--min-points K] [--max-points N]
+        [--min-points K] [--max-points N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
         [--view VIEW.json] [--save-views]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
-bundled demo outcrop opens (``--demo NAME`` picks another demo).
+bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
+the unit of a LAS file's CRS, else m) is the unit of the input's coordinates and of
+every length given or shown (``--grid``, grid presets, coordinates; roughness in mm
+for metric input, in the input's unit otherwise). Without ``--grid`` the first map
+uses the cloud's default grid (from its point spacing; the app's presets are it
+times 1, 2, 4 and 8).
 The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
@@ -29,12 +34,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import math
 import sys
 import time
 from pathlib import Path
 
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.cli._inputs import add_inputs
+from rough_viewer.cli._options import add_units
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
@@ -50,8 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes it)")
-    p.add_argument("--grid", type=float, default=0.25, metavar="G",
-                   help="initial grid cell size in metres (default 0.25)")
+    p.add_argument("--grid", type=float, default=None, metavar="G",
+                   help="initial grid cell size in --units (default: from the point spacing, "
+                   "so that a typical cell holds about 16 points)")
     p.add_argument("--model", choices=("odr", "ols", "hybrid", "e_ols"), default="odr",
                    help="initial map (default odr)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
@@ -72,6 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "http://myhost:8080 (repeatable); pages of other origins are refused")
     p.add_argument("--no-token", action="store_true",
                    help="do not require the access token in the URL (trusted networks only)")
+    add_units(p)
     p.add_argument("--view", metavar="VIEW.json",
                    help="reopen a saved view (input, grid, model, colours, profiles, camera); "
                    "its input must lie in the data folder (default: the view file's folder) "
@@ -126,9 +135,15 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.app.state import ViewSettings, check_settings
+    from rough_viewer.app.state import ViewSettings, check_settings, grid_presets
+    from rough_viewer.vocabulary import UNIT_METRES
 
+    if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
+        raise InputError(f"--grid must be a positive length, got {args.grid:g}")
+    if args.demo and args.units:
+        raise InputError("--units applies to INPUT files; the demos are in metres")
     opened = None
+    settings: ViewSettings | None = None
     if args.view:
         from rough_viewer.app.views import open_view
         from rough_viewer.cli._inputs import input_paths
@@ -138,10 +153,6 @@ def run(args: argparse.Namespace) -> int:
         opened = open_view(args.view, inputs=input_paths(args) if args.inputs else (),
                            data_dir=args.data_dir)
         settings = opened.settings
-    else:
-        settings = ViewSettings(cell_size=args.grid, model=args.model, axis=args.axis,
-                                min_points=args.min_points)
-        check_settings(settings)
     data_dir = _check_options(args)
     if opened is not None and opened.data_dir is not None and args.data_dir is None:
         data_dir = opened.data_dir
@@ -151,6 +162,13 @@ def run(args: argparse.Namespace) -> int:
         cloud = load_inputs([opened.input_path], units=opened.view.units, quiet=True)
     else:
         cloud = _load_cloud(args)
+        if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
+            settings = ViewSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+                                    model=args.model, axis=args.axis,
+                                    min_points=args.min_points)
+            check_settings(settings)
+    for warning in cloud.warnings:
+        print(f"rough-viewer: warning: {warning}", file=sys.stderr)
 
     from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app
@@ -161,8 +179,14 @@ def run(args: argparse.Namespace) -> int:
                                    allow_origins=args.allow_origin)
     app = None
     try:
+        presets = grid_presets(cloud)
+        if settings is None:  # the cloud's default grid (its finest preset)
+            settings = ViewSettings(cell_size=presets[-1], model=args.model,
+                                    axis=args.axis, min_points=args.min_points)
+            check_settings(settings)
         app = build_app(server, cloud, settings=settings, max_display=args.max_points,
-                        data_dir=data_dir, max_upload_mb=args.max_upload_mb)
+                        data_dir=data_dir, max_upload_mb=args.max_upload_mb,
+                        units=args.units, presets=presets)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
         if args.save_views:
             from rough_viewer.app.export_mode import ExportMode

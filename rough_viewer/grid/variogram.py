@@ -71,7 +71,7 @@ import numpy as np
 
 from rough_viewer.grid.maps import Plane, face_raster
 from rough_viewer.memory import USABLE_SHARE, available_bytes, require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, ProgressFn
 
 Space = Literal["3d", "plane"]
 Method = Literal["auto", "fft", "pairs"]
@@ -183,6 +183,7 @@ def semivariogram(
     space: Space = "3d",
     workers: int | None = None,
     method: Method = "auto",
+    progress: ProgressFn | None = None,
 ) -> Semivariogram:
     """Experimental semivariogram of a map on a regular grid, exact over all pairs
     up to the largest lag, with memory that follows the occupied cells (module
@@ -212,6 +213,11 @@ def semivariogram(
         Threads for :mod:`scipy.fft` (default: all cores).
     method : {"auto", "fft", "pairs"}
         Tiled FFT, direct pair count, or the cheaper by the cost model (default).
+    progress : callable, optional
+        ``progress(done, total)``, called before the first and after every FFT
+        block (or chunk of pair rows) and once at the end. An exception it raises
+        stops the computation and propagates (how a caller cancels: the app's
+        jobs raise from it).
 
     Returns
     -------
@@ -232,9 +238,9 @@ def semivariogram(
     require(plan.bytes, f"the semivariogram of {cells.z.size:,} cells at {g:g} m up to "
             f"lag {plan.max_lag:g} m", hint="give a smaller max lag or a larger grid size")
     if plan.method == "pairs":
-        ordered, sums = _pair_sums(cells, plan, g, w)
+        ordered, sums = _pair_sums(cells, plan, g, w, progress)
     else:
-        ordered, sums = _lag_sums(cells, plan, g, w, workers)
+        ordered, sums = _lag_sums(cells, plan, g, w, workers, progress)
     return _assemble(cells, plan, w, space, ordered, sums)
 
 
@@ -359,9 +365,11 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
 
 
 def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
-              workers: int | None) -> tuple[np.ndarray, np.ndarray]:
+              workers: int | None,
+              progress: ProgressFn | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Stage 3: ordered pair counts and sums of squared differences per lag bin,
-    block by block (tiled FFT cross-correlations)."""
+    block by block (tiled FFT cross-correlations); ``progress(done, blocks)``
+    before the first block and after each."""
     import scipy.fft  # here, not on import (see _blocks)
 
     n_bins = plan.n_bins
@@ -392,7 +400,10 @@ def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
         return scipy.fft.irfftn(spec, s=frame, axes=axes, workers=workers)[window][keep]
 
     block_of = cells.idx // block
-    for b in np.unique(block_of, axis=0):
+    blocks = np.unique(block_of, axis=0)
+    if progress is not None:
+        progress(0, len(blocks))
+    for done, b in enumerate(blocks, start=1):
         lo = np.maximum(b * block - reach, 0)       # frame origin (cells)
         hi = np.minimum((b + 1) * block + reach, shape)
         inside = np.all(block_of == b, axis=1)
@@ -411,13 +422,16 @@ def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
         cross -= 2.0 * spectrum(a_flat, za).conj() * spectrum(e_flat, ze)
         sums += np.bincount(kb, weights=back(cross), minlength=n_bins + 1)[1:]
         del cross
+        if progress is not None:
+            progress(done, len(blocks))
     return ordered, sums * scale * scale
 
 
-def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float,
-               w: float) -> tuple[np.ndarray, np.ndarray]:
+def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
+               progress: ProgressFn | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Stage 3 for few, scattered cells: every ordered pair counted directly, a
-    chunk of rows at a time (memory :data:`PAIR_CHUNK_BYTES`)."""
+    chunk of rows at a time (memory :data:`PAIR_CHUNK_BYTES`); ``progress(rows
+    done, rows)`` before the first chunk and after each."""
     n_bins = plan.n_bins
     m = int(cells.z.size)
     pos = cells.idx.astype(np.float64)
@@ -425,6 +439,8 @@ def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float,
     rows = max(1, int(PAIR_CHUNK_BYTES // (48 * max(m, 1))))
     ordered = np.zeros(n_bins + 1)
     sums = np.zeros(n_bins + 1)
+    if progress is not None:
+        progress(0, m)
     for start in range(0, m, rows):
         sl = slice(start, min(start + rows, m))
         d2 = np.zeros((sl.stop - sl.start, m))
@@ -436,6 +452,8 @@ def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float,
         diff2 = (z[sl, None] - z[None, :]) ** 2
         ordered += np.bincount(k[keep], minlength=n_bins + 1)
         sums += np.bincount(k[keep], weights=diff2[keep], minlength=n_bins + 1)
+        if progress is not None:
+            progress(sl.stop, m)
     return ordered[1:], sums[1:]
 
 
@@ -471,6 +489,7 @@ def face_semivariogram(
     bin_width: float | None = None,
     max_lag: float | None = None,
     workers: int | None = None,
+    progress: ProgressFn | None = None,
 ) -> Semivariogram:
     """Semivariogram in the plane of the face (the 2-D analogue of :func:`semivariogram`).
 
@@ -490,7 +509,7 @@ def face_semivariogram(
     plane : Plane
         Anything with ``centroid`` (3,) and unit ``normal`` (3,), e.g. the whole-cloud
         ODR plane (:class:`rough_viewer.grid.planes.PlaneFit`).
-    bin_width, max_lag, workers
+    bin_width, max_lag, workers, progress
         As for :func:`semivariogram`.
     """
     values = np.asarray(values, dtype=np.float64)
@@ -503,5 +522,5 @@ def face_semivariogram(
     mean = total / np.maximum(count, 1)
     return semivariogram(
         pix, mean, cell_size, bin_width=bin_width, max_lag=max_lag, space="plane",
-        workers=workers,
+        workers=workers, progress=progress,
     )

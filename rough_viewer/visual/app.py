@@ -11,21 +11,25 @@ import plotly.graph_objects as go
 
 from rough_viewer.visual import colormaps
 
-_MARGIN = dict(l=12, r=12, t=34, b=30)
-
 
 def colour_bar_figure(
     *,
     colormap: str,
     theta_min_m: float,
     theta_max_m: float,
-    clip: tuple[float, float] = (0.0, 1.0),
-    mode: str = "continuous",
+    mode: str = "binary",
     threshold: float = 0.05,
     title: str = "",
     no_value_cells: int = 0,
+    unit: str = "mm",
+    scale: float = 1e3,
 ) -> go.Figure:
-    """Horizontal colour bar for normalised roughness, labelled in millimetres.
+    """Horizontal colour bar of min-max normalised roughness: the binary display
+    (the 2011 paper's transform: two colours split at ``threshold``), or, with
+    ``mode="continuous"``, the plain min-max map. Roughness is labelled in ``unit``.
+
+    The continuous map of the app is drawn by :func:`colour_scale_figure` (any
+    :class:`~rough_viewer.visual.colormaps.Stretch`).
 
     Parameters
     ----------
@@ -33,46 +37,48 @@ def colour_bar_figure(
         Colour map name (:mod:`rough_viewer.visual.colormaps`).
     theta_min_m, theta_max_m
         Roughness of the smoothest and roughest cell (metres): normalised 0 and 1.
-    clip
-        Normalised range spread over the colour map (values outside take the end
-        colours).
     mode
-        ``continuous`` or ``binary`` (two colours split at ``threshold``).
+        ``binary`` (default) or ``continuous``.
     threshold
         Binary threshold on normalised roughness.
     title
         Figure title (model, grid size, axis, point count).
     no_value_cells
         Cells drawn in the neutral colour, stated under the bar.
+    unit, scale
+        Roughness is shown as metres times ``scale`` in ``unit`` (default mm).
     """
     span = theta_max_m - theta_min_m if np.isfinite(theta_max_m - theta_min_m) else 0.0
     t = np.linspace(0.0, 1.0, 256)
-    mm = 1e3 * (theta_min_m + t * span) if span > 0 else 1e3 * np.full_like(t, theta_min_m)
+    shown = scale * (theta_min_m + t * span) if span > 0 else scale * np.full_like(t, theta_min_m)
     if mode == "binary":
         rgb = colormaps.apply_binary(t >= threshold, np.ones_like(t, bool), colormap)
     else:
-        rgb = colormaps.apply(t, colormap, vmin=clip[0], vmax=clip[1])
-    scale = [[i / 255.0, colormaps.rgb_css(c)] for i, c in enumerate(rgb)]
+        rgb = colormaps.apply(t, colormap)
+    css = [[i / 255.0, colormaps.rgb_css(c)] for i, c in enumerate(rgb)]
     fig = go.Figure(
         go.Heatmap(
             z=[t],
-            x=mm,
-            colorscale=scale,
+            x=shown,
+            colorscale=css,
             zmin=0.0,
             zmax=1.0,
             showscale=False,
-            hovertemplate="θ %{x:.3f} mm<extra></extra>",
+            hovertemplate=f"θ %{{x:.4g}} {unit}<extra></extra>",
         )
     )
-    note = f"grey: no value ({no_value_cells} cells)" if no_value_cells else ""
+    note = f"grey: no value ({no_value_cells:,} cells)" if no_value_cells else ""
     if mode == "binary":
-        cut = 1e3 * (theta_min_m + threshold * span)
-        note = f"rough: normalised ≥ {threshold:.2f} (θ ≥ {cut:.2f} mm)  " + note
+        cut = scale * (theta_min_m + threshold * span)
+        note = (f"rough: normalised ≥ {threshold:.2f} (θ ≥ {cut:.3g} {unit})"
+                + (" · " + note if note else ""))
     fig.update_layout(
-        title=dict(text=title, font=dict(size=12)),
-        margin=_MARGIN,
-        xaxis=dict(title=dict(text=f"θ (mm)   {note}", font=dict(size=11)), showgrid=False),
-        yaxis=dict(visible=False),
+        title={"text": title, "font": {"size": 12}, "x": 0.01, "xanchor": "left"},
+        margin={"l": 12, "r": 12, "t": 30, "b": 52},
+        height=130,
+        xaxis={"title": {"text": f"θ ({unit})<br><sup>{note}</sup>", "font": {"size": 12},
+                         "standoff": 4}, "showgrid": False},
+        yaxis={"visible": False},
         plot_bgcolor="white",
     )
     return fig

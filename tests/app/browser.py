@@ -143,3 +143,43 @@ def to_array(png_bytes: bytes) -> np.ndarray:
     from PIL import Image
 
     return np.asarray(Image.open(io.BytesIO(png_bytes)).convert("RGB"))
+
+
+#: The window size issue 13 measures the panels at.
+WIDE = {"width": 1600, "height": 1000}
+
+#: Widths of every visible plotly panel, px.
+_PLOT_WIDTHS_JS = ("() => [...document.querySelectorAll('.js-plotly-plot')]"
+                   ".filter(e => e.offsetParent !== null)"
+                   ".map(e => e.getBoundingClientRect().width)")
+
+
+def plot_widths(page) -> list[float]:
+    """Widths (px) of the plotly panels shown now (hidden tabs left out)."""
+    return [float(w) for w in page.evaluate(_PLOT_WIDTHS_JS)]
+
+
+def canvas_rgba(page) -> np.ndarray:
+    """RGBA (h, w, 4) uint8 of the whole 3-D canvas (alpha 0: the page background)."""
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png(page))).convert("RGBA"))
+
+
+def drawn_colour_share(rgba: np.ndarray, lut: np.ndarray, tol: int = 24) -> tuple[float, int]:
+    """Of the drawn pixels whose colour is one of the map's (within ``tol``, summed
+    over channels, of an entry of ``lut``), the largest share on one entry, and how
+    many such pixels there are. Background (transparent), grey no-value points and
+    overlays in other colours are left out."""
+    px = rgba[rgba[..., 3] > 250][:, :3].astype(int)
+    table = np.asarray(lut, dtype=int)
+    best = np.empty(len(px), dtype=int)
+    dist = np.empty(len(px), dtype=int)
+    for start in range(0, len(px), 20_000):
+        d = np.abs(px[start:start + 20_000, None, :] - table[None, :, :]).sum(axis=2)
+        best[start:start + 20_000] = d.argmin(axis=1)
+        dist[start:start + 20_000] = d.min(axis=1)
+    on_map = best[dist <= tol]
+    if on_map.size == 0:
+        return 0.0, 0
+    return float(np.bincount(on_map).max()) / on_map.size, int(on_map.size)

@@ -12,6 +12,7 @@ from rough_viewer.app.bias_panel import BiasPanel
 from rough_viewer.app.controls import check_value
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.vocabulary import InputError
 from tests.app.protocol import ProtocolClient
 from tests.helpers import face_cloud
@@ -20,7 +21,9 @@ from tests.helpers import face_cloud
 @pytest.fixture
 def live():
     server, gate = open_server("127.0.0.1", 0, token="tok", log=False)
-    app = build_app(server, face_cloud(8_000), prefetch=False)
+    # fixed presets: these tests are about the checks, not the data's grid
+    app = build_app(server, face_cloud(8_000), prefetch=False, presets=(1.0, 0.5, 0.25, 0.125),
+                    settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
     port = server.get_port()
     client = ProtocolClient(port, "/t/tok", origin=f"http://127.0.0.1:{port}")
@@ -44,14 +47,21 @@ BAD = [
     ("Grid size (m)", "0.3", "one of its options"),
     ("Free grid size (m)", "abc", "a number"),
     ("Free grid size (m)", 1e-9, "at least 0.001"),
-    ("Free grid size (m)", 1e9, "at most 100"),
+    ("Free grid size (m)", 1e9, "at most 10000"),
     ("Min points per cell", 4.5, "whole number"),
     ("Min points per cell", True, "a number"),
     ("Min points per cell", 2, "at least 3"),
     ("Threshold", float("nan"), "finite"),
     ("Threshold", float("inf"), "finite"),
-    ("Colour range", [0.9, 0.1], "increasing"),
-    ("Colour range", [0.1], "2 numbers"),
+    ("Percentiles", [90.0, 10.0], "increasing"),
+    ("Percentiles", [10.0], "2 numbers"),
+    ("Percentiles", [-5.0, 50.0], "at least 0"),
+    ("Colour stretch", "minmax", "one of its options"),
+    ("Lowest θ (mm)", float("nan"), "finite"),
+    ("Highest θ (mm)", -1.0, "at least 0"),
+    ("Colour by", "scan colours (RGB)", "one of its options"),  # no RGB in this cloud
+    ("View", "underneath", "one of its options"),
+    ("Units", "furlong", "one of its options"),
     ("Show dependent axis", "yes", "true or false"),
     ("File path", "x" * 5000, "at most 4096"),
     ("Toggle ODR / OLS", False, "press must be true"),
@@ -128,8 +138,11 @@ def test_every_control_of_the_app_is_registered(live):
 def test_check_value_rules_without_a_browser(live):
     app, _ = live
     assert check_value(app.gui.threshold, 1) == 1.0
-    assert check_value(app.gui.clip, [0, 1]) == (0.0, 1.0)
+    assert check_value(app.gui.percentiles, [0, 100]) == (0.0, 100.0)
     with pytest.raises(InputError):
-        check_value(app.gui.clip, [0.5, 0.505])  # closer than the minimum range 0.01
+        check_value(app.gui.percentiles, [50, 50.5])  # closer than the minimum range 1
+    assert check_value(app.gui.camera, "top") == "top"
+    with pytest.raises(InputError):
+        check_value(app.gui.camera, 1)
     with pytest.raises(InputError):
         check_value(app.gui.upload, b"data")

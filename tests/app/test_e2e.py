@@ -6,8 +6,6 @@ WebGL); each test sets the controls it relies on. ~120k points.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -18,18 +16,6 @@ from tests.app import browser as b
 from tests.helpers import face_cloud
 
 pytestmark = pytest.mark.browser
-
-
-@pytest.fixture(scope="module")
-def chromium():
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        yield browser
-        browser.close()
 
 
 @pytest.fixture(scope="module")
@@ -77,20 +63,21 @@ def test_renders_coloured_points(live):
 def test_grid_and_model_change_colours_and_histogram(live):
     app, page = live
     before = b.scene_pixels(page)
+    fine, coarse = app.gui.grid.options[-2], app.gui.grid.options[0]  # presets from the data
     page.get_by_role("tab", name="Panels").click()
-    page.locator(".js-plotly-plot .gtitle", has_text="grid 0.25 m").first.wait_for()
+    page.locator(".js-plotly-plot .gtitle", has_text=f"grid {fine} m").first.wait_for()
     page.get_by_role("tab", name="Map").click()
-    b.choose(page, "Grid size (m)", "1")
-    b.wait_until(lambda: app.shown.settings.cell_size == 1.0 and not app.worker.busy,
-                 30, "grid 1 m on the server")
+    b.choose(page, "Grid size (m)", coarse)
+    b.wait_until(lambda: app.shown.settings.cell_size == float(coarse) and not app.worker.busy,
+                 30, "the coarsest preset on the server")
     b.wait_pixels(page, lambda im: np.abs(im.astype(int) - before).sum(axis=2).mean() > 5,
                   60, "colours to change with the grid")
     page.get_by_role("tab", name="Panels").click()
-    page.locator(".js-plotly-plot .gtitle", has_text="grid 1 m").first.wait_for()
+    page.locator(".js-plotly-plot .gtitle", has_text=f"grid {coarse} m").first.wait_for()
     page.get_by_role("tab", name="Map").click()
     mid = b.scene_pixels(page)
     # OLS along y on a face looking along y barely differs from ODR; the OLS error
-    # map (diverging colours) must look different
+    # map (magma, its own sequential map) must look different
     b.choose(page, "Model", "OLS error e_ols")
     b.wait_until(lambda: app.shown.settings.model == "e_ols" and not app.worker.busy, 30, "e_ols")
     b.wait_pixels(page, lambda im: np.abs(im.astype(int) - mid).sum(axis=2).mean() > 10,
@@ -101,9 +88,10 @@ def test_grid_and_model_change_colours_and_histogram(live):
     page.locator(".js-plotly-plot .legendtext", has_text="e_OLS").first.wait_for()
     page.get_by_role("tab", name="Map").click()
     b.choose(page, "Model", "ODR")
-    b.choose(page, "Grid size (m)", "0.25")
-    b.wait_until(lambda: app.shown.settings.cell_size == 0.25 and app.shown.settings.model == "odr"
-                 and not app.worker.busy, 30, "back to ODR 0.25 m")
+    b.choose(page, "Grid size (m)", fine)
+    b.wait_until(lambda: app.shown.settings.cell_size == float(fine)
+                 and app.shown.settings.model == "odr" and not app.worker.busy, 30,
+                 "back to ODR at the finest preset")
 
 
 def test_threshold_switches_to_binary_view(live):

@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import export_mode as em
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256
 from tests.app import browser as b
+from tests.helpers import PAPER_PRESETS
 from tests.io.test_las_out import make_pf3
 
 pytestmark = pytest.mark.browser
@@ -43,7 +45,8 @@ def page_and_app(chromium, tmp_path_factory):
     scan = folder / "scan.las"
     make_pf3(scan, n=30_000)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = build_app(server, load_points(scan), prefetch=False, data_dir=folder)
+    app = build_app(server, load_points(scan), prefetch=False, data_dir=folder,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
     ctx = chromium.new_context(viewport=b.VIEWPORT, accept_downloads=True)
     ctx.set_default_timeout(30_000)

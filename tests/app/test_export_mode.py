@@ -19,11 +19,12 @@ import pytest
 
 from rough_viewer.app import export_mode as em
 from rough_viewer.app.export_mode import ExportMode, panel_figures, safe_name
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.grid.table import cell_columns, point_fields
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256, load_view
 from tests.app.protocol import ProtocolClient
-from tests.helpers import face_cloud
+from tests.helpers import PAPER_PRESETS, face_cloud
 from tests.io.test_las_out import GEOKEYS, _check_fields_equal_table, make_pf3
 
 N_POINTS = 6000
@@ -40,7 +41,8 @@ def exported(tmp_path_factory):
     path = folder / "scan site.las"  # a space: the download's name is made safe
     make_pf3(path, n=N_POINTS)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = build_app(server, load_points(path), prefetch=False, data_dir=folder)
+    app = build_app(server, load_points(path), prefetch=False, data_dir=folder,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
     client = ProtocolClient(server.get_port())
     client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
@@ -271,7 +273,8 @@ def test_in_memory_cloud_points_and_no_view(server, tmp_path):
     from rough_viewer.app.server import build_app
 
     cloud = face_cloud(5000, seed=4)
-    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path)
+    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     try:
         assert app.wait_idle(60)
         client = ProtocolClient(server.get_port())

@@ -15,8 +15,12 @@ from rough_viewer.app.bias_panel import BiasPanel
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.server import App, build_app
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.app.worker import Job, Run
 from tests.app.protocol import ProtocolClient
+
+#: Fixed presets for tests about the job pipeline, not the data's grid.
+FIXED = {"presets": (1.0, 0.5, 0.25, 0.125), "settings": ViewSettings(cell_size=0.25)}
 
 
 @dataclass(frozen=True)
@@ -43,7 +47,7 @@ def hold(app: App) -> threading.Event:
 def test_a_load_followed_at_once_by_a_control_change_shows_the_loaded_file(server, cloud,
                                                                            tmp_path):
     np.save(tmp_path / "other.npy", cloud.xyz()[::2])
-    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path)
+    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path, **FIXED)
     assert app.wait_idle(60)
     gate = hold(app)
     app.gui.path.value = "other.npy"
@@ -55,7 +59,12 @@ def test_a_load_followed_at_once_by_a_control_change_shows_the_loaded_file(serve
     assert app.wait_idle(60)
     shown = app.shown
     assert shown.loaded.n_total == cloud.n // 2 and "other.npy" in app.gui.status.content
-    assert shown.settings.model == "ols" and shown.settings.cell_size == 0.5
+    # the model change is kept; the new file opens at its own default grid, among its
+    # own presets (from its point spacing: half the points, coarser grids)
+    assert shown.settings.model == "ols"
+    assert shown.loaded.presets == (0.8, 0.4, 0.2, 0.1)
+    assert shown.settings.cell_size == 0.1 and app.gui.grid.value == "0.1"
+    assert app.gui.grid.options == ("0.8", "0.4", "0.2", "0.1", "free")
     assert shown.result is not None and shown.result.n_points_total == cloud.n // 2
     assert list(app.errors) == []
     app.stop()
@@ -147,7 +156,7 @@ def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, cloud, monkeypatc
     # the same path as the 16.5 GB request on a 24 GB machine.
     import rough_viewer.memory as memory
 
-    app = build_app(server, cloud, prefetch=False)
+    app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
     before = app.cloud_handle.colors.copy()
     monkeypatch.setattr(memory, "available_bytes", lambda: 1e6)
@@ -174,7 +183,7 @@ def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypat
         require(1e15, f"the semivariogram of {len(values):,} cells at {g:g} m")
         raise AssertionError("unreachable")
 
-    app = build_app(server, cloud, prefetch=False)
+    app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
     monkeypatch.setattr(panels, "semivariogram", too_big)
     app.gui.grid.value = "0.5"

@@ -16,6 +16,7 @@ import laspy
 import numpy as np
 import pytest
 
+from rough_viewer.app.state import grid_presets
 from tests.app.protocol import ProtocolClient
 from tests.app.serve_process import ServeProcess
 from tests.helpers import face_cloud
@@ -38,6 +39,10 @@ def laz_bomb(path, declared: int = 50_000_000, n: int = 20_000) -> None:
     struct.pack_into("<I", data, 107, 0)  # legacy 32-bit count
     struct.pack_into("<Q", data, 247, declared)  # LAS 1.4 64-bit count
     path.write_bytes(bytes(data))
+
+
+#: The grid presets of the served cloud (from its point spacing), as the dropdown shows them.
+PRESETS = tuple(f"{g:g}" for g in grid_presets(face_cloud(20_000, seed=3)))
 
 
 @pytest.fixture(scope="module")
@@ -78,8 +83,8 @@ def test_an_upload_above_the_limit_leaves_memory_unchanged(served):
     liar = b"1.0 2.0 3.0\n" * (64 * MiB // 12)  # 64 MiB sent after announcing 1 MiB
     client.upload("Upload file", "liar.xyz", liar, declared=MiB)
     refusal(client, "liar.xyz: the upload is larger than announced")
-    client.set_value("Grid size (m)", "0.125")  # the server still answers
-    status(client, "grid 0.125 m")
+    client.set_value("Grid size (m)", PRESETS[-1])  # the server still answers
+    status(client, f"grid {PRESETS[-1]} m")
     after = settled_peak(proc)
     print(f"\npeak resident before {before / MiB:.0f} MiB, after 264 MiB of refused "
           f"uploads {after / MiB:.0f} MiB")
@@ -99,8 +104,9 @@ def test_a_laz_bomb_is_an_error_and_leaves_memory_unchanged(served, how):
         client.set_value("Load file", True)
     body = refusal(client, "50,000,000")
     assert "bomb.laz" in body and str(folder) not in body and "rough-viewer-uploads" not in body
-    client.set_value("Grid size (m)", "1" if how == "upload" else "0.5")  # still serving
-    status(client, "grid 1 m" if how == "upload" else "grid 0.5 m")
+    size = PRESETS[0] if how == "upload" else PRESETS[1]
+    client.set_value("Grid size (m)", size)  # still serving
+    status(client, f"grid {size} m")
     after = settled_peak(proc)
     print(f"\nLAZ bomb by {how}: peak resident before {before / MiB:.0f} MiB, "
           f"after {after / MiB:.0f} MiB")

@@ -17,45 +17,90 @@ from rough_viewer.visual import colormaps
 
 
 def expected_colours(app, cloud, cell, name, cmap="viridis"):
+    """The default stretch (log, percentiles 2-98 of the cells) of an independent
+    core run, through the colour map's LUT."""
     core = grid_roughness(cloud, cell)
+    v = core.values(name)
+    ok = np.isfinite(v) & (v > 0)
+    top = np.percentile(v[ok], 98)
+    lo, hi = np.percentile(v[ok & (v >= top / 1e4)], [2, 98])
     idx = app.shown.loaded.display_index
-    return colormaps.apply(normalise(core.values(name))[core.point_cell[idx]], cmap)
+    per_point = v[core.point_cell[idx]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (np.log10(np.maximum(per_point, lo)) - np.log10(lo)) / (np.log10(hi) - np.log10(lo))
+    out = colormaps.lut(cmap)[np.round(np.clip(np.nan_to_num(t), 0, 1) * 255).astype(int)]
+    out[~np.isfinite(per_point)] = colormaps.NEUTRAL_RGB
+    return out
 
 
-def test_first_view_is_odr_at_quarter_metre(app, cloud):
+def test_first_view_is_odr_at_the_default_grid(app, cloud):
     assert list(app.errors) == []
-    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.25, "odr"))
+    loaded = app.shown.loaded
+    # presets from the point spacing; the first map is the finest
+    assert loaded.presets == (0.64, 0.32, 0.16, 0.08)
+    assert app.gui.grid.options == ("0.64", "0.32", "0.16", "0.08", "free")
+    assert app.gui.grid.value == "0.08" and app.shown.settings.cell_size == 0.08
+    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.08, "odr"))
     assert "40,000 points shown of 40,000 used" in app.gui.status.content
     assert "auto chose **y**" in app.gui.axis_note.content
-    title = app.gui.colour_bar.figure.layout.title.text
-    assert "ODR" in title and "0.25 m" in title and "axis y" in title
+    fig = app.gui.colour_bar.figure
+    title = fig.layout.title.text
+    assert "ODR" in title and "0.08 m" in title and "axis y" in title
+    # the colour bar says which stretch, in mm, and the range fields show it (3 digits)
+    assert "θ (mm)" in fig.layout.xaxis.title.text
+    assert "percentiles 2–98, log" in fig.layout.xaxis.title.text
+    rng = app.shown.stats.colour_range
+    assert app.gui.range_lo.value == float(f"{rng.lo * 1e3:.3g}")
+    assert app.gui.range_hi.value == float(f"{rng.hi * 1e3:.3g}")
+    assert app.gui.stretch.value == "percentile" and app.gui.log.value
+    assert not app.gui.notice.visible  # every cell of this face has a value
 
 
 def test_grid_and_model_change_colours_and_panels(app, cloud):
     before = app.cloud_handle.colors.copy()
-    app.gui.grid.value = "0.125"
+    app.gui.grid.value = "0.16"
     assert app.wait_idle(60)
-    assert app.gui.grid_free.value == 0.125
-    assert app.shown.result.grid.cell_size == 0.125
+    assert app.gui.grid_free.value == 0.16
+    assert app.shown.result.grid.cell_size == 0.16
     now = app.cloud_handle.colors
     assert not np.array_equal(before, now)
-    assert np.array_equal(now, expected_colours(app, cloud, 0.125, "odr"))
+    assert np.array_equal(now, expected_colours(app, cloud, 0.16, "odr"))
     # histogram panel: ODR and OLS fractions equal the core's 0.05-bin histogram
-    core = grid_roughness(cloud, 0.125)
+    core = grid_roughness(cloud, 0.16)
     fig = app.gui.histogram.figure
     names = [t.name for t in fig.data]
     assert names[0].startswith("ODR") and names[1].startswith("OLS")
     for trace, m in zip(fig.data, ("odr", "ols"), strict=False):
         want = histogram(normalise(core.values(m)), 0.05).fractions * 100
         assert np.allclose(trace.y, want)
-    assert "grid 0.125 m" in fig.layout.title.text
+    assert "grid 0.16 m" in fig.layout.title.text
 
     app.gui.model.value = "OLS"
     assert app.wait_idle(60)
-    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.125, "ols"))
+    assert np.array_equal(app.cloud_handle.colors, expected_colours(app, cloud, 0.16, "ols"))
     assert [t.name for t in app.gui.variogram.figure.data] == ["OLS", "ODR", "e_OLS"]
     table = app.gui.summary.figure.data[0]
     assert list(table.cells.values[0]) == ["ODR", "OLS", "hybrid", "e_OLS"]
+
+
+def test_the_whole_face_trend_against_the_preset_grids(app, cloud):
+    from rough_viewer.grid.summary import binary
+
+    fig = app.gui.face_scales.figure
+    assert "Table 1 trend" in fig.layout.title.text
+    means = [t for t in fig.data if t.showlegend is not False][:3]
+    shares = list(fig.data)[3:6]
+    sizes = app.shown.loaded.presets
+    for trace, share, m in zip(means, shares, ("odr", "ols", "hybrid"), strict=True):
+        assert list(trace.x) == sorted(sizes)
+        for x, y, z in zip(trace.x, trace.y, share.y, strict=True):
+            core = grid_roughness(cloud, x).values(m)  # independent, per grid
+            ok = np.isfinite(core)
+            assert y == pytest.approx(np.mean(core[ok]) * 1e3, rel=1e-9)
+            rough = binary(normalise(core), 0.05)
+            assert z == pytest.approx(100 * rough.sum() / ok.sum(), rel=1e-9)
+    # the waves of the face count as roughness on larger cells
+    assert means[0].y[-1] > means[0].y[0]
 
 
 def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
@@ -76,17 +121,18 @@ def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
     app.gui.colormap.value = "magma"
     assert app.wait_idle(60)
     assert {tuple(c) for c in np.unique(app.cloud_handle.colors, axis=0)} <= {
-        tuple(colormaps.lut("magma")[0]), tuple(colormaps.lut("magma")[-1])}
+        tuple(colormaps.lut("magma")[0]), tuple(colormaps.lut("magma")[-1]),
+        colormaps.NEUTRAL_RGB}
     assert calls == []  # every change above reused the cached planes
     assert all(t["cached"] for t in list(app.timings)[-3:])
 
 
-def test_e_ols_gets_diverging_map_and_toggle_button(app, cloud):
+def test_e_ols_gets_a_sequential_map_and_toggle_button(app, cloud):
     app.gui.model.value = "OLS error e_ols"
     assert app.wait_idle(60)
-    assert app.shown.settings.colormap == "coolwarm"
+    assert app.shown.settings.colormap == "magma"  # e_ols >= 0: sequential, not diverging
     assert np.array_equal(app.cloud_handle.colors,
-                          expected_colours(app, cloud, 0.25, "e_ols", "coolwarm"))
+                          expected_colours(app, cloud, 0.08, "e_ols", "magma"))
     app.gui.model.value = "ODR"
     app.gui.toggle.value = True  # fires on_click like a browser press
     assert app.gui.model.value == "OLS"
@@ -111,8 +157,8 @@ def test_bad_grid_keeps_previous_view(app):
     assert app.errors and "too small" in app.errors[-1]
     assert app.gui.error.visible and "previous view" in app.gui.error.content
     assert np.array_equal(app.cloud_handle.colors, before)
-    assert app.gui.grid.value == "0.25" and app.shown.settings.cell_size == 0.25
-    app.gui.grid.value = "0.5"  # a good change clears the message
+    assert app.gui.grid.value == "0.08" and app.shown.settings.cell_size == 0.08
+    app.gui.grid.value = "0.32"  # a good change clears the message
     assert app.wait_idle(60)
     assert not app.gui.error.visible
 
@@ -165,13 +211,30 @@ def test_click_reports_cell(app, cloud):
     target = loaded.display_points[i].astype(float)
     origin = target + np.array([0.0, -5.0, 0.0])  # the face looks at -y
     info = on_scene_click(app, origin, (0.0, 1.0, 0.0))
-    core = grid_roughness(cloud, 0.25)
+    core = grid_roughness(cloud, 0.08)
     p = int(loaded.display_index[i])
     assert info is not None and info.cell == core.point_cell[p]
     assert info.theta["odr"] == pytest.approx(core.theta_odr[info.cell])
     assert info.theta["e_ols"] == pytest.approx(core.e_ols[info.cell])
     assert f"Cell {info.ijk}" in app.gui.pick.content
     assert np.allclose(info.point, cloud.xyz()[p], atol=1e-5)  # file frame
+    # across scales: one value per preset grid, equal to the full maps of each grid
+    ps = app.pick_scales
+    assert list(ps.cell_sizes) == sorted(loaded.presets)
+    fig = app.gui.scales.figure
+    assert app.gui.scales.visible and [t.name for t in fig.data] == ["ODR", "OLS", "hybrid"]
+    for g, odr, ols, hyb, trace_x in zip(ps.cell_sizes, ps.theta_odr, ps.theta_ols,
+                                         ps.theta_hybrid, fig.data[0].x, strict=True):
+        full = grid_roughness(cloud, g)  # independent: the whole map of that grid
+        c = full.point_cell[p]
+        assert odr == pytest.approx(full.theta_odr[c], rel=1e-9)
+        assert ols == pytest.approx(full.theta_ols[c], rel=1e-9)
+        assert hyb == pytest.approx(full.theta_hybrid[c], rel=1e-9)
+        assert trace_x == g
+    assert np.allclose(fig.data[0].y, ps.theta_odr * 1e3)
+    assert app.pick_timings[-1]["grids"] == 4
+    # the marker is a label (drawn on top, sized in pixels); the cell outline 12 edges
+    assert [type(n).__name__ for n in app.pick_nodes] == ["LabelHandle", "LineSegmentsHandle"]
     assert on_scene_click(app, origin, (0.0, -1.0, 0.0)) is None
 
 
@@ -193,12 +256,12 @@ def test_idle_worker_prefetches_preset_grids(server, cloud):
     app = build_app(server, cloud.subset(np.arange(10_000)), prefetch=True)
     assert app.wait_idle(60)
     loaded = app.shown.loaded
-    presets = [app.shown.settings.with_(cell_size=g) for g in (1.0, 0.5, 0.25, 0.125)]
+    presets = [app.shown.settings.with_(cell_size=g) for g in loaded.presets]
     end = time.time() + 30
     while not all(loaded.is_cached(s) for s in presets) and time.time() < end:
         time.sleep(0.05)
     assert all(loaded.is_cached(s) for s in presets)
-    app.gui.grid.value = "1"
+    app.gui.grid.value = app.gui.grid.options[0]
     assert app.wait_idle(60)
-    assert app.timings[-1]["cached"] and app.shown.result.grid.cell_size == 1.0
+    assert app.timings[-1]["cached"] and app.shown.result.grid.cell_size == loaded.presets[0]
     app.stop()

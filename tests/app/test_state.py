@@ -46,7 +46,8 @@ def test_results_cached_per_grid_key(loaded, monkeypatch):
     s = ViewSettings(cell_size=0.5)
     r1 = loaded.result(s)
     # colouring changes share the grid result
-    r2 = loaded.result(s.with_(model="ols", threshold=0.3, mode="binary", colormap="magma"))
+    r2 = loaded.result(s.with_(model="ols", threshold=0.3, mode="binary", colormap="magma",
+                               stretch=colormaps.Stretch.absolute_mm(1, 2), layer="distance"))
     assert r1 is r2 and len(calls) == 1
     loaded.result(s.with_(axis="z"))
     loaded.result(s.with_(min_points=10))
@@ -54,19 +55,53 @@ def test_results_cached_per_grid_key(loaded, monkeypatch):
     assert loaded.is_cached(s.with_(min_points=10))
 
 
-def test_continuous_colours_match_core(loaded, cloud):
-    s = ViewSettings(cell_size=0.25, model="ols", colormap="cividis", clip=(0.1, 0.8))
+def _log_stretch_colours(values, lo, hi, cmap):
+    """Independent reference: log positions between lo and hi, clipped, on the LUT."""
+    lut = colormaps.lut(cmap)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (np.log10(np.maximum(values, lo)) - np.log10(lo)) / (np.log10(hi) - np.log10(lo))
+    t = np.clip(t, 0, 1)
+    out = lut[np.round(np.nan_to_num(t) * 255).astype(int)]
+    out[~np.isfinite(values)] = colormaps.NEUTRAL_RGB
+    return out
+
+
+def test_continuous_colours_follow_the_default_log_percentile_stretch(loaded, cloud):
+    s = ViewSettings(cell_size=0.25, model="ols", colormap="cividis")
+    assert s.stretch == colormaps.ROUGHNESS_STRETCH
     got = point_colours(loaded.result(s), s, loaded.display_index)
     core = grid_roughness(cloud, 0.25)  # independent call to the core
-    norm = normalise(core.theta_ols)[core.point_cell[loaded.display_index]]
-    lut = colormaps.lut("cividis")
-    t = np.clip((norm - 0.1) / 0.7, 0, 1)
-    want = lut[np.round(t * 255).astype(int)]
+    v = core.theta_ols
+    ok = np.isfinite(v) & (v > 0)
+    top = np.percentile(v[ok], 98)
+    lo, hi = np.percentile(v[ok & (v >= top / 1e4)], [2, 98])
+    want = _log_stretch_colours(v[core.point_cell[loaded.display_index]], lo, hi, "cividis")
     assert np.array_equal(got, want)
     # left half is smooth, right half rough: colour brightness follows
     x = cloud.x[loaded.display_index] - cloud.x.min()
     luma = got.astype(float) @ [0.2126, 0.7152, 0.0722]
     assert luma[x > 2.5].mean() > luma[x < 1.5].mean() + 50
+    # no single colour covers half of the points (min-max did on skewed maps)
+    stats = map_stats(loaded.result(s), s)
+    t = colormaps.positions(v[core.point_cell[loaded.display_index]], stats.colour_range)
+    assert colormaps.largest_colour_share(t) < 0.1
+
+
+def test_an_absolute_stretch_gives_one_colour_one_roughness_on_every_grid(loaded):
+    pinned = colormaps.Stretch.absolute_mm(0.5, 8.0, log=True)
+    for g in (0.25, 0.5):
+        s = ViewSettings(cell_size=g, stretch=pinned)
+        res = loaded.result(s)
+        stats = map_stats(res, s)
+        assert (stats.colour_range.lo, stats.colour_range.hi) == (0.0005, 0.008)
+        got = point_colours(res, s, loaded.display_index)
+        theta = res.theta_odr[res.point_cell[loaded.display_index]]
+        # the colour is one function of θ on both grids (same limits, same map)
+        assert np.array_equal(got, _log_stretch_colours(theta, 0.0005, 0.008, "viridis"))
+    # the default (percentile) stretch resolves on each grid's own cells instead
+    r1 = map_stats(loaded.result(ViewSettings(cell_size=0.25)), ViewSettings(cell_size=0.25))
+    r2 = map_stats(loaded.result(ViewSettings(cell_size=0.5)), ViewSettings(cell_size=0.5))
+    assert r1.colour_range.hi != r2.colour_range.hi
 
 
 def test_binary_colours_and_threshold(loaded, cloud):
@@ -118,8 +153,30 @@ def test_check_settings_rejects_bad_input():
         check_settings(ViewSettings(colormap="jet"))
 
 
+def test_presets_come_from_the_point_spacing_and_are_nested(loaded, cloud):
+    from rough_viewer.grid.spacing import default_cell_size
+
+    g = default_cell_size(cloud)
+    assert loaded.presets == (8 * g, 4 * g, 2 * g, g) == (0.64, 0.32, 0.16, 0.08)
+    assert loaded.default_cell_size == loaded.fine_cell_size == g
+    # the typical occupied cell of the default grid holds at least 16 points
+    ijk = np.floor((cloud.xyz() - cloud.xyz().min(axis=0)) / g).astype(np.int64)
+    _, counts = np.unique(ijk, axis=0, return_counts=True)
+    assert np.median(counts) >= 16
+
+
+def test_presets_in_feet_are_round_numbers_of_feet(cloud):
+    from dataclasses import replace
+
+    in_ft = replace(cloud, source_unit="ft")
+    presets = state_mod.grid_presets(in_ft)
+    ft = [round(p / 0.3048, 9) for p in presets]
+    assert ft == [8 * ft[-1], 4 * ft[-1], 2 * ft[-1], ft[-1]]
+    assert f"{ft[-1]:g}" in ("0.25", "0.3", "0.4", "0.5")  # readable in feet
+
+
 def test_presets_coarsened_from_fine_grid_equal_direct_core(cloud):
-    fresh = LoadedCloud(cloud, max_display=1000)
+    fresh = LoadedCloud(cloud, max_display=1000, presets=(1.0, 0.5, 0.25, 0.125))
     fine = fresh.prepared(0.125)
     assert fresh.prepared(1.0) is not fine and fresh.prepared(0.125) is fine
     for size in (1.0, 0.5, 0.3):
@@ -146,3 +203,15 @@ def test_the_grid_cache_is_bounded_by_bytes(cloud):
     assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
     a = np.zeros(5)
     assert nbytes((a, a[1:], {"x": a})) == a.nbytes  # views count once
+
+
+def test_the_grid_on_screen_stays_cached_while_others_come_and_go(cloud):
+    loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
+    shown = ViewSettings(cell_size=0.3)
+    first = loaded.result(shown)
+    loaded.mark_shown(shown)
+    for g in (0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
+        loaded.result(ViewSettings(cell_size=g))
+    assert loaded.cached_bytes <= 2_000_000
+    assert loaded.is_cached(shown) and loaded.result(shown) is first
+    assert not loaded.is_cached(ViewSettings(cell_size=0.35))  # the others were evicted

@@ -35,6 +35,7 @@ from rough_viewer.visual.colormaps import Stretch
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient
+from tests.helpers import PAPER_PRESETS
 from tests.io.test_las_out import make_pf3
 
 PANELS = ("colour_bar", "histogram", "variogram", "summary")
@@ -44,6 +45,7 @@ def _app(server, path: Path, settings: ViewSettings | None = None):
     from rough_viewer.app.server import build_app
 
     app = build_app(server, load_points(path), settings=settings, prefetch=False,
+                    presets=PAPER_PRESETS,
                     data_dir=path.parent)
     assert app.wait_idle(60)
     return app
@@ -256,7 +258,7 @@ def _hostile(scan: Path, tmp_path: Path, change) -> Path:
 HOSTILE = {
     "cell size a string": lambda d: d["grid"].update(cell_size_m="0.5; rm -rf /"),
     "huge cell size": lambda d: d["grid"].update(cell_size_m=1e300),
-    "cell size beyond the app": lambda d: d["grid"].update(cell_size_m=5000.0),
+    "cell size beyond the app": lambda d: d["grid"].update(cell_size_m=50_000.0),
     "huge min points": lambda d: d["grid"].update(min_points=10**30),
     "huge camera": lambda d: d["camera"].update(position=[1e308, 0, 0]),
     "threshold a list": lambda d: d.update(threshold=[0.1]),

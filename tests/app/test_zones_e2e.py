@@ -8,13 +8,14 @@ import os
 import numpy as np
 import pytest
 
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.app.zones_mode import HIGHLIGHT_RGB, ZonesMode
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import hex_to_rgb
 from tests.app import browser as b
 from tests.app.test_zones_mode import BANDS
-from tests.helpers import banded_face
+from tests.helpers import PAPER_PRESETS, banded_face
 
 pytestmark = pytest.mark.browser
 
@@ -30,7 +31,8 @@ def live():
 
     pts, _ = banded_face(90.0, 180.0, BANDS, rough=0.01, n=100_000, seed=3)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = build_app(server, PointCloud.from_xyz(pts, source="banded face"), prefetch=False)
+    app = build_app(server, PointCloud.from_xyz(pts, source="banded face"), prefetch=False,
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     app.gui.threshold.value = 0.2
     assert app.wait_idle(60)
     with sync_playwright() as p:

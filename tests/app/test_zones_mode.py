@@ -12,6 +12,7 @@ import pytest
 from rough_viewer.app import hooks
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app, on_scene_click
+from rough_viewer.app.state import ViewSettings
 from rough_viewer.app.zones_mode import (
     HIGHLIGHT_RGB,
     NO_ZONE,
@@ -25,7 +26,7 @@ from rough_viewer.report.view import ZoneSettings
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import InputError, hex_to_rgb
 from tests.app.protocol import ProtocolClient
-from tests.helpers import banded_face
+from tests.helpers import PAPER_PRESETS, banded_face
 
 #: Three rough bands (1 cm noise on a 1 mm face): along strike, at 60 and -30 degrees.
 BANDS = [(-1.3, -1.6, 5.0, 0.6, 0.0), (2.3, 1.0, 3.4, 0.6, 60.0), (-2.2, 1.6, 2.8, 0.4, -30.0)]
@@ -41,7 +42,8 @@ def banded():
 
 @pytest.fixture
 def zapp(server, banded):
-    app = build_app(server, banded[0], prefetch=False)
+    app = build_app(server, banded[0], prefetch=False, presets=PAPER_PRESETS,
+                    settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
     app.gui.threshold.value = 0.2
     m = app.mode(ZonesMode)
@@ -207,6 +209,8 @@ def test_connectivity_and_minimum_size(zapp):
     app, m = zapp
     app.load(cloud=patches_cloud())
     assert app.wait_idle(60)
+    app.gui.grid_free.value = 0.25  # the grid the patches were laid out on (a new cloud
+    assert app.wait_idle(60)        # opens at its own default grid)
     counts = {}
     for label, conn in (("face (6)", "face"), ("edge (18)", "edge"), ("vertex (26)", "vertex")):
         for min_cells in (1, 3, 4):
@@ -257,7 +261,8 @@ def test_another_cloud_gets_its_own_zone_cloud(zapp, banded):
 @pytest.fixture
 def hostile(banded):
     server, _gate = open_server("127.0.0.1", 0, token="tok", log=False)
-    app = build_app(server, banded[0], prefetch=False)
+    app = build_app(server, banded[0], prefetch=False, presets=PAPER_PRESETS,
+                    settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
     m = app.mode(ZonesMode)
     app.gui.threshold.value = 0.2
@@ -330,7 +335,8 @@ def test_labellers_are_cached_within_a_byte_budget(server, banded):
     cloud = banded[0]
     one = nbytes(zone_basis(grid_roughness(cloud, 0.25), "odr", np.arange(cloud.n)))
     # room for one basis and a stereonet, not for two bases
-    app = build_app(server, cloud, prefetch=False, cache_bytes=int(2 * 1.5 * one))
+    app = build_app(server, cloud, prefetch=False, cache_bytes=int(2 * 1.5 * one),
+                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     try:
         assert app.wait_idle(60)
         m = app.mode(ZonesMode)

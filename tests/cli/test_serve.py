@@ -56,3 +56,62 @@ def test_serve_merges_several_inputs_and_globs(tmp_path, capsys):
     assert main(["serve", str(tmp_path / "part*.npy"), "--port", "0", "--grid", "0.5",
                  "--no-block"]) == 0
     assert "6,000 points, open http://127.0.0.1:" in capsys.readouterr().out
+
+
+def _labels_and_status(proc_args):
+    """Start ``serve`` with ``proc_args`` as a real process; the grid dropdown's
+    label and options and the status line it sends."""
+    from tests.app.protocol import ProtocolClient
+    from tests.app.serve_process import ServeProcess
+
+    proc = ServeProcess(*proc_args, "--no-token")
+    client = ProtocolClient(proc.port, "/")
+    try:
+        grid = client.wait_for(lambda m: m.get("type") == "GuiDropdownMessage"
+                               and str(m["props"].get("label", "")).startswith("Grid size"),
+                               what="the grid dropdown")
+        status = client.wait_for(lambda m: "points shown of" in str(m), what="the status")
+        return grid["props"]["label"], tuple(grid["props"]["options"]), grid["value"], str(status)
+    finally:
+        client.close()
+        proc.stop()
+
+
+def test_serve_units_from_the_option_and_from_the_las_crs(tmp_path):
+    import laspy
+
+    from tests.helpers import face_cloud
+
+    xyz = face_cloud(8000).xyz()
+    local = xyz - xyz.min(axis=0)
+    np.save(tmp_path / "joint.npy", local * 1000.0)  # the face in millimetres
+    label, options, value, status = _labels_and_status(
+        [str(tmp_path / "joint.npy"), "--units", "mm"])
+    assert label == "Grid size (mm)"
+    assert options == ("1200", "600", "300", "150", "free") and value == "150"
+    assert "grid 150 mm" in status
+    # --grid is in --units too
+    label, _, value, status = _labels_and_status(
+        [str(tmp_path / "joint.npy"), "--units", "mm", "--grid", "600"])
+    assert value == "600" and "grid 600 mm" in status
+    # a LAS whose CRS is in US survey feet: feet without --units
+    wkt = ('PROJCS["NAD83 / California zone 3 (ftUS)",GEOGCS["NAD83",DATUM["D",SPHEROID["GRS 1980",'
+           '6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],'
+           'PROJECTION["Lambert_Conformal_Conic_2SP"],UNIT["US survey foot",0.304800609601219],'
+           'AUTHORITY["EPSG","2227"]]')
+    hdr = laspy.LasHeader(point_format=3, version="1.4")
+    hdr.scales = np.array([1e-4] * 3)
+    hdr.vlrs.append(laspy.VLR("LASF_Projection", 2112, "", wkt.encode() + b"\0"))
+    las = laspy.LasData(hdr)
+    feet = local / 0.3048006096
+    las.x, las.y, las.z = feet.T
+    las.write(str(tmp_path / "face_ft.las"))
+    label, options, value, status = _labels_and_status([str(tmp_path / "face_ft.las")])
+    assert label == "Grid size (US ft)"
+    assert options[-2] == value and f"grid {value} US ft" in status
+    assert float(value) in (0.25, 0.3, 0.4, 0.5)  # a readable size in feet
+
+
+def test_serve_rejects_units_with_a_demo(capsys):
+    assert main(["serve", "--demo", "outcrop-small", "--units", "mm", "--no-block"]) == 2
+    assert "--units applies to INPUT files" in capsys.readouterr().err

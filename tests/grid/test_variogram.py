@@ -218,3 +218,45 @@ def test_explicit_max_lag_that_cannot_fit_is_refused(monkeypatch):
     monkeypatch.setattr(memory, "available_bytes", lambda: 1e5)
     with pytest.raises(InputError, match="semivariogram .* needs about"):
         semivariogram(ijk, values, 0.5, max_lag=40.0)
+
+
+def test_progress_counts_blocks_and_chunks_and_a_raising_callback_stops_it(monkeypatch):
+    import rough_viewer.grid.variogram as vmod
+
+    g = 0.5
+    ijk, values = _two_patches(gap=512)
+    plan = plan_semivariogram(ijk, values, g, max_lag=3.0, method="fft")
+    calls: list[tuple[int, int]] = []
+    vg = semivariogram(ijk, values, g, max_lag=3.0, method="fft",
+                       progress=lambda d, t: calls.append((d, t)))
+    # one call before the first block and one after each of the plan's blocks
+    assert calls == [(k, plan.n_blocks) for k in range(plan.n_blocks + 1)]
+    same = semivariogram(ijk, values, g, max_lag=3.0, method="fft")
+    np.testing.assert_array_equal(vg.pairs, same.pairs)
+    # direct pairs: rows done out of all rows, a chunk at a time (chunks made small)
+    monkeypatch.setattr(vmod, "PAIR_CHUNK_BYTES", 48 * len(values) * 100)
+    rows: list[tuple[int, int]] = []
+    semivariogram(ijk, values, g, max_lag=3.0, method="pairs",
+                  progress=lambda d, t: rows.append((d, t)))
+    n = len(values)
+    assert rows == [(0, n)] + [(min(s + 100, n), n) for s in range(0, n, 100)]
+
+    class Stop(Exception):
+        pass
+
+    seen: list[int] = []
+
+    def stop_after_first_block(done: int, total: int) -> None:
+        seen.append(done)
+        if done >= 1:
+            raise Stop
+
+    with pytest.raises(Stop):
+        semivariogram(ijk, values, g, max_lag=3.0, method="fft",
+                      progress=stop_after_first_block)
+    assert seen == [0, 1]  # stopped after the first of the plan's blocks
+    with pytest.raises(Stop):  # the face semivariogram passes it on
+        face_semivariogram(np.column_stack([ijk[:, 0], ijk[:, 1], np.zeros(len(ijk))]) * g,
+                           values, g, SimpleNamespace(centroid=np.zeros(3),
+                                                      normal=np.array([0.0, 0.0, 1.0])),
+                           max_lag=3.0, progress=stop_after_first_block)
