@@ -104,8 +104,12 @@ def test_threshold_switches_to_binary_view(live):
     lo, hi = lut[0], lut[-1]
 
     def two_colours(img):
+        # both colours present: a frame drawn at a threshold typed halfway ("0") is
+        # nearly all one colour and must not end the wait
         c = b.coloured_mask(img)
-        return c.mean() > 0.05 and (_share_near(img, lo) + _share_near(img, hi)) / c.mean() > 0.8
+        return (c.mean() > 0.05
+                and (_share_near(img, lo) + _share_near(img, hi)) / c.mean() > 0.8
+                and _share_near(img, lo) > 0.01 and _share_near(img, hi) > 0.01)
 
     img = b.wait_pixels(page, two_colours, 60, "two-colour binary view")
     assert _share_near(img, lo) > 0.01 and _share_near(img, hi) > 0.01
