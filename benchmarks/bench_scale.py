@@ -63,8 +63,9 @@ def _write_files(folder: Path, n: int, n_files: int) -> None:
         write_las(p, PointCloud(x=cloud.x[a:b], y=cloud.y[a:b], z=cloud.z[a:b]))
 
 
-def run(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
-    """Wall time (s) and peak RSS (bytes) of one child process.
+def run(argv: list[str], env: dict[str, str]) -> tuple[float, float, float]:
+    """Wall time (s), peak RSS (bytes) and CPU time (s, user + system, the child's
+    own worker processes included) of one child process.
 
     The peak is GNU time's ``%M`` where ``/usr/bin/time`` exists: a child forked
     from this (large) process would inherit its high-water mark in ``ru_maxrss``."""
@@ -82,7 +83,7 @@ def run(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
     for line in err.splitlines():
         if line.startswith("RV_MAXRSS_KB="):
             peak = float(line.split("=", 1)[1]) * 1024.0
-    return wall, peak
+    return wall, peak, usage.ru_utime + usage.ru_stime
 
 
 def read_cells(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -144,9 +145,10 @@ def main() -> None:
         for w in args.workers:
             configs.append((f"--memory {args.memory} --scheduler processes --workers {w}",
                             [*mem, "--scheduler", "processes", "--workers", str(w)], "cold"))
-        print(f"{'configuration':<50} {'cache':>5} {'wall s':>7} {'Mpts/s':>7} {'peak RSS':>9}"
-              "  cells")
+        print(f"{'configuration':<50} {'cache':>5} {'wall s':>7} {'Mpts/s':>7} {'CPU s':>6} "
+              f"{'peak RSS':>9}  cells")
         ref_out = None
+        dask_ref: Path | None = None
         times: dict[tuple[str, str], float] = {}
         for label, extra, cache_mode in configs:
             out = tmp / f"cells-{len(times)}.csv"
@@ -155,19 +157,28 @@ def main() -> None:
             env = dict(os.environ, ROUGH_VIEWER_CACHE=str(cache))
             if cache_mode == "warm":
                 run(argv, env)  # fills the cache
-            walls, peaks = [], []
+            walls, peaks, cpus = [], [], []
             for _ in range(args.repeat):
                 if cache_mode == "cold":
                     shutil.rmtree(cache, ignore_errors=True)
-                wall, peak = run(argv, env)
+                wall, peak, cpu = run(argv, env)
                 walls.append(wall)
                 peaks.append(peak)
+                cpus.append(cpu)
             wall = statistics.median(walls)
             times[(label, cache_mode)] = wall
             verdict = "reference" if ref_out is None else compare(ref_out, out)
             ref_out = ref_out or out
+            if "--scheduler" in extra:  # every worker count: the same bits as the first
+                if dask_ref is None:
+                    dask_ref = out
+                else:
+                    same = compare(dask_ref, out)
+                    verdict += "; " + ("same bits as the first Dask row" if same == "identical"
+                                       else f"vs the first Dask row: {same}")
             print(f"{label:<50} {cache_mode:>5} {wall:>7.2f} {n / wall / 1e6:>7.2f} "
-                  f"{max(peaks) / 2**30:>7.2f} G  {verdict}", flush=True)
+                  f"{statistics.median(cpus):>6.1f} {max(peaks) / 2**30:>7.2f} G  {verdict}",
+                  flush=True)
         for mode in ("cold", "warm"):
             ratio = times[(f"--memory {args.memory}", mode)] / times[("in memory", mode)]
             print(f"\n--memory {args.memory} / in memory, {mode} cache: {ratio:.2f}x", end="")

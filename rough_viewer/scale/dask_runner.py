@@ -2,12 +2,13 @@
 ``rough_viewer[dask]``).
 
 The graph of one pass: one task per chunk (``rv-map-<pass>-<i>``: read the chunk
-with :func:`~rough_viewer.scale.sources.read_chunk`, run the pass on it), then per
-grid a binary tree of :func:`~rough_viewer.scale.partials.merge` tasks, the same
-tree as :func:`~rough_viewer.scale.partials.reduce_partials` (chunk order), so the
-result is the same bits for any number of workers and any order of completion. The
-pass's parameters (grids, and in pass 2 the per-cell planes) are one key of the
-graph, sent once to each worker.
+with :func:`~rough_viewer.scale.sources.read_chunk`, run the pass on it), then one
+binary tree of merge tasks (``rv-merge-*``, each adding its two subtrees' tables grid
+by grid with :func:`~rough_viewer.scale.partials.merge`): per grid the same tree as
+:func:`~rough_viewer.scale.partials.reduce_partials` (chunk order), so the result
+is the same bits for any number of workers and any order of completion. The pass's
+parameters (grids, and in pass 2 the per-cell planes) are one key of the
+graph (a distributed scheduler sends it once to each worker).
 
 Schedulers:
 
@@ -42,6 +43,19 @@ def _map_chunk(source: Source, chunk: Chunk, task: ChunkTask) -> list[Partial]:
 
 def _pick(parts: list[Partial], i: int) -> Partial:
     return parts[i]
+
+
+def _merge_lists(a: list[Partial], b: list[Partial]) -> list[Partial]:
+    """Output by output, ``merge(a[g], b[g])``: the same additions as one tree per output."""
+    return [merge(x, y) for x, y in zip(a, b, strict=True)]
+
+
+def _one_thread() -> None:
+    """Start of a pool process: its tasks run on one thread (:attr:`DaskRunner.inner_threads`),
+    so numba need not start a thread per core in each of the pool's processes."""
+    import os
+
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 
 def _import_dask() -> Any:
@@ -135,7 +149,7 @@ class DaskRunner:
 
             self._pool = ProcessPoolExecutor(
                 max_workers=int(self.workers or os.cpu_count() or 1),
-                mp_context=multiprocessing.get_context("spawn"))
+                mp_context=multiprocessing.get_context("spawn"), initializer=_one_thread)
         return self._pool
 
     def __enter__(self) -> DaskRunner:
@@ -156,18 +170,17 @@ class DaskRunner:
         maps = [delayed(_map_chunk, pure=True)(sources[c.source], c, task_d,
                                                 dask_key_name=f"rv-map-{run}-{i}")
                 for i, c in enumerate(chunks)]
-        finals = []
-        for g in range(n_out):
-            level = [delayed(_pick, pure=True)(m, g, dask_key_name=f"rv-pick-{run}-{g}-{i}")
-                     for i, m in enumerate(maps)]
-            depth = 0
-            while len(level) > 1:
-                level = [delayed(merge, pure=True)(level[i], level[i + 1],
-                                                   dask_key_name=f"rv-merge-{run}-{g}-{depth}-{i}")
-                         if i + 1 < len(level) else level[i]
-                         for i in range(0, len(level), 2)]
-                depth += 1
-            finals.append(level[0])
+        # one tree for all outputs: each merge task adds the lists of two subtrees
+        # output by output (no task per output and chunk just to pick its table)
+        level, depth = list(maps), 0
+        while len(level) > 1:
+            level = [delayed(_merge_lists, pure=True)(
+                         level[i], level[i + 1], dask_key_name=f"rv-merge-{run}-{depth}-{i}")
+                     if i + 1 < len(level) else level[i]
+                     for i in range(0, len(level), 2)]
+            depth += 1
+        finals = [delayed(_pick, pure=True)(level[0], g, dask_key_name=f"rv-pick-{run}-{g}")
+                  for g in range(n_out)]
         if self._client is not None:
             return self._run_distributed(maps, finals, chunks, on_chunk)
         from dask.callbacks import Callback
