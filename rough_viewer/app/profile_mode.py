@@ -14,7 +14,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
@@ -23,9 +23,11 @@ import viser
 from rough_viewer.app import scene
 from rough_viewer.app.jobs import Pick
 from rough_viewer.app.limits import MAX_PROFILES
+from rough_viewer.app.markup import md
+from rough_viewer.app.state import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
-from rough_viewer.profiles.fractal import RoughnessLength, roughness_length
+from rough_viewer.profiles.fractal import RoughnessLength, detrend, roughness_length
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
 from rough_viewer.vocabulary import (
     DECOMPOSITIONS,
@@ -42,9 +44,30 @@ if TYPE_CHECKING:
     from rough_viewer.app.server import App
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
+#: Widest band half-width the Profile tab takes, metres.
+MAX_BAND_M = 10.0
 #: Vertical exaggeration choices of the profile plot: "auto" (fitted height range)
 #: or E times (heights drawn E times as long as distances along the line).
 EXAGGERATIONS: tuple[str, ...] = ("auto", "1×", "2×", "5×", "10×", "20×", "50×", "100×")
+#: Trend removal choices: "none" or the degree of the polynomial taken off the
+#: heights before de-noising and fitting (:func:`rough_viewer.profiles.fractal.detrend`).
+DETRENDS: tuple[str, ...] = ("none", "degree 1", "degree 2", "degree 3")
+
+
+def detrend_of(choice: str) -> int | None:
+    """The degree of a trend-removal entry: None for ``none``.
+
+    >>> detrend_of("none"), detrend_of("degree 2")
+    (None, 2)
+    """
+    if choice not in DETRENDS:
+        raise InputError(f"unknown trend removal {choice!r}")
+    return None if choice == "none" else int(choice.split()[1])
+
+
+def detrend_choice(degree: int | None) -> str:
+    """The dropdown entry of a degree (None: ``none``)."""
+    return "none" if degree is None else f"degree {int(degree)}"
 
 
 def exaggeration_of(choice: str) -> float | None:
@@ -69,6 +92,9 @@ class ProfileSettings:
     mode: Mode = "hard"
     band_half_width: float | None = None
     """Metres; None = the local point spacing."""
+    detrend: int | None = None
+    """Degree of the polynomial trend removed from the heights before de-noising and
+    fitting; None = none (each window of the fit is detrended linearly anyway)."""
     exaggeration: float | None = None
     """Vertical exaggeration of the profile plot (display only): None = the height
     axis fitted to the data (default); a number E draws 1 mm of height E times as
@@ -80,10 +106,29 @@ class ProfileAnalysis:
     """One profile with its de-noised version and both roughness-length fits."""
 
     profile: Profile
+    """The analysed profile: the extracted one, minus its trend where one is removed."""
     denoised: Denoised
     raw_fit: RoughnessLength
     denoised_fit: RoughnessLength
     settings: ProfileSettings
+    extracted: Profile | None = None
+    """The profile as extracted (None: the same as :attr:`profile`)."""
+
+    @property
+    def source(self) -> Profile:
+        """The extracted profile (before any trend removal)."""
+        return self.extracted if self.extracted is not None else self.profile
+
+    def surface_heights(self) -> np.ndarray:
+        """The de-noised heights with the removed trend put back (metres): where the
+        de-noised line lies on the rock."""
+        return np.asarray(self.denoised.heights) + (np.asarray(self.source.heights)
+                                                    - np.asarray(self.profile.heights))
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The plausibility warnings of both fits, each once."""
+        return tuple(dict.fromkeys(self.raw_fit.warnings + self.denoised_fit.warnings))
 
 
 def analyse(points: np.ndarray, start: np.ndarray, end: np.ndarray,
@@ -96,22 +141,30 @@ def analyse(points: np.ndarray, start: np.ndarray, end: np.ndarray,
 
 
 def redo(profile: Profile, settings: ProfileSettings) -> ProfileAnalysis:
-    """De-noise and fit an extracted profile again with other settings."""
-    den = denoise_result(profile.heights, wavelet=settings.wavelet, level=settings.level,
+    """De-noise and fit an extracted profile again with other settings (its trend
+    removed first where ``settings.detrend`` asks)."""
+    used = profile
+    if settings.detrend is not None:
+        used = replace(profile, heights=detrend(profile.heights, profile.spacing,
+                                                degree=settings.detrend))
+    den = denoise_result(used.heights, wavelet=settings.wavelet, level=settings.level,
                          decomposition=settings.decomposition, threshold=settings.threshold,
                          mode=settings.mode)
-    return ProfileAnalysis(profile, den, roughness_length(profile.heights, profile.spacing),
-                           roughness_length(den.heights, profile.spacing), settings)
+    return ProfileAnalysis(used, den, roughness_length(used.heights, used.spacing),
+                           roughness_length(den.heights, used.spacing), settings,
+                           extracted=None if used is profile else profile)
 
 
 def profiles_csv(analyses: list[ProfileAnalysis]) -> str:
-    """CSV of every sample of every profile (metres, file frame)."""
+    """CSV of every sample of every profile (metres, file frame): the analysed
+    heights (minus the trend where one is removed), the de-noised ones, and the
+    sample's point on the rock."""
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["profile", "distance_m", "height_m", "denoised_m", "x", "y", "z",
                 "D_raw", "D_denoised"])
     for k, a in enumerate(analyses, start=1):
-        xyz = a.profile.sample_xyz()
+        xyz = a.source.sample_xyz()
         for i, d in enumerate(a.profile.distance):
             w.writerow([k, f"{d:.6f}", f"{a.profile.heights[i]:.7g}",
                         f"{a.denoised.heights[i]:.7g}", f"{xyz[i, 0]:.4f}", f"{xyz[i, 1]:.4f}",
@@ -120,15 +173,30 @@ def profiles_csv(analyses: list[ProfileAnalysis]) -> str:
     return out.getvalue()
 
 
-def summary_markdown(analyses: list[ProfileAnalysis]) -> str:
-    """The kept profiles as a Markdown table (numbers only)."""
+def summary_markdown(analyses: list[ProfileAnalysis], units: Units | None = None) -> str:
+    """The kept profiles as a Markdown table (numbers only): lengths in the cloud's
+    unit, the noise in its roughness unit (m and mm by default)."""
     if not analyses:
         return "Tick *Profile mode* and click two points on the rock."
-    rows = ["| # | length (m) | σ noise (mm) | D raw | D de-noised |", "|---|---|---|---|---|"]
+    u = units or Units("m")
+    rows = [f"| # | length ({u.label}) | σ noise ({u.rough_label}) | D raw | D de-noised |",
+            "|---|---|---|---|---|"]
     for k, a in enumerate(analyses, start=1):
-        rows.append(f"| {k} | {a.profile.length:.2f} | {1e3 * a.denoised.sigma:.2f} | "
+        rows.append(f"| {k} | {u.length(a.profile.length):.4g} | {u.rough(a.denoised.sigma):.3g} | "
                     f"{a.raw_fit.dimension:.3f} | {a.denoised_fit.dimension:.3f} |")
+    notes = [f"- ⚠ **P{k}**: {md(w)}" for k, a in enumerate(analyses, start=1)
+             for w in a.warnings]
+    if notes:
+        rows += ["", *notes]
+        if any("trend" in w for a in analyses for w in a.warnings):
+            rows.append("- *Remove trend* (degree 2) takes a curved profile's trend off "
+                        "before the fit.")
     return "\n".join(rows)
+
+
+def band_label(units: Units) -> str:
+    """The label of the band half-width control."""
+    return f"Band half-width ({units.label})"
 
 
 @dataclass
@@ -143,6 +211,7 @@ class ProfileMode:
     threshold: viser.GuiDropdownHandle[str]
     mode: viser.GuiDropdownHandle[str]
     band: viser.GuiNumberHandle[float]
+    detrend: viser.GuiDropdownHandle[str]
     exaggeration: viser.GuiDropdownHandle[str]
     note: viser.GuiMarkdownHandle
     plot: viser.GuiPlotlyHandle
@@ -155,11 +224,17 @@ class ProfileMode:
     nodes: list[list[viser.SceneNodeHandle]] = field(default_factory=list)
     """Scene nodes of each kept profile (the pending start's marker last)."""
 
+    @property
+    def units(self) -> Units:
+        """How the shown cloud's lengths are shown (the band is typed in its unit)."""
+        return self.app.shown.loaded.units
+
     def settings(self) -> ProfileSettings:
-        """The de-noising settings the controls show."""
-        bw = float(self.band.value)
+        """The de-noising settings the controls show (the band in metres)."""
+        bw = float(self.band.value) * self.units.per
         return ProfileSettings(
             wavelet=self.wavelet.value, level=int(self.level.value),
+            detrend=detrend_of(self.detrend.value),
             decomposition=cast(Decomposition, self.decomposition.value),
             threshold=cast(ThresholdRule, self.threshold.value),
             mode=cast(Mode, self.mode.value),
@@ -171,8 +246,11 @@ class ProfileMode:
         from rough_viewer.visual.app import panel_aspect
         from rough_viewer.visual.profiles import profile_figure
 
-        self.note.content = summary_markdown(self.items)
-        fig = profile_figure(self.items, exaggeration=exaggeration_of(self.exaggeration.value))
+        u = self.units
+        self.note.content = summary_markdown(self.items, u)
+        fig = profile_figure(self.items, exaggeration=exaggeration_of(self.exaggeration.value),
+                             length_unit=(u.label, u.per),
+                             height_unit=(u.rough_label, u.rough_per))
         if fig.layout.height is not None:
             self.plot.aspect = panel_aspect(fig)
         self.plot.figure = fig
@@ -209,7 +287,7 @@ class ProfileMode:
         sized in pixels); ``start`` None when its marker is drawn already. Points in
         the display frame."""
         colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        on_surface = app.shown.loaded.to_local(a.profile.sample_xyz(a.denoised.heights))
+        on_surface = app.shown.loaded.to_local(a.source.sample_xyz(a.surface_heights()))
         lift = float(app.gui.point_size.value) + 3.0 * float(a.denoised.sigma)
         nodes: list[viser.SceneNodeHandle] = []
         if start is not None:
@@ -246,6 +324,11 @@ class ProfileMode:
         self._keep(a)
         return a
 
+    def on_cloud(self, app: App) -> None:
+        """Another cloud is shown: the band is typed in its unit."""
+        self.band.label = band_label(self.units)
+        self.band.max = self.units.length(MAX_BAND_M)
+
     def clear_all(self) -> None:
         for nodes in self.nodes:
             for node in nodes:
@@ -270,7 +353,7 @@ class DenoiseJob(Job["App"]):
         redone = []
         for a in self.mode.items:
             run.check()
-            redone.append(redo(a.profile, self.settings))
+            redone.append(redo(a.source, self.settings))
         yield "denoise"
         self.mode.items = redone
         self.mode.refresh()
@@ -325,6 +408,7 @@ def mount(app: App) -> ProfileMode:
     m = _add_controls(app)
     _wire(app, m)
     app.click_handlers.append(m.on_pick)
+    app.cloud_handlers.append(m.on_cloud)
     return m
 
 
@@ -346,8 +430,14 @@ def _add_controls(app: App) -> ProfileMode:
                                        initial_value="fixed"),
             mode=gui.add_dropdown("Threshold mode", ("hard", "soft"),
                                   initial_value="hard"),
-            band=gui.add_number("Band half-width (m)", 0.0, min=0.0, max=10.0, step=0.001,
+            band=gui.add_number(band_label(app.shown.loaded.units), 0.0, min=0.0,
+                                max=app.shown.loaded.units.length(MAX_BAND_M), step=0.001,
                                 hint="0 = the local point spacing"),
+            detrend=gui.add_dropdown(
+                "Remove trend", DETRENDS, initial_value="none",
+                hint="Take a polynomial trend of this degree off the heights before "
+                "de-noising and the fractal fit (for curved faces: D below 1 is the mark "
+                "of a trend)."),
             exaggeration=gui.add_dropdown(
                 "Vertical exaggeration", EXAGGERATIONS, initial_value="auto",
                 hint="auto: the height axis spans the profile's relief; 1× is true scale; "
@@ -358,7 +448,7 @@ def _add_controls(app: App) -> ProfileMode:
             download=gui.add_button("Download CSV"),
         )
     app.controls.allow(m.on, m.wavelet, m.level, m.decomposition, m.threshold, m.mode,
-                       m.band, m.exaggeration, m.clear, m.download)
+                       m.band, m.detrend, m.exaggeration, m.clear, m.download)
     return m
 
 
@@ -374,7 +464,7 @@ def _wire(app: App, m: ProfileMode) -> None:
     def clear(_event: object) -> None:
         app.submit(ClearProfilesJob(m))
 
-    for control in (m.wavelet, m.level, m.decomposition, m.threshold, m.mode):
+    for control in (m.wavelet, m.level, m.decomposition, m.threshold, m.mode, m.detrend):
         control.on_update(denoise)
     m.exaggeration.on_update(replot)
     m.clear.on_click(clear)

@@ -84,13 +84,13 @@ def profile_picks(app: App) -> tuple[ProfilePick, ...]:
     picks = []
     for a in mode.items:
         s = a.settings
-        p0, p1 = a.profile.start, a.profile.end
+        p0, p1 = a.source.start, a.source.end
         picks.append(ProfilePick(
             start=(float(p0[0]), float(p0[1]), float(p0[2])),
             end=(float(p1[0]), float(p1[1]), float(p1[2])),
             band_half_width_m=None if s.band_half_width is None else float(s.band_half_width),
             wavelet=s.wavelet, level=int(s.level), decomposition=s.decomposition,
-            threshold_rule=s.threshold, mode=s.mode))
+            threshold_rule=s.threshold, mode=s.mode, detrend=s.detrend))
     return tuple(picks)
 
 
@@ -291,7 +291,11 @@ def _set_profile_controls(mode: ProfileMode, pick: ProfilePick) -> None:
             assign(handle, value)
     if mode.level.min <= pick.level <= mode.level.max:
         assign(mode.level, int(pick.level))
-    band = pick.band_half_width_m or 0.0
+    from rough_viewer.app.profile_mode import DETRENDS, detrend_choice
+
+    if pick.detrend is None or detrend_choice(pick.detrend) in DETRENDS:
+        assign(mode.detrend, detrend_choice(pick.detrend))
+    band = (pick.band_half_width_m or 0.0) / mode.units.per  # the control is in the cloud's unit
     if mode.band.max is None or band <= mode.band.max:
         assign(mode.band, float(band))
 
@@ -317,7 +321,8 @@ class RestoreProfilesJob(Job["App"]):
             settings = ProfileSettings(wavelet=pick.wavelet, level=pick.level,
                                        decomposition=pick.decomposition,
                                        threshold=pick.threshold_rule, mode=pick.mode,
-                                       band_half_width=pick.band_half_width_m)
+                                       band_half_width=pick.band_half_width_m,
+                                       detrend=pick.detrend)
             try:
                 self.mode.add_profile(ctx, np.asarray(pick.start), np.asarray(pick.end),
                                       settings)

@@ -58,7 +58,7 @@ from rough_viewer.app.jobs import Pick
 from rough_viewer.app.layout import assign
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import ByteCache, LoadedCloud
+from rough_viewer.app.state import ByteCache, LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
@@ -245,27 +245,32 @@ def status_markdown(lab: Labelling, seconds: float, cached: bool) -> str:
     how = "labeller cached" if cached else "labeller built"
     zones = "1 zone" if lab.n_zones == 1 else f"{lab.n_zones:,} zones"
     return (f"**{zones}** at {describe_params(lab.params)}, grid "
-            f"{lab.result.grid.cell_size:g} m: {in_zones:,} of {valid:,} cells with a value "
+            f"{lab.loaded.units.size_text(lab.result.grid.cell_size)}: "
+            f"{in_zones:,} of {valid:,} cells with a value "
             f"({share:.1f} %)  \nre-labelled and coloured in {seconds:.2f} s ({how})")
 
 
-def zone_markdown(zones: Zones, zone: int) -> str:
-    """Markdown of one zone's numbers (lengths m, areas m², angles °, roughness mm)."""
+def zone_markdown(zones: Zones, zone: int, units: Units | None = None) -> str:
+    """Markdown of one zone's numbers: lengths and areas in the cloud's unit (m, m²
+    by default), angles °, roughness in its roughness unit (mm for metric input)."""
     if not 1 <= zone <= zones.n_zones:
         return "No zone selected: click a zone on the rock or pick one in the list."
     i = zone - 1
-    c = zones.centroid[i]
+    u = units or Units("m")
+    c = zones.centroid[i] / u.per
+    lw = f"{u.length(zones.length_m[i]):.3g} × {u.length(zones.width_m[i]):.3g} {u.label}"
     rows = [
         ("cells / points", f"{int(zones.cells[i]):,} / {int(zones.points[i]):,}"),
-        ("area on the face", f"{zones.area_m2[i]:.3g} m²"),
-        ("length × width", f"{zones.length_m[i]:.3g} × {zones.width_m[i]:.3g} m"),
+        ("area on the face", f"{zones.area_m2[i] / u.per**2:.3g} {u.label}²"),
+        ("length × width", lw),
         ("trace azimuth / plunge",
          f"{azimuth_text(zones.trace_azimuth_deg[i])}° / {zones.trace_plunge_deg[i]:02.0f}°"),
         ("dip / dip direction",
          f"{zones.dip_deg[i]:02.0f}° / {azimuth_text(zones.dip_direction_deg[i])}°"),
         (f"mean / max θ {MAP_LABELS[zones.map_name]}",
-         f"{1e3 * zones.mean_theta[i]:.3g} / {1e3 * zones.max_theta[i]:.3g} mm"),
-        ("centroid x, y, z", f"{c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f} m"),
+         f"{u.rough(zones.mean_theta[i]):.3g} / {u.rough(zones.max_theta[i]):.3g} "
+         f"{u.rough_label}"),
+        ("centroid x, y, z", f"{c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f} {u.label}"),
     ]
     lines = [f"**Zone {zone}** of {zones.n_zones:,}", "", "| | |", "|---|---|"]
     lines += [f"| {md(k)} | {md(v)} |" for k, v in rows]
@@ -491,11 +496,13 @@ class ZonesMode:
         if lab is None or zones is None or zones.labels is not lab.labels:
             return
         zone = lab.zone_at(self.anchor)
-        self.numbers.content = zone_markdown(zones, zone)
+        units = lab.loaded.units
+        self.numbers.content = zone_markdown(zones, zone, units)
         res = lab.result
         self.table.figure = _compact(zones_table_figure(
             zones, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
-            selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS))
+            selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS,
+            unit=units.unit))
         self.table.aspect = table_aspect(min(zones.n_zones, MAX_ZONE_ROWS))
         self._sync_dropdown(zones, zone)
 
@@ -511,7 +518,7 @@ class ZonesMode:
             net, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
             highlight={f"zone {k}": lab.labels == k for k in ids},
             colours={f"zone {k}": colormaps.zone_colour(k) for k in ids},
-            max_poles=PANEL_POLES)
+            max_poles=PANEL_POLES, unit=lab.loaded.units.unit)
         self.stereonet.figure = _compact(fig)
 
     def _sync_dropdown(self, zones: Zones, zone: int) -> None:

@@ -70,13 +70,13 @@ def figures_and_errors(report: Report, section: GridSection
     zones, net, result = section.zones, section.stereonet, section.result
     if zones is not None and net is not None and result is not None:
         shown = range(1, min(zones.n_zones, STEREONET_ZONES) + 1)
-        zkw = {k: v for k, v in kw.items() if k != "unit"}  # zone figures are in metres
-        draw("zones_table", lambda: zones_table_figure(zones, **zkw))
+        draw("zones_table", lambda: zones_table_figure(zones, **kw))
         draw("zones_map", lambda: zones_map_figure(zones, result, plane=report.plane,
-                                                   raster=report_raster(result, report.plane)))
+                                                   raster=report_raster(result, report.plane),
+                                                   unit=report.unit))
         draw("stereonet", lambda: stereonet_figure(
             net, highlight={f"zone {k}": zones.labels == k for k in shown},
-            colours={f"zone {k}": zone_colour(k) for k in shown}, **zkw))
+            colours={f"zone {k}": zone_colour(k) for k in shown}, **kw))
     return figures, errors
 
 

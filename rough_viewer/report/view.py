@@ -29,7 +29,7 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "panels": ["table", "histogram"],
      "profiles": [{"start": [x, y, z], "end": [x, y, z], "band_half_width_m": null,
                    "wavelet": "db3", "level": 3, "decomposition": "dwt",
-                   "threshold_rule": "fixed", "mode": "hard"}],
+                   "threshold_rule": "fixed", "mode": "hard", "detrend": null}],
      "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null},
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
                 "fov_deg": 50.0}}
@@ -144,6 +144,8 @@ class ProfilePick:
     decomposition: Decomposition = "dwt"
     threshold_rule: ThresholdRule = "fixed"
     mode: Mode = "hard"
+    detrend: int | None = None
+    """Degree of the trend removed before de-noising and fitting; None = none."""
 
 
 @dataclass(frozen=True)
@@ -518,7 +520,8 @@ def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
     import pywt
 
     p = r.obj(value, where, ["start", "end"], ["band_half_width_m", "wavelet", "level",
-                                               "decomposition", "threshold_rule", "mode"])
+                                               "decomposition", "threshold_rule", "mode",
+                                               "detrend"])
     start, end = r.vec3(p["start"], f"{where}.start"), r.vec3(p["end"], f"{where}.end")
     if start == end:
         raise r.fail(where, "has the same start and end")
@@ -535,6 +538,7 @@ def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
         threshold_rule=r.choice(p.get("threshold_rule", default.threshold_rule),
                                 f"{where}.threshold_rule", THRESHOLD_RULES),
         mode=r.choice(p.get("mode", default.mode), f"{where}.mode", MODES),
+        detrend=_optional(p.get("detrend"), lambda v: r.integer(v, f"{where}.detrend", 0, 5)),
     )
 
 

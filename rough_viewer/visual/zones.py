@@ -22,14 +22,16 @@ from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.zones import Zones
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.grid import describe
-from rough_viewer.vocabulary import MAP_LABELS, InputError
+from rough_viewer.vocabulary import MAP_LABELS, ROUGHNESS_UNIT, UNIT_LABELS, UNIT_METRES, InputError
 
 #: Poles drawn at most per trace (evenly spaced subset); the density uses them all.
 MAX_POLES_DRAWN = 20_000
 
 
-def _title(what: str, *, grid_size: float, axis: str, n_points: int, map_name: str) -> dict:
-    sub = describe(grid_size=grid_size, axis=axis, n_points=n_points, models=(map_name,))
+def _title(what: str, *, grid_size: float, axis: str, n_points: int, map_name: str,
+           unit: str = "m") -> dict:
+    sub = describe(grid_size=grid_size, axis=axis, n_points=n_points, models=(map_name,),
+                   unit=unit)
     return {"text": f"{what}<br><sup>{sub}</sup>", "x": 0.01, "xanchor": "left"}
 
 
@@ -48,27 +50,44 @@ def azimuth_text(deg: float) -> str:
     return f"{int(round(float(deg))) % 360:03d}"
 
 
-def _table_columns(zones: Zones, n: int) -> dict[str, tuple[str, int, list[str]]]:
-    """Every table column of the ``n`` largest zones: key -> (header, width, cells)."""
+def display_units(unit: str) -> tuple[float, str, float, str]:
+    """(metres per unit, label) of lengths and of roughness for coordinates in
+    ``unit``: the unit itself, and mm for metric input (the input's unit otherwise).
+
+    >>> display_units("m"), display_units("ft")
+    ((1.0, 'm', 0.001, 'mm'), (0.3048, 'ft', 0.3048, 'ft'))
+    """
+    if unit not in UNIT_METRES:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+    rough = ROUGHNESS_UNIT.get(unit, unit)
+    return UNIT_METRES[unit], UNIT_LABELS[unit], UNIT_METRES[rough], UNIT_LABELS[rough]
+
+
+def _table_columns(zones: Zones, n: int, unit: str = "m"
+                   ) -> dict[str, tuple[str, int, list[str]]]:
+    """Every table column of the ``n`` largest zones: key -> (header, width, cells);
+    lengths in ``unit``, roughness in its roughness unit."""
+    f, u, rf, ru = display_units(unit)
     return {
         "zone": ("zone", 32, [f"<b>{i}</b>" for i in range(1, n + 1)]),
         "cells": ("cells", 55, [f"{c:,}" for c in zones.cells[:n]]),
         "points": ("points", 70, [f"{p:,}" for p in zones.points[:n]]),
-        "area": ("area (m²)", 60, [f"{a:.3g}" for a in zones.area_m2[:n]]),
-        "length": ("length (m)", 60, [f"{v:.3g}" for v in zones.length_m[:n]]),
-        "width": ("width (m)", 60, [f"{v:.3g}" for v in zones.width_m[:n]]),
-        "size": ("length × width (m)", 100,
-                 [f"{a:.3g} × {b:.3g}" for a, b in zip(zones.length_m[:n], zones.width_m[:n], strict=True)]),
+        "area": (f"area ({u}²)", 60, [f"{a / f**2:.3g}" for a in zones.area_m2[:n]]),
+        "length": (f"length ({u})", 60, [f"{v / f:.3g}" for v in zones.length_m[:n]]),
+        "width": (f"width ({u})", 60, [f"{v / f:.3g}" for v in zones.width_m[:n]]),
+        "size": (f"length × width ({u})", 100,
+                 [f"{a / f:.3g} × {b / f:.3g}"
+                  for a, b in zip(zones.length_m[:n], zones.width_m[:n], strict=True)]),
         "trace": ("trace (az/plunge °)", 90,
                   [f"{azimuth_text(t)} / {p:02.0f}" for t, p in zip(zones.trace_azimuth_deg[:n],
                                                           zones.trace_plunge_deg[:n], strict=True)]),
         "dip": ("dip / direction (°)", 95,
                 [f"{d:02.0f} / {azimuth_text(a)}" for d, a in zip(zones.dip_deg[:n],
                                                         zones.dip_direction_deg[:n], strict=True)]),
-        "mean_theta": ("mean θ (mm)", 65, [f"{v * 1e3:.3g}" for v in zones.mean_theta[:n]]),
-        "max_theta": ("max θ (mm)", 65, [f"{v * 1e3:.3g}" for v in zones.max_theta[:n]]),
-        "centroid": ("centroid x, y, z (m)", 170,
-                     [", ".join(f"{c:.2f}" for c in row) for row in zones.centroid[:n]]),
+        "mean_theta": (f"mean θ ({ru})", 65, [f"{v / rf:.3g}" for v in zones.mean_theta[:n]]),
+        "max_theta": (f"max θ ({ru})", 65, [f"{v / rf:.3g}" for v in zones.max_theta[:n]]),
+        "centroid": (f"centroid x, y, z ({u})", 170,
+                     [", ".join(f"{c / f:.2f}" for c in row) for row in zones.centroid[:n]]),
     }
 
 
@@ -89,6 +108,7 @@ def zones_table_figure(
     selected: int | None = None,
     max_rows: int = 50,
     columns: Sequence[str] = TABLE_COLUMNS,
+    unit: str = "m",
 ) -> go.Figure:
     """The zone table, largest zone first (ids 1..Z), each id in its zone colour.
 
@@ -103,10 +123,13 @@ def zones_table_figure(
     columns : sequence of str
         Which columns, in order (:data:`TABLE_COLUMNS`, the default, or
         :data:`COMPACT_COLUMNS`; also ``size``: length x width); ``zone`` first.
+    unit : {"m", "mm", "ft", "us-ft"}
+        Unit lengths are shown in (the input's); roughness in mm for metric input,
+        else in ``unit``. The numbers in ``zones`` stay metres.
     """
     n = min(zones.n_zones, int(max_rows))
     ids = np.arange(1, n + 1)
-    every = _table_columns(zones, n)
+    every = _table_columns(zones, n, unit)
     unknown = [c for c in columns if c not in every]
     if unknown or not columns or columns[0] != "zone":
         raise InputError(f"table columns must start with 'zone' and be among {', '.join(every)}")
@@ -123,7 +146,8 @@ def zones_table_figure(
     more = f" (the {n} largest shown)" if n < zones.n_zones else ""
     fig.update_layout(
         title=_title(f"{_count(zones.n_zones, 'zone')}{more}: {_zone_settings(zones)}",
-                     grid_size=grid_size, axis=axis, n_points=n_points, map_name=zones.map_name),
+                     grid_size=grid_size, axis=axis, n_points=n_points, map_name=zones.map_name,
+                     unit=unit),
         # rows are about 31 px; beyond 1000 px the table scrolls
         height=int(min(1000, 170 + 31 * max(n, 1))), margin={"l": 10, "r": 10, "t": 80, "b": 10},
     )
@@ -136,6 +160,7 @@ def zones_map_figure(
     *,
     plane: Plane | None = None,
     raster: FaceRaster | None = None,
+    unit: str = "m",
 ) -> go.Figure:
     """The zones on the face plane (the frame of the face maps): each zone in its
     colour, other cells with a value light grey, white where no cell has a value.
@@ -150,7 +175,10 @@ def zones_map_figure(
         The face plane; default the whole-cloud ODR plane ``result.whole_plane``.
     raster : FaceRaster, optional
         :func:`rough_viewer.grid.maps.face_raster` of the cell centres, if at hand.
+    unit : {"m", "mm", "ft", "us-ft"}
+        Unit of the face axes and the caption's grid size.
     """
+    f, u, _rf, _ru = display_units(unit)
     g = result.grid.cell_size
     face = plane if plane is not None else result.whole_plane
     r = raster if raster is not None else face_raster(result.centre, face, g)
@@ -170,14 +198,16 @@ def zones_map_figure(
     rows, cols = image.shape
     aspect = rows / cols if cols else 0.3
     fig = go.Figure(go.Heatmap(
-        z=slot, x=img.u, y=img.v, zmin=-0.5, zmax=k + 0.5, colorscale=scale, showscale=False,
-        customdata=image, hovertemplate="u %{x:.2f} m, v %{y:.2f} m, zone %{customdata}<extra></extra>",
+        z=slot, x=np.asarray(img.u) / f, y=np.asarray(img.v) / f, zmin=-0.5, zmax=k + 0.5,
+        colorscale=scale, showscale=False, customdata=image,
+        hovertemplate=f"u %{{x:.2f}} {u}, v %{{y:.2f}} {u}, zone %{{customdata}}<extra></extra>",
     ))
-    fig.update_yaxes(scaleanchor="x", scaleratio=1, title_text="v, up the face (m)")
-    fig.update_xaxes(title_text="u, along the face (m)")
+    fig.update_yaxes(scaleanchor="x", scaleratio=1, title_text=f"v, up the face ({u})")
+    fig.update_xaxes(title_text=f"u, along the face ({u})")
     fig.update_layout(
         title=_title(f"Zones on the face plane: {_zone_settings(zones)}", grid_size=g,
-                     axis=result.axis, n_points=result.n_points_total, map_name=zones.map_name),
+                     axis=result.axis, n_points=result.n_points_total, map_name=zones.map_name,
+                     unit=unit),
         height=int(110 + float(np.clip(900 * aspect, 160, 600)) + 70), width=1000,
         margin={"l": 60, "r": 10, "t": 90, "b": 40}, plot_bgcolor="white",
     )
@@ -207,6 +237,7 @@ def stereonet_figure(
     colours: Mapping[str, str] | None = None,
     what: str = "cell poles",
     max_poles: int = MAX_POLES_DRAWN,
+    unit: str = "m",
 ) -> go.Figure:
     """Lower-hemisphere equal-area (Schmidt) stereonet: density contours of the poles
     at 1, 2, 4, 8 ... multiples of a uniform distribution (MUD), the poles, and
@@ -226,6 +257,8 @@ def stereonet_figure(
         What the poles are, for the title.
     max_poles : int
         Poles drawn per trace at most (an evenly spaced subset); the contours use all.
+    unit : {"m", "mm", "ft", "us-ft"}
+        Unit of the caption's grid size.
     """
     fig = go.Figure()
     if np.isfinite(net.density).any():
@@ -282,7 +315,7 @@ def stereonet_figure(
     fig.update_layout(
         title=_title(f"Stereonet of {what}: lower hemisphere, equal area; density "
                      f"σ {net.smoothing_deg:g}°", grid_size=grid_size, axis=axis,
-                     n_points=n_points, map_name="odr"),
+                     n_points=n_points, map_name="odr", unit=unit),
         height=620, width=720, plot_bgcolor="white",
         margin={"l": 10, "r": 10, "t": 80, "b": 10},
         legend={"x": 0.0, "y": -0.02, "yanchor": "top", "orientation": "h"},

@@ -55,3 +55,96 @@ def test_analyse_is_independent_of_the_app(cloud):
     a = analyse(xyz, xyz[0], xyz[0] + [2.0, 0.0, 0.0], ProfileSettings(level=2))
     assert a.denoised.level == 2 and np.isfinite(a.raw_fit.dimension)
     assert 1.0 <= a.raw_fit.dimension <= 2.2
+
+
+def test_a_cloud_in_feet_has_its_profiles_in_feet(server):
+    """Band typed in feet, the table and the plot in feet (as the Map tab shows them)."""
+    from dataclasses import replace
+
+    from rough_viewer.app.server import build_app
+    from tests.helpers import face_cloud
+
+    ft = 0.3048
+    app = build_app(server, replace(face_cloud(20_000), source_unit="ft"), prefetch=False)
+    try:
+        assert app.wait_idle(60)
+        m = app.mode(ProfileMode)
+        assert m.band.label == "Band half-width (ft)"
+        assert m.band.max == pytest.approx(10.0 / ft)
+        m.band.value = 0.5
+        assert m.settings().band_half_width == pytest.approx(0.5 * ft)
+        m.on.value = True
+        pts = app.shown.loaded.display_points
+        i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+        j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+        click_on(app, i)
+        click_on(app, j)
+        assert list(app.errors) == [] and len(m.items) == 1
+        a = m.items[0]
+        assert a.settings.band_half_width == pytest.approx(0.5 * ft)
+        assert "| # | length (ft) | σ noise (ft) |" in m.note.content
+        assert f"| 1 | {a.profile.length / ft:.4g} |" in m.note.content
+        fig = m.plot.figure
+        assert fig.layout.xaxis.title.text == "distance along the line (ft)"
+        np.testing.assert_allclose(fig.data[0].y, a.profile.heights / ft)
+    finally:
+        app.stop()
+
+
+def _curved_profile():
+    """A 2 m profile across a face bent like a barrel (a 0.2 m bulge) with 0.5 mm
+    noise: the bend makes s(w) grow faster than w (D < 1) unless it is removed."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0, 2, (60_000, 2))
+    z = 0.2 * (xy[:, 0] - 1.0) ** 2 + 0.0005 * rng.standard_normal(len(xy))
+    pts = np.column_stack([xy, z])
+    return extract_profile(pts, np.array([0.05, 1.0, 0.0]), np.array([1.95, 1.0, 0.0]))
+
+
+def test_a_curved_profile_warns_and_removing_its_trend_fixes_it():
+    from rough_viewer.app.profile_mode import redo, summary_markdown
+    from rough_viewer.profiles.fractal import detrend
+
+    prof = _curved_profile()
+    bent = redo(prof, ProfileSettings())
+    assert bent.denoised_fit.dimension < 1.0 and bent.warnings  # de-noised: the bend is left
+    text = summary_markdown([bent])
+    assert "⚠ **P1**" in text and "below 1" in text and "*Remove trend*" in text
+    flat = redo(prof, ProfileSettings(detrend=2))
+    assert 1.0 <= flat.raw_fit.dimension <= 2.0 and 1.0 <= flat.denoised_fit.dimension <= 2.0
+    assert flat.warnings == ()
+    assert "⚠" not in summary_markdown([flat])
+    # the analysed heights are the extracted ones minus the trend; the source is kept
+    assert flat.source is prof and flat.profile is not prof
+    np.testing.assert_allclose(flat.profile.heights, detrend(prof.heights, prof.spacing),
+                               equal_nan=True)
+    # the de-noised line drawn on the rock is back on the rock (trend put back)
+    ok = np.isfinite(prof.heights)
+    assert np.nanmax(np.abs(flat.surface_heights() - prof.heights)[ok]) < 0.003
+    # de-noising again starts from the extracted profile, not the detrended one
+    again = redo(flat.source, ProfileSettings(detrend=None))
+    np.testing.assert_allclose(again.profile.heights, prof.heights, equal_nan=True)
+
+
+def test_the_remove_trend_control_redoes_the_kept_profiles(app):
+    m = app.mode(ProfileMode)
+    m.on.value = True
+    pts = app.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    click_on(app, i)
+    click_on(app, j)
+    assert len(m.items) == 1 and m.items[0].settings.detrend is None
+    m.detrend.value = "degree 2"
+    assert app.wait_idle(60)
+    a = m.items[0]
+    assert a.settings.detrend == 2 and a.extracted is not None
+    from rough_viewer.profiles.fractal import detrend
+
+    np.testing.assert_allclose(a.profile.heights, detrend(a.source.heights, a.source.spacing),
+                               equal_nan=True)
+    text = profiles_csv(m.items).splitlines()
+    row = text[1].split(",")
+    xyz = a.source.sample_xyz()[0]
+    assert [float(v) for v in row[4:7]] == pytest.approx(xyz, abs=1e-4)  # on the rock
+    m.on.value = False

@@ -1,4 +1,4 @@
-"""Profile figure: heights in mm over a range fitted to the data, optional exaggeration."""
+"""Profile figure: heights in mm or the cloud's unit, range fitted to the data, exaggeration."""
 
 from __future__ import annotations
 
@@ -64,3 +64,28 @@ def test_empty_and_flat_profiles():
                            denoised=SimpleNamespace(heights=np.full(5, 0.001)))
     lo, hi = height_range_mm([flat])
     assert lo < 1.0 < hi and hi - lo == pytest.approx(0.2 * (1 + 2 * HEIGHT_MARGIN))
+
+
+def test_units_follow_the_cloud(analyses):
+    """A cloud in feet: distances and heights in feet, the exaggeration still a ratio
+    of like lengths; a cloud in millimetres: distances in mm."""
+    ft = 0.3048
+    fig = profile_figure(analyses, length_unit=("ft", ft), height_unit=("ft", ft),
+                         exaggeration=20)
+    np.testing.assert_allclose(fig.data[0].x, analyses[0].profile.distance / ft)
+    np.testing.assert_allclose(fig.data[0].y, analyses[0].profile.heights / ft)
+    np.testing.assert_allclose(fig.data[2].y, analyses[0].raw_fit.s[np.isfinite(
+        analyses[0].raw_fit.s)] / ft)
+    assert fig.layout.xaxis.title.text == "distance along the line (ft)"
+    assert fig.layout.yaxis.title.text == "height (ft), ×20"
+    assert fig.layout.yaxis.scaleratio == pytest.approx(20.0)
+    assert fig.layout.xaxis2.title.text == "window w (ft)"
+    assert fig.layout.yaxis2.title.text == "s(w) (ft)"
+    lo, hi = fig.layout.yaxis.range
+    mm_lo, mm_hi = height_range_mm(analyses)
+    assert (lo, hi) == pytest.approx((mm_lo * 1e-3 / ft, mm_hi * 1e-3 / ft))
+    mm = profile_figure(analyses, length_unit=("mm", 1e-3), height_unit=("mm", 1e-3),
+                        exaggeration=2)
+    np.testing.assert_allclose(mm.data[0].x, analyses[0].profile.distance * 1e3)
+    assert mm.layout.yaxis.scaleratio == pytest.approx(2.0)
+    assert mm.layout.xaxis.title.text == "distance along the line (mm)"

@@ -118,3 +118,32 @@ def test_azimuths_are_written_in_000_to_359():
 
     assert [azimuth_text(a) for a in (0.0, 5.2, 89.6, 359.4, 359.7, 360.0)] == \
         ["000", "005", "090", "359", "000", "000"]
+
+
+def test_figures_follow_the_unit(zoned):
+    """A cloud in millimetres or feet: lengths, areas and the caption in its unit,
+    roughness in mm for metric input and in feet for feet."""
+    from rough_viewer.app.state import Units
+    from rough_viewer.app.zones_mode import zone_markdown
+
+    res, zones = zoned
+    mm = zones_table_figure(zones, unit="mm", **kw(res))
+    header = list(mm.data[0].header.values)
+    cols = mm.data[0].cells.values
+    assert header[3:6] == ["area (mm²)", "length (mm)", "width (mm)"]
+    assert cols[3][0] == f"{zones.area_m2[0] * 1e6:.3g}"
+    assert cols[4][1] == f"{zones.length_m[1] * 1e3:.3g}"
+    assert header[8] == "mean θ (mm)" and cols[8][0] == f"{zones.mean_theta[0] * 1e3:.3g}"
+    assert "grid 200 mm" in mm.layout.title.text
+    ft = zones_table_figure(zones, unit="ft", **kw(res))
+    assert list(ft.data[0].header.values)[8] == "mean θ (ft)"
+    assert ft.data[0].cells.values[8][0] == f"{zones.mean_theta[0] / 0.3048:.3g}"
+    face = zones_map_figure(zones, res, unit="ft")
+    plain = zones_map_figure(zones, res)
+    np.testing.assert_allclose(np.asarray(face.data[0].x), np.asarray(plain.data[0].x) / 0.3048)
+    assert face.layout.xaxis.title.text == "u, along the face (ft)"
+    text = zone_markdown(zones, 1, Units("ft")).replace("\\", "")  # md() escapes
+    assert f"{zones.length_m[0] / 0.3048:.3g} × {zones.width_m[0] / 0.3048:.3g} ft" in text
+    assert f"{zones.area_m2[0] / 0.3048**2:.3g} ft²" in text
+    with pytest.raises(InputError, match="unknown unit"):
+        zones_table_figure(zones, unit="furlong", **kw(res))
