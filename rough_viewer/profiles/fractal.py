@@ -137,8 +137,10 @@ def plausibility(dimension: float, hurst: float, ndim: Literal[1, 2], m_min: int
     if dimension < lo:
         return (f"fractal dimension D = {dimension:.2f} is below {lo:g} (H = {hurst:.2f} > 1): "
                 f"s(w) grows faster than the window, the mark of a trend or curvature in the "
-                f"{what} that each window's linear detrending does not remove; remove the trend "
-                "first (profiles.fractal.detrend, or --detrend 2 on the command line)",)
+                f"{what} that each window's linear detrending does not remove (remove the trend "
+                "first: profiles.fractal.detrend, or --detrend 2 on the command line), or of "
+                f"a {what} smoother than its windows ({m_min}-{m_max} samples; a mesh or an "
+                "over-sampled scan): use larger windows",)
     if dimension > lo + 1.0:
         return (f"fractal dimension D = {dimension:.2f} is above {lo + 1:g} (H = {hurst:.2f} < 0): "
                 f"s(w) falls as the window grows, so the {what} is too short for these windows "
