@@ -315,7 +315,7 @@ def _table_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
 
 def _figure_plan(shown: Shown, fmt: str, panel: str,
                  figures: tuple[tuple[str, Any], ...]) -> Plan:
-    from rough_viewer.visual.export import check_figure_export, figure_bytes
+    from rough_viewer.visual.export import check_figure_export, figure_bytes, image_session
 
     check_figure_export(fmt)  # type: ignore[arg-type]
     assert shown.result is not None
@@ -337,7 +337,8 @@ def _figure_plan(shown: Shown, fmt: str, panel: str,
 
     def write_all(path: Path, progress: Callable[[int, int], None]) -> None:
         def fill(fh: Any) -> None:
-            with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf, \
+                    image_session(fmt):  # type: ignore[arg-type]
                 for k, (n, fig) in enumerate(chosen):
                     progress(k, len(chosen))
                     zf.writestr(f"{base}_{safe_name(n)}.{fmt}",

@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
-    from rough_viewer.visual.export import write_figure
+    from rough_viewer.visual.export import image_session, write_figure
 
     given = tuple(dict.fromkeys(args.grid)) if args.grid else None
     settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
@@ -132,9 +132,10 @@ def run(args: argparse.Namespace) -> int:
         figures = png_figures(report)
         bar = None if quiet else ProgressBar("PNG figures")
         png_dir.mkdir(exist_ok=True)
-        for i, (name, fig) in enumerate(figures):
-            write_figure(fig, path_in_folder(png_dir, name), fmt="png")
-            if bar is not None:
-                bar(i + 1, len(figures))
+        with image_session("png"):
+            for i, (name, fig) in enumerate(figures):
+                write_figure(fig, path_in_folder(png_dir, name), fmt="png")
+                if bar is not None:
+                    bar(i + 1, len(figures))
         print(f"wrote {len(figures)} PNG figures to {png_dir}")
     return 0

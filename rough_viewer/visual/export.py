@@ -8,8 +8,11 @@ the content without a file, for a browser download.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,6 +37,44 @@ def figure_format(path: str | os.PathLike[str]) -> FigureFormat:
     if suffix not in FIGURE_FORMATS:
         raise InputError(f"figure file must end in .png, .svg or .html, got {path}")
     return suffix
+
+
+@contextlib.contextmanager
+def image_session(fmt: FigureFormat = "png") -> Iterator[None]:
+    """Keep one browser open for the PNG/SVG exports inside the block (kaleido's
+    persistent server, kaleido >= 1.1): a figure then takes about 0.1 s instead of
+    the ~2 s of starting Chromium for each. Does nothing for HTML, without kaleido,
+    with an older kaleido, or inside another session (the outer one closes it)."""
+    global _SESSION_OPEN
+    kaleido = None
+    if fmt in ("png", "svg") and not _SESSION_OPEN and importlib.util.find_spec("kaleido"):
+        import kaleido as _kaleido
+
+        if hasattr(_kaleido, "start_sync_server"):
+            kaleido = _kaleido
+    if kaleido is None:
+        yield
+        return
+    with warnings.catch_warnings():
+        # plotly notes that its per-call options are ignored by a running server
+        warnings.filterwarnings("ignore", message=".*kopts.*", category=UserWarning)
+        try:
+            kaleido.start_sync_server(silence_warnings=True)
+        except Exception:  # no browser it can start: each export then says why
+            yield
+            return
+        _SESSION_OPEN = True
+        try:
+            yield
+        finally:
+            _SESSION_OPEN = False
+            try:
+                kaleido.stop_sync_server(silence_warnings=True)
+            except Exception:  # pragma: no cover - closing a dead browser
+                pass
+
+
+_SESSION_OPEN = False
 
 
 def check_figure_export(fmt: FigureFormat) -> None:

@@ -292,9 +292,52 @@ def test_in_memory_cloud_points_and_no_view(server, tmp_path):
         app.stop()
 
 
-@pytest.mark.skipif(em._has("kaleido"), reason="kaleido installed")
-def test_without_kaleido_the_folder_says_so(exported):
+@pytest.mark.skipif(not em._has("kaleido"), reason="kaleido not installed (rough_viewer[images])")
+def test_png_and_svg_downloads(exported):
+    """With kaleido (rough_viewer[images]) and a Chromium it can start: the panels as
+    PNG (at twice the pixels of the figure's size) and as SVG."""
+    from PIL import Image
+
     app, client, _ = exported
     mode = app.mode(ExportMode)
-    assert tuple(mode.figure_format.options) == ("HTML",)
-    _said(client, "need the optional package kaleido", "the kaleido note")
+    assert tuple(mode.figure_format.options) == ("HTML", "PNG", "SVG")
+    client.set_value(em.L_FIGURE_FORMAT, "PNG")
+    client.set_value(em.L_FIGURE, "histogram")
+    name, data = _download(client, app, em.L_FIGURE_BUTTON, "_histogram.png")
+    image = Image.open(io.BytesIO(data))
+    assert image.format == "PNG" and image.size[0] >= 800
+    pixels = np.asarray(image.convert("RGB"))
+    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20  # bars, axes and text drawn
+    client.set_value(em.L_FIGURE_FORMAT, "SVG")
+    client.set_value(em.L_FIGURE, "summary")
+    _, data = _download(client, app, em.L_FIGURE_BUTTON, "_summary.svg")
+    svg = data.decode()
+    assert svg.startswith("<svg") and "Table 1" in svg
+    client.set_value(em.L_FIGURE_FORMAT, "PNG")  # every panel, one browser for all
+    client.set_value(em.L_FIGURE, em.ALL_FIGURES)
+    _, data = _download(client, app, em.L_FIGURE_BUTTON, "_figures_png.zip")
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        names = zf.namelist()
+        assert {n.rsplit("_", 1)[-1] for n in names} >= {"histogram.png", "summary.png"}
+        assert all(zf.read(n).startswith(b"\x89PNG\r\n\x1a\n") for n in names)
+    client.set_value(em.L_FIGURE_FORMAT, "HTML")
+    assert not any("export failed" in str(e) for e in app.errors)
+
+
+def test_without_kaleido_the_folder_says_so(server, monkeypatch):
+    from rough_viewer.app.server import build_app
+
+    monkeypatch.setattr(em, "_has", lambda module: module != "kaleido" and em.importlib.util
+                        .find_spec(module) is not None)
+    app = build_app(server, face_cloud(3_000), prefetch=False, presets=PAPER_PRESETS)
+    try:
+        assert app.wait_idle(60)
+        mode = app.mode(ExportMode)
+        assert tuple(mode.figure_format.options) == ("HTML",)
+        client = ProtocolClient(server.get_port())
+        try:
+            _said(client, "need the optional package kaleido", "the kaleido note")
+        finally:
+            client.close()
+    finally:
+        app.stop()

@@ -4,6 +4,7 @@ the command's input checks, and the page in headless Chromium."""
 from __future__ import annotations
 
 import importlib.util
+import sys
 import json
 import os
 import re
@@ -175,8 +176,8 @@ def test_command_refuses_bad_input(cloud_file, tmp_path, capsys):
     assert "absent.npy" in capsys.readouterr().err
 
 
-@pytest.mark.skipif(importlib.util.find_spec("kaleido") is not None, reason="kaleido installed")
-def test_png_without_kaleido_is_a_one_line_error(cloud_file, tmp_path, capsys):
+def test_png_without_kaleido_is_a_one_line_error(cloud_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "kaleido", None)  # as if not installed
     out = tmp_path / "r.html"
     rc = main(["report", str(cloud_file), "--grid", "0.5", "--out", str(out),
                "--png", str(tmp_path / "png"), "--quiet"])
@@ -212,6 +213,23 @@ def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
     assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(tmp_path / "r.html"),
                  "--png", str(png), "--quiet"]) == 2
     assert not (tmp_path / "r.html").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("kaleido") is None,
+                    reason="kaleido not installed (rough_viewer[images])")
+def test_png_export_draws_real_images(cloud_file, tmp_path):
+    """kaleido and Chromium draw every figure: real PNGs of the figure's size."""
+    from PIL import Image
+
+    png = tmp_path / "png"
+    rc = main(["report", str(cloud_file), "--grid", "0.5", "--out", str(tmp_path / "r.html"),
+               "--png", str(png), "--quiet"])
+    assert rc == 0
+    assert sorted(p.name for p in png.iterdir()) == sorted(f"g0.5_{f}.png" for f in FIGURE_NAMES)
+    for name in ("histogram", "summary"):
+        image = Image.open(png / f"g0.5_{name}.png")
+        assert image.format == "PNG" and min(image.size) > 300
+        assert len(np.unique(np.asarray(image.convert("RGB")).reshape(-1, 3), axis=0)) > 20
 
 
 CHROMIUM = "/usr/bin/chromium"
