@@ -81,11 +81,10 @@ def run(args: argparse.Namespace) -> int:
 
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.io.load import resolve_units
     from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import image_session, write_figure
-
-    from rough_viewer.io.load import resolve_units
 
     paths = input_paths(args)
     # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
