@@ -7,8 +7,9 @@ import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
-from rough_viewer.vocabulary import UNIT_METRES, UNITS, InputError
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, UNITS, InputError
 
 
 def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
@@ -110,3 +111,37 @@ def warn(lines: tuple[str, ...] | list[str]) -> None:
 def per_unit(unit: str) -> float:
     """Metres per ``unit``."""
     return UNIT_METRES[unit]
+
+
+def grid_sizes(values: list[float], unit: str) -> list[float]:
+    """The distinct ``--grid`` values in the order given, in ``unit``; each must be a
+    finite positive length (else one line naming the unit)."""
+    grids = list(dict.fromkeys(values))
+    for g in grids:
+        if not (math.isfinite(g) and g > 0):
+            raise InputError(f"--grid must be a positive length in {UNIT_LABELS[unit]}, "
+                             f"got {g:g}")
+    return grids
+
+
+@contextmanager
+def at_grid(g: float, unit: str) -> Iterator[None]:
+    """Name ``--grid G UNIT`` (as the user gave it) in an InputError raised inside,
+    unless the message shows that size already (the science speaks in metres)."""
+    shown = f"{g:g} {UNIT_LABELS[unit]}"
+    try:
+        yield
+    except InputError as exc:
+        text = str(exc)
+        if shown in text:
+            raise
+        raise InputError(f"--grid {shown}: {text}") from None
+
+
+def output_name(path: str | Path, grid: float, several: bool) -> Path:
+    """Output path for one grid size: ``name_g<G>.ext`` when there are several
+    (``cells.csv`` -> ``cells_g0.5.csv``; G as given, in the run's unit)."""
+    p = Path(path)
+    if not several:
+        return p
+    return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -35,11 +34,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_units, parse_xyz, per_unit
+from rough_viewer.cli._options import (
+    add_units,
+    at_grid,
+    grid_sizes,
+    output_name,
+    parse_xyz,
+    per_unit,
+)
 from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
-from rough_viewer.io.output import check_outputs, write_atomic
+from rough_viewer.io.output import all_or_nothing, check_outputs, write_atomic
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
@@ -86,14 +92,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def output_name(path: str, grid: float, several: bool) -> Path:
-    """Output path for one grid size: ``name_g<G>.ext`` when there are several."""
-    p = Path(path)
-    if not several:
-        return p
-    return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
-
-
 def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
                  warnings: tuple[str, ...] = ()) -> dict:
     """The SUMMARY.json content for one grid size, lengths in ``unit``."""
@@ -137,19 +135,16 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.io.load import resolve_units
     from rough_viewer.vocabulary import MODELS
 
-    grids = list(dict.fromkeys(args.grid))
-    for g in grids:
-        if not (math.isfinite(g) and g > 0):
-            raise InputError(f"--grid must be a positive length, got {g:g}")
     if args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
-    several = len(grids) > 1
     paths = input_paths(args)
-    outputs = _outputs(args, grids, several, paths)
-    quiet = args.quiet
     # every length given and shown is in the inputs' unit (--units, else the CRS's)
     unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
+    grids = grid_sizes(args.grid, unit)
+    several = len(grids) > 1
+    outputs = _outputs(args, grids, several, paths)
+    quiet = args.quiet
     per = per_unit(unit)
     metres = [g * per for g in grids]
     if origin is not None:
@@ -174,11 +169,18 @@ def run(args: argparse.Namespace) -> int:
             progress=None if quiet else ProgressBar(f"grid {g:g} {UNIT_LABELS[unit]}",
                                                     unit="step"),
         ) for g in grids)
-    for i, (g, result) in enumerate(zip(grids, results, strict=True)):
-        if i:
-            print()
-        print(format_table(result, source=source, unit=unit))
-        _write_outputs(outputs, g, result, cloud, dropped, source, args, unit)
+    written: list[str] = []
+    with all_or_nothing():  # a failed grid or write leaves none of the run's outputs
+        results_iter = iter(results)
+        for i, g in enumerate(grids):
+            with at_grid(g, unit):
+                result = next(results_iter)
+            if i:
+                print()
+            print(format_table(result, source=source, unit=unit))
+            written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit)
+    for line in written:
+        print(line)
     return 0
 
 
@@ -207,8 +209,9 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
 
 def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
                    cloud: PointCloud | None, dropped: int, source: str,
-                   args: argparse.Namespace, unit: str = "m") -> None:
-    """Write every output of one grid size and say so."""
+                   args: argparse.Namespace, unit: str = "m") -> list[str]:
+    """Write every output of one grid size; return the lines that say so (printed
+    once the run's outputs are all in place)."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
     from rough_viewer.io.las_out import write_las_fields
@@ -229,19 +232,19 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
 
         write_atomic(outputs["summary_json"][g], dump)
         written.append(str(outputs["summary_json"][g]))
-    if written:
-        print("wrote " + " and ".join(written))
+    lines = ["wrote " + " and ".join(written)] if written else []
     wants_points = "las_out" in outputs or "ply_out" in outputs
     fields = point_fields(result) if wants_points and cloud is not None else None
     if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
         info = write_las_fields(path, cloud, fields,
                                 progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
-        print(f"wrote {path}: {info}")
+        lines.append(f"wrote {path}: {info}")
     if "ply_out" in outputs and fields is not None and cloud is not None:
         path = outputs["ply_out"][g]
         info = write_ply_fields(path, cloud, fields, comments=[
             f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
             f"grid {g:g} {UNIT_LABELS[unit]}, axis {result.axis}, "
             "roughness in metres"])
-        print(f"wrote {path}: {info}")
+        lines.append(f"wrote {path}: {info}")
+    return lines

@@ -395,7 +395,8 @@ def run(args: argparse.Namespace) -> int:
             heights = detrend(heights, step, degree=args.detrend)
     with naming(f"{path}: {distance.size} samples"):
         comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level)
-    info["warnings"] = [f"{path}: {w}" for w in comparison.raw.warnings]
+    # every fit's dimension is checked: the raw profile's and each de-noised variant's
+    info["warnings"] = [f"{path}: {w}" for w in comparison.warnings]
     warn(info["warnings"])
 
     if csv_path is not None:

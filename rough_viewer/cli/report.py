@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_units, per_unit, warn
+from rough_viewer.cli._options import add_units, grid_sizes, per_unit, warn
 from rough_viewer.io.output import check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
@@ -81,11 +81,15 @@ def run(args: argparse.Namespace) -> int:
 
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.io.load import resolve_units
     from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import image_session, write_figure
 
-    given = tuple(dict.fromkeys(args.grid)) if args.grid else None
+    paths = input_paths(args)
+    # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
+    given = tuple(grid_sizes(args.grid, resolve_units(paths[0], args.units)[0])) \
+        if args.grid else None
     settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
                               axis=args.axis, threshold=args.threshold)
     try:
@@ -96,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
                              ("min points", "--min-points")):
             text = text.replace(word, option, 1) if text.startswith(word) else text
         raise InputError(text) from None
-    paths = input_paths(args)
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()
@@ -118,6 +121,10 @@ def run(args: argparse.Namespace) -> int:
         if args.png:
             png_dir, _ = _png_targets(args.png, [s.grid_size for s in report.sections],
                                       force=args.force)
+    failed = [s for s in report.sections if s.error is not None]
+    if failed and len(failed) == len(report.sections):  # nothing to report: refuse, write nothing
+        raise InputError("no grid size could be computed: " + "; ".join(
+            f"grid {s.grid_size / per:g} {u}: {s.error}" for s in failed))
     for s in report.sections:
         if s.error is not None:
             print(f"rough-viewer: grid {s.grid_size / per:g} {u}: {s.error}", file=sys.stderr)

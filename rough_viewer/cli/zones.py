@@ -2,17 +2,26 @@
 
 Contract (other tools script against it)::
 
-    rough-viewer zones INPUT [INPUT ...] --grid G [--method odr|ols|hybrid] [--axis auto|x|y|z]
-        [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
-        [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--force] [--quiet]
+    rough-viewer zones INPUT [INPUT ...] --grid G [--grid G2 ...] [--method odr|ols|hybrid]
+        [--axis auto|x|y|z] [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
+        [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--units m|mm|ft|us-ft]
+        [--force] [--quiet]
 
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
-:data:`rough_viewer.grid.zones.ZONE_COLUMNS` (theta in metres, angles in degrees,
-numbers at full precision as ``compute`` writes them). CELLS.csv: ``compute``'s
-columns (all three models; :func:`rough_viewer.grid.table.cell_columns`) plus
-``zone`` (0 = in no zone). Both go through :func:`rough_viewer.io.table.write_table`
+:data:`rough_viewer.grid.zones.ZONE_COLUMNS`, always in metres whatever ``--units``
+(``area_m2``, ``length_m``, ``width_m``, ``mean_theta``, ``max_theta``, ``cx, cy, cz``;
+angles in degrees; numbers at full precision as ``compute`` writes them). CELLS.csv:
+``compute``'s columns (all three models; :func:`rough_viewer.grid.table.cell_columns`)
+plus ``zone`` (0 = in no zone), lengths in ``--units`` exactly as ``compute --units``
+writes its cell table. Both go through :func:`rough_viewer.io.table.write_table`
 (a ``.parquet`` name writes Parquet, as ``compute``). Several inputs (files or
 quoted globs) are one merged cloud.
+
+``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
+input's coordinates, of ``--grid`` and of the summary printed. With several
+``--grid`` values every output name gets ``_g<G>`` before its extension, as in
+``compute`` (``zones.csv`` -> ``zones_g0.5.csv``). The outputs appear only when the
+whole run succeeds (:func:`rough_viewer.io.output.all_or_nothing`).
 """
 
 from __future__ import annotations
@@ -23,13 +32,21 @@ import math
 import numpy as np
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import positive, positive_int
-from rough_viewer.io.output import check_outputs
+from rough_viewer.cli._options import (
+    add_units,
+    at_grid,
+    grid_sizes,
+    output_name,
+    per_unit,
+    positive_int,
+)
+from rough_viewer.io.output import all_or_nothing, check_outputs
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
     DEFAULT_THRESHOLD,
     MAP_LABELS,
+    UNIT_LABELS,
     InputError,
 )
 
@@ -46,8 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "one CSV row per zone (size, area, extent, trace, orientation, roughness).",
     )
     add_inputs(p)
-    p.add_argument("--grid", type=positive, required=True, metavar="G",
-                   help="grid cell size in metres")
+    p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
+                   help="grid cell size in --units (default metres; repeat for several "
+                   "sizes: each output name then gets _g<G>, as in compute)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid"), default="odr",
                    help="roughness map whose normalised values are thresholded (default odr)")
     p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
@@ -63,41 +81,49 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(26, default)")
     p.add_argument("--min-points", type=int, default=None, metavar="K",
                    help="cells with fewer points get no value (default: as compute)")
-    p.add_argument("--out", required=True, metavar="ZONES.csv", help="per-zone CSV output")
+    p.add_argument("--out", required=True, metavar="ZONES.csv",
+                   help="per-zone CSV output, always in metres (area_m2, length_m, width_m, "
+                   "theta, centroid), whatever --units")
     p.add_argument("--cells-out", metavar="CELLS.csv",
-                   help="per-cell CSV output: compute's columns plus zone")
+                   help="per-cell CSV output: compute's columns plus zone, lengths in --units "
+                   "as compute writes them")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_units(p)
     p.set_defaults(func=run)
 
 
-def format_zones(zones, result, *, source: str) -> str:
-    """Readable summary of the zones (the first :data:`SHOWN`) for the terminal."""
+def format_zones(zones, result, *, source: str, unit: str = "m") -> str:
+    """Readable summary of the zones (the first :data:`SHOWN`) for the terminal,
+    lengths in ``unit`` (areas in its square)."""
     from rough_viewer.grid.orientation import dip_and_direction
 
+    per, u = per_unit(unit), UNIT_LABELS[unit]
     dip, dd = dip_and_direction(result.whole_plane.normal[None])
     valued = int(np.count_nonzero(np.isfinite(result.values(zones.map_name))))
     in_zones = int(zones.cells.sum())
     lines = [
-        f"{source}: {result.n_points_total:,} points, grid {zones.cell_size:g} m, "
+        f"{source}: {result.n_points_total:,} points, grid {zones.cell_size / per:g} {u}, "
         f"{MAP_LABELS[zones.map_name]} roughness, threshold {zones.threshold:g}, "
         f"{zones.connectivity} connectivity, zones of >= {zones.min_cells} cells",
         f"face (whole-cloud ODR plane): dip {dip[0]:.1f}, dip direction {dd[0]:.1f} deg",
         f"{zones.n_zones:,} zone{'s' if zones.n_zones != 1 else ''}, {in_zones:,} cells "
         f"({100.0 * in_zones / max(valued, 1):.1f} % of {valued:,} cells with a value), "
-        f"{float(zones.area_m2.sum()):.4g} m2 of face",
+        f"{float(zones.area_m2.sum()) / per**2:.4g} {u}2 of face",
     ]
     if zones.n_zones:
         lines.append("")
-        lines.append(f"{'zone':>5} {'cells':>7} {'points':>9} {'area m2':>9} {'length m':>9} "
-                     f"{'width m':>8} {'trace':>9} {'dip/dir':>9} {'mean theta m':>13}")
+        lines.append(f"{'zone':>5} {'cells':>7} {'points':>9} {'area ' + u + '2':>9} "
+                     f"{'length ' + u:>9} {'width ' + u:>8} {'trace':>9} {'dip/dir':>9} "
+                     f"{'mean theta ' + u:>13}")
         for k in range(min(SHOWN, zones.n_zones)):
             lines.append(
-                f"{k + 1:5d} {zones.cells[k]:7,} {zones.points[k]:9,} {zones.area_m2[k]:9.4g} "
-                f"{zones.length_m[k]:9.3g} {zones.width_m[k]:8.3g} "
+                f"{k + 1:5d} {zones.cells[k]:7,} {zones.points[k]:9,} "
+                f"{zones.area_m2[k] / per**2:9.4g} "
+                f"{zones.length_m[k] / per:9.3g} {zones.width_m[k] / per:8.3g} "
                 f"{zones.trace_azimuth_deg[k]:4.0f}/{zones.trace_plunge_deg[k]:<4.0f} "
                 f"{zones.dip_deg[k]:3.0f}/{zones.dip_direction_deg[k]:<5.0f} "
-                f"{zones.mean_theta[k]:13.4e}")
+                f"{zones.mean_theta[k] / per:13.4e}")
         if zones.n_zones > SHOWN:
             lines.append(f"  ... {zones.n_zones - SHOWN:,} more in the CSV")
     return "\n".join(lines)
@@ -109,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.grid.zones import ZoneLabeller
+    from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output, write_table
 
     if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
@@ -117,24 +144,43 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     inputs = input_paths(args)
     source = describe(inputs)
-    paths = check_outputs([args.out, *([args.cells_out] if args.cells_out else [])],
-                          force=args.force, inputs=inputs)
-    for path in paths:
+    # every length given and shown is in the inputs' unit (--units, else the CRS's)
+    unit, _ = resolve_units(inputs[0], args.units)
+    grids = grid_sizes(args.grid, unit)
+    several = len(grids) > 1
+    wanted = [("out", args.out), *([("cells_out", args.cells_out)] if args.cells_out else [])]
+    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in wanted}
+    for path in (p for by_grid in outputs.values() for p in by_grid.values()):
         check_table_output(path)
-    out, cells_out = paths[0], (paths[1] if len(paths) > 1 else None)
+    check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
+                  force=args.force, inputs=inputs)
     quiet = args.quiet
-    cloud = load_inputs(inputs, units=getattr(args, "units", None), quiet=quiet)
+    cloud = load_inputs(inputs, units=args.units, quiet=quiet)
+    per, u = per_unit(unit), UNIT_LABELS[unit]
     options = {} if args.min_points is None else {"min_points": args.min_points}
-    result = grid_roughness(cloud, args.grid, axis=args.axis,
-                            progress=None if quiet else ProgressBar(f"grid {args.grid:g} m"),
-                            **options)
-    zones = ZoneLabeller.build(result, args.method).zones(
-        args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
-    write_table(out, zones.table())
-    if cells_out is not None:
-        keep = result.n_points >= result.min_points  # the rows of cell_columns
-        write_table(cells_out, {**cell_columns(result), "zone": zones.labels[keep]},
-                    metadata=table_metadata(result, source))
-    print(format_zones(zones, result, source=source))
-    print(f"wrote {out}" + (f" and {cells_out}" if cells_out is not None else ""))
+    written: list[str] = []
+    with all_or_nothing():  # a failed grid or write leaves none of the run's outputs
+        for i, g in enumerate(grids):
+            with at_grid(g, unit):
+                result = grid_roughness(
+                    cloud, g * per, axis=args.axis,
+                    progress=None if quiet else ProgressBar(f"grid {g:g} {u}"), **options)
+            zones = ZoneLabeller.build(result, args.method).zones(
+                args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
+            out = outputs["out"][g]
+            write_table(out, zones.table())  # the ZONES.csv contract: metres
+            names = [str(out)]
+            if "cells_out" in outputs:
+                cells_out = outputs["cells_out"][g]
+                keep = result.n_points >= result.min_points  # the rows of cell_columns
+                write_table(cells_out,
+                            {**cell_columns(result, unit=unit), "zone": zones.labels[keep]},
+                            metadata=table_metadata(result, source, unit=unit))
+                names.append(str(cells_out))
+            if i:
+                print()
+            print(format_zones(zones, result, source=source, unit=unit))
+            written.append("wrote " + " and ".join(names))
+    for line in written:
+        print(line)
     return 0

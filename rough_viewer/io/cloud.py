@@ -171,3 +171,23 @@ def finite_cloud(
     )
 
 
+
+
+def check_input_file(path: Path) -> None:
+    """Refuse an input that is not a regular file, with one line that says what it is.
+
+    Raises
+    ------
+    InputError
+        ``file not found: P``, ``P is a folder, not a point file`` or ``not a
+        regular file (a device or pipe?): P``.
+    """
+    p = Path(path)
+    if p.is_file():
+        return
+    if p.is_dir():
+        raise InputError(f"{p} is a folder, not a point file; name the files in it "
+                         f"(a quoted glob such as \"{p / '*.laz'}\")")
+    if not p.exists():
+        raise InputError(f"file not found: {p}")
+    raise InputError(f"not a regular file (a device or pipe?): {p}")

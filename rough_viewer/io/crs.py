@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rough_viewer.io.cloud import check_input_file
 from rough_viewer.vocabulary import CrsUnit, InputError
 
 #: EPSG unit-of-measure codes (GeoTIFF ProjLinearUnitsGeoKey) -> unit.
@@ -93,8 +94,7 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
 def _las_crs(p: Path) -> CrsInfo:
     import laspy
 
-    if not p.is_file():
-        raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+    check_input_file(p)
     try:
         with laspy.open(p) as reader:
             records = list(reader.header.vlrs) + list(reader.header.evlrs or [])

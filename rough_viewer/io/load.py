@@ -29,7 +29,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import PointCloud, check_input_file
 from rough_viewer.io.crs import read_crs
 from rough_viewer.io.e57 import read_e57
 from rough_viewer.io.las import read_las
@@ -86,15 +86,14 @@ def load_points(
     """
     p = Path(path)
     suffix = p.suffix.lower()
+    if p.is_dir():  # before the suffix: "." or "scans" is a folder, not an unknown type
+        check_input_file(p)
     if suffix not in SUPPORTED_SUFFIXES:
         raise InputError(
             f"unknown file type {p.suffix or '(none)'!r} for {p}; "
             f"supported: {' '.join(SUPPORTED_SUFFIXES)}"
         )
-    if not p.exists():
-        raise InputError(f"file not found: {p}")
-    if not p.is_file():
-        raise InputError(f"not a file: {p}")
+    check_input_file(p)
     if not os.access(p, os.R_OK):
         raise InputError(f"cannot read {p}: permission denied")
     if units is not None and units not in UNIT_METRES:

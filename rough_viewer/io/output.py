@@ -12,6 +12,10 @@ Rules (issue 15, "Safety"):
   (:func:`write_path_atomic`, :func:`write_atomic`), so an error, a full disk or an
   interrupt never leaves a half-written or temporary file, and the old file, if any,
   stays as it was;
+- a run with several outputs writes them inside :func:`all_or_nothing`: each file
+  is made under a temporary name and all are renamed into place only when the run
+  ends without error, so a failed run leaves none of its outputs (not the first of
+  two when the second meets a full disk) and every old file as it was;
 - a write error (read-only folder, full disk, quota) becomes one
   :class:`~rough_viewer.vocabulary.InputError` line naming the file, never a
   traceback.
@@ -23,13 +27,29 @@ import errno
 import os
 import stat
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 from rough_viewer.vocabulary import InputError
 
 PathLike = str | os.PathLike[str]
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A finished temporary file waiting to be renamed onto ``path``."""
+
+    tmp: Path
+    path: Path
+
+
+#: The files written so far inside the innermost :func:`all_or_nothing`, or None.
+_BATCH: ContextVar[list[_Pending] | None] = ContextVar("rough_viewer_output_batch",
+                                                         default=None)
 
 
 def _parent(p: Path) -> Path:
@@ -196,7 +216,11 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, p)
+        batch = _BATCH.get()
+        if batch is None:
+            os.replace(tmp, p)
+        else:  # renamed when the batch ends without error
+            batch.append(_Pending(tmp, p))
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise InputError(f"cannot write {p}: {_reason(exc)}") from None
@@ -215,3 +239,54 @@ def write_atomic(path: PathLike, write: Callable[[IO[Any]], object], *, mode: st
             write(fh)
 
     write_path_atomic(path, write_to)
+
+
+@contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Make every file written inside the block (through :func:`write_path_atomic` or
+    :func:`write_atomic`) appear only if the whole block succeeds.
+
+    Each file is written to a temporary file in its folder as usual, but the renames
+    wait for the end of the block: on success all are renamed into place (in the order
+    written); on any error or interrupt all temporary files are removed, so a failed
+    run leaves none of its outputs and every file it would have replaced unchanged.
+    Nested blocks join the outermost one.
+
+    Raises
+    ------
+    InputError
+        One line naming the file when a rename fails (then the outputs already
+        renamed by this block are removed too, unless they replaced older files).
+    """
+    if _BATCH.get() is not None:
+        yield
+        return
+    pending: list[_Pending] = []
+    token = _BATCH.set(pending)
+    try:
+        yield
+    except BaseException:
+        for item in pending:
+            item.tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        _BATCH.reset(token)
+    _commit(pending)
+
+
+def _commit(pending: list[_Pending]) -> None:
+    """Rename the temporary files of a batch into place; on a failure remove the
+    remaining temporary files and the new files this batch already made."""
+    made: list[Path] = []
+    for i, item in enumerate(pending):
+        existed = item.path.exists()
+        try:
+            os.replace(item.tmp, item.path)
+        except OSError as exc:
+            for rest in pending[i:]:
+                rest.tmp.unlink(missing_ok=True)
+            for path in made:
+                path.unlink(missing_ok=True)
+            raise InputError(f"cannot write {item.path}: {_reason(exc)}") from None
+        if not existed:
+            made.append(item.path)

@@ -11,7 +11,10 @@ import numpy as np
 from rough_viewer.io.cloud import PointCloud, finite_cloud
 from rough_viewer.vocabulary import InputError
 
-_NUM = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*$")
+#: A number as the first line's x, y, z may hold one: decimal, exponent, or nan/inf
+#: (a point with a missing coordinate is data, dropped later, not a header).
+_NUM = re.compile(r"^\s*[-+]?((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|nan|inf|infinity)\s*$",
+                  re.IGNORECASE)
 
 
 def read_text(p: Path) -> PointCloud:

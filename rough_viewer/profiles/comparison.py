@@ -61,6 +61,19 @@ class Comparison:
     """In the order decomposition (dwt, wp) x mode (soft, hard) x threshold rule
     (fixed, penalized low/medium/high) — the row order of the paper's tables."""
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The plausibility warnings of every fit (``RoughnessLength.warnings``: a
+        dimension outside ``[1, 2]``), one line each, each naming its fit once:
+        ``"raw profile: ..."``, then ``"de-noised dwt_penalized-low_soft: ..."`` per
+        variant (:attr:`Variant.key`) in :attr:`variants` order. Variants that could
+        not be fitted have no dimension and give none."""
+        out = [f"raw profile: {w}" for w in self.raw.warnings]
+        for v in self.variants:
+            if v.fractal is not None:
+                out.extend(f"de-noised {v.key}: {w}" for w in v.fractal.warnings)
+        return tuple(dict.fromkeys(out))
+
     def thresholds(self) -> dict[str, dict[str, float]]:
         """``{decomposition: {threshold rule: threshold in metres}}``."""
         out: dict[str, dict[str, float]] = {}

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import PointCloud, check_input_file
 from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn, Unit
 
 #: Suffixes read in chunks straight from the file.
@@ -119,8 +119,7 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
         p = Path(path)
         suffix = p.suffix.lower()
         if suffix in STREAMED:
-            if not p.is_file():
-                raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+            check_input_file(p)
             try:
                 unit, notes_p = resolve_units(p, units)
                 out.append(_las_source(p, unit, notes_p))
@@ -336,9 +335,7 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
     if len(paths) < 2:
         return ()
     for path in paths:
-        if not Path(path).is_file():
-            p = Path(path)
-            raise InputError(f"file not found: {p}" if not p.exists() else f"not a file: {p}")
+        check_input_file(Path(path))
     first_crs: tuple[Path, object] | None = None
     first_unit: tuple[Path, str] | None = None
     bare: list[Path] = []

@@ -218,6 +218,39 @@ def test_las_crs_in_us_feet_sets_the_unit_and_a_contradiction_warns(tmp_path, cl
     assert "warning" in err and "contradicts the CRS" in err and "feet.las" in err
 
 
+def test_grid_messages_name_the_unit(tmp_path, cloud_file, capsys):
+    good, _ = cloud_file
+    base = ["compute", str(good), "--units", "mm", "--out", str(tmp_path / "o.csv"), "--quiet"]
+    assert main([*base, "--grid", "0"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "rough-viewer: error: --grid must be a positive length in mm, got 0")
+    assert main([*base, "--grid", "1e-12"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rough-viewer: error: --grid 1e-12 mm: grid size 1e-15 m would take")
+    assert main(["compute", str(good), "--grid", "-1", "--out", str(tmp_path / "o.csv")]) == 2
+    assert capsys.readouterr().err.strip().endswith("positive length in m, got -1")
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_failed_second_grid_leaves_no_output(tmp_path, cloud_file, capsys):
+    good, _ = cloud_file
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["compute", str(good), "--grid", "1", "--grid", "1e-300", "--out",
+                 str(out / "c.csv"), "--summary-json", str(out / "s.json"), "--quiet"]) == 2
+    assert "would take" in capsys.readouterr().err
+    assert os.listdir(out) == []  # not c_g1.csv, not s_g1.json
+
+
+def test_folder_input_says_folder(tmp_path, capsys):
+    (tmp_path / "scans.laz").mkdir()
+    for folder in (tmp_path, tmp_path / "scans.laz"):
+        assert main(["compute", str(folder), "--grid", "1", "--out",
+                     str(tmp_path / "o.csv")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"rough-viewer: error: {folder} is a folder, not a point file")
+
+
 def test_cells_of_repeated_points_are_explained(tmp_path, capsys):
     """A cloud that repeats its points (as the airborne LAZ does: 49,954 of 574,092)
     has cells of roughness 0; the summary says how many and why."""

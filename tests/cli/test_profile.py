@@ -189,3 +189,46 @@ def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> No
     fixed = json.loads(capsys.readouterr().out)
     assert 1.0 <= fixed["raw"]["dimension"] <= 2.0 and fixed["warnings"] == []
     assert fixed["detrend"] == 2
+
+
+def _variant_warnings(tmp_path: Path, capsys, noise: float) -> tuple[dict, str]:
+    # a smooth wave plus white noise: the raw profile's D lies in [1, 2]; with little
+    # noise the de-noised variants are the bare wave, smoother than the windows (D < 1)
+    x = np.arange(900) * 1e-3
+    h = 0.01 * np.sin(20 * x) + np.random.default_rng(1).normal(0.0, noise, x.size)
+    path = tmp_path / f"wave_{noise:g}.txt"
+    np.savetxt(path, np.column_stack([x, h]))
+    assert main(["profile", str(path), "--json"]) == 0
+    captured = capsys.readouterr()
+    return json.loads(captured.out), captured.err
+
+
+def test_every_denoised_variant_outside_1_2_warns_once_by_name(tmp_path: Path, capsys) -> None:
+    data, err = _variant_warnings(tmp_path, capsys, 0.0005)
+    assert 1.0 <= data["raw"]["dimension"] <= 2.0
+    keys = {f"{v['decomposition']}_{v['threshold']}_{v['mode']}": v["dimension"]
+            for v in data["variants"]}
+    implausible = {k for k, d in keys.items() if d is not None and not 1.0 <= d <= 2.0}
+    assert len(implausible) == 16  # every variant here: D = 0.52-0.55
+    assert len(data["warnings"]) == len(implausible)
+    for key in implausible:
+        mine = [w for w in data["warnings"] if f"de-noised {key}:" in w]
+        assert len(mine) == 1, key
+        assert f"D = {keys[key]:.2f} is below 1" in mine[0]
+        assert sum(f"de-noised {key}:" in line for line in err.splitlines()) == 1
+    assert not any("raw profile" in w for w in data["warnings"])
+    # the same wave with more noise: every variant in [1, 2], no warning at all
+    data, err = _variant_warnings(tmp_path, capsys, 0.002)
+    assert all(1.0 <= v["dimension"] <= 2.0 for v in data["variants"])
+    assert data["warnings"] == [] and "warning" not in err
+
+
+def test_raw_warning_names_the_raw_profile(tmp_path: Path, capsys) -> None:
+    x = np.arange(2000) * 1e-3
+    h = 0.5 * x**2 + fbm_profile(2000, 0.7, spacing=1e-3, sigma=1e-4, rng=3)
+    path = tmp_path / "fold.txt"
+    np.savetxt(path, np.column_stack([x, h]))
+    assert main(["profile", str(path), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    raw = [w for w in data["warnings"] if "raw profile:" in w]
+    assert len(raw) == 1 and f"D = {data['raw']['dimension']:.2f}" in raw[0]

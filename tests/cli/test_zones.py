@@ -142,3 +142,112 @@ def test_console_script_error_is_one_line(tmp_path, face):
     assert proc.returncode == 2
     assert proc.stderr.strip() == "rough-viewer: error: --threshold must lie in [0, 1], got 2"
     assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.fixture(scope="module")
+def face_mm(tmp_path_factory):
+    """The same face as ``face`` with coordinates in millimetres (a LAS without a CRS)."""
+    pts, _ = banded_face(40.0, 150.0, BANDS, rough=0.01, n=80_000)
+    path = tmp_path_factory.mktemp("zones_mm") / "face_mm.laz"
+    write_las(path, PointCloud.from_xyz(pts * 1000.0), scale=0.1)  # same integers as face
+    return path
+
+
+def test_units_mm_grid_and_summary_in_mm_zones_csv_in_metres(tmp_path, face, face_mm, capsys):
+    m_out, mm_out = tmp_path / "m.csv", tmp_path / "mm.csv"
+    assert main(["zones", str(face), "--grid", "0.2", "--threshold", "0.2", "--out", str(m_out),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["zones", str(face_mm), "--grid", "200", "--units", "mm", "--threshold", "0.2",
+                 "--out", str(mm_out), "--cells-out", str(tmp_path / "cells_mm.csv"),
+                 "--quiet"]) == 0
+    text = capsys.readouterr().out
+    header_m, rows_m = read_csv(m_out)
+    header_mm, rows_mm = read_csv(mm_out)
+    assert header_mm == header_m and len(rows_mm) == len(rows_m) == 2
+    # exactly the library's zones in metres of the cloud read in mm at 0.2 m
+    from rough_viewer.io import load_points
+
+    ref = ZoneLabeller.build(grid_roughness(load_points(face_mm, units="mm"), 0.2)).zones(0.2)
+    table = ref.table()
+    for k, row in enumerate(rows_mm):
+        assert [float(t) for t in row] == [float(table[name][k]) for name in header_mm]
+    # and the metres file's zones (the same points; *1000 rounding may move a point)
+    for a, b in zip(rows_m, rows_mm, strict=True):
+        np.testing.assert_allclose(np.array(b, dtype=float), np.array(a, dtype=float),
+                                   rtol=1e-3)
+    area_m2 = sum(float(r[3]) for r in rows_mm)
+    assert "grid 200 mm" in text
+    assert f"{area_m2 * 1e6:.4g} mm2 of face" in text
+    assert "area mm2" in text and "mean theta mm" in text
+
+
+def test_units_mm_cells_csv_is_computes_cell_table(tmp_path, face_mm):
+    cells, computed = tmp_path / "cells.csv", tmp_path / "computed.csv"
+    assert main(["zones", str(face_mm), "--grid", "200", "--units", "mm", "--out",
+                 str(tmp_path / "z.csv"), "--cells-out", str(cells), "--quiet"]) == 0
+    assert main(["compute", str(face_mm), "--grid", "200", "--units", "mm", "--out",
+                 str(computed), "--quiet"]) == 0
+    header, rows = read_csv(cells)
+    ref_header, ref_rows = read_csv(computed)
+    assert header == [*ref_header, "zone"]
+    assert [r[:-1] for r in rows] == ref_rows  # the same text: lengths in mm, as compute
+    assert float(ref_rows[0][ref_header.index("cx")]) > 100  # millimetres, not metres
+
+
+def test_several_grids_name_outputs_as_compute(tmp_path, face, capsys):
+    out, cells = tmp_path / "z.csv", tmp_path / "c.csv"
+    assert main(["zones", str(face), "--grid", "0.2", "--grid", "0.25", "--grid", "0.2",
+                 "--out", str(out), "--cells-out", str(cells), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert sorted(os.listdir(tmp_path)) == ["c_g0.2.csv", "c_g0.25.csv",
+                                            "z_g0.2.csv", "z_g0.25.csv"]
+    assert "grid 0.2 m" in text and "grid 0.25 m" in text
+    for g in ("0.2", "0.25"):  # each file as the one-grid run writes it
+        single = tmp_path / "single" / g
+        single.mkdir(parents=True)
+        assert main(["zones", str(face), "--grid", g, "--out", str(single / "z.csv"),
+                     "--cells-out", str(single / "c.csv"), "--quiet"]) == 0
+        assert (tmp_path / f"z_g{g}.csv").read_bytes() == (single / "z.csv").read_bytes()
+        assert (tmp_path / f"c_g{g}.csv").read_bytes() == (single / "c.csv").read_bytes()
+
+
+def test_failed_second_grid_leaves_no_output(tmp_path, face, capsys):
+    argv = ["zones", str(face), "--grid", "0.2", "--grid", "1e-9", "--out",
+            str(tmp_path / "z.csv"), "--cells-out", str(tmp_path / "c.csv"), "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rough-viewer: error: grid size 1e-09 m would take") and "\n" not in err
+    assert os.listdir(tmp_path) == []
+
+
+def test_grid_errors_name_the_unit(tmp_path, face_mm, capsys):
+    base = ["zones", str(face_mm), "--units", "mm", "--out", str(tmp_path / "z.csv"), "--quiet"]
+    assert main([*base, "--grid", "0"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "rough-viewer: error: --grid must be a positive length in mm, got 0")
+    assert main([*base, "--grid", "1e-9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rough-viewer: error: --grid 1e-09 mm: grid size 1e-12 m would take")
+    assert os.listdir(tmp_path) == []
+
+
+_FSIZE_RUN = """
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
+resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+from rough_viewer.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_second_output_too_large_leaves_neither(tmp_path, face):
+    # a real failing write: the OS refuses files over 20 kB; ZONES.csv is far smaller,
+    # CELLS.csv far larger, so the first output is written and the second fails
+    z, c = tmp_path / "z.csv", tmp_path / "c.csv"
+    proc = subprocess.run([sys.executable, "-c", _FSIZE_RUN, "zones", str(face), "--grid", "0.2",
+                           "--out", str(z), "--cells-out", str(c), "--quiet"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().startswith(f"rough-viewer: error: cannot write {c}: ")
+    assert os.listdir(tmp_path) == []

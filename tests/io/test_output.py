@@ -10,6 +10,7 @@ import pytest
 
 from rough_viewer.cli import main
 from rough_viewer.io.output import (
+    all_or_nothing,
     check_output_path,
     check_outputs,
     path_in_folder,
@@ -162,3 +163,44 @@ def test_compute_refusals_are_one_line(tmp_path, capsys):
         assert code == 2, name
         assert message in err and err.count("\n") == 1 and "Traceback" not in err, name
     assert _names(tmp_path) == ["face.npy"]
+
+
+def test_all_or_nothing_leaves_no_output_of_a_failed_run(tmp_path):
+    old = tmp_path / "old.csv"
+    old.write_text("the old table")
+    with pytest.raises(InputError) as info:
+        with all_or_nothing():
+            write_atomic(tmp_path / "zones.csv", lambda fh: fh.write("zone\n1\n"))
+            write_atomic(old, lambda fh: fh.write("replaced"))
+            assert not (tmp_path / "zones.csv").exists()  # not before the run succeeds
+
+            def full(fh):
+                fh.write("ix\n" * 100)
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+            write_atomic(tmp_path / "cells.csv", full)
+    assert str(info.value) == f"cannot write {tmp_path / 'cells.csv'}: no space left on device"
+    # neither the first output nor a temporary file is left; the old file is untouched
+    assert _names(tmp_path) == ["old.csv"] and old.read_text() == "the old table"
+
+
+def test_all_or_nothing_commits_every_file_on_success(tmp_path):
+    (tmp_path / "b.csv").write_text("old b")
+    with all_or_nothing():
+        write_atomic(tmp_path / "a.csv", lambda fh: fh.write("new a"))
+        with all_or_nothing():  # nested: joins the outer run
+            write_atomic(tmp_path / "b.csv", lambda fh: fh.write("new b"))
+        assert _names(tmp_path) != ["a.csv", "b.csv"]  # temporary files until the end
+        assert (tmp_path / "b.csv").read_text() == "old b"
+    assert _names(tmp_path) == ["a.csv", "b.csv"]
+    assert [(tmp_path / n).read_text() for n in ("a.csv", "b.csv")] == ["new a", "new b"]
+    write_atomic(tmp_path / "c.csv", lambda fh: fh.write("c"))  # outside a batch
+    assert os.stat(tmp_path / "a.csv").st_mode == os.stat(tmp_path / "c.csv").st_mode
+
+
+def test_all_or_nothing_interrupt_removes_temporaries(tmp_path):
+    with pytest.raises(KeyboardInterrupt):
+        with all_or_nothing():
+            write_atomic(tmp_path / "a.csv", lambda fh: fh.write("a"))
+            raise KeyboardInterrupt
+    assert _names(tmp_path) == []

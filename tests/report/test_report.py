@@ -393,3 +393,27 @@ def test_report_zone_options_and_their_checks(cloud):
         build_report(cloud, [0.25], connectivity="corner")  # type: ignore[arg-type]
     with pytest.raises(InputError, match="min cells"):
         build_report(cloud, [0.25], min_cells=0)
+
+
+@pytest.mark.parametrize("grids, shown", [
+    (["1e-9"], ["grid 1e-09 m: grid size 1e-09 m would take"]),
+    (["1e-9", str(TOO_COARSE)], ["grid 1e-09 m: grid size 1e-09 m would take",
+                                 "grid 2.5 m: too few cells"]),
+])
+def test_no_grid_computed_exits_2_and_writes_nothing(cloud_file, tmp_path, capsys, grids, shown):
+    argv = ["report", str(cloud_file), "--out", str(tmp_path / "r.html"), "--quiet"]
+    for g in grids:
+        argv += ["--grid", g]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rough-viewer: error: no grid size could be computed: ")
+    assert err.count("\n") == 1 and all(s in err for s in shown)
+    assert os.listdir(tmp_path) == []
+
+
+def test_grid_message_names_the_unit(cloud_file, tmp_path, capsys):
+    assert main(["report", str(cloud_file), "--grid", "0", "--units", "mm", "--out",
+                 str(tmp_path / "r.html")]) == 2
+    assert capsys.readouterr().err == (
+        "rough-viewer: error: --grid must be a positive length in mm, got 0\n")
+    assert os.listdir(tmp_path) == []
