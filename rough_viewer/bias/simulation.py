@@ -53,8 +53,10 @@ __all__ = [
     "paper_target",
     "predict_bias",
     "raster_heights",
+    "raster_shape",
     "simulate_target",
     "smooth_heights",
+    "smoothing_bytes",
     "smoothing_curve",
 ]
 
@@ -143,13 +145,8 @@ def raster_heights(
     asperity : (ny, nx) bool array
         True within ``r`` of an asperity centre (the known class).
     """
-    _check_lengths([("spacing", spacing_m), ("asperity radius", layout.asperity_radius_m),
-                    ("board width", layout.width_m), ("board height", layout.height_m)],
-                   positive=True)
-    nx = int(round(layout.width_m / spacing_m))
-    ny = int(round(layout.height_m / spacing_m))
-    if nx < 1 or ny < 1:
-        raise InputError("the board is smaller than one raster cell")
+    _check_lengths([("asperity radius", layout.asperity_radius_m)], positive=True)
+    ny, nx = raster_shape(layout, spacing_m)
     # heights, noise, smoothed heights, labels and the simulated points all live on
     # this raster at once (about 12 float64 per node, FFT convolution included)
     require(nx * ny * RASTER_BYTES_PER_NODE, f"a simulated target raster of {nx:,} x {ny:,} "
@@ -181,6 +178,42 @@ def kernel_half_width(radius_m: float, spacing_m: float) -> int:
     _check_lengths([("effective radius", radius_m)])
     _check_lengths([("spacing", spacing_m)], positive=True)
     return int(math.floor(radius_m / spacing_m + 0.5))
+
+
+def smoothing_bytes(shape: tuple[int, int], effective_radius_m: float, spacing_m: float,
+                    *, raster: bool = False) -> float:
+    """Peak bytes of the beam smoothing of a ``shape`` raster: the padded FFT raster
+    (:data:`FFT_BYTES_PER_NODE` a node) and the kernel building (:func:`disc_kernel`),
+    plus the simulated raster itself (:data:`RASTER_BYTES_PER_NODE` a node) when
+    ``raster``."""
+    ny, nx = shape
+    n = 2 * kernel_half_width(effective_radius_m, spacing_m) + 1
+    smooth = 0.0 if n == 1 else (float(ny + n - 1) * (nx + n - 1) * FFT_BYTES_PER_NODE
+                                 + float(n) * n * (9 * KERNEL_SUPERSAMPLE + 24))
+    return smooth + (float(ny) * nx * RASTER_BYTES_PER_NODE if raster else 0.0)
+
+
+def _require_smoothing(shape: tuple[int, int], effective_radius_m: float, spacing_m: float,
+                       *, raster: bool = False) -> None:
+    ny, nx = shape
+    n = 2 * kernel_half_width(effective_radius_m, spacing_m) + 1
+    what = "the simulation and beam smoothing" if raster else "the beam smoothing"
+    require(smoothing_bytes(shape, effective_radius_m, spacing_m, raster=raster),
+            f"{what} of a {ny:,} x {nx:,} raster with a {n:,} x {n:,} kernel (effective "
+            f"radius {effective_radius_m * 1e3:g} mm at {spacing_m * 1e3:g} mm)",
+            hint="choose a smaller effective radius or a larger raster spacing")
+
+
+def raster_shape(layout: TargetLayout, spacing_m: float) -> tuple[int, int]:
+    """(ny, nx): nodes of the raster of ``layout`` at ``spacing_m`` (see
+    :func:`raster_heights`)."""
+    _check_lengths([("spacing", spacing_m), ("board width", layout.width_m),
+                    ("board height", layout.height_m)], positive=True)
+    nx = int(round(layout.width_m / spacing_m))
+    ny = int(round(layout.height_m / spacing_m))
+    if nx < 1 or ny < 1:
+        raise InputError("the board is smaller than one raster cell")
+    return ny, nx
 
 
 def disc_kernel(radius_m: float, spacing_m: float, *,
@@ -248,11 +281,7 @@ def smooth_heights(z: np.ndarray, *, effective_radius_m: float, spacing_m: float
     if half == 0:
         return np.array(z, dtype=np.float64, copy=True)
     ny, nx = np.shape(z)
-    n = 2 * half + 1
-    require(float(ny + n - 1) * (nx + n - 1) * FFT_BYTES_PER_NODE,
-            f"the beam smoothing of a {ny:,} x {nx:,} raster with a {n:,} x {n:,} kernel "
-            f"(effective radius {effective_radius_m * 1e3:g} mm at {spacing_m * 1e3:g} mm)",
-            hint="choose a smaller effective radius or a larger raster spacing")
+    _require_smoothing((ny, nx), effective_radius_m, spacing_m)
     k = disc_kernel(effective_radius_m, spacing_m)
     return fftconvolve(np.asarray(z, dtype=np.float64), k, mode="same")
 
@@ -437,6 +466,9 @@ def predict_bias(
         raise InputError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    # the whole peak (raster and smoothing) is checked before anything is allocated
+    _require_smoothing(raster_shape(layout, spacing_m), effective_radius_m, spacing_m,
+                       raster=True)
     base = simulate_target(layout, spacing_m=spacing_m)
     smooth = smooth_heights(base.true_height, effective_radius_m=effective_radius_m,
                             spacing_m=spacing_m)
@@ -532,6 +564,9 @@ def smoothing_curve(
     _check_ratio(ratio)
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    # the whole peak (raster and the largest smoothing) before anything is allocated
+    _require_smoothing(raster_shape(layout, spacing_m), float(ers.max()), spacing_m,
+                       raster=True)
     base = simulate_target(layout, spacing_m=spacing_m)
     xy = base.xyz(true=True)[:, :2]
     labels = base.labels()
