@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import viser
 
+from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
 from rough_viewer.vocabulary import BIAS_RESIDUAL, RESIDUALS, Residual
@@ -175,7 +176,7 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
                                     "grid maps' convention, SCIENCE.md)")
         button = api.add_button("Predict bias")
         result = api.add_markdown("Set the scanner values and press **Predict bias**.")
-        plot = api.add_plotly(go.Figure(), aspect=1.2)
+        plot = api.add_plotly(go.Figure(), config=PLOTLY_CONFIG, aspect=1.2)
     panel = BiasPanel(noise_mm=noise, er_mm=er, asperity_mm=radius, ratio=ratio,
                       residual=residual, button=button, result=result, plot=plot,
                       spacing_m=spacing_m)

@@ -289,11 +289,17 @@ def sparse_message(loaded: LoadedCloud, stats: MapStats, settings: ViewSettings)
 
 
 def notice_text(loaded: LoadedCloud, stats: MapStats | None, settings: ViewSettings) -> str:
-    """Markdown of the notices that stay on screen: the reader's warnings (escaped)
-    and a grid where most occupied cells have no value. Empty when there is none."""
+    """Markdown of the notices that stay on screen: the reader's warnings (escaped),
+    a grid where most occupied cells have no value, and cells that fit their plane
+    exactly. Empty when there is none."""
     lines = [f"**Warning:** {md(w, max_chars=400)}" for w in loaded.cloud.warnings[:10]]
     if stats is not None and stats.sparse:
         lines.append(f"**Most cells have no value:** {md(sparse_message(loaded, stats, settings))}")
+    if stats is not None and stats.exact_fit:
+        lines.append(f"**{stats.exact_fit:,} of {stats.valid_cells:,} cells fit their plane "
+                     "exactly** (roughness 0 to round-off): their points lie on one plane, "
+                     "usually because the file repeats points; they are the smoothest colour "
+                     "and set the minimum. A larger *Min points per cell* leaves them out.")
     return "  \n".join(lines)
 
 

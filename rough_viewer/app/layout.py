@@ -58,6 +58,11 @@ UNIT_OPTIONS: tuple[str, ...] = ("auto", *UNITS)
 
 #: Labels (the browser tests find controls by these). Labels with a unit are made
 #: by the functions below (the unit is the loaded cloud's).
+#: Plotly options of every panel: no mode bar (it covered the plots' titles at the top
+#: right; dragging still zooms, a double click resets, and the Export folder saves
+#: figures), no plotly logo.
+PLOTLY_CONFIG: dict[str, object] = {"displayModeBar": False, "displaylogo": False}
+
 L_MODEL = "Model"
 L_AXIS = "Dependent axis"
 L_DISPLAY = "Display"
@@ -234,7 +239,8 @@ def build_gui(
     error = gui.add_markdown("", visible=False)
     notice = gui.add_markdown("", visible=False)
     progress = gui.add_progress_bar(0.0, visible=False, animated=True)
-    colour_bar = gui.add_plotly(_empty_figure("colour bar"), aspect=0.27)  # height = width * aspect
+    colour_bar = gui.add_plotly(_empty_figure("colour bar"), config=PLOTLY_CONFIG,
+                                aspect=0.27)  # height = width * aspect
     values = grid_options(presets, units)
     preset = f"{units.length(settings.cell_size):g}"
     lo_mm, hi_mm = _absolute_limits(settings.stretch, units)
@@ -245,7 +251,7 @@ def build_gui(
         pick = gui.add_markdown(PICK_PROMPT)
         # never hidden: viser's client fails to lay out a plot that was created hidden
         placeholder = scales_placeholder()
-        scales = gui.add_plotly(placeholder, aspect=panel_aspect(placeholder))
+        scales = gui.add_plotly(placeholder, config=PLOTLY_CONFIG, aspect=panel_aspect(placeholder))
         layer = gui.add_dropdown(
             L_LAYER, tuple(COLOUR_LAYER_LABELS[n] for n in layers),
             initial_value=COLOUR_LAYER_LABELS[settings.layer if settings.layer in layers
@@ -300,11 +306,11 @@ def build_gui(
                                       hint="Look at the face straight on, from above, "
                                       "or from the side.")
     with tabs.add_tab("Panels"):
-        histogram = gui.add_plotly(_empty_figure("histogram"), aspect=0.85)
-        variogram = gui.add_plotly(_empty_figure("semivariogram"), aspect=0.81)
-        summary = gui.add_plotly(_empty_figure("summary"), aspect=0.44)
+        histogram = gui.add_plotly(_empty_figure("histogram"), config=PLOTLY_CONFIG, aspect=0.85)
+        variogram = gui.add_plotly(_empty_figure("semivariogram"), config=PLOTLY_CONFIG, aspect=0.81)
+        summary = gui.add_plotly(_empty_figure("summary"), config=PLOTLY_CONFIG, aspect=0.44)
         face_scales = gui.add_plotly(_empty_figure("roughness against grid size"),
-                                     aspect=1.16)
+                                     config=PLOTLY_CONFIG, aspect=1.16)
     with tabs.add_tab("File"):
         path = gui.add_text(L_PATH, source,
                             hint="A file in the server's data folder (--data-dir); relative "

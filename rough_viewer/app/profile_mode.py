@@ -22,9 +22,10 @@ import viser
 
 from rough_viewer.app import scene
 from rough_viewer.app.jobs import Pick
+from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_PROFILES
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import Units
+from rough_viewer.app.state import LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
 from rough_viewer.profiles.fractal import RoughnessLength, detrend, roughness_length
@@ -223,6 +224,12 @@ class ProfileMode:
     """The first click of a profile being picked: (file frame, display frame)."""
     nodes: list[list[viser.SceneNodeHandle]] = field(default_factory=list)
     """Scene nodes of each kept profile (the pending start's marker last)."""
+    cloud: LoadedCloud | None = None
+    """The cloud the kept profiles were picked on."""
+    failed: bool = False
+    """The last de-noising failed (its error is shown until one succeeds)."""
+    aside: tuple[LoadedCloud, list[ProfileAnalysis]] | None = None
+    """The profiles of the scan put aside while the board lesson is shown."""
 
     @property
     def units(self) -> Units:
@@ -240,6 +247,23 @@ class ProfileMode:
             mode=cast(Mode, self.mode.value),
             band_half_width=bw if bw > 0 else None,
             exaggeration=exaggeration_of(self.exaggeration.value))
+
+    def show_settings(self, settings: ProfileSettings) -> None:
+        """Put the de-noising controls to ``settings`` without queuing work."""
+        from rough_viewer.app.layout import assign
+
+        local = self.app._local
+        local.syncing = True
+        try:
+            for handle, value in ((self.wavelet, settings.wavelet),
+                                  (self.decomposition, settings.decomposition),
+                                  (self.threshold, settings.threshold), (self.mode, settings.mode),
+                                  (self.detrend, detrend_choice(settings.detrend))):
+                if value in handle.options:
+                    assign(handle, value)
+            assign(self.level, int(settings.level))
+        finally:
+            local.syncing = False
 
     def refresh(self) -> None:
         """Redraw the table and the plot (at the height its builder laid it out for)."""
@@ -325,9 +349,29 @@ class ProfileMode:
         return a
 
     def on_cloud(self, app: App) -> None:
-        """Another cloud is shown: the band is typed in its unit."""
+        """Another cloud is shown (worker thread): profiles belong to their cloud, so
+        the kept ones go (those of a scan put aside for the board lesson wait for it
+        and come back with it); the band is typed in the new cloud's unit."""
         self.band.label = band_label(self.units)
         self.band.max = self.units.length(MAX_BAND_M)
+        new = app.shown.loaded
+        if new is self.cloud:
+            return
+        old, kept = self.cloud, list(self.items)
+        self.cloud = new
+        self.clear_all()
+        stashed = app.stashed.loaded if app.stashed is not None else None
+        if kept and old is not None and stashed is old:
+            self.aside = (old, kept)
+        elif self.aside is not None and self.aside[0] is new:
+            for a in self.aside[1]:
+                ends = (new.to_local(np.asarray(p, dtype=np.float64))
+                        for p in (a.source.start, a.source.end))
+                self.nodes.append(self._draw(app, a, len(self.items), *ends))
+                self._keep(a)
+            self.aside = None
+        elif self.aside is not None and stashed is not self.aside[0]:
+            self.aside = None  # the scan put aside is gone
 
     def clear_all(self) -> None:
         for nodes in self.nodes:
@@ -351,12 +395,24 @@ class DenoiseJob(Job["App"]):
 
     def stages(self, ctx: App, run: Run) -> Iterator[str]:
         redone = []
-        for a in self.mode.items:
-            run.check()
-            redone.append(redo(a.source, self.settings))
+        try:
+            for a in self.mode.items:
+                run.check()
+                redone.append(redo(a.source, self.settings))
+        except (InputError, ValueError) as exc:
+            # the kept profiles stay as they were: so do the controls that made them
+            if self.mode.items:
+                self.mode.show_settings(self.mode.items[0].settings)
+            self.mode.failed = True
+            ctx.show_error(f"profile: {exc}",
+                           kept="The profiles and their settings are kept as they were.")
+            return
         yield "denoise"
         self.mode.items = redone
         self.mode.refresh()
+        if self.mode.failed:  # the error of an earlier setting no longer holds
+            self.mode.failed = False
+            ctx.clear_error()
         yield "plot"
 
 
@@ -406,6 +462,7 @@ class ProfilesCsvJob(Job["App"]):
 def mount(app: App) -> ProfileMode:
     """Add the Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
     m = _add_controls(app)
+    m.cloud = app.shown.loaded
     _wire(app, m)
     app.click_handlers.append(m.on_pick)
     app.cloud_handlers.append(m.on_cloud)
@@ -443,7 +500,7 @@ def _add_controls(app: App) -> ProfileMode:
                 hint="auto: the height axis spans the profile's relief; 1× is true scale; "
                 "E× draws heights E times as long as distances along the line."),
             note=gui.add_markdown(summary_markdown([])),
-            plot=gui.add_plotly(profile_figure([]), aspect=1.29),
+            plot=gui.add_plotly(profile_figure([]), config=PLOTLY_CONFIG, aspect=1.29),
             clear=gui.add_button("Clear profiles"),
             download=gui.add_button("Download CSV"),
         )
@@ -456,6 +513,8 @@ def _wire(app: App, m: ProfileMode) -> None:
     """Stage 2: each control queues its job."""
 
     def denoise(_event: object) -> None:
+        if app.syncing:  # the controls are being put back, not changed by a user
+            return
         app.submit(DenoiseJob(m, m.settings()))
 
     def replot(_event: object) -> None:

@@ -528,6 +528,9 @@ class MapStats:
     """Share of valid cells at or above the binary threshold."""
     colour_range: colormaps.ColourRange
     """The stretch resolved on this map (what the colours' ends mean)."""
+    exact_fit: int = 0
+    """Cells with a value of 0 to round-off (points exactly on a plane, e.g. repeated
+    points; :data:`rough_viewer.grid.roughness.EXACT_FIT`)."""
 
     @property
     def sparse(self) -> bool:
@@ -548,7 +551,8 @@ def map_stats(result: GridRoughness, settings: ViewSettings) -> MapStats:
     else:
         lo = hi = rough = float("nan")
     return MapStats(lo, hi, len(values), valid, rough,
-                    colormaps.resolve(values, settings.stretch))
+                    colormaps.resolve(values, settings.stretch),
+                    exact_fit=result.cell_report(settings.model)["exact_fit"])
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.jobs import Pick
-from rough_viewer.app.layout import assign
+from rough_viewer.app.layout import PLOTLY_CONFIG, assign
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import ByteCache, LoadedCloud, Units
@@ -751,8 +751,8 @@ def _add_controls(app: App) -> ZonesMode:
             selected=gui.add_dropdown(L_SELECTED, (NO_ZONE,), initial_value=NO_ZONE,
                                       hint="Or click a zone on the rock."),
             numbers=gui.add_markdown(""),
-            table=gui.add_plotly(_empty("zones"), aspect=0.4),
-            stereonet=gui.add_plotly(_empty("stereonet"), aspect=0.95),
+            table=gui.add_plotly(_empty("zones"), config=PLOTLY_CONFIG, aspect=0.4),
+            stereonet=gui.add_plotly(_empty("stereonet"), config=PLOTLY_CONFIG, aspect=0.95),
         )
     app.controls.allow(m.on, m.threshold, m.connectivity, m.min_cells, m.selected)
     return m

@@ -15,6 +15,14 @@ def _num(v: float, fmt: str) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
 
 
+def exact_fit_note(n: int, valued: int) -> str:
+    """The line that explains cells of roughness 0 (see ``EXACT_FIT``)."""
+    return (f"note: {n:,} of {valued:,} cells with a value fit their plane exactly (ODR "
+            "roughness 0 to round-off): their points lie on one plane, usually because the "
+            "file repeats points (a cell of 4+ points with only 3 distinct ones); they set "
+            "the minimum. Remove duplicate points or raise --min-points")
+
+
 def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") -> str:
     """Readable Table-1 style summary of all maps of one grid size, lengths in ``unit``."""
     per, u = UNIT_METRES[unit], UNIT_LABELS[unit]
@@ -29,7 +37,10 @@ def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") ->
     cells_line = (
         f"cells: {rep['occupied']:,} occupied, {rep['below_min_points']:,} below min points"
     )
-    lines = [head, cells_line, ""]
+    lines = [head, cells_line]
+    if rep["exact_fit"]:
+        lines.append(exact_fit_note(rep["exact_fit"], rep["with_value"]))
+    lines.append("")
     cols = ("model", "cells", "mean pts", f"min ({u})", f"max ({u})", f"mean ({u})",
             f"variance ({u}2)", f"std ({u})")
     widths = (7, 9, 9, 11, 11, 11, 13, 11)

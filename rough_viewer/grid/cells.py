@@ -51,6 +51,13 @@ class GridSpec:
         return self.origin + (np.asarray(ijk, dtype=np.float64) + 0.5) * self.cell_size
 
 
+#: Largest grid size, as a multiple of the cloud's largest extent, :func:`make_grid`
+#: takes: beyond it one cell already holds the whole cloud, and the cell-local
+#: moments lose the cloud's variance to round-off (at 1e6 m over a 270 m scan the
+#: whole-cloud cell had no ODR plane; 1e300 m overflowed).
+MAX_SIZE_OVER_EXTENT = 1000.0
+
+
 def make_grid(
     bounds_min: np.ndarray,
     bounds_max: np.ndarray,
@@ -102,6 +109,15 @@ def make_grid(
         require(occupied_max * BYTES_PER_CELL,
                 f"grid size {g:g} m (up to {occupied_max:.3g} occupied cells)",
                 hint="choose a larger grid size")
+    extent = float(np.max(hi_b - lo_b))
+    if extent > 0 and g > MAX_SIZE_OVER_EXTENT * extent:
+        # cell-local sums of squares over a cell far larger than the cloud lose the
+        # cloud's variance to round-off (and overflow for absurd sizes)
+        raise InputError(
+            f"grid size {g:g} m is more than {MAX_SIZE_OVER_EXTENT:g} times the cloud's "
+            f"extent ({extent:.4g} m); one cell holds the whole cloud at "
+            f"{extent:.4g} m already: choose a grid size of at most "
+            f"{MAX_SIZE_OVER_EXTENT * extent:.4g} m")
     shape = (int(counts[0]), int(counts[1]), int(counts[2]))
     return GridSpec(origin=o, cell_size=g, index_min=index_min.astype(np.int64), shape=shape)
 

@@ -70,6 +70,12 @@ from rough_viewer.vocabulary import (
 #: A hybrid distance along axis ``a`` is undefined when the ODR normal is
 #: (numerically) perpendicular to ``a``.
 HYBRID_MIN_COMPONENT = 1e-9
+#: A cell "fits exactly" when its roughness is below this share of the cell size:
+#: its points lie on one plane to round-off (e.g. a cell of 6 points holding only 3
+#: distinct ones, as duplicate points in airborne scans give). SCIENCE.md gives such a
+#: cell its value (0); the summaries count it, so a user learns why Table 1's
+#: minimum is 0 (see :meth:`GridRoughness.cell_report`).
+EXACT_FIT = 1e-9
 
 
 @dataclass(frozen=True)
@@ -220,15 +226,21 @@ class GridRoughness:
         return self.values(name)[self.point_cell]
 
     def cell_report(self, name: MapName) -> dict[str, int]:
-        """Counts of cells: occupied, below ``min_points``, degenerate, with a value."""
+        """Counts of cells: occupied, below ``min_points``, degenerate, with a value,
+        and ``exact_fit``: cells with a value below :data:`EXACT_FIT` times the cell
+        size (points on one plane to round-off; 0 for ``e_ols``, a difference)."""
         v = self.values(name)
         below = int(np.count_nonzero(self.n_points < self.min_points))
-        valued = int(np.count_nonzero(np.isfinite(v)))
+        finite = np.isfinite(v)
+        valued = int(np.count_nonzero(finite))
+        exact = 0 if name == "e_ols" else int(np.count_nonzero(
+            np.abs(v[finite]) <= EXACT_FIT * self.grid.cell_size))
         return {
             "occupied": self.n_cells,
             "below_min_points": below,
             "degenerate": self.n_cells - below - valued,
             "with_value": valued,
+            "exact_fit": exact,
         }
 
 

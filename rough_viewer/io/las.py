@@ -98,6 +98,26 @@ def _laz_vlr(header):
         return None
 
 
+def check_scales(p: Path, header) -> None:
+    """Refuse a header whose coordinate scales or offsets cannot place the points
+    (a scale of 0 puts every point on the offset; NaN or inf put none anywhere).
+
+    Raises
+    ------
+    InputError
+        Naming the file and the axis.
+    """
+    scales = np.asarray(header.scales, dtype=np.float64)
+    offsets = np.asarray(header.offsets, dtype=np.float64)
+    for axis, s, o in zip("xyz", scales, offsets, strict=True):
+        if not np.isfinite(s) or s == 0:
+            raise InputError(f"the header of {p} gives the {axis} scale factor {s:g}: the "
+                             "coordinates cannot be read (a damaged or lying header)")
+        if not np.isfinite(o):
+            raise InputError(f"the header of {p} gives the {axis} offset {o:g}: the "
+                             "coordinates cannot be read (a damaged or lying header)")
+
+
 def check_header(p: Path, header, *, extra_bytes_per_point: int = 0) -> tuple[int, list[str]]:
     """The number of points to read and warnings, after checking the header's count
     against the data (:func:`data_point_capacity`) and against available memory.
@@ -107,6 +127,7 @@ def check_header(p: Path, header, *, extra_bytes_per_point: int = 0) -> tuple[in
     InputError
         The header declares more points than the data hold, or they cannot fit.
     """
+    check_scales(p, header)
     n = int(header.point_count)
     laz_vlr = _laz_vlr(header)
     capacity, exact = data_point_capacity(p, header, laz_vlr)

@@ -151,9 +151,11 @@ def _resolve_units(p: Path, units: Unit | None) -> tuple[Unit, tuple[str, ...]]:
     if units is not None and info.unit is not None and info.unit != units:
         notes.append(f"--units {units} contradicts the CRS of {p} "
                      f"({UNIT_LABELS[info.unit]}); reading it in {UNIT_LABELS[units]} as asked")
-    if info.vertical_unit is not None and info.vertical_unit != unit:
+    horizontal = info.unit or "m"
+    if info.vertical_unit is not None and info.vertical_unit != horizontal:
+        # only about the file itself: --units overriding both is the warning above
         notes.append(f"the CRS of {p} gives z in {UNIT_LABELS[info.vertical_unit]} but x, y "
-                     f"in {UNIT_LABELS[unit]}; z is read in {UNIT_LABELS[unit]} too")
+                     f"in {UNIT_LABELS[horizontal]}; z is read in {UNIT_LABELS[unit]} too")
     return unit, tuple(notes)
 
 

@@ -318,7 +318,8 @@ SPARSE_SHARE = 0.5
 
 
 def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...]:
-    """A line for every grid where most occupied cells have no value."""
+    """A line for every grid where most occupied cells have no value, and for every
+    grid with cells that fit their plane exactly (``EXACT_FIT``)."""
     out = []
     for s in sections:
         if s.result is None:
@@ -329,4 +330,11 @@ def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...
             out.append(f"grid {size:g} {UNIT_LABELS[unit]}: only {rep['with_value']:,} of "
                        f"{rep['occupied']:,} occupied cells have a value (too few points per "
                        "cell); a larger grid size gives a fuller map")
+        if rep["exact_fit"]:
+            size = s.grid_size / UNIT_METRES[unit]
+            out.append(f"grid {size:g} {UNIT_LABELS[unit]}: {rep['exact_fit']:,} of "
+                       f"{rep['with_value']:,} cells with a value fit their plane exactly "
+                       "(roughness 0 to round-off), usually because the file repeats points; "
+                       "they set Table 1's minimum (remove duplicate points or raise "
+                       "--min-points)")
     return tuple(out)

@@ -58,6 +58,66 @@ def _one_thread() -> None:
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 
+#: Largest first message of a Dask scheduler's handshake :func:`probe_scheduler` takes.
+MAX_HANDSHAKE_BYTES = 1 << 20
+
+
+def probe_scheduler(address: str, timeout: float = 10.0) -> None:
+    """Check that a ``tcp://HOST:PORT`` address answers as a Dask scheduler before
+    ``distributed.Client`` connects to it: the scheduler writes its handshake as soon
+    as a connection opens (an 8-byte length, then that many bytes). A server that
+    sends nothing (an HTTP server waiting for a request: the client would wait for
+    ever) or sends something else (read as a length, an exabyte allocation) is
+    refused in one line. Other protocols (``tls://``, ``inproc://``) are left to
+    ``distributed``.
+
+    Raises
+    ------
+    InputError
+        Nothing listens there, nothing answers within ``timeout`` seconds, or the
+        answer is not a Dask handshake.
+    """
+    import socket
+    import struct
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    try:
+        parts = urlsplit(address)
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise InputError(f"--scheduler expects tcp://HOST:PORT, got {address!r}")
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except TimeoutError:
+        raise InputError(f"cannot reach the Dask scheduler at {address}: no connection "
+                         f"within {timeout:g} s") from None
+    except OSError as exc:
+        raise InputError(f"cannot reach the Dask scheduler at {address}: "
+                         f"{exc.strerror or type(exc).__name__}") from None
+    head = b""
+    with sock:
+        try:
+            sock.settimeout(timeout)
+            while len(head) < 8:
+                part = sock.recv(8 - len(head))
+                if not part:
+                    break
+                head += part
+        except TimeoutError:
+            raise InputError(f"{address} did not answer as a Dask scheduler within "
+                             f"{timeout:g} s (is it another kind of server?)") from None
+        except OSError as exc:
+            raise InputError(f"{address} closed the connection: "
+                             f"{exc.strerror or type(exc).__name__}") from None
+    size = struct.unpack("<Q", head)[0] if len(head) == 8 else 0
+    if not 8 <= size <= MAX_HANDSHAKE_BYTES:
+        raise InputError(f"{address} answered, but not as a Dask scheduler")
+
+
 def _import_dask() -> Any:
     try:
         import dask
@@ -104,11 +164,15 @@ class DaskRunner:
             except ImportError:
                 raise InputError("a distributed scheduler needs dask.distributed: "
                                  "pip install 'rough_viewer[dask]'") from None
+            probe_scheduler(scheduler)
             try:
                 self._client = Client(scheduler, timeout="10s")
             except OSError as exc:
                 raise InputError(f"cannot reach the Dask scheduler at {scheduler}: "
                                  f"{str(exc).splitlines()[0]}") from None
+            except Exception as exc:  # e.g. a server that answers, but not in Dask's protocol
+                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                raise InputError(f"{scheduler} did not answer as a Dask scheduler: {msg}") from None
             self._own_client = True
 
     @property

@@ -73,10 +73,11 @@ class Chunk:
 def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
     import laspy
 
-    from rough_viewer.io.las import laz_backend
+    from rough_viewer.io.las import check_scales, laz_backend
 
     with laspy.open(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
+        check_scales(p, hdr)
         n = int(hdr.point_count)
         lo = np.asarray(hdr.mins, dtype=np.float64)
         hi = np.asarray(hdr.maxs, dtype=np.float64)

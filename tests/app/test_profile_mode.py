@@ -148,3 +148,63 @@ def test_the_remove_trend_control_redoes_the_kept_profiles(app):
     xyz = a.source.sample_xyz()[0]
     assert [float(v) for v in row[4:7]] == pytest.approx(xyz, abs=1e-4)  # on the rock
     m.on.value = False
+
+
+def _one_profile(app):
+    m = app.mode(ProfileMode)
+    m.on.value = True
+    pts = app.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    click_on(app, i)
+    click_on(app, j)
+    assert len(m.items) == 1 and len(m.nodes) == 1
+    m.on.value = False
+    return m
+
+
+def test_profiles_belong_to_their_cloud(app):
+    """Another file: the profiles go (they were drawn across the new scan). The
+    board lesson: the scan's profiles go aside with it and come back with it."""
+    from rough_viewer.app.board_mode import BoardMode
+    from tests.helpers import face_cloud
+
+    m = _one_profile(app)
+    kept = m.items[0]
+    scan = app.shown.loaded
+    board = app.mode(BoardMode)
+    board.scan.value = True
+    assert app.wait_idle(60)
+    assert app.shown.loaded is not scan and m.items == [] and m.nodes == []
+    assert "Tick" in m.note.content  # the table is empty too
+    board.back.value = True
+    assert app.wait_idle(60)
+    assert app.shown.loaded is scan and m.items == [kept] and len(m.nodes) == 1
+    assert "| 1 |" in m.note.content
+    app.load(cloud=face_cloud(5_000))
+    assert app.wait_idle(60)
+    assert m.items == [] and m.nodes == [] and m.aside is None
+
+
+def test_a_setting_that_fails_puts_the_controls_back_and_its_error_goes(app):
+    """Level 6 needs 320 samples: a short profile cannot take it. The profiles keep
+    their level-3 numbers, so the Level control goes back to 3; a later setting
+    that works clears the error."""
+    m = app.mode(ProfileMode)
+    m.on.value = True
+    pts = app.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    click_on(app, i)
+    click_on(app, j)
+    m.on.value = False
+    assert len(m.items) == 1 and m.items[0].settings.level == 3
+    assert np.count_nonzero(np.isfinite(m.items[0].profile.heights)) < 320
+    before = m.items[0]
+    m.level.value = 6
+    assert app.wait_idle(60)
+    assert app.gui.error.visible and "level-6" in app.gui.error.content
+    assert m.level.value == 3 and m.items[0] is before
+    m.level.value = 2
+    assert app.wait_idle(60)
+    assert m.items[0].settings.level == 2 and not app.gui.error.visible

@@ -88,3 +88,32 @@ def test_bad_cell_sizes_are_refused(g):
 def test_grid_too_fine_for_the_extent_is_refused():
     with pytest.raises(InputError, match="choose a larger grid size"):
         make_grid(np.zeros(3), np.full(3, 1e6), 1e-9)
+
+
+@pytest.mark.parametrize("g", [1e300, 1e6])
+def test_grid_far_larger_than_the_cloud_is_refused(g):
+    """A 270 m scan: 1e300 m overflowed the moments (a traceback), 1e6 m left the
+    whole-cloud cell without an ODR plane; 1000 x the extent is the limit."""
+    lo, hi = np.array([5e5, 4e6, 0.0]), np.array([5e5 + 270.0, 4e6 + 280.0, 129.0])
+    with pytest.raises(InputError, match=r"more than 1000 times the cloud's extent \(280 m\)"):
+        make_grid(lo, hi, g)
+    assert make_grid(lo, hi, 280_000.0).shape == (1, 1, 1)  # at the limit: one cell
+
+
+def test_one_huge_cell_equals_the_whole_cloud_fit():
+    """At the limit (1000 x the extent, UTM offsets) the one cell still gives the
+    whole cloud's ODR roughness (an SVD of the centred points) to 1e-6."""
+    from rough_viewer.grid.roughness import grid_roughness
+
+    rng = np.random.default_rng(5)
+    n = 5000
+    xyz = np.column_stack([rng.uniform(0, 2, n), rng.uniform(0, 2, n),
+                           0.3 * rng.uniform(0, 2, n) + 0.002 * rng.standard_normal(n)])
+    xyz += [5e5, 4e6, 100.0]
+    res = grid_roughness(xyz, 1000 * float(np.ptp(xyz, axis=0).max()), models=("odr",))
+    centred = xyz - xyz.mean(axis=0)
+    normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    d = centred @ normal
+    want = np.std(np.abs(d))
+    assert res.n_cells == 1
+    assert res.values("odr")[0] == pytest.approx(want, rel=1e-6)

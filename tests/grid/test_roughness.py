@@ -188,7 +188,28 @@ def test_degenerate_cells_get_no_value():
     assert np.isnan(res.theta_odr[by[(1, 0, 0)]])
     assert np.isfinite(res.theta_odr[by[(2, 0, 0)]])
     rep = res.cell_report("odr")
-    assert rep == {"occupied": 3, "below_min_points": 0, "degenerate": 2, "with_value": 1}
+    assert rep == {"occupied": 3, "below_min_points": 0, "degenerate": 2, "with_value": 1,
+                   "exact_fit": 0}
+
+
+def test_repeated_points_fit_exactly_and_are_counted():
+    """Airborne scans repeat points: a cell of 6 points holding 3 distinct ones fits
+    its plane exactly (roughness 0 to round-off, per SCIENCE.md a value); the report
+    counts such cells so Table 1's minimum of 0 is explained. UTM offsets keep the
+    round-off realistic."""
+    rng = np.random.default_rng(2)
+    tri = np.array([[0.1, 0.2, 0.3], [0.8, 0.1, 0.35], [0.4, 0.9, 0.32]])
+    doubled = np.vstack([tri, tri])                      # cell (0, 0, 0): 6 points, 3 distinct
+    rough = np.column_stack([rng.uniform(1, 2, 40), rng.uniform(0, 1, 40),
+                             0.3 + 0.01 * rng.standard_normal(40)])  # cell (1, 0, 0)
+    xyz = np.vstack([doubled, rough]) + [5e5, 4.2e6, 100.0]
+    res = grid_roughness(PointCloud.from_xyz(xyz), 1.0, origin=[5e5, 4.2e6, 100.0])
+    by = result_by_key(res)
+    exact = res.theta_odr[by[(0, 0, 0)]]
+    assert 0 <= exact < 1e-9 and res.theta_odr[by[(1, 0, 0)]] > 1e-3
+    rep = res.cell_report("odr")
+    assert (rep["with_value"], rep["exact_fit"]) == (2, 1)
+    assert res.cell_report("e_ols")["exact_fit"] == 0
 
 
 @pytest.mark.parametrize("factor", [2, 4, 8])

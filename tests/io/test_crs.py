@@ -91,3 +91,24 @@ def test_unreadable_header_names_the_file(tmp_path):
     bad.write_bytes(b"LASF" + b"\0" * 20)
     with pytest.raises(ValueError, match="bad.las"):
         read_crs(bad)
+
+
+def test_units_warnings_name_the_files_own_units(tmp_path):
+    """A metre CRS with metre heights read with --units ft: one warning (the
+    contradiction), not a second one claiming the file gives x, y in feet; a file
+    whose heights are in feet under a metre CRS gets its own warning."""
+    from rough_viewer.io.load import resolve_units
+
+    def keys(vertical: int) -> laspy.VLR:
+        return laspy.VLR("LASF_Projection", 34735, "", _geokeys(
+            [(1024, 0, 1, 1), (3072, 0, 1, 32611), (3076, 0, 1, 9001), (4099, 0, 1, vertical)]))
+
+    metric = _las_with(tmp_path, "m.las", [keys(9001)])
+    assert resolve_units(metric, None) == ("m", ())
+    unit, notes = resolve_units(metric, "ft")
+    assert unit == "ft" and len(notes) == 1
+    assert "--units ft contradicts the CRS" in notes[0] and "m.las" in notes[0]
+    mixed = _las_with(tmp_path, "mixed.las", [keys(9002)])
+    unit, notes = resolve_units(mixed, None)
+    assert unit == "m" and len(notes) == 1
+    assert notes[0].endswith("gives z in ft but x, y in m; z is read in m too")

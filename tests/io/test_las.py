@@ -233,6 +233,23 @@ def test_header_declaring_more_points_than_the_data_is_one_line_error(tmp_path, 
     assert "50,000,000" in text and path.name in text and "\n" not in text
 
 
+@pytest.mark.parametrize("value", [0.0, float("nan"), float("inf")])
+@pytest.mark.parametrize("compress", [True, False])
+def test_header_scale_that_cannot_place_points_is_refused(tmp_path, compress, value):
+    """A z scale of 0 put every point on the offset (one cell, no values, exit 0)."""
+    from rough_viewer.scale.sources import open_sources
+
+    path = _las14(tmp_path / ("s.laz" if compress else "s.las"), 6, n=5_000, compress=compress)
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<d", data, 147, value)  # z scale factor (x at 131, y at 139)
+    path.write_bytes(bytes(data))
+    for read in (lambda: load_points(path, cache=False), lambda: open_sources([path])):
+        with pytest.raises(InputError) as exc:
+            read()
+        text = str(exc.value)
+        assert path.name in text and "z scale factor" in text and "\n" not in text
+
+
 def test_truncated_las_is_one_line_error(tmp_path):
     path = _las14(tmp_path / "cut.las", 6, n=10_000, compress=False)
     path.write_bytes(path.read_bytes()[:-30 * 1000])

@@ -4,10 +4,10 @@ the command's input checks, and the page in headless Chromium."""
 from __future__ import annotations
 
 import importlib.util
-import sys
 import json
 import os
 import re
+import sys
 
 import numpy as np
 import pytest

@@ -14,6 +14,7 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.scale import chunked_roughness, open_sources
+from rough_viewer.vocabulary import InputError
 from tests.scale.helpers_scale import assert_same_cells, split_files
 
 distributed = pytest.importorskip("distributed")
@@ -113,3 +114,58 @@ def test_cli_scheduler_address_prints_dashboard(files, client, tmp_path, capsys)
     assert main(["compute", *map(str, paths), "--grid", "0.4", "--memory", "300MB",
                  "--out", str(out_s), "--quiet"]) == 0
     assert out_d.read_text() == out_s.read_text()
+
+
+def _server(answer: bytes | None):
+    """A TCP server on a free port that accepts, sends ``answer`` (None: nothing, as
+    an HTTP server waiting for a request) and keeps the connection open a while."""
+    import socket
+    import threading
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+
+    def serve():
+        while True:
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                return
+            if answer:
+                conn.sendall(answer)
+            threading.Timer(5.0, conn.close).start()
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv, f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+
+
+@pytest.mark.parametrize("answer, message", [
+    (None, "did not answer as a Dask scheduler within 1 s"),
+    (b"HTTP/1.0 400 Bad Request\r\n\r\n", "answered, but not as a Dask scheduler"),
+])
+def test_an_address_that_is_not_a_dask_scheduler_is_one_line(answer, message, client):
+    """An HTTP server made distributed.Client wait for ever; bytes that are not a
+    handshake were read as an exabyte-long message. Both are refused in one line,
+    and a real scheduler passes."""
+    import time
+
+    from rough_viewer.scale.dask_runner import probe_scheduler
+
+    srv, address = _server(answer)
+    try:
+        t = time.time()
+        with pytest.raises(InputError) as info:
+            probe_scheduler(address, timeout=1.0)
+        assert time.time() - t < 5 and message in str(info.value)
+        assert address in str(info.value) and "\n" not in str(info.value)
+    finally:
+        srv.close()
+    probe_scheduler(client.scheduler.address, timeout=5.0)  # a real one answers
+    import socket
+
+    with socket.socket() as unused:  # a port nothing listens on
+        unused.bind(("127.0.0.1", 0))
+        port = unused.getsockname()[1]
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
+        probe_scheduler(f"tcp://127.0.0.1:{port}", timeout=1.0)
