@@ -187,9 +187,10 @@ def segment_layout(n_segments: int, long_m: float, short_m: float) -> tuple[int,
     if n_segments < 1:
         raise InputError(f"segments must be >= 1, got {n_segments}")
     best: tuple[float, int, int] | None = None
-    for rows in range(1, n_segments + 1):
-        if n_segments % rows:
-            continue
+    # every divisor pair (d, n / d) with d <= sqrt(n), both ways round: O(sqrt(n))
+    small = [d for d in range(1, math.isqrt(n_segments) + 1) if n_segments % d == 0]
+    divisors = sorted(set(small + [n_segments // d for d in small]))
+    for rows in divisors:
         cols = n_segments // rows
         a = long_m / rows
         b = short_m / cols
@@ -235,6 +236,16 @@ def range_noise(
     RangeNoise
     """
     pts = _as_points(xyz, minimum=3, what="range_noise")
+    n_seg = (int(segments[0]) * int(segments[1]) if isinstance(segments, tuple)
+             else int(segments))
+    if n_seg < 1:
+        raise InputError(f"segments must be positive, got {segments}")
+    n_use = pts.shape[0] if max_points is None else min(pts.shape[0], int(max_points))
+    # checked before the per-segment arrays (which grow with the segment count) exist
+    if 3 * n_seg > n_use:
+        raise InputError(f"{n_seg:,} segments need at least {3 * n_seg:,} points, 3 each "
+                         f"(a plane needs at least 3), but there are {n_use:,}; use fewer "
+                         "segments")
     if max_points is not None and pts.shape[0] > max_points:
         rng = np.random.default_rng(seed)
         pts = pts[rng.choice(pts.shape[0], size=max_points, replace=False)]
@@ -656,8 +667,8 @@ def classify_population(
                 sigma = float(1.4826 * np.median(np.abs(rb - np.median(rb))))
             else:
                 sigma = float(noise_sigma)
-            if not sigma >= 0:
-                raise InputError(f"noise sigma must be >= 0, got {noise_sigma}")
+            if not (math.isfinite(sigma) and sigma >= 0):
+                raise InputError(f"noise sigma must be a finite value >= 0, got {noise_sigma}")
             # A floor of 1 nm keeps rounding error of a noise-free board in place.
             up = bg[rb > max(n_sigma * sigma, 1e-9)]
             asperity[up] = True
@@ -755,8 +766,8 @@ def normalise_population(
     a = np.asarray(asperity, dtype=bool).ravel()
     if a.size != pts.shape[0]:
         raise InputError("asperity must have one value per point")
-    if not ratio > 0:
-        raise InputError(f"ratio must be > 0, got {ratio}")
+    if not (math.isfinite(float(ratio)) and ratio > 0):
+        raise InputError(f"ratio must be a finite number > 0, got {ratio}")
     n_asp = int(a.sum())
     bg = np.flatnonzero(~a)
     if n_asp == 0:

@@ -18,6 +18,7 @@ All lengths are metres.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -26,7 +27,7 @@ from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, Residual
+from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, ProgressFn, Residual
 
 PaperTarget = Literal["A", "B"]
 Normalisation = Literal["known", "none"]
@@ -48,17 +49,34 @@ __all__ = [
     "SmoothingCurve",
     "TargetLayout",
     "disc_kernel",
+    "kernel_half_width",
     "paper_target",
     "predict_bias",
     "raster_heights",
+    "raster_shape",
     "simulate_target",
     "smooth_heights",
+    "smoothing_bytes",
     "smoothing_curve",
 ]
 
 #: Bytes per raster node held at the peak of a simulation (heights, labels, noise,
 #: the smoothing convolution and the scanned points).
 RASTER_BYTES_PER_NODE = 12 * 8
+#: Bytes per node of the padded raster held at the peak of the FFT smoothing (the two
+#: padded inputs, their half spectra, their product and the result, float64).
+FFT_BYTES_PER_NODE = 8 * 8
+#: Sub-samples per cell side of :func:`disc_kernel`.
+KERNEL_SUPERSAMPLE = 8
+
+
+def _check_lengths(named: Iterable[tuple[str, float]], *, positive: bool = False) -> None:
+    """Raise InputError unless every value is finite and >= 0 (> 0 if ``positive``)."""
+    for name, value in named:
+        v = float(value)
+        if not (math.isfinite(v) and (v > 0 if positive else v >= 0)):
+            sign = "> 0" if positive else ">= 0"
+            raise InputError(f"{name} must be a finite length {sign}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -127,12 +145,8 @@ def raster_heights(
     asperity : (ny, nx) bool array
         True within ``r`` of an asperity centre (the known class).
     """
-    if not spacing_m > 0:
-        raise InputError(f"spacing must be > 0, got {spacing_m}")
-    nx = int(round(layout.width_m / spacing_m))
-    ny = int(round(layout.height_m / spacing_m))
-    if nx < 1 or ny < 1:
-        raise InputError("the board is smaller than one raster cell")
+    _check_lengths([("asperity radius", layout.asperity_radius_m)], positive=True)
+    ny, nx = raster_shape(layout, spacing_m)
     # heights, noise, smoothed heights, labels and the simulated points all live on
     # this raster at once (about 12 float64 per node, FFT convolution included)
     require(nx * ny * RASTER_BYTES_PER_NODE, f"a simulated target raster of {nx:,} x {ny:,} "
@@ -159,12 +173,58 @@ def raster_heights(
     return x, y, z, asperity
 
 
-def disc_kernel(radius_m: float, spacing_m: float, *, supersample: int = 8) -> np.ndarray:
+def kernel_half_width(radius_m: float, spacing_m: float) -> int:
+    """Half width, in raster nodes, of the :func:`disc_kernel` of ``radius_m``."""
+    _check_lengths([("effective radius", radius_m)])
+    _check_lengths([("spacing", spacing_m)], positive=True)
+    return int(math.floor(radius_m / spacing_m + 0.5))
+
+
+def smoothing_bytes(shape: tuple[int, int], effective_radius_m: float, spacing_m: float,
+                    *, raster: bool = False) -> float:
+    """Peak bytes of the beam smoothing of a ``shape`` raster: the padded FFT raster
+    (:data:`FFT_BYTES_PER_NODE` a node) and the kernel building (:func:`disc_kernel`),
+    plus the simulated raster itself (:data:`RASTER_BYTES_PER_NODE` a node) when
+    ``raster``."""
+    ny, nx = shape
+    n = 2 * kernel_half_width(effective_radius_m, spacing_m) + 1
+    smooth = 0.0 if n == 1 else (float(ny + n - 1) * (nx + n - 1) * FFT_BYTES_PER_NODE
+                                 + float(n) * n * (9 * KERNEL_SUPERSAMPLE + 24))
+    return smooth + (float(ny) * nx * RASTER_BYTES_PER_NODE if raster else 0.0)
+
+
+def _require_smoothing(shape: tuple[int, int], effective_radius_m: float, spacing_m: float,
+                       *, raster: bool = False) -> None:
+    ny, nx = shape
+    n = 2 * kernel_half_width(effective_radius_m, spacing_m) + 1
+    what = "the simulation and beam smoothing" if raster else "the beam smoothing"
+    require(smoothing_bytes(shape, effective_radius_m, spacing_m, raster=raster),
+            f"{what} of a {ny:,} x {nx:,} raster with a {n:,} x {n:,} kernel (effective "
+            f"radius {effective_radius_m * 1e3:g} mm at {spacing_m * 1e3:g} mm)",
+            hint="choose a smaller effective radius or a larger raster spacing")
+
+
+def raster_shape(layout: TargetLayout, spacing_m: float) -> tuple[int, int]:
+    """(ny, nx): nodes of the raster of ``layout`` at ``spacing_m`` (see
+    :func:`raster_heights`)."""
+    _check_lengths([("spacing", spacing_m), ("board width", layout.width_m),
+                    ("board height", layout.height_m)], positive=True)
+    nx = int(round(layout.width_m / spacing_m))
+    ny = int(round(layout.height_m / spacing_m))
+    if nx < 1 or ny < 1:
+        raise InputError("the board is smaller than one raster cell")
+    return ny, nx
+
+
+def disc_kernel(radius_m: float, spacing_m: float, *,
+                supersample: int = KERNEL_SUPERSAMPLE) -> np.ndarray:
     """Averaging kernel of a disc on a raster, weights summing to 1.
 
     Each weight is the fraction of the raster cell (a ``spacing_m`` square centred
     on the node) inside the disc, estimated on a ``supersample`` x ``supersample``
     sub-grid, so radii that are not whole multiples of the spacing are honoured.
+    Its memory (about ``n^2 (9 q + 24)`` bytes for ``n = 2 round(radius / spacing) + 1``
+    nodes a side and ``q = supersample``) is checked before it is built.
 
     Parameters
     ----------
@@ -172,18 +232,29 @@ def disc_kernel(radius_m: float, spacing_m: float, *, supersample: int = 8) -> n
         Disc radius (the effective radius), metres; 0 gives the identity kernel.
     spacing_m : float
         Raster spacing, metres.
+    supersample : int
+        Sub-samples per cell side.
     """
-    if radius_m < 0 or not spacing_m > 0:
-        raise InputError("disc radius must be >= 0 and spacing > 0")
-    rp = radius_m / spacing_m
-    half = int(math.floor(rp + 0.5))
+    half = kernel_half_width(radius_m, spacing_m)
     if half == 0:
         return np.ones((1, 1))
-    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+    rp = radius_m / spacing_m
+    q = int(supersample)
+    n = 2 * half + 1
+    # one (n, n, q) slab of squared distances and its mask at a time, the counts and
+    # the weights
+    require(float(n) * n * (9 * q + 24), f"the beam kernel of effective radius "
+            f"{radius_m * 1e3:g} mm ({n:,} x {n:,} nodes at {spacing_m * 1e3:g} mm)",
+            hint="choose a smaller effective radius or a larger raster spacing")
+    sub = (np.arange(q) + 0.5) / q - 0.5
     off = np.arange(-half, half + 1)
-    px = off[:, None] + sub[None, :]                      # (n, q) sub-sample coordinates
-    d2 = px[:, None, :, None] ** 2 + px[None, :, None, :] ** 2   # (n, n, q, q)
-    w = (d2 <= rp * rp).mean(axis=(2, 3))
+    dx2 = (off[:, None] + sub[None, :]) ** 2              # (n, q) sub-sample x^2
+    counts = np.zeros((n, n), dtype=np.int64)
+    # A loop over the q sub-rows of every cell (not over points): (n, n, q) each.
+    for s in sub:
+        dy2 = (off + s) ** 2
+        counts += np.count_nonzero(dy2[:, None, None] + dx2[None, :, :] <= rp * rp, axis=2)
+    w = counts.astype(np.float64)
     return w / w.sum()
 
 
@@ -201,10 +272,17 @@ def smooth_heights(z: np.ndarray, *, effective_radius_m: float, spacing_m: float
         Beam effective radius, metres.
     spacing_m : float
         Raster spacing, metres.
+
+    The padded FFT raster (``(ny + n - 1) x (nx + n - 1)`` nodes for a kernel of
+    ``n`` nodes a side, :data:`FFT_BYTES_PER_NODE` bytes each) is checked against the
+    available memory before the kernel is built.
     """
-    k = disc_kernel(effective_radius_m, spacing_m)
-    if k.shape == (1, 1):
+    half = kernel_half_width(effective_radius_m, spacing_m)
+    if half == 0:
         return np.array(z, dtype=np.float64, copy=True)
+    ny, nx = np.shape(z)
+    _require_smoothing((ny, nx), effective_radius_m, spacing_m)
+    k = disc_kernel(effective_radius_m, spacing_m)
     return fftconvolve(np.asarray(z, dtype=np.float64), k, mode="same")
 
 
@@ -264,8 +342,7 @@ def simulate_target(
     seed : int or numpy Generator, optional
         Randomness of the noise.
     """
-    if noise_sigma_m < 0 or effective_radius_m < 0:
-        raise InputError("noise sigma and effective radius must be >= 0")
+    _check_lengths([("noise sigma", noise_sigma_m), ("effective radius", effective_radius_m)])
     x, y, z, asperity = raster_heights(layout, spacing_m=spacing_m)
     h = smooth_heights(z, effective_radius_m=effective_radius_m, spacing_m=spacing_m)
     if noise_sigma_m > 0:
@@ -317,6 +394,11 @@ class BiasPrediction:
     """Roughness convention (see :func:`rough_viewer.bias.measurement.target_roughness`)."""
 
 
+def _check_ratio(ratio: float) -> None:
+    if not (math.isfinite(float(ratio)) and ratio > 0):
+        raise InputError(f"ratio must be a finite number > 0, got {ratio!r}")
+
+
 def _roughness_variants(
     xy: np.ndarray, heights: list[np.ndarray], keep: np.ndarray, residual: Residual
 ) -> list[float]:
@@ -339,6 +421,7 @@ def predict_bias(
     trials: int = 1,
     seed: int | None = 0,
     residual: Residual = BIAS_RESIDUAL,
+    progress: ProgressFn | None = None,
 ) -> BiasPrediction:
     """Predict the roughness over- or under-estimate of a scanner on a rough target.
 
@@ -370,13 +453,22 @@ def predict_bias(
     residual : {"signed", "absolute"}
         Roughness convention (default signed, the bias paper's definition; see
         :func:`rough_viewer.bias.measurement.target_roughness`).
+    progress : callable, optional
+        ``progress(done, total)`` in trials: ``(0, trials)`` once the target is
+        simulated, then after each trial up to ``(trials, trials)``. A trial takes
+        about 0.1 s on the paper's target at 1 mm.
     """
     if trials < 1:
         raise InputError(f"trials must be >= 1, got {trials}")
+    _check_lengths([("noise sigma", noise_sigma_m), ("effective radius", effective_radius_m)])
+    _check_ratio(ratio)
     if normalisation not in ("known", "none"):
         raise InputError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    # the whole peak (raster and smoothing) is checked before anything is allocated
+    _require_smoothing(raster_shape(layout, spacing_m), effective_radius_m, spacing_m,
+                       raster=True)
     base = simulate_target(layout, spacing_m=spacing_m)
     smooth = smooth_heights(base.true_height, effective_radius_m=effective_radius_m,
                             spacing_m=spacing_m)
@@ -385,7 +477,9 @@ def predict_bias(
     rng = np.random.default_rng(seed)
     rows = []
     ratios = []
-    for _ in range(trials):
+    if progress is not None:
+        progress(0, trials)
+    for t in range(trials):
         noise = rng.normal(0.0, noise_sigma_m, size=smooth.shape) if noise_sigma_m > 0 else 0.0
         if normalisation == "known":
             pts0 = np.column_stack((xy, base.true_height.ravel()))
@@ -399,6 +493,8 @@ def predict_bias(
         rows.append(_roughness_variants(
             xy, [base.true_height, base.true_height + noise, smooth, smooth + noise],
             keep, residual))
+        if progress is not None:
+            progress(t + 1, trials)
     v = np.asarray(rows)
     mean = v.mean(axis=0)
     exp_, noisy, smoothed, measured = (float(m) for m in mean)
@@ -452,17 +548,25 @@ def smoothing_curve(
     normalisation: Normalisation = "known",
     seed: int | None = 0,
     residual: Residual = BIAS_RESIDUAL,
+    progress: ProgressFn | None = None,
 ) -> SmoothingCurve:
     """Roughness error for a series of effective radii on one target.
 
     One noise draw and one known-class thinning are shared by all radii, so the
-    curve is smooth. See :func:`predict_bias` for the parameters.
+    curve is smooth. See :func:`predict_bias` for the parameters; ``progress(done,
+    total)`` counts the effective radii (``(0, K)`` first, then one call per radius).
+    The radii are smoothed one at a time, so memory does not grow with their number.
     """
     ers = np.asarray(effective_radii_m, dtype=np.float64).ravel()
-    if ers.size == 0 or np.any(ers < 0):
-        raise InputError("effective radii must be a non-empty list of values >= 0")
+    if ers.size == 0 or not np.all(np.isfinite(ers)) or np.any(ers < 0):
+        raise InputError("effective radii must be a non-empty list of finite values >= 0")
+    _check_lengths([("noise sigma", noise_sigma_m)])
+    _check_ratio(ratio)
     if layout is None:
         layout = paper_target("A", asperity_radius_m=asperity_radius_m)
+    # the whole peak (raster and the largest smoothing) before anything is allocated
+    _require_smoothing(raster_shape(layout, spacing_m), float(ers.max()), spacing_m,
+                       raster=True)
     base = simulate_target(layout, spacing_m=spacing_m)
     xy = base.xyz(true=True)[:, :2]
     labels = base.labels()
@@ -478,9 +582,14 @@ def smoothing_curve(
         raise InputError(f"normalisation must be 'known' or 'none', got {normalisation!r}")
     expected, noisy = _roughness_variants(xy, [base.true_height, base.true_height + noise],
                                           keep, residual)
-    heights = [smooth_heights(base.true_height, effective_radius_m=float(e),
-                              spacing_m=spacing_m) + noise for e in ers]
-    measured = np.asarray(_roughness_variants(xy, heights, keep, residual))
+    if progress is not None:
+        progress(0, int(ers.size))
+    measured = np.empty(ers.size)
+    for i, e in enumerate(ers):  # one smoothed raster alive at a time
+        h = smooth_heights(base.true_height, effective_radius_m=float(e), spacing_m=spacing_m)
+        measured[i] = _roughness_variants(xy, [h + noise], keep, residual)[0]
+        if progress is not None:
+            progress(i + 1, int(ers.size))
     r = float(layout.asperity_radius_m)
     return SmoothingCurve(
         asperity_radius_m=r, effective_radius_m=ers, er_ratio=ers / r,

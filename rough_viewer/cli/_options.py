@@ -70,6 +70,17 @@ def positive_int(text: str) -> int:
     return v
 
 
+def non_negative_int(text: str) -> int:
+    """argparse type: a whole number >= 0 (seeds)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return v
+
+
 def list_of(kind: Callable[[str], float]) -> Callable[[str], list[float]]:
     """argparse type: comma-separated values, each parsed by ``kind``."""
     def parse(text: str) -> list[float]:

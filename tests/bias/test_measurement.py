@@ -223,3 +223,35 @@ def test_kmeans_1d_agrees_with_lloyd_iterations():
     cent, lab = kmeans2(v.reshape(-1, 1), np.array([[v.min()], [v.max()]]), minit="matrix")
     assert sorted(cent[:, 0]) == pytest.approx([lo, hi], rel=1e-6)
     assert np.array_equal(lab == int(np.argmax(cent[:, 0])), v > thr)
+
+
+def _segment_layout_every_rows(n: int, long_m: float, short_m: float) -> tuple[int, int]:
+    """Brute force: every row count 1..n."""
+    best = None
+    for rows in range(1, n + 1):
+        if n % rows:
+            continue
+        cols = n // rows
+        score = abs(math.log((long_m / rows) / (short_m / cols)))
+        if best is None or score < best[0] - 1e-12:
+            best = (score, rows, cols)
+    assert best is not None
+    return best[1], best[2]
+
+
+def test_segment_layout_divisor_search_equals_brute_force():
+    for n in range(1, 241):
+        for long_m, short_m in ((1.244, 0.609), (1.0, 1.0), (3.0, 0.2)):
+            assert segment_layout(n, long_m, short_m) == \
+                _segment_layout_every_rows(n, long_m, short_m)
+
+
+@pytest.mark.parametrize("segments", [10**12, (10**6, 10**6), 400])
+def test_range_noise_refuses_more_segments_than_points_before_allocating(segments):
+    # 10^12 segments once meant a 10^12-step layout loop and an 8 TB bincount
+    xyz, _ = board_points(n=1000, noise=NOISE, sag=0.0, seed=4)
+    with pytest.raises(ValueError, match="a plane needs at least 3"):
+        range_noise(xyz, segments=segments)
+    with pytest.raises(ValueError, match="but there are 200"):
+        range_noise(xyz, segments=100, max_points=200)
+    assert range_noise(xyz, segments=8, max_points=300).n_points == 300

@@ -162,3 +162,82 @@ def test_classification_of_a_noise_free_target_is_exact():
     assert sc.x_score == 100.0 and sc.y_score == 0.0
     # An estimated sigma is tiny (the background cluster holds the asperities' feet).
     assert classify_population(xyz).noise_sigma < 1e-4
+
+
+def _disc_kernel_4d(radius_m: float, spacing_m: float, q: int = 8) -> np.ndarray:
+    """Brute force: every sub-sample of every cell at once, (n, n, q, q)."""
+    rp = radius_m / spacing_m
+    half = int(math.floor(rp + 0.5))
+    sub = (np.arange(q) + 0.5) / q - 0.5
+    px = np.arange(-half, half + 1)[:, None] + sub[None, :]
+    d2 = px[:, None, :, None] ** 2 + px[None, :, None, :] ** 2
+    w = (d2 <= rp * rp).mean(axis=(2, 3))
+    return w / w.sum()
+
+
+@pytest.mark.parametrize("radius", [0.0007, 0.003, 0.0104, 0.025])
+def test_disc_kernel_equals_the_all_at_once_brute_force(radius):
+    np.testing.assert_array_equal(disc_kernel(radius, 1e-3), _disc_kernel_4d(radius, 1e-3))
+
+
+def test_beam_kernel_and_smoothing_refuse_before_allocating(monkeypatch):
+    from rough_viewer import memory
+    from rough_viewer.vocabulary import InputError
+
+    # the audit's case: ER 10 m at 1 mm once asked numpy for 191 GiB and died
+    monkeypatch.setattr(memory, "available_bytes", lambda: 16e9)
+    with pytest.raises(InputError, match=r"beam kernel of effective radius 10000 mm .*needs "
+                       r"about .*GiB.*larger raster spacing"):
+        disc_kernel(10.0, 1e-3)
+    # n = 21 nodes a side: 21^2 (9 * 8 + 24) = 42,336 bytes; refused under 52.9 kB free
+    monkeypatch.setattr(memory, "available_bytes", lambda: 52_000.0)
+    with pytest.raises(InputError, match="41.3 KiB"):
+        disc_kernel(0.010, 1e-3)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 54_000.0)
+    assert disc_kernel(0.010, 1e-3).shape == (21, 21)
+    # the padded FFT raster, (100 + 20) x (80 + 20) nodes x 64 bytes = 768,000 bytes,
+    # and the kernel, 42,336 bytes: 810,336 bytes
+    monkeypatch.setattr(memory, "available_bytes", lambda: 900_000.0)
+    with pytest.raises(InputError, match=r"beam smoothing of a 100 x 80 raster.*791.3 KiB"):
+        smooth_heights(np.zeros((100, 80)), effective_radius_m=0.010, spacing_m=1e-3)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1.02e6)
+    assert smooth_heights(np.zeros((100, 80)), effective_radius_m=0.010,
+                          spacing_m=1e-3).shape == (100, 80)
+
+
+def test_predict_and_curve_report_progress_in_trials_and_radii():
+    calls: list[tuple[int, int]] = []
+    layout = _small_target(0.019)
+    p = predict_bias(noise_sigma_m=NOISE, effective_radius_m=0.008, layout=layout,
+                     spacing_m=0.004, trials=4, seed=1,
+                     progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(0, 4), (1, 4), (2, 4), (3, 4), (4, 4)]
+    quiet = predict_bias(noise_sigma_m=NOISE, effective_radius_m=0.008, layout=layout,
+                         spacing_m=0.004, trials=4, seed=1)
+    assert quiet == p  # the callback changes nothing
+    calls.clear()
+    ers = np.array([0.0, 0.008, 0.012])
+    c = smoothing_curve(ers, layout=layout, noise_sigma_m=NOISE, spacing_m=0.004, seed=2,
+                        progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(0, 3), (1, 3), (2, 3), (3, 3)]
+    # one radius at a time gives what each radius alone gives (same noise, same thinning)
+    for i, e in enumerate(ers):
+        alone = smoothing_curve([e], layout=layout, noise_sigma_m=NOISE, spacing_m=0.004,
+                                seed=2)
+        assert c.measured_m[i] == alone.measured_m[0]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"noise_sigma_m": float("inf")}, "noise sigma must be a finite length"),
+    ({"noise_sigma_m": float("nan")}, "noise sigma must be a finite length"),
+    ({"effective_radius_m": -0.001}, "effective radius must be a finite length"),
+    ({"ratio": float("inf")}, "ratio must be a finite number"),
+    ({"spacing_m": float("nan")}, "spacing must be a finite length > 0"),
+])
+def test_predict_bias_refuses_non_finite_and_negative_values(kwargs, message):
+    from rough_viewer.vocabulary import InputError
+
+    args = {"noise_sigma_m": NOISE, "effective_radius_m": 0.0, "layout": _small_target(0.019),
+            "spacing_m": 0.004, **kwargs}
+    with pytest.raises(InputError, match=message):
+        predict_bias(**args)

@@ -1,22 +1,30 @@
 """``rough-viewer bias``: scanner bias on roughness (range noise, beam radius, simulation).
 
 Subcommands (each prints a short text report, or JSON with ``--json``; lengths in
-metres in JSON, millimetres in text)::
+metres in JSON, millimetres in text; the commands reading a scan take lengths in
+``--units`` and show them in mm for metric input, in the input's unit otherwise)::
 
     rough-viewer bias noise BOARD_SCAN [--segments 8|RxC] [--scanner X,Y,Z]
-        [--max-points N] [--seed S] [--json]
+        [--max-points N] [--seed S] [--units m|mm|ft|us-ft] [--json]
     rough-viewer bias radius WIRE_SCAN [WIRE_SCAN ...] [--scanner X,Y,Z]
-        [--top-fraction 0.02] [--wire-radius M] [--break-range M] [--json]
+        [--top-fraction 0.02] [--wire-radius M] [--break-range M]
+        [--units m|mm|ft|us-ft] [--json]
     rough-viewer bias simulate [--target A|B] [--asperity-radius M] [--noise M] [--er M]
-        [--spacing M] [--ratio 5] [--trials N] [--seed S] [--signed]
-        [--out CLOUD.las|.laz] [--force] [--json]
+        [--spacing M] [--ratio 5] [--trials N] [--seed S] [--residual signed|absolute]
+        [--out CLOUD.las|.laz] [--force] [--quiet] [--json]
     rough-viewer bias normalise SCAN [--classes kmeans-3sigma|kmeans|truth] [--noise M]
-        [--truth-dim truth] [--ratio 5] [--scanner X,Y,Z] [--seed S] [--signed]
+        [--truth-dim truth] [--ratio 5] [--scanner X,Y,Z] [--seed S]
+        [--residual signed|absolute] [--units m|mm|ft|us-ft]
         [--out NORMALISED.las|.laz] [--force] [--json]
     rough-viewer bias predict --noise M --er M [--asperity-radius M | --target A|B]
-        [--ratio 5] [--trials N] [--spacing M] [--seed S] [--signed] [--json]
+        [--ratio 5] [--trials N] [--spacing M] [--seed S] [--residual signed|absolute]
+        [--quiet] [--json]
     rough-viewer bias curve --noise M --asperity-radius M[,M...] --er-ratio R[,R...]
-        [--ratio 5] [--spacing M] [--seed S] [--signed] [--json]
+        [--ratio 5] [--spacing M] [--seed S] [--residual signed|absolute] [--quiet]
+        [--json]
+
+Every numeric option is range-checked before any work (one line naming the option,
+exit 2; the limits are in ``_shared`` and docs/bias.md).
 
 Each subcommand is one module of this package. See docs/bias.md.
 """

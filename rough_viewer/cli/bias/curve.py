@@ -14,11 +14,13 @@ from rough_viewer.cli._options import (
 )
 from rough_viewer.cli.bias._shared import (
     add_json_option,
+    add_quiet_option,
     add_simulation_options,
-    check_er,
+    check_simulation,
     emit,
     layout,
     mm,
+    progress_bar,
     residual_fields,
     residual_line,
 )
@@ -36,7 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    metavar="M[,M...]", help="hemisphere radii, metres (default 0.019,0.0325)")
     q.add_argument("--er-ratio", type=list_of(non_negative),
                    default=[0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5], metavar="R[,R...]",
-                   help="effective radius / asperity radius values (default 0..0.5)")
+                   help="effective radius / asperity radius values (default 0..0.5); "
+                   "every effective radius below 1 m")
+    add_quiet_option(q)
     add_json_option(q)
     q.set_defaults(func=run)
 
@@ -46,11 +50,15 @@ def run(args: argparse.Namespace) -> int:
 
     curves: list[dict[str, Any]] = []
     ratios = np.asarray(args.er_ratio, dtype=np.float64)
+    check_simulation(args, noise=[args.noise], radii=args.asperity_radius,
+                     ers=[float(e) for r in args.asperity_radius for e in ratios * r],
+                     er_option="--er-ratio x --asperity-radius")
     for r in args.asperity_radius:
-        check_er(args, ratios * r)
         c = smoothing_curve(ratios * r, layout=layout(args, r), noise_sigma_m=args.noise,
                             spacing_m=args.spacing, ratio=args.ratio, seed=args.seed,
-                            residual=args.residual)
+                            residual=args.residual,
+                            progress=progress_bar(args, f"asperity radius {r * 1e3:g} mm",
+                                                  "ER"))
         curves.append({"asperity_radius_m": c.asperity_radius_m, "er_ratio": c.er_ratio,
                        "effective_radius_m": c.effective_radius_m, "expected_m": c.expected_m,
                        "noise_only_m": c.noise_only_m, "measured_m": c.measured_m,

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 
 from rough_viewer.cli._options import (
+    add_units,
     naming,
+    non_negative_int,
     positive_int,
     segments,
     warn,
@@ -14,9 +16,11 @@ from rough_viewer.cli.bias._shared import (
     add_json_option,
     emit,
     load,
-    mm,
     scanner_position,
+    small,
+    small_unit,
 )
+from rough_viewer.vocabulary import UNIT_LABELS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,10 +32,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--segments", type=segments, default=8, metavar="N|RxC",
                    help="number of equal segments, or rows x cols along the long x short "
                    "axis (default 8)")
-    q.add_argument("--scanner", metavar="X,Y,Z", help="scanner position (orients offsets)")
+    q.add_argument("--scanner", metavar="X,Y,Z",
+                   help="scanner position in --units (orients offsets)")
     q.add_argument("--max-points", type=positive_int, metavar="N",
                    help="random subsample of N points (the paper: 180000)")
-    q.add_argument("--seed", type=int, default=0, help="seed of the subsample (default 0)")
+    q.add_argument("--seed", type=non_negative_int, default=0,
+                   help="seed of the subsample (default 0)")
+    add_units(q)
     add_json_option(q)
     q.set_defaults(func=run)
 
@@ -39,8 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.measurement import range_noise
 
-    scanner = scanner_position(args)
-    cloud = load(args.input)
+    cloud = load(args.input, args.units)
+    unit = cloud.source_unit
+    scanner = scanner_position(args, unit)
     with naming(args.input):
         r = range_noise(cloud.xyz(), segments=args.segments, scanner=scanner,
                         max_points=args.max_points, seed=args.seed)
@@ -52,15 +60,17 @@ def run(args: argparse.Namespace) -> int:
     warn([f"{args.input}: {w}" for w in r.warnings])
     data = {"sigma": r.sigma, "sigma_single_plane": r.sigma_single_plane,
             "n_points": r.n_points, "shape": list(r.shape), "segments": segs,
-            "normal": r.normal, "file": str(args.input), "warnings": list(r.warnings)}
+            "normal": r.normal, "file": str(args.input), "unit": unit,
+            "warnings": list(r.warnings)}
+    su = UNIT_LABELS[small_unit(unit)]
     lines = [
-        f"range noise of {args.input}: sigma = {mm(r.sigma)} "
+        f"range noise of {args.input}: sigma = {small(r.sigma, unit)} "
         f"({r.n_points:,} points, {r.shape[0]} x {r.shape[1]} segments)",
-        f"one plane over the whole board: {mm(r.sigma_single_plane)}"
+        f"one plane over the whole board: {small(r.sigma_single_plane, unit)}"
         + ("  (board looks curved)" if r.sigma_single_plane > 1.05 * r.sigma else ""),
-        "row col   points   sigma mm  offset mm  tilt deg",
+        f"row col   points {'sigma ' + su:>10} {'offset ' + su:>10}  tilt deg",
     ]
-    lines += [f"{s.row:3d} {s.col:3d} {s.n_points:8d} {s.sigma * 1e3:10.3f} "
-              f"{s.offset * 1e3:10.3f} {s.tilt_deg:9.3f}" for s in r.segments]
+    lines += [f"{s.row:3d} {s.col:3d} {s.n_points:8d} {small(s.sigma, unit, label=False):>10} "
+              f"{small(s.offset, unit, label=False):>10} {s.tilt_deg:9.3f}" for s in r.segments]
     emit(args, data, "\n".join(lines))
     return 0

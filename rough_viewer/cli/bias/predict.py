@@ -10,13 +10,17 @@ from rough_viewer.cli._options import (
     positive_int,
 )
 from rough_viewer.cli.bias._shared import (
+    MAX_TRIALS,
     add_json_option,
+    add_quiet_option,
     add_simulation_options,
-    check_er,
+    check_simulation,
     emit,
     layout,
     prediction_dict,
     prediction_text,
+    progress_bar,
+    target_radius,
 )
 
 
@@ -27,12 +31,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "and with both; report each roughness and the percentage biases.")
     add_simulation_options(q, target_default=None)
     q.add_argument("--noise", type=non_negative, required=True, metavar="M",
-                   help="range noise sigma, metres")
+                   help="range noise sigma, metres (below 1)")
     q.add_argument("--er", type=non_negative, required=True, metavar="M",
-                   help="beam effective radius, metres")
+                   help="beam effective radius, metres (below 1)")
     q.add_argument("--asperity-radius", type=positive, metavar="M",
                    help="hemisphere radius on the paper's layout, metres (default: target A)")
-    q.add_argument("--trials", type=positive_int, default=3, help="draws averaged (default 3)")
+    q.add_argument("--trials", type=positive_int, default=3,
+                   help=f"draws averaged (default 3, at most {MAX_TRIALS}; about 0.1 s each "
+                   "at 1 mm spacing)")
+    add_quiet_option(q)
     add_json_option(q)
     q.set_defaults(func=run)
 
@@ -40,10 +47,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.simulation import predict_bias
 
-    check_er(args, [args.er])
+    check_simulation(args, noise=[args.noise], ers=[args.er], radii=[target_radius(args)])
     p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er,
                      layout=layout(args, args.asperity_radius), spacing_m=args.spacing,
                      ratio=args.ratio, trials=args.trials, seed=args.seed,
-                     residual=args.residual)
+                     residual=args.residual,
+                     progress=progress_bar(args, "bias trials", "trial"))
     emit(args, prediction_dict(p), prediction_text(p, "predicted roughness bias"))
     return 0

@@ -12,14 +12,18 @@ from rough_viewer.cli._options import (
     positive_int,
 )
 from rough_viewer.cli.bias._shared import (
+    MAX_TRIALS,
     add_json_option,
+    add_quiet_option,
     add_simulation_options,
-    check_er,
     check_las_out,
+    check_simulation,
     emit,
     layout,
     prediction_dict,
     prediction_text,
+    progress_bar,
+    target_radius,
     write_las_atomic,
 )
 
@@ -34,10 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--asperity-radius", type=positive, metavar="M",
                    help="hemisphere radius, metres (default: the target's)")
     q.add_argument("--noise", type=non_negative, default=0.0016, metavar="M",
-                   help="range noise sigma, metres (default 0.0016)")
+                   help="range noise sigma, metres (default 0.0016, below 1)")
     q.add_argument("--er", type=non_negative, default=0.0, metavar="M",
-                   help="beam effective radius, metres (default 0: no smoothing)")
-    q.add_argument("--trials", type=positive_int, default=1, help="draws averaged (default 1)")
+                   help="beam effective radius, metres (default 0: no smoothing; below 1)")
+    q.add_argument("--trials", type=positive_int, default=1,
+                   help=f"draws averaged (default 1, at most {MAX_TRIALS})")
+    add_quiet_option(q)
     q.add_argument("--out", metavar="CLOUD.las", help="write the simulated cloud (.las/.laz)")
     q.add_argument("--force", action="store_true", help="overwrite --out")
     add_json_option(q)
@@ -48,13 +54,14 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.measurement import normalise_population
     from rough_viewer.bias.simulation import predict_bias, simulate_target
 
+    check_simulation(args, noise=[args.noise], ers=[args.er], radii=[target_radius(args)])
     out = check_las_out(args)
-    check_er(args, [args.er])
     target = layout(args, args.asperity_radius)
     residual = args.residual
     p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er, layout=target,
                      spacing_m=args.spacing, ratio=args.ratio, trials=args.trials,
-                     seed=args.seed, residual=residual)
+                     seed=args.seed, residual=residual,
+                     progress=progress_bar(args, "bias trials", "trial"))
     sim = simulate_target(target, spacing_m=args.spacing, noise_sigma_m=args.noise,
                           effective_radius_m=args.er, seed=args.seed)
     pop = normalise_population(sim.xyz(), sim.labels(), ratio=args.ratio, seed=args.seed,
