@@ -61,6 +61,9 @@ RESIDUAL_NAMES: dict[str, str] = {
                 "SCIENCE.md section 1)",
 }
 """How each residual convention is named in output (text and JSON)."""
+#: Trials a scanner-bias prediction averages unless told (``bias predict --trials``
+#: and the app's Bias tab).
+BIAS_TRIALS = 3
 
 AXES: tuple[Axis, Axis, Axis] = ("x", "y", "z")
 AXIS_CHOICES: tuple[AxisChoice, ...] = ("auto", "x", "y", "z")

@@ -25,7 +25,7 @@ import viser
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
-from rough_viewer.vocabulary import BIAS_RESIDUAL, RESIDUALS, Residual
+from rough_viewer.vocabulary import BIAS_RESIDUAL, BIAS_TRIALS, RESIDUALS, Residual
 
 if TYPE_CHECKING:
     from rough_viewer.app.server import App
@@ -93,7 +93,7 @@ class BiasPanel:
             try:
                 p = predict_bias(noise_sigma_m=noise, effective_radius_m=er,
                                  asperity_radius_m=radius, spacing_m=self.spacing_m,
-                                 ratio=ratio, trials=1, residual=residual)
+                                 ratio=ratio, trials=BIAS_TRIALS, residual=residual)
                 ratios = np.asarray(CURVE_RATIOS)
                 ratios = ratios[(ratios == 0) | (ratios * radius >= 0.5 * self.spacing_m)]
                 curve = smoothing_curve(ratios * radius, asperity_radius_m=radius,

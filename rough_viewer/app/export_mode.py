@@ -65,6 +65,7 @@ if TYPE_CHECKING:
     from viser._gui_handles import GuiProgressBarHandle
 
     from rough_viewer.app.server import App
+    from rough_viewer.app.state import LoadedCloud
     from rough_viewer.io import PointCloud
 
 ExportKind = Literal["points", "table", "figure", "report", "view"]
@@ -105,6 +106,13 @@ MAX_SENT_RECORDS = 100
 
 def _has(module: str) -> bool:
     return importlib.util.find_spec(module) is not None
+
+
+def grid_tag(loaded: LoadedCloud, cell_size: float) -> str:
+    """``g<G>`` of a download's name: the grid size as the app shows it, in the
+    cloud's unit, the unit named unless metres (``g0.25``, ``g2.5mm``, ``g1ft``)."""
+    u = loaded.units
+    return f"g{u.length(cell_size):g}{'' if u.unit == 'm' else u.unit}"
 
 
 def safe_name(text: str, default: str = "cloud") -> str:
@@ -278,15 +286,15 @@ def _points_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result
     source = mode.input_file(cloud)
-    g = f"{result.grid.cell_size:g}"
-    name = f"{_stem(cloud)}_g{g}_points.{fmt}"
+    name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_points.{fmt}"
     n_rows = cloud.n + cloud.dropped_nonfinite
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         pf = point_fields(result)
         if fmt == "ply":
             write_ply_fields(path, cloud, pf, comments=[
-                f"rough_viewer: {Path(cloud.source).name or 'cloud'}, grid {g} m, "
+                f"rough_viewer: {Path(cloud.source).name or 'cloud'}, "
+                f"grid {result.grid.cell_size:g} m, "
                 f"axis {result.axis}, roughness in metres"])
         elif source is not None and source.suffix.lower() in LAS_SUFFIXES:
             copy_las_with_fields(source, path, cloud, pf, progress=progress)
@@ -302,7 +310,7 @@ def _table_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
 
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result
-    name = f"{_stem(cloud)}_g{result.grid.cell_size:g}_cells.{fmt}"
+    name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_cells.{fmt}"
     check_table_output(name)
     unit = cloud.source_unit
 
@@ -319,7 +327,7 @@ def _figure_plan(shown: Shown, fmt: str, panel: str,
 
     check_figure_export(fmt)  # type: ignore[arg-type]
     assert shown.result is not None
-    base = f"{_stem(shown.loaded.cloud)}_g{shown.result.grid.cell_size:g}"
+    base = f"{_stem(shown.loaded.cloud)}_{grid_tag(shown.loaded, shown.result.grid.cell_size)}"
     chosen = [(n, f) for n, f in figures if _has_data(f)]
     if panel != ALL_FIGURES:
         chosen = [(n, f) for n, f in chosen if n == panel]
@@ -363,7 +371,8 @@ def _report_plan(shown: Shown) -> Plan:
         text = report_page(cloud, settings, progress=progress)
         write_atomic(path, lambda fh: fh.write(text))
 
-    return Plan(f"{_stem(cloud)}_g{s.cell_size:g}_report.html", REPORT_BYTES, write)
+    return Plan(f"{_stem(cloud)}_{grid_tag(shown.loaded, s.cell_size)}_report.html",
+                REPORT_BYTES, write)
 
 
 def _view_plan(app: App, mode: ExportMode, shown: Shown, camera: Camera | None) -> Plan:

@@ -593,8 +593,12 @@ def on_scene_click(app: App, origin: object, direction: object) -> CellInfo | No
     o = np.asarray(origin, dtype=np.float64)
     d = np.asarray(direction, dtype=np.float64)
     i = pick_point(shown.loaded.display_points, o, d)
-    if i is None:
+    if i is None:  # the earlier point's report and plot go with it
         app.gui.pick.content = "No point under the click."
+        scene.clear_pick(app.pick_nodes)
+        app.pick_nodes = []
+        app.last_pick = None
+        _set_figure(app.gui.scales, scales_placeholder())
         return None
     local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
     pick = Pick(int(shown.loaded.display_index[i]), shown.loaded.to_file_frame(local), local)

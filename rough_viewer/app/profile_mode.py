@@ -167,9 +167,10 @@ def profiles_csv(analyses: list[ProfileAnalysis]) -> str:
     for k, a in enumerate(analyses, start=1):
         xyz = a.source.sample_xyz()
         for i, d in enumerate(a.profile.distance):
-            w.writerow([k, f"{d:.6f}", f"{a.profile.heights[i]:.7g}",
-                        f"{a.denoised.heights[i]:.7g}", f"{xyz[i, 0]:.4f}", f"{xyz[i, 1]:.4f}",
-                        f"{xyz[i, 2]:.4f}", f"{a.raw_fit.dimension:.4f}",
+            # full precision: a millimetre scan's relief is in the 5th decimal of a metre
+            w.writerow([k, f"{d:.15g}", f"{a.profile.heights[i]:.15g}",
+                        f"{a.denoised.heights[i]:.15g}", f"{xyz[i, 0]:.15g}",
+                        f"{xyz[i, 1]:.15g}", f"{xyz[i, 2]:.15g}", f"{a.raw_fit.dimension:.4f}",
                         f"{a.denoised_fit.dimension:.4f}"])
     return out.getvalue()
 
@@ -181,7 +182,7 @@ def summary_markdown(analyses: list[ProfileAnalysis], units: Units | None = None
         return "Tick *Profile mode* and click two points on the rock."
     u = units or Units("m")
     rows = [f"| # | length ({u.label}) | σ noise ({u.rough_label}) | D raw | D de-noised |",
-            "|---|---|---|---|---|"]
+            "|---:|---:|---:|---:|---:|"]
     for k, a in enumerate(analyses, start=1):
         rows.append(f"| {k} | {u.length(a.profile.length):.4g} | {u.rough(a.denoised.sigma):.3g} | "
                     f"{a.raw_fit.dimension:.3f} | {a.denoised_fit.dimension:.3f} |")

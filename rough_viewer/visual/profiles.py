@@ -85,7 +85,7 @@ def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None
         fig.add_trace(go.Scatter(x=np.asarray(p.distance) / lper,
                                  y=np.asarray(p.heights) / hper, mode="lines",
                                  name=f"P{k + 1} raw", legendgroup=f"P{k + 1}",
-                                 line={"color": c, "width": 1}, opacity=0.45,
+                                 line={"color": c, "width": 1, "dash": "dot"}, opacity=0.6,
                                  hovertemplate=hover),
                       row=1, col=1)
         fig.add_trace(go.Scatter(x=np.asarray(p.distance) / lper,

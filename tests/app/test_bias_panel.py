@@ -8,6 +8,7 @@ import pytest
 
 from rough_viewer.app.bias_panel import add_bias_panel
 from rough_viewer.bias.simulation import predict_bias
+from rough_viewer.vocabulary import BIAS_TRIALS
 
 
 def _free_port() -> int:
@@ -33,7 +34,7 @@ def test_panel_predicts_from_its_values(server):
     p = panel.update()
     # the panel's own "Roughness" dropdown (first entry: absolute) decides the convention
     ref = predict_bias(noise_sigma_m=0.0016, effective_radius_m=0.006, asperity_radius_m=0.019,
-                       spacing_m=0.002, trials=1, residual=str(panel.residual.value))
+                       spacing_m=0.002, trials=BIAS_TRIALS, residual=str(panel.residual.value))
     assert p is not None and p.measured_m == pytest.approx(ref.measured_m)
     assert f"{ref.measured_m * 1e3:.3f} mm" in panel.result.content
     assert f"{ref.noise_effect_pct:+.2f} %" in panel.result.content
@@ -41,6 +42,11 @@ def test_panel_predicts_from_its_values(server):
     assert len(fig.data) == 2                      # the curve and the marked prediction
     assert fig.data[1].x[0] == pytest.approx(6.0 / 19.0)
     assert not panel.button.disabled
+    # the same trials as `rough-viewer bias predict` (its numbers, the docs say)
+    from rough_viewer.cli import build_parser
+
+    args = build_parser().parse_args(["bias", "predict", "--noise", "0.0016", "--er", "0.004"])
+    assert args.trials == BIAS_TRIALS
 
 
 def test_panel_refuses_unrepresentable_er(server):

@@ -341,3 +341,17 @@ def test_without_kaleido_the_folder_says_so(server, monkeypatch):
             client.close()
     finally:
         app.stop()
+
+
+def test_download_names_carry_the_grid_as_shown():
+    """A millimetre scan's 2.5 mm grid is 'g2.5mm' in its downloads, not 'g0.0025'."""
+    from dataclasses import replace
+
+    from rough_viewer.app.state import LoadedCloud
+
+    mm = LoadedCloud(replace(face_cloud(3_000), source_unit="mm"))
+    assert em.grid_tag(mm, 0.0025) == "g2.5mm"
+    ft = LoadedCloud(replace(face_cloud(3_000), source_unit="ft"))
+    assert em.grid_tag(ft, 0.3048) == "g1ft"
+    metres = LoadedCloud(face_cloud(3_000))
+    assert em.grid_tag(metres, 0.25) == "g0.25"

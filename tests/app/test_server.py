@@ -236,6 +236,10 @@ def test_click_reports_cell(app, cloud):
     # the marker is a label (drawn on top, sized in pixels); the cell outline 12 edges
     assert [type(n).__name__ for n in app.pick_nodes] == ["LabelHandle", "LineSegmentsHandle"]
     assert on_scene_click(app, origin, (0.0, -1.0, 0.0)) is None
+    # a click that hits nothing: its report does not sit beside the earlier point's
+    assert app.gui.pick.content == "No point under the click."
+    assert app.pick_nodes == [] and app.last_pick is None
+    assert [t.name for t in app.gui.scales.figure.data] != ["ODR", "OLS", "hybrid"]
 
 
 def test_big_cloud_is_thinned_for_display(server):

@@ -22,6 +22,7 @@ from rough_viewer.cli.bias._shared import (
     progress_bar,
     target_radius,
 )
+from rough_viewer.vocabulary import BIAS_TRIALS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="beam effective radius, metres (below 1)")
     q.add_argument("--asperity-radius", type=positive, metavar="M",
                    help="hemisphere radius on the paper's layout, metres (default: target A)")
-    q.add_argument("--trials", type=positive_int, default=3,
+    q.add_argument("--trials", type=positive_int, default=BIAS_TRIALS,
                    help=f"draws averaged (default 3, at most {MAX_TRIALS}; about 0.1 s each "
                    "at 1 mm spacing)")
     add_quiet_option(q)
