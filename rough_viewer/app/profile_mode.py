@@ -167,11 +167,11 @@ def profiles_csv(analyses: list[ProfileAnalysis]) -> str:
     for k, a in enumerate(analyses, start=1):
         xyz = a.source.sample_xyz()
         for i, d in enumerate(a.profile.distance):
-            # full precision: a millimetre scan's relief is in the 5th decimal of a metre
-            w.writerow([k, f"{d:.15g}", f"{a.profile.heights[i]:.15g}",
-                        f"{a.denoised.heights[i]:.15g}", f"{xyz[i, 0]:.15g}",
-                        f"{xyz[i, 1]:.15g}", f"{xyz[i, 2]:.15g}", f"{a.raw_fit.dimension:.4f}",
-                        f"{a.denoised_fit.dimension:.4f}"])
+            # full precision (the shortest exact text): a millimetre scan's relief is in
+            # the 5th decimal of a metre
+            w.writerow([k, *(repr(float(v)) for v in (
+                d, a.profile.heights[i], a.denoised.heights[i], *xyz[i])),
+                f"{a.raw_fit.dimension:.4f}", f"{a.denoised_fit.dimension:.4f}"])
     return out.getvalue()
 
 

@@ -15,6 +15,20 @@ def click_on(app, i):
     return on_scene_click(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
 
 
+def _one_profile(app):
+    """One profile across the test face (x from -1.2 to 1.2 m); profile mode off after."""
+    m = app.mode(ProfileMode)
+    m.on.value = True
+    pts = app.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    click_on(app, i)
+    click_on(app, j)
+    assert len(m.items) == 1 and len(m.nodes) == 1
+    m.on.value = False
+    return m
+
+
 def test_two_clicks_make_a_profile_matching_the_core(app, cloud):
     m = app.mode(ProfileMode)
     m.on.value = True
@@ -127,14 +141,8 @@ def test_a_curved_profile_warns_and_removing_its_trend_fixes_it():
 
 
 def test_the_remove_trend_control_redoes_the_kept_profiles(app):
-    m = app.mode(ProfileMode)
-    m.on.value = True
-    pts = app.shown.loaded.display_points
-    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
-    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
-    click_on(app, i)
-    click_on(app, j)
-    assert len(m.items) == 1 and m.items[0].settings.detrend is None
+    m = _one_profile(app)
+    assert m.items[0].settings.detrend is None
     m.detrend.value = "degree 2"
     assert app.wait_idle(60)
     a = m.items[0]
@@ -146,21 +154,8 @@ def test_the_remove_trend_control_redoes_the_kept_profiles(app):
     text = profiles_csv(m.items).splitlines()
     row = text[1].split(",")
     xyz = a.source.sample_xyz()[0]
-    assert [float(v) for v in row[4:7]] == pytest.approx(xyz, abs=1e-4)  # on the rock
-    m.on.value = False
+    assert [float(v) for v in row[4:7]] == pytest.approx(xyz, abs=1e-9)  # on the rock
 
-
-def _one_profile(app):
-    m = app.mode(ProfileMode)
-    m.on.value = True
-    pts = app.shown.loaded.display_points
-    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
-    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
-    click_on(app, i)
-    click_on(app, j)
-    assert len(m.items) == 1 and len(m.nodes) == 1
-    m.on.value = False
-    return m
 
 
 def test_profiles_belong_to_their_cloud(app):
@@ -190,15 +185,8 @@ def test_a_setting_that_fails_puts_the_controls_back_and_its_error_goes(app):
     """Level 6 needs 320 samples: a short profile cannot take it. The profiles keep
     their level-3 numbers, so the Level control goes back to 3; a later setting
     that works clears the error."""
-    m = app.mode(ProfileMode)
-    m.on.value = True
-    pts = app.shown.loaded.display_points
-    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
-    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
-    click_on(app, i)
-    click_on(app, j)
-    m.on.value = False
-    assert len(m.items) == 1 and m.items[0].settings.level == 3
+    m = _one_profile(app)
+    assert m.items[0].settings.level == 3
     assert np.count_nonzero(np.isfinite(m.items[0].profile.heights)) < 320
     before = m.items[0]
     m.level.value = 6
