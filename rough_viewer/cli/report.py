@@ -23,7 +23,7 @@ from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import add_units, grid_sizes, per_unit, warn
-from rough_viewer.io.output import check_output_path, path_in_folder
+from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
 
@@ -132,17 +132,24 @@ def run(args: argparse.Namespace) -> int:
             print(f"rough-viewer: grid {s.grid_size / per:g} {u}: no {key} figure: {why}",
                   file=sys.stderr)
 
-    write_report(out, report, args.format)
+    made_dir = png_dir is not None and not png_dir.exists()
+    try:
+        with all_or_nothing():  # a PNG that fails takes the page with it: nothing half done
+            write_report(out, report, args.format)
+            if png_dir is not None:
+                figures = png_figures(report)
+                bar = None if quiet else ProgressBar("PNG figures")
+                png_dir.mkdir(exist_ok=True)
+                with image_session("png"):
+                    for i, (name, fig) in enumerate(figures):
+                        write_figure(fig, path_in_folder(png_dir, name), fmt="png")
+                        if bar is not None:
+                            bar(i + 1, len(figures))
+    except BaseException:
+        if made_dir and png_dir is not None and png_dir.is_dir() and not any(png_dir.iterdir()):
+            png_dir.rmdir()
+        raise
     print(f"wrote {out}")
-
     if png_dir is not None:
-        figures = png_figures(report)
-        bar = None if quiet else ProgressBar("PNG figures")
-        png_dir.mkdir(exist_ok=True)
-        with image_session("png"):
-            for i, (name, fig) in enumerate(figures):
-                write_figure(fig, path_in_folder(png_dir, name), fmt="png")
-                if bar is not None:
-                    bar(i + 1, len(figures))
         print(f"wrote {len(figures)} PNG figures to {png_dir}")
     return 0

@@ -187,6 +187,32 @@ def test_png_without_kaleido_is_a_one_line_error(cloud_file, tmp_path, capsys, m
     assert not out.exists()  # checked before any work
 
 
+def test_a_png_that_fails_leaves_nothing(cloud_file, tmp_path, monkeypatch, capsys):
+    """The fourth figure's renderer fails: one line, exit 2, and neither the page nor
+    the first three PNGs nor the new folder stay."""
+    import plotly.graph_objects as go
+
+    import rough_viewer.visual.export as export_module
+
+    calls = []
+
+    def flaky_to_image(fig, format="png", scale=1):
+        calls.append(1)
+        if len(calls) == 4:
+            raise RuntimeError("the browser went away")
+        return b"\x89PNG fake"
+
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
+    monkeypatch.setattr(go.Figure, "to_image", flaky_to_image)
+    png, out = tmp_path / "png", tmp_path / "r.html"
+    assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(out),
+                 "--png", str(png), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "PNG export failed: the browser went away" in err and err.count("\n") == 1
+    assert not out.exists() and not png.exists() and len(calls) == 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_png_export_writes_every_figure(cloud_file, tmp_path, monkeypatch):
     """The export logic, with kaleido's renderer replaced by a stub."""
     import plotly.graph_objects as go
