@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.summary import summaries
 from rough_viewer.vocabulary import MAP_LABELS, UNIT_LABELS, UNIT_METRES
@@ -40,6 +42,13 @@ def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") ->
     lines = [head, cells_line]
     if rep["exact_fit"]:
         lines.append(exact_fit_note(rep["exact_fit"], rep["with_value"]))
+    if "hybrid" in result.models:
+        steep = int(np.count_nonzero(result.theta_hybrid > result.grid.cell_size))
+        if steep:
+            lines.append(
+                f"note: {steep:,} cells have a hybrid roughness larger than the cell itself: "
+                f"their ODR plane is nearly parallel to the dependent axis {result.axis}, and "
+                "hybrid measures along that axis (steep faces: read ODR there)")
     lines.append("")
     cols = ("model", "cells", "mean pts", f"min ({u})", f"max ({u})", f"mean ({u})",
             f"variance ({u}2)", f"std ({u})")

@@ -266,3 +266,23 @@ def test_cells_of_repeated_points_are_explained(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "note: 3 of 6 cells with a value fit their plane exactly" in out
     assert "repeats points" in out
+
+
+def test_hybrid_larger_than_the_cell_is_explained(tmp_path, capsys):
+    """A vertical face read with z as the dependent axis: hybrid (the distance along
+    z to the ODR plane) exceeds the cell in the cells whose plane is nearly vertical;
+    the summary counts them against the CSV."""
+    rng = np.random.default_rng(4)
+    n = 4000
+    xyz = np.column_stack([rng.uniform(0, 2, n), 0.003 * rng.standard_normal(n),
+                           rng.uniform(0, 2, n)])
+    path = tmp_path / "wall.npy"
+    np.save(path, xyz)
+    out = tmp_path / "c.csv"
+    assert main(["compute", str(path), "--grid", "0.5", "--axis", "z", "--out", str(out),
+                 "--quiet"]) == 0
+    text = capsys.readouterr().out
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    steep = int(np.count_nonzero(table["theta_hybrid"] > 0.5))
+    assert steep > 0
+    assert f"note: {steep:,} cells have a hybrid roughness larger than the cell itself" in text
