@@ -619,6 +619,11 @@ def _wire(app: App, m: ExportMode) -> None:
     def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
         app.submit(SaveViewJob(m, camera_of(app, event.client)))
 
+    def another_cloud(_app: App) -> None:  # what was sent was of the cloud before
+        m.say("")
+
+    app.cloud_handlers.append(another_cloud)
+
     @app.server.on_client_connect
     def _(client: viser.ClientHandle) -> None:
         m.refresh_figures()

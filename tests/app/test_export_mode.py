@@ -355,3 +355,18 @@ def test_download_names_carry_the_grid_as_shown():
     assert em.grid_tag(ft, 0.3048) == "g1ft"
     metres = LoadedCloud(face_cloud(3_000))
     assert em.grid_tag(metres, 0.25) == "g0.25"
+
+
+def test_the_sent_note_goes_with_its_cloud(server):
+    from rough_viewer.app.server import build_app
+
+    app = build_app(server, face_cloud(3_000), prefetch=False, presets=PAPER_PRESETS)
+    try:
+        assert app.wait_idle(60)
+        mode = app.mode(ExportMode)
+        mode.say("Sent **outcrop_g0.64_points.laz** (1 MB, 0.3 s).")
+        app.load(cloud=face_cloud(4_000))
+        assert app.wait_idle(60)
+        assert mode.status.content == ""
+    finally:
+        app.stop()
