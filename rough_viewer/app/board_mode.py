@@ -134,7 +134,9 @@ class BoardScanJob(Job["App"]):
         self.mode.note.content = lesson_markdown(lesson)
         # its own colour range: the default stretch on its own cells
         own = self.settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
-        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, own, stash=True)
+        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, own, stash=True,
+                               label=f"board lesson (α {self.alpha_deg:g}°, "
+                               f"β {self.beta_deg:g}°, synthetic)")
 
 
 @dataclass(frozen=True)

@@ -261,8 +261,8 @@ def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
                 settings: ViewSettings, seconds: float, cached: bool) -> str:
     """Markdown of the status line (the file name escaped)."""
     where = "cached" if cached else f"computed in {seconds:.2f} s"
-    name = md(Path(loaded.cloud.source).name, max_chars=120) if loaded.cloud.source \
-        else "in-memory cloud"
+    name = md(loaded.label or Path(loaded.cloud.source).name or "in-memory cloud",
+              max_chars=120)
     colours = "" if settings.layer == "roughness" else \
         f"; colours: {COLOUR_LAYER_LABELS[settings.layer]}"
     return "\n".join([
@@ -420,7 +420,8 @@ class LoadJob(Job["App"]):
 
 
 def load_stages(app: App, run: Run, read: Callable[[Run], PointCloud],
-                settings: ViewSettings, *, stash: bool = False) -> Iterator[str]:
+                settings: ViewSettings, *, stash: bool = False,
+                label: str = "") -> Iterator[str]:
     """Read a cloud, prepare it for display, put it in the scene, then show it with
     ``settings`` at its own default grid (its presets come from its point spacing).
 
@@ -428,13 +429,14 @@ def load_stages(app: App, run: Run, read: Callable[[Run], PointCloud],
     dropping it, so it can be shown again as it was (the board lesson); a load
     without it drops anything put aside. A cloud that cannot be read or prepared
     leaves the old one shown (with the error) and shows ``settings`` on it, so
-    control changes merged into the load are not lost.
+    control changes merged into the load are not lost. ``label``: the status line's
+    name of a cloud that is no file (:attr:`LoadedCloud.label`).
     """
     try:
         cloud = read(run)
         yield "read"
         loaded = LoadedCloud(cloud, max_display=app.options.max_display,
-                             cache_bytes=app.options.cache_bytes)
+                             cache_bytes=app.options.cache_bytes, label=label)
     except (InputError, MemoryError) as exc:
         app.show_error(str(exc) if isinstance(exc, InputError) else "not enough memory "
                        "to load this cloud")

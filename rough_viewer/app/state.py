@@ -303,6 +303,9 @@ class LoadedCloud:
     presets: tuple[float, ...] | None = None
     """Grid presets, metres, coarsest first and nested (each a whole multiple of the
     finest); default :func:`grid_presets` of the cloud."""
+    label: str = ""
+    """What the status line calls a cloud that is no file (e.g. the board lesson);
+    default: its file's name."""
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)

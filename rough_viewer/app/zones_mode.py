@@ -447,6 +447,7 @@ class ZonesMode:
                     node.colors = colours
                 node.visible = True
             app.cloud_handle.visible = False
+            app.gui.colour_bar.visible = False  # the points show zones, not roughness
 
     def hide(self) -> None:
         """Show the map's cloud again; hide the zones."""
@@ -456,6 +457,7 @@ class ZonesMode:
                 self.cloud_node.visible = False
             self._clear_highlight()
             app.cloud_handle.visible = True
+            app.gui.colour_bar.visible = True
 
     def _clear_highlight(self) -> None:
         for node in self.selected_nodes:

@@ -28,6 +28,8 @@ def test_scan_button_opens_the_board_in_the_app(app):
     lesson = board.lesson
     assert lesson is not None and app.shown.loaded.cloud is lesson.scan.cloud
     assert "Board α 30°" in board.note.content and "true roughness" in board.note.content
+    status = app.gui.status.content.replace("\\", "")
+    assert "board lesson (α 30°, β 0°, synthetic)" in status and "in-memory" not in status
     assert np.isfinite(lesson.theta["odr"])
     kinds = [r.kind for r in app.worker.records]
     assert kinds[-2:] == ["BoardScanJob", "PanelsJob"]

@@ -84,6 +84,7 @@ def test_planted_bands_become_three_zones_in_their_colours(zapp, banded):
     # the scene: the zone cloud replaces the map's cloud; each shown point in its zone's
     # colour, light grey in no zone (every cell of this face has a value)
     assert m.cloud_node is not None and m.cloud_node.visible and not app.cloud_handle.visible
+    assert not app.gui.colour_bar.visible  # the points show zones: no roughness colour bar
     per_point = shown_point_labels(app, want)
     palette = np.array([hex_to_rgb(c) for c in colormaps.ZONE_PALETTE])
     expect = np.where(per_point[:, None] > 0, palette[np.maximum(per_point, 1) - 1],
@@ -94,6 +95,7 @@ def test_planted_bands_become_three_zones_in_their_colours(zapp, banded):
     m.on.value = False  # back to the map
     assert app.wait_idle(60)
     assert app.cloud_handle.visible and not m.cloud_node.visible
+    assert app.gui.colour_bar.visible
 
 
 def test_table_and_list_are_sorted_largest_first(zapp):
