@@ -92,12 +92,14 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
 
 
 def _las_crs(p: Path) -> CrsInfo:
-    import laspy
+    from rough_viewer.io.las import open_las
 
     check_input_file(p)
     try:
-        with laspy.open(p) as reader:
+        with open_las(p) as reader:
             records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
+    except InputError:
+        raise
     except Exception as exc:  # laspy raises its own types
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read the header of {p}: {msg}") from None

@@ -29,6 +29,70 @@ def laz_backend():
     return None
 
 
+#: Smallest LAS header (versions 1.0-1.2), bytes; a VLR header is 54 bytes, an EVLR's 60.
+LAS_MIN_HEADER = 227
+VLR_HEADER_BYTES = 54
+EVLR_HEADER_BYTES = 60
+
+
+def check_las_layout(path: str | os.PathLike[str]) -> None:
+    """Refuse a LAS/LAZ file whose header cannot describe the file, from its raw
+    bytes, before laspy reads it: laspy walks the declared records, so a 34 KB file
+    declaring 4e9 VLRs grew the reader past several GB (and a file that only starts
+    with ``LASF`` did the same).
+
+    Checked: the signature, the header size, the point-data offset within the file,
+    the VLRs fitting between the header and the point data, and (LAS 1.4) the EVLRs
+    fitting after the point data.
+
+    Raises
+    ------
+    InputError
+        One line naming the file and what its header gets wrong.
+    """
+    import struct
+
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        with open(p, "rb") as fh:
+            head = fh.read(375)
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or type(exc).__name__}") from None
+    bad = f"the header of {p}"
+    if len(head) < LAS_MIN_HEADER or head[:4] != b"LASF":
+        raise InputError(f"{p} is not a LAS/LAZ file (no LAS header)")
+    minor = head[25]
+    header_size, data_offset, n_vlrs = struct.unpack_from("<HII", head, 94)
+    if not LAS_MIN_HEADER <= header_size <= min(size, data_offset):
+        raise InputError(f"{bad} gives a header size of {header_size:,} bytes, impossible in "
+                         f"a file of {size:,} bytes with point data at {data_offset:,}: "
+                         "a damaged or lying header")
+    if data_offset > size:
+        raise InputError(f"{bad} puts the point data at byte {data_offset:,}, past the end of "
+                         f"the file ({size:,} bytes): the file is truncated or damaged")
+    room = data_offset - header_size
+    if n_vlrs * VLR_HEADER_BYTES > room:
+        raise InputError(f"{bad} declares {n_vlrs:,} variable-length records, more than the "
+                         f"{room:,} bytes before its point data can hold: a damaged or lying "
+                         "header")
+    if minor >= 4 and len(head) >= 247:
+        evlr_start, n_evlrs = struct.unpack_from("<QI", head, 235)
+        if n_evlrs and (evlr_start < data_offset
+                        or evlr_start + n_evlrs * EVLR_HEADER_BYTES > size):
+            raise InputError(f"{bad} declares {n_evlrs:,} extended records from byte "
+                             f"{evlr_start:,}, outside the file ({size:,} bytes): a damaged "
+                             "or lying header")
+
+
+def open_las(path: str | os.PathLike[str], **kwargs):
+    """``laspy.open`` for reading, after :func:`check_las_layout`."""
+    import laspy
+
+    check_las_layout(path)
+    return laspy.open(path, **kwargs)
+
+
 #: Bytes held per point while reading: x, y, z (float64), intensity (uint16), RGB
 #: (3 x uint16), and the finite-row filter's copies of the coordinates at its peak.
 READ_BYTES_PER_POINT = 3 * 8 + 2 + 6 + 3 * 8 + 1
@@ -157,7 +221,6 @@ def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud
     lying header); fewer gives a warning on the cloud. The declared count is then
     checked against available memory (:func:`rough_viewer.memory.require`).
     """
-    import laspy
 
     if cache:
         cached = cache_read(p)
@@ -167,7 +230,7 @@ def read_las(p: Path, *, progress: ProgressFn | None, cache: bool) -> PointCloud
             return cached
     # laspy reads the header on open and builds the decoder on the first read, so
     # the data are measured and the decompression selection set in between.
-    with laspy.open(p, laz_backend=laz_backend()) as reader:
+    with open_las(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
         n, warnings = check_header(p, hdr)
         reader.decompression_selection = _selection(hdr.point_format)
@@ -271,11 +334,10 @@ def load_las_with_extra(
     PointCloud, dict
         The points (metres, with intensity) and name -> (N,) array, row-aligned.
     """
-    import laspy
 
     p = Path(path)
     try:
-        with laspy.open(p, laz_backend=laz_backend()) as reader:
+        with open_las(p, laz_backend=laz_backend()) as reader:
             # the whole record is decoded too
             check_header(p, reader.header,
                          extra_bytes_per_point=int(reader.header.point_format.size))

@@ -31,7 +31,7 @@ import numpy as np
 
 from rough_viewer import __version__
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.las import laz_backend
+from rough_viewer.io.las import laz_backend, open_las
 from rough_viewer.io.output import write_path_atomic
 from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
@@ -173,7 +173,9 @@ def copy_las_with_fields(
         raise InputError(f"{fields.n_points} per-point values for a cloud of {cloud.n} points")
     chunk_points = max(1, int(chunk_points))
     try:
-        reader_cm = laspy.open(src, laz_backend=laz_backend())
+        reader_cm = open_las(src, laz_backend=laz_backend())
+    except InputError:
+        raise
     except Exception as exc:  # laspy raises its own types
         raise InputError(f"cannot read {src}: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                          ) from None

@@ -71,11 +71,10 @@ class Chunk:
 
 
 def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
-    import laspy
 
-    from rough_viewer.io.las import check_scales, laz_backend
+    from rough_viewer.io.las import check_scales, laz_backend, open_las
 
-    with laspy.open(p, laz_backend=laz_backend()) as reader:
+    with open_las(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
         check_scales(p, hdr)
         n = int(hdr.point_count)
@@ -197,12 +196,12 @@ def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
 def _open_las(path: str, *, parallel: bool = True):
     import laspy
 
-    from rough_viewer.io.las import _selection, laz_backend
+    from rough_viewer.io.las import _selection, laz_backend, open_las
 
     backend = laz_backend()
     if not parallel and backend == laspy.LazBackend.LazrsParallel:
         backend = laspy.LazBackend.Lazrs
-    reader = laspy.open(path, laz_backend=backend)
+    reader = open_las(path, laz_backend=backend)
     reader.decompression_selection = _selection(reader.header.point_format)
     return reader
 

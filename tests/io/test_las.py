@@ -142,8 +142,8 @@ def test_nonfinite_rows_dropped_and_counted(tmp_path):
         ("cols.xyz", "1 2\n3 4\n5 6\n", "at least 3 columns"),
         ("bad.csv", "x,y,z\n1,2,3\n4,five,6\n7,8,9\n", "cannot parse"),
         ("nan.xyz", "nan 1 2\n1 nan 2\n", "no points"),
-        ("junk.las", "this is not a las file", "cannot read"),
-        ("junk.laz", "this is not a laz file", "cannot read"),
+        ("junk.las", "this is not a las file", "not a LAS/LAZ file"),
+        ("junk.laz", "this is not a laz file", "not a LAS/LAZ file"),
         ("junk.ply", "plx\n", "not a PLY"),
         ("junk.stl", "hello", "not an STL"),
         ("junk.npy", "nope", "cannot read"),
@@ -290,3 +290,56 @@ def test_cache_key_changes_with_the_decoder_version(tmp_path, monkeypatch, cloud
     np.testing.assert_array_equal(got.z, np.asarray(laspy.read(path).z))
     again = load_points(path)  # now from the v2 entry, RGB and all
     np.testing.assert_array_equal(again.z, got.z)
+
+
+def _patched(tmp_path, name: str, offset: int, fmt: str, value: int, *, version="1.2"):
+    """A valid 1,000-point LAS with one header field overwritten."""
+    import laspy
+
+    h = laspy.LasHeader(point_format=3 if version == "1.2" else 6, version=version)
+    h.scales, h.offsets = [0.001] * 3, [0, 0, 0]
+    las = laspy.LasData(h)
+    rng = np.random.default_rng(0)
+    las.x, las.y, las.z = rng.uniform(0, 10, 1000), rng.uniform(0, 10, 1000), rng.normal(0, .01, 1000)
+    path = tmp_path / name
+    las.write(str(path))
+    data = bytearray(path.read_bytes())
+    struct.pack_into(fmt, data, offset, value)
+    path.write_bytes(bytes(data))
+    return path
+
+
+@pytest.mark.parametrize("name, offset, fmt, value, message", [
+    ("vlrs.las", 100, "<I", 0xFFFFFFFF, "declares 4,294,967,295 variable-length records"),
+    ("offset.las", 96, "<I", 10**9, "past the end of the file"),
+    ("header.las", 94, "<H", 100, "header size of 100 bytes"),
+])
+def test_a_header_that_cannot_describe_its_file_is_refused_before_laspy(
+        tmp_path, name, offset, fmt, value, message):
+    """A 34 KB LAS declaring 4e9 VLRs made laspy walk them, growing the server past
+    GBs; every reader (points, streamed sources, the CRS) now refuses it from the
+    raw header, at once."""
+    import time
+
+    from rough_viewer.io.load import resolve_units
+    from rough_viewer.scale.sources import open_sources
+
+    path = _patched(tmp_path, name, offset, fmt, value)
+    for read in (lambda: load_points(path, cache=False), lambda: open_sources([path]),
+                 lambda: resolve_units(path, None)):
+        t = time.perf_counter()
+        with pytest.raises(InputError) as exc:
+            read()
+        assert time.perf_counter() - t < 1.0
+        assert message in str(exc.value) and path.name in str(exc.value)
+
+
+def test_evlrs_outside_the_file_and_lasf_junk_are_refused(tmp_path):
+    path = _patched(tmp_path, "evlr.las", 243, "<I", 1_000_000, version="1.4")
+    with pytest.raises(InputError, match="declares 1,000,000 extended records"):
+        load_points(path, cache=False)
+    junk = tmp_path / "junk.las"
+    junk.write_bytes(b"LASF" + b"hunter2 secret " * 40)  # starts like LAS, is not
+    with pytest.raises(InputError) as exc:
+        load_points(junk, cache=False)
+    assert "hunter2" not in str(exc.value) and "junk.las" in str(exc.value)
