@@ -107,6 +107,15 @@ def broadcast(server: viser.ViserServer, message: _messages.Message) -> None:
     _websock(server).queue_message(message)
 
 
+def send_to(server: viser.ViserServer, client_id: int, message: _messages.Message) -> None:
+    """Send ``message`` to one browser only (nothing if it has left). Unlike
+    :func:`broadcast`, viser keeps nothing for browsers that connect later: a
+    message per upload part must not pile up in the server for good."""
+    client = server.get_clients().get(client_id)
+    if client is not None:
+        client._websock_connection.queue_message(message)
+
+
 def uuid_of(handle: Any) -> str:
     """The id viser gives a GUI handle (and the browser's element id)."""
     return str(handle._impl.uuid)

@@ -182,7 +182,7 @@ class Uploads:
             return
         t.next_part += 1
         t.received += len(content)
-        hooks.broadcast(self._server, _messages.FileTransferPartAck(
+        hooks.send_to(self._server, client_id, _messages.FileTransferPartAck(
             source_component_uuid=message.source_component_uuid,
             transfer_uuid=message.transfer_uuid,
             transferred_bytes=t.received, total_bytes=t.declared))
@@ -218,7 +218,7 @@ class Uploads:
         self.refused.append(reason)
         if transfer_uuid is not None:
             # end the browser's progress bar (it re-enables the button)
-            hooks.broadcast(self._server, _messages.FileTransferPartAck(
+            hooks.send_to(self._server, client_id, _messages.FileTransferPartAck(
                 source_component_uuid=source, transfer_uuid=transfer_uuid,
                 transferred_bytes=total, total_bytes=total))
         self._refuse(client_id, reason)

@@ -144,3 +144,22 @@ def test_names_are_cleaned():
     assert clean_name("x\ny\x00.laz") == "x y .laz"
     assert clean_name("") == "upload"
     assert len(clean_name("n" * 1000)) == 200
+
+
+def test_upload_messages_go_to_the_uploader_only(live):
+    """Acks and refusals went through viser's persistent broadcast: every part of
+    every upload stayed in the server for good and was replayed to each browser
+    that connected later (20,000 refusals: 20,000 messages to the next page)."""
+    app, client, _ = live
+    for k in range(20):
+        client.upload("Upload file", f"tool{k}.exe", b"0 0 0\n")
+    client.upload("Upload file", "scan.xyz", xyz_text(2000), chunk=16 * 1024)
+    settle(app, seconds=1.0)
+    assert len(client.of_type("FileTransferPartAck")) >= 21  # the uploader got them
+    later = ProtocolClient(app.server.get_port(), "/")
+    try:
+        later.wait_for(lambda m: m.get("type") == "GuiMarkdownMessage", what="the page")
+        time.sleep(0.5)
+        assert later.of_type("FileTransferPartAck") == []
+    finally:
+        later.close()
