@@ -125,9 +125,25 @@ class ClientValues:
         self.rejected: deque[Rejected] = deque(maxlen=MAX_REFUSALS)
         """The last refused values, oldest first."""
         hooks.replace_handlers(server, _messages.GuiUpdateMessage, self._make_filter)
+        self.dropped_clicks = 0
+        """Malformed scene clicks dropped (:func:`pointer_message_ok`)."""
+        hooks.replace_handlers(server, _messages.ScenePointerMessage, self._pointer_filter)
         # a connected page must not open a public tunnel to this server
         hooks.replace_handlers(server, _messages.ShareUrlRequest, lambda _old: None)
         hooks.replace_handlers(server, _messages.ShareUrlDisconnect, lambda _old: None)
+
+    def _pointer_filter(self, viser_handlers: list[hooks.Handler[_messages.ScenePointerMessage]]
+                        ) -> hooks.Handler[_messages.ScenePointerMessage]:
+        async def scene_pointer(client_id: int, message: _messages.ScenePointerMessage) -> None:
+            if not pointer_message_ok(message):
+                self.dropped_clicks += 1  # a browser never sends it
+                return
+            for handler in viser_handlers:
+                out = handler(client_id, message)
+                if out is not None:
+                    await out
+
+        return scene_pointer
 
     def rule(self, handle: Any, check: Rule) -> None:
         """Add ``check`` to the checks of values a client sends to ``handle``."""
@@ -184,3 +200,31 @@ class ClientValues:
                 hooks.uuid_of(handle), {"value": handle.value}))
         self._notify(client_id, "Value not accepted",
                      f"{reason}; the last good value is kept.")
+
+
+#: Largest coordinate a click ray may carry (the display frame is metres around the
+#: cloud's centre; anything larger is not a click on it).
+MAX_RAY_COORDINATE = 1e9
+
+
+def _numbers(value: object, n: int, bound: float) -> bool:
+    """``value`` is a list or tuple of ``n`` finite numbers (no bools) within bound."""
+    return (isinstance(value, (list, tuple)) and len(value) == n
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and math.isfinite(v) and abs(v) <= bound for v in value))
+
+
+def pointer_message_ok(message: _messages.ScenePointerMessage) -> bool:
+    """A scene click as a browser sends it: a known event, 3-vector rays (or none)
+    and at least one screen position (viser indexes ``screen_pos[0]``). A malformed
+    one raised inside viser's handler (IndexError, an overflow warning)."""
+    if message.event_type not in ("click", "rect-select"):
+        return False
+    for ray in (message.ray_origin, message.ray_direction):
+        if ray is not None and not _numbers(ray, 3, MAX_RAY_COORDINATE):
+            return False
+    pos = message.screen_pos
+    return (isinstance(pos, (list, tuple)) and 1 <= len(pos) <= 2
+            and all(_numbers(p, 2, 1e6) for p in pos)
+            and (message.modifier is None or isinstance(message.modifier, str)))
+

@@ -141,8 +141,10 @@ class Gate:
     # ------------------------------------------------------------------ checks
     def websocket_refusal(self, request: Request) -> str | None:
         """Why a WebSocket handshake is refused, or None to let it through."""
-        origin = request.headers.get("Origin")
-        if origin is not None and origin.strip().rstrip("/").lower() not in self.origins:
+        origins = request.headers.get_all("Origin")  # .get() raises on a repeated one
+        if len(origins) > 1:
+            return "origin not allowed"
+        if origins and origins[0].strip().rstrip("/").lower() not in self.origins:
             return "origin not allowed"
         if self.token is not None:
             path = request.path.partition("?")[0].rstrip("/")
@@ -159,7 +161,7 @@ class Gate:
         """The hook that runs before viser's own for every request."""
 
         def process_request(connection: ServerConnection, request: Request) -> Any:
-            if "websocket" in request.headers.get("Upgrade", "").lower():
+            if "websocket" in " ".join(request.headers.get_all("Upgrade")).lower():
                 reason = self.websocket_refusal(request)
                 if reason is not None:
                     return self._refuse(reason, request)
@@ -186,7 +188,7 @@ class Gate:
         return process_request
 
     def _refuse(self, reason: str, request: Request) -> Response:
-        origin = request.headers.get("Origin")
+        origin = ", ".join(request.headers.get_all("Origin"))[:200] or None
         path = request.path.partition("?")[0]
         if self.token is not None and self.token in path:
             path = path.replace(self.token, "<token>")

@@ -146,3 +146,31 @@ def test_check_value_rules_without_a_browser(live):
         check_value(app.gui.camera, 1)
     with pytest.raises(InputError):
         check_value(app.gui.upload, b"data")
+
+
+@pytest.mark.parametrize("bad", [
+    {"ray_origin": [1, 2], "ray_direction": "x", "screen_pos": []},          # IndexError in viser
+    {"ray_origin": [1e308] * 3, "ray_direction": [0.0, 1.0, 0.0]},           # overflow warning
+    {"ray_origin": [0.0, -5.0, float("nan")], "ray_direction": [0.0, 1.0, 0.0]},
+    {"event_type": "drag"},
+    {"screen_pos": [[0.5, 0.5]] * 3},
+])
+def test_malformed_clicks_are_dropped_and_a_real_one_still_works(live, bad, capfd):
+    app, client = live
+    pts = app.shown.loaded.display_points
+    target = pts[100].astype(float)
+    message = {"type": "ScenePointerMessage", "event_type": "click",
+               "ray_origin": [float(v) for v in target + [0.0, -5.0, 0.0]],
+               "ray_direction": [0.0, 1.0, 0.0],
+               "screen_pos": [[0.5, 0.5]], "modifier": None}
+    before = app.controls.dropped_clicks
+    client.send({**message, **bad})
+    settle(app)
+    assert app.last_pick is None and app.controls.dropped_clicks == before + 1
+    client.send(message)  # the same connection still clicks
+    end = time.time() + 10
+    while app.last_pick is None and time.time() < end:
+        time.sleep(0.05)
+    assert app.last_pick is not None
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "exception" not in err.lower() and "Warning" not in err

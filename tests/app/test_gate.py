@@ -256,3 +256,23 @@ def served_shot_dir():
     out = Path(os.environ.get("ROUGH_VIEWER_SHOTS", "/tmp/rough-viewer-shots"))
     out.mkdir(parents=True, exist_ok=True)
     return out
+
+
+def test_a_repeated_origin_header_is_refused_not_a_server_error(guarded):
+    """Two Origin headers (one the server's own): websockets' .get() raised
+    MultipleValuesError, an HTTP 500 with a traceback in the log."""
+    import socket
+
+    server, gate, _app = guarded
+    port = server.get_port()
+    for first, second in ((f"http://127.0.0.1:{port}", "http://evil.example"),
+                          ("http://evil.example", f"http://127.0.0.1:{port}")):
+        request = (f"GET /t/{TOKEN}/ HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
+                   "Upgrade: websocket\r\nConnection: Upgrade\r\n"
+                   "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                   f"Origin: {first}\r\nOrigin: {second}\r\n\r\n")
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as sock:
+            sock.sendall(request.encode())
+            status = sock.recv(200).split(b"\r\n")[0]
+        assert status.startswith(b"HTTP/1.1 403"), status
+    assert [r.reason for r in gate.refused][-2:] == ["origin not allowed"] * 2
