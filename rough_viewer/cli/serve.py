@@ -178,6 +178,7 @@ def run(args: argparse.Namespace) -> int:
                                    token=None if args.no_token else new_token(),
                                    allow_origins=args.allow_origin)
     app = None
+    previous = _stop_on_terminate()
     try:
         presets = grid_presets(cloud)
         if settings is None:  # the cloud's default grid (its finest preset)
@@ -209,6 +210,35 @@ def run(args: argparse.Namespace) -> int:
         pass
     finally:
         if app is not None:
-            app.stop()
+            app.stop()  # removes the upload folder
         server.stop()
+        _restore_signals(previous)
     return 0
+
+
+def _stop_on_terminate() -> dict[int, object]:
+    """SIGTERM and SIGHUP (a service manager, a closed terminal) end the server as
+    Ctrl-C does, so its cleanup runs (the upload folder in the temp folder was left
+    behind). Returns the handlers replaced (none off the main thread)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def interrupt(_signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous: dict[int, object] = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None:
+            previous[sig] = signal.signal(sig, interrupt)
+    return previous
+
+
+def _restore_signals(previous: dict[int, object]) -> None:
+    import signal
+
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)  # type: ignore[arg-type]

@@ -1,6 +1,7 @@
 import re
 
 import numpy as np
+import pytest
 
 from rough_viewer.cli import main
 
@@ -115,3 +116,27 @@ def test_serve_units_from_the_option_and_from_the_las_crs(tmp_path):
 def test_serve_rejects_units_with_a_demo(capsys):
     assert main(["serve", "--demo", "outcrop-small", "--units", "mm", "--no-block"]) == 2
     assert "--units applies to INPUT files" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_terminate_cleans_up_like_ctrl_c(tmp_path, monkeypatch, signame):
+    """A service manager's SIGTERM (or a closed terminal's SIGHUP) left the upload
+    folder behind in the temp folder; now it ends the server as Ctrl-C does."""
+    import os
+    import signal
+
+    from tests.app.serve_process import ServeProcess
+
+    xyz = np.random.default_rng(3).uniform(0, 2, (3000, 3)) * [1, 1, 0.01]
+    np.save(tmp_path / "face.npy", xyz)
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(temp))
+    proc = ServeProcess(str(tmp_path / "face.npy"), "--no-token")
+    try:
+        assert [p.name.startswith("rough-viewer-uploads-") for p in temp.iterdir()] == [True]
+        os.kill(proc.proc.pid, getattr(signal, signame))
+        assert proc.proc.wait(20) == 0
+        assert list(temp.iterdir()) == []
+    finally:
+        proc.stop()
