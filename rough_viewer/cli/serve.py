@@ -196,7 +196,12 @@ def run(args: argparse.Namespace) -> int:
         if opened is not None:
             from rough_viewer.app.views import apply_view
 
-            apply_view(app, opened.view, source=args.view, notice=opened.notice)
+            # browsers see file names, never the server's folders (the terminal does)
+            public = opened.notice
+            for full in {str(opened.view.input.path), str(opened.input_path)}:
+                if full:
+                    public = public.replace(full, Path(full).name)
+            apply_view(app, opened.view, source=Path(args.view).name, notice=public)
             app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened.notice:
                 print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)

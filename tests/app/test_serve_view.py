@@ -64,7 +64,9 @@ def test_serve_view_reopens_the_view(tmp_path):
                             what="the status line of the view's grid and model")
             assert _shows(client, "Colour map", "cividis")
             assert _shows(client, "Display", "binary") and _shows(client, "Threshold", 0.3)
-            client.wait_for(lambda m: "input moved" in _text(m), what="the notice")
+            note = client.wait_for(lambda m: "input moved" in _text(m), what="the notice")
+            assert str(tmp_path) not in _text(note)  # file names, not the server's folders
+            assert any(str(tmp_path) in line for line in proc.stderr)  # the terminal has them
             client.wait_for(lambda m: "| 1 |" in _text(m), what="the profile's table row")
             assert _shows(client, "Wavelet", "db4")
             # the view's camera is the initial camera, in the app's local frame
