@@ -178,7 +178,13 @@ def _scale(a: np.ndarray) -> float:
 
 
 def _check_spacing(spacing: float) -> float:
-    spacing = float(spacing)
+    try:
+        spacing = float(spacing)
+    except (TypeError, ValueError):  # e.g. the distances array given as the spacing
+        raise InputError("spacing must be one number (the sample spacing in metres), got "
+                         f"{type(spacing).__name__}"
+                         f"{f' of shape {np.shape(spacing)}' if np.ndim(spacing) else ''}"
+                         ) from None
     if not np.isfinite(spacing) or spacing <= 0:
         raise InputError(f"spacing must be a positive length in metres, got {spacing}")
     return spacing

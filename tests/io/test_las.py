@@ -146,7 +146,7 @@ def test_nonfinite_rows_dropped_and_counted(tmp_path):
         ("junk.laz", "this is not a laz file", "not a LAS/LAZ file"),
         ("junk.ply", "plx\n", "not a PLY"),
         ("junk.stl", "hello", "not an STL"),
-        ("junk.npy", "nope", "cannot read"),
+        ("junk.npy", "nope", "not a NumPy .npy array"),
     ],
 )
 def test_bad_files_raise_one_line_errors_naming_the_file(tmp_path, name, content, message):

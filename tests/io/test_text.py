@@ -41,3 +41,37 @@ def test_folder_as_input_says_folder(tmp_path):
             load_points(folder)
         assert str(info.value).startswith(f"{folder} is a folder, not a point file")
         assert "unknown file type" not in str(info.value)
+
+
+EXPECTED = np.array([[1, 0, 0], [0, 1, 0], [1, 1, 0.5], [0.5, 0.5, 0.25]], dtype=float)
+
+
+@pytest.mark.parametrize("name, text", [
+    ("leica.pts", "4\n1 0 0 61014\n0 1 0 61000\n1 1 0.5 60000\n0.5 0.5 0.25 59000\n"),
+    ("semi.csv", "X;Y;Z\n1;0;0\n0;1;0\n1;1;0.5\n0.5;0.5;0.25\n"),
+    ("semi_nohdr.csv", "1;0;0\n0;1;0\n1;1;0.5\n0.5;0.5;0.25\n"),
+    ("comment.csv", "# exported by CloudCompare\nx,y,z,intensity\n1,0,0,5\n0,1,0,5\n"
+                    "1,1,0.5,5\n0.5,0.5,0.25,5\n"),
+    ("crlf_tabs.txt", "x\ty\tz\r\n1\t0\t0\r\n0\t1\t0\r\n1\t1\t0.5\r\n0.5\t0.5\t0.25\r\n"),
+    ("comments_between.xyz", "# a\n\n1 0 0\n# b\n0 1 0\n1 1 0.5\n0.5 0.5 0.25\n"),
+])
+def test_common_exports_read_as_the_same_points(tmp_path, name, text):
+    """Leica .pts (a point count first), semicolon CSV, a comment before the header:
+    all were refused or misread ('found 1 column', 'could not convert x,y,z')."""
+    path = tmp_path / name
+    path.write_bytes(text.encode())
+    cloud = load_points(path)
+    np.testing.assert_array_equal(np.column_stack([cloud.x, cloud.y, cloud.z]), EXPECTED)
+
+
+def test_header_only_and_pickled_npy_are_one_line(tmp_path, capfd):
+    path = tmp_path / "h.csv"
+    path.write_text("x,y,z\n")
+    with pytest.raises(InputError, match="no points in .*h.csv"):
+        load_points(path)
+    assert "UserWarning" not in capfd.readouterr().err  # numpy's warning stays quiet
+    fake = tmp_path / "notnpy.npy"
+    fake.write_text("hello")
+    with pytest.raises(InputError) as info:
+        load_points(fake)
+    assert "not a NumPy .npy array" in str(info.value) and "unsafely" not in str(info.value)

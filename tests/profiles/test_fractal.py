@@ -12,12 +12,14 @@ import numpy as np
 import pytest
 
 from rough_viewer.profiles.fractal import (
+    detrend,
     roughness_length,
     roughness_length_2d,
     window_std_1d,
     window_std_2d,
 )
 from rough_viewer.synthetic.fbm import fbm_profile
+from rough_viewer.vocabulary import InputError
 
 
 def brute_std_1d(h: np.ndarray, m: int) -> np.ndarray:
@@ -148,3 +150,13 @@ def test_errors() -> None:
         roughness_length(np.arange(2000.0), 1e-3)  # a straight line: s(w) = 0
     with pytest.raises(ValueError, match="2-D"):
         roughness_length_2d(np.ones(100), 1e-3)
+
+
+def test_an_array_as_the_spacing_is_an_input_error():
+    """A notebook slip (the distances given as the spacing) raised a bare TypeError."""
+    distances = np.arange(200) * 0.01
+    heights = np.sin(distances * 7)
+    with pytest.raises(InputError, match=r"spacing must be one number .* of shape \(200,\)"):
+        roughness_length(distances, heights)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="spacing must be one number"):
+        detrend(heights, "1cm")  # type: ignore[arg-type]
