@@ -138,10 +138,7 @@ class ClientValues:
             if not pointer_message_ok(message):
                 self.dropped_clicks += 1  # a browser never sends it
                 return
-            for handler in viser_handlers:
-                out = handler(client_id, message)
-                if out is not None:
-                    await out
+            await _pass_on(viser_handlers, client_id, message)
 
         return scene_pointer
 
@@ -164,12 +161,8 @@ class ClientValues:
                      ) -> hooks.Handler[_messages.GuiUpdateMessage]:
         async def gui_update(client_id: int, message: _messages.GuiUpdateMessage) -> None:
             checked = self.check(client_id, message)
-            if checked is None:
-                return
-            for handler in viser_handlers:
-                out = handler(client_id, checked)
-                if out is not None:
-                    await out
+            if checked is not None:
+                await _pass_on(viser_handlers, client_id, checked)
 
         return gui_update
 
@@ -200,6 +193,14 @@ class ClientValues:
                 hooks.uuid_of(handle), {"value": handle.value}))
         self._notify(client_id, "Value not accepted",
                      f"{reason}; the last good value is kept.")
+
+
+async def _pass_on(handlers: list[Any], client_id: int, message: Any) -> None:
+    """Give a checked message to viser's own handlers (sync or async)."""
+    for handler in handlers:
+        out = handler(client_id, message)
+        if out is not None:
+            await out
 
 
 #: Largest coordinate a click ray may carry (the display frame is metres around the
