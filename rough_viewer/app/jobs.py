@@ -43,6 +43,7 @@ from rough_viewer.app.layout import (
     l_grid_free,
     l_range_hi,
     l_range_lo,
+    quietly,
     scales_placeholder,
 )
 from rough_viewer.app.markup import md
@@ -467,13 +468,10 @@ def show_cloud(app: App, loaded: LoadedCloud, settings: ViewSettings | None = No
         app.shown = Shown(loaded, settings or app.shown.settings)
         size = scene.default_point_size(loaded)
         _controls_for(app, loaded)
-        app._local.syncing = True
-        try:
+        with quietly(app._local):
             gui.point_size.min, gui.point_size.max = size / 10, size * 10
             gui.point_size.step = size / 10
             assign(gui.point_size, size)
-        finally:
-            app._local.syncing = False
         app.sync_controls(app.shown.settings)
         app.cloud_handle = scene.add_cloud(app.server, loaded, size)
         scene.clear_pick(app.pick_nodes)
@@ -496,8 +494,7 @@ def _controls_for(app: App, loaded: LoadedCloud) -> None:
     u = loaded.units
     assert loaded.presets is not None
     values = grid_options(loaded.presets, u)
-    app._local.syncing = True
-    try:
+    with quietly(app._local):
         gui.grid_values = values
         gui.length_units = u
         gui.grid.options = (*values, "free")
@@ -507,8 +504,6 @@ def _controls_for(app: App, loaded: LoadedCloud) -> None:
         gui.range_lo.label = l_range_lo(u)
         gui.range_hi.label = l_range_hi(u)
         gui.layer.options = tuple(COLOUR_LAYER_LABELS[n] for n in loaded.layers)
-    finally:
-        app._local.syncing = False
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,10 @@ worker. Labels here are what users and the browser tests look for.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -122,6 +125,18 @@ def assign(handle: Any, value: T) -> None:
     viser assigns it at run time; this one function is where the app does.
     """
     setattr(handle, "value", value)  # noqa: B010 - see the docstring
+
+
+@contextlib.contextmanager
+def quietly(local: threading.local) -> Iterator[None]:
+    """Set controls inside the block without their callbacks queuing work: the
+    callbacks see ``local.syncing`` True on this thread (nested blocks keep it)."""
+    before = bool(getattr(local, "syncing", False))
+    local.syncing = True
+    try:
+        yield
+    finally:
+        local.syncing = before
 
 
 def resolve_colormap(choice: str, model: str) -> str:

@@ -251,11 +251,9 @@ class ProfileMode:
 
     def show_settings(self, settings: ProfileSettings) -> None:
         """Put the de-noising controls to ``settings`` without queuing work."""
-        from rough_viewer.app.layout import assign
+        from rough_viewer.app.layout import assign, quietly
 
-        local = self.app._local
-        local.syncing = True
-        try:
+        with quietly(self.app._local):
             for handle, value in ((self.wavelet, settings.wavelet),
                                   (self.decomposition, settings.decomposition),
                                   (self.threshold, settings.threshold), (self.mode, settings.mode),
@@ -263,8 +261,6 @@ class ProfileMode:
                 if value in handle.options:
                     assign(handle, value)
             assign(self.level, int(settings.level))
-        finally:
-            local.syncing = False
 
     def refresh(self) -> None:
         """Redraw the table and the plot (at the height its builder laid it out for)."""

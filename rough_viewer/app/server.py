@@ -51,6 +51,7 @@ from rough_viewer.app.layout import (
     assign,
     build_gui,
     limit_step,
+    quietly,
     resolve_colormap,
     round_limit,
 )
@@ -308,8 +309,7 @@ class App:
         restored view, or a cloud with other presets)."""
         g = self.gui
         u = g.length_units
-        self._local.syncing = True
-        try:
+        with quietly(self._local):
             assign(g.grid, grid_choice(settings.cell_size, g.grid_values))
             assign(g.grid_free, u.length(settings.cell_size))
             assign(g.model, MODEL_LABELS[settings.model])
@@ -332,8 +332,6 @@ class App:
                     assign(handle, value)
             else:
                 assign(g.percentiles, (float(st.lo), float(st.hi)))
-        finally:
-            self._local.syncing = False
 
     def show_range(self, colour_range: colormaps.ColourRange) -> None:
         """Put the roughness range the colours span into the lowest/highest fields
@@ -343,14 +341,11 @@ class App:
         lo, hi = round_limit(u.rough(colour_range.lo)), round_limit(u.rough(colour_range.hi))
         if hi <= lo:
             return
-        self._local.syncing = True
-        try:
+        with quietly(self._local):
             # the fields show as many decimals as their step has: 3 digits of each
             for handle, value in ((g.range_lo, lo), (g.range_hi, hi)):
                 handle.step = limit_step(value)
                 assign(handle, value)
-        finally:
-            self._local.syncing = False
 
 
 def _default_data_dir(cloud: PointCloud) -> Path:
@@ -505,11 +500,8 @@ def _wire_map(app: App) -> None:
         control.on_update(update)
 
     def set_quietly(handle: Any, value: object) -> None:
-        app._local.syncing = True
-        try:
+        with quietly(app._local):
             assign(handle, value)
-        finally:
-            app._local.syncing = False
 
     @g.grid_free.on_update
     def _(_event: object) -> None:

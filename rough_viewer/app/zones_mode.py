@@ -55,7 +55,7 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.jobs import Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG, assign
+from rough_viewer.app.layout import PLOTLY_CONFIG, assign, quietly
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import ByteCache, LoadedCloud, Units
@@ -380,11 +380,8 @@ class ZonesMode:
         return bool(getattr(self._local, "syncing", False))
 
     def _sync(self, handle: Any, value: object) -> None:
-        self._local.syncing = True
-        try:
+        with quietly(self._local):
             assign(handle, value)
-        finally:
-            self._local.syncing = False
 
     def params(self) -> ZoneParams:
         """The zones the controls and the shown view ask for."""
@@ -526,14 +523,11 @@ class ZonesMode:
     def _sync_dropdown(self, zones: Zones, zone: int) -> None:
         options = zone_options(zones, zone)
         value = zone_option(zone, int(zones.cells[zone - 1])) if zone else NO_ZONE
-        self._local.syncing = True
-        try:
+        with quietly(self._local):
             if tuple(self.selected.options) != options:
                 self.selected.options = options
             if self.selected.value != value:
                 assign(self.selected, value)
-        finally:
-            self._local.syncing = False
 
     def on_pick(self, app: App, pick: Pick) -> bool:
         """A click while zones are shown selects the zone under it (none on a point
