@@ -15,7 +15,8 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Iterator
 from typing import Literal
 
 # ----------------------------------------------------------------------------- errors
@@ -29,6 +30,36 @@ class InputError(ValueError):
     status 2; the app shows it as a notice. The message names the problem and,
     where there is one, the file.
     """
+
+
+def error_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type's name when it has none):
+    what a one-line error quotes of a library's error.
+
+    >>> error_line(ValueError("bad header\\nat byte 7")), error_line(KeyError())
+    ('bad header', 'KeyError')
+    """
+    line = next((s.strip() for s in str(exc).splitlines() if s.strip()), "")
+    return line or type(exc).__name__
+
+
+@contextlib.contextmanager
+def foreign_errors(what: str) -> Iterator[None]:
+    """Turn an error a library raises in the block (laspy, lazrs, pye57 raise their
+    own types) into one :class:`InputError` line, ``"<what>: <its first line>"``;
+    an :class:`InputError` passes as it is.
+
+    >>> with foreign_errors("cannot read a.las"):
+    ...     raise OSError("unexpected end of file")
+    Traceback (most recent call last):
+    rough_viewer.vocabulary.InputError: cannot read a.las: unexpected end of file
+    """
+    try:
+        yield
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{what}: {error_line(exc)}") from None
 
 
 #: ``progress(done, total)``: how the science reports progress without printing.

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import check_input_file
-from rough_viewer.vocabulary import CrsUnit, InputError
+from rough_viewer.vocabulary import CrsUnit, foreign_errors
 
 #: EPSG unit-of-measure codes (GeoTIFF ProjLinearUnitsGeoKey) -> unit.
 EPSG_UNITS: dict[int, CrsUnit] = {9001: "m", 9002: "ft", 9003: "us-ft"}
@@ -95,14 +95,8 @@ def _las_crs(p: Path) -> CrsInfo:
     from rough_viewer.io.las import open_las
 
     check_input_file(p)
-    try:
-        with open_las(p) as reader:
-            records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
-    except InputError:
-        raise
-    except Exception as exc:  # laspy raises its own types
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read the header of {p}: {msg}") from None
+    with foreign_errors(f"cannot read the header of {p}"), open_las(p) as reader:
+        records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
     raw: dict[int, bytes] = {}
     for vlr in records:
         if vlr.user_id.rstrip("\0") != "LASF_Projection":

@@ -18,7 +18,7 @@ import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError, ProgressFn
+from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
 #: Bytes per point at the peak of a read: pye57's per-scan buffers (x, y, z float64,
 #: intensity float32, 3 colour bytes, invalid state) and the merged columns.
@@ -57,11 +57,8 @@ def read_e57(p: Path, *, progress: ProgressFn | None = None) -> PointCloud:
         import pye57
     except ImportError:
         raise InputError(f"reading {p} needs pye57 (pip install pye57)") from None
-    try:
+    with foreign_errors(f"cannot read {p} as E57"):  # libE57Format raises its own types
         e57 = pye57.E57(str(p))
-    except Exception as exc:  # libE57Format raises its own types
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read {p} as E57: {msg}") from None
     try:
         n_scans = int(e57.scan_count)
         if n_scans == 0:

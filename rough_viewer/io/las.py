@@ -13,7 +13,7 @@ import numpy as np
 from rough_viewer.io.cache import cache_read, cache_write
 from rough_viewer.io.cloud import PointCloud, finite_cloud
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError, ProgressFn
+from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
 #: Points per chunk when reading LAS/LAZ.
 LAS_CHUNK = 2_000_000
@@ -336,17 +336,12 @@ def load_las_with_extra(
     """
 
     p = Path(path)
-    try:
-        with open_las(p, laz_backend=laz_backend()) as reader:
-            # the whole record is decoded too
-            check_header(p, reader.header,
-                         extra_bytes_per_point=int(reader.header.point_format.size))
-            las = reader.read()
-    except InputError:
-        raise
-    except Exception as exc:  # laspy and lazrs raise their own types
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read {p}: {msg}") from None
+    with foreign_errors(f"cannot read {p}"), \
+            open_las(p, laz_backend=laz_backend()) as reader:
+        # the whole record is decoded too
+        check_header(p, reader.header,
+                     extra_bytes_per_point=int(reader.header.point_format.size))
+        las = reader.read()
     present = list(las.point_format.extra_dimension_names)
     for name in names:
         if name not in present:

@@ -35,7 +35,7 @@ from rough_viewer.io.las import laz_backend, open_las
 from rough_viewer.io.output import write_path_atomic
 from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError, ProgressFn
+from rough_viewer.vocabulary import InputError, ProgressFn, error_line, foreign_errors
 
 #: Points per chunk of the streamed copy.
 COPY_CHUNK = 1_000_000
@@ -172,13 +172,8 @@ def copy_las_with_fields(
     if fields.n_points != cloud.n:
         raise InputError(f"{fields.n_points} per-point values for a cloud of {cloud.n} points")
     chunk_points = max(1, int(chunk_points))
-    try:
+    with foreign_errors(f"cannot read {src}"):
         reader_cm = open_las(src, laz_backend=laz_backend())
-    except InputError:
-        raise
-    except Exception as exc:  # laspy raises its own types
-        raise InputError(f"cannot read {src}: {str(exc).splitlines()[0] if str(exc) else exc!r}"
-                         ) from None
     with reader_cm as reader:
         header_in = reader.header
         n_file = int(header_in.point_count)
@@ -233,8 +228,7 @@ def copy_las_with_fields(
             raise
         except Exception as exc:  # laspy and lazrs raise their own types
             if type(exc).__module__.startswith(("laspy", "lazrs")) or "Laz" in type(exc).__name__:
-                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                raise InputError(f"cannot copy {src} to {out}: {msg}") from None
+                raise InputError(f"cannot copy {src} to {out}: {error_line(exc)}") from None
             raise
     n_vlrs = len(header_in.vlrs) - len(header_in.vlrs.get("LasZipVlr"))
     return (f"LAS {header.version} point format {header.point_format.id}, {n_file:,} points, "

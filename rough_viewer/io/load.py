@@ -36,7 +36,14 @@ from rough_viewer.io.las import read_las
 from rough_viewer.io.ply import read_ply
 from rough_viewer.io.stl import read_stl
 from rough_viewer.io.text import read_npy, read_text
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError, ProgressFn, Unit
+from rough_viewer.vocabulary import (
+    UNIT_LABELS,
+    UNIT_METRES,
+    InputError,
+    ProgressFn,
+    Unit,
+    error_line,
+)
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
 SUPPORTED_SUFFIXES = (".las", ".laz", ".e57", *TEXT_SUFFIXES, ".npy", ".ply", ".stl")
@@ -106,12 +113,10 @@ def load_points(
     except MemoryError:
         raise InputError(f"not enough memory to read {p}") from None
     except (OSError, ValueError, EOFError, KeyError, IndexError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read {p}: {msg}") from None
+        raise InputError(f"cannot read {p}: {error_line(exc)}") from None
     except Exception as exc:  # laspy raises its own error types
         if type(exc).__module__.startswith("laspy") or "Laz" in type(exc).__name__:
-            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise InputError(f"cannot read {p}: {msg}") from None
+            raise InputError(f"cannot read {p}: {error_line(exc)}") from None
         raise
     return cloud.scaled(UNIT_METRES[unit], unit).with_warnings(*notes)
 

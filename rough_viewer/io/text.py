@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, error_line
 
 #: A number as the first line's x, y, z may hold one: decimal, exponent, or nan/inf
 #: (a point with a missing coordinate is data, dropped later, not a header).
@@ -75,8 +75,7 @@ def read_text(p: Path) -> PointCloud:
                 dtype=np.float64, comments="#", ndmin=2,
             )
     except ValueError as exc:
-        msg = str(exc).splitlines()[0]
-        raise InputError(f"cannot parse {p} as x y z columns: {msg}") from None
+        raise InputError(f"cannot parse {p} as x y z columns: {error_line(exc)}") from None
     if data.shape[0] == 0:
         raise InputError(f"no points in {p}")
     return finite_cloud(data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy(), None, p)

@@ -70,6 +70,7 @@ from rough_viewer.vocabulary import (
     ProgressFn,
     ThresholdRule,
     Unit,
+    error_line,
 )
 
 VIEW_FORMAT = "rough_viewer.view"
@@ -651,8 +652,7 @@ def load_view(path: str | os.PathLike[str], *, check: bool = True,
     try:
         data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
     except (UnicodeDecodeError, ValueError) as exc:
-        msg = str(exc).splitlines()[0]
-        raise InputError(f"view file {p} is not valid JSON: {msg}") from None
+        raise InputError(f"view file {p} is not valid JSON: {error_line(exc)}") from None
     except RecursionError:
         raise InputError(f"view file {p} is nested too deeply to be a view") from None
     parsed = view_from_dict(data, source=str(p))

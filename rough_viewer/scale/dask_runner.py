@@ -30,7 +30,7 @@ from typing import Any
 from rough_viewer.scale.chunked import ChunkDone, ChunkTask
 from rough_viewer.scale.partials import Partial, merge
 from rough_viewer.scale.sources import Chunk, Source, chunk_plan, read_chunk
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, error_line
 
 _RUN = itertools.count()
 
@@ -169,10 +169,10 @@ class DaskRunner:
                 self._client = Client(scheduler, timeout="10s")
             except OSError as exc:
                 raise InputError(f"cannot reach the Dask scheduler at {scheduler}: "
-                                 f"{str(exc).splitlines()[0]}") from None
+                                 f"{error_line(exc)}") from None
             except Exception as exc:  # e.g. a server that answers, but not in Dask's protocol
-                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                raise InputError(f"{scheduler} did not answer as a Dask scheduler: {msg}") from None
+                raise InputError(f"{scheduler} did not answer as a Dask scheduler: "
+                                 f"{error_line(exc)}") from None
             self._own_client = True
 
     @property

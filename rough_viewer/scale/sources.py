@@ -23,7 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, check_input_file
-from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn, Unit
+from rough_viewer.vocabulary import (
+    UNIT_METRES,
+    InputError,
+    ProgressFn,
+    Unit,
+    error_line,
+    foreign_errors,
+)
 
 #: Suffixes read in chunks straight from the file.
 STREAMED = (".las", ".laz")
@@ -119,14 +126,9 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
         suffix = p.suffix.lower()
         if suffix in STREAMED:
             check_input_file(p)
-            try:
+            with foreign_errors(f"cannot read {p}"):
                 unit, notes_p = resolve_units(p, units)
                 out.append(_las_source(p, unit, notes_p))
-            except InputError:
-                raise
-            except Exception as exc:  # laspy and lazrs raise their own types
-                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                raise InputError(f"cannot read {p}: {msg}") from None
         else:
             if suffix not in SUPPORTED_SUFFIXES:
                 load_points(p)  # raises the one message for unknown types
@@ -223,20 +225,15 @@ def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Column
     cached = _from_cache(source, chunk)
     if cached is not None:
         return cached
-    try:
-        with _open_las(source.path, parallel=parallel) as reader:
-            if chunk.start:
-                reader.seek(chunk.start)
-            points = reader.read_points(chunk.n)
-            if len(points) != chunk.n:
-                raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
-                                 f"the {source.n_points:,} points its header declares")
-            return _metres(_file_columns(points, reader.header), source.factor)
-    except InputError:
-        raise
-    except Exception as exc:  # laspy and lazrs raise their own types
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read {source.path}: {msg}") from None
+    with foreign_errors(f"cannot read {source.path}"), \
+            _open_las(source.path, parallel=parallel) as reader:
+        if chunk.start:
+            reader.seek(chunk.start)
+        points = reader.read_points(chunk.n)
+        if len(points) != chunk.n:
+            raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
+                             f"the {source.n_points:,} points its header declares")
+        return _metres(_file_columns(points, reader.header), source.factor)
 
 
 def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bool = False
@@ -295,8 +292,7 @@ def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bo
     except InputError:
         raise
     except Exception as exc:  # laspy and lazrs raise their own types
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(f"cannot read {source.path}: {msg}") from None
+        raise InputError(f"cannot read {source.path}: {error_line(exc)}") from None
     finally:
         if writer is not None:  # abandoned or failed: no half entry
             writer.abort()

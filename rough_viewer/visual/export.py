@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from rough_viewer.io.output import write_atomic
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, error_line
 
 FigureFormat = Literal["png", "svg", "html"]
 FIGURE_FORMATS: tuple[FigureFormat, ...] = ("png", "svg", "html")
@@ -123,7 +123,7 @@ def figure_bytes(
     try:
         data = fig.to_image(format=fmt, scale=scale if fmt == "png" else 1.0, **size)
     except Exception as exc:  # kaleido and its browser raise many types
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        msg = error_line(exc)
         raise InputError(f"{fmt.upper()} export failed: {msg}") from None
     return bytes(data)
 
