@@ -30,20 +30,3 @@ def app(server, cloud):
     assert a.wait_idle(60)
     yield a
     a.stop()
-
-
-@pytest.fixture(scope="module")
-def chromium():
-    """Headless Chromium (Playwright) for the module's browser tests."""
-    import os
-
-    from tests.app import browser as b
-
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        yield browser
-        browser.close()

@@ -24,18 +24,6 @@ pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def chromium():
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        yield browser
-        browser.close()
-
-
-@pytest.fixture(scope="module")
 def page_and_app(chromium, tmp_path_factory):
     import viser
 

@@ -170,18 +170,6 @@ probe("without_token", "ws://127.0.0.1:%(port)d/");
 
 
 @pytest.fixture(scope="module")
-def chromium():
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        yield browser
-        browser.close()
-
-
-@pytest.fixture(scope="module")
 def served(tmp_path_factory):
     path = tmp_path_factory.mktemp("serve") / "face.npy"
     np.save(path, face_cloud(20_000, seed=3).xyz())

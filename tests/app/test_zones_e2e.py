@@ -21,11 +21,8 @@ pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def live():
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
+def live(chromium):
     import viser
-    from playwright.sync_api import sync_playwright
 
     from rough_viewer.app.server import build_app
 
@@ -35,17 +32,15 @@ def live():
                     presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     app.gui.threshold.value = 0.2
     assert app.wait_idle(60)
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        page = browser.new_page(viewport=b.VIEWPORT)
-        page.set_default_timeout(30_000)
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
-        b.wait_coloured(page, 0.05, timeout=90)
-        b.hide_toasts(page)
-        yield app, page
-        browser.close()
+    page = chromium.new_page(viewport=b.VIEWPORT)
+    page.set_default_timeout(30_000)
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
+    b.wait_coloured(page, 0.05, timeout=90)
+    b.hide_toasts(page)
+    yield app, page
+    page.close()
     app.stop()
     server.stop()
     assert not errors, errors

@@ -258,27 +258,11 @@ def test_png_export_draws_real_images(cloud_file, tmp_path):
         assert len(np.unique(np.asarray(image.convert("RGB")).reshape(-1, 3), axis=0)) > 20
 
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update"]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    if not os.path.exists(CHROMIUM):
-        pytest.skip("headless Chromium not installed (apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
-
-
 @pytest.mark.browser
-def test_report_opens_in_chromium_with_every_figure(report, tmp_path, browser):
+def test_report_opens_in_chromium_with_every_figure(report, tmp_path, chromium):
     path = tmp_path / "report.html"
     path.write_text(report_html(report), encoding="utf-8")
-    ctx = browser.new_context(viewport={"width": 1200, "height": 900}, offline=True)
+    ctx = chromium.new_context(viewport={"width": 1200, "height": 900}, offline=True)
     page = ctx.new_page()
     errors = []
     page.on("pageerror", lambda e: errors.append(str(e)))

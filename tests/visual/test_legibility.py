@@ -4,7 +4,6 @@ axis title, tick label or legend on top of another (issue 13)."""
 
 from __future__ import annotations
 
-import os
 from types import SimpleNamespace
 
 import numpy as np
@@ -24,7 +23,6 @@ from rough_viewer.visual.grid import histogram_figure, summary_table_figure, var
 from rough_viewer.visual.profiles import profile_figure
 from rough_viewer.visual.scales import face_scales_figure, point_scales_figure
 from rough_viewer.vocabulary import MAPS
-from tests.app import browser as b
 from tests.visual.figure_browser import measure, problems
 
 pytestmark = pytest.mark.browser
@@ -65,17 +63,6 @@ def _figures():
             colormaps.resolve(e_ols), colormap=colormaps.default_colormap("e_ols"),
             title="e_OLS · grid 0.25 m · axis y · 153,385 points", no_value=49),
     }
-
-
-@pytest.fixture(scope="module")
-def chromium():
-    if not os.path.exists(b.CHROMIUM):
-        pytest.skip("chromium not installed (apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=b.CHROMIUM, headless=True, args=b.ARGS)
-        yield browser
-        browser.close()
 
 
 @pytest.fixture(scope="module")
