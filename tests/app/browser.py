@@ -8,9 +8,12 @@ Playwright screenshots (seconds per frame under software rendering).
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 import re
 import time
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -183,3 +186,25 @@ def drawn_colour_share(rgba: np.ndarray, lut: np.ndarray, tol: int = 24) -> tupl
     if on_map.size == 0:
         return 0.0, 0
     return float(np.bincount(on_map).max()) / on_map.size, int(on_map.size)
+
+
+@contextlib.contextmanager
+def app_page(chromium, port: int, *, viewport: dict[str, int] = VIEWPORT,
+             coloured: float = 0.05, timeout: float = 90.0, step_timeout_ms: int = 30_000,
+             **context: Any) -> Iterator[Any]:
+    """A page on the app served at ``port``, once its cloud is drawn (``coloured``
+    share of the scene within ``timeout`` s) and its toasts hidden; on leaving, the
+    page's JavaScript errors fail the test."""
+    ctx = chromium.new_context(viewport=viewport, **context)
+    ctx.set_default_timeout(step_timeout_ms)
+    page = ctx.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        page.goto(f"http://127.0.0.1:{port}/?fixedDpr=1&hideViserLogo")
+        wait_coloured(page, coloured, timeout=timeout)
+        hide_toasts(page)
+        yield page
+    finally:
+        ctx.close()
+    assert not errors, errors

@@ -27,19 +27,12 @@ def live(chromium):
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, face_cloud(120_000, seed=5))
     assert app.wait_idle(60)
-    ctx = chromium.new_context(viewport=b.VIEWPORT)
-    ctx.set_default_timeout(30_000)
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
-    b.wait_coloured(page, 0.05, timeout=90)
-    b.hide_toasts(page)
-    yield app, page
-    ctx.close()
-    app.stop()
-    server.stop()
-    assert not errors, errors
+    try:
+        with b.app_page(chromium, server.get_port()) as page:
+            yield app, page
+    finally:
+        app.stop()
+        server.stop()
 
 
 def _share_near(img, rgb, tol=40):

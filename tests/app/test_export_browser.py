@@ -36,19 +36,12 @@ def page_and_app(chromium, tmp_path_factory):
     app = build_app(server, load_points(scan), prefetch=False, data_dir=folder,
                     presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
-    ctx = chromium.new_context(viewport=b.VIEWPORT, accept_downloads=True)
-    ctx.set_default_timeout(30_000)
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
-    b.wait_coloured(page, 0.05, timeout=90)
-    b.hide_toasts(page)
-    yield page, app, scan
-    ctx.close()
-    app.stop()
-    server.stop()
-    assert not errors, errors
+    try:
+        with b.app_page(chromium, server.get_port(), accept_downloads=True) as page:
+            yield page, app, scan
+    finally:
+        app.stop()
+        server.stop()
 
 
 def _download(page, label: str, out: Path) -> tuple[str, bytes]:

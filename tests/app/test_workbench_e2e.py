@@ -35,19 +35,13 @@ def demo(chromium, tmp_path_factory):
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, demos.load_demo("outcrop"), max_display=150_000, data_dir=data)
     assert app.wait_idle(300)
-    ctx = chromium.new_context(viewport=b.WIDE)
-    ctx.set_default_timeout(60_000)
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
-    b.wait_coloured(page, 0.03, timeout=180)
-    b.hide_toasts(page)
-    yield app, page
-    ctx.close()
-    app.stop()
-    server.stop()
-    assert not errors, errors
+    try:
+        with b.app_page(chromium, server.get_port(), viewport=b.WIDE, coloured=0.03,
+                        timeout=180, step_timeout_ms=60_000) as page:
+            yield app, page
+    finally:
+        app.stop()
+        server.stop()
 
 
 def _legible(page, where: str) -> None:

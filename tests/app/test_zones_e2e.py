@@ -32,18 +32,12 @@ def live(chromium):
                     presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     app.gui.threshold.value = 0.2
     assert app.wait_idle(60)
-    page = chromium.new_page(viewport=b.VIEWPORT)
-    page.set_default_timeout(30_000)
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{server.get_port()}/?fixedDpr=1&hideViserLogo")
-    b.wait_coloured(page, 0.05, timeout=90)
-    b.hide_toasts(page)
-    yield app, page
-    page.close()
-    app.stop()
-    server.stop()
-    assert not errors, errors
+    try:
+        with b.app_page(chromium, server.get_port()) as page:
+            yield app, page
+    finally:
+        app.stop()
+        server.stop()
 
 
 def near(img: np.ndarray, rgb, tol: int = 40) -> np.ndarray:
