@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, UNITS, InputError
+from rough_viewer.vocabulary import AXIS_CHOICES, UNIT_LABELS, UNIT_METRES, UNITS, InputError
 
 
 def parse_xyz(text: str, *, option: str) -> tuple[float, float, float]:
@@ -101,6 +101,13 @@ def segments(text: str) -> int | tuple[int, int]:
     except ValueError:
         pass
     raise argparse.ArgumentTypeError(f"expected a count (8) or rows x cols (4x2), got {text!r}")
+
+
+def add_axis(p: argparse.ArgumentParser, *, help: str | None = None) -> None:
+    """``--axis auto|x|y|z``: the dependent axis of OLS and hybrid (default auto)."""
+    p.add_argument("--axis", choices=AXIS_CHOICES, default="auto",
+                   help=help or "dependent axis of OLS and hybrid (default: auto = closest to "
+                   "the whole cloud's normal)")
 
 
 def add_units(p: argparse.ArgumentParser) -> None:

@@ -35,6 +35,7 @@ import numpy as np
 
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
+    add_axis,
     add_units,
     at_grid,
     grid_sizes,
@@ -68,9 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="grid cell size in --units (default metres; repeat for several sizes)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
                    help="roughness model (default: all)")
-    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
-                   help="dependent axis of OLS and hybrid (default: auto = closest to the "
-                   "whole cloud's normal)")
+    add_axis(p)
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
                    help="cells with fewer points get no value (default 4: three points fix a "
                    "plane exactly, so their roughness is 0 by construction; 3 is accepted)")

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_units, grid_sizes, per_unit, warn
+from rough_viewer.cli._options import add_axis, add_units, grid_sizes, per_unit, warn
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
@@ -39,9 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="grid cell size in --units, repeatable (default: from the point "
                    "spacing: the size at which the typical occupied cell holds 16 points, "
                    "times 8, 4, 2 and 1)")
-    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
-                   help="dependent axis of OLS and hybrid (default: auto = closest to the "
-                   "whole cloud's normal)")
+    add_axis(p)
     p.add_argument("--threshold", type=float, default=0.05, metavar="T",
                    help="binary transform threshold on normalised roughness (default 0.05)")
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",

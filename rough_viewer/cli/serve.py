@@ -41,7 +41,7 @@ from pathlib import Path
 
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_units
+from rough_viewer.cli._options import add_axis, add_units
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
@@ -62,8 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "so that a typical cell holds about 16 points)")
     p.add_argument("--model", choices=("odr", "ols", "hybrid", "e_ols"), default="odr",
                    help="initial map (default odr)")
-    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
-                   help="initial dependent axis of OLS and hybrid (default auto)")
+    add_axis(p, help="initial dependent axis of OLS and hybrid (default auto)")
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
                    help="initial minimum points per cell (default 4)")
     p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",

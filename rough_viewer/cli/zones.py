@@ -33,6 +33,7 @@ import numpy as np
 
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
+    add_axis,
     add_units,
     at_grid,
     grid_sizes,
@@ -68,9 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "sizes: each output name then gets _g<G>, as in compute)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid"), default="odr",
                    help="roughness map whose normalised values are thresholded (default odr)")
-    p.add_argument("--axis", choices=("auto", "x", "y", "z"), default="auto",
-                   help="dependent axis of OLS and hybrid (default: auto = closest to the "
-                   "whole cloud's normal)")
+    add_axis(p)
     p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
                    help="cells with normalised roughness >= T are rough, T in [0, 1] "
                    f"(default {DEFAULT_THRESHOLD:g}, the 2011 paper's)")
