@@ -179,3 +179,16 @@ def write_las_with_colours(path, cloud: PointCloud, seed: int = 1) -> tuple[np.n
 #: them as the app's presets (``build_app(..., presets=PAPER_PRESETS)``) instead of the
 #: presets the app derives from each cloud's point spacing.
 PAPER_PRESETS = (1.0, 0.5, 0.25, 0.125)
+
+
+def repeated_points_cloud(seed: int = 8) -> np.ndarray:
+    """(N, 3) points, metres: three 1 m cells (x 0..3) of 6 points holding only 3
+    distinct ones (as clouds that repeat points have; they fit their plane exactly)
+    beside three rough cells (x 3..6), all in one layer of 1 m cells from (0, 0, 0)."""
+    rng = np.random.default_rng(seed)
+    # the cloud's minimum is (0, 0, 0), so the default origin is the grid's too
+    tri = np.array([[0.0, 0.0, 0.0], [0.6, 0.1, 0.05], [0.2, 0.7, 0.02]])
+    blocks = [np.vstack([tri, tri]) + [i, 0, 0] for i in range(3)]
+    rough = np.column_stack([rng.uniform(3, 6, 600), rng.uniform(0, 1, 600),
+                             0.5 + 0.02 * rng.standard_normal(600)])
+    return np.vstack([*blocks, rough])

@@ -65,7 +65,7 @@ from rough_viewer.app.state import (
 )
 from rough_viewer.app.uploads import UploadedFile
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
 from rough_viewer.io import PointCloud
 from rough_viewer.visual.app import colour_bar_figure, colour_scale_figure, panel_aspect
@@ -297,10 +297,9 @@ def notice_text(loaded: LoadedCloud, stats: MapStats | None, settings: ViewSetti
     if stats is not None and stats.sparse:
         lines.append(f"**Most cells have no value:** {md(sparse_message(loaded, stats, settings))}")
     if stats is not None and stats.exact_fit:
-        lines.append(f"**{stats.exact_fit:,} of {stats.valid_cells:,} cells fit their plane "
-                     "exactly** (roughness 0 to round-off): their points lie on one plane, "
-                     "usually because the file repeats points; they are the smoothest colour "
-                     "and set the minimum. A larger *Min points per cell* leaves them out.")
+        lines.append(f"**Cells of roughness 0:** "
+                     f"{md(exact_fit_text(stats.exact_fit, stats.valid_cells))} and take the "
+                     "smoothest colour. A larger *Min points per cell* leaves them out.")
     return "  \n".join(lines)
 
 

@@ -8,21 +8,13 @@ import math
 
 import numpy as np
 
-from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.summary import summaries
 from rough_viewer.vocabulary import MAP_LABELS, UNIT_LABELS, UNIT_METRES
 
 
 def _num(v: float, fmt: str) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
-
-
-def exact_fit_note(n: int, valued: int) -> str:
-    """The line that explains cells of roughness 0 (see ``EXACT_FIT``)."""
-    return (f"note: {n:,} of {valued:,} cells with a value fit their plane exactly (ODR "
-            "roughness 0 to round-off): their points lie on one plane, usually because the "
-            "file repeats points (a cell of 4+ points with only 3 distinct ones); they set "
-            "the minimum. Remove duplicate points or raise --min-points")
 
 
 def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") -> str:
@@ -41,7 +33,8 @@ def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") ->
     )
     lines = [head, cells_line]
     if rep["exact_fit"]:
-        lines.append(exact_fit_note(rep["exact_fit"], rep["with_value"]))
+        lines.append(f"note: {exact_fit_text(rep['exact_fit'], rep['with_value'])}. "
+                     "Remove duplicate points or raise --min-points")
     if "hybrid" in result.models:
         steep = int(np.count_nonzero(result.theta_hybrid > result.grid.cell_size))
         if steep:

@@ -78,6 +78,18 @@ HYBRID_MIN_COMPONENT = 1e-9
 EXACT_FIT = 1e-9
 
 
+def exact_fit_text(n: int, valued: int) -> str:
+    """Why ``n`` of ``valued`` cells have roughness 0 (:data:`EXACT_FIT`): the one
+    sentence the summary, the report and the app show, each adding its own remedy.
+
+    >>> exact_fit_text(3, 6)[:58]
+    '3 of 6 cells with a value fit their plane exactly (roughne'
+    """
+    return (f"{n:,} of {valued:,} cells with a value fit their plane exactly (roughness 0 "
+            "to round-off): their points lie on one plane, usually because the file repeats "
+            "points (a cell of 4+ points with only 3 distinct ones), so they set the minimum")
+
+
 @dataclass(frozen=True)
 class PreparedGrid:
     """Cell membership and moment sums of a cloud on one grid: the part of

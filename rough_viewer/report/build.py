@@ -16,7 +16,7 @@ from rough_viewer import __version__
 from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
-from rough_viewer.grid.roughness import GridRoughness, grid_roughness
+from rough_viewer.grid.roughness import GridRoughness, exact_fit_text, grid_roughness
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
@@ -332,9 +332,7 @@ def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...
                        "cell); a larger grid size gives a fuller map")
         if rep["exact_fit"]:
             size = s.grid_size / UNIT_METRES[unit]
-            out.append(f"grid {size:g} {UNIT_LABELS[unit]}: {rep['exact_fit']:,} of "
-                       f"{rep['with_value']:,} cells with a value fit their plane exactly "
-                       "(roughness 0 to round-off), usually because the file repeats points; "
-                       "they set Table 1's minimum (remove duplicate points or raise "
-                       "--min-points)")
+            out.append(f"grid {size:g} {UNIT_LABELS[unit]}: "
+                       f"{exact_fit_text(rep['exact_fit'], rep['with_value'])} of Table 1 "
+                       "(remove duplicate points or raise --min-points)")
     return tuple(out)

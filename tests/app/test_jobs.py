@@ -209,3 +209,20 @@ def test_long_lived_lists_are_bounded(app):
         app.submit(ViewJob(app.shown.settings.with_(threshold=0.1)))
         assert app.wait_idle(30)
     assert len(app.timings) == 200
+
+
+def test_cells_of_repeated_points_get_a_notice():
+    """The app says why some cells are 0 (the same sentence as compute and report)."""
+    from rough_viewer.app.jobs import notice_text
+    from rough_viewer.app.state import LoadedCloud, ViewSettings, map_stats
+    from rough_viewer.io import PointCloud
+    from tests.helpers import repeated_points_cloud
+
+    loaded = LoadedCloud(PointCloud.from_xyz(repeated_points_cloud()), presets=(1.0,))
+    settings = ViewSettings(cell_size=1.0)
+    result = loaded.result(settings)
+    stats = map_stats(result, settings)
+    assert stats.exact_fit == 3
+    text = notice_text(loaded, stats, settings).replace("\\\\", "")
+    assert "**Cells of roughness 0:** 3 of 6 cells with a value fit their plane exactly" in text
+    assert "Min points per cell" in text

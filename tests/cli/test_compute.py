@@ -254,13 +254,10 @@ def test_folder_input_says_folder(tmp_path, capsys):
 def test_cells_of_repeated_points_are_explained(tmp_path, capsys):
     """A cloud that repeats its points (as the airborne LAZ does: 49,954 of 574,092)
     has cells of roughness 0; the summary says how many and why."""
-    rng = np.random.default_rng(8)
-    tri = rng.uniform(0, 1, (3, 3)) * [1, 1, 0.1]
-    blocks = [np.vstack([tri, tri]) + [i, 0, 0] for i in range(3)]  # 3 cells, 3 distinct each
-    rough = np.column_stack([rng.uniform(3, 6, 600), rng.uniform(0, 1, 600),
-                             0.5 + 0.02 * rng.standard_normal(600)])
+    from tests.helpers import repeated_points_cloud
+
     path = tmp_path / "dup.npy"
-    np.save(path, np.vstack([*blocks, rough]))
+    np.save(path, repeated_points_cloud())
     assert main(["compute", str(path), "--grid", "1", "--out", str(tmp_path / "c.csv"),
                  "--origin", "0,0,0", "--quiet"]) == 0
     out = capsys.readouterr().out

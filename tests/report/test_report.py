@@ -427,3 +427,11 @@ def test_grid_message_names_the_unit(cloud_file, tmp_path, capsys):
     assert capsys.readouterr().err == (
         "rough-viewer: error: --grid must be a positive length in mm, got 0\n")
     assert os.listdir(tmp_path) == []
+
+
+def test_cells_of_repeated_points_are_a_report_warning():
+    from tests.helpers import repeated_points_cloud
+
+    rep = build_report(PointCloud.from_xyz(repeated_points_cloud()), grid_sizes=[1.0])
+    assert any(w.startswith("grid 1 m: 3 of 6 cells with a value fit their plane exactly")
+               and "--min-points" in w for w in rep.warnings)
