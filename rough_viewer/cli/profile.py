@@ -182,13 +182,10 @@ def display_units(unit: str) -> tuple[float, str, float, str]:
     """(per metre, label) of the unit for lengths and of the one for small values
     (thresholds, noise, band): metres and millimetres for a metric input, the
     input's unit otherwise."""
-    from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES
+    from rough_viewer.visual.grid import roughness_scale, unit_scale
 
-    if unit in ("m", "mm"):
-        big = "m" if unit == "m" else "mm"
-        return 1.0 / UNIT_METRES[big], big, 1e3, "mm"
-    per = 1.0 / UNIT_METRES[unit]
-    return per, UNIT_LABELS[unit], per, UNIT_LABELS[unit]
+    (f, u), (rf, ru) = unit_scale(unit), roughness_scale(unit)
+    return 1.0 / f, u, 1.0 / rf, ru
 
 
 def format_tables(info: dict, comparison) -> str:

@@ -42,18 +42,32 @@ def label(name: str) -> str:
     return MAP_LABELS.get(name, name)
 
 
-def _per(unit: str) -> tuple[float, str]:
-    """(metres per unit, label) of a display unit."""
+def unit_scale(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) of a display unit for lengths.
+
+    >>> unit_scale("mm"), unit_scale("ft")
+    ((0.001, 'mm'), (0.3048, 'ft'))
+    """
     if unit not in UNIT_METRES:
         raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
     return UNIT_METRES[unit], UNIT_LABELS[unit]
+
+
+def roughness_scale(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) roughness is shown in for lengths in ``unit``: mm for
+    metric input, the input's own unit otherwise (``ROUGHNESS_UNIT``).
+
+    >>> roughness_scale("m"), roughness_scale("ft")
+    ((0.001, 'mm'), (0.3048, 'ft'))
+    """
+    return unit_scale(ROUGHNESS_UNIT.get(unit, unit))
 
 
 def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = (),
              unit: str = "m") -> str:
     """The caption every figure carries: grid size (metres in, shown in ``unit``),
     models, dependent axis, points."""
-    f, u = _per(unit)
+    f, u = unit_scale(unit)
     parts = [f"grid {grid_size / f:g} {u}"]
     if models:
         parts.append("models " + ", ".join(label(m) for m in models))
@@ -155,7 +169,7 @@ def summary_table_figure(
     """
     names = list(summaries)
     rows = [summaries[n] for n in names]
-    rf, ru = _per(ROUGHNESS_UNIT[unit] if unit in ROUGHNESS_UNIT else unit)
+    rf, ru = roughness_scale(unit)
     k = 1.0 / rf
     header = ["map", "cells", "points<br>per cell", f"min<br>({ru})", f"max<br>({ru})",
               f"mean<br>({ru})", f"variance<br>({ru}²)", f"std<br>({ru})"]
@@ -255,7 +269,7 @@ def variogram_figure(
     names = list(variograms)
     fig = go.Figure()
     space = "3-D"
-    f, u = _per(unit)
+    f, u = unit_scale(unit)
     for name in names:
         vg = variograms[name]
         space = "in the face plane" if vg.space == "plane" else "3-D"
@@ -360,7 +374,7 @@ def face_map_figure(
     fig = make_subplots(rows=max(1, len(names)), cols=1, subplot_titles=subtitles,
                         vertical_spacing=0.08 if len(names) > 1 else 0.0)
     aspect = 0.3
-    f, u = _per(unit)
+    f, u = unit_scale(unit)
     for row, name in enumerate(names, start=1):
         img = images[row - 1]
         if img.u.size and img.v.size:

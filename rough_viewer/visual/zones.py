@@ -21,8 +21,8 @@ from rough_viewer.grid.orientation import Stereonet, schmidt_inverse, trend_and_
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.zones import Zones
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.grid import describe
-from rough_viewer.vocabulary import MAP_LABELS, ROUGHNESS_UNIT, UNIT_LABELS, UNIT_METRES, InputError
+from rough_viewer.visual.grid import describe, roughness_scale, unit_scale
+from rough_viewer.vocabulary import MAP_LABELS, InputError
 
 #: Poles drawn at most per trace (evenly spaced subset); the density uses them all.
 MAX_POLES_DRAWN = 20_000
@@ -50,24 +50,11 @@ def azimuth_text(deg: float) -> str:
     return f"{int(round(float(deg))) % 360:03d}"
 
 
-def display_units(unit: str) -> tuple[float, str, float, str]:
-    """(metres per unit, label) of lengths and of roughness for coordinates in
-    ``unit``: the unit itself, and mm for metric input (the input's unit otherwise).
-
-    >>> display_units("m"), display_units("ft")
-    ((1.0, 'm', 0.001, 'mm'), (0.3048, 'ft', 0.3048, 'ft'))
-    """
-    if unit not in UNIT_METRES:
-        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
-    rough = ROUGHNESS_UNIT.get(unit, unit)
-    return UNIT_METRES[unit], UNIT_LABELS[unit], UNIT_METRES[rough], UNIT_LABELS[rough]
-
-
 def _table_columns(zones: Zones, n: int, unit: str = "m"
                    ) -> dict[str, tuple[str, int, list[str]]]:
     """Every table column of the ``n`` largest zones: key -> (header, width, cells);
     lengths in ``unit``, roughness in its roughness unit."""
-    f, u, rf, ru = display_units(unit)
+    (f, u), (rf, ru) = unit_scale(unit), roughness_scale(unit)
     return {
         "zone": ("zone", 32, [f"<b>{i}</b>" for i in range(1, n + 1)]),
         "cells": ("cells", 55, [f"{c:,}" for c in zones.cells[:n]]),
@@ -178,7 +165,7 @@ def zones_map_figure(
     unit : {"m", "mm", "ft", "us-ft"}
         Unit of the face axes and the caption's grid size.
     """
-    f, u, _rf, _ru = display_units(unit)
+    f, u = unit_scale(unit)
     g = result.grid.cell_size
     face = plane if plane is not None else result.whole_plane
     r = raster if raster is not None else face_raster(result.centre, face, g)
