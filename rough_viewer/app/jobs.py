@@ -473,11 +473,7 @@ def show_cloud(app: App, loaded: LoadedCloud, settings: ViewSettings | None = No
             assign(gui.point_size, size)
         app.sync_controls(app.shown.settings)
         app.cloud_handle = scene.add_cloud(app.server, loaded, size)
-        scene.clear_pick(app.pick_nodes)
-        app.pick_nodes = []
-        app.last_pick = None
-        gui.pick.content = PICK_PROMPT
-        _set_figure(gui.scales, scales_placeholder())
+        forget_pick(app, PICK_PROMPT)
         scene.initial_camera(app.server, loaded)
         scene.reset_cameras(app.server)
         app.panel_key = None
@@ -578,6 +574,16 @@ def valid_ray(origin: object, direction: object) -> bool:
             and bool(np.all(np.isfinite(d))) and float(np.linalg.norm(d)) > 0)
 
 
+def forget_pick(app: App, text: str) -> None:
+    """Drop the clicked point's marker, report and across-scales plot; the Map tab's
+    click report then reads ``text``."""
+    scene.clear_pick(app.pick_nodes)
+    app.pick_nodes = []
+    app.last_pick = None
+    app.gui.pick.content = text
+    _set_figure(app.gui.scales, scales_placeholder())
+
+
 def on_scene_click(app: App, origin: object, direction: object) -> CellInfo | None:
     """Pick the displayed point under a click ray; let a mode take it, or report
     its cell and the roughness of its cells on every preset grid (returned: the
@@ -590,11 +596,7 @@ def on_scene_click(app: App, origin: object, direction: object) -> CellInfo | No
     d = np.asarray(direction, dtype=np.float64)
     i = pick_point(shown.loaded.display_points, o, d)
     if i is None:  # the earlier point's report and plot go with it
-        app.gui.pick.content = "No point under the click."
-        scene.clear_pick(app.pick_nodes)
-        app.pick_nodes = []
-        app.last_pick = None
-        _set_figure(app.gui.scales, scales_placeholder())
+        forget_pick(app, "No point under the click.")
         return None
     local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
     pick = Pick(int(shown.loaded.display_index[i]), shown.loaded.to_file_frame(local), local)
