@@ -4,6 +4,7 @@ decode cache) and writing clouds with extra dimensions."""
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -42,8 +43,9 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
     with ``LASF`` did the same).
 
     Checked: the signature, the header size, the point-data offset within the file,
-    the VLRs fitting between the header and the point data, and (LAS 1.4) the EVLRs
-    fitting after the point data.
+    the VLRs fitting between the header and the point data, coordinate scales and
+    offsets that can place points (a finite, non-zero scale; a finite offset), and
+    (LAS 1.4) the EVLRs fitting after the point data.
 
     Raises
     ------
@@ -76,6 +78,13 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
         raise InputError(f"{bad} declares {n_vlrs:,} variable-length records, more than the "
                          f"{room:,} bytes before its point data can hold: a damaged or lying "
                          "header")
+    coords = struct.unpack_from("<6d", head, 131)  # x, y, z scale factors, then offsets
+    for k, v in enumerate(coords):
+        if not math.isfinite(v) or (k < 3 and v == 0):
+            # a scale of 0 puts every point on the offset; NaN or inf put none anywhere
+            what = "scale factor" if k < 3 else "offset"
+            raise InputError(f"{bad} gives the {'xyz'[k % 3]} {what} {v:g}: the coordinates "
+                             "cannot be read (a damaged or lying header)")
     if minor >= 4 and len(head) >= 247:
         evlr_start, n_evlrs = struct.unpack_from("<QI", head, 235)
         if n_evlrs and (evlr_start < data_offset
@@ -162,26 +171,6 @@ def _laz_vlr(header):
         return None
 
 
-def check_scales(p: Path, header) -> None:
-    """Refuse a header whose coordinate scales or offsets cannot place the points
-    (a scale of 0 puts every point on the offset; NaN or inf put none anywhere).
-
-    Raises
-    ------
-    InputError
-        Naming the file and the axis.
-    """
-    scales = np.asarray(header.scales, dtype=np.float64)
-    offsets = np.asarray(header.offsets, dtype=np.float64)
-    for axis, s, o in zip("xyz", scales, offsets, strict=True):
-        if not np.isfinite(s) or s == 0:
-            raise InputError(f"the header of {p} gives the {axis} scale factor {s:g}: the "
-                             "coordinates cannot be read (a damaged or lying header)")
-        if not np.isfinite(o):
-            raise InputError(f"the header of {p} gives the {axis} offset {o:g}: the "
-                             "coordinates cannot be read (a damaged or lying header)")
-
-
 def check_header(p: Path, header, *, extra_bytes_per_point: int = 0) -> tuple[int, list[str]]:
     """The number of points to read and warnings, after checking the header's count
     against the data (:func:`data_point_capacity`) and against available memory.
@@ -191,7 +180,6 @@ def check_header(p: Path, header, *, extra_bytes_per_point: int = 0) -> tuple[in
     InputError
         The header declares more points than the data hold, or they cannot fit.
     """
-    check_scales(p, header)
     n = int(header.point_count)
     laz_vlr = _laz_vlr(header)
     capacity, exact = data_point_capacity(p, header, laz_vlr)

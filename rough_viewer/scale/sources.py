@@ -79,11 +79,10 @@ class Chunk:
 
 def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
 
-    from rough_viewer.io.las import check_scales, laz_backend, open_las
+    from rough_viewer.io.las import laz_backend, open_las
 
     with open_las(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
-        check_scales(p, hdr)
         n = int(hdr.point_count)
         lo = np.asarray(hdr.mins, dtype=np.float64)
         hi = np.asarray(hdr.maxs, dtype=np.float64)
