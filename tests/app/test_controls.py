@@ -155,6 +155,7 @@ def test_check_value_rules_without_a_browser(live):
     {"event_type": "drag"},
     {"screen_pos": [[0.5, 0.5]] * 3},
 ])
+@pytest.mark.filterwarnings("ignore:.*does not match annotation:UserWarning")  # viser says so of bad0
 def test_malformed_clicks_are_dropped_and_a_real_one_still_works(live, bad, capfd):
     app, client = live
     pts = app.shown.loaded.display_points
