@@ -164,6 +164,11 @@ class App:
     pick_scales: PointScales | None = None
     """The last clicked point's roughness across the preset grids."""
     lock: threading.RLock = field(default_factory=threading.RLock)
+    controls_lock: threading.RLock = field(default_factory=threading.RLock)
+    """Held while reading the Map tab's controls into a job, and while a callback or
+    :meth:`sync_controls` sets controls that others depend on: viser runs callbacks
+    in parallel, and a reading taken before another callback moved the grid to
+    "free" but submitted after it would leave the map on the old grid for good."""
     _local: threading.local = field(default_factory=threading.local)
 
     # ------------------------------------------------------------------ state
@@ -239,12 +244,13 @@ class App:
         """Queue the view the controls show (ignored while the app sets controls)."""
         if self.syncing:
             return 0
-        try:
-            settings = self.settings_from_gui()
-        except InputError as exc:
-            self.reject_settings(str(exc))
-            return 0
-        return self.submit(ViewJob(settings))
+        with self.controls_lock:  # the newest job reads the newest controls
+            try:
+                settings = self.settings_from_gui()
+            except InputError as exc:
+                self.reject_settings(str(exc))
+                return 0
+            return self.submit(ViewJob(settings))
 
     def load(self, path: str | None = None, *, upload: UploadedFile | None = None,
              cloud: PointCloud | None = None) -> int:
@@ -309,7 +315,7 @@ class App:
         restored view, or a cloud with other presets)."""
         g = self.gui
         u = g.length_units
-        with quietly(self._local):
+        with self.controls_lock, quietly(self._local):
             assign(g.grid, grid_choice(settings.cell_size, g.grid_values))
             assign(g.grid_free, u.length(settings.cell_size))
             assign(g.model, MODEL_LABELS[settings.model])
@@ -341,7 +347,7 @@ class App:
         lo, hi = round_limit(u.rough(colour_range.lo)), round_limit(u.rough(colour_range.hi))
         if hi <= lo:
             return
-        with quietly(self._local):
+        with self.controls_lock, quietly(self._local):
             # the fields show as many decimals as their step has: 3 digits of each
             for handle, value in ((g.range_lo, lo), (g.range_hi, hi)):
                 handle.step = limit_step(value)
@@ -507,30 +513,34 @@ def _wire_map(app: App) -> None:
     def _(_event: object) -> None:
         if app.syncing:
             return
-        if g.grid.value != "free":
-            set_quietly(g.grid, "free")
-        app.request_update()
+        with app.controls_lock:
+            if g.grid.value != "free":
+                set_quietly(g.grid, "free")
+            app.request_update()
 
     @g.grid.on_update
     def _(_event: object) -> None:
         size = g.grid_values.get(g.grid.value)
         if size is not None and not app.syncing:
-            set_quietly(g.grid_free, g.length_units.length(size))
+            with app.controls_lock:
+                set_quietly(g.grid_free, g.length_units.length(size))
 
     @g.percentiles.on_update
     def _(_event: object) -> None:
         if app.syncing:
             return
-        if g.stretch.value != "percentile":
-            set_quietly(g.stretch, "percentile")
-        app.request_update()
+        with app.controls_lock:
+            if g.stretch.value != "percentile":
+                set_quietly(g.stretch, "percentile")
+            app.request_update()
 
     def typed_limit(_event: object) -> None:
         if app.syncing:
             return
-        if g.stretch.value != "absolute":
-            set_quietly(g.stretch, "absolute")
-        app.request_update()
+        with app.controls_lock:
+            if g.stretch.value != "absolute":
+                set_quietly(g.stretch, "absolute")
+            app.request_update()
 
     g.range_lo.on_update(typed_limit)
     g.range_hi.on_update(typed_limit)

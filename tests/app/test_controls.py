@@ -14,6 +14,7 @@ from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import ViewSettings
 from rough_viewer.vocabulary import InputError
+from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient
 from tests.helpers import face_cloud
 
@@ -36,9 +37,20 @@ def live():
     server.stop()
 
 
-def settle(app, seconds: float = 0.4) -> None:
-    time.sleep(seconds)  # the server handles the message on its event loop
+def settle(app, until, what: str) -> None:
+    """Wait until ``until()`` holds and the worker is idle: viser checks a message on
+    its event loop and runs the control's callback later on a thread pool, so neither
+    a fixed sleep nor ``wait_idle`` alone says the message was handled."""
+    wait_until(lambda: until() and not app.worker.busy, 30, what)
     assert app.wait_idle(60)
+
+
+def barrier(app, client) -> None:
+    """Send one good change and wait for it: the event loop handles a connection's
+    messages in order, so every message sent before it has been checked by then."""
+    choice = "OLS" if app.gui.model.value != "OLS" else "ODR"
+    client.set_value("Model", choice)
+    settle(app, lambda: app.gui.model.value == choice, "the barrier's model change")
 
 
 BAD = [
@@ -77,7 +89,7 @@ def test_invalid_values_are_put_back_with_a_notice(live):
               for label, _, _ in BAD}
     for label, value, _reason in BAD:
         client.set_value(label, value)
-    settle(app)
+    settle(app, lambda: len(app.controls.rejected) >= len(BAD), "every refusal")
     # nothing reached the app: same controls, same view, every later change still works
     for label, _, _ in BAD:
         assert hooks.input_handles(app.server)[client.uuid(label)].value == values[label], label
@@ -89,22 +101,57 @@ def test_invalid_values_are_put_back_with_a_notice(live):
     grid = client.uuid("Free grid size (m)")
     client.wait_for(lambda m: m.get("type") == "GuiUpdateMessage" and m["uuid"] == grid
                     and m["updates"] == {"value": 0.25}, what="the value put back")
-    notes = [m["props"]["body"] for m in client.of_type("NotificationShowMessage")]
+    # the notices go on the sender's own stream, not ordered with the put-back above
+    def bodies() -> list[str]:
+        return [m["props"]["body"] for m in client.of_type("NotificationShowMessage")]
+
+    wait_until(lambda: sum("last good value is kept" in n for n in bodies()) >= len(BAD), 20,
+               "a notice for each refusal")
+    notes = bodies()
     assert sum("last good value is kept" in n for n in notes) == len(BAD)
     assert all("<script>" not in n for n in notes)  # the bad value is not echoed
     client.set_value("Grid size (m)", "0.5")
     client.set_value("Model", "OLS")
-    settle(app)
-    assert app.shown.settings.cell_size == 0.5 and app.shown.settings.model == "ols"
+    settle(app, lambda: app.shown.settings.cell_size == 0.5 and app.shown.settings.model == "ols",
+           "the grid and model shown")
 
 
 def test_valid_values_are_normalised(live):
     app, client = live
     client.set_value("Min points per cell", 5.0)  # a whole float for an int control
     client.set_value("Free grid size (m)", 1)  # an int for a float control
-    settle(app)
+    settle(app, lambda: app.gui.min_points.value == 5 and app.shown.settings.cell_size == 1.0
+           and app.shown.settings.min_points == 5, "both values shown")
     assert app.gui.min_points.value == 5 and isinstance(app.gui.min_points.value, int)
     assert app.shown.settings.cell_size == 1.0 and app.gui.grid.value == "free"
+
+
+def test_two_changes_at_once_leave_the_map_on_both(live, monkeypatch):
+    """viser runs the callbacks of two quick changes in parallel. The free-grid
+    callback moves the grid dropdown to "free"; a reading of the controls taken by the
+    other callback before that move, but submitted after it, left the map on the old
+    grid for good (found with 0-0.2 s of jitter before the submit). The controls are
+    now read and submitted under one lock; a slow first reading reproduces the race."""
+    app, client = live
+    read = app.settings_from_gui
+    calls = []
+
+    def slow_first_reading():
+        settings = read()
+        calls.append(settings)
+        if len(calls) == 1:
+            time.sleep(0.5)  # the other callback runs meanwhile
+        return settings
+
+    monkeypatch.setattr(app, "settings_from_gui", slow_first_reading)
+    client.set_value("Min points per cell", 5)
+    client.set_value("Free grid size (m)", 1.0)
+    wait_until(lambda: len(calls) >= 2, 20, "both callbacks")
+    time.sleep(0.8)
+    assert app.wait_idle(60)
+    assert app.gui.grid.value == "free" and app.gui.min_points.value == 5
+    shown = app.shown.settings
+    assert (shown.cell_size, shown.min_points) == (1.0, 5)
 
 
 def test_only_values_may_change(live):
@@ -117,7 +164,8 @@ def test_only_values_may_change(live):
     client.send({"type": "GuiUpdateMessage", "uuid": "no-such-control",
                  "updates": {"value": 1}})
     client.send({"type": "ShareUrlRequest"})
-    settle(app)
+    barrier(app, client)
+    time.sleep(0.3)  # a share tunnel, had it been asked, starts on another thread
     assert app.gui.model.options[0] == "ODR" and app.gui.model.label == "Model"
     assert not app.gui.load.disabled
     assert app.server._share_tunnel is None  # no public tunnel was opened
@@ -166,7 +214,7 @@ def test_malformed_clicks_are_dropped_and_a_real_one_still_works(live, bad, capf
                "screen_pos": [[0.5, 0.5]], "modifier": None}
     before = app.controls.dropped_clicks
     client.send({**message, **bad})
-    settle(app)
+    settle(app, lambda: app.controls.dropped_clicks >= before + 1, "the dropped click")
     assert app.last_pick is None and app.controls.dropped_clicks == before + 1
     client.send(message)  # the same connection still clicks
     end = time.time() + 10
