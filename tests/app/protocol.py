@@ -75,11 +75,15 @@ class ProtocolClient:
         with self._lock:
             return [m for m in self.messages if m.get("type") == kind]
 
-    def wait_for(self, predicate, timeout: float = 20.0, what: str = "a message") -> Any:
+    def wait_for(self, predicate, timeout: float = 20.0, what: str = "a message", *,
+                 since: int = 0) -> Any:
+        """The last message matching ``predicate`` among those from index ``since``
+        on (``len(client.messages)`` taken before acting: an older message that
+        matches does not count)."""
         end = time.time() + timeout
         while time.time() < end:
             with self._lock:
-                found = [m for m in self.messages if predicate(m)]
+                found = [m for m in self.messages[since:] if predicate(m)]
             if found:
                 return found[-1]
             time.sleep(0.05)
@@ -92,11 +96,13 @@ class ProtocolClient:
                             and m["props"].get("label") == label, what=f"control {label!r}")
         return str(msg["uuid"])
 
-    def downloads(self) -> dict[str, bytes]:
+    def downloads(self, since: int = 0) -> dict[str, bytes]:
         """Files the server sent for download, by name, once all their parts arrived
-        (a name sent twice: the last complete one)."""
+        (a name sent twice: the last complete one); only those started at message
+        index ``since`` or later."""
         with self._lock:
-            starts = [m for m in self.messages if m.get("type") == "FileTransferStartDownload"]
+            starts = [m for m in self.messages[since:]
+                      if m.get("type") == "FileTransferStartDownload"]
             parts: dict[str, dict[int, bytes]] = {}
             for m in self.messages:
                 if m.get("type") == "FileTransferPart":
@@ -110,11 +116,13 @@ class ProtocolClient:
                     out[start["filename"]] = data
         return out
 
-    def wait_download(self, name_part: str, timeout: float = 60.0) -> tuple[str, bytes]:
-        """The first complete download whose name contains ``name_part``."""
+    def wait_download(self, name_part: str, timeout: float = 60.0, *,
+                      since: int = 0) -> tuple[str, bytes]:
+        """The first complete download whose name contains ``name_part`` (started at
+        message index ``since`` or later)."""
         end = time.time() + timeout
         while time.time() < end:
-            for name, data in self.downloads().items():
+            for name, data in self.downloads(since).items():
                 if name_part in name:
                     return name, data
             time.sleep(0.05)

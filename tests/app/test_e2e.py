@@ -159,7 +159,9 @@ def test_two_clicks_make_a_profile_with_fractal_dimension(live):
         # the panel in the browser shows the values
         page.get_by_text(f"{d_raw:.3f}").first.wait_for()
         page.get_by_text(f"{d_den:.3f}").first.wait_for()
-        fig = m.plot.figure
+        # the note's text is set before the figure is built: wait for the figure too
+        fig = b.wait_until(lambda: m.plot.figure if len(m.plot.figure.data) >= 2 else None, 30,
+                           "the profile figure")
         assert len(fig.data) >= 2 and any(len(t.x) == len(a.profile.distance) for t in fig.data)
         page.locator(".js-plotly-plot:visible").first.wait_for()
     finally:
@@ -173,7 +175,8 @@ def test_bias_predictions_are_reached_from_the_app(live):
     page.get_by_role("button", name="Predict bias", exact=True).click()
     page.get_by_text("ER / r =").first.wait_for(timeout=60_000)
     page.locator(".js-plotly-plot:visible").first.wait_for()
-    assert app.mode(BiasPanel).last is not None
+    # the result text is set before the curve figure and the panel's record
+    b.wait_until(lambda: app.mode(BiasPanel).last is not None, 30, "the bias record")
     page.get_by_role("tab", name="Map").click()
 
 

@@ -58,14 +58,16 @@ def served(tmp_path_factory):
     proc.stop()
 
 
-def status(client: ProtocolClient, text: str, timeout: float = 60.0) -> None:
+def status(client: ProtocolClient, text: str, since: int, timeout: float = 60.0) -> None:
+    """Wait for ``text`` in a message that came after index ``since``."""
     client.wait_for(lambda m: m.get("type") in ("GuiMarkdownMessage", "GuiUpdateMessage")
-                    and text in str(m), timeout=timeout, what=repr(text))
+                    and text in str(m), timeout=timeout, what=repr(text), since=since)
 
 
-def refusal(client: ProtocolClient, text: str, timeout: float = 60.0) -> str:
+def refusal(client: ProtocolClient, text: str, since: int, timeout: float = 60.0) -> str:
     msg = client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
-                          and text in m["props"]["body"], timeout=timeout, what=repr(text))
+                          and text in m["props"]["body"], timeout=timeout, what=repr(text),
+                          since=since)
     return str(msg["props"]["body"])
 
 
@@ -78,13 +80,18 @@ def test_an_upload_above_the_limit_leaves_memory_unchanged(served):
     proc, client, _ = served
     before = settled_peak(proc)
     blob = b"0.0 0.0 0.0\n" * (200 * MiB // 12)  # 200 MiB announced truthfully
+    mark = len(client.messages)
     client.upload("Upload file", "huge.xyz", blob)
-    body = refusal(client, "huge.xyz is 200.0 MiB, more than the upload limit of 16.0 MiB")
+    body = refusal(client, "huge.xyz is 200.0 MiB, more than the upload limit of 16.0 MiB",
+                   mark)
     liar = b"1.0 2.0 3.0\n" * (64 * MiB // 12)  # 64 MiB sent after announcing 1 MiB
+    mark = len(client.messages)
     client.upload("Upload file", "liar.xyz", liar, declared=MiB)
-    refusal(client, "liar.xyz: the upload is larger than announced")
-    client.set_value("Grid size (m)", PRESETS[-1])  # the server still answers
-    status(client, f"grid {PRESETS[-1]} m")
+    refusal(client, "liar.xyz: the upload is larger than announced", mark)
+    # the server still answers: a grid other than the one it opened on (the finest)
+    mark = len(client.messages)
+    client.set_value("Grid size (m)", PRESETS[0])
+    status(client, f"grid {PRESETS[0]} m", mark)
     after = settled_peak(proc)
     print(f"\npeak resident before {before / MiB:.0f} MiB, after 264 MiB of refused "
           f"uploads {after / MiB:.0f} MiB")
@@ -97,16 +104,19 @@ def test_a_laz_bomb_is_an_error_and_leaves_memory_unchanged(served, how):
     proc, client, folder = served
     before = settled_peak(proc)
     bomb = folder / "bomb.laz"
+    mark = len(client.messages)
     if how == "upload":
         client.upload("Upload file", "bomb.laz", bomb.read_bytes())
     else:
         client.set_value("File path", "bomb.laz")
         client.set_value("Load file", True)
-    body = refusal(client, "50,000,000")
+    body = refusal(client, "50,000,000", mark)
     assert "bomb.laz" in body and str(folder) not in body and "rough-viewer-uploads" not in body
-    size = PRESETS[0] if how == "upload" else PRESETS[1]
-    client.set_value("Grid size (m)", size)  # still serving
-    status(client, f"grid {size} m")
+    # still serving: a grid other than the previous test's (the module shares a server)
+    size = PRESETS[1] if how == "upload" else PRESETS[0]
+    mark = len(client.messages)
+    client.set_value("Grid size (m)", size)
+    status(client, f"grid {size} m", mark)
     after = settled_peak(proc)
     print(f"\nLAZ bomb by {how}: peak resident before {before / MiB:.0f} MiB, "
           f"after {after / MiB:.0f} MiB")

@@ -36,8 +36,14 @@ def xyz_text(n: int, seed: int = 1) -> bytes:
     return "\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz).encode()
 
 
-def settle(app, client=None, seconds: float = 0.3) -> None:
-    time.sleep(seconds)
+def settle(app, until, what: str) -> None:
+    """Poll ``until()``, then wait for the worker: viser hands upload messages to the
+    app on its event loop, which a fixed sleep can outrun on a loaded machine."""
+    end = time.time() + 30
+    while not until():
+        if time.time() > end:
+            raise TimeoutError(f"timed out waiting for {what}")
+        time.sleep(0.05)
     assert app.wait_idle(60)
 
 
@@ -52,8 +58,10 @@ def test_an_upload_is_loaded_and_its_file_removed(live):
     assert app.shown.loaded.n_total == 3000 and app.shown.loaded.cloud.source == "my scan.xyz"
     assert "my scan.xyz" in app.gui.status.content
     assert list(app.uploads.folder.iterdir()) == []  # deleted once read
-    acks = client.of_type("FileTransferPartAck")
-    assert acks and acks[-1]["transferred_bytes"] == len(data) == acks[-1]["total_bytes"]
+    # the acks go on the uploader's own stream, not ordered with the load
+    last = client.wait_for(lambda m: m.get("type") == "FileTransferPartAck"
+                           and m["transferred_bytes"] == len(data), what="the last ack")
+    assert last["total_bytes"] == len(data)
 
 
 @pytest.mark.parametrize("name, declared, message", [
@@ -65,7 +73,7 @@ def test_refused_at_the_start(live, name, declared, message):
     app, client, cloud = live
     data = b"0 0 0\n" * 1000
     transfer = client.upload("Upload file", name, data, declared=declared)
-    settle(app)
+    settle(app, lambda: len(app.uploads.refused) > 0, "the refusal")
     assert message in app.uploads.refused[-1]
     assert app.shown.loaded.cloud is cloud and list(app.uploads.folder.iterdir()) == []
     body = client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
@@ -82,7 +90,7 @@ def test_a_client_sending_more_than_it_announced_is_cut_off(live):
     data = xyz_text(60_000)  # about 1.9 MB, above the 1 MiB limit
     assert len(data) > (LIMIT_MB << 20)
     client.upload("Upload file", "liar.xyz", data, declared=100_000)
-    settle(app)
+    settle(app, lambda: len(app.uploads.refused) > 0 and app.uploads.active == 0, "the cut-off")
     assert "larger than announced" in app.uploads.refused[-1]
     assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
     assert app.shown.loaded.cloud is cloud
@@ -96,14 +104,16 @@ def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
                  "size_bytes": 20, "part_count": 2})
     client.send({"type": "FileTransferPart", "source_component_uuid": source,
                  "transfer_uuid": "t1", "part_index": 1, "content": b"0 0 0\n"})
-    settle(app)
+    settle(app, lambda: len(app.uploads.refused) > 0, "the refusal")
     assert "out of order" in app.uploads.refused[-1]
     client.send({"type": "FileTransferStartUpload", "source_component_uuid": source,
                  "transfer_uuid": "t2", "filename": "b.xyz", "mime_type": "",
                  "size_bytes": 20, "part_count": 2})
     client.send({"type": "FileTransferPart", "source_component_uuid": source,
                  "transfer_uuid": "t2", "part_index": 0, "content": b"0 0 0\n"})
-    settle(app)
+    settle(app, lambda: app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1,
+           "the first part on disk")
+    time.sleep(0.2)  # nothing more comes of it
     assert app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1
     client.close()
     end = time.time() + 10
@@ -131,12 +141,14 @@ def test_file_content_never_reaches_the_browser(live):
     app, client, cloud = live
     secret = b"x y z\n1 2 hunter2-password\n3 4 5\n"
     client.upload("Upload file", "secret.xyz", secret)
-    settle(app, seconds=0.6)
+    settle(app, lambda: any("secret.xyz" in e for e in app.errors), "the error")
     assert app.shown.loaded.cloud is cloud
     assert "secret.xyz" in app.errors[-1]
     assert "hunter2" not in app.errors[-1] and str(app.uploads.folder) not in app.errors[-1]
+    client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
+                    and "secret.xyz" in m["props"]["body"], what="the notice")
     notes = [m["props"]["body"] for m in client.of_type("NotificationShowMessage")]
-    assert notes and not any("hunter2" in n or "rough-viewer-uploads" in n for n in notes)
+    assert not any("hunter2" in n or "rough-viewer-uploads" in n for n in notes)
 
 
 def test_names_are_cleaned():
@@ -154,7 +166,7 @@ def test_upload_messages_go_to_the_uploader_only(live):
     for k in range(20):
         client.upload("Upload file", f"tool{k}.exe", b"0 0 0\n")
     client.upload("Upload file", "scan.xyz", xyz_text(2000), chunk=16 * 1024)
-    settle(app, seconds=1.0)
+    settle(app, lambda: app.shown.loaded.n_total == 2000, "the uploaded cloud")
     end = time.time() + 20  # the uploader gets them (they may trail the server's idle)
     while len(client.of_type("FileTransferPartAck")) < 21 and time.time() < end:
         time.sleep(0.05)

@@ -104,12 +104,14 @@ def test_a_click_shows_the_point_across_the_preset_grids(demo):
     before = len(app.pick_timings)
     page.mouse.click(x, y)
     b.wait_until(lambda: len(app.pick_timings) > before, 60, "a click report")
+    # the point's own figure ("this point's cells"), not the placeholder before it
+    # ("a clicked point's cells"), which is on the page all along
     plot = page.locator(".js-plotly-plot",
-                        has=page.locator(".gtitle", has_text="across grid sizes")).first
+                        has=page.locator(".gtitle", has_text="this point's cells")).first
     plot.wait_for()
     presets = app.shown.loaded.presets
     traces = plot.locator(".scatterlayer .trace")
-    assert traces.count() == 3  # ODR, OLS, hybrid
+    b.wait_until(lambda: traces.count() == 3, 30, "the three traces")  # ODR, OLS, hybrid
     for k in range(3):
         assert traces.nth(k).locator(".points path").count() == len(presets)
     assert plot.bounding_box()["width"] >= MIN_PLOT_WIDTH

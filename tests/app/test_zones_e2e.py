@@ -53,9 +53,10 @@ def test_zones_render_and_a_click_selects_one(live):
     assert m.labelling.n_zones == 3
     zone_rgb = [hex_to_rgb(colormaps.zone_colour(k)) for k in (1, 2, 3)]
     # every zone shows on the rock in its colour, the rest light grey (no viridis left)
-    img = b.wait_pixels(page, lambda im: all(near(im, c).mean() > 0.003 for c in zone_rgb),
-                        60, "the three zone colours")
     viridis = colormaps.lut("viridis").astype(int)[::16]
+    # the zone cloud is added, then the map's cloud hidden: wait for both
+    img = b.wait_pixels(page, lambda im: all(near(im, c).mean() > 0.003 for c in zone_rgb)
+                        and near(im, viridis[-1]).mean() < 0.001, 60, "the three zone colours")
     coloured = b.coloured_mask(img) & ~np.any([near(img, c) for c in zone_rgb], axis=0)
     assert near(img, viridis[-1]).mean() < 0.001 and coloured.mean() < 0.01
     page.get_by_text("3 zones").first.wait_for()

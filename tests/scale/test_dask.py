@@ -157,7 +157,8 @@ def test_an_address_that_is_not_a_dask_scheduler_is_one_line(answer, message, cl
         t = time.time()
         with pytest.raises(InputError) as info:
             probe_scheduler(address, timeout=1.0)
-        assert time.time() - t < 5 and message in str(info.value)
+        # a hang guard, not a timing: the old client waited for ever on such an address
+        assert time.time() - t < 30 and message in str(info.value)
         assert address in str(info.value) and "\n" not in str(info.value)
     finally:
         srv.close()
