@@ -35,7 +35,6 @@ class Distribution:
 
     histogram: go.Figure
     summary: go.Figure
-    histogram_maps: tuple[MapName, ...]
 
 
 def histogram_maps(model: MapName) -> tuple[MapName, ...]:
@@ -60,11 +59,10 @@ def distribution_figures(result: GridRoughness, settings: ViewSettings, *,
     """Histogram of normalised roughness (0.05 bins) and the summary table (Table 1),
     lengths in ``unit`` (the cloud's), roughness in its roughness unit."""
     kw = _figure_kw(result, unit)
-    h_maps = histogram_maps(settings.model)
-    hist = histogram_figure(
-        {m: histogram(normalise(result.values(m)), HISTOGRAM_BIN) for m in h_maps}, **kw)
+    hist = histogram_figure({m: histogram(normalise(result.values(m)), HISTOGRAM_BIN)
+                             for m in histogram_maps(settings.model)}, **kw)
     summary = summary_table_figure({m: summarise(result, m) for m in MAPS}, **kw)
-    return Distribution(hist, summary, h_maps)
+    return Distribution(hist, summary)
 
 
 def variograms(

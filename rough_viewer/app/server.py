@@ -509,14 +509,26 @@ def _wire_map(app: App) -> None:
         with quietly(app._local):
             assign(handle, value)
 
-    @g.grid_free.on_update
-    def _(_event: object) -> None:
-        if app.syncing:
-            return
-        with app.controls_lock:
-            if g.grid.value != "free":
-                set_quietly(g.grid, "free")
-            app.request_update()
+    def switching(handle: Any, value: str) -> Callable[[object], None]:
+        """A callback that moves ``handle`` to ``value`` (quietly) and queues the view,
+        both under :attr:`App.controls_lock`."""
+
+        def callback(_event: object) -> None:
+            if app.syncing:
+                return
+            with app.controls_lock:
+                if handle.value != value:
+                    set_quietly(handle, value)
+                app.request_update()
+
+        return callback
+
+    # a typed free size picks "free"; dragged percentiles or a typed limit pick
+    # that colour stretch
+    g.grid_free.on_update(switching(g.grid, "free"))
+    g.percentiles.on_update(switching(g.stretch, "percentile"))
+    g.range_lo.on_update(switching(g.stretch, "absolute"))
+    g.range_hi.on_update(switching(g.stretch, "absolute"))
 
     @g.grid.on_update
     def _(_event: object) -> None:
@@ -524,26 +536,6 @@ def _wire_map(app: App) -> None:
         if size is not None and not app.syncing:
             with app.controls_lock:
                 set_quietly(g.grid_free, g.length_units.length(size))
-
-    @g.percentiles.on_update
-    def _(_event: object) -> None:
-        if app.syncing:
-            return
-        with app.controls_lock:
-            if g.stretch.value != "percentile":
-                set_quietly(g.stretch, "percentile")
-            app.request_update()
-
-    def typed_limit(_event: object) -> None:
-        if app.syncing:
-            return
-        with app.controls_lock:
-            if g.stretch.value != "absolute":
-                set_quietly(g.stretch, "absolute")
-            app.request_update()
-
-    g.range_lo.on_update(typed_limit)
-    g.range_hi.on_update(typed_limit)
 
     @g.point_size.on_update
     def _(_event: object) -> None:

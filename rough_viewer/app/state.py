@@ -490,7 +490,6 @@ def point_colours(
     settings: ViewSettings,
     point_index: np.ndarray,
     *,
-    normalised: np.ndarray | None = None,
     colours_range: colormaps.ColourRange | None = None,
 ) -> np.ndarray:
     """RGB colour (``(K, 3)`` uint8) of the points ``point_index`` of the cloud.
@@ -500,13 +499,12 @@ def point_colours(
     or absolute limits) on ``settings.colormap``. Binary display: the 2011 paper's
     transform, min-max normalised roughness ``>= threshold`` in the map's last
     colour, the rest in its first. Points in cells without a value get
-    :data:`colormaps.NEUTRAL_RGB`. ``normalised`` may pass a precomputed
-    :func:`normalised_map`, ``colours_range`` a precomputed :func:`colour_range`.
+    :data:`colormaps.NEUTRAL_RGB`. ``colours_range`` may pass a precomputed
+    :func:`colour_range`.
     """
     cell = result.point_cell[point_index]
     if settings.mode == "binary":
-        norm = normalised_map(result, settings.model) if normalised is None else normalised
-        per_point = norm[cell]
+        per_point = normalised_map(result, settings.model)[cell]
         valid = np.isfinite(per_point)
         with np.errstate(invalid="ignore"):
             flags = per_point >= settings.threshold

@@ -226,19 +226,13 @@ class Worker(Generic[C]):
             for waiting in dropped:
                 _release(waiting)
 
-    def cancel(self, lanes: set[str] | None = None) -> None:
-        """Drop waiting jobs and cancel the running one (all, or those of ``lanes``)."""
-        dropped: list[Job[C]] = []
+    def cancel(self) -> None:
+        """Drop the waiting jobs and cancel the running one."""
         with self._cond:
             st = self._state
-            keep = []
-            for number, waiting in st.pending:
-                if lanes is None or waiting.lane in lanes:
-                    dropped.append(waiting)
-                else:
-                    keep.append((number, waiting))
-            st.pending = keep
-            if st.running is not None and (lanes is None or st.running[1].lane in lanes):
+            dropped = [waiting for _, waiting in st.pending]
+            st.pending = []
+            if st.running is not None:
                 st.running[2].cancel()
             self._cond.notify_all()
         for waiting in dropped:
