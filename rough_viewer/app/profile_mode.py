@@ -339,11 +339,16 @@ class ProfileMode:
         Raises InputError or ValueError from the core (e.g. no points near the line).
         """
         a = analyse(app.shown.loaded.cloud.xyz(), start, end, settings)
-        k = len(self.items)
-        l0, l1 = (app.shown.loaded.to_local(np.asarray(p, dtype=np.float64)) for p in (start, end))
-        self.nodes.append(self._draw(app, a, k, l0, l1))
-        self._keep(a)
+        self._show(app, a)
         return a
+
+    def _show(self, app: App, a: ProfileAnalysis) -> None:
+        """Draw ``a`` with markers at both ends of its line on the shown cloud, and
+        keep it."""
+        ends = (app.shown.loaded.to_local(np.asarray(p, dtype=np.float64))
+                for p in (a.source.start, a.source.end))
+        self.nodes.append(self._draw(app, a, len(self.items), *ends))
+        self._keep(a)
 
     def on_cloud(self, app: App) -> None:
         """Another cloud is shown (worker thread): profiles belong to their cloud, so
@@ -362,10 +367,7 @@ class ProfileMode:
             self.aside = (old, kept)
         elif self.aside is not None and self.aside[0] is new:
             for a in self.aside[1]:
-                ends = (new.to_local(np.asarray(p, dtype=np.float64))
-                        for p in (a.source.start, a.source.end))
-                self.nodes.append(self._draw(app, a, len(self.items), *ends))
-                self._keep(a)
+                self._show(app, a)
             self.aside = None
         elif self.aside is not None and stashed is not self.aside[0]:
             self.aside = None  # the scan put aside is gone

@@ -24,7 +24,6 @@ view's hash then says whether it is the same file.
 
 from __future__ import annotations
 
-import importlib
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -55,6 +54,7 @@ if TYPE_CHECKING:
 
     from rough_viewer.app.profile_mode import ProfileMode
     from rough_viewer.app.server import App
+    from rough_viewer.app.zones_mode import ZonesMode
 
 #: Largest cell size the app's "Free grid size" control takes, metres (layout.build_gui).
 APP_MAX_CELL_SIZE = MAX_CELL_SIZE
@@ -152,18 +152,12 @@ def view_of_app(app: App, ref: InputRef, *, camera: Camera | None,
 # ----------------------------------------------------------------------------- zones
 
 
-def _zones_mode(app: App) -> Any | None:
-    """The zones mode's state when a zones mode is mounted (``rough_viewer.app.
-    zones_mode.ZonesMode``), else None."""
+def _zones_mode(app: App) -> ZonesMode | None:
+    """The zones mode's state when it is mounted, else None."""
+    from rough_viewer.app.zones_mode import ZonesMode
+
     try:
-        module = importlib.import_module("rough_viewer.app.zones_mode")
-    except ImportError:
-        return None
-    kind = getattr(module, "ZonesMode", None)
-    if not isinstance(kind, type):
-        return None
-    try:
-        return app.mode(kind)
+        return app.mode(ZonesMode)
     except KeyError:
         return None
 
@@ -172,19 +166,17 @@ def zone_settings(app: App) -> ZoneSettings | None:
     """The zones mode's settings (its ``settings()``), or None without a zones mode or
     while it shows no zones (its ``active`` is False)."""
     mode = _zones_mode(app)
-    get = getattr(mode, "settings", None)
-    if get is None or getattr(mode, "active", True) is False:
+    if mode is None or not mode.active:
         return None
-    value = get()
-    return value if isinstance(value, ZoneSettings) else None
+    return mode.settings()
 
 
 def restore_zones(app: App, zones: ZoneSettings) -> bool:
     """Give ``zones`` to the zones mode (its ``apply(settings)``); False without one."""
-    apply = getattr(_zones_mode(app), "apply", None)
-    if apply is None:
+    mode = _zones_mode(app)
+    if mode is None:
         return False
-    apply(zones)
+    mode.apply(zones)
     return True
 
 

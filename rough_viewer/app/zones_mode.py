@@ -43,7 +43,6 @@ and :meth:`ZonesMode.apply` (:class:`rough_viewer.report.view.ZoneSettings`).
 
 from __future__ import annotations
 
-import threading
 import time
 from collections import deque
 from collections.abc import Iterator
@@ -322,7 +321,6 @@ class ZonesMode:
     selected_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
     cache: ByteCache[tuple[object, ...], ZoneBasis | Stereonet] = field(
         default_factory=lambda: ByteCache(0))
-    _local: threading.local = field(default_factory=threading.local)
 
     # ------------------------------------------------------------------ saved views
     @property
@@ -374,13 +372,9 @@ class ZonesMode:
         app.submit(ZonesJob(self))
 
     # ------------------------------------------------------------------ controls
-    @property
-    def syncing(self) -> bool:
-        """True while this thread sets the tab's controls (their callbacks queue nothing)."""
-        return bool(getattr(self._local, "syncing", False))
-
     def _sync(self, handle: Any, value: object) -> None:
-        with quietly(self._local):
+        """Set one of the tab's controls without its callbacks queuing work."""
+        with quietly(self.app._local):
             assign(handle, value)
 
     def params(self) -> ZoneParams:
@@ -523,7 +517,7 @@ class ZonesMode:
     def _sync_dropdown(self, zones: Zones, zone: int) -> None:
         options = zone_options(zones, zone)
         value = zone_option(zone, int(zones.cells[zone - 1])) if zone else NO_ZONE
-        with quietly(self._local):
+        with quietly(self.app._local):
             if tuple(self.selected.options) != options:
                 self.selected.options = options
             if self.selected.value != value:
@@ -758,7 +752,7 @@ def _wire(app: App, m: ZonesMode) -> None:
     g = app.gui
 
     def relabel(_event: object) -> None:
-        if not m.syncing:
+        if not app.syncing:
             app.submit(ZonesJob(m))
 
     for control in (m.on, m.connectivity, m.min_cells):
@@ -767,7 +761,7 @@ def _wire(app: App, m: ZonesMode) -> None:
     @m.threshold.on_update
     def _(_event: object) -> None:
         # the twin moves the Map tab's slider, whose callback queues the view (and zones)
-        if not m.syncing and float(g.threshold.value) != float(m.threshold.value):
+        if not app.syncing and float(g.threshold.value) != float(m.threshold.value):
             assign(g.threshold, float(m.threshold.value))
 
     @g.threshold.on_update
@@ -778,7 +772,7 @@ def _wire(app: App, m: ZonesMode) -> None:
     @m.selected.on_update
     def _(_event: object) -> None:
         lab = m.labelling
-        if m.syncing or lab is None:
+        if app.syncing or lab is None:
             return
         value = m.selected.value
         zone = 0 if value == NO_ZONE else _zone_of_option(value)
