@@ -35,16 +35,6 @@ DOWNLOADS = [
 ]
 
 
-def _status(pid: int) -> dict[str, int]:
-    out = {}
-    with open(f"/proc/{pid}/status") as fh:
-        for line in fh:
-            key, _, rest = line.partition(":")
-            if key in ("VmRSS", "VmHWM"):
-                out[key] = int(rest.split()[0]) * 1024
-    return out
-
-
 def _reset_peak(pid: int) -> None:
     with open(f"/proc/{pid}/clear_refs", "w") as fh:
         fh.write("5")  # resets VmHWM to the current RSS (Linux >= 4.0)
@@ -67,7 +57,7 @@ def one_run(args: list[str], only: list[str]) -> dict[str, tuple[float, int, flo
                 client.set_value(*choice)
                 time.sleep(0.5)
             seen = set(client.downloads())
-            before = _status(proc.proc.pid)["VmRSS"]
+            before = proc.memory()["VmRSS"]
             _reset_peak(proc.proc.pid)
             t0 = time.perf_counter()
             client.press(label)
@@ -82,12 +72,12 @@ def one_run(args: list[str], only: list[str]) -> dict[str, tuple[float, int, flo
             if data is None:
                 raise TimeoutError(f"{what}: no download")
             seconds = time.perf_counter() - t0
-            peak = _status(proc.proc.pid)["VmHWM"]
+            peak = proc.memory()["VmHWM"]
             out[what] = (seconds, len(data), (peak - before) / MiB)
             with client._lock:  # the client keeps every message: drop the parts
                 client.messages = [m for m in client.messages
                                    if m.get("type") != "FileTransferPart"]
-        out["_server"] = (0.0, 0, _status(proc.proc.pid)["VmHWM"] / MiB)
+        out["_server"] = (0.0, 0, proc.memory()["VmHWM"] / MiB)
     finally:
         client.close()
         proc.stop()

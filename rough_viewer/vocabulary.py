@@ -175,6 +175,28 @@ ROUGHNESS_UNIT: dict[str, Unit] = {"m": "mm", "mm": "mm", "ft": "ft", "us-ft": "
 """Unit roughness (a few mm) is shown in, for each coordinate unit: millimetres for
 metric input (SCIENCE.md: the tools may show mm), the input's own unit otherwise."""
 
+
+def unit_scale(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) of a display unit for lengths.
+
+    >>> unit_scale("mm"), unit_scale("ft")
+    ((0.001, 'mm'), (0.3048, 'ft'))
+    """
+    if unit not in UNIT_METRES:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+    return UNIT_METRES[unit], UNIT_LABELS[unit]
+
+
+def roughness_scale(unit: str) -> tuple[float, str]:
+    """(metres per unit, label) roughness is shown in for lengths in ``unit``: mm for
+    metric input, the input's own unit otherwise (``ROUGHNESS_UNIT``).
+
+    >>> roughness_scale("m"), roughness_scale("ft")
+    ((0.001, 'mm'), (0.3048, 'ft'))
+    """
+    return unit_scale(ROUGHNESS_UNIT.get(unit, unit))
+
+
 # ----------------------------------------------------------------------------- profiles
 
 Decomposition = Literal["dwt", "wp"]

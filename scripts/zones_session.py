@@ -31,15 +31,6 @@ def rss_mb() -> float:
     return float("nan")
 
 
-def wait(predicate, timeout: float, what: str) -> None:
-    end = time.time() + timeout
-    while time.time() < end:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise TimeoutError(what)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -82,13 +73,13 @@ def main() -> None:
             b.wait_coloured(page, 0.05, timeout=300)
             b.hide_toasts(page)
             b.type_number(page, "Threshold", f"{args.threshold:g}")
-            wait(lambda: app.shown.settings.threshold == args.threshold and not app.worker.busy,
-                 120, "threshold")
+            b.wait_until(lambda: app.shown.settings.threshold == args.threshold
+                         and not app.worker.busy, 120, "threshold")
             page.get_by_role("tab", name="Zones").click()
             before = b.scene_pixels(page)
             t0 = time.perf_counter()
             b.control(page, "Show zones").click()
-            wait(lambda: m.zones is not None and not app.worker.busy, 300, "zones")
+            b.wait_until(lambda: m.zones is not None and not app.worker.busy, 300, "zones")
             print(f"zones on: {time.perf_counter() - t0:.2f} s until the table "
                   f"(first labelling {m.timings[-1]['colours_s']:.2f} s, labeller build "
                   f"{m.timings[-1]['basis_s']:.2f} s, table {m.timings[-1]['table_s']:.2f} s); "
@@ -109,7 +100,7 @@ def main() -> None:
             if ys.size:
                 k = int(np.argmin((ys - np.median(ys)) ** 2 + (xs - np.median(xs)) ** 2))
                 page.mouse.click(int(xs[k]), int(ys[k]))
-                wait(lambda: m.anchor is not None and not app.worker.busy, 120, "a selection")
+                b.wait_until(lambda: m.anchor is not None and not app.worker.busy, 120, "a selection")
                 lab = m.labelling
                 assert lab is not None
                 zone = lab.zone_at(m.anchor)
@@ -125,9 +116,9 @@ def main() -> None:
                 n = len(m.timings)
                 t0 = time.perf_counter()
                 b.type_number(page, "Zone threshold", f"{thr:.2f}")
-                wait(lambda n=n: len(m.timings) > n, 60, "re-label")
+                b.wait_until(lambda n=n: len(m.timings) > n, 60, "re-label")
                 t_col = m.timings[-1]["done"] - t0
-                wait(lambda: not app.worker.busy, 120, "idle")
+                b.wait_until(lambda: not app.worker.busy, 120, "idle")
                 rec = m.timings[-1]
                 assert m.labelling is not None
                 print(f"threshold {thr:.2f}: {m.labelling.n_zones:,} zones; typed -> zone colours "

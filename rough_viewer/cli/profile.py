@@ -182,7 +182,7 @@ def display_units(unit: str) -> tuple[float, str, float, str]:
     """(per metre, label) of the unit for lengths and of the one for small values
     (thresholds, noise, band): metres and millimetres for a metric input, the
     input's unit otherwise."""
-    from rough_viewer.visual.grid import roughness_scale, unit_scale
+    from rough_viewer.vocabulary import roughness_scale, unit_scale
 
     (f, u), (rf, ru) = unit_scale(unit), roughness_scale(unit)
     return 1.0 / f, u, 1.0 / rf, ru

@@ -149,10 +149,10 @@ def run(args: argparse.Namespace) -> int:
     several = len(grids) > 1
     wanted = [("out", args.out), *([("cells_out", args.cells_out)] if args.cells_out else [])]
     outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in wanted}
-    for path in (p for by_grid in outputs.values() for p in by_grid.values()):
+    paths = [p for by_grid in outputs.values() for p in by_grid.values()]
+    for path in paths:
         check_table_output(path)
-    check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
-                  force=args.force, inputs=inputs)
+    check_outputs(paths, force=args.force, inputs=inputs)
     quiet = args.quiet
     cloud = load_inputs(inputs, units=args.units, quiet=quiet)
     per, u = per_unit(unit), UNIT_LABELS[unit]

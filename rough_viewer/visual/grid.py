@@ -30,37 +30,15 @@ from rough_viewer.vocabulary import (
     MAP_COLOURS,
     MAP_LABELS,
     MAP_MARKERS,
-    ROUGHNESS_UNIT,
-    UNIT_LABELS,
-    UNIT_METRES,
     InputError,
+    roughness_scale,
+    unit_scale,
 )
 
 
 def label(name: str) -> str:
     """Display name of a map (``"e_ols"`` -> ``"e_OLS"``)."""
     return MAP_LABELS.get(name, name)
-
-
-def unit_scale(unit: str) -> tuple[float, str]:
-    """(metres per unit, label) of a display unit for lengths.
-
-    >>> unit_scale("mm"), unit_scale("ft")
-    ((0.001, 'mm'), (0.3048, 'ft'))
-    """
-    if unit not in UNIT_METRES:
-        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
-    return UNIT_METRES[unit], UNIT_LABELS[unit]
-
-
-def roughness_scale(unit: str) -> tuple[float, str]:
-    """(metres per unit, label) roughness is shown in for lengths in ``unit``: mm for
-    metric input, the input's own unit otherwise (``ROUGHNESS_UNIT``).
-
-    >>> roughness_scale("m"), roughness_scale("ft")
-    ((0.001, 'mm'), (0.3048, 'ft'))
-    """
-    return unit_scale(ROUGHNESS_UNIT.get(unit, unit))
 
 
 def describe(*, grid_size: float, axis: str, n_points: int, models: Sequence[str] = (),

@@ -25,20 +25,11 @@ from rough_viewer.vocabulary import (
     MAP_COLOURS,
     MAP_MARKERS,
     MODELS,
-    ROUGHNESS_UNIT,
-    UNIT_LABELS,
-    UNIT_METRES,
     InputError,
     MapName,
+    roughness_scale,
+    unit_scale,
 )
-
-
-def _units(unit: str) -> tuple[float, str, float, str]:
-    """(metres per length unit, its label, metres per roughness unit, its label)."""
-    if unit not in UNIT_METRES:
-        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
-    rough = ROUGHNESS_UNIT[unit]
-    return UNIT_METRES[unit], UNIT_LABELS[unit], UNIT_METRES[rough], UNIT_LABELS[rough]
 
 
 def _grid_axis(sizes: np.ndarray, per: float = 1.0, label_: str = "m") -> dict[str, object]:
@@ -93,7 +84,7 @@ def point_scales_figure(
     """
     if scales.cell_sizes.size == 0:
         raise InputError("no grid to plot")
-    per, u, rper, ru = _units(unit)
+    (per, u), (rper, ru) = unit_scale(unit), roughness_scale(unit)
     fig = go.Figure()
     missing = []
     for name in maps:
@@ -154,7 +145,7 @@ def face_scales_figure(
     """
     if scales.cell_sizes.size == 0:
         raise InputError("no grid to plot")
-    per, u, rper, ru = _units(unit)
+    (per, u), (rper, ru) = unit_scale(unit), roughness_scale(unit)
     fig = make_subplots(rows=2, cols=1, shared_xaxes=True, vertical_spacing=0.1)
     for row, what in ((1, "mean"), (2, "share")):
         for name in maps:

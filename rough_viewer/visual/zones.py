@@ -21,8 +21,8 @@ from rough_viewer.grid.orientation import Stereonet, schmidt_inverse, trend_and_
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.zones import Zones
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.grid import describe, roughness_scale, unit_scale
-from rough_viewer.vocabulary import MAP_LABELS, InputError
+from rough_viewer.visual.grid import describe
+from rough_viewer.vocabulary import MAP_LABELS, InputError, roughness_scale, unit_scale
 
 #: Poles drawn at most per trace (evenly spaced subset); the density uses them all.
 MAX_POLES_DRAWN = 20_000
