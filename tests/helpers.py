@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from rough_viewer.io import PointCloud
+from rough_viewer.vocabulary import PAPER_GRIDS
 
 #: Range noise of the synthetic board and wire scans, metres (the bias paper's 1.6 mm).
 NOISE = 0.0016
@@ -178,7 +179,7 @@ def write_las_with_colours(path, cloud: PointCloud, seed: int = 1) -> tuple[np.n
 #: The 2011 paper's grid sizes, metres: tests about other things than the grid pass
 #: them as the app's presets (``build_app(..., presets=PAPER_PRESETS)``) instead of the
 #: presets the app derives from each cloud's point spacing.
-PAPER_PRESETS = (1.0, 0.5, 0.25, 0.125)
+PAPER_PRESETS = PAPER_GRIDS
 
 
 def repeated_points_cloud(seed: int = 8) -> np.ndarray:

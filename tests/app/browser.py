@@ -189,22 +189,26 @@ def drawn_colour_share(rgba: np.ndarray, lut: np.ndarray, tol: int = 24) -> tupl
 
 
 @contextlib.contextmanager
-def app_page(chromium, port: int, *, viewport: dict[str, int] = VIEWPORT,
+def app_page(chromium, app, *, viewport: dict[str, int] = VIEWPORT,
              coloured: float = 0.05, timeout: float = 90.0, step_timeout_ms: int = 30_000,
              **context: Any) -> Iterator[Any]:
-    """A page on the app served at ``port``, once its cloud is drawn (``coloured``
+    """A page on ``app`` (on its viser server), once its cloud is drawn (``coloured``
     share of the scene within ``timeout`` s) and its toasts hidden; on leaving, the
-    page's JavaScript errors fail the test."""
-    ctx = chromium.new_context(viewport=viewport, **context)
-    ctx.set_default_timeout(step_timeout_ms)
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
+    page's JavaScript errors fail the test, and the app and its server are stopped."""
     try:
-        page.goto(f"http://127.0.0.1:{port}/?fixedDpr=1&hideViserLogo")
-        wait_coloured(page, coloured, timeout=timeout)
-        hide_toasts(page)
-        yield page
+        ctx = chromium.new_context(viewport=viewport, **context)
+        ctx.set_default_timeout(step_timeout_ms)
+        page = ctx.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        try:
+            page.goto(f"http://127.0.0.1:{app.server.get_port()}/?fixedDpr=1&hideViserLogo")
+            wait_coloured(page, coloured, timeout=timeout)
+            hide_toasts(page)
+            yield page
+        finally:
+            ctx.close()
+        assert not errors, errors
     finally:
-        ctx.close()
-    assert not errors, errors
+        app.stop()
+        app.server.stop()

@@ -19,6 +19,8 @@ import viser
 import zstandard
 from websockets.sync.client import connect
 
+from tests.app.browser import wait_until
+
 SUBPROTOCOL = "viser-v" + viser.__version__
 
 
@@ -157,3 +159,19 @@ class ProtocolClient:
                    "ray_origin": [float(v) for v in origin],
                    "ray_direction": [float(v) for v in direction],
                    "screen_pos": [[0.5, 0.5]], "modifier": None})
+
+
+def join(server, path: str = "/", *, origin: str | None = None) -> ProtocolClient:
+    """A :class:`ProtocolClient` on the viser ``server``, once the server lists it
+    among its clients."""
+    client = ProtocolClient(server.get_port(), path, origin=origin)
+    wait_until(lambda: server.get_clients(), 10, "the server to list the client")
+    return client
+
+
+def settle(app, until, what: str, timeout: float = 30.0) -> None:
+    """Wait until ``until()`` holds with the worker idle: viser checks a message on its
+    event loop and runs the control's callback later on a thread pool, so neither a
+    fixed sleep nor ``wait_idle`` alone says the message was handled."""
+    wait_until(lambda: until() and not app.worker.busy, timeout, what)
+    assert app.wait_idle(60)

@@ -15,34 +15,22 @@ from rough_viewer.app.server import build_app
 from rough_viewer.app.state import ViewSettings
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
-from tests.app.protocol import ProtocolClient
-from tests.helpers import face_cloud
+from tests.app.protocol import join, settle
+from tests.helpers import PAPER_PRESETS, face_cloud
 
 
 @pytest.fixture
 def live():
     server, gate = open_server("127.0.0.1", 0, token="tok", log=False)
     # fixed presets: these tests are about the checks, not the data's grid
-    app = build_app(server, face_cloud(8_000), prefetch=False, presets=(1.0, 0.5, 0.25, 0.125),
+    app = build_app(server, face_cloud(8_000), prefetch=False, presets=PAPER_PRESETS,
                     settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
-    port = server.get_port()
-    client = ProtocolClient(port, "/t/tok", origin=f"http://127.0.0.1:{port}")
-    end = time.time() + 10
-    while not server.get_clients() and time.time() < end:
-        time.sleep(0.02)
+    client = join(server, "/t/tok", origin=f"http://127.0.0.1:{server.get_port()}")
     yield app, client
     client.close()
     app.stop()
     server.stop()
-
-
-def settle(app, until, what: str) -> None:
-    """Wait until ``until()`` holds and the worker is idle: viser checks a message on
-    its event loop and runs the control's callback later on a thread pool, so neither
-    a fixed sleep nor ``wait_idle`` alone says the message was handled."""
-    wait_until(lambda: until() and not app.worker.busy, 30, what)
-    assert app.wait_idle(60)
 
 
 def barrier(app, client) -> None:
@@ -217,9 +205,7 @@ def test_malformed_clicks_are_dropped_and_a_real_one_still_works(live, bad, capf
     settle(app, lambda: app.controls.dropped_clicks >= before + 1, "the dropped click")
     assert app.last_pick is None and app.controls.dropped_clicks == before + 1
     client.send(message)  # the same connection still clicks
-    end = time.time() + 10
-    while app.last_pick is None and time.time() < end:
-        time.sleep(0.05)
+    wait_until(lambda: app.last_pick is not None, 10, "the real click")
     assert app.last_pick is not None
     err = capfd.readouterr().err
     assert "Traceback" not in err and "exception" not in err.lower() and "Warning" not in err

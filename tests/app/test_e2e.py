@@ -27,12 +27,8 @@ def live(chromium):
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, face_cloud(120_000, seed=5))
     assert app.wait_idle(60)
-    try:
-        with b.app_page(chromium, server.get_port()) as page:
-            yield app, page
-    finally:
-        app.stop()
-        server.stop()
+    with b.app_page(chromium, app) as page:
+        yield app, page
 
 
 def _share_near(img, rgb, tol=40):

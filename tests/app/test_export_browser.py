@@ -36,12 +36,8 @@ def page_and_app(chromium, tmp_path_factory):
     app = build_app(server, load_points(scan), prefetch=False, data_dir=folder,
                     presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     assert app.wait_idle(60)
-    try:
-        with b.app_page(chromium, server.get_port(), accept_downloads=True) as page:
-            yield page, app, scan
-    finally:
-        app.stop()
-        server.stop()
+    with b.app_page(chromium, app, accept_downloads=True) as page:
+        yield page, app, scan
 
 
 def _download(page, label: str, out: Path) -> tuple[str, bytes]:

@@ -9,7 +9,6 @@ import errno
 import io
 import json
 import tempfile
-import time
 import zipfile
 from pathlib import Path
 
@@ -67,13 +66,7 @@ def _said(client: ProtocolClient, text: str, what: str = "a message", *, after: 
     def said(m) -> bool:
         return text in str(m.get("updates", m.get("props", ""))).replace("\\", "")
 
-    end = time.time() + 30
-    while time.time() < end:
-        with client._lock:
-            if any(said(m) for m in client.messages[after:]):
-                return
-        time.sleep(0.05)
-    raise TimeoutError(f"timed out waiting for {what}")
+    client.wait_for(said, 30, what, since=after)
 
 
 def _csv_rows(data: bytes) -> list[dict[str, str]]:

@@ -17,10 +17,11 @@ from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.server import App, build_app
 from rough_viewer.app.state import ViewSettings
 from rough_viewer.app.worker import Job, Run
-from tests.app.protocol import ProtocolClient
+from tests.app.protocol import join, settle
+from tests.helpers import PAPER_PRESETS
 
 #: Fixed presets for tests about the job pipeline, not the data's grid.
-FIXED = {"presets": (1.0, 0.5, 0.25, 0.125), "settings": ViewSettings(cell_size=0.25)}
+FIXED = {"presets": PAPER_PRESETS, "settings": ViewSettings(cell_size=0.25)}
 
 
 @dataclass(frozen=True)
@@ -75,22 +76,16 @@ def test_the_same_through_the_browser_protocol(cloud, tmp_path):
     server, _ = open_server("127.0.0.1", 0, token=None, log=False)
     app = build_app(server, cloud, prefetch=False, data_dir=tmp_path)
     assert app.wait_idle(60)
-    client = ProtocolClient(server.get_port(), "/")
+    client = join(server)
     try:
-        end = time.time() + 10
-        while not server.get_clients() and time.time() < end:
-            time.sleep(0.02)
         gate = hold(app)
         client.set_value("File path", "third.npy")
         client.set_value("Load file", True)
         client.set_value("Display", "binary")
         time.sleep(0.5)
         gate.set()
-        end = time.time() + 60
-        while (app.shown.loaded.n_total != len(cloud.xyz()[::3])
-               or app.shown.settings.mode != "binary") and time.time() < end:
-            time.sleep(0.05)
-        assert app.wait_idle(60)
+        settle(app, lambda: app.shown.loaded.n_total == len(cloud.xyz()[::3])
+               and app.shown.settings.mode == "binary", "the load and the display", 60)
         assert app.shown.loaded.n_total == len(cloud.xyz()[::3])
         assert app.shown.settings.mode == "binary"
     finally:

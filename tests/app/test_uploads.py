@@ -9,7 +9,8 @@ import pytest
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.uploads import clean_name
-from tests.app.protocol import ProtocolClient
+from tests.app.browser import wait_until
+from tests.app.protocol import ProtocolClient, join, settle
 from tests.helpers import face_cloud
 
 LIMIT_MB = 1
@@ -21,10 +22,7 @@ def live():
     cloud = face_cloud(8_000)
     app = build_app(server, cloud, prefetch=False, max_upload_mb=LIMIT_MB)
     assert app.wait_idle(60)
-    client = ProtocolClient(server.get_port(), "/")
-    end = time.time() + 10
-    while not server.get_clients() and time.time() < end:
-        time.sleep(0.02)
+    client = join(server)
     yield app, client, cloud
     client.close()
     app.stop()
@@ -36,25 +34,11 @@ def xyz_text(n: int, seed: int = 1) -> bytes:
     return "\n".join(f"{a:.4f} {b:.4f} {c:.4f}" for a, b, c in xyz).encode()
 
 
-def settle(app, until, what: str) -> None:
-    """Poll ``until()``, then wait for the worker: viser hands upload messages to the
-    app on its event loop, which a fixed sleep can outrun on a loaded machine."""
-    end = time.time() + 30
-    while not until():
-        if time.time() > end:
-            raise TimeoutError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-    assert app.wait_idle(60)
-
-
 def test_an_upload_is_loaded_and_its_file_removed(live):
     app, client, _ = live
     data = xyz_text(3000)
     client.upload("Upload file", "my scan.xyz", data, chunk=64 * 1024)  # 4+ parts
-    end = time.time() + 30
-    while app.shown.loaded.n_total != 3000 and time.time() < end:
-        time.sleep(0.05)
-    assert app.wait_idle(60)
+    settle(app, lambda: app.shown.loaded.n_total == 3000, "the uploaded cloud")
     assert app.shown.loaded.n_total == 3000 and app.shown.loaded.cloud.source == "my scan.xyz"
     assert "my scan.xyz" in app.gui.status.content
     assert list(app.uploads.folder.iterdir()) == []  # deleted once read
@@ -116,9 +100,8 @@ def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
     time.sleep(0.2)  # nothing more comes of it
     assert app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1
     client.close()
-    end = time.time() + 10
-    while (app.uploads.active or list(app.uploads.folder.iterdir())) and time.time() < end:
-        time.sleep(0.05)
+    wait_until(lambda: not app.uploads.active and not list(app.uploads.folder.iterdir()), 10,
+               "the part removed")
     assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
     assert app.shown.loaded.cloud is cloud
 
@@ -127,10 +110,7 @@ def test_a_hostile_file_name_is_shown_as_text(live):
     app, client, _ = live
     name = '<img src=x onerror="alert(1)">/../../etc/x **b** [a](javascript:1).xyz'
     client.upload("Upload file", name, xyz_text(2000))
-    end = time.time() + 30
-    while app.shown.loaded.n_total != 2000 and time.time() < end:
-        time.sleep(0.05)
-    assert app.wait_idle(60)
+    settle(app, lambda: app.shown.loaded.n_total == 2000, "the uploaded cloud")
     status = app.gui.status.content
     assert "<img" not in status and "&lt;img" in status
     assert "\\*\\*b\\*\\*" in status and "\\[a\\]\\(javascript:1\\)" in status
@@ -167,9 +147,8 @@ def test_upload_messages_go_to_the_uploader_only(live):
         client.upload("Upload file", f"tool{k}.exe", b"0 0 0\n")
     client.upload("Upload file", "scan.xyz", xyz_text(2000), chunk=16 * 1024)
     settle(app, lambda: app.shown.loaded.n_total == 2000, "the uploaded cloud")
-    end = time.time() + 20  # the uploader gets them (they may trail the server's idle)
-    while len(client.of_type("FileTransferPartAck")) < 21 and time.time() < end:
-        time.sleep(0.05)
+    # the uploader gets them (they may trail the server's idle)
+    wait_until(lambda: len(client.of_type("FileTransferPartAck")) >= 21, 20, "the acks")
     assert len(client.of_type("FileTransferPartAck")) >= 21
     later = ProtocolClient(app.server.get_port(), "/")
     try:

@@ -35,13 +35,9 @@ def demo(chromium, tmp_path_factory):
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, demos.load_demo("outcrop"), max_display=150_000, data_dir=data)
     assert app.wait_idle(300)
-    try:
-        with b.app_page(chromium, server.get_port(), viewport=b.WIDE, coloured=0.03,
-                        timeout=180, step_timeout_ms=60_000) as page:
-            yield app, page
-    finally:
-        app.stop()
-        server.stop()
+    with b.app_page(chromium, app, viewport=b.WIDE, coloured=0.03,
+                    timeout=180, step_timeout_ms=60_000) as page:
+        yield app, page
 
 
 def _legible(page, where: str) -> None:

@@ -12,6 +12,7 @@ from typing import ClassVar
 import pytest
 
 from rough_viewer.app.worker import Cancelled, Job, QueueFull, Run, Worker
+from tests.app.browser import wait_until
 
 
 @dataclass
@@ -246,14 +247,10 @@ def test_idle_work_runs_when_nothing_waits_and_yields_to_jobs(log):
 
     w: Worker[Log] = Worker(log, idle=idle)
     w.submit(View(1))
-    end = time.time() + 5
-    while len(calls) < 2 and time.time() < end:
-        time.sleep(0.01)
+    wait_until(lambda: len(calls) >= 2, 5, "the second idle call")
     w.submit(View(2))  # cancels the idle work, runs, then idle work resumes
     release.set()
-    end = time.time() + 5
-    while len(calls) < 3 and time.time() < end:
-        time.sleep(0.01)
+    wait_until(lambda: len(calls) >= 3, 5, "the idle work resumed")
     assert log.done == ["view 1", "view 2"] and len(calls) == 3
     w.stop()
 

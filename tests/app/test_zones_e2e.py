@@ -32,12 +32,8 @@ def live(chromium):
                     presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
     app.gui.threshold.value = 0.2
     assert app.wait_idle(60)
-    try:
-        with b.app_page(chromium, server.get_port()) as page:
-            yield app, page
-    finally:
-        app.stop()
-        server.stop()
+    with b.app_page(chromium, app) as page:
+        yield app, page
 
 
 def near(img: np.ndarray, rgb, tol: int = 40) -> np.ndarray:

@@ -4,8 +4,6 @@ tab's threshold, connectivity and minimum size, refused values, saved-view setti
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -25,7 +23,7 @@ from rough_viewer.io import PointCloud
 from rough_viewer.report.view import ZoneSettings
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import InputError, hex_to_rgb
-from tests.app.protocol import ProtocolClient
+from tests.app.protocol import join, settle
 from tests.helpers import PAPER_PRESETS, banded_face
 
 #: Three rough bands (1 cm noise on a 1 mm face): along strike, at 60 and -30 degrees.
@@ -270,11 +268,7 @@ def hostile(banded):
     app.gui.threshold.value = 0.2
     m.on.value = True
     assert app.wait_idle(60)
-    port = server.get_port()
-    client = ProtocolClient(port, "/t/tok", origin=f"http://127.0.0.1:{port}")
-    end = time.time() + 10
-    while not server.get_clients() and time.time() < end:
-        time.sleep(0.02)
+    client = join(server, "/t/tok", origin=f"http://127.0.0.1:{server.get_port()}")
     yield app, m, client
     client.close()
     app.stop()
@@ -294,24 +288,13 @@ BAD = [
 ]
 
 
-def _settle(app, until, what: str) -> None:
-    """Poll ``until()`` with the worker idle: viser runs a control's callback on a
-    thread pool after its event loop checked the value, so a sleep guesses."""
-    end = time.time() + 30
-    while not (until() and not app.worker.busy):
-        if time.time() > end:
-            raise TimeoutError(f"timed out waiting for {what}")
-        time.sleep(0.05)
-    assert app.wait_idle(60)
-
-
 def test_values_from_a_browser_are_checked(hostile):
     app, m, client = hostile
     before = (m.labelling.labels.copy(), m.min_cells.value, m.connectivity.value,
               m.selected.value, m.threshold.value, app.shown.settings)
     for label, value, _ in BAD:
         client.set_value(label, value)
-    _settle(app, lambda: len(app.controls.rejected) >= len(BAD), "every refusal")
+    settle(app, lambda: len(app.controls.rejected) >= len(BAD), "every refusal")
     after = (m.min_cells.value, m.connectivity.value, m.selected.value, m.threshold.value,
              app.shown.settings)
     assert after == before[1:] and np.array_equal(m.labelling.labels, before[0])
@@ -324,15 +307,15 @@ def test_values_from_a_browser_are_checked(hostile):
     assert len(handles) > 30
     # good values from the browser work: the twin threshold, a zone from the list, a click
     client.set_value("Zone threshold", 0.3)
-    _settle(app, lambda: app.shown.settings.threshold == 0.3
-            and m.labelling.params.threshold == 0.3, "the twin threshold")
+    settle(app, lambda: app.shown.settings.threshold == 0.3
+           and m.labelling.params.threshold == 0.3, "the twin threshold")
     client.set_value("Selected zone", m.selected.options[1])
-    _settle(app, lambda: m.anchor is not None and m.labelling.zone_at(m.anchor) == 1,
-            "zone 1 selected")
+    settle(app, lambda: m.anchor is not None and m.labelling.zone_at(m.anchor) == 1,
+           "zone 1 selected")
     per_point = shown_point_labels(app, m.labelling.labels)
     target = app.shown.loaded.display_points[int(np.flatnonzero(per_point == 2)[0])]
     client.click(target.astype(float) + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
-    _settle(app, lambda: m.labelling.zone_at(m.anchor) == 2, "zone 2 clicked")
+    settle(app, lambda: m.labelling.zone_at(m.anchor) == 2, "zone 2 clicked")
 
 
 def test_labellers_are_cached_within_a_byte_budget(server, banded):

@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.cli import main
-from tests.helpers import board_points, wire_points
-
-NOISE = 0.0016
+from tests.helpers import NOISE, board_points, wire_points
 
 
 def _json(capsys, argv: list[str]) -> dict:
@@ -30,7 +28,7 @@ def _refused(capsys, argv: list[str]) -> str:
 
 
 @pytest.fixture
-def board(tmp_path):
+def board():
     xyz, _ = board_points(n=6_000, noise=NOISE, sag=0.002, seed=5)
     return xyz
 

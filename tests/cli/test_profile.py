@@ -173,12 +173,17 @@ def test_units_mm_give_the_same_profile(scene, capsys, tmp_path: Path) -> None:
     assert "length 370" in capsys.readouterr().out  # 0.37 m shown as 370 mm
 
 
-def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> None:
-    # a parabola (a fold) with a little roughness: D < 1 until the trend is removed
+def _fold(tmp_path: Path) -> Path:
+    """A parabola (a fold) with a little roughness: D < 1 until the trend is removed."""
     x = np.arange(2000) * 1e-3
     h = 0.5 * x**2 + fbm_profile(2000, 0.7, spacing=1e-3, sigma=1e-4, rng=3)
     path = tmp_path / "fold.txt"
     np.savetxt(path, np.column_stack([x, h]))
+    return path
+
+
+def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> None:
+    path = _fold(tmp_path)
     assert main(["profile", str(path), "--json"]) == 0
     captured = capsys.readouterr()
     data = json.loads(captured.out)
@@ -224,10 +229,7 @@ def test_every_denoised_variant_outside_1_2_warns_once_by_name(tmp_path: Path, c
 
 
 def test_raw_warning_names_the_raw_profile(tmp_path: Path, capsys) -> None:
-    x = np.arange(2000) * 1e-3
-    h = 0.5 * x**2 + fbm_profile(2000, 0.7, spacing=1e-3, sigma=1e-4, rng=3)
-    path = tmp_path / "fold.txt"
-    np.savetxt(path, np.column_stack([x, h]))
+    path = _fold(tmp_path)
     assert main(["profile", str(path), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     raw = [w for w in data["warnings"] if "raw profile:" in w]
