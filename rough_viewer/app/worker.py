@@ -185,7 +185,8 @@ class Worker(Generic[C]):
 
         Returns the job's number (the number of the job it merged into, if any),
         or 0 once the worker is stopping. Raises :class:`QueueFull` when
-        ``max_pending`` jobs already wait.
+        ``max_pending`` jobs already wait (``job`` is then released; the waiting jobs
+        stay).
         """
         dropped: list[Job[C]] = []
         try:
@@ -214,6 +215,8 @@ class Worker(Generic[C]):
                     else:
                         keep.append((number, waiting))
                 if len(keep) >= self._max_pending:
+                    # refused: the waiting jobs stay as they were, the new one is let go
+                    dropped = [job]
                     raise QueueFull(f"{len(keep)} jobs are waiting already")
                 st.pending = keep
                 if st.running is not None and st.running[1].lane in lanes:

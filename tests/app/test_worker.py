@@ -225,6 +225,10 @@ def test_queue_and_records_are_bounded(log):
         w.submit(Click(i))
     with pytest.raises(QueueFull):
         w.submit(Click(99))
+    # a refused upload is let go at once (its temporary file deleted), the queue kept
+    with pytest.raises(QueueFull):
+        w.submit(Upload("refused", _log=log))
+    assert log.released == ["refused"] and w.pending_kinds() == ["Click"] * 4
     log.gate.set()
     assert w.wait_idle(5)
     assert log.done == ["block", "click 0", "click 1", "click 2", "click 3"]
