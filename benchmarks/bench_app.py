@@ -40,20 +40,20 @@ def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None
     t0 = time.perf_counter()
     app = build_app(server, cloud, variogram=True, prefetch=prefetch)
     app.wait_idle(None)
-    loaded = app.shown.loaded
+    loaded = app.session.shown.loaded
     presets = loaded.presets
     how = "idle prefetch of presets ON" if prefetch else "no prefetch (plain core)"
     print(f"\n{label}: {cloud.n:,} points, {loaded.n_display:,} shown; {how}; "
           f"presets {presets} m")
     print(f"  build_app + first map ({presets[-1]:g} m): {time.perf_counter() - t0:6.2f} s "
-          f"(colours {app.timings[-1]['colours_s']:.2f} s, panels "
-          f"{app.timings[-1].get('panels_s', float('nan')):.2f} s)")
+          f"(colours {app.map.timings[-1]['colours_s']:.2f} s, panels "
+          f"{app.map.timings[-1].get('panels_s', float('nan')):.2f} s)")
     if prefetch:
         t = time.perf_counter()
-        while not all(loaded.is_cached(app.shown.settings.with_(cell_size=c)) for c in presets):
+        while not all(loaded.is_cached(app.session.shown.settings.with_(cell_size=c)) for c in presets):
             time.sleep(0.02)
         print(f"  presets prefetched in the background after {time.perf_counter() - t:.2f} s")
-    g = app.gui
+    g = app.map
     opts = g.grid.options[:-1]  # coarsest first
     free = float(f"{2.4 * presets[-1]:.2g}")
     steps = [
@@ -73,7 +73,7 @@ def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None
         t = time.perf_counter()
         action()
         app.wait_idle(None)
-        rec = app.timings[-1]
+        rec = app.map.timings[-1]
         state = "cached " if rec["cached"] else "compute"
         print(f"  {name:22s} {state} colours {rec['colours_s']:6.3f} s   panels "
               f"{rec.get('panels_s', 0.0):6.3f} s   wall {time.perf_counter() - t:6.3f} s")
@@ -82,19 +82,19 @@ def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None
     for i in rng.choice(loaded.n_display, 7, replace=False):
         p = loaded.display_points[i].astype(float)
         on_scene_click(app, p + 5.0 * loaded.plane.normal, -loaded.plane.normal)
-        clicks.append(app.pick_timings[-1]["pick_s"])
+        clicks.append(app.map.pick_timings[-1]["pick_s"])
     print(f"  click (cell + {len(presets)} grids across scales): median "
           f"{np.median(clicks):.3f} s of {len(clicks)}")
     if fine:
         # a grid change while the panels compute a fine grid's semivariograms: the
         # semivariogram stops at its next block (progress callback), not at its end
         g.grid_free.value = fine
-        while app.shown.settings.cell_size != fine:
+        while app.session.shown.settings.cell_size != fine:
             time.sleep(0.01)
         time.sleep(3.0)  # well into the semivariograms
         t = time.perf_counter()
         g.grid.value = opts[2]
-        while app.shown.settings.cell_size != presets[2]:
+        while app.session.shown.settings.cell_size != presets[2]:
             time.sleep(0.005)
         shown = time.perf_counter() - t
         app.wait_idle(None)

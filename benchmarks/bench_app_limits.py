@@ -84,7 +84,7 @@ def _data(folder: Path) -> None:
 
 def cache_table() -> None:
     from rough_viewer.app.limits import CACHE_BYTES
-    from rough_viewer.app.state import LoadedCloud, ViewSettings, nbytes
+    from rough_viewer.app.state import LoadedCloud, MapSettings, nbytes
     from rough_viewer.synthetic import demos
 
     cloud = demos.load_demo("outcrop")
@@ -92,7 +92,7 @@ def cache_table() -> None:
     print(f"\ngrid cache on the demo outcrop ({cloud.n:,} points), budget "
           f"{CACHE_BYTES / MiB:.0f} MiB")
     for g in (0.125, 0.25, 0.5, 1.0, 0.3, 0.02):
-        r = loaded.result(ViewSettings(cell_size=g))
+        r = loaded.result(MapSettings(cell_size=g))
         p = loaded.prepared(g)
         print(f"  grid {g:<6g} result {nbytes(r) / MiB:6.1f} MiB, membership "
               f"{nbytes(p) / MiB:6.1f} MiB, cache now {loaded.cached_bytes / MiB:6.0f} MiB")

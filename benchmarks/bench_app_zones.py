@@ -61,18 +61,18 @@ def main() -> None:
 
     import viser
 
-    from rough_viewer.app.layout import assign
+    from rough_viewer.app.binding import assign
+    from rough_viewer.app.features.zones import ZonesFeature
     from rough_viewer.app.server import build_app
-    from rough_viewer.app.zones_mode import ZonesMode
     from rough_viewer.io.load import load_points
 
     cloud = load_points(args.input) if args.input else synthetic_outcrop(int(args.points))
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, cloud, prefetch=False, variogram=False)
     app.wait_idle(None)
-    m = app.mode(ZonesMode)
-    g = app.gui
-    print(f"Zones tab, {cloud.n:,} points ({app.shown.loaded.n_display:,} shown); "
+    m = app.feature(ZonesFeature)
+    g = app.map
+    print(f"Zones tab, {cloud.n:,} points ({app.session.shown.loaded.n_display:,} shown); "
           f"medians of {len(args.thresholds)} thresholds x {args.repeat} rounds; "
           f"{os.cpu_count()} cores; server memory {rss_mb():.0f} MiB")
     print(f"{'g (m)':>7} {'cells':>9} {'display':>10} {'zones':>11} {'first (s)':>9} "
@@ -103,22 +103,22 @@ def main() -> None:
                     assert len(m.timings) == n + 1, "no re-label"
                     rec = m.timings[-1]
                     rows["wall"].append(rec["done"] - t0)
-                    rows["view"].append(last(app, "ViewJob").seconds)
+                    rows["view"].append(last(app, "RenderJob").seconds)
                     rows["label"].append(rec["label_s"])
                     rows["job"].append(last(app, "ZonesJob").seconds)
                     rows["table"].append(last(app, "ZoneTableJob").seconds)
                     assert m.labelling is not None
                     counts.append(m.labelling.n_zones)
             med = {k: statistics.median(v) for k, v in rows.items()}
-            assert app.shown.result is not None
-            print(f"{cell:7g} {app.shown.result.n_cells:9,} {display:>10} "
+            assert app.session.shown.result is not None
+            print(f"{cell:7g} {app.session.shown.result.n_cells:9,} {display:>10} "
                   f"{min(counts):>5,}-{max(counts):<5,} {first:9.2f} {med['wall']:13.3f} "
                   f"{med['view']:6.3f} {med['label']:6.3f} {med['job']:9.3f} "
                   f"{med['table']:6.3f} {rss0:12.0f} -> {rss_mb():<9.0f}")
             assign(m.on, False)
             app.wait_idle(None)
     print(f"zone cache {m.cache.bytes / 2**20:.0f} MiB of {m.cache.budget / 2**20:.0f} MiB; "
-          f"grid cache {app.shown.loaded.cached_bytes / 2**20:.0f} MiB")
+          f"grid cache {app.session.shown.loaded.cached_bytes / 2**20:.0f} MiB")
     app.stop()
     server.stop()
 

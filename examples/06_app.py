@@ -21,7 +21,7 @@ server, gate = open_server("127.0.0.1", 0 if "--check" in sys.argv else 8080,
                            token=new_token())
 app = build_app(server, cloud)
 app.wait_idle(120)
-shown = app.shown
+shown = app.session.shown
 print(f"showing {shown.loaded.n_display:,} of {cloud.n:,} points, "
       f"grid {shown.settings.cell_size:g} m, model {shown.settings.model}")
 if "--check" not in sys.argv:

@@ -50,14 +50,14 @@ def main() -> None:
     from playwright.sync_api import sync_playwright
 
     from rough_viewer.app.server import build_app
-    from rough_viewer.app.state import ViewSettings, grid_presets
+    from rough_viewer.app.state import MapSettings, grid_presets
     from rough_viewer.synthetic import demos
 
     cloud = demos.load_demo(args.demo)
     cell = args.grid if args.grid is not None else grid_presets(cloud)[-1]
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, cloud, max_display=args.max_points,
-                    settings=ViewSettings(cell_size=cell, model=args.model),
+                    settings=MapSettings(cell_size=cell, model=args.model),
                     prefetch=False)
     app.wait_idle(None)
     try:

@@ -45,9 +45,9 @@ def main() -> None:
     import viser
     from playwright.sync_api import sync_playwright
 
+    from rough_viewer.app.features.zones import ZonesFeature
     from rough_viewer.app.server import build_app
-    from rough_viewer.app.state import ViewSettings
-    from rough_viewer.app.zones_mode import ZonesMode
+    from rough_viewer.app.state import MapSettings
     from rough_viewer.io.load import load_points
     from rough_viewer.synthetic import demos
     from rough_viewer.visual import colormaps
@@ -59,10 +59,10 @@ def main() -> None:
     rss0 = rss_mb()
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, cloud, max_display=args.max_points, prefetch=False,
-                    settings=ViewSettings(cell_size=args.grid))
+                    settings=MapSettings(cell_size=args.grid))
     app.wait_idle(None)
-    m = app.mode(ZonesMode)
-    print(f"{cloud.source}: {cloud.n:,} points, {app.shown.loaded.n_display:,} shown, "
+    m = app.feature(ZonesFeature)
+    print(f"{cloud.source}: {cloud.n:,} points, {app.session.shown.loaded.n_display:,} shown, "
           f"grid {args.grid:g} m; server memory {rss0:.0f} -> {rss_mb():.0f} MiB after the map")
     try:
         with sync_playwright() as p:
@@ -73,7 +73,7 @@ def main() -> None:
             b.wait_coloured(page, 0.05, timeout=300)
             b.hide_toasts(page)
             b.type_number(page, "Threshold", f"{args.threshold:g}")
-            b.wait_until(lambda: app.shown.settings.threshold == args.threshold
+            b.wait_until(lambda: app.session.shown.settings.threshold == args.threshold
                          and not app.worker.busy, 120, "threshold")
             page.get_by_role("tab", name="Zones").click()
             before = b.scene_pixels(page)

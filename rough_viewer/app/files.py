@@ -79,6 +79,21 @@ class DataFolder:
             return path.name
 
 
+@dataclass(frozen=True)
+class UploadedFile:
+    """A finished upload on the server's disk (deleted by :meth:`delete`)."""
+
+    path: Path
+    """Where it is (a generated name in the app's upload folder)."""
+    name: str
+    """The file name the browser gave (display only; escape before showing)."""
+    size: int
+    """Bytes."""
+
+    def delete(self) -> None:
+        self.path.unlink(missing_ok=True)
+
+
 def read_estimate(path: Path) -> float:
     """Bytes of memory reading ``path`` may need at its peak (0 when the reader
     checks for itself), from its size and :data:`READ_FACTOR`."""

@@ -1,8 +1,17 @@
-"""The 3-D scene: the point cloud, the camera, the dependent-axis marker and the
-picked cell. Functions of the viser server and plain data; called from the
-worker thread only (see :mod:`rough_viewer.app.worker`)."""
+"""The 3-D scene: the map's point cloud, the cameras, markers, lines and clouds of
+the features.
+
+:class:`Scene` is the only writer of viser's scene: every method asserts it runs on
+the worker (:meth:`rough_viewer.app.worker.Worker.require_worker`), so the scene
+changes on one thread only. Features keep the node handles it returns and change
+them through it (:meth:`Scene.update`, :meth:`Scene.remove`). The camera poses and
+sizes are plain functions of the loaded cloud.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import viser
@@ -76,40 +85,6 @@ def camera_pose(loaded: LoadedCloud, preset: str = "face-on"
     return target + distance * direction, target, up
 
 
-def initial_camera(server: viser.ViserServer, loaded: LoadedCloud) -> None:
-    """Set the server's initial camera to the face-on view of the cloud."""
-    eye, target, up = camera_pose(loaded, "face-on")
-    server.initial_camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
-    server.initial_camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
-    server.initial_camera.up = (float(up[0]), float(up[1]), float(up[2]))
-
-
-def move_cameras(server: viser.ViserServer, loaded: LoadedCloud, preset: str) -> None:
-    """Move every connected browser's camera to a preset (:func:`camera_pose`)."""
-    eye, target, up = camera_pose(loaded, preset)
-    for client in server.get_clients().values():
-        _place(client, eye, target, up)
-
-
-def reset_cameras(server: viser.ViserServer) -> None:
-    """Move every connected browser's camera to the initial camera."""
-    cam = server.initial_camera
-    up = cam.up if cam.up is not None else np.array([0.0, 0.0, 1.0])
-    for client in server.get_clients().values():
-        _place(client, cam.position, cam.look_at, up)
-
-
-def _place(client: viser.ClientHandle, eye: np.ndarray, target: np.ndarray,
-           up: np.ndarray) -> None:
-    """Put one browser's camera at ``eye`` looking at ``target``. Order matters in
-    viser: setting the position moves the look-at point along, so the position goes
-    first, then the look-at point, then the up direction."""
-    with client.atomic():
-        client.camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
-        client.camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
-        client.camera.up_direction = (float(up[0]), float(up[1]), float(up[2]))
-
-
 def default_point_size(loaded: LoadedCloud) -> float:
     """A point size (metres) that closes the gaps between displayed points."""
     w = loaded.plane.eigenvalues  # descending: the two largest are the face's spreads
@@ -117,39 +92,6 @@ def default_point_size(loaded: LoadedCloud) -> float:
     spacing = np.sqrt(area / max(loaded.n_display, 1))
     size = float(np.clip(1.5 * spacing, 1e-4, 1.0))
     return float(f"{size:.2g}")
-
-
-def add_cloud(server: viser.ViserServer, loaded: LoadedCloud,
-              point_size: float) -> viser.PointCloudHandle:
-    """Draw the displayed points (grey until the first map colours them)."""
-    grey = np.full((loaded.n_display, 3), GREY, dtype=np.uint8)
-    return server.scene.add_point_cloud(
-        "/cloud",
-        points=loaded.display_points,
-        colors=grey,
-        point_size=point_size,
-        point_shape="square",
-        point_shading="flat",
-        precision="float32",
-    )
-
-
-def draw_axis(server: viser.ViserServer, loaded: LoadedCloud, axis: str, *, chosen: bool,
-              visible: bool) -> None:
-    """The OLS dependent axis as a red line with a label through the cloud's centre."""
-    pts = loaded.display_points
-    lo, hi = pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64)
-    centre = 0.5 * (lo + hi)
-    length = 0.3 * float(np.max(hi - lo))
-    vec = np.asarray(AXIS_VECTORS[axis])
-    seg = np.array([[centre, centre + length * vec]], dtype=np.float32)
-    server.scene.add_line_segments("/axis/line", seg, AXIS_COLOUR, thickness=4.0,
-                                   thickness_units="screen", visible=visible)
-    end = centre + 1.05 * length * vec
-    how = "chosen" if chosen else "auto"
-    server.scene.add_label("/axis/label", f"OLS dependent axis {axis} ({how})",
-                           position=(float(end[0]), float(end[1]), float(end[2])),
-                           visible=visible)
 
 
 def box_edges(centre: np.ndarray, size: float) -> np.ndarray:
@@ -162,51 +104,212 @@ def box_edges(centre: np.ndarray, size: float) -> np.ndarray:
     return np.array([[corners[a], corners[b]] for a, b in pairs], dtype=np.float32)
 
 
-def marker(server: viser.ViserServer, name: str, local: np.ndarray,
-           text: str = MARKER) -> viser.LabelHandle:
-    """A marker at ``local`` (display frame): a label, drawn on top and sized in
-    screen pixels."""
-    return server.scene.add_label(name, text, position=np.asarray(local[:3], dtype=np.float64),
-                                  anchor="center-center", font_screen_scale=1.4,
-                                  depth_test=False)
+class Scene:
+    """The scene of one app (see the module docstring).
+
+    Parameters
+    ----------
+    server
+        The viser server whose scene this writes.
+    require_writer
+        ``require_writer(what)`` raises unless the calling thread may write.
+    """
+
+    def __init__(self, server: viser.ViserServer, require_writer: Callable[[str], None]) -> None:
+        self._server = server
+        self._require = require_writer
+        self.cloud: viser.PointCloudHandle | None = None
+        """The map's cloud: the displayed points, coloured by the map."""
+        self.point_size = 0.01
+        """The size of the map's points (metres); clouds added with a ``size_factor``
+        follow it."""
+        self._followers: dict[str, tuple[viser.PointCloudHandle, float]] = {}
+
+    def _check(self, what: str) -> None:
+        self._require(f"the scene ({what})")
+
+    @property
+    def initial_camera(self) -> Any:
+        """The camera a browser opens with (viser's ``InitialCameraConfig``; read it)."""
+        return self._server.initial_camera
+
+    def on_click(self, callback: Callable[[viser.SceneClickEvent], None]) -> None:
+        """Call ``callback`` (on viser's thread pool: submit a job) for each click."""
+        self._server.scene.on_click()(callback)
+
+    # ------------------------------------------------------------------ the map's cloud
+    def show_cloud(self, loaded: LoadedCloud, point_size: float) -> viser.PointCloudHandle:
+        """Draw the displayed points of ``loaded`` as the map's cloud (grey until the
+        map colours them), replacing the cloud before."""
+        self._check("show_cloud")
+        self.point_size = float(point_size)
+        grey = np.full((loaded.n_display, 3), GREY, dtype=np.uint8)
+        self.cloud = self._server.scene.add_point_cloud(
+            "/cloud", points=loaded.display_points, colors=grey, point_size=self.point_size,
+            point_shape="square", point_shading="flat", precision="float32")
+        return self.cloud
+
+    def colour(self, colours: np.ndarray) -> None:
+        """Colour the map's cloud (one RGB triple per displayed point)."""
+        self._check("colour")
+        assert self.cloud is not None
+        self.cloud.colors = colours
+
+    def show_map(self, visible: bool) -> None:
+        """Show or hide the map's cloud (a feature shows its own cloud instead)."""
+        self._check("show_map")
+        if self.cloud is not None:
+            self.cloud.visible = visible
+
+    def set_point_size(self, size: float) -> None:
+        """The map's point size (metres); clouds that follow it scale with it."""
+        self._check("set_point_size")
+        self.point_size = float(size)
+        if self.cloud is not None:
+            self.cloud.point_size = self.point_size
+        for node, factor in self._followers.values():
+            node.point_size = factor * self.point_size
+
+    # ------------------------------------------------------------------ nodes
+    def add_points(self, name: str, points: np.ndarray, colours: np.ndarray, *,
+                   size_factor: float = 1.0) -> viser.PointCloudHandle:
+        """A cloud of displayed-frame points whose size follows the map's point size
+        times ``size_factor``."""
+        self._check("add_points")
+        node = self._server.scene.add_point_cloud(
+            name, points=points, colors=colours, point_size=size_factor * self.point_size,
+            point_shape="square", point_shading="flat", precision="float32")
+        self._followers[name] = (node, float(size_factor))
+        return node
+
+    def add_label(self, name: str, text: str, position: Sequence[float]) -> viser.LabelHandle:
+        self._check("add_label")
+        p = np.asarray(position, dtype=np.float64).reshape(3)
+        return self._server.scene.add_label(name, text, position=(float(p[0]), float(p[1]),
+                                                                   float(p[2])))
+
+    def marker(self, name: str, local: np.ndarray, text: str = MARKER) -> viser.LabelHandle:
+        """A marker at ``local`` (display frame): a label, drawn on top and sized in
+        screen pixels."""
+        self._check("marker")
+        return self._server.scene.add_label(
+            name, text, position=np.asarray(local[:3], dtype=np.float64),
+            anchor="center-center", font_screen_scale=1.4, depth_test=False)
+
+    def lines(self, name: str, segments: np.ndarray, colour: tuple[int, int, int], *,
+              thickness: float = LINE_PX, visible: bool = True) -> viser.LineSegmentsHandle:
+        """Line segments ``(K, 2, 3)`` (display frame), ``thickness`` screen pixels."""
+        self._check("lines")
+        return self._server.scene.add_line_segments(
+            name, np.asarray(segments, dtype=np.float32), colour, thickness=thickness,
+            thickness_units="screen", visible=visible)
+
+    def update(self, node: viser.SceneNodeHandle, **props: Any) -> None:
+        """Set properties of a node this scene made (``colors``, ``visible``, ...)."""
+        self._check("update")
+        for key, value in props.items():
+            setattr(node, key, value)
+
+    def remove(self, nodes: Iterable[viser.SceneNodeHandle]) -> None:
+        """Remove nodes this scene made."""
+        self._check("remove")
+        for node in nodes:
+            self._followers = {k: v for k, v in self._followers.items() if v[0] is not node}
+            node.remove()
+
+    # ------------------------------------------------------------------ what the map draws
+    def draw_axis(self, loaded: LoadedCloud, axis: str, *, chosen: bool, visible: bool) -> None:
+        """The OLS dependent axis as a red line with a label through the cloud's centre."""
+        self._check("draw_axis")
+        pts = loaded.display_points
+        lo, hi = pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64)
+        centre = 0.5 * (lo + hi)
+        length = 0.3 * float(np.max(hi - lo))
+        vec = np.asarray(AXIS_VECTORS[axis])
+        seg = np.array([[centre, centre + length * vec]], dtype=np.float32)
+        self._server.scene.add_line_segments("/axis/line", seg, AXIS_COLOUR, thickness=4.0,
+                                             thickness_units="screen", visible=visible)
+        end = centre + 1.05 * length * vec
+        how = "chosen" if chosen else "auto"
+        self._server.scene.add_label("/axis/label", f"OLS dependent axis {axis} ({how})",
+                                     position=(float(end[0]), float(end[1]), float(end[2])),
+                                     visible=visible)
+
+    def mark_pick(self, loaded: LoadedCloud, info: CellInfo, local: np.ndarray,
+                  cell_size: float) -> list[viser.SceneNodeHandle]:
+        """A marker on the picked point (on top, screen-sized) and the outline of its
+        cell (lines a few pixels thick)."""
+        c = np.asarray(info.centre) - loaded.origin
+        return [self.marker("/pick/point", local),
+                self.lines("/pick/cell", box_edges(c, cell_size), PICK_COLOUR)]
+
+    def surface_line(self, name: str, local: np.ndarray, normal: np.ndarray, lift: float,
+                     colour: tuple[int, int, int],
+                     max_segments: int = 400) -> list[viser.SceneNodeHandle]:
+        """A polyline along the surface (``local``: (K, 3) display frame, NaN rows
+        skipped) drawn twice, lifted by ``lift`` metres to either side of the surface
+        along ``normal``, so the points in front of it on either side cannot hide it."""
+        self._check("surface_line")
+        pts = np.asarray(local, dtype=np.float64)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        if len(pts) < 2:
+            return []
+        step = max(1, int(np.ceil((len(pts) - 1) / max_segments)))
+        pts = pts[::step] if (len(pts) - 1) % step == 0 else np.vstack([pts[::step], pts[-1:]])
+        n = np.asarray(normal, dtype=np.float64) / np.linalg.norm(normal)
+        nodes: list[viser.SceneNodeHandle] = []
+        for side, sign in (("front", 1.0), ("back", -1.0)):
+            p = pts + sign * lift * n
+            seg = np.stack([p[:-1], p[1:]], axis=1)
+            nodes.append(self.lines(f"{name}/{side}", seg, colour, thickness=LINE_PX + 1))
+        return nodes
+
+    # ------------------------------------------------------------------ cameras
+    def frame(self, loaded: LoadedCloud) -> None:
+        """Make the face-on view of ``loaded`` every browser's initial camera and move
+        the connected browsers there."""
+        self._check("frame")
+        eye, target, up = camera_pose(loaded, "face-on")
+        init = self._server.initial_camera
+        init.look_at = (float(target[0]), float(target[1]), float(target[2]))
+        init.position = (float(eye[0]), float(eye[1]), float(eye[2]))
+        init.up = (float(up[0]), float(up[1]), float(up[2]))
+        for client in self._server.get_clients().values():
+            _place(client, eye, target, up)
+
+    def move_cameras(self, loaded: LoadedCloud, preset: str) -> None:
+        """Move every connected browser's camera to a preset (:func:`camera_pose`)."""
+        self._check("move_cameras")
+        eye, target, up = camera_pose(loaded, preset)
+        for client in self._server.get_clients().values():
+            _place(client, eye, target, up)
+
+    def set_camera(self, position: Sequence[float], look_at: Sequence[float],
+                   up: Sequence[float], fov_rad: float) -> None:
+        """Make this camera (display frame) the initial camera of every browser and
+        move the connected ones there."""
+        self._check("set_camera")
+        p, t, u = (_vec(a) for a in (position, look_at, up))
+        init = self._server.initial_camera
+        init.position, init.look_at, init.up, init.fov = p, t, u, float(fov_rad)
+        for client in self._server.get_clients().values():
+            client.camera.position = p
+            client.camera.look_at = t
+            client.camera.up_direction = u
+            client.camera.fov = float(fov_rad)
 
 
-def mark_pick(server: viser.ViserServer, loaded: LoadedCloud, info: CellInfo,
-              local: np.ndarray, cell_size: float) -> list[viser.SceneNodeHandle]:
-    """A marker on the picked point (on top, screen-sized) and the outline of its
-    cell (lines a few pixels thick)."""
-    c = np.asarray(info.centre) - loaded.origin
-    return [
-        marker(server, "/pick/point", local),
-        server.scene.add_line_segments("/pick/cell", box_edges(c, cell_size), PICK_COLOUR,
-                                       thickness=LINE_PX, thickness_units="screen"),
-    ]
+def _vec(v: Sequence[float]) -> tuple[float, float, float]:
+    a = np.asarray(v, dtype=np.float64).reshape(3)
+    return float(a[0]), float(a[1]), float(a[2])
 
 
-def clear_pick(nodes: list[viser.SceneNodeHandle]) -> None:
-    """Remove the scene nodes of a pick."""
-    for node in nodes:
-        node.remove()
-
-
-def surface_line(server: viser.ViserServer, name: str, local: np.ndarray, normal: np.ndarray,
-                 lift: float, colour: tuple[int, int, int],
-                 max_segments: int = 400) -> list[viser.SceneNodeHandle]:
-    """A polyline along the surface (``local``: (K, 3) display frame, NaN rows
-    skipped) drawn twice, lifted by ``lift`` metres to either side of the surface
-    along ``normal``, so the points in front of it on either side cannot hide it."""
-    pts = np.asarray(local, dtype=np.float64)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) < 2:
-        return []
-    step = max(1, int(np.ceil((len(pts) - 1) / max_segments)))
-    pts = pts[::step] if (len(pts) - 1) % step == 0 else np.vstack([pts[::step], pts[-1:]])
-    n = np.asarray(normal, dtype=np.float64) / np.linalg.norm(normal)
-    nodes: list[viser.SceneNodeHandle] = []
-    for side, sign in (("front", 1.0), ("back", -1.0)):
-        p = pts + sign * lift * n
-        seg = np.stack([p[:-1], p[1:]], axis=1).astype(np.float32)
-        nodes.append(server.scene.add_line_segments(f"{name}/{side}", seg, colour,
-                                                    thickness=LINE_PX + 1,
-                                                    thickness_units="screen"))
-    return nodes
+def _place(client: viser.ClientHandle, eye: np.ndarray, target: np.ndarray,
+           up: np.ndarray) -> None:
+    """Put one browser's camera at ``eye`` looking at ``target``. Order matters in
+    viser: setting the position moves the look-at point along, so the position goes
+    first, then the look-at point, then the up direction."""
+    with client.atomic():
+        client.camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
+        client.camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
+        client.camera.up_direction = (float(up[0]), float(up[1]), float(up[2]))

@@ -1,7 +1,7 @@
 """What the app shows, as plain data: settings, the loaded cloud, cached grid
 results and the colours they give. No viser here, so all of it is testable.
 
-Data flow: a :class:`ViewSettings` snapshot names a grid (cell size, dependent
+Data flow: a :class:`MapSettings` snapshot names a grid (cell size, dependent
 axis, minimum points) and a way to colour it. :meth:`LoadedCloud.result` computes
 that grid with the core (:func:`rough_viewer.grid.roughness.grid_roughness`, the
 same call as ``rough-viewer compute``) once and caches it; :func:`point_colours`
@@ -71,7 +71,7 @@ MAX_CELL_SIZE = 10_000.0
 
 
 @dataclass(frozen=True)
-class ViewSettings:
+class MapSettings:
     """Everything the user chose that changes the picture (one immutable snapshot)."""
 
     cell_size: float = 0.25
@@ -82,8 +82,8 @@ class ViewSettings:
     """Dependent axis for OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
     min_points: int = 4
     """Cells with fewer points get no value."""
-    mode: DisplayMode = "continuous"
-    """Continuous normalised roughness, or the binary transform at ``threshold``."""
+    display: DisplayMode = "continuous"
+    """Continuous roughness colours, or the binary transform at ``threshold``."""
     threshold: float = 0.05
     """Binary threshold on normalised roughness (0-1)."""
     colormap: str = "viridis"
@@ -100,7 +100,7 @@ class ViewSettings:
         """Cache key of the grid computation: (cell size, axis, min points)."""
         return (round(float(self.cell_size), 9), self.axis, int(self.min_points))
 
-    def with_(self, **changes: object) -> ViewSettings:
+    def with_(self, **changes: object) -> MapSettings:
         """A copy with some fields changed."""
         return replace(self, **changes)  # type: ignore[arg-type]
 
@@ -170,7 +170,7 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     return cell_sizes_from(finest)
 
 
-def check_settings(settings: ViewSettings) -> None:
+def check_settings(settings: MapSettings) -> None:
     """Raise InputError for settings the core cannot use (message for the GUI)."""
     if not np.isfinite(settings.cell_size) or settings.cell_size < MIN_CELL_SIZE:
         raise InputError(
@@ -417,17 +417,17 @@ class LoadedCloud:
         """File-frame coordinates (metres) -> the display frame (float64)."""
         return np.asarray(xyz, dtype=np.float64) - self.origin
 
-    def is_cached(self, settings: ViewSettings) -> bool:
+    def is_cached(self, settings: MapSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
 
-    def mark_shown(self, settings: ViewSettings) -> None:
+    def mark_shown(self, settings: MapSettings) -> None:
         """The grid of ``settings`` is on screen: keep its result in the cache while
         other grids come and go (it is pinned, like the finest preset's cells)."""
         self._shown_key = ("result", settings.grid_key)
 
     def result(
         self,
-        settings: ViewSettings,
+        settings: MapSettings,
         *,
         progress: ProgressFn | None = None,
     ) -> GridRoughness:
@@ -479,7 +479,7 @@ def normalised_map(result: GridRoughness, model: MapName) -> np.ndarray:
     return normalise(result.values(model))
 
 
-def colour_range(result: GridRoughness, settings: ViewSettings) -> colormaps.ColourRange:
+def colour_range(result: GridRoughness, settings: MapSettings) -> colormaps.ColourRange:
     """The stretch of ``settings`` resolved on the cells of the shown map (one vote
     per cell with a value, as Table 1 counts), metres."""
     return colormaps.resolve(result.values(settings.model), settings.stretch)
@@ -487,7 +487,7 @@ def colour_range(result: GridRoughness, settings: ViewSettings) -> colormaps.Col
 
 def point_colours(
     result: GridRoughness,
-    settings: ViewSettings,
+    settings: MapSettings,
     point_index: np.ndarray,
     *,
     colours_range: colormaps.ColourRange | None = None,
@@ -503,7 +503,7 @@ def point_colours(
     :func:`colour_range`.
     """
     cell = result.point_cell[point_index]
-    if settings.mode == "binary":
+    if settings.display == "binary":
         per_point = normalised_map(result, settings.model)[cell]
         valid = np.isfinite(per_point)
         with np.errstate(invalid="ignore"):
@@ -540,7 +540,7 @@ class MapStats:
         return self.cells > 0 and self.valid_cells < SPARSE_SHARE * self.cells
 
 
-def map_stats(result: GridRoughness, settings: ViewSettings) -> MapStats:
+def map_stats(result: GridRoughness, settings: MapSettings) -> MapStats:
     """Range and counts of the current map (see :class:`MapStats`)."""
     values = result.values(settings.model)
     finite = np.isfinite(values)

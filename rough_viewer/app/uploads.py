@@ -32,6 +32,7 @@ import viser
 from viser import _messages
 
 from rough_viewer.app import hooks
+from rough_viewer.app.files import UploadedFile
 from rough_viewer.app.limits import (
     DEFAULT_MAX_UPLOAD_MB,
     MAX_ACTIVE_UPLOADS,
@@ -42,21 +43,6 @@ from rough_viewer.app.limits import (
 from rough_viewer.memory import format_bytes
 
 __all__ = ["DEFAULT_MAX_UPLOAD_MB", "UploadedFile", "Uploads", "clean_name"]
-
-
-@dataclass(frozen=True)
-class UploadedFile:
-    """A finished upload on the server's disk (deleted by :meth:`delete`)."""
-
-    path: Path
-    """Where it is (a generated name in the app's upload folder)."""
-    name: str
-    """The file name the browser gave (display only; escape before showing)."""
-    size: int
-    """Bytes."""
-
-    def delete(self) -> None:
-        self.path.unlink(missing_ok=True)
 
 
 @dataclass

@@ -49,6 +49,11 @@ class QueueFull(Exception):
     """Raised by :meth:`Worker.submit` when ``max_pending`` jobs already wait."""
 
 
+class NotOnWorker(RuntimeError):
+    """Raised when the app's state or scene is written from a thread other than the
+    worker's (:meth:`Worker.require_worker`): the single-writer rule is broken."""
+
+
 class Run:
     """The handle a running job gets: is it cancelled, and progress checks."""
 
@@ -179,6 +184,18 @@ class Worker(Generic[C]):
         self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
         self._thread.start()
 
+    # ------------------------------------------------------------------ thread
+    def on_worker(self) -> bool:
+        """True on the worker's own thread (inside a job or idle work)."""
+        return threading.current_thread() is self._thread
+
+    def require_worker(self, what: str) -> None:
+        """Raise :class:`NotOnWorker` unless called on the worker's thread: every
+        write of the app's state and scene goes through here."""
+        if threading.current_thread() is not self._thread:
+            raise NotOnWorker(f"{what} is written on thread "
+                              f"{threading.current_thread().name!r}, not on the worker")
+
     # ------------------------------------------------------------------ queue
     def submit(self, job: Job[C]) -> int:
         """Queue ``job`` (merging and superseding as the module docstring says).
@@ -271,7 +288,7 @@ class Worker(Generic[C]):
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout)
 
-    # ------------------------------------------------------------------ thread
+    # ------------------------------------------------------------------ loop
     def _has_work(self) -> bool:
         st = self._state
         return bool(st.pending) or st.stop or (self._idle is not None and not st.idle_done)

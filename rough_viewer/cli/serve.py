@@ -134,7 +134,7 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.app.state import ViewSettings, check_settings, grid_presets
+    from rough_viewer.app.state import MapSettings, check_settings, grid_presets
     from rough_viewer.vocabulary import UNIT_METRES
 
     if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
@@ -142,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     if args.demo and args.units:
         raise InputError("--units applies to INPUT files; the demos are in metres")
     opened = None
-    settings: ViewSettings | None = None
+    settings: MapSettings | None = None
     if args.view:
         from rough_viewer.app.views import open_view
         from rough_viewer.cli._inputs import input_paths
@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         cloud = _load_cloud(args)
         if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
-            settings = ViewSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+            settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
                                     model=args.model, axis=args.axis,
                                     min_points=args.min_points)
             check_settings(settings)
@@ -181,17 +181,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         presets = grid_presets(cloud)
         if settings is None:  # the cloud's default grid (its finest preset)
-            settings = ViewSettings(cell_size=presets[-1], model=args.model,
+            settings = MapSettings(cell_size=presets[-1], model=args.model,
                                     axis=args.axis, min_points=args.min_points)
             check_settings(settings)
         app = build_app(server, cloud, settings=settings, max_display=args.max_points,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
-                        units=args.units, presets=presets)
+                        units=args.units, presets=presets, save_views=args.save_views)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
-        if args.save_views:
-            from rough_viewer.app.export_mode import ExportMode
-
-            app.mode(ExportMode).enable_save_views()
         if opened is not None:
             from rough_viewer.app.views import apply_view
 
@@ -200,14 +196,14 @@ def run(args: argparse.Namespace) -> int:
             for full in {str(opened.view.input.path), str(opened.input_path)}:
                 if full:
                     public = public.replace(full, Path(full).name)
-            apply_view(app, opened.view, source=Path(args.view).name, notice=public)
+            apply_view(app.host, opened.view, source=Path(args.view).name, notice=public)
             app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened.notice:
                 print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
         print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
               flush=True)
-        if app.errors:
-            print(f"rough-viewer: warning: {app.errors[-1]}", file=sys.stderr)
+        if app.host.errors:
+            print(f"rough-viewer: warning: {app.host.errors[-1]}", file=sys.stderr)
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:

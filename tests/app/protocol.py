@@ -175,3 +175,16 @@ def settle(app, until, what: str, timeout: float = 30.0) -> None:
     fixed sleep nor ``wait_idle`` alone says the message was handled."""
     wait_until(lambda: until() and not app.worker.busy, timeout, what)
     assert app.wait_idle(60)
+
+
+def pick(app: Any, origin: Any, direction: Any, timeout: float = 60.0) -> Any:
+    """A scene click (as a browser's ray) run as the app's pick job; returns the cell
+    report it made (None: no point under it, or a tab took the click)."""
+    from rough_viewer.app.features.map import PickJob
+
+    before = len(app.map.pick_timings)
+    o = [float(v) for v in origin]
+    d = [float(v) for v in direction]
+    app.submit(PickJob(app.map, (o[0], o[1], o[2]), (d[0], d[1], d[2])))
+    assert app.wait_idle(timeout)
+    return app.session.last_pick if len(app.map.pick_timings) > before else None

@@ -6,7 +6,7 @@ import socket
 
 import pytest
 
-from rough_viewer.app.bias_panel import add_bias_panel
+from rough_viewer.app.features.bias import add_bias_panel
 from rough_viewer.bias.simulation import predict_bias
 from rough_viewer.vocabulary import BIAS_TRIALS
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from rough_viewer.app.board_mode import BoardMode, board_lesson
+from rough_viewer.app.features.board import BoardFeature, board_lesson
 from rough_viewer.synthetic.board import PAPER_THEORETICAL_ROUGHNESS_M
 
 
@@ -21,14 +21,14 @@ def test_unrotated_board_matches_the_paper_and_ols_grows_with_rotation():
 
 
 def test_scan_button_opens_the_board_in_the_app(app):
-    board = app.mode(BoardMode)
+    board = app.feature(BoardFeature)
     board.alpha.value = 30.0
     board.scan.value = True  # queues a BoardScanJob on the worker
     assert app.wait_idle(60)
     lesson = board.lesson
-    assert lesson is not None and app.shown.loaded.cloud is lesson.scan.cloud
+    assert lesson is not None and app.session.shown.loaded.cloud is lesson.scan.cloud
     assert "Board α 30°" in board.note.content and "true roughness" in board.note.content
-    status = app.gui.status.content.replace("\\", "")
+    status = app.host.status.content.replace("\\", "")
     assert "board lesson (α 30°, β 0°, synthetic)" in status and "in-memory" not in status
     assert np.isfinite(lesson.theta["odr"])
     kinds = [r.kind for r in app.worker.records]

@@ -6,13 +6,14 @@ from __future__ import annotations
 import time
 
 import pytest
+from rough_viewer.app.controls import check_value
 
 from rough_viewer.app import hooks
-from rough_viewer.app.bias_panel import BiasPanel
-from rough_viewer.app.controls import check_value
+from rough_viewer.app.features.bias import BiasPanel
+from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.state import MapSettings
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
 from tests.app.protocol import join, settle
@@ -24,7 +25,7 @@ def live():
     server, gate = open_server("127.0.0.1", 0, token="tok", log=False)
     # fixed presets: these tests are about the checks, not the data's grid
     app = build_app(server, face_cloud(8_000), prefetch=False, presets=PAPER_PRESETS,
-                    settings=ViewSettings(cell_size=0.25))
+                    settings=MapSettings(cell_size=0.25))
     assert app.wait_idle(60)
     client = join(server, "/t/tok", origin=f"http://127.0.0.1:{server.get_port()}")
     yield app, client
@@ -36,9 +37,9 @@ def live():
 def barrier(app, client) -> None:
     """Send one good change and wait for it: the event loop handles a connection's
     messages in order, so every message sent before it has been checked by then."""
-    choice = "OLS" if app.gui.model.value != "OLS" else "ODR"
+    choice = "OLS" if app.map.model.value != "OLS" else "ODR"
     client.set_value("Model", choice)
-    settle(app, lambda: app.gui.model.value == choice, "the barrier's model change")
+    settle(app, lambda: app.map.model.value == choice, "the barrier's model change")
 
 
 BAD = [
@@ -72,17 +73,17 @@ BAD = [
 
 def test_invalid_values_are_put_back_with_a_notice(live):
     app, client = live
-    before = app.shown.settings
+    before = app.session.shown.settings
     values = {label: hooks.input_handles(app.server)[client.uuid(label)].value
               for label, _, _ in BAD}
     for label, value, _reason in BAD:
         client.set_value(label, value)
-    settle(app, lambda: len(app.controls.rejected) >= len(BAD), "every refusal")
+    settle(app, lambda: len(app.host.controls.rejected) >= len(BAD), "every refusal")
     # nothing reached the app: same controls, same view, every later change still works
     for label, _, _ in BAD:
         assert hooks.input_handles(app.server)[client.uuid(label)].value == values[label], label
-    assert app.shown.settings == before and list(app.errors) == []
-    got = [(r.label, r.reason) for r in app.controls.rejected]
+    assert app.session.shown.settings == before and list(app.host.errors) == []
+    got = [(r.label, r.reason) for r in app.host.controls.rejected]
     for label, _, reason in BAD:
         assert any(lab == label and reason in why for lab, why in got), (label, reason)
     # the sender's control is put back to the good value, with a notice
@@ -100,7 +101,7 @@ def test_invalid_values_are_put_back_with_a_notice(live):
     assert all("<script>" not in n for n in notes)  # the bad value is not echoed
     client.set_value("Grid size (m)", "0.5")
     client.set_value("Model", "OLS")
-    settle(app, lambda: app.shown.settings.cell_size == 0.5 and app.shown.settings.model == "ols",
+    settle(app, lambda: app.session.shown.settings.cell_size == 0.5 and app.session.shown.settings.model == "ols",
            "the grid and model shown")
 
 
@@ -108,20 +109,21 @@ def test_valid_values_are_normalised(live):
     app, client = live
     client.set_value("Min points per cell", 5.0)  # a whole float for an int control
     client.set_value("Free grid size (m)", 1)  # an int for a float control
-    settle(app, lambda: app.gui.min_points.value == 5 and app.shown.settings.cell_size == 1.0
-           and app.shown.settings.min_points == 5, "both values shown")
-    assert app.gui.min_points.value == 5 and isinstance(app.gui.min_points.value, int)
-    assert app.shown.settings.cell_size == 1.0 and app.gui.grid.value == "free"
+    settle(app, lambda: app.map.min_points.value == 5 and app.session.shown.settings.cell_size == 1.0
+           and app.session.shown.settings.min_points == 5, "both values shown")
+    assert app.map.min_points.value == 5 and isinstance(app.map.min_points.value, int)
+    assert app.session.shown.settings.cell_size == 1.0 and app.map.grid.value == "free"
 
 
 def test_two_changes_at_once_leave_the_map_on_both(live, monkeypatch):
     """viser runs the callbacks of two quick changes in parallel. The free-grid
-    callback moves the grid dropdown to "free"; a reading of the controls taken by the
-    other callback before that move, but submitted after it, left the map on the old
-    grid for good (found with 0-0.2 s of jitter before the submit). The controls are
-    now read and submitted under one lock; a slow first reading reproduces the race."""
+    change moves the grid dropdown to "free"; a reading of the controls taken before
+    that move, but shown after it, left the map on the old grid for good (found with
+    0-0.2 s of jitter before the submit). Callbacks now only name their control; the
+    worker moves the controls that follow and reads them, one job after another (two
+    pending ones merge). A slow first reading reproduces the old race."""
     app, client = live
-    read = app.settings_from_gui
+    read = app.map.binding.read
     calls = []
 
     def slow_first_reading():
@@ -131,14 +133,15 @@ def test_two_changes_at_once_leave_the_map_on_both(live, monkeypatch):
             time.sleep(0.5)  # the other callback runs meanwhile
         return settings
 
-    monkeypatch.setattr(app, "settings_from_gui", slow_first_reading)
+    monkeypatch.setattr(app.map.binding, "read", slow_first_reading)
     client.set_value("Min points per cell", 5)
     client.set_value("Free grid size (m)", 1.0)
-    wait_until(lambda: len(calls) >= 2, 20, "both callbacks")
+    wait_until(lambda: calls and app.map.min_points.value == 5
+               and app.map.grid_free.value == 1.0, 20, "both values")
     time.sleep(0.8)
     assert app.wait_idle(60)
-    assert app.gui.grid.value == "free" and app.gui.min_points.value == 5
-    shown = app.shown.settings
+    assert app.map.grid.value == "free" and app.map.min_points.value == 5
+    shown = app.session.shown.settings
     assert (shown.cell_size, shown.min_points) == (1.0, 5)
 
 
@@ -154,8 +157,8 @@ def test_only_values_may_change(live):
     client.send({"type": "ShareUrlRequest"})
     barrier(app, client)
     time.sleep(0.3)  # a share tunnel, had it been asked, starts on another thread
-    assert app.gui.model.options[0] == "ODR" and app.gui.model.label == "Model"
-    assert not app.gui.load.disabled
+    assert app.map.model.options[0] == "ODR" and app.map.model.label == "Model"
+    assert not app.feature(FileFeature).load.disabled
     assert app.server._share_tunnel is None  # no public tunnel was opened
 
 
@@ -165,23 +168,23 @@ def test_every_control_of_the_app_is_registered(live):
     # the upload button sends files (checked by the uploads), progress bars nothing
     from viser._gui_handles import GuiProgressBarHandle
 
-    missing = [h.label for h in handles.values() if not app.controls.allowed(h)
-               and h is not app.gui.upload and not isinstance(h, GuiProgressBarHandle)]
+    missing = [h.label for h in handles.values() if not app.host.controls.allowed(h)
+               and h is not app.feature(FileFeature).upload and not isinstance(h, GuiProgressBarHandle)]
     assert missing == [] and len(handles) > 25
-    assert isinstance(app.mode(BiasPanel), BiasPanel)
+    assert isinstance(app.feature(BiasPanel), BiasPanel)
 
 
 def test_check_value_rules_without_a_browser(live):
     app, _ = live
-    assert check_value(app.gui.threshold, 1) == 1.0
-    assert check_value(app.gui.percentiles, [0, 100]) == (0.0, 100.0)
+    assert check_value(app.map.threshold, 1) == 1.0
+    assert check_value(app.map.percentiles, [0, 100]) == (0.0, 100.0)
     with pytest.raises(InputError):
-        check_value(app.gui.percentiles, [50, 50.5])  # closer than the minimum range 1
-    assert check_value(app.gui.camera, "top") == "top"
+        check_value(app.map.percentiles, [50, 50.5])  # closer than the minimum range 1
+    assert check_value(app.map.camera, "top") == "top"
     with pytest.raises(InputError):
-        check_value(app.gui.camera, 1)
+        check_value(app.map.camera, 1)
     with pytest.raises(InputError):
-        check_value(app.gui.upload, b"data")
+        check_value(app.feature(FileFeature).upload, b"data")
 
 
 @pytest.mark.parametrize("bad", [
@@ -194,18 +197,18 @@ def test_check_value_rules_without_a_browser(live):
 @pytest.mark.filterwarnings("ignore:.*does not match annotation:UserWarning")  # viser says so of bad0
 def test_malformed_clicks_are_dropped_and_a_real_one_still_works(live, bad, capfd):
     app, client = live
-    pts = app.shown.loaded.display_points
+    pts = app.session.shown.loaded.display_points
     target = pts[100].astype(float)
     message = {"type": "ScenePointerMessage", "event_type": "click",
                "ray_origin": [float(v) for v in target + [0.0, -5.0, 0.0]],
                "ray_direction": [0.0, 1.0, 0.0],
                "screen_pos": [[0.5, 0.5]], "modifier": None}
-    before = app.controls.dropped_clicks
+    before = app.host.controls.dropped_clicks
     client.send({**message, **bad})
-    settle(app, lambda: app.controls.dropped_clicks >= before + 1, "the dropped click")
-    assert app.last_pick is None and app.controls.dropped_clicks == before + 1
+    settle(app, lambda: app.host.controls.dropped_clicks >= before + 1, "the dropped click")
+    assert app.session.last_pick is None and app.host.controls.dropped_clicks == before + 1
     client.send(message)  # the same connection still clicks
-    wait_until(lambda: app.last_pick is not None, 10, "the real click")
-    assert app.last_pick is not None
+    wait_until(lambda: app.session.last_pick is not None, 10, "the real click")
+    assert app.session.last_pick is not None
     err = capfd.readouterr().err
     assert "Traceback" not in err and "exception" not in err.lower() and "Warning" not in err

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.app.bias_panel import BiasPanel
-from rough_viewer.app.profile_mode import ProfileMode
+from rough_viewer.app.features.bias import BiasPanel
+from rough_viewer.app.features.file import FileFeature
+from rough_viewer.app.features.panels import PanelsFeature
+from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.visual import colormaps
 from tests.app import browser as b
 from tests.helpers import face_cloud
@@ -52,12 +54,12 @@ def test_renders_coloured_points(live):
 def test_grid_and_model_change_colours_and_histogram(live):
     app, page = live
     before = b.scene_pixels(page)
-    fine, coarse = app.gui.grid.options[-2], app.gui.grid.options[0]  # presets from the data
+    fine, coarse = app.map.grid.options[-2], app.map.grid.options[0]  # presets from the data
     page.get_by_role("tab", name="Panels").click()
     page.locator(".js-plotly-plot .gtitle", has_text=f"grid {fine} m").first.wait_for()
     page.get_by_role("tab", name="Map").click()
     b.choose(page, "Grid size (m)", coarse)
-    b.wait_until(lambda: app.shown.settings.cell_size == float(coarse) and not app.worker.busy,
+    b.wait_until(lambda: app.session.shown.settings.cell_size == float(coarse) and not app.worker.busy,
                  30, "the coarsest preset on the server")
     b.wait_pixels(page, lambda im: np.abs(im.astype(int) - before).sum(axis=2).mean() > 5,
                   60, "colours to change with the grid")
@@ -68,18 +70,18 @@ def test_grid_and_model_change_colours_and_histogram(live):
     # OLS along y on a face looking along y barely differs from ODR; the OLS error
     # map (magma, its own sequential map) must look different
     b.choose(page, "Model", "OLS error e_ols")
-    b.wait_until(lambda: app.shown.settings.model == "e_ols" and not app.worker.busy, 30, "e_ols")
+    b.wait_until(lambda: app.session.shown.settings.model == "e_ols" and not app.worker.busy, 30, "e_ols")
     b.wait_pixels(page, lambda im: np.abs(im.astype(int) - mid).sum(axis=2).mean() > 10,
                   60, "colours to change with the model")
-    names = [t.name for t in app.gui.variogram.figure.data]
+    names = [t.name for t in app.feature(PanelsFeature).variogram.figure.data]
     assert names[0] == "e_OLS"
     page.get_by_role("tab", name="Panels").click()
     page.locator(".js-plotly-plot .legendtext", has_text="e_OLS").first.wait_for()
     page.get_by_role("tab", name="Map").click()
     b.choose(page, "Model", "ODR")
     b.choose(page, "Grid size (m)", fine)
-    b.wait_until(lambda: app.shown.settings.cell_size == float(fine)
-                 and app.shown.settings.model == "odr" and not app.worker.busy, 30,
+    b.wait_until(lambda: app.session.shown.settings.cell_size == float(fine)
+                 and app.session.shown.settings.model == "odr" and not app.worker.busy, 30,
                  "back to ODR at the finest preset")
 
 
@@ -87,8 +89,8 @@ def test_threshold_switches_to_binary_view(live):
     app, page = live
     b.choose(page, "Display", "binary")
     b.type_number(page, "Threshold", "0.3")
-    b.wait_until(lambda: app.shown.settings.mode == "binary"
-                 and app.shown.settings.threshold == 0.3 and not app.worker.busy, 30, "binary")
+    b.wait_until(lambda: app.session.shown.settings.display == "binary"
+                 and app.session.shown.settings.threshold == 0.3 and not app.worker.busy, 30, "binary")
     lut = colormaps.lut("viridis")
     lo, hi = lut[0], lut[-1]
 
@@ -103,7 +105,7 @@ def test_threshold_switches_to_binary_view(live):
     img = b.wait_pixels(page, two_colours, 60, "two-colour binary view")
     assert _share_near(img, lo) > 0.01 and _share_near(img, hi) > 0.01
     b.choose(page, "Display", "continuous")
-    b.wait_until(lambda: app.shown.settings.mode == "continuous" and not app.worker.busy, 30)
+    b.wait_until(lambda: app.session.shown.settings.display == "continuous" and not app.worker.busy, 30)
 
 
 def test_click_reports_cell(live):
@@ -117,9 +119,9 @@ def test_click_reports_cell(live):
     y, x = int(np.median(ys)), int(np.median(xs))
     assert mask[y, x]
     page.mouse.click(x, y)
-    info = b.wait_until(lambda: app.last_pick, 30, "a picked cell")
+    info = b.wait_until(lambda: app.session.last_pick, 30, "a picked cell")
     page.get_by_text(f"Cell {info.ijk}").wait_for()
-    res = app.shown.result
+    res = app.session.shown.result
     assert info.theta["odr"] == pytest.approx(res.theta_odr[info.cell])
     assert info.n_points == res.n_points[info.cell]
 
@@ -127,7 +129,7 @@ def test_click_reports_cell(live):
 def test_two_clicks_make_a_profile_with_fractal_dimension(live):
     app, page = live
     page.get_by_role("tab", name="Profile").click()
-    m = app.mode(ProfileMode)
+    m = app.feature(ProfileFeature)
     control = b.control(page, "Profile mode")
     control.click()
     b.wait_until(lambda: m.on.value, 20, "profile mode on")
@@ -172,7 +174,7 @@ def test_bias_predictions_are_reached_from_the_app(live):
     page.get_by_text("ER / r =").first.wait_for(timeout=60_000)
     page.locator(".js-plotly-plot:visible").first.wait_for()
     # the result text is set before the curve figure and the panel's record
-    b.wait_until(lambda: app.mode(BiasPanel).last is not None, 30, "the bias record")
+    b.wait_until(lambda: app.feature(BiasPanel).last is not None, 30, "the bias record")
     page.get_by_role("tab", name="Map").click()
 
 
@@ -187,14 +189,14 @@ def test_hostile_file_name_and_path_render_as_text(live):
     box = b.text_input(page, "File path")
     box.fill(HOSTILE_PATH)
     box.press("Enter")
-    b.wait_until(lambda: app.gui.path.value == HOSTILE_PATH, 20, "the typed path")
+    b.wait_until(lambda: app.feature(FileFeature).path.value == HOSTILE_PATH, 20, "the typed path")
     page.get_by_role("button", name="Load file", exact=True).click()
     page.get_by_text(f"file not found: {HOSTILE_PATH}").first.wait_for()
     xyz = face_cloud(3000, seed=8).xyz()
     data = "\n".join(f"{x:.4f} {y:.4f} {z:.4f}" for x, y, z in xyz).encode()
     page.locator("input[type=file]").set_input_files(
         files=[{"name": HOSTILE_NAME, "mimeType": "text/plain", "buffer": data}])
-    b.wait_until(lambda: app.shown.loaded.n_total == 3000 and not app.worker.busy, 60,
+    b.wait_until(lambda: app.session.shown.loaded.n_total == 3000 and not app.worker.busy, 60,
                  "the uploaded cloud")
     page.get_by_text(HOSTILE_NAME).first.wait_for()  # the name, character for character
     assert page.evaluate("() => window.__xss") is None

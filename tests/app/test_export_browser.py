@@ -12,8 +12,8 @@ import laspy
 import numpy as np
 import pytest
 
-from rough_viewer.app import export_mode as em
-from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.features import export as em
+from rough_viewer.app.state import MapSettings
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256
 from tests.app import browser as b
@@ -34,7 +34,7 @@ def page_and_app(chromium, tmp_path_factory):
     make_pf3(scan, n=30_000)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, load_points(scan), prefetch=False, data_dir=folder,
-                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+                    presets=PAPER_PRESETS, settings=MapSettings(cell_size=0.25))
     assert app.wait_idle(60)
     with b.app_page(chromium, app, accept_downloads=True) as page:
         yield page, app, scan
@@ -57,7 +57,7 @@ def test_points_download_in_the_browser(page_and_app, tmp_path):
     src = laspy.read(scan)
     np.testing.assert_array_equal(las.X, src.X)
     np.testing.assert_array_equal(las.gps_time, src.gps_time)
-    cells = app.shown.result
+    cells = app.session.shown.result
     np.testing.assert_array_equal(
         las.theta_odr, cells.theta_odr.astype(np.float32)[cells.point_cell])
     shots = Path(os.environ.get("ROUGH_VIEWER_SHOTS", "/tmp/rough-viewer-shots"))
@@ -69,14 +69,14 @@ def test_points_download_in_the_browser(page_and_app, tmp_path):
 def test_view_and_table_downloads_in_the_browser(page_and_app, tmp_path):
     page, app, scan = page_and_app
     b.choose(page, "Model", "OLS")
-    b.wait_until(lambda: app.shown.settings.model == "ols", 60, "the OLS map")
+    b.wait_until(lambda: app.session.shown.settings.model == "ols", 60, "the OLS map")
     name, data = _download(page, em.L_VIEW, tmp_path)
     view = json.loads(data)
     assert name == "scan.view.json" and view["model"] == "ols"
     assert view["input"]["sha256"] == file_sha256(scan)
     # the camera is the browser's own (file frame: near the scan, not the local origin)
     pos = np.asarray(view["camera"]["position"])
-    assert np.linalg.norm(pos - app.shown.loaded.origin) < 1e3
+    assert np.linalg.norm(pos - app.session.shown.loaded.origin) < 1e3
     name, data = _download(page, em.L_TABLE, tmp_path)
     assert name.endswith("_cells.csv")
     assert data.decode().splitlines()[0].startswith("ix,iy,iz,cx,cy,cz,n_points,theta_odr")

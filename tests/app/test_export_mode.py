@@ -16,9 +16,10 @@ import laspy
 import numpy as np
 import pytest
 
-from rough_viewer.app import export_mode as em
-from rough_viewer.app.export_mode import ExportMode, panel_figures, safe_name
-from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.features import export as em
+from rough_viewer.app.features.export import ExportFeature, panel_figures, safe_name
+from rough_viewer.app.features.panels import PanelsFeature
+from rough_viewer.app.state import MapSettings
 from rough_viewer.grid.table import cell_columns, point_fields
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256, load_view
@@ -41,7 +42,7 @@ def exported(tmp_path_factory):
     make_pf3(path, n=N_POINTS)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, load_points(path), prefetch=False, data_dir=folder,
-                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+                    presets=PAPER_PRESETS, settings=MapSettings(cell_size=0.25))
     assert app.wait_idle(60)
     client = ProtocolClient(server.get_port())
     client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
@@ -78,7 +79,7 @@ def test_cell_table_csv_is_the_shown_grid(exported):
     name, data = _download(client, app, em.L_TABLE, "_cells.csv")
     assert name == "scan_site_g0.25_cells.csv"
     rows = _csv_rows(data)
-    want = cell_columns(app.shown.result)
+    want = cell_columns(app.session.shown.result)
     assert len(rows) == len(want["ix"]) > 100
     for col, values in want.items():
         got = np.array([float(r[col]) if r[col] else np.nan for r in rows])
@@ -94,7 +95,7 @@ def test_cell_table_parquet(exported):
     finally:
         client.set_value(em.L_TABLE_FORMAT, "CSV")
     table = pq.read_table(io.BytesIO(data))
-    want = cell_columns(app.shown.result)
+    want = cell_columns(app.session.shown.result)
     assert table.column_names == list(want)
     for col, values in want.items():
         got = table.column(col).to_numpy(zero_copy_only=False).astype(np.float64)
@@ -119,10 +120,10 @@ def test_laz_download_is_the_input_with_its_roughness(exported):
     # the added dimensions equal the app's cell table (downloaded as CSV)
     _, table_bytes = _download(client, app, em.L_TABLE, "_cells.csv")
     table = {(int(r["ix"]), int(r["iy"]), int(r["iz"])): r for r in _csv_rows(table_bytes)}
-    result = app.shown.result
+    result = app.session.shown.result
     _check_fields_equal_table(out, table, grid=0.25, origin=result.grid.origin,
                               min_points=result.min_points,
-                              xyz=app.shown.loaded.cloud.xyz())
+                              xyz=app.session.shown.loaded.cloud.xyz())
 
 
 def test_ply_download(exported):
@@ -135,10 +136,10 @@ def test_ply_download(exported):
     finally:
         client.set_value(em.L_POINTS_FORMAT, "LAZ")
     vertex = PlyData.read(io.BytesIO(data))["vertex"]
-    cloud = app.shown.loaded.cloud
+    cloud = app.session.shown.loaded.cloud
     np.testing.assert_array_equal(vertex["x"], cloud.x)
     np.testing.assert_array_equal(vertex["z"], cloud.z)
-    fields = point_fields(app.shown.result)
+    fields = point_fields(app.session.shown.result)
     theta = fields.gather(0, cloud.n)[0]
     np.testing.assert_array_equal(vertex["theta_odr"], theta)
 
@@ -148,7 +149,7 @@ def test_figure_html_and_all_panels(exported):
     client.set_value(em.L_FIGURE, "histogram")
     _, data = _download(client, app, em.L_FIGURE_BUTTON, "_histogram.html")
     html = data.decode()
-    hist = app.gui.histogram.figure
+    hist = app.feature(PanelsFeature).histogram.figure
     assert "plotly" in html.lower() and len(html) > 1_000_000  # plotly.js inlined: offline
     # the page draws the panel's own data (plotly's JSON of its traces, as embedded)
     from plotly.io.json import to_json_plotly
@@ -183,14 +184,14 @@ def test_view_download_reopens(exported, tmp_path):
     view = loaded.view
     assert view.input.sha256 == file_sha256(path) and view.input.path == str(path.resolve())
     assert loaded.input_check.status == "unchanged"
-    s = app.shown.settings
+    s = app.session.shown.settings
     assert (view.cell_size_m, view.model, view.axis, view.min_points, view.threshold) == \
         (s.cell_size, s.model, s.axis, s.min_points, s.threshold)
     assert view.colour.colormap == s.colormap and view.colour.stretch == s.stretch
     # the camera of the browser that asked (the protocol client's), in the file frame
     assert view.camera is not None
     np.testing.assert_allclose(view.camera.position,
-                               np.array([0.0, -3.0, 1.0]) + app.shown.loaded.origin)
+                               np.array([0.0, -3.0, 1.0]) + app.session.shown.loaded.origin)
     assert json.loads(data)["input"]["relative_path"] is None  # unknown on the browser's side
 
 
@@ -217,13 +218,13 @@ def test_a_failure_mid_write_sends_nothing_and_leaves_nothing(exported, monkeypa
     before_dirs, starts = _export_dirs(), len(client.of_type("FileTransferStartDownload"))
     seen = len(client.messages)
     client.press(em.L_POINTS)
-    mode = app.mode(ExportMode)
+    mode = app.feature(ExportFeature)
     _said(client, "Export failed", "the failure", after=seen)
     app.wait_idle(30)
     assert written and not written[0].exists()
-    assert app.errors[-1] == ("export: cannot write scan_site_g0.25_points.laz: no space "
+    assert app.host.errors[-1] == ("export: cannot write scan_site_g0.25_points.laz: no space "
                               "left on device")
-    assert "/tmp" not in app.errors[-1] and "rough-viewer-export" not in app.errors[-1]
+    assert "/tmp" not in app.host.errors[-1] and "rough-viewer-export" not in app.host.errors[-1]
     assert "Export failed" in mode.status.content
     assert len(client.of_type("FileTransferStartDownload")) == starts  # nothing offered
     assert _export_dirs() <= before_dirs  # the private folder is gone
@@ -239,24 +240,28 @@ def test_a_download_that_cannot_fit_in_memory_is_refused(exported, monkeypatch):
     client.press(em.L_POINTS)
     _said(client, "Export failed", "the refusal", after=seen)
     app.wait_idle(30)
-    assert "sending scan_site_g0.25_points.laz" in app.errors[-1]
-    assert "of memory available" in app.errors[-1]
+    assert "sending scan_site_g0.25_points.laz" in app.host.errors[-1]
+    assert "of memory available" in app.host.errors[-1]
     assert len(client.of_type("FileTransferStartDownload")) == starts
 
 
-def test_panels_are_found_on_every_mode():
-    class ZonesMode:  # noqa: B903 - a stand-in for a mode mounted by another module
-        pass
+def test_panels_are_named_by_their_features(exported):
+    """Each feature names its own panels (no names from field names): the zones'
+    are prefixed by the tab, and a name is safe as a file-name part."""
+    app, _, _ = exported
+    from rough_viewer.app.features.zones import ZonesFeature
 
     assert safe_name("../../etc/<x> y.laz") == "etc_x_y.laz"
-    assert em._prefix(ZonesMode()) == "zones"
+    zones = app.feature(ZonesFeature).figures()
+    assert set(zones) == {"zones_table", "zones_stereonet"}
+    assert all(safe_name(n) == n for n in panel_figures(app.host))
 
 
 def test_figure_dropdown_lists_every_panel(exported):
     app, _, _ = exported
-    names = set(panel_figures(app))
+    names = set(panel_figures(app.host))
     assert {"colour_bar", "histogram", "variogram", "summary", "profile", "bias"} <= names
-    assert set(app.mode(ExportMode).figure.options) == names | {em.ALL_FIGURES}
+    assert set(app.feature(ExportFeature).figure.options) == names | {em.ALL_FIGURES}
 
 
 def test_in_memory_cloud_points_and_no_view(server, tmp_path):
@@ -266,7 +271,7 @@ def test_in_memory_cloud_points_and_no_view(server, tmp_path):
 
     cloud = face_cloud(5000, seed=4)
     app = build_app(server, cloud, prefetch=False, data_dir=tmp_path,
-                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+                    presets=PAPER_PRESETS, settings=MapSettings(cell_size=0.25))
     try:
         assert app.wait_idle(60)
         client = ProtocolClient(server.get_port())
@@ -291,7 +296,7 @@ def test_png_and_svg_downloads(exported):
     from PIL import Image
 
     app, client, _ = exported
-    mode = app.mode(ExportMode)
+    mode = app.feature(ExportFeature)
     assert tuple(mode.figure_format.options) == ("HTML", "PNG", "SVG")
     client.set_value(em.L_FIGURE_FORMAT, "PNG")
     client.set_value(em.L_FIGURE, "histogram")
@@ -313,7 +318,7 @@ def test_png_and_svg_downloads(exported):
         assert {n.rsplit("_", 1)[-1] for n in names} >= {"histogram.png", "summary.png"}
         assert all(zf.read(n).startswith(b"\x89PNG\r\n\x1a\n") for n in names)
     client.set_value(em.L_FIGURE_FORMAT, "HTML")
-    assert not any("export failed" in str(e) for e in app.errors)
+    assert not any("export failed" in str(e) for e in app.host.errors)
 
 
 def test_without_kaleido_the_folder_says_so(server, monkeypatch):
@@ -324,7 +329,7 @@ def test_without_kaleido_the_folder_says_so(server, monkeypatch):
     app = build_app(server, face_cloud(3_000), prefetch=False, presets=PAPER_PRESETS)
     try:
         assert app.wait_idle(60)
-        mode = app.mode(ExportMode)
+        mode = app.feature(ExportFeature)
         assert tuple(mode.figure_format.options) == ("HTML",)
         client = ProtocolClient(server.get_port())
         try:
@@ -355,7 +360,7 @@ def test_the_sent_note_goes_with_its_cloud(server):
     app = build_app(server, face_cloud(3_000), prefetch=False, presets=PAPER_PRESETS)
     try:
         assert app.wait_idle(60)
-        mode = app.mode(ExportMode)
+        mode = app.feature(ExportFeature)
         mode.say("Sent **outcrop_g0.64_points.laz** (1 MB, 0.3 s).")
         app.load(cloud=face_cloud(4_000))
         assert app.wait_idle(60)

@@ -11,17 +11,19 @@ from typing import ClassVar
 
 import numpy as np
 
-from rough_viewer.app.bias_panel import BiasPanel
+from rough_viewer.app.features.bias import BiasPanel
+from rough_viewer.app.features.file import FileFeature
+from rough_viewer.app.features.map import RenderJob
+from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.gate import open_server
-from rough_viewer.app.jobs import ViewJob
 from rough_viewer.app.server import App, build_app
-from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
 from tests.app.protocol import join, settle
 from tests.helpers import PAPER_PRESETS
 
 #: Fixed presets for tests about the job pipeline, not the data's grid.
-FIXED = {"presets": PAPER_PRESETS, "settings": ViewSettings(cell_size=0.25)}
+FIXED = {"presets": PAPER_PRESETS, "settings": MapSettings(cell_size=0.25)}
 
 
 @dataclass(frozen=True)
@@ -51,23 +53,23 @@ def test_a_load_followed_at_once_by_a_control_change_shows_the_loaded_file(serve
     app = build_app(server, cloud, prefetch=False, data_dir=tmp_path, **FIXED)
     assert app.wait_idle(60)
     gate = hold(app)
-    app.gui.path.value = "other.npy"
-    app.gui.load.value = True  # "Load file" while the worker is busy
-    app.gui.model.value = "OLS"  # and a control change right after
-    app.gui.grid.value = "0.5"
+    app.feature(FileFeature).path.value = "other.npy"
+    app.feature(FileFeature).load.value = True  # "Load file" while the worker is busy
+    app.map.model.value = "OLS"  # and a control change right after
+    app.map.grid.value = "0.5"
     assert app.worker.pending_kinds() == ["LoadJob"]  # the views merged into the load
     gate.set()
     assert app.wait_idle(60)
-    shown = app.shown
-    assert shown.loaded.n_total == cloud.n // 2 and "other.npy" in app.gui.status.content
+    shown = app.session.shown
+    assert shown.loaded.n_total == cloud.n // 2 and "other.npy" in app.host.status.content
     # the model change is kept; the new file opens at its own default grid, among its
     # own presets (from its point spacing: half the points, coarser grids)
     assert shown.settings.model == "ols"
     assert shown.loaded.presets == (0.8, 0.4, 0.2, 0.1)
-    assert shown.settings.cell_size == 0.1 and app.gui.grid.value == "0.1"
-    assert app.gui.grid.options == ("0.8", "0.4", "0.2", "0.1", "free")
+    assert shown.settings.cell_size == 0.1 and app.map.grid.value == "0.1"
+    assert app.map.grid.options == ("0.8", "0.4", "0.2", "0.1", "free")
     assert shown.result is not None and shown.result.n_points_total == cloud.n // 2
-    assert list(app.errors) == []
+    assert list(app.host.errors) == []
     app.stop()
 
 
@@ -84,10 +86,10 @@ def test_the_same_through_the_browser_protocol(cloud, tmp_path):
         client.set_value("Display", "binary")
         time.sleep(0.5)
         gate.set()
-        settle(app, lambda: app.shown.loaded.n_total == len(cloud.xyz()[::3])
-               and app.shown.settings.mode == "binary", "the load and the display", 60)
-        assert app.shown.loaded.n_total == len(cloud.xyz()[::3])
-        assert app.shown.settings.mode == "binary"
+        settle(app, lambda: app.session.shown.loaded.n_total == len(cloud.xyz()[::3])
+               and app.session.shown.settings.display == "binary", "the load and the display", 60)
+        assert app.session.shown.loaded.n_total == len(cloud.xyz()[::3])
+        assert app.session.shown.settings.display == "binary"
     finally:
         client.close()
         app.stop()
@@ -99,12 +101,12 @@ def test_a_failed_load_keeps_the_control_change(server, cloud, tmp_path):
     assert app.wait_idle(60)
     gate = hold(app)
     app.load(path="missing.npy")
-    app.gui.model.value = "hybrid"
+    app.map.model.value = "hybrid"
     gate.set()
     assert app.wait_idle(60)
-    assert "not found" in app.errors[-1]
-    assert app.shown.loaded.cloud is cloud and app.shown.settings.model == "hybrid"
-    assert app.gui.error.visible  # the load's error stays on screen
+    assert "not found" in app.host.errors[-1]
+    assert app.session.shown.loaded.cloud is cloud and app.session.shown.settings.model == "hybrid"
+    assert app.host.error.visible  # the load's error stays on screen
     app.stop()
 
 
@@ -119,7 +121,7 @@ def test_a_newer_load_replaces_a_pending_one(server, cloud, tmp_path):
     assert app.worker.pending_kinds() == ["LoadJob"]
     gate.set()
     assert app.wait_idle(60)
-    assert app.shown.loaded.n_total == len(cloud.xyz()[::4])
+    assert app.session.shown.loaded.n_total == len(cloud.xyz()[::4])
     app.stop()
 
 
@@ -127,7 +129,7 @@ def test_bias_predictions_are_reached_from_the_app_and_run_on_the_worker(app):
     threads: list[str] = []
     real = app.worker._thread
 
-    bias = app.mode(BiasPanel)
+    bias = app.feature(BiasPanel)
     bias.asperity_mm.value = 10.0
     bias.noise_mm.value = 1.0
     bias.er_mm.value = 3.0
@@ -153,25 +155,25 @@ def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, cloud, monkeypatc
 
     app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
-    before = app.cloud_handle.colors.copy()
+    before = app.host.scene.cloud.colors.copy()
     monkeypatch.setattr(memory, "available_bytes", lambda: 1e6)
-    app.gui.grid_free.value = 0.002
+    app.map.grid_free.value = 0.002
     assert app.wait_idle(60)
-    msg = app.errors[-1]
+    msg = app.host.errors[-1]
     assert "grid 0.002 m" in msg and "needs about" in msg and "memory" in msg, msg
-    assert app.gui.error.visible and "previous view is kept" in app.gui.error.content
+    assert app.host.error.visible and "previous view is kept" in app.host.error.content
     # the view and the controls are the previous ones
-    assert app.shown.settings.cell_size == 0.25 and app.gui.grid.value == "0.25"
-    assert np.array_equal(app.cloud_handle.colors, before)
+    assert app.session.shown.settings.cell_size == 0.25 and app.map.grid.value == "0.25"
+    assert np.array_equal(app.host.scene.cloud.colors, before)
     monkeypatch.undo()
-    app.gui.grid.value = "0.5"  # the server is still up and answers
-    assert app.wait_idle(60) and app.shown.settings.cell_size == 0.5
-    assert not app.gui.error.visible
+    app.map.grid.value = "0.5"  # the server is still up and answers
+    assert app.wait_idle(60) and app.session.shown.settings.cell_size == 0.5
+    assert not app.host.error.visible
     app.stop()
 
 
 def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypatch):
-    import rough_viewer.app.panels as panels
+    import rough_viewer.app.features.panels as panels
     from rough_viewer.memory import require
 
     def too_big(ijk, values, g, **kw):
@@ -181,40 +183,40 @@ def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypat
     app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
     monkeypatch.setattr(panels, "semivariogram", too_big)
-    app.gui.grid.value = "0.5"
+    app.map.grid.value = "0.5"
     assert app.wait_idle(60)
-    msg = app.errors[-1]
+    msg = app.host.errors[-1]
     assert msg.startswith("semivariogram of grid 0.5 m: the semivariogram of") and \
         "needs about" in msg, msg
-    assert "The map and the other panels are shown" in app.gui.error.content
-    assert app.shown.settings.cell_size == 0.5  # the map is shown
-    assert "grid 0.5 m" in app.gui.histogram.figure.layout.title.text
-    assert "grid 0.25 m" in app.gui.variogram.figure.layout.title.text  # the old one stays
+    assert "The map and the other panels are shown" in app.host.error.content
+    assert app.session.shown.settings.cell_size == 0.5  # the map is shown
+    assert "grid 0.5 m" in app.feature(PanelsFeature).histogram.figure.layout.title.text
+    assert "grid 0.25 m" in app.feature(PanelsFeature).variogram.figure.layout.title.text  # the old one stays
     monkeypatch.undo()
-    app.gui.grid.value = "1"
-    assert app.wait_idle(60) and "grid 1 m" in app.gui.variogram.figure.layout.title.text
+    app.map.grid.value = "1"
+    assert app.wait_idle(60) and "grid 1 m" in app.feature(PanelsFeature).variogram.figure.layout.title.text
     app.stop()
 
 
 def test_long_lived_lists_are_bounded(app):
     for i in range(300):
-        app.show_error(f"error {i}")
-    assert len(app.errors) == 100 and app.errors[-1] == "error 299"
+        app.host.show_error(f"error {i}")
+    assert len(app.host.errors) == 100 and app.host.errors[-1] == "error 299"
     for _ in range(250):
-        app.submit(ViewJob(app.shown.settings.with_(threshold=0.1)))
+        app.submit(RenderJob(app.map, app.session.shown.settings.with_(threshold=0.1)))
         assert app.wait_idle(30)
-    assert len(app.timings) == 200
+    assert len(app.map.timings) == 200
 
 
 def test_cells_of_repeated_points_get_a_notice():
     """The app says why some cells are 0 (the same sentence as compute and report)."""
-    from rough_viewer.app.jobs import notice_text
-    from rough_viewer.app.state import LoadedCloud, ViewSettings, map_stats
+    from rough_viewer.app.features.map import notice_text
+    from rough_viewer.app.state import LoadedCloud, MapSettings, map_stats
     from rough_viewer.io import PointCloud
     from tests.helpers import repeated_points_cloud
 
     loaded = LoadedCloud(PointCloud.from_xyz(repeated_points_cloud()), presets=(1.0,))
-    settings = ViewSettings(cell_size=1.0)
+    settings = MapSettings(cell_size=1.0)
     result = loaded.result(settings)
     stats = map_stats(result, settings)
     assert stats.exact_fit == 3

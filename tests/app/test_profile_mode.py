@@ -3,23 +3,23 @@
 import numpy as np
 import pytest
 
-from rough_viewer.app.profile_mode import ProfileMode, ProfileSettings, analyse, profiles_csv
-from rough_viewer.app.server import on_scene_click
+from rough_viewer.app.features.profile import ProfileFeature, ProfileSettings, analyse, profiles_csv
 from rough_viewer.profiles.extraction import extract_profile
 from rough_viewer.profiles.fractal import roughness_length
 from rough_viewer.profiles.wavelets import denoise
+from tests.app.protocol import pick
 
 
 def click_on(app, i):
-    target = app.shown.loaded.display_points[i].astype(float)
-    return on_scene_click(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+    target = app.session.shown.loaded.display_points[i].astype(float)
+    return pick(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
 
 
 def _one_profile(app):
     """One profile across the test face (x from -1.2 to 1.2 m); profile mode off after."""
-    m = app.mode(ProfileMode)
+    m = app.feature(ProfileFeature)
     m.on.value = True
-    pts = app.shown.loaded.display_points
+    pts = app.session.shown.loaded.display_points
     i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
     j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
     click_on(app, i)
@@ -30,17 +30,17 @@ def _one_profile(app):
 
 
 def test_two_clicks_make_a_profile_matching_the_core(app, cloud):
-    m = app.mode(ProfileMode)
+    m = app.feature(ProfileFeature)
     m.on.value = True
-    pts = app.shown.loaded.display_points
+    pts = app.session.shown.loaded.display_points
     i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
     j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
     assert click_on(app, i) is None and m.start is not None
     click_on(app, j)
-    assert list(app.errors) == [] and len(m.items) == 1
+    assert list(app.host.errors) == [] and len(m.items) == 1
     a = m.items[0]
-    start = app.shown.loaded.to_file_frame(pts[i])
-    end = app.shown.loaded.to_file_frame(pts[j])
+    start = app.session.shown.loaded.to_file_frame(pts[i])
+    end = app.session.shown.loaded.to_file_frame(pts[j])
     ref = extract_profile(cloud.xyz(), start, end)
     assert np.allclose(a.profile.heights, ref.heights, equal_nan=True)
     assert a.raw_fit.dimension == pytest.approx(roughness_length(ref.heights, ref.spacing).dimension)
@@ -48,7 +48,7 @@ def test_two_clicks_make_a_profile_matching_the_core(app, cloud):
     assert any("D=" in (t.name or "") for t in m.plot.figure.data)
 
     m.wavelet.value = "sym4"  # de-noising runs as a job on the worker
-    m.mode.value = "soft"
+    m.threshold_mode.value = "soft"
     assert app.wait_idle(60)
     b = m.items[0]
     want = denoise(ref.heights, wavelet="sym4", mode="soft")
@@ -82,13 +82,13 @@ def test_a_cloud_in_feet_has_its_profiles_in_feet(server):
     app = build_app(server, replace(face_cloud(20_000), source_unit="ft"), prefetch=False)
     try:
         assert app.wait_idle(60)
-        m = app.mode(ProfileMode)
+        m = app.feature(ProfileFeature)
         assert m.band.label == "Band half-width (ft)"
         assert m.band.max == pytest.approx(10.0 / ft)
         m.band.value = 0.5
-        assert m.settings().band_half_width == pytest.approx(0.5 * ft)
+        assert m.binding.read().band_half_width == pytest.approx(0.5 * ft)
         _one_profile(app)
-        assert list(app.errors) == []
+        assert list(app.host.errors) == []
         a = m.items[0]
         assert a.settings.band_half_width == pytest.approx(0.5 * ft)
         assert "| # | length (ft) | σ noise (ft) |" in m.note.content
@@ -111,7 +111,7 @@ def _curved_profile():
 
 
 def test_a_curved_profile_warns_and_removing_its_trend_fixes_it():
-    from rough_viewer.app.profile_mode import redo, summary_markdown
+    from rough_viewer.app.features.profile import redo, summary_markdown
     from rough_viewer.profiles.fractal import detrend
 
     prof = _curved_profile()
@@ -156,20 +156,20 @@ def test_the_remove_trend_control_redoes_the_kept_profiles(app):
 def test_profiles_belong_to_their_cloud(app):
     """Another file: the profiles go (they were drawn across the new scan). The
     board lesson: the scan's profiles go aside with it and come back with it."""
-    from rough_viewer.app.board_mode import BoardMode
+    from rough_viewer.app.features.board import BoardFeature
     from tests.helpers import face_cloud
 
     m = _one_profile(app)
     kept = m.items[0]
-    scan = app.shown.loaded
-    board = app.mode(BoardMode)
+    scan = app.session.shown.loaded
+    board = app.feature(BoardFeature)
     board.scan.value = True
     assert app.wait_idle(60)
-    assert app.shown.loaded is not scan and m.items == [] and m.nodes == []
+    assert app.session.shown.loaded is not scan and m.items == [] and m.nodes == []
     assert "Tick" in m.note.content  # the table is empty too
     board.back.value = True
     assert app.wait_idle(60)
-    assert app.shown.loaded is scan and m.items == [kept] and len(m.nodes) == 1
+    assert app.session.shown.loaded is scan and m.items == [kept] and len(m.nodes) == 1
     assert "| 1 |" in m.note.content
     app.load(cloud=face_cloud(5_000))
     assert app.wait_idle(60)
@@ -186,8 +186,8 @@ def test_a_setting_that_fails_puts_the_controls_back_and_its_error_goes(app):
     before = m.items[0]
     m.level.value = 6
     assert app.wait_idle(60)
-    assert app.gui.error.visible and "level-6" in app.gui.error.content
+    assert app.host.error.visible and "level-6" in app.host.error.content
     assert m.level.value == 3 and m.items[0] is before
     m.level.value = 2
     assert app.wait_idle(60)
-    assert m.items[0].settings.level == 2 and not app.gui.error.visible
+    assert m.items[0].settings.level == 2 and not app.host.error.visible

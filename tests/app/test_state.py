@@ -7,7 +7,7 @@ from rough_viewer.app import state as state_mod
 from rough_viewer.app.state import (
     ByteCache,
     LoadedCloud,
-    ViewSettings,
+    MapSettings,
     cell_info,
     check_settings,
     map_stats,
@@ -43,10 +43,10 @@ def test_results_cached_per_grid_key(loaded, monkeypatch):
         return real(*a, **k)
 
     monkeypatch.setattr(state_mod, "grid_roughness", counting)
-    s = ViewSettings(cell_size=0.5)
+    s = MapSettings(cell_size=0.5)
     r1 = loaded.result(s)
     # colouring changes share the grid result
-    r2 = loaded.result(s.with_(model="ols", threshold=0.3, mode="binary", colormap="magma",
+    r2 = loaded.result(s.with_(model="ols", threshold=0.3, display="binary", colormap="magma",
                                stretch=colormaps.Stretch.absolute_mm(1, 2), layer="distance"))
     assert r1 is r2 and len(calls) == 1
     loaded.result(s.with_(axis="z"))
@@ -67,7 +67,7 @@ def _log_stretch_colours(values, lo, hi, cmap):
 
 
 def test_continuous_colours_follow_the_default_log_percentile_stretch(loaded, cloud):
-    s = ViewSettings(cell_size=0.25, model="ols", colormap="cividis")
+    s = MapSettings(cell_size=0.25, model="ols", colormap="cividis")
     assert s.stretch == colormaps.ROUGHNESS_STRETCH
     got = point_colours(loaded.result(s), s, loaded.display_index)
     core = grid_roughness(cloud, 0.25)  # independent call to the core
@@ -90,7 +90,7 @@ def test_continuous_colours_follow_the_default_log_percentile_stretch(loaded, cl
 def test_an_absolute_stretch_gives_one_colour_one_roughness_on_every_grid(loaded):
     pinned = colormaps.Stretch.absolute_mm(0.5, 8.0, log=True)
     for g in (0.25, 0.5):
-        s = ViewSettings(cell_size=g, stretch=pinned)
+        s = MapSettings(cell_size=g, stretch=pinned)
         res = loaded.result(s)
         stats = map_stats(res, s)
         assert (stats.colour_range.lo, stats.colour_range.hi) == (0.0005, 0.008)
@@ -99,13 +99,13 @@ def test_an_absolute_stretch_gives_one_colour_one_roughness_on_every_grid(loaded
         # the colour is one function of θ on both grids (same limits, same map)
         assert np.array_equal(got, _log_stretch_colours(theta, 0.0005, 0.008, "viridis"))
     # the default (percentile) stretch resolves on each grid's own cells instead
-    r1 = map_stats(loaded.result(ViewSettings(cell_size=0.25)), ViewSettings(cell_size=0.25))
-    r2 = map_stats(loaded.result(ViewSettings(cell_size=0.5)), ViewSettings(cell_size=0.5))
+    r1 = map_stats(loaded.result(MapSettings(cell_size=0.25)), MapSettings(cell_size=0.25))
+    r2 = map_stats(loaded.result(MapSettings(cell_size=0.5)), MapSettings(cell_size=0.5))
     assert r1.colour_range.hi != r2.colour_range.hi
 
 
 def test_binary_colours_and_threshold(loaded, cloud):
-    s = ViewSettings(cell_size=0.25, mode="binary", threshold=0.3)
+    s = MapSettings(cell_size=0.25, display="binary", threshold=0.3)
     got = point_colours(loaded.result(s), s, loaded.display_index)
     core = grid_roughness(cloud, 0.25)
     rough = binary(normalise(core.theta_odr), 0.3)[core.point_cell[loaded.display_index]]
@@ -118,7 +118,7 @@ def test_binary_colours_and_threshold(loaded, cloud):
 
 def test_cells_without_value_are_neutral(cloud):
     small = LoadedCloud(cloud.subset(np.arange(2000)), max_display=2000)
-    s = ViewSettings(cell_size=0.125, min_points=5)
+    s = MapSettings(cell_size=0.125, min_points=5)
     res = small.result(s)
     got = point_colours(res, s, small.display_index)
     empty = ~np.isfinite(res.theta_odr[res.point_cell])
@@ -127,7 +127,7 @@ def test_cells_without_value_are_neutral(cloud):
 
 
 def test_cell_info_matches_brute_force(loaded, cloud):
-    s = ViewSettings(cell_size=0.5)
+    s = MapSettings(cell_size=0.5)
     res = loaded.result(s)
     p = 1234
     info = cell_info(res, p, cloud.xyz()[p])
@@ -146,11 +146,11 @@ def test_cell_info_matches_brute_force(loaded, cloud):
 
 def test_check_settings_rejects_bad_input():
     with pytest.raises(InputError, match="too small"):
-        check_settings(ViewSettings(cell_size=1e-5))
+        check_settings(MapSettings(cell_size=1e-5))
     with pytest.raises(InputError, match="at least 3"):
-        check_settings(ViewSettings(min_points=2))
+        check_settings(MapSettings(min_points=2))
     with pytest.raises(ValueError, match="colour map"):
-        check_settings(ViewSettings(colormap="jet"))
+        check_settings(MapSettings(colormap="jet"))
 
 
 def test_presets_come_from_the_point_spacing_and_are_nested(loaded, cloud):
@@ -180,7 +180,7 @@ def test_presets_coarsened_from_fine_grid_equal_direct_core(cloud):
     fine = fresh.prepared(0.125)
     assert fresh.prepared(1.0) is not fine and fresh.prepared(0.125) is fine
     for size in (1.0, 0.5, 0.3):
-        got = fresh.result(ViewSettings(cell_size=size))
+        got = fresh.result(MapSettings(cell_size=size))
         want = grid_roughness(cloud, size)
         assert np.array_equal(got.point_cell, want.point_cell)
         for m in ("odr", "ols", "hybrid", "e_ols"):
@@ -192,12 +192,12 @@ def test_the_grid_cache_is_bounded_by_bytes(cloud):
     loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
     sizes = []
     for g in (0.3, 0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
-        loaded.result(ViewSettings(cell_size=g))
+        loaded.result(MapSettings(cell_size=g))
         sizes.append(loaded.cached_bytes)
     assert max(sizes) <= 2_000_000 and loaded.cached_bytes > 0
-    assert loaded.is_cached(ViewSettings(cell_size=0.7))
-    assert not loaded.is_cached(ViewSettings(cell_size=0.3))  # least recently used went
-    one = nbytes(loaded.result(ViewSettings(cell_size=0.7)))
+    assert loaded.is_cached(MapSettings(cell_size=0.7))
+    assert not loaded.is_cached(MapSettings(cell_size=0.3))  # least recently used went
+    one = nbytes(loaded.result(MapSettings(cell_size=0.7)))
     assert one > 8 * cloud.n  # the per-point cell index alone is 8 bytes a point
     cache: ByteCache[str, np.ndarray] = ByteCache(100)
     assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
@@ -207,11 +207,11 @@ def test_the_grid_cache_is_bounded_by_bytes(cloud):
 
 def test_the_grid_on_screen_stays_cached_while_others_come_and_go(cloud):
     loaded = LoadedCloud(cloud, max_display=1000, cache_bytes=2_000_000)
-    shown = ViewSettings(cell_size=0.3)
+    shown = MapSettings(cell_size=0.3)
     first = loaded.result(shown)
     loaded.mark_shown(shown)
     for g in (0.35, 0.4, 0.45, 0.55, 0.6, 0.65, 0.7):
-        loaded.result(ViewSettings(cell_size=g))
+        loaded.result(MapSettings(cell_size=g))
     assert loaded.cached_bytes <= 2_000_000
     assert loaded.is_cached(shown) and loaded.result(shown) is first
-    assert not loaded.is_cached(ViewSettings(cell_size=0.35))  # the others were evicted
+    assert not loaded.is_cached(MapSettings(cell_size=0.35))  # the others were evicted

@@ -5,10 +5,10 @@ from __future__ import annotations
 import time
 
 import pytest
+from rough_viewer.app.uploads import clean_name
 
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.uploads import clean_name
 from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient, join, settle
 from tests.helpers import face_cloud
@@ -38,10 +38,10 @@ def test_an_upload_is_loaded_and_its_file_removed(live):
     app, client, _ = live
     data = xyz_text(3000)
     client.upload("Upload file", "my scan.xyz", data, chunk=64 * 1024)  # 4+ parts
-    settle(app, lambda: app.shown.loaded.n_total == 3000, "the uploaded cloud")
-    assert app.shown.loaded.n_total == 3000 and app.shown.loaded.cloud.source == "my scan.xyz"
-    assert "my scan.xyz" in app.gui.status.content
-    assert list(app.uploads.folder.iterdir()) == []  # deleted once read
+    settle(app, lambda: app.session.shown.loaded.n_total == 3000, "the uploaded cloud")
+    assert app.session.shown.loaded.n_total == 3000 and app.session.shown.loaded.cloud.source == "my scan.xyz"
+    assert "my scan.xyz" in app.host.status.content
+    assert list(app.host.uploads.folder.iterdir()) == []  # deleted once read
     # the acks go on the uploader's own stream, not ordered with the load
     last = client.wait_for(lambda m: m.get("type") == "FileTransferPartAck"
                            and m["transferred_bytes"] == len(data), what="the last ack")
@@ -57,9 +57,9 @@ def test_refused_at_the_start(live, name, declared, message):
     app, client, cloud = live
     data = b"0 0 0\n" * 1000
     transfer = client.upload("Upload file", name, data, declared=declared)
-    settle(app, lambda: len(app.uploads.refused) > 0, "the refusal")
-    assert message in app.uploads.refused[-1]
-    assert app.shown.loaded.cloud is cloud and list(app.uploads.folder.iterdir()) == []
+    settle(app, lambda: len(app.host.uploads.refused) > 0, "the refusal")
+    assert message in app.host.uploads.refused[-1]
+    assert app.session.shown.loaded.cloud is cloud and list(app.host.uploads.folder.iterdir()) == []
     body = client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
                            and m["props"]["title"] == "Upload refused")["props"]["body"]
     assert message in body
@@ -74,10 +74,10 @@ def test_a_client_sending_more_than_it_announced_is_cut_off(live):
     data = xyz_text(60_000)  # about 1.9 MB, above the 1 MiB limit
     assert len(data) > (LIMIT_MB << 20)
     client.upload("Upload file", "liar.xyz", data, declared=100_000)
-    settle(app, lambda: len(app.uploads.refused) > 0 and app.uploads.active == 0, "the cut-off")
-    assert "larger than announced" in app.uploads.refused[-1]
-    assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
-    assert app.shown.loaded.cloud is cloud
+    settle(app, lambda: len(app.host.uploads.refused) > 0 and app.host.uploads.active == 0, "the cut-off")
+    assert "larger than announced" in app.host.uploads.refused[-1]
+    assert app.host.uploads.active == 0 and list(app.host.uploads.folder.iterdir()) == []
+    assert app.session.shown.loaded.cloud is cloud
 
 
 def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
@@ -88,43 +88,43 @@ def test_parts_out_of_order_and_a_vanished_browser_leave_nothing(live):
                  "size_bytes": 20, "part_count": 2})
     client.send({"type": "FileTransferPart", "source_component_uuid": source,
                  "transfer_uuid": "t1", "part_index": 1, "content": b"0 0 0\n"})
-    settle(app, lambda: len(app.uploads.refused) > 0, "the refusal")
-    assert "out of order" in app.uploads.refused[-1]
+    settle(app, lambda: len(app.host.uploads.refused) > 0, "the refusal")
+    assert "out of order" in app.host.uploads.refused[-1]
     client.send({"type": "FileTransferStartUpload", "source_component_uuid": source,
                  "transfer_uuid": "t2", "filename": "b.xyz", "mime_type": "",
                  "size_bytes": 20, "part_count": 2})
     client.send({"type": "FileTransferPart", "source_component_uuid": source,
                  "transfer_uuid": "t2", "part_index": 0, "content": b"0 0 0\n"})
-    settle(app, lambda: app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1,
+    settle(app, lambda: app.host.uploads.active == 1 and len(list(app.host.uploads.folder.iterdir())) == 1,
            "the first part on disk")
     time.sleep(0.2)  # nothing more comes of it
-    assert app.uploads.active == 1 and len(list(app.uploads.folder.iterdir())) == 1
+    assert app.host.uploads.active == 1 and len(list(app.host.uploads.folder.iterdir())) == 1
     client.close()
-    wait_until(lambda: not app.uploads.active and not list(app.uploads.folder.iterdir()), 10,
+    wait_until(lambda: not app.host.uploads.active and not list(app.host.uploads.folder.iterdir()), 10,
                "the part removed")
-    assert app.uploads.active == 0 and list(app.uploads.folder.iterdir()) == []
-    assert app.shown.loaded.cloud is cloud
+    assert app.host.uploads.active == 0 and list(app.host.uploads.folder.iterdir()) == []
+    assert app.session.shown.loaded.cloud is cloud
 
 
 def test_a_hostile_file_name_is_shown_as_text(live):
     app, client, _ = live
     name = '<img src=x onerror="alert(1)">/../../etc/x **b** [a](javascript:1).xyz'
     client.upload("Upload file", name, xyz_text(2000))
-    settle(app, lambda: app.shown.loaded.n_total == 2000, "the uploaded cloud")
-    status = app.gui.status.content
+    settle(app, lambda: app.session.shown.loaded.n_total == 2000, "the uploaded cloud")
+    status = app.host.status.content
     assert "<img" not in status and "&lt;img" in status
     assert "\\*\\*b\\*\\*" in status and "\\[a\\]\\(javascript:1\\)" in status
-    assert "/" not in clean_name(name) and app.shown.loaded.cloud.source == clean_name(name)
+    assert "/" not in clean_name(name) and app.session.shown.loaded.cloud.source == clean_name(name)
 
 
 def test_file_content_never_reaches_the_browser(live):
     app, client, cloud = live
     secret = b"x y z\n1 2 hunter2-password\n3 4 5\n"
     client.upload("Upload file", "secret.xyz", secret)
-    settle(app, lambda: any("secret.xyz" in e for e in app.errors), "the error")
-    assert app.shown.loaded.cloud is cloud
-    assert "secret.xyz" in app.errors[-1]
-    assert "hunter2" not in app.errors[-1] and str(app.uploads.folder) not in app.errors[-1]
+    settle(app, lambda: any("secret.xyz" in e for e in app.host.errors), "the error")
+    assert app.session.shown.loaded.cloud is cloud
+    assert "secret.xyz" in app.host.errors[-1]
+    assert "hunter2" not in app.host.errors[-1] and str(app.host.uploads.folder) not in app.host.errors[-1]
     client.wait_for(lambda m: m.get("type") == "NotificationShowMessage"
                     and "secret.xyz" in m["props"]["body"], what="the notice")
     notes = [m["props"]["body"] for m in client.of_type("NotificationShowMessage")]
@@ -146,7 +146,7 @@ def test_upload_messages_go_to_the_uploader_only(live):
     for k in range(20):
         client.upload("Upload file", f"tool{k}.exe", b"0 0 0\n")
     client.upload("Upload file", "scan.xyz", xyz_text(2000), chunk=16 * 1024)
-    settle(app, lambda: app.shown.loaded.n_total == 2000, "the uploaded cloud")
+    settle(app, lambda: app.session.shown.loaded.n_total == 2000, "the uploaded cloud")
     # the uploader gets them (they may trail the server's idle)
     wait_until(lambda: len(client.of_type("FileTransferPartAck")) >= 21, 20, "the acks")
     assert len(client.of_type("FileTransferPartAck")) >= 21

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from plotly.io.json import to_json_plotly
 
-from rough_viewer.app import export_mode as em
-from rough_viewer.app.export_mode import ExportMode
-from rough_viewer.app.jobs import PickJob
-from rough_viewer.app.layout import assign
-from rough_viewer.app.profile_mode import ProfileMode
-from rough_viewer.app.state import ViewSettings, point_colours
+from rough_viewer.app.binding import assign
+from rough_viewer.app.features import export as em
+from rough_viewer.app.features.export import ExportFeature, panel_figures
+from rough_viewer.app.features.map import PickJob
+from rough_viewer.app.features.profile import ProfileFeature
+from rough_viewer.app.state import MapSettings, point_colours
 from rough_viewer.app.views import apply_view, open_view
 from rough_viewer.cli import main
 from rough_viewer.io import load_points
@@ -41,7 +41,7 @@ from tests.io.test_las_out import make_pf3
 PANELS = ("colour_bar", "histogram", "variogram", "summary")
 
 
-def _app(server, path: Path, settings: ViewSettings | None = None):
+def _app(server, path: Path, settings: MapSettings | None = None):
     from rough_viewer.app.server import build_app
 
     app = build_app(server, load_points(path), settings=settings, prefetch=False,
@@ -55,7 +55,7 @@ def _reopen(server, view_file: Path, **kw):
     """What ``serve --view`` does, in process."""
     opened = open_view(view_file, **kw)
     app = _app(server, opened.input_path, opened.settings)
-    apply_view(app, opened.view, source=str(view_file), notice=opened.notice)
+    apply_view(app.host, opened.view, source=str(view_file), notice=opened.notice)
     assert app.wait_idle(60)
     return app, opened
 
@@ -63,7 +63,7 @@ def _reopen(server, view_file: Path, **kw):
 def _click_point(app, local: np.ndarray) -> None:
     """A click straight down onto a displayed point (the scan is a near-flat surface)."""
     o = local + np.array([0.0, 0.0, 20.0])
-    app.submit(PickJob((float(o[0]), float(o[1]), float(o[2])), (0.0, 0.0, -1.0)))
+    app.submit(PickJob(app.map, (float(o[0]), float(o[1]), float(o[2])), (0.0, 0.0, -1.0)))
 
 
 def _figure_json(handle) -> str:
@@ -86,16 +86,16 @@ def test_view_saved_and_reopened_gives_the_same_picture(scan):
     app1 = _app(server1, scan)
     client = ProtocolClient(server1.get_port())
     try:
-        g = app1.gui  # a user's choices, through the controls
+        g = app1.map  # a user's choices, through the controls
         assign(g.grid, "0.5")
         assign(g.model, "OLS")
         assign(g.display, "binary")
         assign(g.threshold, 0.3)
         assign(g.colormap, "cividis")
-        pm = app1.mode(ProfileMode)
+        pm = app1.feature(ProfileFeature)
         assign(pm.on, True)
         assign(pm.wavelet, "sym4")
-        pts = app1.shown.loaded.display_points.astype(np.float64)
+        pts = app1.session.shown.loaded.display_points.astype(np.float64)
         a = pts[np.argmin(pts[:, 0] + pts[:, 1])]
         b = pts[np.argmax(pts[:, 0] + pts[:, 1])]
         _click_point(app1, 0.8 * a + 0.2 * b)
@@ -110,22 +110,23 @@ def test_view_saved_and_reopened_gives_the_same_picture(scan):
 
         app2, opened = _reopen(server2, view_file)
         assert opened.notice == "" and opened.loaded.input_check.status == "unchanged"
-        s1, s2 = app1.shown.settings, app2.shown.settings
+        s1, s2 = app1.session.shown.settings, app2.session.shown.settings
         assert s2 == s1
-        assert (s1.cell_size, s1.model, s1.mode, s1.threshold, s1.colormap) == \
+        assert (s1.cell_size, s1.model, s1.display, s1.threshold, s1.colormap) == \
             (0.5, "ols", "binary", 0.3, "cividis")
         # the same colours went to the scene, and they are the settings' colours
-        c1, c2 = np.asarray(app1.cloud_handle.colors), np.asarray(app2.cloud_handle.colors)
+        c1, c2 = np.asarray(app1.host.scene.cloud.colors), np.asarray(app2.host.scene.cloud.colors)
         np.testing.assert_array_equal(c2, c1)
-        loaded = app2.shown.loaded
+        loaded = app2.session.shown.loaded
         np.testing.assert_array_equal(
-            c2, point_colours(app2.shown.result, s1, loaded.display_index))
+            c2, point_colours(app2.session.shown.result, s1, loaded.display_index))
         assert len(np.unique(c2, axis=0)) <= 3  # binary: two colours and "no value"
         # the same panels
         for panel in PANELS:
-            assert _figure_json(getattr(app2.gui, panel)) == _figure_json(getattr(app1.gui, panel))
+            assert _figure_json(panel_figures(app2.host)[panel]) == \
+                _figure_json(panel_figures(app1.host)[panel])
         # the profile was extracted and de-noised again with its settings
-        pm2 = app2.mode(ProfileMode)
+        pm2 = app2.feature(ProfileFeature)
         assert len(pm2.items) == 1 and pm2.wavelet.value == "sym4"
         p1, p2 = pm.items[0], pm2.items[0]
         np.testing.assert_array_equal(p2.profile.heights, p1.profile.heights)
@@ -135,8 +136,7 @@ def test_view_saved_and_reopened_gives_the_same_picture(scan):
         np.testing.assert_allclose(server2.initial_camera.position, [0.0, -3.0, 1.0], atol=1e-6)
         np.testing.assert_allclose(server2.initial_camera.look_at, [0.0, 0.0, 0.0], atol=1e-6)
         # and the reopened app saves the same view again
-        again = app2.mode(ExportMode)
-        assert again.zones is None and app2.gui.colormap.value == "cividis"
+        assert app2.session.view.zones is None and app2.map.colormap.value == "cividis"
         app2.stop()
     finally:
         client.close()
@@ -165,16 +165,17 @@ def _saved_again(app, server) -> dict:
 
 
 def test_zones_restored_through_the_zones_mode(scan, server):
-    from rough_viewer.app.zones_mode import ZonesMode
+    from rough_viewer.app.features.zones import ZonesFeature
 
     view_file = save_view(scan.parent / "v.json", _view(scan))
     app, _ = _reopen(server, view_file)
     try:
-        zm = app.mode(ZonesMode)
-        assert zm.active and app.mode(ExportMode).zones is None
+        zm = app.feature(ZonesFeature)
+        # the zones tab took the view's zones: a saved view gets them from the tab
+        assert zm.active and zm.snapshot()["zones"] == zm.settings()
         z = zm.settings()
         assert (z.map, z.connectivity, z.min_cells) == ("hybrid", "face", 4)
-        assert app.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
+        assert app.session.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
         again = _saved_again(app, server)
         assert {k: again["zones"][k] for k in ("map", "connectivity", "min_cells")} == \
             {"map": "hybrid", "connectivity": "face", "min_cells": 4}
@@ -185,16 +186,16 @@ def test_zones_restored_through_the_zones_mode(scan, server):
 
 def test_zones_kept_as_data_without_a_zones_mode(scan, server, monkeypatch):
     from rough_viewer.app import server as server_module
-    from rough_viewer.app import zones_mode
+    from rough_viewer.app.features import zones as zones_mode
 
-    monkeypatch.setattr(server_module, "MODES", tuple(
-        m for m in server_module.MODES if m is not zones_mode.mount))
+    monkeypatch.setattr(server_module, "FEATURES", tuple(
+        m for m in server_module.FEATURES if m is not zones_mode.mount))
     view_file = save_view(scan.parent / "v.json", _view(scan))
     app, _ = _reopen(server, view_file)
     try:
-        assert app.mode(ExportMode).zones == _view(scan).zones
-        assert app.shown.settings.colormap == "magma"
-        assert app.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
+        assert app.session.view.zones == _view(scan).zones
+        assert app.session.shown.settings.colormap == "magma"
+        assert app.session.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
         again = _saved_again(app, server)
         assert again["zones"] == {"map": "hybrid", "connectivity": "face", "min_cells": 4,
                                   "selected": 2}
@@ -212,9 +213,8 @@ def test_moved_input_is_found_and_said(scan, server, tmp_path):
     try:
         assert opened.loaded.input_check.status == "moved"
         assert opened.input_path == (moved / "scan.las").resolve()
-        mode = app.mode(ExportMode)
-        assert mode.notice.visible and "input moved" in mode.notice_text
-        assert app.shown.settings.model == "hybrid"
+        assert app.host.note.visible and "input moved" in app.host.pinned
+        assert app.session.shown.settings.model == "hybrid"
     finally:
         app.stop()
 
@@ -225,7 +225,7 @@ def test_changed_input_is_said(scan, server):
     app, opened = _reopen(server, scan.parent / "v.json")
     try:
         assert opened.loaded.input_check.status == "changed"
-        assert "has changed" in app.mode(ExportMode).notice_text
+        assert "has changed" in app.host.pinned
     finally:
         app.stop()
 
@@ -298,17 +298,31 @@ def test_view_file_round_trip_keeps_the_layer(scan, tmp_path):
 
 
 def test_save_view_beside_the_input_only_when_allowed(scan, server):
+    import viser
+
+    from rough_viewer.app.server import build_app
+
     app = _app(server, scan)
     client = ProtocolClient(server.get_port())
     try:
-        mode = app.mode(ExportMode)
+        mode = app.feature(ExportFeature)
         assert not mode.save_view.visible
         client.wait_for(lambda m: m.get("props", {}).get("label") == em.L_SAVE_VIEW, what="it")
         client.press(em.L_SAVE_VIEW)  # a page that presses the hidden button anyway
         wait_until(lambda: "does not save views" in mode.status.content, 20, "the refusal")
         assert not list(scan.parent.glob("*.json"))
-        mode.enable_save_views()
+    finally:
+        client.close()
+        app.stop()
+    allowed = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # serve --save-views
+    app = build_app(allowed, load_points(scan), prefetch=False, presets=PAPER_PRESETS,
+                    data_dir=scan.parent, save_views=True)
+    client = ProtocolClient(allowed.get_port())
+    try:
+        assert app.wait_idle(60)
+        mode = app.feature(ExportFeature)
         assert mode.save_view.visible
+        client.wait_for(lambda m: m.get("props", {}).get("label") == em.L_SAVE_VIEW, what="it")
         for expected in ("scan.view.json", "scan.view-2.json"):  # never replaces one
             client.press(em.L_SAVE_VIEW)
             wait_until(lambda e=expected: (scan.parent / e).is_file(), 20, expected)
@@ -317,3 +331,4 @@ def test_save_view_beside_the_input_only_when_allowed(scan, server):
     finally:
         client.close()
         app.stop()
+        allowed.stop()

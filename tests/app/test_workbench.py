@@ -11,26 +11,29 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import scene
-from rough_viewer.app.board_mode import BACK_LABEL, BoardMode
-from rough_viewer.app.jobs import ViewJob
-from rough_viewer.app.profile_mode import ProfileMode
-from rough_viewer.app.server import build_app, on_scene_click
+from rough_viewer.app.features.file import FileFeature
+from rough_viewer.app.features.board import BACK_LABEL, BoardFeature
+from rough_viewer.app.features.map import RenderJob
+from rough_viewer.app.features.panels import PanelsFeature
+from rough_viewer.app.features.profile import ProfileFeature
+from rough_viewer.app.server import build_app
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.visual import colormaps
+from tests.app.protocol import pick
 from tests.helpers import face_cloud, write_las_with_colours
 
 # ----------------------------------------------------------------------------- colours
 
 
 def test_percentiles_log_absolute_and_typed_limits_in_mm(app):
-    g = app.gui
-    rng = app.shown.stats.colour_range
+    g = app.map
+    rng = app.session.shown.stats.colour_range
     lo_mm, hi_mm = g.range_lo.value, g.range_hi.value
     assert (lo_mm, hi_mm) == (float(f"{rng.lo * 1e3:.3g}"), float(f"{rng.hi * 1e3:.3g}"))
     # switching to absolute pins the range shown (in mm, stored in metres)
     g.stretch.value = "absolute"
     assert app.wait_idle(60)
-    st = app.shown.settings.stretch
+    st = app.session.shown.settings.stretch
     assert st.mode == "absolute" and st.log
     assert (st.lo, st.hi) == pytest.approx((lo_mm * 1e-3, hi_mm * 1e-3))
     assert "absolute" in g.colour_bar.figure.layout.xaxis.title.text
@@ -38,39 +41,39 @@ def test_percentiles_log_absolute_and_typed_limits_in_mm(app):
     g.range_hi.value = 3.0
     g.log.value = False
     assert app.wait_idle(60)
-    st = app.shown.settings.stretch
+    st = app.session.shown.settings.stretch
     assert (st.mode, st.log) == ("absolute", False) and st.hi == pytest.approx(0.003)
-    res = app.shown.result
-    theta = res.theta_odr[res.point_cell[app.shown.loaded.display_index]]
+    res = app.session.shown.result
+    theta = res.theta_odr[res.point_cell[app.session.shown.loaded.display_index]]
     t = np.clip((theta - st.lo) / (st.hi - st.lo), 0, 1)
     want = colormaps.lut("viridis")[np.round(np.nan_to_num(t) * 255).astype(int)]
     want[~np.isfinite(theta)] = colormaps.NEUTRAL_RGB
-    assert np.array_equal(app.cloud_handle.colors, want)
+    assert np.array_equal(app.host.scene.cloud.colors, want)
     assert f"absolute {lo_mm:g}–3 mm, linear" in g.colour_bar.figure.layout.xaxis.title.text
     # the pinned range stays on another grid size: one colour, one roughness
     g.grid.value = "0.32"
     assert app.wait_idle(60)
-    assert app.shown.stats.colour_range.hi == pytest.approx(0.003)
+    assert app.session.shown.stats.colour_range.hi == pytest.approx(0.003)
     # a log scale needs a lowest limit above 0: refused, the view stays
     g.range_lo.value = 0.0
     g.log.value = True
     assert app.wait_idle(60)
-    assert "above 0" in app.errors[-1] and app.shown.settings.stretch.hi == pytest.approx(0.003)
+    assert "above 0" in app.host.errors[-1] and app.session.shown.settings.stretch.hi == pytest.approx(0.003)
     # moving the percentiles goes back to a percentile stretch
     g.percentiles.value = (5.0, 95.0)
     assert app.wait_idle(60)
-    st = app.shown.settings.stretch
+    st = app.session.shown.settings.stretch
     assert (st.mode, st.lo, st.hi) == ("percentile", 5.0, 95.0)
     assert g.stretch.value == "percentile"
 
 
 def test_no_colour_covers_half_the_points_at_the_default_stretch(app):
-    colours = app.cloud_handle.colors
+    colours = app.host.scene.cloud.colors
     _, counts = np.unique(colours, axis=0, return_counts=True)
     assert counts.max() / len(colours) < 0.5
-    res = app.shown.result
-    v = res.theta_odr[res.point_cell[app.shown.loaded.display_index]]
-    robust = app.shown.stats.colour_range
+    res = app.session.shown.result
+    v = res.theta_odr[res.point_cell[app.session.shown.loaded.display_index]]
+    robust = app.session.shown.stats.colour_range
     assert colormaps.largest_colour_share(colormaps.positions(v, robust), band=8) < 0.5
 
 
@@ -82,21 +85,21 @@ def test_rgb_intensity_and_distance_layers(server, tmp_path):
     rgb8, intensity = write_las_with_colours(tmp_path / "colours.las", cloud)
     app = build_app(server, face_cloud(5_000), prefetch=False, data_dir=tmp_path)
     assert app.wait_idle(60)
-    assert app.gui.layer.options == ("roughness map", "distance to face plane")
+    assert app.map.layer.options == ("roughness map", "distance to face plane")
     app.load(path="colours.las")
-    assert app.wait_idle(60) and list(app.errors) == []
-    g = app.gui
+    assert app.wait_idle(60) and list(app.host.errors) == []
+    g = app.map
     assert g.layer.options == ("roughness map", "scan colours (RGB)", "intensity",
                                "distance to face plane")
-    idx = app.shown.loaded.display_index
+    idx = app.session.shown.loaded.display_index
     g.layer.value = "scan colours (RGB)"
     assert app.wait_idle(60)
-    assert app.shown.settings.layer == "rgb"
-    assert np.array_equal(app.cloud_handle.colors, rgb8[idx])  # 16-bit back to 8-bit exactly
+    assert app.session.shown.settings.layer == "rgb"
+    assert np.array_equal(app.host.scene.cloud.colors, rgb8[idx])  # 16-bit back to 8-bit exactly
     assert "no colour scale" in g.colour_bar.figure.layout.title.text
     g.layer.value = "intensity"
     assert app.wait_idle(60)
-    grey = app.cloud_handle.colors.astype(int)
+    grey = app.host.scene.cloud.colors.astype(int)
     assert np.all(grey[:, 0] == grey[:, 1])  # grey levels, brighter with intensity
     order = np.argsort(intensity[idx])
     assert grey[order[-50:], 0].mean() > grey[order[:50], 0].mean() + 150
@@ -107,7 +110,7 @@ def test_rgb_intensity_and_distance_layers(server, tmp_path):
     centre = xyz.mean(axis=0)
     normal = np.linalg.svd(xyz - centre, full_matrices=False)[2][-1]
     d = (xyz[idx] - centre) @ normal
-    c = app.cloud_handle.colors.astype(int)
+    c = app.host.scene.cloud.colors.astype(int)
     warm = c[:, 0] > c[:, 2]
     far = np.abs(d) > np.percentile(np.abs(d), 60)
     agree = np.mean((warm == (d * np.sign(normal[np.argmax(np.abs(normal))]) > 0))[far])
@@ -115,14 +118,14 @@ def test_rgb_intensity_and_distance_layers(server, tmp_path):
     assert "distance (mm)" in g.colour_bar.figure.layout.xaxis.title.text
     # roughness again; a cloud without colours drops the RGB layer
     g.layer.value = "roughness map"
-    assert app.wait_idle(60) and app.shown.settings.layer == "roughness"
+    assert app.wait_idle(60) and app.session.shown.settings.layer == "roughness"
     app.stop()
 
 
 def test_a_layer_the_cloud_lacks_is_refused(app):
-    app.submit(ViewJob(app.shown.settings.with_(layer="rgb")))
+    app.submit(RenderJob(app.map, app.session.shown.settings.with_(layer="rgb")))
     assert app.wait_idle(60)
-    assert "has no RGB colours" in app.errors[-1] and app.shown.settings.layer == "roughness"
+    assert "has no RGB colours" in app.host.errors[-1] and app.session.shown.settings.layer == "roughness"
 
 
 # ----------------------------------------------------------------------------- units
@@ -133,30 +136,30 @@ def test_a_cloud_in_millimetres_is_shown_in_millimetres(server, tmp_path):
     np.save(tmp_path / "joint.npy", cloud.xyz() * 1000.0)  # the same face, in mm
     app = build_app(server, face_cloud(5_000), prefetch=False, data_dir=tmp_path)
     assert app.wait_idle(60)
-    g = app.gui
-    g.units.value = "mm"
+    g = app.map
+    app.feature(FileFeature).units.value = "mm"
     app.load(path="joint.npy")
-    assert app.wait_idle(60) and list(app.errors) == []
-    loaded = app.shown.loaded
+    assert app.wait_idle(60) and list(app.host.errors) == []
+    loaded = app.session.shown.loaded
     assert loaded.cloud.source_unit == "mm"
     metres = loaded.presets
     assert g.grid.label == "Grid size (mm)" and g.grid_free.label == "Free grid size (mm)"
     assert g.grid.options == (*(f"{1000 * m:g}" for m in metres), "free")
     assert g.grid.value == f"{1000 * metres[-1]:g}"
-    assert f"grid {1000 * metres[-1]:g} mm" in g.status.content
+    assert f"grid {1000 * metres[-1]:g} mm" in app.host.status.content
     assert "θ (mm)" in g.colour_bar.figure.layout.xaxis.title.text
     assert g.range_lo.label == "Lowest θ (mm)"
     g.grid_free.value = 150.0  # typed in mm
     assert app.wait_idle(60)
-    assert app.shown.settings.cell_size == pytest.approx(0.15)
-    assert "grid 150 mm" in g.status.content
-    info = on_scene_click(app, loaded.display_points[10].astype(float) + [0, -5, 0], (0, 1, 0))
+    assert app.session.shown.settings.cell_size == pytest.approx(0.15)
+    assert "grid 150 mm" in app.host.status.content
+    info = pick(app, loaded.display_points[10].astype(float) + [0, -5, 0], (0, 1, 0))
     assert info is not None and "(150 mm)" in g.pick.content
     p = np.asarray(info.point) * 1000
     assert f"point ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) mm" in g.pick.content
-    xs = list(app.gui.scales.figure.data[0].x)
+    xs = list(app.map.scales.figure.data[0].x)
     assert xs == pytest.approx(sorted(1000 * m for m in metres))
-    assert app.gui.scales.figure.layout.xaxis.title.text == "grid size (mm)"
+    assert app.map.scales.figure.layout.xaxis.title.text == "grid size (mm)"
     app.stop()
 
 
@@ -164,12 +167,12 @@ def test_a_cloud_in_feet_shows_roughness_in_feet(server):
     cloud = replace(face_cloud(8_000), source_unit="ft")
     app = build_app(server, cloud, prefetch=False)
     assert app.wait_idle(60)
-    g = app.gui
+    g = app.map
     assert g.grid.label == "Grid size (ft)" and g.range_hi.label == "Highest θ (ft)"
     assert "θ (ft)" in g.colour_bar.figure.layout.xaxis.title.text
     shown = [float(o) for o in g.grid.options[:-1]]
-    assert shown == pytest.approx([m / 0.3048 for m in app.shown.loaded.presets])
-    assert f"grid {shown[-1]:g} ft" in g.status.content
+    assert shown == pytest.approx([m / 0.3048 for m in app.session.shown.loaded.presets])
+    assert f"grid {shown[-1]:g} ft" in app.host.status.content
     app.stop()
 
 
@@ -179,17 +182,17 @@ def test_a_cloud_in_feet_shows_roughness_in_feet(server):
 def test_a_grid_where_most_cells_have_no_value_gets_a_notice(server):
     app = build_app(server, face_cloud(3_000), prefetch=False)
     assert app.wait_idle(60)
-    assert not app.gui.notice.visible
-    app.gui.grid_free.value = 0.03
+    assert not app.host.notice.visible
+    app.map.grid_free.value = 0.03
     assert app.wait_idle(60)
-    rep = app.shown.result.cell_report("odr")
+    rep = app.session.shown.result.cell_report("odr")
     assert rep["with_value"] / rep["occupied"] < 0.5
-    text = app.gui.notice.content
-    assert app.gui.notice.visible and "Most cells have no value" in text
+    text = app.host.notice.content
+    assert app.host.notice.visible and "Most cells have no value" in text
     assert f"only {rep['with_value']:,} of {rep['occupied']:,}" in text
-    assert f"try grid {app.gui.grid.options[-2]} m" in text  # the finest preset above 0.03
-    app.gui.grid.value = app.gui.grid.options[0]
-    assert app.wait_idle(60) and not app.gui.notice.visible
+    assert f"try grid {app.map.grid.options[-2]} m" in text  # the finest preset above 0.03
+    app.map.grid.value = app.map.grid.options[0]
+    assert app.wait_idle(60) and not app.host.notice.visible
     app.stop()
 
 
@@ -198,8 +201,8 @@ def test_reader_warnings_are_notices_escaped(server):
     cloud = replace(face_cloud(3_000), warnings=(hostile,))
     app = build_app(server, cloud, prefetch=False)
     assert app.wait_idle(60)
-    text = app.gui.notice.content
-    assert app.gui.notice.visible and "**Warning:**" in text
+    text = app.host.notice.content
+    assert app.host.notice.visible and "**Warning:**" in text
     assert "<img" not in text and "&lt;img" in text and "\\[a\\]\\(javascript" in text
     app.stop()
 
@@ -208,42 +211,42 @@ def test_reader_warnings_are_notices_escaped(server):
 
 
 def test_the_board_lesson_keeps_the_scan_and_has_its_own_colour_range(app):
-    scan = app.shown.loaded
-    g = app.gui
+    scan = app.session.shown.loaded
+    g = app.map
     g.model.value = "OLS"
     g.range_lo.value = 0.5  # typed limits pin the colours (absolute, log)
     g.range_hi.value = 2.0
     assert app.wait_idle(60)
     pinned = colormaps.Stretch.absolute_mm(0.5, 2.0, log=True)
-    assert app.shown.settings.stretch == pinned
-    board = app.mode(BoardMode)
+    assert app.session.shown.settings.stretch == pinned
+    board = app.feature(BoardFeature)
     assert not board.back.visible
     board.scan.value = True
     assert app.wait_idle(120)
-    assert app.shown.loaded.cloud is board.lesson.scan.cloud
+    assert app.session.shown.loaded.cloud is board.lesson.scan.cloud
     # its own colour range: the default stretch on its own cells, its own grid
-    assert app.shown.settings.stretch == colormaps.ROUGHNESS_STRETCH
-    assert app.shown.settings.model == "ols"
-    assert app.shown.settings.cell_size == app.shown.loaded.default_cell_size
-    assert app.stashed is not None and app.stashed.loaded is scan
+    assert app.session.shown.settings.stretch == colormaps.ROUGHNESS_STRETCH
+    assert app.session.shown.settings.model == "ols"
+    assert app.session.shown.settings.cell_size == app.session.shown.loaded.default_cell_size
+    assert app.session.stashed is not None and app.session.stashed.loaded is scan
     assert board.back.visible and board.back.label.startswith(BACK_LABEL)
     board.alpha.value = 40.0
     board.scan.value = True  # another board: the scan stays put aside
-    assert app.wait_idle(120) and app.stashed.loaded is scan
+    assert app.wait_idle(120) and app.session.stashed.loaded is scan
     board.back.value = True
     assert app.wait_idle(60)
-    assert app.shown.loaded is scan and app.stashed is None and not board.back.visible
-    assert app.shown.settings.stretch == pinned and app.shown.settings.model == "ols"
-    assert app.timings[-1]["cached"]  # its grids were kept
-    assert app.gui.stretch.value == "absolute" and app.gui.range_hi.value == 2.0
-    assert app.gui.grid.options[:-1] == tuple(f"{g:g}" for g in scan.presets)
+    assert app.session.shown.loaded is scan and app.session.stashed is None and not board.back.visible
+    assert app.session.shown.settings.stretch == pinned and app.session.shown.settings.model == "ols"
+    assert app.map.timings[-1]["cached"]  # its grids were kept
+    assert app.map.stretch.value == "absolute" and app.map.range_hi.value == 2.0
+    assert app.map.grid.options[:-1] == tuple(f"{g:g}" for g in scan.presets)
 
 
 # ----------------------------------------------------------------------------- camera
 
 
 def test_camera_presets_look_along_the_face_normal_down_and_along_the_face(app):
-    loaded = app.shown.loaded  # a face looking along -y, 4 m along x
+    loaded = app.session.shown.loaded  # a face looking along -y, 4 m along x
     pts = loaded.display_points.astype(float)
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     extent = np.ptp(pts, axis=0).max()
@@ -258,7 +261,7 @@ def test_camera_presets_look_along_the_face_normal_down_and_along_the_face(app):
         shift = target - centre
         assert np.linalg.norm(shift) == pytest.approx(scene.PANEL_SHIFT * extent)
         assert abs(np.dot(shift, view)) < 1e-9 and abs(np.dot(shift, up)) < 1e-9
-    app.gui.camera.value = "top"
+    app.map.camera.value = "top"
     assert app.wait_idle(30)
     assert [r.kind for r in app.worker.records][-1] == "CameraJob"
 
@@ -267,14 +270,14 @@ def test_camera_presets_look_along_the_face_normal_down_and_along_the_face(app):
 
 
 def test_profile_plot_fits_the_relief_by_default_and_takes_an_exaggeration(app):
-    m = app.mode(ProfileMode)
+    m = app.feature(ProfileFeature)
     assert m.exaggeration.value == "auto"
     m.on.value = True
-    pts = app.shown.loaded.display_points
+    pts = app.session.shown.loaded.display_points
     i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
     j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
     for k in (i, j):
-        on_scene_click(app, pts[k].astype(float) + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+        pick(app, pts[k].astype(float) + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
     assert len(m.items) == 1
     a = m.items[0]
     fig = m.plot.figure
@@ -298,7 +301,7 @@ def test_profile_plot_fits_the_relief_by_default_and_takes_an_exaggeration(app):
 
 
 def test_a_newer_view_stops_the_semivariogram_inside_a_map(server, monkeypatch):
-    import rough_viewer.app.panels as panels
+    import rough_viewer.app.features.panels as panels
     import rough_viewer.grid.variogram as variogram
 
     app = build_app(server, face_cloud(20_000, seed=6), prefetch=False)
@@ -313,7 +316,7 @@ def test_a_newer_view_stops_the_semivariogram_inside_a_map(server, monkeypatch):
         def watched(done: int, total: int) -> None:
             calls.append((done, total))
             if len(runs) == 1 and len(calls) == 2:  # a newer view arrives mid-map
-                app.gui.model.value = "OLS"
+                app.map.model.value = "OLS"
             assert progress is not None
             progress(done, total)  # the job's: raises once the job is cancelled
 
@@ -322,41 +325,41 @@ def test_a_newer_view_stops_the_semivariogram_inside_a_map(server, monkeypatch):
 
     monkeypatch.setattr(panels, "semivariogram", spy)
     monkeypatch.setattr(variogram, "PAIR_CHUNK_BYTES", 1 << 20)
-    app.gui.grid.value = app.gui.grid.options[-3]  # the second finest preset
+    app.map.grid.value = app.map.grid.options[-3]  # the second finest preset
     assert app.wait_idle(120)
     records = [r for r in app.worker.records if r.kind == "PanelsJob"]
     assert records[-2].outcome == "cancelled"
     first = runs[0]
     assert len(first) == 2 and first[-1][0] < first[-1][1]  # stopped inside the first map
-    assert records[-1].outcome == "done" and app.shown.settings.model == "ols"
+    assert records[-1].outcome == "done" and app.session.shown.settings.model == "ols"
     assert all(c[-1][0] == c[-1][1] for c in runs[1:])  # the newer panels ran in full
     app.stop()
 
 
 def test_the_bias_tab_defaults_to_the_papers_residual(app):
-    from rough_viewer.app.bias_panel import BiasPanel
+    from rough_viewer.app.features.bias import BiasPanel
     from rough_viewer.vocabulary import BIAS_RESIDUAL
 
-    assert app.mode(BiasPanel).residual.value == BIAS_RESIDUAL == "signed"
+    assert app.feature(BiasPanel).residual.value == BIAS_RESIDUAL == "signed"
 
 
 def test_click_timings_and_values_on_a_free_grid(app, cloud):
-    app.gui.grid_free.value = 0.1
+    app.map.grid_free.value = 0.1
     assert app.wait_idle(60)
-    loaded = app.shown.loaded
-    info = on_scene_click(app, loaded.display_points[5].astype(float) + [0, -5, 0], (0, 1, 0))
+    loaded = app.session.shown.loaded
+    info = pick(app, loaded.display_points[5].astype(float) + [0, -5, 0], (0, 1, 0))
     assert info is not None
     # the cell report is of the grid shown; the plot still has one value per preset
     assert info.theta["odr"] == pytest.approx(grid_roughness(cloud, 0.1).theta_odr[info.cell])
-    assert list(app.pick_scales.cell_sizes) == sorted(loaded.presets)
+    assert list(app.session.pick_scales.cell_sizes) == sorted(loaded.presets)
 
 
 def test_a_threshold_change_redraws_only_the_face_trend(app):
-    before = app.gui.variogram.figure
-    app.gui.threshold.value = 0.2
+    before = app.feature(PanelsFeature).variogram.figure
+    app.map.threshold.value = 0.2
     assert app.wait_idle(60)
     last = [r for r in app.worker.records if r.kind == "PanelsJob"][-1]
     names = [n for n, _ in last.stages]
     assert "grid sizes" in names and "variogram" not in names and "distribution" not in names
-    assert "binary cells ≥ 0.2" in app.gui.face_scales.figure.layout.yaxis2.title.text
-    assert app.gui.variogram.figure is before
+    assert "binary cells ≥ 0.2" in app.feature(PanelsFeature).face_scales.figure.layout.yaxis2.title.text
+    assert app.feature(PanelsFeature).variogram.figure is before

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rough_viewer.app.features.file import FileFeature
 from rough_viewer.visual import colormaps
 from tests.app import browser as b
 from tests.helpers import face_cloud, write_las_with_colours
@@ -76,11 +77,11 @@ def test_every_panel_is_wide_and_its_text_whole(demo):
 
 def test_no_colour_covers_half_of_the_drawn_demo_at_the_default_stretch(demo):
     app, page = demo
-    assert app.shown.settings.stretch == colormaps.ROUGHNESS_STRETCH
+    assert app.session.shown.settings.stretch == colormaps.ROUGHNESS_STRETCH
     page.get_by_text("percentiles 2–98, log").first.wait_for()  # the colour bar says which
     rgba = b.canvas_rgba(page)
     share, n = b.drawn_colour_share(rgba, colormaps.lut("viridis"))
-    sent = app.cloud_handle.colors
+    sent = app.host.scene.cloud.colors
     _, counts = np.unique(sent, axis=0, return_counts=True)
     print(f"\nlargest colour: {share:.3f} of {n:,} drawn cloud pixels, "
           f"{counts.max() / len(sent):.3f} of the {len(sent):,} colours sent")
@@ -97,15 +98,15 @@ def test_a_click_shows_the_point_across_the_preset_grids(demo):
     ys, xs = np.nonzero(mask)
     y, x = int(np.median(ys)), int(np.median(xs))
     assert mask[y, x]
-    before = len(app.pick_timings)
+    before = len(app.map.pick_timings)
     page.mouse.click(x, y)
-    b.wait_until(lambda: len(app.pick_timings) > before, 60, "a click report")
+    b.wait_until(lambda: len(app.map.pick_timings) > before, 60, "a click report")
     # the point's own figure ("this point's cells"), not the placeholder before it
     # ("a clicked point's cells"), which is on the page all along
     plot = page.locator(".js-plotly-plot",
                         has=page.locator(".gtitle", has_text="this point's cells")).first
     plot.wait_for()
-    presets = app.shown.loaded.presets
+    presets = app.session.shown.loaded.presets
     traces = plot.locator(".scatterlayer .trace")
     b.wait_until(lambda: traces.count() == 3, 30, "the three traces")  # ODR, OLS, hybrid
     for k in range(3):
@@ -114,7 +115,7 @@ def test_a_click_shows_the_point_across_the_preset_grids(demo):
     assert fb.problems(plot.evaluate(fb.MEASURE_JS)) == []
     ticks = plot.locator(".xtick text").evaluate_all("els => els.map(e => e.textContent)")
     assert ticks == [f"{g:g}" for g in sorted(presets)]
-    page.get_by_text(f"Cell {app.last_pick.ijk}").first.wait_for()
+    page.get_by_text(f"Cell {app.session.last_pick.ijk}").first.wait_for()
 
     def marker_drawn(img):  # the marker's black cross on its light label, over the points
         win = img[max(0, y - 20):y + 20, max(0, x - 20):x + 20]
@@ -132,13 +133,13 @@ def test_the_rgb_layer_of_a_file_with_colours(demo):
     box = b.text_input(page, "File path")
     box.fill("colours.las")
     box.press("Enter")
-    b.wait_until(lambda: app.gui.path.value == "colours.las", 20, "the typed path")
+    b.wait_until(lambda: app.feature(FileFeature).path.value == "colours.las", 20, "the typed path")
     page.get_by_role("button", name="Load file", exact=True).click()
-    b.wait_until(lambda: app.shown.loaded.n_total == 60_000 and not app.worker.busy, 120,
+    b.wait_until(lambda: app.session.shown.loaded.n_total == 60_000 and not app.worker.busy, 120,
                  "the LAS file")
     page.get_by_role("tab", name="Map").click()
     b.choose(page, "Colour by", "scan colours (RGB)")
-    b.wait_until(lambda: app.shown.settings.layer == "rgb" and not app.worker.busy, 30, "RGB")
+    b.wait_until(lambda: app.session.shown.settings.layer == "rgb" and not app.worker.busy, 30, "RGB")
 
     def red_follows_x(rgba):
         on = rgba[..., 3] > 250

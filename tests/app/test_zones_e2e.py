@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from rough_viewer.app.state import ViewSettings
-from rough_viewer.app.zones_mode import HIGHLIGHT_RGB, ZonesMode
+from rough_viewer.app.features.zones import HIGHLIGHT_RGB, ZonesFeature
+from rough_viewer.app.state import MapSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import hex_to_rgb
@@ -29,8 +29,8 @@ def live(chromium):
     pts, _ = banded_face(90.0, 180.0, BANDS, rough=0.01, n=100_000, seed=3)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = build_app(server, PointCloud.from_xyz(pts, source="banded face"), prefetch=False,
-                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
-    app.gui.threshold.value = 0.2
+                    presets=PAPER_PRESETS, settings=MapSettings(cell_size=0.25))
+    app.map.threshold.value = 0.2
     assert app.wait_idle(60)
     with b.app_page(chromium, app) as page:
         yield app, page
@@ -42,7 +42,7 @@ def near(img: np.ndarray, rgb, tol: int = 40) -> np.ndarray:
 
 def test_zones_render_and_a_click_selects_one(live):
     app, page = live
-    m = app.mode(ZonesMode)
+    m = app.feature(ZonesFeature)
     page.get_by_role("tab", name="Zones").click()
     b.control(page, "Show zones").click()
     b.wait_until(lambda: m.zones is not None and not app.worker.busy, 30, "zones on the server")

@@ -8,22 +8,22 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import hooks
-from rough_viewer.app.gate import open_server
-from rough_viewer.app.server import build_app, on_scene_click
-from rough_viewer.app.state import ViewSettings
-from rough_viewer.app.zones_mode import (
+from rough_viewer.app.features.zones import (
     HIGHLIGHT_RGB,
     NO_ZONE,
     NO_ZONE_RGB,
-    ZonesMode,
+    ZonesFeature,
     zone_option,
 )
+from rough_viewer.app.gate import open_server
+from rough_viewer.app.server import build_app
+from rough_viewer.app.state import MapSettings
 from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.io import PointCloud
 from rough_viewer.report.view import ZoneSettings
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import InputError, hex_to_rgb
-from tests.app.protocol import join, settle
+from tests.app.protocol import join, pick, settle
 from tests.helpers import PAPER_PRESETS, banded_face
 
 #: Three rough bands (1 cm noise on a 1 mm face): along strike, at 60 and -30 degrees.
@@ -41,10 +41,10 @@ def banded():
 @pytest.fixture
 def zapp(server, banded):
     app = build_app(server, banded[0], prefetch=False, presets=PAPER_PRESETS,
-                    settings=ViewSettings(cell_size=0.25))
+                    settings=MapSettings(cell_size=0.25))
     assert app.wait_idle(60)
-    app.gui.threshold.value = 0.2
-    m = app.mode(ZonesMode)
+    app.map.threshold.value = 0.2
+    m = app.feature(ZonesFeature)
     m.on.value = True
     assert app.wait_idle(60)
     yield app, m
@@ -53,19 +53,19 @@ def zapp(server, banded):
 
 def core_labels(app, threshold, connectivity="vertex", min_cells=3, map_name="odr"):
     """Zone ids of every cell straight from the core, on the shown grid result."""
-    return ZoneLabeller.build(app.shown.result, map_name).label(
+    return ZoneLabeller.build(app.session.shown.result, map_name).label(
         threshold, connectivity=connectivity, min_cells=min_cells)
 
 
 def shown_point_labels(app, labels):
-    loaded = app.shown.loaded
-    return labels[app.shown.result.point_cell[loaded.display_index]]
+    loaded = app.session.shown.loaded
+    return labels[app.session.shown.result.point_cell[loaded.display_index]]
 
 
 def click(app, display_row):
     """A scene click on displayed point ``display_row`` (the face looks along -y)."""
-    target = app.shown.loaded.display_points[display_row].astype(float)
-    return on_scene_click(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+    target = app.session.shown.loaded.display_points[display_row].astype(float)
+    return pick(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
 
 
 def test_planted_bands_become_three_zones_in_their_colours(zapp, banded):
@@ -76,24 +76,24 @@ def test_planted_bands_become_three_zones_in_their_colours(zapp, banded):
     want = core_labels(app, 0.2)
     assert np.array_equal(lab.labels, want) and lab.n_zones == 3
     # each zone holds (mostly) the points of one planted band, the longest first
-    point_zone = want[app.shown.result.point_cell]
+    point_zone = want[app.session.shown.result.point_cell]
     held = [int(np.bincount(band[point_zone == k] + 1).argmax()) - 1 for k in (1, 2, 3)]
     assert sorted(held) == [0, 1, 2] and held[0] == 0
     # the scene: the zone cloud replaces the map's cloud; each shown point in its zone's
     # colour, light grey in no zone (every cell of this face has a value)
-    assert m.cloud_node is not None and m.cloud_node.visible and not app.cloud_handle.visible
-    assert not app.gui.colour_bar.visible  # the points show zones: no roughness colour bar
+    assert m.cloud_node is not None and m.cloud_node.visible and not app.host.scene.cloud.visible
+    assert not app.map.colour_bar.visible  # the points show zones: no roughness colour bar
     per_point = shown_point_labels(app, want)
     palette = np.array([hex_to_rgb(c) for c in colormaps.ZONE_PALETTE])
     expect = np.where(per_point[:, None] > 0, palette[np.maximum(per_point, 1) - 1],
                       np.asarray(NO_ZONE_RGB))
     assert np.array_equal(m.cloud_node.colors, expect)
-    assert np.array_equal(m.cloud_node.points, app.shown.loaded.display_points)
-    assert "**3 zones**" in m.status.content and list(app.errors) == []
+    assert np.array_equal(m.cloud_node.points, app.session.shown.loaded.display_points)
+    assert "**3 zones**" in m.status.content and list(app.host.errors) == []
     m.on.value = False  # back to the map
     assert app.wait_idle(60)
-    assert app.cloud_handle.visible and not m.cloud_node.visible
-    assert app.gui.colour_bar.visible
+    assert app.host.scene.cloud.visible and not m.cloud_node.visible
+    assert app.map.colour_bar.visible
 
 
 def test_table_and_list_are_sorted_largest_first(zapp):
@@ -110,7 +110,7 @@ def test_table_and_list_are_sorted_largest_first(zapp):
     assert m.selected.options == (NO_ZONE, *(zone_option(k, int(cells[k - 1])) for k in (1, 2, 3)))
     # the stereonet shows every cell's pole, the zones' on top
     names = [t.name or "" for t in m.stereonet.figure.data]
-    n_poles = int(np.all(np.isfinite(app.shown.result.normal), axis=1).sum())
+    n_poles = int(np.all(np.isfinite(app.session.shown.result.normal), axis=1).sum())
     assert any(f"({n_poles:,})" in n for n in names)
     assert sum(n.startswith("zone ") for n in names) == 3
 
@@ -121,7 +121,7 @@ def test_selecting_a_zone_highlights_exactly_its_points(zapp):
     m.selected.value = m.selected.options[2]  # zone 2
     assert app.wait_idle(60)
     per_point = shown_point_labels(app, labels)
-    want = app.shown.loaded.display_points[per_point == 2]
+    want = app.session.shown.loaded.display_points[per_point == 2]
     node = m.selected_nodes[0]
     assert want.shape[0] > 100 and np.array_equal(node.points, want)
     assert np.all(node.colors == np.asarray(HIGHLIGHT_RGB))
@@ -133,7 +133,7 @@ def test_selecting_a_zone_highlights_exactly_its_points(zapp):
     fills = m.table.figure.data[0].cells.fill.color[1]
     assert [f == "#fff3b0" for f in fills] == [False, True, False]
     cells2 = np.flatnonzero(labels == 2)
-    poles2 = int(np.all(np.isfinite(app.shown.result.normal[cells2]), axis=1).sum())
+    poles2 = int(np.all(np.isfinite(app.session.shown.result.normal[cells2]), axis=1).sum())
     names = [t.name or "" for t in m.stereonet.figure.data]
     assert f"zone 2 ({poles2:,})" in names and not any(n.startswith("zone 1") for n in names)
     # "none" clears it
@@ -152,7 +152,7 @@ def test_a_click_on_the_rock_selects_the_zone_under_it(zapp):
     assert m.labelling.zone_at(m.anchor) == 3
     assert m.selected.value == m.selected.options[3]
     assert np.array_equal(m.selected_nodes[0].points,
-                          app.shown.loaded.display_points[per_point == 3])
+                          app.session.shown.loaded.display_points[per_point == 3])
     assert any((t.name or "").startswith("zone 3") for t in m.stereonet.figure.data)
     # a point in no zone: no selection
     click(app, int(np.flatnonzero(per_point == 0)[0]))
@@ -170,7 +170,7 @@ def test_threshold_changes_relabel_and_keep_the_selection(zapp):
     assert app.wait_idle(60)
     anchor_zone_cells = np.flatnonzero(m.labelling.labels == 1)
     n_before = len(m.timings)
-    app.gui.threshold.value = 0.5  # the Map tab's slider
+    app.map.threshold.value = 0.5  # the Map tab's slider
     assert app.wait_idle(60)
     lab = m.labelling
     assert lab.params.threshold == 0.5 and m.threshold.value == 0.5
@@ -183,11 +183,11 @@ def test_threshold_changes_relabel_and_keep_the_selection(zapp):
     # the tab's twin slider moves the Map tab's
     m.threshold.value = 0.3
     assert app.wait_idle(60)
-    assert app.gui.threshold.value == 0.3 and app.shown.settings.threshold == 0.3
+    assert app.map.threshold.value == 0.3 and app.session.shown.settings.threshold == 0.3
     assert np.array_equal(m.labelling.labels, core_labels(app, 0.3))
     # the model and the grid are followed too
-    app.gui.model.value = "OLS"
-    app.gui.grid.value = "0.5"
+    app.map.model.value = "OLS"
+    app.map.grid.value = "0.5"
     assert app.wait_idle(60)
     lab = m.labelling
     assert lab.params.map_name == "ols" and lab.result.grid.cell_size == 0.5
@@ -209,7 +209,7 @@ def test_connectivity_and_minimum_size(zapp):
     app, m = zapp
     app.load(cloud=patches_cloud())
     assert app.wait_idle(60)
-    app.gui.grid_free.value = 0.25  # the grid the patches were laid out on (a new cloud
+    app.map.grid_free.value = 0.25  # the grid the patches were laid out on (a new cloud
     assert app.wait_idle(60)        # opens at its own default grid)
     counts = {}
     for label, conn in (("face (6)", "face"), ("edge (18)", "edge"), ("vertex (26)", "vertex")):
@@ -233,7 +233,7 @@ def test_saved_view_settings_round_trip(zapp):
     app, m = zapp
     m.apply(ZoneSettings(map="hybrid", connectivity="edge", min_cells=4, selected=2))
     assert app.wait_idle(60)
-    assert app.shown.settings.model == "hybrid" and app.gui.model.value == "hybrid"
+    assert app.session.shown.settings.model == "hybrid" and app.map.model.value == "hybrid"
     lab = m.labelling
     assert lab.params.map_name == "hybrid" and lab.params.connectivity == "edge"
     assert np.array_equal(lab.labels, core_labels(app, 0.2, "edge", 4, "hybrid"))
@@ -242,7 +242,7 @@ def test_saved_view_settings_round_trip(zapp):
                                         selected=2)
     m.apply(None)
     assert app.wait_idle(60)
-    assert not m.active and app.cloud_handle.visible and not m.cloud_node.visible
+    assert not m.active and app.host.scene.cloud.visible and not m.cloud_node.visible
     with pytest.raises(InputError):
         m.apply(ZoneSettings(min_cells=0))
 
@@ -253,19 +253,19 @@ def test_another_cloud_gets_its_own_zone_cloud(zapp, banded):
     pts, _ = banded_face(90.0, 180.0, BANDS[:1], rough=0.01, n=40_000, seed=9)
     app.load(cloud=PointCloud.from_xyz(pts, source="one band"))
     assert app.wait_idle(60)
-    assert m.cloud_node is not first and m.labelling.loaded is app.shown.loaded
-    assert np.array_equal(m.cloud_node.points, app.shown.loaded.display_points)
-    assert m.labelling.n_zones == 1 and not app.cloud_handle.visible
+    assert m.cloud_node is not first and m.labelling.loaded is app.session.shown.loaded
+    assert np.array_equal(m.cloud_node.points, app.session.shown.loaded.display_points)
+    assert m.labelling.n_zones == 1 and not app.host.scene.cloud.visible
 
 
 @pytest.fixture
 def hostile(banded):
     server, _gate = open_server("127.0.0.1", 0, token="tok", log=False)
     app = build_app(server, banded[0], prefetch=False, presets=PAPER_PRESETS,
-                    settings=ViewSettings(cell_size=0.25))
+                    settings=MapSettings(cell_size=0.25))
     assert app.wait_idle(60)
-    m = app.mode(ZonesMode)
-    app.gui.threshold.value = 0.2
+    m = app.feature(ZonesFeature)
+    app.map.threshold.value = 0.2
     m.on.value = True
     assert app.wait_idle(60)
     client = join(server, "/t/tok", origin=f"http://127.0.0.1:{server.get_port()}")
@@ -291,56 +291,56 @@ BAD = [
 def test_values_from_a_browser_are_checked(hostile):
     app, m, client = hostile
     before = (m.labelling.labels.copy(), m.min_cells.value, m.connectivity.value,
-              m.selected.value, m.threshold.value, app.shown.settings)
+              m.selected.value, m.threshold.value, app.session.shown.settings)
     for label, value, _ in BAD:
         client.set_value(label, value)
-    settle(app, lambda: len(app.controls.rejected) >= len(BAD), "every refusal")
+    settle(app, lambda: len(app.host.controls.rejected) >= len(BAD), "every refusal")
     after = (m.min_cells.value, m.connectivity.value, m.selected.value, m.threshold.value,
-             app.shown.settings)
+             app.session.shown.settings)
     assert after == before[1:] and np.array_equal(m.labelling.labels, before[0])
-    got = [(r.label, r.reason) for r in app.controls.rejected]
+    got = [(r.label, r.reason) for r in app.host.controls.rejected]
     for label, _, reason in BAD:
         assert any(lab == label and reason in why for lab, why in got), (label, reason)
     handles = hooks.input_handles(app.server)
-    assert all(app.controls.allowed(h) for h in (m.on, m.threshold, m.connectivity,
+    assert all(app.host.controls.allowed(h) for h in (m.on, m.threshold, m.connectivity,
                                                  m.min_cells, m.selected))
     assert len(handles) > 30
     # good values from the browser work: the twin threshold, a zone from the list, a click
     client.set_value("Zone threshold", 0.3)
-    settle(app, lambda: app.shown.settings.threshold == 0.3
+    settle(app, lambda: app.session.shown.settings.threshold == 0.3
            and m.labelling.params.threshold == 0.3, "the twin threshold")
     client.set_value("Selected zone", m.selected.options[1])
     settle(app, lambda: m.anchor is not None and m.labelling.zone_at(m.anchor) == 1,
            "zone 1 selected")
     per_point = shown_point_labels(app, m.labelling.labels)
-    target = app.shown.loaded.display_points[int(np.flatnonzero(per_point == 2)[0])]
+    target = app.session.shown.loaded.display_points[int(np.flatnonzero(per_point == 2)[0])]
     client.click(target.astype(float) + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
     settle(app, lambda: m.labelling.zone_at(m.anchor) == 2, "zone 2 clicked")
 
 
 def test_labellers_are_cached_within_a_byte_budget(server, banded):
+    from rough_viewer.app.features.zones import zone_basis
     from rough_viewer.app.state import nbytes
-    from rough_viewer.app.zones_mode import zone_basis
     from rough_viewer.grid.roughness import grid_roughness
 
     cloud = banded[0]
     one = nbytes(zone_basis(grid_roughness(cloud, 0.25), "odr", np.arange(cloud.n)))
     # room for one basis and a stereonet, not for two bases
     app = build_app(server, cloud, prefetch=False, cache_bytes=int(2 * 1.5 * one),
-                    presets=PAPER_PRESETS, settings=ViewSettings(cell_size=0.25))
+                    presets=PAPER_PRESETS, settings=MapSettings(cell_size=0.25))
     try:
         assert app.wait_idle(60)
-        m = app.mode(ZonesMode)
+        m = app.feature(ZonesFeature)
         assert m.cache.budget == int(1.5 * one)
         m.on.value = True
         assert app.wait_idle(60)
         assert m.timings[-1]["basis_s"] > 0  # built
-        app.gui.threshold.value = 0.3
+        app.map.threshold.value = 0.3
         assert app.wait_idle(60)
         assert m.timings[-1]["basis_s"] == 0.0  # kept: a threshold change only re-labels
-        app.gui.grid.value = "0.5"
+        app.map.grid.value = "0.5"
         assert app.wait_idle(60)
-        app.gui.grid.value = "0.25"
+        app.map.grid.value = "0.25"
         assert app.wait_idle(60)
         assert m.timings[-1]["basis_s"] > 0  # the 0.25 m basis made room for the 0.5 m one
         assert m.cache.bytes <= m.cache.budget

@@ -1,12 +1,13 @@
-"""Profile mode: two clicks on the rock give a roughness profile, de-noised by
+"""The Profile tab: two clicks on the rock give a roughness profile, de-noised by
 wavelets, with its fractal dimension (core: profile, wavelets, fractal).
 
 The pure part (:class:`ProfileSettings`, :func:`analyse`, :func:`profiles_csv`)
-needs no viser. :func:`mount` adds the "Profile" tab; its work runs as jobs on
-the app's worker: the clicks arrive through the app's pick job
-(:meth:`ProfileMode.on_pick`), :class:`DenoiseJob` redoes the kept profiles with
-new settings, :class:`ClearProfilesJob`, :class:`ProfilePlotJob` and
-:class:`ProfilesCsvJob` clear, redraw and download them.
+needs no viser. :func:`mount` adds the tab; its work runs as jobs on the worker: the
+clicks arrive through the host's click event (:meth:`ProfileFeature.on_pick`),
+:class:`DenoiseJob` redoes the kept profiles with new settings,
+:class:`ClearProfilesJob`, :class:`ProfilePlotJob` and :class:`ProfilesCsvJob`
+clear, redraw and download them, and :class:`RestoreProfilesJob` brings a saved
+view's profiles back.
 """
 
 from __future__ import annotations
@@ -15,21 +16,24 @@ import csv
 import io
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, ClassVar, cast
+from typing import Any, ClassVar, cast
 
 import numpy as np
 import viser
 
-from rough_viewer.app import scene
-from rough_viewer.app.jobs import Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG
+from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.host import Host, Pick
+from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
 from rough_viewer.app.limits import MAX_PROFILES
 from rough_viewer.app.markup import md
+from rough_viewer.app.scene import MARKER
 from rough_viewer.app.state import LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
 from rough_viewer.profiles.fractal import RoughnessLength, detrend, roughness_length
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
+from rough_viewer.report.view import ProfilePick, View
+from rough_viewer.visual.profiles import profile_figure
 from rough_viewer.vocabulary import (
     DECOMPOSITIONS,
     PROFILE_COLOURS,
@@ -40,9 +44,6 @@ from rough_viewer.vocabulary import (
     ThresholdRule,
     hex_to_rgb,
 )
-
-if TYPE_CHECKING:
-    from rough_viewer.app.server import App
 
 WAVELETS = ("db3", "db2", "db4", "sym4", "haar")
 #: Widest band half-width the Profile tab takes, metres.
@@ -89,8 +90,8 @@ class ProfileSettings:
     wavelet: str = "db3"
     level: int = 3
     decomposition: Decomposition = "dwt"
-    threshold: ThresholdRule = "fixed"
-    mode: Mode = "hard"
+    threshold_rule: ThresholdRule = "fixed"
+    threshold_mode: Mode = "hard"
     band_half_width: float | None = None
     """Metres; None = the local point spacing."""
     detrend: int | None = None
@@ -149,8 +150,8 @@ def redo(profile: Profile, settings: ProfileSettings) -> ProfileAnalysis:
         used = replace(profile, heights=detrend(profile.heights, profile.spacing,
                                                 degree=settings.detrend))
     den = denoise_result(used.heights, wavelet=settings.wavelet, level=settings.level,
-                         decomposition=settings.decomposition, threshold=settings.threshold,
-                         mode=settings.mode)
+                         decomposition=settings.decomposition,
+                         threshold=settings.threshold_rule, mode=settings.threshold_mode)
     return ProfileAnalysis(used, den, roughness_length(used.heights, used.spacing),
                            roughness_length(den.heights, used.spacing), settings,
                            extracted=None if used is profile else profile)
@@ -201,17 +202,62 @@ def band_label(units: Units) -> str:
     return f"Band half-width ({units.label})"
 
 
-@dataclass
-class ProfileMode:
+class ProfileBinding(Binding):
+    """The tab's de-noising controls and :class:`ProfileSettings`."""
+
+    def __init__(self, p: ProfileFeature) -> None:
+        self.p = p
+
+    def read(self) -> ProfileSettings:
+        """The settings the controls show (the band typed in the cloud's unit, in
+        metres). InputError for a value that is not one of a control's options."""
+        p = self.p
+        bw = float(p.band.value) * p.units.per
+        return ProfileSettings(
+            wavelet=p.wavelet.value, level=int(p.level.value),
+            detrend=detrend_of(p.detrend.value),
+            decomposition=cast(Decomposition, p.decomposition.value),
+            threshold_rule=cast(ThresholdRule, p.threshold_rule.value),
+            threshold_mode=cast(Mode, p.threshold_mode.value),
+            band_half_width=bw if bw > 0 else None,
+            exaggeration=exaggeration_of(p.exaggeration.value))
+
+    def show(self, settings: ProfileSettings, *, band: bool = False) -> None:
+        """Put the de-noising controls to ``settings`` without queuing work (the band
+        too when ``band``)."""
+        p = self.p
+        with self.quietly():
+            for handle, value in ((p.wavelet, settings.wavelet),
+                                  (p.decomposition, settings.decomposition),
+                                  (p.threshold_rule, settings.threshold_rule),
+                                  (p.threshold_mode, settings.threshold_mode),
+                                  (p.detrend, detrend_choice(settings.detrend))):
+                if value in handle.options:
+                    assign(handle, value)
+            if p.level.min <= settings.level <= p.level.max:
+                assign(p.level, int(settings.level))
+            width = (settings.band_half_width or 0.0) / p.units.per
+            if band and (p.band.max is None or width <= p.band.max):
+                assign(p.band, float(width))
+
+    def follow(self, units: Units) -> None:
+        """The band is typed in the new cloud's unit."""
+        p = self.p
+        p.band.label = band_label(units)
+        p.band.max = units.length(MAX_BAND_M)
+
+
+@dataclass(eq=False)
+class ProfileFeature:
     """Handles and state of the Profile tab (the worker changes the state)."""
 
-    app: App
+    host: Host
     on: viser.GuiCheckboxHandle
     wavelet: viser.GuiDropdownHandle[str]
     level: viser.GuiSliderHandle[int]
     decomposition: viser.GuiDropdownHandle[str]
-    threshold: viser.GuiDropdownHandle[str]
-    mode: viser.GuiDropdownHandle[str]
+    threshold_rule: viser.GuiDropdownHandle[str]
+    threshold_mode: viser.GuiDropdownHandle[str]
     band: viser.GuiNumberHandle[float]
     detrend: viser.GuiDropdownHandle[str]
     exaggeration: viser.GuiDropdownHandle[str]
@@ -219,6 +265,7 @@ class ProfileMode:
     plot: viser.GuiPlotlyHandle
     clear: viser.GuiButtonHandle
     download: viser.GuiButtonHandle
+    binding: ProfileBinding = field(init=False)
     items: list[ProfileAnalysis] = field(default_factory=list)
     """The kept profiles, oldest first (at most :data:`MAX_PROFILES`)."""
     start: tuple[np.ndarray, np.ndarray] | None = None
@@ -232,92 +279,65 @@ class ProfileMode:
     aside: tuple[LoadedCloud, list[ProfileAnalysis]] | None = None
     """The profiles of the scan put aside while the board lesson is shown."""
 
+    def __post_init__(self) -> None:
+        self.binding = ProfileBinding(self)
+
     @property
     def units(self) -> Units:
         """How the shown cloud's lengths are shown (the band is typed in its unit)."""
-        return self.app.shown.loaded.units
-
-    def settings(self) -> ProfileSettings:
-        """The de-noising settings the controls show (the band in metres)."""
-        bw = float(self.band.value) * self.units.per
-        return ProfileSettings(
-            wavelet=self.wavelet.value, level=int(self.level.value),
-            detrend=detrend_of(self.detrend.value),
-            decomposition=cast(Decomposition, self.decomposition.value),
-            threshold=cast(ThresholdRule, self.threshold.value),
-            mode=cast(Mode, self.mode.value),
-            band_half_width=bw if bw > 0 else None,
-            exaggeration=exaggeration_of(self.exaggeration.value))
-
-    def show_settings(self, settings: ProfileSettings) -> None:
-        """Put the de-noising controls to ``settings`` without queuing work."""
-        from rough_viewer.app.layout import assign, quietly
-
-        with quietly(self.app._local):
-            for handle, value in ((self.wavelet, settings.wavelet),
-                                  (self.decomposition, settings.decomposition),
-                                  (self.threshold, settings.threshold), (self.mode, settings.mode),
-                                  (self.detrend, detrend_choice(settings.detrend))):
-                if value in handle.options:
-                    assign(handle, value)
-            assign(self.level, int(settings.level))
+        return self.host.session.shown.loaded.units
 
     def refresh(self) -> None:
         """Redraw the table and the plot (at the height its builder laid it out for)."""
-        from rough_viewer.visual.app import panel_aspect
-        from rough_viewer.visual.profiles import profile_figure
-
         u = self.units
         self.note.content = summary_markdown(self.items, u)
-        fig = profile_figure(self.items, exaggeration=exaggeration_of(self.exaggeration.value),
-                             length_unit=(u.label, u.per),
-                             height_unit=(u.rough_label, u.rough_per))
-        if fig.layout.height is not None:
-            self.plot.aspect = panel_aspect(fig)
-        self.plot.figure = fig
+        set_figure(self.plot, profile_figure(
+            self.items, exaggeration=exaggeration_of(self.exaggeration.value),
+            length_unit=(u.label, u.per), height_unit=(u.rough_label, u.rough_per)))
 
-    def on_pick(self, app: App, pick: Pick) -> bool:
+    def on_pick(self, pick: Pick) -> bool:
         """A click while profile mode is on: the start, then the end of a profile
-        (runs in the app's pick job). False when profile mode is off."""
+        (worker). False when profile mode is off."""
         if not self.on.value:
             return False
+        host = self.host
         k = len(self.items)
         if self.start is None:
             self.start = (pick.xyz, pick.local)
-            self.nodes.append([scene.marker(app.server, f"/profiles/{k}/start", pick.local,
-                                            f"{scene.MARKER} P{k + 1}")])
+            self.nodes.append([host.scene.marker(f"/profiles/{k}/start", pick.local,
+                                                 f"{MARKER} P{k + 1}")])
             self.note.content = "Start picked; click the end of the profile."
             return True
         (p0, _l0), self.start = self.start, None
         try:
-            a = analyse(app.shown.loaded.cloud.xyz(), p0, pick.xyz, self.settings())
-        except (InputError, ValueError) as exc:
-            for node in self.nodes.pop():
-                node.remove()
-            app.show_error(f"profile: {exc}")
+            a = analyse(host.session.shown.loaded.cloud.xyz(), p0, pick.xyz,
+                        self.binding.read())
+        except InputError as exc:
+            host.scene.remove(self.nodes.pop())
+            host.show_error(f"profile: {exc}")
             return True
-        self.nodes[-1] += self._draw(app, a, k, None, np.asarray(pick.local, dtype=np.float64))
+        self.nodes[-1] += self._draw(a, k, None, np.asarray(pick.local, dtype=np.float64))
         self._keep(a)
         return True
 
-    def _draw(self, app: App, a: ProfileAnalysis, k: int, start: np.ndarray | None,
+    def _draw(self, a: ProfileAnalysis, k: int, start: np.ndarray | None,
               end: np.ndarray) -> list[viser.SceneNodeHandle]:
         """Scene nodes of profile ``k``: the line along the surface (its de-noised
         samples, drawn on both sides of the rock a little off the surface so the
         points in front cannot hide it) and markers at its ends (labels: on top,
         sized in pixels); ``start`` None when its marker is drawn already. Points in
         the display frame."""
+        scene = self.host.scene
         colour = hex_to_rgb(PROFILE_COLOURS[k % len(PROFILE_COLOURS)])
-        on_surface = app.shown.loaded.to_local(a.source.sample_xyz(a.surface_heights()))
-        lift = float(app.gui.point_size.value) + 3.0 * float(a.denoised.sigma)
+        on_surface = self.host.session.shown.loaded.to_local(
+            a.source.sample_xyz(a.surface_heights()))
+        lift = float(scene.point_size) + 3.0 * float(a.denoised.sigma)
         nodes: list[viser.SceneNodeHandle] = []
         if start is not None:
-            nodes.append(scene.marker(app.server, f"/profiles/{k}/start", start,
-                                      f"{scene.MARKER} P{k + 1}"))
-        nodes += scene.surface_line(app.server, f"/profiles/{k}/line", on_surface,
-                                    a.profile.frame.normal, lift, colour)
-        nodes.append(scene.marker(app.server, f"/profiles/{k}/end", end,
-                                  f"{scene.MARKER} P{k + 1} end"))
+            nodes.append(scene.marker(f"/profiles/{k}/start", start, f"{MARKER} P{k + 1}"))
+        nodes += scene.surface_line(f"/profiles/{k}/line", on_surface, a.profile.frame.normal,
+                                    lift, colour)
+        nodes.append(scene.marker(f"/profiles/{k}/end", end, f"{MARKER} P{k + 1} end"))
         return nodes
 
     def _keep(self, a: ProfileAnalysis) -> None:
@@ -326,168 +346,218 @@ class ProfileMode:
         self.items.append(a)
         while len(self.items) > MAX_PROFILES:
             self.items.pop(0)
-            for node in self.nodes.pop(0):
-                node.remove()
+            self.host.scene.remove(self.nodes.pop(0))
         self.refresh()
 
-    def add_profile(self, app: App, start: np.ndarray, end: np.ndarray,
+    def add_profile(self, start: np.ndarray, end: np.ndarray,
                     settings: ProfileSettings) -> ProfileAnalysis:
         """Analyse the line from ``start`` to ``end`` (file frame, metres) with
         ``settings`` and keep it, drawn as two clicks draw it (a saved view's
-        profiles come back this way; worker thread).
+        profiles come back this way; worker).
 
-        Raises InputError or ValueError from the core (e.g. no points near the line).
+        Raises InputError from the core (e.g. no points near the line).
         """
-        a = analyse(app.shown.loaded.cloud.xyz(), start, end, settings)
-        self._show(app, a)
+        a = analyse(self.host.session.shown.loaded.cloud.xyz(), start, end, settings)
+        self._show(a)
         return a
 
-    def _show(self, app: App, a: ProfileAnalysis) -> None:
+    def _show(self, a: ProfileAnalysis) -> None:
         """Draw ``a`` with markers at both ends of its line on the shown cloud, and
         keep it."""
-        ends = (app.shown.loaded.to_local(np.asarray(p, dtype=np.float64))
+        loaded = self.host.session.shown.loaded
+        ends = (loaded.to_local(np.asarray(p, dtype=np.float64))
                 for p in (a.source.start, a.source.end))
-        self.nodes.append(self._draw(app, a, len(self.items), *ends))
+        self.nodes.append(self._draw(a, len(self.items), *ends))
         self._keep(a)
 
-    def on_cloud(self, app: App) -> None:
-        """Another cloud is shown (worker thread): profiles belong to their cloud, so
-        the kept ones go (those of a scan put aside for the board lesson wait for it
-        and come back with it); the band is typed in the new cloud's unit."""
-        self.band.label = band_label(self.units)
-        self.band.max = self.units.length(MAX_BAND_M)
-        new = app.shown.loaded
+    def on_cloud(self) -> None:
+        """Another cloud is shown (worker): profiles belong to their cloud, so the
+        kept ones go (those of a scan put aside for the board lesson wait for it and
+        come back with it); the band is typed in the new cloud's unit."""
+        self.binding.follow(self.units)
+        session = self.host.session
+        new = session.shown.loaded
         if new is self.cloud:
             return
         old, kept = self.cloud, list(self.items)
         self.cloud = new
         self.clear_all()
-        stashed = app.stashed.loaded if app.stashed is not None else None
+        stashed = session.stashed.loaded if session.stashed is not None else None
         if kept and old is not None and stashed is old:
             self.aside = (old, kept)
         elif self.aside is not None and self.aside[0] is new:
             for a in self.aside[1]:
-                self._show(app, a)
+                self._show(a)
             self.aside = None
         elif self.aside is not None and stashed is not self.aside[0]:
             self.aside = None  # the scan put aside is gone
 
     def clear_all(self) -> None:
         for nodes in self.nodes:
-            for node in nodes:
-                node.remove()
+            self.host.scene.remove(nodes)
         self.items, self.nodes, self.start = [], [], None
         self.refresh()
 
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        """The kept profiles as a saved view's entries (file frame, metres)."""
+        picks = []
+        for a in self.items:
+            s = a.settings
+            p0, p1 = a.source.start, a.source.end
+            picks.append(ProfilePick(
+                start=(float(p0[0]), float(p0[1]), float(p0[2])),
+                end=(float(p1[0]), float(p1[1]), float(p1[2])),
+                band_half_width_m=None if s.band_half_width is None else float(s.band_half_width),
+                wavelet=s.wavelet, level=int(s.level), decomposition=s.decomposition,
+                threshold_rule=s.threshold_rule, mode=s.threshold_mode, detrend=s.detrend))
+        return {"profiles": tuple(picks[-MAX_PROFILES:])}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        return RestoreProfilesJob(self, view.profiles) if view.profiles else None
+
+    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
+        return {"profile": ("profile plot", self.plot)}
+
+
+def settings_of_pick(pick: ProfilePick) -> ProfileSettings:
+    """The settings a saved view's profile was analysed with."""
+    return ProfileSettings(wavelet=pick.wavelet, level=pick.level,
+                           decomposition=pick.decomposition, threshold_rule=pick.threshold_rule,
+                           threshold_mode=pick.mode, band_half_width=pick.band_half_width_m,
+                           detrend=pick.detrend)
+
 
 @dataclass(frozen=True)
-class DenoiseJob(Job["App"]):
-    """De-noise and fit every kept profile again with ``settings``."""
+class DenoiseJob(Job[Host]):
+    """De-noise and fit every kept profile again with the tab's settings."""
 
-    mode: ProfileMode = field(compare=False)
-    settings: ProfileSettings
+    p: ProfileFeature = field(compare=False)
     lane: ClassVar[str] = "profile-denoise"
 
     @property
     def title(self) -> str:
         return "profile de-noising"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        p = self.p
         redone = []
         try:
-            for a in self.mode.items:
+            settings = p.binding.read()
+            for a in p.items:
                 run.check()
-                redone.append(redo(a.source, self.settings))
-        except (InputError, ValueError) as exc:
+                redone.append(redo(a.source, settings))
+        except InputError as exc:
             # the kept profiles stay as they were: so do the controls that made them
-            if self.mode.items:
-                self.mode.show_settings(self.mode.items[0].settings)
-            self.mode.failed = True
+            if p.items:
+                p.binding.show(p.items[0].settings)
+            p.failed = True
             ctx.show_error(f"profile: {exc}",
                            kept="The profiles and their settings are kept as they were.")
             return
         yield "denoise"
-        self.mode.items = redone
-        self.mode.refresh()
-        if self.mode.failed:  # the error of an earlier setting no longer holds
-            self.mode.failed = False
+        p.items = redone
+        p.refresh()
+        if p.failed:  # the error of an earlier setting no longer holds
+            p.failed = False
             ctx.clear_error()
         yield "plot"
 
 
 @dataclass(frozen=True)
-class ClearProfilesJob(Job["App"]):
+class ClearProfilesJob(Job[Host]):
     """Remove every kept profile."""
 
-    mode: ProfileMode = field(compare=False)
+    p: ProfileFeature = field(compare=False)
     lane: ClassVar[str] = "profile-clear"
     cancels: ClassVar[frozenset[str]] = frozenset({"profile-denoise", "profile-plot"})
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        self.mode.clear_all()
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        self.p.clear_all()
         yield "clear"
 
 
 @dataclass(frozen=True)
-class ProfilePlotJob(Job["App"]):
+class ProfilePlotJob(Job[Host]):
     """Redraw the profile plot (vertical exaggeration changed)."""
 
-    mode: ProfileMode = field(compare=False)
+    p: ProfileFeature = field(compare=False)
     lane: ClassVar[str] = "profile-plot"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        self.mode.refresh()
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        self.p.refresh()
         yield "plot"
 
 
 @dataclass(frozen=True)
-class ProfilesCsvJob(Job["App"]):
+class ProfilesCsvJob(Job[Host]):
     """Send the kept profiles as CSV to one browser (or every browser)."""
 
-    mode: ProfileMode = field(compare=False)
+    p: ProfileFeature = field(compare=False)
     client_id: int | None
     lane: ClassVar[str] = "profile-csv"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        data = profiles_csv(self.mode.items).encode()
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        data = profiles_csv(self.p.items).encode()
         yield "csv"
-        client = ctx.server.get_clients().get(self.client_id) \
-            if self.client_id is not None else None
-        target: Any = client if client is not None else ctx.server
-        target.send_file_download("profiles.csv", data)
+        clients = ctx.clients()
+        targets = list(clients.values()) if self.client_id is None else \
+            [c for cid, c in clients.items() if cid == self.client_id]
+        for client in targets:
+            client.send_file_download("profiles.csv", data)
         yield "send"
 
 
-def mount(app: App) -> ProfileMode:
+@dataclass(frozen=True)
+class RestoreProfilesJob(Job[Host]):
+    """A saved view's profiles: the tab's controls as the first had them, then each
+    profile extracted and de-noised again with its own settings."""
+
+    p: ProfileFeature = field(compare=False)
+    picks: tuple[ProfilePick, ...] = ()
+    lane: ClassVar[str] = "profile-restore"
+
+    @property
+    def title(self) -> str:
+        return "restoring the view's profiles"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        if self.picks:
+            self.p.binding.show(settings_of_pick(self.picks[0]), band=True)
+        failed: list[str] = []
+        for k, pick in enumerate(self.picks, start=1):
+            run.check()
+            try:
+                self.p.add_profile(np.asarray(pick.start), np.asarray(pick.end),
+                                   settings_of_pick(pick))
+            except InputError as exc:
+                failed.append(f"profile {k}: {exc}")
+            yield f"profile {k}"
+        if failed:
+            more = f" (and {len(failed) - 1} more)" if len(failed) > 1 else ""
+            ctx.show_error(f"saved view: {failed[0]}{more}",
+                           kept="The other profiles are shown.")
+
+
+def mount(host: Host) -> ProfileFeature:
     """Add the Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
-    m = _add_controls(app)
-    m.cloud = app.shown.loaded
-    _wire(app, m)
-    app.click_handlers.append(m.on_pick)
-    app.cloud_handlers.append(m.on_cloud)
-    return m
-
-
-def _add_controls(app: App) -> ProfileMode:
-    """Stage 1: the tab's controls, registered for values from browsers."""
-    from rough_viewer.visual.profiles import profile_figure
-
-    gui = app.server.gui
-    with app.gui.tabs.add_tab("Profile"):
-        m = ProfileMode(
-            app=app,
+    gui = host.gui
+    units = host.session.shown.loaded.units
+    with host.tab("Profile"):
+        p = ProfileFeature(
+            host=host,
             on=gui.add_checkbox("Profile mode", False,
                                 hint="Clicks pick the two ends of a profile line."),
             wavelet=gui.add_dropdown("Wavelet", WAVELETS, initial_value="db3"),
             level=gui.add_slider("Level", min=1, max=6, step=1, initial_value=3),
             decomposition=gui.add_dropdown("Decomposition", DECOMPOSITIONS,
                                            initial_value="dwt"),
-            threshold=gui.add_dropdown("Threshold rule", THRESHOLD_RULES,
-                                       initial_value="fixed"),
-            mode=gui.add_dropdown("Threshold mode", ("hard", "soft"),
-                                  initial_value="hard"),
-            band=gui.add_number(band_label(app.shown.loaded.units), 0.0, min=0.0,
-                                max=app.shown.loaded.units.length(MAX_BAND_M), step=0.001,
+            threshold_rule=gui.add_dropdown("Threshold rule", THRESHOLD_RULES,
+                                            initial_value="fixed"),
+            threshold_mode=gui.add_dropdown("Threshold mode", ("hard", "soft"),
+                                            initial_value="hard"),
+            band=gui.add_number(band_label(units), 0.0, min=0.0,
+                                max=units.length(MAX_BAND_M), step=0.001,
                                 hint="0 = the local point spacing"),
             detrend=gui.add_dropdown(
                 "Remove trend", DETRENDS, initial_value="none",
@@ -503,30 +573,19 @@ def _add_controls(app: App) -> ProfileMode:
             clear=gui.add_button("Clear profiles"),
             download=gui.add_button("Download CSV"),
         )
-    app.controls.allow(m.on, m.wavelet, m.level, m.decomposition, m.threshold, m.mode,
-                       m.band, m.detrend, m.exaggeration, m.clear, m.download)
-    return m
+    p.cloud = host.session.shown.loaded
+    host.allow(p.on, p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
+               p.band, p.detrend, p.exaggeration, p.clear, p.download)
+    b = p.binding
+    b.on_change([p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
+                 p.detrend], lambda _h: host.submit(DenoiseJob(p)))
+    b.on_change([p.exaggeration], lambda _h: host.submit(ProfilePlotJob(p)))
+    b.on_change([p.clear], lambda _h: host.submit(ClearProfilesJob(p)))
 
-
-def _wire(app: App, m: ProfileMode) -> None:
-    """Stage 2: each control queues its job."""
-
-    def denoise(_event: object) -> None:
-        if app.syncing:  # the controls are being put back, not changed by a user
-            return
-        app.submit(DenoiseJob(m, m.settings()))
-
-    def replot(_event: object) -> None:
-        app.submit(ProfilePlotJob(m))
-
-    def clear(_event: object) -> None:
-        app.submit(ClearProfilesJob(m))
-
-    for control in (m.wavelet, m.level, m.decomposition, m.threshold, m.mode, m.detrend):
-        control.on_update(denoise)
-    m.exaggeration.on_update(replot)
-    m.clear.on_click(clear)
-
-    @m.download.on_click
+    @p.download.on_click
     def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
-        app.submit(ProfilesCsvJob(m, event.client_id))
+        host.submit(ProfilesCsvJob(p, event.client_id))
+
+    host.on_click(p.on_pick)
+    host.on_cloud(p.on_cloud)
+    return p

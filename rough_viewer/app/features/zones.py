@@ -12,9 +12,9 @@ zone_colours`; light grey: a cell with a value in no zone; neutral grey: no
 value). Both clouds stay on the browser; switching is a ``visible`` flag, and a
 re-label sends only the zone cloud's colours (3 bytes a point). The selected
 zone is drawn on top as a small third cloud of its own points (magenta, larger
-points) with its name at its centroid.
+points, following the map's point size) with its name at its centroid.
 
-Selecting. A click on the rock (:attr:`App.click_handlers`) or the "Selected
+Selecting. A click on the rock (the host's click event) or the "Selected
 zone" dropdown selects a zone (viser 1.1's plotly element reports no clicks,
 so the table cannot be clicked). A selection is kept as a point of the cloud
 (the anchor), so it follows the zone under that point through re-labels,
@@ -29,7 +29,6 @@ job             stages                                       lane (cancels)
 ZonesJob        basis, label, colours (queues ZoneTableJob)  zones (zones-table)
 ZoneTableJob    measure, table, stereonet                    zones-table
 SelectZoneJob   select                                       zones-select
-ZonePointsJob   points                                       zones-points
 ==============  ===========================================  =======================
 
 Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.grid.zones.
@@ -37,8 +36,8 @@ ZoneLabeller`, built once, and the cell of every displayed point) is kept in a
 byte-bounded cache (:class:`~rough_viewer.app.state.ByteCache`, half the grid
 cache's budget), so a threshold change only re-labels and recolours.
 
-Saved views read and restore the zone settings with :meth:`ZonesMode.settings`
-and :meth:`ZonesMode.apply` (:class:`rough_viewer.report.view.ZoneSettings`).
+Saved views read and restore the zone settings with :meth:`ZonesFeature.snapshot`
+and :meth:`ZonesFeature.restore` (:class:`rough_viewer.report.view.ZoneSettings`).
 """
 
 from __future__ import annotations
@@ -47,23 +46,25 @@ import time
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import plotly.graph_objects as go
 import viser
 
-from rough_viewer.app.jobs import Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG, assign, quietly
+from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.features.map import MODEL_BY_LABEL, MapFeature
+from rough_viewer.app.host import Host, Pick
+from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import ByteCache, LoadedCloud, Units
+from rough_viewer.app.state import MODEL_LABELS, ByteCache, LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.memory import require
-from rough_viewer.report.view import ZoneSettings
+from rough_viewer.report.view import View, ZoneSettings
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.zones import (
     COMPACT_COLUMNS,
@@ -80,9 +81,6 @@ from rough_viewer.vocabulary import (
     InputError,
     MapName,
 )
-
-if TYPE_CHECKING:
-    from rough_viewer.app.server import App
 
 #: Labels (the browser tests find controls by these).
 L_ON = "Show zones"
@@ -113,7 +111,7 @@ HIGHLIGHT_SIZE = 1.6
 PANEL_POLES = 5000
 #: Zones highlighted on the stereonet when none is selected (the largest).
 NET_ZONES = 6
-#: Scene nodes of the mode.
+#: Scene nodes of the tab.
 NODE_CLOUD = "/zones/cloud"
 NODE_SELECTED = "/zones/selected"
 NODE_LABEL = "/zones/label"
@@ -283,14 +281,69 @@ def table_aspect(n_rows: int) -> float:
     return float(min(2.2, (170 + 44 * max(n_rows, 1)) / 360))
 
 
-# ----------------------------------------------------------------------------- the mode
+# ----------------------------------------------------------------------------- the tab
+
+
+class ZonesBinding(Binding):
+    """The tab's controls and :class:`ZoneParams` (the map and threshold are the Map
+    tab's)."""
+
+    def __init__(self, z: ZonesFeature) -> None:
+        self.z = z
+
+    def read(self) -> ZoneParams:
+        """The zones the controls and the shown map ask for."""
+        z = self.z
+        shown = z.host.session.shown.settings
+        conn = CONNECTIVITY_BY_LABEL.get(z.connectivity.value)
+        if conn is None:
+            raise InputError("the connectivity control holds a value that is not one of its "
+                             "options")
+        return ZoneParams(map_name=shown.model, threshold=float(shown.threshold),
+                          connectivity=conn, min_cells=int(z.min_cells.value))
+
+    def show(self, zones: ZoneSettings | None) -> None:
+        """Saved zone settings in the controls (None: "Show zones" off)."""
+        z = self.z
+        if zones is None:
+            self.set(z.on, False)
+            return
+        self.set(z.connectivity, CONNECTIVITY_LABELS[zones.connectivity])
+        self.set(z.min_cells, int(zones.min_cells))
+        self.set(z.on, True)
+
+    def follow_map(self) -> None:
+        """The twin slider shows the Map tab's threshold."""
+        self.set(self.z.threshold, float(self.z.host.session.shown.settings.threshold))
+
+    def show_selection(self, zones: Zones, zone: int) -> None:
+        """The dropdown lists the largest zones and shows ``zone``."""
+        z = self.z
+        options = zone_options(zones, zone)
+        value = zone_option(zone, int(zones.cells[zone - 1])) if zone else NO_ZONE
+        with self.quietly():
+            if tuple(z.selected.options) != options:
+                z.selected.options = options
+            if z.selected.value != value:
+                assign(z.selected, value)
+
+
+def check_zone_settings(zones: ZoneSettings) -> None:
+    """Raise InputError for saved zone settings the tab cannot show."""
+    if zones.map not in MAPS or zones.connectivity not in CONNECTIVITY_LABELS:
+        raise InputError("zone settings name an unknown map or connectivity")
+    if not 1 <= int(zones.min_cells) <= MAX_MIN_CELLS:
+        raise InputError(f"min zone cells must lie in [1, {MAX_MIN_CELLS:,}]")
+    if zones.selected is not None and int(zones.selected) < 1:
+        raise InputError("a selected zone id starts at 1")
 
 
 @dataclass(eq=False)
-class ZonesMode:
+class ZonesFeature:
     """Handles and state of the Zones tab (the state is changed by the worker only)."""
 
-    app: App
+    host: Host
+    map: MapFeature
     on: viser.GuiCheckboxHandle
     threshold: viser.GuiSliderHandle[float]
     """Twin of the Map tab's threshold slider (moving either moves both)."""
@@ -301,6 +354,7 @@ class ZonesMode:
     numbers: viser.GuiMarkdownHandle
     table: viser.GuiPlotlyHandle
     stereonet: viser.GuiPlotlyHandle
+    binding: ZonesBinding = field(init=False)
     labelling: Labelling | None = None
     """The zones on screen (None before the first labelling)."""
     zones: Zones | None = None
@@ -308,7 +362,7 @@ class ZonesMode:
     anchor: int | None = None
     """Cloud point of the selected zone (None: no selection)."""
     pending_selection: int | None = None
-    """Zone id to select at the next labelling (:meth:`apply`)."""
+    """Zone id to select at the next labelling (a restored view's)."""
     timings: deque[dict[str, float]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
     """One record per labelling: ``label_s`` (labels), ``colours_s`` (labels and the
     scene's colours), ``basis_s`` (0 when cached), ``done`` (``perf_counter`` when the
@@ -322,15 +376,22 @@ class ZonesMode:
     cache: ByteCache[tuple[object, ...], ZoneBasis | Stereonet] = field(
         default_factory=lambda: ByteCache(0))
 
-    # ------------------------------------------------------------------ saved views
+    def __post_init__(self) -> None:
+        self.binding = ZonesBinding(self)
+
     @property
     def active(self) -> bool:
         """Zones are shown ("Show zones" ticked)."""
         return bool(self.on.value)
 
+    def params(self) -> ZoneParams:
+        """The zones the controls and the shown map ask for."""
+        return self.binding.read()
+
+    # ------------------------------------------------------------------ saved views
     def settings(self) -> ZoneSettings:
-        """The zone settings on screen, for a saved view: the map (the Map tab's
-        model), connectivity, minimum cells and the selected zone id (or None)."""
+        """The zone settings on screen: the map (the Map tab's model), connectivity,
+        minimum cells and the selected zone id (or None)."""
         lab = self.labelling
         selected = self.pending_selection
         if selected is None and lab is not None:
@@ -339,52 +400,30 @@ class ZonesMode:
         return ZoneSettings(map=p.map_name, connectivity=p.connectivity,
                             min_cells=p.min_cells, selected=selected)
 
+    def snapshot(self) -> dict[str, Any]:
+        return {"zones": self.settings() if self.active else None}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        if view.zones is None:
+            return None
+        try:
+            check_zone_settings(view.zones)
+        except InputError as exc:
+            raise InputError(f"zones: {exc}") from None
+        return RestoreZonesJob(self, view.zones)
+
     def apply(self, zones: ZoneSettings | None) -> None:
-        """Restore saved zone settings (None: hide the zones).
+        """Show saved zone settings (None: hide the zones), with the Map tab on their
+        map. Raises InputError for settings the tab cannot show."""
+        if zones is not None:
+            check_zone_settings(zones)
+            if MODEL_BY_LABEL.get(self.map.model.value) != zones.map:
+                self.map.request("model", model=MODEL_LABELS[zones.map])
+        self.host.submit(RestoreZonesJob(self, zones))
 
-        Sets the connectivity and minimum cells, ticks "Show zones", sets the Map
-        tab's model to ``zones.map`` when it differs (that queues a view), and
-        queues the zones; ``zones.selected`` is selected once they are labelled.
-        Call it after the Map tab's settings are restored. Raises InputError for
-        settings the tab cannot show.
-        """
-        from rough_viewer.app.layout import MODEL_BY_LABEL
-        from rough_viewer.app.state import MODEL_LABELS
-
-        app = self.app
-        if zones is None:
-            self._sync(self.on, False)
-            app.submit(ZonesJob(self))
-            return
-        if zones.map not in MAPS or zones.connectivity not in CONNECTIVITY_LABELS:
-            raise InputError("zone settings name an unknown map or connectivity")
-        if not 1 <= int(zones.min_cells) <= MAX_MIN_CELLS:
-            raise InputError(f"min zone cells must lie in [1, {MAX_MIN_CELLS:,}]")
-        if zones.selected is not None and int(zones.selected) < 1:
-            raise InputError("a selected zone id starts at 1")
-        self._sync(self.connectivity, CONNECTIVITY_LABELS[zones.connectivity])
-        self._sync(self.min_cells, int(zones.min_cells))
-        self._sync(self.on, True)
-        self.pending_selection = zones.selected
-        self.anchor = None
-        if MODEL_BY_LABEL.get(app.gui.model.value) != zones.map:
-            assign(app.gui.model, MODEL_LABELS[zones.map])  # queues the view, then zones
-        app.submit(ZonesJob(self))
-
-    # ------------------------------------------------------------------ controls
-    def _sync(self, handle: Any, value: object) -> None:
-        """Set one of the tab's controls without its callbacks queuing work."""
-        with quietly(self.app._local):
-            assign(handle, value)
-
-    def params(self) -> ZoneParams:
-        """The zones the controls and the shown view ask for."""
-        shown = self.app.shown.settings
-        conn = CONNECTIVITY_BY_LABEL.get(self.connectivity.value)
-        if conn is None:
-            raise InputError("the connectivity control holds a value that is not one of its options")
-        return ZoneParams(map_name=shown.model, threshold=float(shown.threshold),
-                          connectivity=conn, min_cells=int(self.min_cells.value))
+    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
+        return {"zones_table": ("zone table", self.table),
+                "zones_stereonet": ("stereonet of cell poles", self.stereonet)}
 
     # ------------------------------------------------------------------ worker side
     def basis(self, loaded: LoadedCloud, result: GridRoughness, map_name: MapName,
@@ -413,46 +452,37 @@ class ZonesMode:
     def _own(self, loaded: LoadedCloud) -> None:
         """Forget the cache when another cloud is shown."""
         if self.cloud_for is not loaded:
-            self.cache = ByteCache(self.app.options.cache_bytes // 2)
+            self.cache = ByteCache(self.host.options.cache_bytes // 2)
             self.cloud_for = loaded
             self.labelling, self.zones = None, None
 
     def show_cloud(self, loaded: LoadedCloud, colours: np.ndarray | None) -> None:
         """Show the zone cloud with ``colours`` (None: as it is; a new zone cloud
-        for a new cloud) and hide the map's cloud."""
-        app = self.app
-        with app.lock:
-            node = self.cloud_node
-            if node is None or self.node_for is not loaded:
-                if node is not None:
-                    node.remove()
-                if colours is None:
-                    colours = np.full((loaded.n_display, 3), colormaps.NEUTRAL_RGB, np.uint8)
-                node = app.server.scene.add_point_cloud(
-                    NODE_CLOUD, points=loaded.display_points, colors=colours,
-                    point_size=float(app.gui.point_size.value), point_shape="square",
-                    point_shading="flat", precision="float32")
-                self.cloud_node, self.node_for = node, loaded
-            else:
-                if colours is not None:
-                    node.colors = colours
-                node.visible = True
-            app.cloud_handle.visible = False
-            app.gui.colour_bar.visible = False  # the points show zones, not roughness
+        for a new cloud) and hide the map's cloud and colour bar."""
+        scene = self.host.scene
+        node = self.cloud_node
+        if node is None or self.node_for is not loaded:
+            if node is not None:
+                scene.remove([node])
+            if colours is None:
+                colours = np.full((loaded.n_display, 3), colormaps.NEUTRAL_RGB, np.uint8)
+            self.cloud_node = scene.add_points(NODE_CLOUD, loaded.display_points, colours)
+            self.node_for = loaded
+        else:
+            if colours is not None:
+                scene.update(node, colors=colours)
+            scene.update(node, visible=True)
+        self.map.show_map(False)  # the points show zones, not roughness
 
     def hide(self) -> None:
         """Show the map's cloud again; hide the zones."""
-        app = self.app
-        with app.lock:
-            if self.cloud_node is not None:
-                self.cloud_node.visible = False
-            self._clear_highlight()
-            app.cloud_handle.visible = True
-            app.gui.colour_bar.visible = True
+        if self.cloud_node is not None:
+            self.host.scene.update(self.cloud_node, visible=False)
+        self._clear_highlight()
+        self.map.show_map(True)
 
     def _clear_highlight(self) -> None:
-        for node in self.selected_nodes:
-            node.remove()
+        self.host.scene.remove(self.selected_nodes)
         self.selected_nodes = []
 
     def draw_highlight(self) -> int:
@@ -468,18 +498,13 @@ class ZonesMode:
         pts = lab.loaded.display_points[mask]
         if pts.shape[0] == 0:
             return zone
-        size = HIGHLIGHT_SIZE * float(self.app.gui.point_size.value)
         rgb = np.tile(np.asarray(HIGHLIGHT_RGB, dtype=np.uint8), (pts.shape[0], 1))
         centre = pts.astype(np.float64).mean(axis=0)
-        with self.app.lock:
-            self.selected_nodes = [
-                self.app.server.scene.add_point_cloud(
-                    NODE_SELECTED, points=pts, colors=rgb, point_size=size,
-                    point_shape="square", point_shading="flat", precision="float32"),
-                self.app.server.scene.add_label(
-                    NODE_LABEL, f"Zone {zone}",
-                    position=(float(centre[0]), float(centre[1]), float(centre[2]))),
-            ]
+        scene = self.host.scene
+        self.selected_nodes = [
+            scene.add_points(NODE_SELECTED, pts, rgb, size_factor=HIGHLIGHT_SIZE),
+            scene.add_label(NODE_LABEL, f"Zone {zone}", centre),
+        ]
         return zone
 
     def show_selection(self) -> None:
@@ -497,7 +522,7 @@ class ZonesMode:
             selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS,
             unit=units.unit))
         self.table.aspect = table_aspect(min(zones.n_zones, MAX_ZONE_ROWS))
-        self._sync_dropdown(zones, zone)
+        self.binding.show_selection(zones, zone)
 
     def show_stereonet(self, net: Stereonet) -> None:
         """The stereonet with the selected zone's poles (or the largest zones')."""
@@ -514,18 +539,9 @@ class ZonesMode:
             max_poles=PANEL_POLES, unit=lab.loaded.units.unit)
         self.stereonet.figure = _compact(fig)
 
-    def _sync_dropdown(self, zones: Zones, zone: int) -> None:
-        options = zone_options(zones, zone)
-        value = zone_option(zone, int(zones.cells[zone - 1])) if zone else NO_ZONE
-        with quietly(self.app._local):
-            if tuple(self.selected.options) != options:
-                self.selected.options = options
-            if self.selected.value != value:
-                assign(self.selected, value)
-
-    def on_pick(self, app: App, pick: Pick) -> bool:
+    def on_pick(self, pick: Pick) -> bool:
         """A click while zones are shown selects the zone under it (none on a point
-        in no zone); runs in the app's pick job. False when zones are hidden."""
+        in no zone; worker). False when zones are hidden."""
         if not self.active or self.labelling is None:
             return False
         lab = self.labelling
@@ -534,15 +550,18 @@ class ZonesMode:
         self.draw_highlight()
         self.show_selection()
         if self.zones is not None and self.zones.labels is lab.labels:
-            app.submit(SelectZoneJob(self, lab, lab.zone_at(self.anchor), stereonet_only=True))
+            self.host.submit(SelectZoneJob(self, lab, lab.zone_at(self.anchor),
+                                           stereonet_only=True))
         return True
 
-    def on_view(self, app: App) -> None:
-        """After every view (new grid, model, threshold or cloud): re-label if shown."""
+    def on_render(self) -> None:
+        """After every map (new grid, model, threshold or cloud): the twin slider
+        follows, and the zones are labelled again when shown (worker)."""
+        self.binding.follow_map()
         if self.active:
-            if app.shown.loaded is not self.node_for and self.cloud_node is not None:
-                self.cloud_node.visible = False  # old points: hide until re-made
-            app.submit(ZonesJob(self))
+            if self.host.session.shown.loaded is not self.node_for and self.cloud_node is not None:
+                self.host.scene.update(self.cloud_node, visible=False)  # old points: hidden
+            self.host.submit(ZonesJob(self))
 
 
 def _compact(fig: go.Figure) -> go.Figure:
@@ -556,11 +575,11 @@ def _compact(fig: go.Figure) -> go.Figure:
 
 
 @dataclass(frozen=True)
-class ZonesJob(Job["App"]):
-    """Label the zones of the shown view and colour the zone cloud (or hide the
+class ZonesJob(Job[Host]):
+    """Label the zones of the shown map and colour the zone cloud (or hide the
     zones when "Show zones" is off); then queue the table."""
 
-    mode: ZonesMode = field(compare=False)
+    z: ZonesFeature = field(compare=False)
     lane: ClassVar[str] = "zones"
     cancels: ClassVar[frozenset[str]] = frozenset({"zones-table", "zones-select"})
 
@@ -568,30 +587,30 @@ class ZonesJob(Job["App"]):
     def title(self) -> str:
         return "zones"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        m, shown = self.mode, ctx.shown
-        if not m.active:
-            m.hide()
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        z, shown = self.z, ctx.session.shown
+        if not z.active:
+            z.hide()
             yield "hide"
             return
         if shown.result is None:
             return
         try:
-            params = m.params()
+            params = z.params()
         except InputError as exc:
             ctx.show_error(str(exc))
             return
-        lab = m.labelling
+        lab = z.labelling
         if (lab is not None and lab.result is shown.result and lab.params == params
-                and lab.loaded is shown.loaded and m.node_for is shown.loaded
-                and m.pending_selection is None):
-            m.show_cloud(shown.loaded, None)  # e.g. after "Show zones" off and on
-            if not m.selected_nodes:
-                m.draw_highlight()
+                and lab.loaded is shown.loaded and z.node_for is shown.loaded
+                and z.pending_selection is None):
+            z.show_cloud(shown.loaded, None)  # e.g. after "Show zones" off and on
+            if not z.selected_nodes:
+                z.draw_highlight()
             yield "unchanged"
             return
         t0 = time.perf_counter()
-        basis, cached = m.basis(shown.loaded, shown.result, params.map_name,
+        basis, cached = z.basis(shown.loaded, shown.result, params.map_name,
                                 shown.settings.grid_key)
         t_basis = time.perf_counter() - t0
         yield "basis"
@@ -603,26 +622,26 @@ class ZonesJob(Job["App"]):
         lab = Labelling(shown.loaded, shown.result, shown.settings.grid_key, basis, params,
                         labels)
         colours = zone_point_colours(labels, basis.valid, basis.display_cell)
-        m.show_cloud(shown.loaded, colours)
-        m.labelling, m.zones = lab, None
-        if m.pending_selection is not None:
-            m.anchor = lab.anchor_of(m.pending_selection)
-            m.pending_selection = None
-        m.draw_highlight()
+        z.show_cloud(shown.loaded, colours)
+        z.labelling, z.zones = lab, None
+        if z.pending_selection is not None:
+            z.anchor = lab.anchor_of(z.pending_selection)
+            z.pending_selection = None
+        z.draw_highlight()
         done = time.perf_counter()
-        m.status.content = status_markdown(lab, done - t0, cached)
+        z.status.content = status_markdown(lab, done - t0, cached)
         record = {"basis_s": 0.0 if cached else t_basis, "label_s": t_label,
                   "colours_s": done - t1, "done": done}
-        m.timings.append(record)
+        z.timings.append(record)
         yield "colours"
-        ctx.submit(ZoneTableJob(m, lab, record))
+        ctx.submit(ZoneTableJob(z, lab, record))
 
 
 @dataclass(frozen=True)
-class ZoneTableJob(Job["App"]):
+class ZoneTableJob(Job[Host]):
     """The zone table, the selected zone's numbers and the stereonet of ``labelling``."""
 
-    mode: ZonesMode = field(compare=False)
+    z: ZonesFeature = field(compare=False)
     labelling: Labelling = field(compare=False)
     record: dict[str, float] = field(compare=False)
     lane: ClassVar[str] = "zones-table"
@@ -631,29 +650,29 @@ class ZoneTableJob(Job["App"]):
     def title(self) -> str:
         return "zone table"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        m, lab = self.mode, self.labelling
-        if m.labelling is not lab:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        z, lab = self.z, self.labelling
+        if z.labelling is not lab:
             return
         t0 = time.perf_counter()
         p = lab.params
         zones = lab.basis.labeller.measure(lab.labels, threshold=p.threshold,
                                            connectivity=p.connectivity, min_cells=p.min_cells)
         yield "measure"
-        m.zones = zones
-        m.show_selection()
+        z.zones = zones
+        z.show_selection()
         yield "table"
-        m.show_stereonet(m.net(lab))
+        z.show_stereonet(z.net(lab))
         self.record["table_s"] = time.perf_counter() - t0
         yield "stereonet"
 
 
 @dataclass(frozen=True)
-class SelectZoneJob(Job["App"]):
+class SelectZoneJob(Job[Host]):
     """Select zone ``zone`` of ``labelling`` (0: none): highlight it in the scene,
     its numbers, its table row and its poles on the stereonet."""
 
-    mode: ZonesMode = field(compare=False)
+    z: ZonesFeature = field(compare=False)
     labelling: Labelling = field(compare=False)
     zone: int
     stereonet_only: bool = False
@@ -664,38 +683,42 @@ class SelectZoneJob(Job["App"]):
     def title(self) -> str:
         return "zone selection"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        m = self.mode
-        if m.labelling is not self.labelling:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        z = self.z
+        if z.labelling is not self.labelling:
             return  # re-labelled since: the ids the user saw are gone
         if not self.stereonet_only:
-            m.anchor = self.labelling.anchor_of(self.zone)
-            m.pending_selection = None
-            m.draw_highlight()
-            m.show_selection()
+            z.anchor = self.labelling.anchor_of(self.zone)
+            z.pending_selection = None
+            z.draw_highlight()
+            z.show_selection()
         yield "select"
-        if m.zones is not None and m.zones.labels is self.labelling.labels:
-            m.show_stereonet(m.net(self.labelling))
+        if z.zones is not None and z.zones.labels is self.labelling.labels:
+            z.show_stereonet(z.net(self.labelling))
         yield "stereonet"
 
 
 @dataclass(frozen=True)
-class ZonePointsJob(Job["App"]):
-    """The zone clouds follow the Map tab's point size."""
+class RestoreZonesJob(Job[Host]):
+    """Saved zone settings in the tab (None: zones hidden), then the zones; the
+    saved selection is selected once they are labelled."""
 
-    mode: ZonesMode = field(compare=False)
-    size: float
-    lane: ClassVar[str] = "zones-points"
+    z: ZonesFeature = field(compare=False)
+    zones: ZoneSettings | None
+    lane: ClassVar[str] = "zones-restore"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        m = self.mode
-        with ctx.lock:
-            if m.cloud_node is not None:
-                m.cloud_node.point_size = self.size
-            for node in m.selected_nodes:
-                if isinstance(node, viser.PointCloudHandle):
-                    node.point_size = HIGHLIGHT_SIZE * self.size
-        yield "points"
+    @property
+    def title(self) -> str:
+        return "the saved view's zones"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        z = self.z
+        z.binding.show(self.zones)
+        if self.zones is not None:
+            z.pending_selection = self.zones.selected
+            z.anchor = None
+        yield "settings"
+        ctx.submit(ZonesJob(z))
 
 
 # ----------------------------------------------------------------------------- mount
@@ -708,26 +731,17 @@ def _empty(title: str) -> go.Figure:
     return fig
 
 
-def mount(app: App) -> ZonesMode:
-    """Add the Zones tab; zones follow every view and take scene clicks while shown."""
-    m = _add_controls(app)
-    m.cache = ByteCache(app.options.cache_bytes // 2)
-    _wire(app, m)
-    app.click_handlers.append(m.on_pick)
-    app.view_listeners.append(m.on_view)
-    return m
-
-
-def _add_controls(app: App) -> ZonesMode:
-    gui = app.server.gui
-    g = app.gui
-    with g.tabs.add_tab("Zones"):
-        m = ZonesMode(
-            app=app,
+def mount(host: Host) -> ZonesFeature:
+    """Add the Zones tab; zones follow every map and take scene clicks while shown."""
+    gui = host.gui
+    m = host.feature(MapFeature)
+    with host.tab("Zones"):
+        z = ZonesFeature(
+            host=host, map=m,
             on=gui.add_checkbox(L_ON, False, hint="Colour the rock by fracture zone: connected "
                                 "cells at or above the threshold (Map tab's model and grid)."),
             threshold=gui.add_slider(L_THRESHOLD, min=0.0, max=1.0, step=0.01,
-                                     initial_value=float(g.threshold.value),
+                                     initial_value=float(m.threshold.value),
                                      hint="The Map tab's threshold: cells with normalised "
                                      "roughness ≥ this are rough."),
             connectivity=gui.add_dropdown(L_CONNECTIVITY, tuple(CONNECTIVITY_LABELS.values()),
@@ -744,45 +758,27 @@ def _add_controls(app: App) -> ZonesMode:
             table=gui.add_plotly(_empty("zones"), config=PLOTLY_CONFIG, aspect=0.4),
             stereonet=gui.add_plotly(_empty("stereonet"), config=PLOTLY_CONFIG, aspect=0.95),
         )
-    app.controls.allow(m.on, m.threshold, m.connectivity, m.min_cells, m.selected)
-    return m
+    z.cache = ByteCache(host.options.cache_bytes // 2)
+    host.allow(z.on, z.threshold, z.connectivity, z.min_cells, z.selected)
+    b = z.binding
+    b.on_change([z.on, z.connectivity, z.min_cells], lambda _h: host.submit(ZonesJob(z)))
+    # the twin moves the Map tab's slider; the map's render moves the twin back
+    b.on_change([z.threshold],
+                lambda _h: m.request("threshold", threshold=float(z.threshold.value)))
 
-
-def _wire(app: App, m: ZonesMode) -> None:
-    g = app.gui
-
-    def relabel(_event: object) -> None:
-        if not app.syncing:
-            app.submit(ZonesJob(m))
-
-    for control in (m.on, m.connectivity, m.min_cells):
-        control.on_update(relabel)
-
-    @m.threshold.on_update
-    def _(_event: object) -> None:
-        # the twin moves the Map tab's slider, whose callback queues the view (and zones)
-        if not app.syncing and float(g.threshold.value) != float(m.threshold.value):
-            assign(g.threshold, float(m.threshold.value))
-
-    @g.threshold.on_update
-    def _(_event: object) -> None:
-        if float(m.threshold.value) != float(g.threshold.value):
-            m._sync(m.threshold, float(g.threshold.value))
-
-    @m.selected.on_update
-    def _(_event: object) -> None:
-        lab = m.labelling
-        if app.syncing or lab is None:
+    def select(_handle: object) -> None:
+        lab = z.labelling
+        if lab is None:
             return
-        value = m.selected.value
+        value = z.selected.value
         zone = 0 if value == NO_ZONE else _zone_of_option(value)
         if zone is not None:
-            app.submit(SelectZoneJob(m, lab, zone))
+            host.submit(SelectZoneJob(z, lab, zone))
 
-    @g.point_size.on_update
-    def _(_event: object) -> None:
-        if m.cloud_node is not None:  # no zone cloud yet: it takes the size when made
-            app.submit(ZonePointsJob(m, float(g.point_size.value)))
+    b.on_change([z.selected], select)
+    host.on_click(z.on_pick)
+    host.on_render(z.on_render)
+    return z
 
 
 def _zone_of_option(value: str) -> int | None:
@@ -793,5 +789,5 @@ def _zone_of_option(value: str) -> int | None:
     return None
 
 
-__all__ = ["ZonesMode", "ZoneParams", "ZoneBasis", "Labelling", "ZonesJob", "ZoneTableJob",
-           "SelectZoneJob", "ZonePointsJob", "mount", "zone_point_colours", "zone_basis"]
+__all__ = ["ZonesFeature", "ZoneParams", "ZoneBasis", "Labelling", "ZonesJob", "ZoneTableJob",
+           "SelectZoneJob", "RestoreZonesJob", "mount", "zone_point_colours", "zone_basis"]

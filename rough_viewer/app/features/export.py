@@ -10,14 +10,14 @@ machine; the browser saves it at once, no link to click):
   dimensions, VLRs (the CRS) and EVLRs, as ``compute --las-out`` does;
 - **cell table**: CSV, or Parquet when pyarrow is installed (the ``compute --out``
   table, lengths in the input's unit);
-- **figures**: any panel of the app (found on the app's and the modes' handles, so
-  new panels come by themselves), or all of them in one ZIP, as HTML, or PNG/SVG when
-  kaleido is installed;
+- **figures**: any panel of the app (every feature lists its own,
+  :class:`rough_viewer.app.host.FigureSource`), or all of them in one ZIP, as HTML, or
+  PNG/SVG when kaleido is installed;
 - **report**: the HTML report of ``rough-viewer report`` for the shown grid, axis,
   minimum points and threshold;
-- **view**: the saved view (JSON) of what is shown (:mod:`rough_viewer.app.views`),
-  and, when ``serve --save-views`` allows it, "Save view beside the input" writes it
-  next to the input in the data folder.
+- **view**: the saved view (JSON) of what is shown (:func:`rough_viewer.app.views.
+  view_of`), and, when ``serve --save-views`` allows it, "Save view beside the input"
+  writes it next to the input in the data folder.
 
 Each download is an :class:`ExportJob` on the worker (lane ``export``: every request
 runs, in order; a repeated identical one still waiting is merged). Stages: check
@@ -41,32 +41,30 @@ import re
 import shutil
 import tempfile
 import time
-import weakref
 import zipfile
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import viser
 
-from rough_viewer.app.jobs import Shown
-from rough_viewer.app.layout import assign
+from rough_viewer.app.binding import assign
+from rough_viewer.app.host import FigureSource, Host
 from rough_viewer.app.markup import md, public_message
-from rough_viewer.app.views import camera_of, view_of_app
+from rough_viewer.app.session import Shown
+from rough_viewer.app.state import LoadedCloud
+from rough_viewer.app.views import camera_of, view_of
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.io import PointCloud
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
 from rough_viewer.memory import format_bytes, require
-from rough_viewer.report.view import Camera, InputRef, ZoneSettings, file_sha256, view_text
+from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.vocabulary import InputError
 
 if TYPE_CHECKING:
     from viser._gui_handles import GuiProgressBarHandle
-
-    from rough_viewer.app.server import App
-    from rough_viewer.app.state import LoadedCloud
-    from rough_viewer.io import PointCloud
 
 ExportKind = Literal["points", "table", "figure", "report", "view"]
 
@@ -100,7 +98,7 @@ BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
 #: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes.
 FIGURE_BYTES = 5 << 20
 REPORT_BYTES = 12 << 20
-#: Finished downloads kept in :attr:`ExportMode.sent`.
+#: Finished downloads kept in :attr:`ExportFeature.sent`.
 MAX_SENT_RECORDS = 100
 
 
@@ -128,30 +126,13 @@ def safe_name(text: str, default: str = "cloud") -> str:
     return s[:60].rstrip("._-") or default
 
 
-def _prefix(owner: object) -> str:
-    name = type(owner).__name__
-    for suffix in ("Mode", "Panel"):
-        if name.endswith(suffix) and len(name) > len(suffix):
-            name = name[: -len(suffix)]
-    return name.lower()
-
-
-def panel_figures(app: App) -> dict[str, viser.GuiPlotlyHandle]:
-    """Every plotly panel of the app by name: the map's (``colour_bar``,
-    ``histogram``, ``variogram``, ``summary``) and each mode's (``profile``,
-    ``bias``, ``<mode>_<field>``), found on their handle dataclasses."""
+def panel_figures(host: Host) -> dict[str, viser.GuiPlotlyHandle]:
+    """Every plotly panel of the app by name (a file-name part), from each feature's
+    own list (:meth:`~rough_viewer.app.host.FigureSource.figures`), in mount order."""
     out: dict[str, viser.GuiPlotlyHandle] = {}
-    owners: list[tuple[object, str]] = [(app.gui, "")]
-    owners += [(m, _prefix(m)) for m in app.modes]
-    for owner, prefix in owners:
-        if not is_dataclass(owner):
-            continue
-        for f in fields(owner):
-            handle = getattr(owner, f.name, None)
-            if isinstance(handle, viser.GuiPlotlyHandle):
-                name = f.name if not prefix else prefix if f.name == "plot" \
-                    else f"{prefix}_{f.name}"
-                out[name] = handle
+    for f in host.features():
+        if isinstance(f, FigureSource):
+            out.update({name: handle for name, (_title, handle) in f.figures().items()})
     return out
 
 
@@ -179,11 +160,11 @@ class Sent:
     """From the job's start to the file handed to viser."""
 
 
-@dataclass
-class ExportMode:
+@dataclass(eq=False)
+class ExportFeature:
     """Handles and state of the Export folder."""
 
-    app: App
+    host: Host
     points_format: viser.GuiDropdownHandle[str]
     points: viser.GuiButtonHandle
     table_format: viser.GuiDropdownHandle[str]
@@ -196,15 +177,10 @@ class ExportMode:
     save_view: viser.GuiButtonHandle
     status: viser.GuiMarkdownHandle
     progress: GuiProgressBarHandle
-    notice: viser.GuiMarkdownHandle
-    """A saved view's note on its input (moved, changed), shown above the tabs."""
-    notice_text: str = ""
+    initial: PointCloud
+    """The cloud the app was started on (its file may be named relative to the
+    server's folder)."""
     sent: deque[Sent] = field(default_factory=lambda: deque(maxlen=MAX_SENT_RECORDS))
-    zones: ZoneSettings | None = None
-    """Zone settings of the opened view, kept as data when no zones mode takes them."""
-    save_views: bool = False
-    """Whether "Save view beside the input" may write (``serve --save-views``)."""
-    _initial: Callable[[], PointCloud | None] = field(default=lambda: None, repr=False)
     _hashes: dict[tuple[str, int, int], InputRef] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ input
@@ -217,7 +193,7 @@ class ExportMode:
         if not p.is_absolute():
             # only the cloud given to serve may name a file relative to the server's
             # folder; an upload's name is a bare name and no file here
-            if cloud is not self._initial():
+            if cloud is not self.initial:
                 return None
             p = p.resolve()
         return p if p.is_file() else None
@@ -234,29 +210,9 @@ class ExportMode:
             self._hashes = {key: ref}
         return ref
 
-    def enable_save_views(self) -> None:
-        """Let "Save view beside the input" write into the data folder."""
-        self.save_views = True
-        self.save_view.visible = True
-
-    def show_notice(self, text: str) -> None:
-        """A note above the tabs (escaped), also sent to each browser that connects."""
-        self.notice_text = text[:400]
-        self.notice.content = f"**Saved view:** {md(text, max_chars=400)}"
-        self.notice.visible = True
-
     def say(self, text: str) -> None:
         """The Export folder's status line (Markdown; escape user text first)."""
         self.status.content = text
-
-    def refresh_figures(self) -> None:
-        """List every panel in the figure dropdown (modes mounted after this one too)."""
-        options = (*panel_figures(self.app), ALL_FIGURES)
-        if tuple(self.figure.options) != options:
-            current = self.figure.value
-            self.figure.options = options
-            if current in options:
-                assign(self.figure, current)
 
 
 # ----------------------------------------------------------------------------- plans
@@ -278,7 +234,7 @@ def _stem(cloud: PointCloud) -> str:
     return safe_name(Path(cloud.source).stem if cloud.source else "cloud")
 
 
-def _points_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
+def _points_plan(mode: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import point_fields
     from rough_viewer.io.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
     from rough_viewer.io.ply import write_ply_fields
@@ -304,7 +260,7 @@ def _points_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
     return Plan(name, n_rows * BYTES_PER_POINT[fmt], write)
 
 
-def _table_plan(mode: ExportMode, shown: Shown, fmt: str) -> Plan:
+def _table_plan(mode: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.io.table import check_table_output, write_table
 
@@ -375,7 +331,7 @@ def _report_plan(shown: Shown) -> Plan:
                 REPORT_BYTES, write)
 
 
-def _view_plan(app: App, mode: ExportMode, shown: Shown, camera: Camera | None) -> Plan:
+def _view_plan(host: Host, mode: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
     source = mode.input_file(shown.loaded.cloud)
     if source is None:
         raise InputError("a view records the input file on the server; this cloud was "
@@ -384,7 +340,7 @@ def _view_plan(app: App, mode: ExportMode, shown: Shown, camera: Camera | None) 
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         ref = mode.input_ref(source, progress)
-        text = view_text(view_of_app(app, ref, camera=camera, zones=mode.zones))
+        text = view_text(view_of(host, ref, camera=camera))
         write_atomic(path, lambda fh: fh.write(text))
 
     return Plan(f"{_stem(shown.loaded.cloud)}.view.json", 64 << 10, write)
@@ -393,8 +349,8 @@ def _view_plan(app: App, mode: ExportMode, shown: Shown, camera: Camera | None) 
 # ----------------------------------------------------------------------------- jobs
 
 
-def _targets(app: App, client_id: int | None) -> list[viser.ClientHandle]:
-    clients = app.server.get_clients()
+def _targets(host: Host, client_id: int | None) -> list[viser.ClientHandle]:
+    clients = host.clients()
     if client_id is None:
         return list(clients.values())
     client = clients.get(client_id)
@@ -417,10 +373,10 @@ def _room(size: float, clients: int, what: str, folder: Path | None = None) -> N
 
 
 @dataclass(frozen=True)
-class ExportJob(Job["App"]):
+class ExportJob(Job[Host]):
     """Write one export into a private temporary folder and send it to a browser."""
 
-    mode: ExportMode = field(compare=False)
+    mode: ExportFeature = field(compare=False)
     kind: ExportKind
     fmt: str
     client_id: int | None
@@ -439,12 +395,12 @@ class ExportJob(Job["App"]):
     def title(self) -> str:
         return f"export ({self.kind})"
 
-    def absorb(self, newer: Job[App]) -> Job[App] | None:
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
         if isinstance(newer, ExportJob) and newer == self and newer.shown is self.shown:
             return self  # the same request twice while it waits: once is enough
         return None
 
-    def plan(self, app: App) -> Plan:
+    def plan(self, host: Host) -> Plan:
         if self.shown.result is None:
             raise InputError("nothing to export yet: the map is still being computed")
         if self.kind == "points":
@@ -455,9 +411,9 @@ class ExportJob(Job["App"]):
             return _figure_plan(self.shown, self.fmt, self.panel, self.figures)
         if self.kind == "report":
             return _report_plan(self.shown)
-        return _view_plan(app, self.mode, self.shown, self.camera)
+        return _view_plan(host, self.mode, self.shown, self.camera)
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         m, t0 = self.mode, time.perf_counter()
         paths: dict[str, str] = {}
         source = self.mode.input_file(self.shown.loaded.cloud)
@@ -505,10 +461,10 @@ class ExportJob(Job["App"]):
 
 
 @dataclass(frozen=True)
-class SaveViewJob(Job["App"]):
+class SaveViewJob(Job[Host]):
     """Write the view beside the input, in the data folder (``serve --save-views``)."""
 
-    mode: ExportMode = field(compare=False)
+    mode: ExportFeature = field(compare=False)
     camera: Camera | None = None
     lane: ClassVar[str] = "export"
     keep_all: ClassVar[bool] = True
@@ -517,19 +473,21 @@ class SaveViewJob(Job["App"]):
     def title(self) -> str:
         return "saving the view"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         m = self.mode
-        source = m.input_file(ctx.shown.loaded.cloud)
+        shown = ctx.session.shown
+        data = ctx.options.data
+        source = m.input_file(shown.loaded.cloud)
         try:
-            if not m.save_views:
+            if not ctx.options.save_views:
                 raise InputError("this server does not save views (start it with "
                                  "--save-views); download the view instead")
-            if ctx.shown.result is None:
+            if shown.result is None:
                 raise InputError("nothing to save yet: the map is still being computed")
-            plan = _view_plan(ctx, m, ctx.shown, self.camera)
+            plan = _view_plan(ctx, m, shown, self.camera)
             assert source is not None
-            relative = source.resolve().parent.relative_to(ctx.data.root) \
-                if source.resolve().is_relative_to(ctx.data.root) else None
+            relative = source.resolve().parent.relative_to(data.root) \
+                if source.resolve().is_relative_to(data.root) else None
             if relative is None:
                 raise InputError(f"{source.name} is not in the data folder; the server "
                                  "only writes there")
@@ -537,7 +495,7 @@ class SaveViewJob(Job["App"]):
             path = None
             for k in range(1, 100):
                 name = f"{stem}.view.json" if k == 1 else f"{stem}.view-{k}.json"
-                candidate = path_in_folder(ctx.data.root, relative / name)
+                candidate = path_in_folder(data.root, relative / name)
                 if not candidate.exists() and not candidate.is_symlink():
                     path = check_output_path(candidate, force=False, inputs=[source])
                     break
@@ -545,11 +503,10 @@ class SaveViewJob(Job["App"]):
                 raise InputError(f"{stem}.view-99.json exists: too many saved views")
             yield "check"
             plan.write(path, run.progress())
-            shown = ctx.data.shown(path)
-            m.say(f"Saved **{md(shown)}** in the data folder.")
+            m.say(f"Saved **{md(data.shown(path))}** in the data folder.")
             yield "write"
         except (InputError, OSError) as exc:
-            what = public_message(str(exc), paths={str(ctx.data.root): "the data folder"})
+            what = public_message(str(exc), paths={str(data.root): "the data folder"})
             m.say(f"Saving the view failed: {md(what)}")
             ctx.show_error(f"save view: {what}", kept="Nothing was written.")
 
@@ -557,12 +514,12 @@ class SaveViewJob(Job["App"]):
 # ----------------------------------------------------------------------------- mount
 
 
-def mount(app: App) -> ExportMode:
-    """Add the Export folder (downloads, saved views) and the saved-view notice."""
-    gui = app.server.gui
+def mount(host: Host) -> ExportFeature:
+    """Add the Export folder (downloads, saved views); mount it last, so its figure
+    list holds every other feature's panels."""
+    gui = host.gui
     has_kaleido = _has("kaleido")
-    notice = gui.add_markdown("", visible=False, order=app.gui.error.order + 0.01)
-    with gui.add_folder("Export"):
+    with host.folder("Export"):
         points_format = gui.add_dropdown(L_POINTS_FORMAT, POINTS_OPTIONS, initial_value="LAZ",
                                          hint="Every point with its cell's roughness: LAS/LAZ "
                                          "extra dimensions or PLY properties (CloudCompare "
@@ -572,7 +529,8 @@ def mount(app: App) -> ExportMode:
                                         else ("CSV",), initial_value="CSV",
                                         hint="One row per cell (rough-viewer compute --out).")
         table = gui.add_button(L_TABLE)
-        figure = gui.add_dropdown(L_FIGURE, (ALL_FIGURES,), initial_value=ALL_FIGURES)
+        figures = (*panel_figures(host), ALL_FIGURES)
+        figure = gui.add_dropdown(L_FIGURE, figures, initial_value=ALL_FIGURES)
         figure_format = gui.add_dropdown(L_FIGURE_FORMAT, ("HTML", "PNG", "SVG") if has_kaleido
                                          else ("HTML",), initial_value="HTML")
         if not has_kaleido:
@@ -582,30 +540,28 @@ def mount(app: App) -> ExportMode:
         report = gui.add_button(L_REPORT, hint="The page of rough-viewer report for the "
                                 "shown grid, axis, minimum points and threshold.")
         view = gui.add_button(L_VIEW, hint="Reopen it with rough-viewer serve --view FILE.")
-        save_view = gui.add_button(L_SAVE_VIEW, visible=False,
+        save_view = gui.add_button(L_SAVE_VIEW, visible=host.options.save_views,
                                    hint="Write the view next to the input on the server.")
         status = gui.add_markdown("")
         progress = gui.add_progress_bar(0.0, visible=False, animated=True)
-    m = ExportMode(app, points_format, points, table_format, table, figure, figure_format,
-                   figure_button, report, view, save_view, status, progress, notice)
-    m._initial = weakref.ref(app.shown.loaded.cloud)
-    m.refresh_figures()
-    app.controls.allow(points_format, points, table_format, table, figure, figure_format,
-                       figure_button, report, view, save_view)
-    _wire(app, m)
+    m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
+                      figure_button, report, view, save_view, status, progress,
+                      initial=host.session.shown.loaded.cloud)
+    host.allow(points_format, points, table_format, table, figure, figure_format,
+               figure_button, report, view, save_view)
+    _wire(host, m)
     return m
 
 
-def _wire(app: App, m: ExportMode) -> None:
+def _wire(host: Host, m: ExportFeature) -> None:
     def export(kind: ExportKind, fmt: Callable[[], str], *, panel: Callable[[], str] = str,
                figures: bool = False, camera: bool = False) -> Callable[[Any], None]:
         def on_click(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
-            client = event.client
-            app.submit(ExportJob(
-                m, kind, fmt(), event.client_id, app.shown, panel=panel(),
-                figures=tuple((n, h.figure) for n, h in panel_figures(app).items())
+            host.submit(ExportJob(
+                m, kind, fmt(), event.client_id, host.session.shown, panel=panel(),
+                figures=tuple((n, h.figure) for n, h in panel_figures(host).items())
                 if figures else (),
-                camera=camera_of(app, client) if camera else None))
+                camera=camera_of(host, event.client) if camera else None))
         return on_click
 
     m.points.on_click(export("points", lambda: m.points_format.value.lower()))
@@ -617,16 +573,6 @@ def _wire(app: App, m: ExportMode) -> None:
 
     @m.save_view.on_click
     def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
-        app.submit(SaveViewJob(m, camera_of(app, event.client)))
+        host.submit(SaveViewJob(m, camera_of(host, event.client)))
 
-    def another_cloud(_app: App) -> None:  # what was sent was of the cloud before
-        m.say("")
-
-    app.cloud_handlers.append(another_cloud)
-
-    @app.server.on_client_connect
-    def _(client: viser.ClientHandle) -> None:
-        m.refresh_figures()
-        if m.notice_text:
-            client.add_notification("Saved view", m.notice_text, auto_close_seconds=15.0,
-                                    color="yellow")
+    host.on_cloud(lambda: m.say(""))  # what was sent was of the cloud before

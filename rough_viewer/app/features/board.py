@@ -1,14 +1,14 @@
-"""Board teaching view (2012 paper): scan the hemisphere board rotated by
-(alpha, beta), open the scan in the app, and compare each model's roughness of
-the whole board with the closed-form value. OLS and hybrid grow with the
-rotation away from the dependent axis; ODR stays near the true value.
+"""The Board tab (2012 paper): scan the hemisphere board rotated by (alpha, beta),
+open the scan in the app, and compare each model's roughness of the whole board with
+the closed-form value. OLS and hybrid grow with the rotation away from the dependent
+axis; ODR stays near the true value.
 
-:func:`mount` adds the "Board" tab; "Scan board" queues a :class:`BoardScanJob`,
-which is a load (it replaces a pending load and takes newer view settings). The
-scan that was shown is put aside, not dropped (:attr:`App.stashed`, with its cached
-grids and settings): "Back to the scan" (:class:`RestoreScanJob`) shows it again as
-it was. The board opens with its own colour range (the default stretch, at its own
-default grid), whatever range the scan was pinned to.
+"Scan board" queues a :class:`BoardScanJob`, which is a load (it replaces a pending
+load and takes newer map settings). The scan that was shown is put aside, not
+dropped (:attr:`rough_viewer.app.session.Session.stashed`, with its cached grids and
+settings): "Back to the scan" (a :class:`~rough_viewer.app.features.map.ShowJob`)
+shows it again as it was. The board opens with its own colour range (the default
+stretch, at its own default grid), whatever range the scan was pinned to.
 """
 
 from __future__ import annotations
@@ -16,21 +16,26 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import viser
 
-from rough_viewer.app.jobs import ViewJob, load_stages, show_cloud, view_stages
-from rough_viewer.app.state import ViewSettings
+from rough_viewer.app.binding import Binding
+from rough_viewer.app.features.map import (
+    LoadJob,
+    MapFeature,
+    RenderJob,
+    ShowJob,
+    load_stages,
+    resolve,
+)
+from rough_viewer.app.host import Host
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
 from rough_viewer.synthetic.board import BoardScan, board_scan
 from rough_viewer.visual.colormaps import ROUGHNESS_STRETCH
 from rough_viewer.vocabulary import Axis
-
-if TYPE_CHECKING:
-    from rough_viewer.app.server import App
 
 #: Cell edge that holds the whole 1 m board in one cell, metres.
 WHOLE_BOARD_CELL = 2.0
@@ -81,10 +86,12 @@ def lesson_markdown(lesson: BoardLesson) -> str:
     return "\n".join(rows)
 
 
-@dataclass
-class BoardMode:
+@dataclass(eq=False)
+class BoardFeature:
     """Handles and state of the Board tab."""
 
+    host: Host
+    map: MapFeature
     alpha: viser.GuiSliderHandle[float]
     beta: viser.GuiSliderHandle[float]
     scan: viser.GuiButtonHandle
@@ -94,10 +101,10 @@ class BoardMode:
     lesson: BoardLesson | None = None
     """The last scan's lesson."""
 
-    def update_back(self, app: App) -> None:
+    def update_back(self) -> None:
         """Show the "Back to ..." button while a scan is put aside (a button label is
         plain text, never Markdown)."""
-        stashed = app.stashed
+        stashed = self.host.session.stashed
         if stashed is None:
             self.back.visible = False
             return
@@ -108,65 +115,69 @@ class BoardMode:
 
 
 @dataclass(frozen=True)
-class BoardScanJob(Job["App"]):
+class BoardScanJob(Job[Host]):
     """Scan the board at (alpha, beta) degrees and open the scan (a load)."""
 
-    mode: BoardMode = field(compare=False)
+    b: BoardFeature = field(compare=False)
     alpha_deg: float
     beta_deg: float
-    settings: ViewSettings
-    lane: ClassVar[str] = "load"
-    cancels: ClassVar[frozenset[str]] = frozenset({"view", "panels", "pick"})
+    touched: tuple[str, ...] = ()
+    assigned: tuple[tuple[str, object], ...] = ()
+    lane: ClassVar[str] = LoadJob.lane
+    cancels: ClassVar[frozenset[str]] = LoadJob.cancels
 
     @property
     def title(self) -> str:
         return "board scan"
 
-    def absorb(self, newer: Job[App]) -> Job[App] | None:
-        if isinstance(newer, ViewJob):
-            return replace(self, settings=newer.settings)
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
+        if isinstance(newer, RenderJob):
+            return replace(self, touched=self.touched + newer.touched,
+                           assigned=self.assigned + newer.assigned)
         return None
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        m = self.b.map
+        settings = resolve(m, None, self.touched, self.assigned) or ctx.session.shown.settings
         lesson = board_lesson(self.alpha_deg, self.beta_deg)
         yield "scan"
-        self.mode.lesson = lesson
-        self.mode.note.content = lesson_markdown(lesson)
+        self.b.lesson = lesson
+        self.b.note.content = lesson_markdown(lesson)
         # its own colour range: the default stretch on its own cells
-        own = self.settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
-        yield from load_stages(ctx, run, lambda _run: lesson.scan.cloud, own, stash=True,
+        own = settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
+        yield from load_stages(m, run, lambda _run: lesson.scan.cloud, own, stash=True,
                                label=f"board lesson (α {self.alpha_deg:g}°, "
                                f"β {self.beta_deg:g}°, synthetic)")
 
 
 @dataclass(frozen=True)
-class RestoreScanJob(Job["App"]):
+class BackToScanJob(Job[Host]):
     """Show the scan put aside when the board opened, with its settings and cached
-    grids (a load: it cancels views, panels and picks of the board)."""
+    grids (a load: it cancels maps, panels and picks of the board)."""
 
-    mode: BoardMode = field(compare=False)
-    lane: ClassVar[str] = "load"
-    cancels: ClassVar[frozenset[str]] = frozenset({"view", "panels", "pick"})
+    b: BoardFeature = field(compare=False)
+    lane: ClassVar[str] = LoadJob.lane
+    cancels: ClassVar[frozenset[str]] = LoadJob.cancels
 
     @property
     def title(self) -> str:
         return "back to the scan"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
-        stashed, ctx.stashed = ctx.stashed, None
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        stashed = ctx.session.stashed
         if stashed is None:
-            self.mode.update_back(ctx)
+            self.b.update_back()
             return
-        show_cloud(ctx, stashed.loaded, stashed.settings)
-        yield "show"
-        yield from view_stages(ctx, run, stashed.settings)
+        ctx.session.stashed = None
+        yield from ShowJob(self.b.map, stashed.loaded, stashed.settings).stages(ctx, run)
 
 
-def mount(app: App) -> BoardMode:
+def mount(host: Host) -> BoardFeature:
     """Add the Board tab: rotation sliders and a button that opens the scan in the app."""
-    gui = app.server.gui
-    with app.gui.tabs.add_tab("Board"):
-        m = BoardMode(
+    gui = host.gui
+    with host.tab("Board"):
+        b = BoardFeature(
+            host=host, map=host.feature(MapFeature),
             alpha=gui.add_slider("Board α (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
             beta=gui.add_slider("Board β (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
             scan=gui.add_button("Scan board",
@@ -176,17 +187,10 @@ def mount(app: App) -> BoardMode:
             note=gui.add_markdown("Scan the 2012 paper's hemisphere board at a rotation and "
                                   "compare the models with the true roughness."),
         )
-    app.controls.allow(m.alpha, m.beta, m.scan, m.back)
-
-    @m.scan.on_click
-    def _(_event: object) -> None:
-        app.submit(BoardScanJob(m, float(m.alpha.value), float(m.beta.value),
-                                app.gui_settings()))
-
-    @m.back.on_click
-    def _(_event: object) -> None:
-        app.submit(RestoreScanJob(m))
-
-    app.cloud_handlers.append(m.update_back)
-
-    return m
+    host.allow(b.alpha, b.beta, b.scan, b.back)
+    binding = Binding()
+    binding.on_change([b.scan], lambda _h: host.submit(
+        BoardScanJob(b, float(b.alpha.value), float(b.beta.value))))
+    binding.on_change([b.back], lambda _h: host.submit(BackToScanJob(b)))
+    host.on_cloud(b.update_back)
+    return b

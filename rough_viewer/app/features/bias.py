@@ -1,4 +1,4 @@
-"""Browser-app panel: predict the roughness bias of a scanner (noise, beam smoothing).
+"""The Bias tab: predict the roughness bias of a scanner (noise, beam smoothing).
 
 :func:`add_bias_panel` adds a folder to a viser GUI: range noise, effective radius,
 asperity radius (millimetres), roughness convention and a "Predict" button. The
@@ -8,8 +8,8 @@ radius for the chosen asperity radius (:func:`rough_viewer.visual.bias.
 smoothing_curve_figure`). The panel is self-contained: it needs no loaded cloud.
 
 In the app, :func:`mount` puts the panel in a "Bias" tab and its button queues a
-:class:`BiasJob` on the app's worker; on its own (:func:`add_bias_panel`) the
-button computes at once.
+:class:`BiasJob` on the app's worker; on its own (:func:`add_bias_panel`, on any
+viser GUI) the button computes at once.
 """
 
 from __future__ import annotations
@@ -17,18 +17,16 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import viser
 
+from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
 from rough_viewer.vocabulary import BIAS_RESIDUAL, BIAS_TRIALS, RESIDUALS, Residual
-
-if TYPE_CHECKING:
-    from rough_viewer.app.server import App
 
 #: ER / asperity radius values of the panel's curve.
 CURVE_RATIOS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
@@ -66,6 +64,9 @@ class BiasPanel:
     last: BiasPrediction | None = None
     """The latest prediction."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
+        return {"bias": ("scanner bias: smoothing curve", self.plot)}
 
     def update(self) -> BiasPrediction | None:
         """Recompute the prediction and the curve from the handles' values.
@@ -191,7 +192,7 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
 
 
 @dataclass(frozen=True)
-class BiasJob(Job["App"]):
+class BiasJob(Job[Host]):
     """Predict the bias from the panel's values (on the app's worker)."""
 
     panel: BiasPanel = field(compare=False)
@@ -201,16 +202,16 @@ class BiasJob(Job["App"]):
     def title(self) -> str:
         return "bias prediction"
 
-    def stages(self, ctx: App, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         self.panel.update()
         yield "predict"
 
 
-def mount(app: App) -> BiasPanel:
+def mount(host: Host) -> BiasPanel:
     """Add the "Bias" tab with the scanner-bias panel (predictions run as jobs)."""
-    with app.gui.tabs.add_tab("Bias"):
-        panel = add_bias_panel(app.server, expand=True,
-                               on_predict=lambda p: app.submit(BiasJob(p)))
-    app.controls.allow(panel.noise_mm, panel.er_mm, panel.asperity_mm, panel.ratio,
-                       panel.residual, panel.button)
+    with host.tab("Bias"):
+        panel = add_bias_panel(host.gui, expand=True,
+                               on_predict=lambda p: host.submit(BiasJob(p)))
+    host.allow(panel.noise_mm, panel.er_mm, panel.asperity_mm, panel.ratio,
+               panel.residual, panel.button)
     return panel

@@ -1,0 +1,1142 @@
+"""The map: the cloud coloured by cell roughness, and the Map tab's controls.
+
+The Map tab chooses what colours the points (the roughness map of a grid, model,
+dependent axis and minimum points, continuous or binary, its colour map and
+stretch; or a colour layer), the point size and the camera preset; a click on a
+point reports its cell. Everything the tab does is a job on the worker:
+
+=============  =======================================================  =================
+job            stages                                                    lane (cancels)
+=============  =======================================================  =================
+ShowJob        show (a cloud into the scene), then RenderJob's           load (render,
+                                                                         panels, pick)
+LoadJob        read, prepare, show, then RenderJob's                     load (render,
+                                                                         panels, pick)
+RenderJob      check, grid, colours                                      render (panels)
+PickJob        pick, cell and across scales, or a feature's handler      pick, keep all
+AxisJob        axis                                                      axis
+CameraJob      camera (a preset view)                                    camera
+PointSizeJob   points                                                    points
+=============  =======================================================  =================
+
+A control change submits a :class:`RenderJob` naming the control (its callbacks do
+nothing else); on the worker, :meth:`MapBinding.settle` moves the controls that
+follow it (a typed free size picks the "free" grid, a preset shows its size, dragged
+percentiles or typed limits pick that stretch) and reads the controls. A pending
+RenderJob or LoadJob merges a newer RenderJob (the controls it names), so a load
+followed at once by a control change shows the new file with the new settings.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+import plotly.graph_objects as go
+import viser
+
+from rough_viewer.app import scene as scene_mod
+from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.host import Host, Pick
+from rough_viewer.app.layout import PLOTLY_CONFIG, limit_step, round_limit, set_figure
+from rough_viewer.app.limits import MAX_TIMINGS
+from rough_viewer.app.markup import md
+from rough_viewer.app.picking import pick_point
+from rough_viewer.app.session import Shown
+from rough_viewer.app.state import (
+    MAX_CELL_SIZE,
+    MIN_CELL_SIZE,
+    MODEL_LABELS,
+    CellInfo,
+    DisplayMode,
+    LoadedCloud,
+    MapSettings,
+    MapStats,
+    Units,
+    cell_info,
+    check_settings,
+    map_stats,
+    point_colours,
+)
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
+from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
+from rough_viewer.io import PointCloud
+from rough_viewer.report.view import Camera, ColourSettings, View
+from rough_viewer.visual import colormaps
+from rough_viewer.visual.app import colour_bar_figure, colour_scale_figure, panel_aspect
+from rough_viewer.visual.scales import point_scales_figure
+from rough_viewer.vocabulary import (
+    AXIS_CHOICES,
+    COLOUR_LAYER_LABELS,
+    COLOUR_LAYERS,
+    UNITS,
+    AxisChoice,
+    ColourLayerName,
+    InputError,
+    MapName,
+    Unit,
+)
+
+#: Notify every browser while computing a grid on more points than this.
+BIG_CLOUD = 1_000_000
+
+#: Colour-map dropdown: "auto" = the map's own (viridis; magma for e_ols).
+COLORMAP_OPTIONS: tuple[str, ...] = ("auto", *colormaps.COLORMAP_NAMES)
+MODEL_OPTIONS: tuple[str, ...] = tuple(MODEL_LABELS.values())
+MODEL_BY_LABEL: dict[str, MapName] = {label: name for name, label in MODEL_LABELS.items()}
+DISPLAY_BY_NAME: dict[str, DisplayMode] = {"continuous": "continuous", "binary": "binary"}
+AXIS_BY_NAME: dict[str, AxisChoice] = {a: a for a in AXIS_CHOICES}
+LAYER_BY_LABEL: dict[str, ColourLayerName] = {COLOUR_LAYER_LABELS[n]: n for n in COLOUR_LAYERS}
+#: Camera presets (the "View" button group).
+CAMERA_PRESETS: tuple[str, ...] = ("face-on", "top", "side")
+
+#: Labels (the browser tests find controls by these). Labels with a unit are made
+#: by the functions below (the unit is the loaded cloud's).
+L_MODEL = "Model"
+L_AXIS = "Dependent axis"
+L_DISPLAY = "Display"
+L_THRESHOLD = "Threshold"
+L_MIN_POINTS = "Min points per cell"
+L_POINT_SIZE = "Point size"
+L_COLORMAP = "Colour map"
+L_LAYER = "Colour by"
+L_STRETCH = "Colour stretch"
+L_LOG = "Log colour scale"
+L_PERCENTILES = "Percentiles"
+L_TOGGLE = "Toggle ODR / OLS"
+L_SHOW_AXIS = "Show dependent axis"
+L_CAMERA = "View"
+#: What the Map tab says before a click.
+PICK_PROMPT = "Click a point to see its cell and its roughness across grid sizes."
+
+
+def l_grid(units: Units) -> str:
+    """``"Grid size (m)"``."""
+    return f"Grid size ({units.label})"
+
+
+def l_grid_free(units: Units) -> str:
+    return f"Free grid size ({units.label})"
+
+
+def l_range_lo(units: Units) -> str:
+    """``"Lowest θ (mm)"``: the roughness at the first colour."""
+    return f"Lowest θ ({units.rough_label})"
+
+
+def l_range_hi(units: Units) -> str:
+    return f"Highest θ ({units.rough_label})"
+
+
+def resolve_colormap(choice: str, model: str) -> str:
+    """Colour map actually used: ``auto`` -> the map's own
+    (:func:`rough_viewer.visual.colormaps.default_colormap`: magma, a sequential map,
+    for e_ols; viridis for the roughness maps)."""
+    if choice == "auto":
+        return colormaps.default_colormap(model)
+    return choice
+
+
+def grid_options(presets: tuple[float, ...], units: Units) -> dict[str, float]:
+    """Grid dropdown entries (the presets in the cloud's unit, as text) -> metres.
+
+    >>> grid_options((0.5, 0.25), Units("m"))
+    {'0.5': 0.5, '0.25': 0.25}
+    """
+    return {f"{units.length(g):g}": g for g in presets}
+
+
+def grid_choice(cell_size: float, options: dict[str, float]) -> str:
+    """The grid dropdown entry for a cell size (metres): a preset, or ``free``.
+
+    >>> grid_choice(0.25, {"0.5": 0.5, "0.25": 0.25}), grid_choice(0.3, {"0.5": 0.5})
+    ('0.25', 'free')
+    """
+    for text, size in options.items():
+        if abs(size - cell_size) <= 1e-9 * max(size, 1e-12):
+            return text
+    return "free"
+
+
+def scales_placeholder() -> go.Figure:
+    """The across-scales panel before a click: one line of title, no axes."""
+    fig = go.Figure()
+    fig.update_layout(
+        title={"text": "Roughness of a clicked point's cells across grid sizes<br><sup>"
+               "click a point on the rock</sup>", "font": {"size": 12}, "x": 0.01,
+               "xanchor": "left"},
+        height=56, margin={"l": 10, "r": 10, "t": 44, "b": 4},
+        xaxis={"visible": False}, yaxis={"visible": False}, plot_bgcolor="white")
+    return fig
+
+
+def empty_figure(title: str) -> go.Figure:
+    """A titled panel with nothing in it yet."""
+    fig = go.Figure()
+    fig.update_layout(title=dict(text=title, font=dict(size=12)), height=200,
+                      margin=dict(l=10, r=10, t=30, b=10))
+    return fig
+
+
+# ----------------------------------------------------------------------------- the binding
+
+
+class MapBinding(Binding):
+    """The Map tab's controls and :class:`~rough_viewer.app.state.MapSettings`."""
+
+    def __init__(self, m: MapFeature, presets: tuple[float, ...], units: Units) -> None:
+        self.m = m
+        self.units = units
+        """The unit of the lengths the controls show (the shown cloud's)."""
+        self.grid_values = grid_options(presets, units)
+        """Grid dropdown entry -> cell size, metres (the shown cloud's presets)."""
+
+    # ------------------------------------------------------------------ read
+    def read(self) -> MapSettings:
+        """The settings the controls ask for (InputError if a control holds a value
+        the app cannot use). Lengths typed in the cloud's unit become metres."""
+        m, u = self.m, self.units
+        if m.grid.value == "free":
+            cell = float(m.grid_free.value) * u.per
+        else:
+            preset = self.grid_values.get(m.grid.value)
+            if preset is None:
+                raise InputError("the grid size is not one of this cloud's presets")
+            cell = preset
+        model = MODEL_BY_LABEL.get(m.model.value)
+        axis = AXIS_BY_NAME.get(m.axis.value)
+        display = DISPLAY_BY_NAME.get(m.display.value)
+        layer = LAYER_BY_LABEL.get(m.layer.value)
+        if model is None or axis is None or display is None or layer is None:
+            raise InputError("a control holds a value that is not one of its options")
+        return MapSettings(cell_size=cell, model=model, axis=axis,
+                           min_points=int(m.min_points.value), display=display,
+                           threshold=float(m.threshold.value),
+                           colormap=resolve_colormap(m.colormap.value, model),
+                           stretch=self.read_stretch(), layer=layer)
+
+    def read_stretch(self) -> colormaps.Stretch:
+        """The colour stretch the controls ask for: percentiles of the cells, or the
+        absolute limits typed in the roughness unit (InputError if unusable)."""
+        m = self.m
+        log = bool(m.log.value)
+        if m.stretch.value == "absolute":
+            per = self.units.rough_per
+            lo, hi = float(m.range_lo.value), float(m.range_hi.value)
+            if log and lo <= 0:
+                raise InputError("a log colour scale needs a lowest θ above 0")
+            return colormaps.Stretch("absolute", lo * per, hi * per, log=log)
+        p_lo, p_hi = (float(v) for v in m.percentiles.value)
+        return colormaps.Stretch("percentile", p_lo, p_hi, log=log)
+
+    def settle(self, touched: tuple[str, ...], assigned: tuple[tuple[str, object], ...]) -> None:
+        """Put values other features asked for into the controls, then move the
+        controls that follow the last touched one of their group (worker)."""
+        m = self.m
+        with self.quietly():
+            for name, value in assigned:
+                assign(getattr(m, name), value)
+            if "toggle" in touched:
+                assign(m.model, "OLS" if m.model.value == "ODR" else "ODR")
+        last = {name: k for k, name in enumerate(touched)}
+        grid, free = last.get("grid", -1), last.get("grid_free", -1)
+        if free > grid:
+            self.set(m.grid, "free")
+        elif grid >= 0:
+            size = self.grid_values.get(m.grid.value)
+            if size is not None:
+                self.set(m.grid_free, self.units.length(size))
+        stretch = {k: last.get(k, -1) for k in ("stretch", "percentiles", "range_lo", "range_hi")}
+        latest = max(stretch, key=lambda k: stretch[k])
+        if stretch[latest] >= 0 and latest != "stretch":
+            self.set(m.stretch, "percentile" if latest == "percentiles" else "absolute")
+
+    # ------------------------------------------------------------------ show
+    def show(self, settings: MapSettings) -> None:
+        """Show ``settings`` in the controls without queuing work (after an error, a
+        restored view, or a cloud with other presets)."""
+        m, u = self.m, self.units
+        with self.quietly():
+            assign(m.grid, grid_choice(settings.cell_size, self.grid_values))
+            assign(m.grid_free, u.length(settings.cell_size))
+            assign(m.model, MODEL_LABELS[settings.model])
+            assign(m.axis, settings.axis)
+            assign(m.min_points, int(settings.min_points))
+            assign(m.display, settings.display)
+            assign(m.threshold, float(settings.threshold))
+            auto = resolve_colormap("auto", settings.model)
+            assign(m.colormap, "auto" if settings.colormap == auto else settings.colormap)
+            label = COLOUR_LAYER_LABELS[settings.layer]
+            if label in m.layer.options:
+                assign(m.layer, label)
+            st = settings.stretch
+            assign(m.stretch, st.mode)
+            assign(m.log, bool(st.log))
+            if st.mode == "absolute":
+                for handle, metres in ((m.range_lo, st.lo), (m.range_hi, st.hi)):
+                    value = round_limit(u.rough(metres))
+                    handle.step = limit_step(value)
+                    assign(handle, value)
+            else:
+                assign(m.percentiles, (float(st.lo), float(st.hi)))
+
+    def show_range(self, colour_range: colormaps.ColourRange) -> None:
+        """Put the roughness range the colours span into the lowest/highest fields
+        (roughness unit, 3 digits), so switching to an absolute stretch pins it."""
+        m, u = self.m, self.units
+        lo, hi = round_limit(u.rough(colour_range.lo)), round_limit(u.rough(colour_range.hi))
+        if hi <= lo:
+            return
+        with self.quietly():
+            # the fields show as many decimals as their step has: 3 digits of each
+            for handle, value in ((m.range_lo, lo), (m.range_hi, hi)):
+                handle.step = limit_step(value)
+                assign(handle, value)
+
+    def follow(self, loaded: LoadedCloud, point_size: float) -> None:
+        """The grid presets, unit labels, colour layers and point-size range of a
+        new cloud (without queuing work)."""
+        m = self.m
+        u = loaded.units
+        assert loaded.presets is not None
+        self.units = u
+        self.grid_values = grid_options(loaded.presets, u)
+        with self.quietly():
+            m.grid.options = (*self.grid_values, "free")
+            m.grid.label = l_grid(u)
+            m.grid_free.label = l_grid_free(u)
+            m.grid_free.min, m.grid_free.max = u.length(MIN_CELL_SIZE), u.length(MAX_CELL_SIZE)
+            m.range_lo.label = l_range_lo(u)
+            m.range_hi.label = l_range_hi(u)
+            m.layer.options = tuple(COLOUR_LAYER_LABELS[n] for n in loaded.layers)
+            m.point_size.min, m.point_size.max = point_size / 10, point_size * 10
+            m.point_size.step = point_size / 10
+            assign(m.point_size, point_size)
+
+
+# ----------------------------------------------------------------------------- the feature
+
+
+class CloudSource(Protocol):
+    """Where a :class:`LoadJob` gets its points."""
+
+    @property
+    def title(self) -> str:
+        """How the source is named to the user (a path as typed, an upload's name)."""
+        ...
+
+    def read(self, host: Host, run: Run) -> PointCloud:
+        """The points (InputError naming the file as the user knows it)."""
+        ...
+
+    def release(self) -> None:
+        """Free what the source holds (an upload's file); safe to call twice."""
+        ...
+
+
+@dataclass(frozen=True)
+class InMemory:
+    """A cloud already in memory (the command line's, a script's)."""
+
+    cloud: PointCloud
+
+    @property
+    def title(self) -> str:
+        return self.cloud.source or "a cloud"
+
+    def read(self, host: Host, run: Run) -> PointCloud:
+        return self.cloud
+
+    def release(self) -> None:
+        pass
+
+
+@dataclass(eq=False)
+class MapFeature:
+    """The Map tab (handles, its binding) and the map's record of what it showed."""
+
+    host: Host
+    colour_bar: viser.GuiPlotlyHandle
+    pick: viser.GuiMarkdownHandle
+    scales: viser.GuiPlotlyHandle
+    """Roughness of the clicked point's cells against grid size (a placeholder until
+    a click)."""
+    layer: viser.GuiDropdownHandle[str]
+    grid: viser.GuiDropdownHandle[str]
+    grid_free: viser.GuiNumberHandle[float]
+    model: viser.GuiDropdownHandle[str]
+    toggle: viser.GuiButtonHandle
+    axis: viser.GuiDropdownHandle[str]
+    axis_note: viser.GuiMarkdownHandle
+    show_axis: viser.GuiCheckboxHandle
+    display: viser.GuiDropdownHandle[str]
+    threshold: viser.GuiSliderHandle[float]
+    min_points: viser.GuiNumberHandle[int]
+    colormap: viser.GuiDropdownHandle[str]
+    stretch: viser.GuiDropdownHandle[str]
+    log: viser.GuiCheckboxHandle
+    percentiles: viser.GuiMultiSliderHandle[float]
+    range_lo: viser.GuiNumberHandle[float]
+    range_hi: viser.GuiNumberHandle[float]
+    point_size: viser.GuiSliderHandle[float]
+    camera: viser.GuiButtonGroupHandle
+    binding: MapBinding = field(init=False)
+    timings: deque[dict[str, object]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
+    """One record per shown map: seconds to colours (``colours_s``) and to panels
+    (``panels_s``), cached or not; the last :data:`MAX_TIMINGS`."""
+    pick_timings: deque[dict[str, object]] = field(
+        default_factory=lambda: deque(maxlen=MAX_TIMINGS))
+    """One record per reported click: seconds to the cell report and the
+    across-scales plot (``pick_s``); the last :data:`MAX_TIMINGS`."""
+    pick_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
+    """The clicked point's marker and its cell's outline."""
+
+    def inputs(self) -> tuple[Any, ...]:
+        """The controls a browser may set."""
+        return (self.layer, self.grid, self.grid_free, self.model, self.toggle, self.axis,
+                self.show_axis, self.display, self.threshold, self.min_points,
+                self.point_size, self.colormap, self.stretch, self.log, self.percentiles,
+                self.range_lo, self.range_hi, self.camera)
+
+    # ------------------------------------------------------------------ for other features
+    def request(self, *touched: str, **assigned: object) -> int:
+        """Queue the map the controls show, after putting ``assigned`` values into
+        the named controls (as a person would set them; e.g. another tab's twin of a
+        control)."""
+        return self.host.submit(RenderJob(self, touched=touched,
+                                          assigned=tuple(assigned.items())))
+
+    def settings(self) -> MapSettings:
+        """The settings the controls ask for, or the shown ones if a control is
+        unusable."""
+        try:
+            return self.binding.read()
+        except InputError:
+            return self.host.session.shown.settings
+
+    def show_map(self, visible: bool) -> None:
+        """Show the map's cloud and colour bar, or hide both while a feature shows its
+        own colours on the points (worker)."""
+        self.host.scene.show_map(visible)
+        self.colour_bar.visible = visible
+
+    def forget_pick(self, text: str) -> None:
+        """Drop the clicked point's marker, report and across-scales plot; the click
+        report then reads ``text`` (worker)."""
+        self.host.scene.remove(self.pick_nodes)
+        self.pick_nodes = []
+        self.host.session.forget_pick()
+        self.pick.content = text
+        set_figure(self.scales, scales_placeholder())
+
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        s = self.host.session.shown.settings
+        unit = self.host.session.shown.loaded.cloud.source_unit
+        units: Unit = unit if unit in UNITS else "m"
+        return {"cell_size_m": float(s.cell_size), "min_points": int(s.min_points),
+                "axis": s.axis, "model": s.model, "units": units,
+                "threshold": float(s.threshold),
+                "colour": ColourSettings(colormap=s.colormap, mode=s.display,
+                                         stretch=s.stretch, layer=s.layer)}
+
+    def restore(self, view: View) -> Job[Host]:
+        return RestoreMapJob(self, check_view_for_app(view, "saved view"), view.camera)
+
+    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
+        return {"colour_bar": ("colour bar", self.colour_bar),
+                "scales": ("roughness across grid sizes (clicked point)", self.scales)}
+
+
+#: Largest "Min points per cell" the Map tab's control takes.
+MAX_MIN_POINTS = 100_000
+
+
+def check_view_for_app(view: View, source: str) -> MapSettings:
+    """The map settings of a saved view, refused (one line naming ``source``) where
+    the Map tab's controls cannot take them."""
+    where = f"view file {source}:"
+    if not MIN_CELL_SIZE <= view.cell_size_m <= MAX_CELL_SIZE:
+        raise InputError(f"{where} grid.cell_size_m {view.cell_size_m:g} is outside the "
+                         f"app's range [{MIN_CELL_SIZE:g}, {MAX_CELL_SIZE:g}] m")
+    if view.min_points > MAX_MIN_POINTS:
+        raise InputError(f"{where} grid.min_points {view.min_points} is more than the app's "
+                         f"{MAX_MIN_POINTS:,}")
+    settings = settings_of_view(view)
+    try:
+        check_settings(settings)
+    except InputError as exc:
+        raise InputError(f"{where} {exc}") from None
+    return settings
+
+
+def settings_of_view(view: View) -> MapSettings:
+    """The map settings a saved view asks for (grid, model, threshold, colours)."""
+    c = view.colour
+    return MapSettings(cell_size=float(view.cell_size_m), model=view.model, axis=view.axis,
+                       min_points=int(view.min_points), display=c.mode,
+                       threshold=float(view.threshold), colormap=c.colormap,
+                       stretch=c.stretch, layer=c.layer)
+
+
+# ----------------------------------------------------------------------------- render
+
+
+@dataclass(frozen=True)
+class RenderJob(Job[Host]):
+    """Colour the map: with ``settings``, or with what the controls show once the
+    controls that follow ``touched`` have moved (:meth:`MapBinding.settle`)."""
+
+    m: MapFeature = field(compare=False)
+    settings: MapSettings | None = None
+    touched: tuple[str, ...] = ()
+    """Controls changed since the last render, oldest first."""
+    assigned: tuple[tuple[str, object], ...] = ()
+    """(control, value) other features asked to set first."""
+    lane: ClassVar[str] = "render"
+    cancels: ClassVar[frozenset[str]] = frozenset({"panels"})
+
+    @property
+    def title(self) -> str:
+        return "map" if self.settings is None else f"grid {self.settings.cell_size:g} m"
+
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
+        if isinstance(newer, RenderJob):
+            return merged(newer, self)
+        return None
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        settings = resolve(self.m, self.settings, self.touched, self.assigned)
+        if settings is None:
+            return
+        if self.settings is not None:
+            self.m.binding.show(settings)
+        yield from render_stages(self.m, run, settings)
+
+
+def merged(newer: RenderJob, older: RenderJob | LoadJob) -> RenderJob:
+    """``newer`` with the controls ``older`` named before its own."""
+    return replace(newer, touched=older.touched + newer.touched,
+                   assigned=older.assigned + newer.assigned)
+
+
+def resolve(m: MapFeature, settings: MapSettings | None, touched: tuple[str, ...],
+            assigned: tuple[tuple[str, object], ...]) -> MapSettings | None:
+    """``settings``, or the controls' settings once those that follow ``touched``
+    moved; None (with the error shown and the controls put back) when unusable."""
+    if settings is not None:
+        return settings
+    m.binding.settle(touched, assigned)
+    try:
+        return m.binding.read()
+    except InputError as exc:
+        reject(m, str(exc))
+        return None
+
+
+def reject(m: MapFeature, message: str) -> None:
+    """Show an error and put the controls back to the shown map."""
+    m.host.show_error(message)
+    m.binding.show(m.host.session.shown.settings)
+
+
+def render_stages(m: MapFeature, run: Run, settings: MapSettings, *,
+                  keep_error: bool = False) -> Iterator[str]:
+    """Check the settings, compute (or fetch) the grid, colour the points (by the
+    roughness map or a colour layer), update the colour bar, status and notices,
+    then tell the features that follow the map. ``keep_error``: leave an error shown
+    by an earlier stage on screen."""
+    host = m.host
+    loaded = host.session.shown.loaded
+    try:
+        check_settings(settings)
+        if settings.layer != "roughness":
+            loaded.layer(settings.layer)  # InputError when the cloud lacks it
+    except InputError as exc:
+        reject(m, str(exc))
+        return
+    yield "check"
+    t0 = time.perf_counter()
+    cached = loaded.is_cached(settings)
+    result = _grid(m, run, loaded, settings, cached)
+    if result is None:
+        return
+    yield "grid"
+    stats = map_stats(result, settings)
+    if settings.layer == "roughness":
+        colours = point_colours(result, settings, loaded.display_index,
+                                colours_range=stats.colour_range)
+    else:
+        colours = loaded.layer(settings.layer).colours
+    host.scene.colour(colours)
+    host.session.shown = Shown(loaded, settings, result, stats)
+    loaded.mark_shown(settings)
+    t_colours = time.perf_counter() - t0
+    # the colour bar and status always go with the colours (no stage in between)
+    if not keep_error:
+        host.clear_error()
+    _show_map_text(m, loaded, result, stats, settings, t_colours, cached)
+    m.timings.append({"cell_size": settings.cell_size, "model": settings.model,
+                      "layer": settings.layer, "cached": cached, "colours_s": t_colours})
+    if stats.sparse and not cached:
+        host.notify("Most cells have no value", sparse_message(loaded, stats, settings),
+                    color="yellow", seconds=10.0)
+    host.rendered()  # features that follow the map (zones, the panels)
+    yield "colours"
+
+
+def _grid(m: MapFeature, run: Run, loaded: LoadedCloud, settings: MapSettings,
+          cached: bool) -> GridRoughness | None:
+    host = m.host
+    notes = []
+    if not cached:
+        host.progress(0.0)
+        if loaded.n_total > BIG_CLOUD:
+            notes = [c.add_notification("Computing", f"grid {settings.cell_size:g} m on "
+                                        f"{loaded.n_total:,} points", loading=True,
+                                        with_close_button=False)
+                     for c in host.clients().values()]
+
+    def report(done: int, total: int) -> None:
+        if total > 0:
+            host.progress(100.0 * done / total)
+
+    try:
+        return loaded.result(settings, progress=None if cached else run.progress(report))
+    except (InputError, MemoryError) as exc:
+        what = "not enough memory" if isinstance(exc, MemoryError) else str(exc)
+        reject(m, f"grid {settings.cell_size:g} m: {what}")
+        return None
+    finally:
+        host.progress(None)
+        for n in notes:
+            n.remove()
+
+
+def _show_map_text(m: MapFeature, loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
+                   settings: MapSettings, seconds: float, cached: bool) -> None:
+    fig = colour_bar_of(loaded, result, stats, settings)
+    m.colour_bar.figure = fig
+    m.colour_bar.aspect = panel_aspect(fig)
+    if (settings.layer == "roughness" and settings.display == "continuous"
+            and settings.stretch.mode == "percentile"):
+        m.binding.show_range(stats.colour_range)  # the typed limits start from what is shown
+    m.host.say(status_text(loaded, result, stats, settings, seconds, cached))
+    m.host.warn(notice_text(loaded, stats, settings))
+    m.axis_note.content = (f"auto chose **{loaded.auto_axis}** (closest to the whole-cloud "
+                           f"normal); using **{result.axis}**")
+    m.host.scene.draw_axis(loaded, result.axis, chosen=settings.axis != "auto",
+                           visible=bool(m.show_axis.value))
+
+
+def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
+                  settings: MapSettings) -> go.Figure:
+    """The colour bar of what colours the points: the roughness map (its stretch in
+    the roughness unit; the binary transform's two colours), or a colour layer."""
+    u = loaded.units
+    scale = 1.0 / u.rough_per
+    title = (f"{MODEL_LABELS[settings.model]} roughness · grid {u.size_text(settings.cell_size)}"
+             f" · axis {result.axis} · {loaded.n_total:,} points")
+    if settings.layer == "roughness":
+        if settings.display == "binary":
+            return colour_bar_figure(
+                colormap=settings.colormap, theta_min_m=stats.theta_min,
+                theta_max_m=stats.theta_max, mode="binary", threshold=settings.threshold,
+                title=title, no_value_cells=stats.cells - stats.valid_cells,
+                unit=u.rough_label, scale=scale)
+        return colour_scale_figure(stats.colour_range, colormap=settings.colormap, title=title,
+                                   unit=u.rough_label, scale=scale,
+                                   no_value=stats.cells - stats.valid_cells)
+    layer = loaded.layer(settings.layer)
+    shown = f"{loaded.n_display:,} points shown"
+    if layer.colour_range is None or layer.colormap is None:
+        fig = go.Figure()
+        fig.update_layout(
+            title={"text": f"{layer.label[:1].upper()}{layer.label[1:]} · {shown}<br><sup>the scan's own "
+                   "colours; no colour scale</sup>", "font": {"size": 12}, "x": 0.01,
+                   "xanchor": "left"},
+            height=70, margin={"l": 12, "r": 12, "t": 50, "b": 4},
+            xaxis={"visible": False}, yaxis={"visible": False}, plot_bgcolor="white")
+        return fig
+    if settings.layer == "intensity":
+        return colour_scale_figure(layer.colour_range, colormap=layer.colormap,
+                                   title=f"Intensity as stored in the file · {shown}",
+                                   quantity="intensity", unit="", scale=1.0)
+    # distances in the roughness unit (mm) unless the face bends by metres
+    big = abs(layer.colour_range.hi) / u.rough_per >= 1000.0
+    return colour_scale_figure(
+        layer.colour_range, colormap=layer.colormap,
+        title=f"Distance to the whole-cloud face plane · {shown}",
+        quantity="distance", unit=u.label if big else u.rough_label,
+        scale=1.0 / u.per if big else scale)
+
+
+def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
+                settings: MapSettings, seconds: float, cached: bool) -> str:
+    """Markdown of the status line (the file name escaped)."""
+    where = "cached" if cached else f"computed in {seconds:.2f} s"
+    name = md(loaded.label or Path(loaded.cloud.source).name or "in-memory cloud",
+              max_chars=120)
+    colours = "" if settings.layer == "roughness" else \
+        f"; colours: {COLOUR_LAYER_LABELS[settings.layer]}"
+    return "\n".join([
+        f"**{name}**: {loaded.n_display:,} points shown of {loaded.n_total:,} used  ",
+        f"{MODEL_LABELS[settings.model]}, grid {loaded.units.size_text(settings.cell_size)}, "
+        f"axis {result.axis}, {stats.valid_cells:,} of {stats.cells:,} cells with a value "
+        f"({where}){colours}",
+    ])
+
+
+def sparse_message(loaded: LoadedCloud, stats: MapStats, settings: MapSettings) -> str:
+    """Plain text: most occupied cells have no value, and which grid to try."""
+    u = loaded.units
+    share = 100.0 * stats.valid_cells / max(stats.cells, 1)
+    presets = loaded.presets or ()
+    larger = [g for g in sorted(presets) if g > settings.cell_size * (1 + 1e-9)
+              and g >= loaded.default_cell_size]
+    hint = (f"try grid {u.size_text(larger[0])}" if larger else
+            "try a larger grid")
+    return (f"only {stats.valid_cells:,} of {stats.cells:,} occupied cells ({share:.0f} %) "
+            f"have a value at grid {u.size_text(settings.cell_size)}: too few points per cell "
+            f"(at least {settings.min_points} needed); {hint} (the default, "
+            f"{u.size_text(loaded.default_cell_size)}, holds about 16 points in a typical cell)")
+
+
+def notice_text(loaded: LoadedCloud, stats: MapStats | None, settings: MapSettings) -> str:
+    """Markdown of the notices that stay on screen: the reader's warnings (escaped),
+    a grid where most occupied cells have no value, and cells that fit their plane
+    exactly. Empty when there is none."""
+    lines = [f"**Warning:** {md(w, max_chars=400)}" for w in loaded.cloud.warnings[:10]]
+    if stats is not None and stats.sparse:
+        lines.append(f"**Most cells have no value:** {md(sparse_message(loaded, stats, settings))}")
+    if stats is not None and stats.exact_fit:
+        lines.append(f"**Cells of roughness 0:** "
+                     f"{md(exact_fit_text(stats.exact_fit, stats.valid_cells))} and take the "
+                     "smoothest colour. A larger *Min points per cell* leaves them out.")
+    return "  \n".join(lines)
+
+
+# ----------------------------------------------------------------------------- clouds
+
+
+@dataclass(frozen=True)
+class LoadJob(Job[Host]):
+    """Show another cloud from ``source`` (a file, an upload, points in memory)."""
+
+    m: MapFeature = field(compare=False)
+    source: CloudSource = field(compare=False)
+    settings: MapSettings | None = None
+    """Settings to show it with (None: the controls', read when the job runs)."""
+    touched: tuple[str, ...] = ()
+    assigned: tuple[tuple[str, object], ...] = ()
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick"})
+
+    @property
+    def title(self) -> str:
+        return f"loading {self.source.title}"
+
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
+        if isinstance(newer, RenderJob):
+            return replace(self, settings=newer.settings, touched=self.touched + newer.touched,
+                           assigned=self.assigned + newer.assigned)
+        return None
+
+    def release(self) -> None:
+        self.source.release()
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        settings = resolve(self.m, self.settings, self.touched, self.assigned) \
+            or ctx.session.shown.settings
+        return load_stages(self.m, run, lambda r: self.source.read(ctx, r), settings)
+
+
+def load_stages(m: MapFeature, run: Run, read: Callable[[Run], PointCloud],
+                settings: MapSettings, *, stash: bool = False,
+                label: str = "") -> Iterator[str]:
+    """Read a cloud, prepare it for display, put it in the scene, then show it with
+    ``settings`` at its own default grid (its presets come from its point spacing).
+
+    ``stash``: put the scan shown now aside (:attr:`Session.stashed`) instead of
+    dropping it, so it can be shown again as it was (the board lesson); a load
+    without it drops anything put aside. A cloud that cannot be read or prepared
+    leaves the old one shown (with the error) and shows ``settings`` on it, so
+    control changes merged into the load are not lost. ``label``: the status line's
+    name of a cloud that is no file (:attr:`LoadedCloud.label`).
+    """
+    host = m.host
+    try:
+        cloud = read(run)
+        yield "read"
+        loaded = LoadedCloud(cloud, max_display=host.options.max_display,
+                             cache_bytes=host.options.cache_bytes, label=label)
+    except (InputError, MemoryError) as exc:
+        host.show_error(str(exc) if isinstance(exc, InputError) else "not enough memory "
+                        "to load this cloud")
+        yield "read failed"
+        m.binding.show(settings)
+        yield from render_stages(m, run, settings, keep_error=True)
+        return
+    yield "prepare"
+    if stash:
+        host.session.put_aside()
+    else:
+        host.session.stashed = None
+    layer = settings.layer if settings.layer in loaded.layers else "roughness"
+    settings = settings.with_(cell_size=loaded.default_cell_size, layer=layer)
+    show_cloud(m, loaded, settings)
+    for warning in cloud.warnings[:10]:
+        host.notify("Warning", warning, color="yellow", seconds=12.0)
+    yield "show"
+    yield from render_stages(m, run, settings)
+
+
+def show_cloud(m: MapFeature, loaded: LoadedCloud, settings: MapSettings) -> None:
+    """Replace the cloud in the scene (and forget the old cloud's pick and panels);
+    the grid presets, unit labels and colour layers follow the new cloud, and the
+    controls show ``settings`` (worker)."""
+    host = m.host
+    host.session.new_cloud(loaded, settings)
+    size = scene_mod.default_point_size(loaded)
+    m.binding.follow(loaded, size)
+    m.binding.show(settings)
+    host.scene.show_cloud(loaded, size)
+    m.forget_pick(PICK_PROMPT)
+    host.scene.frame(loaded)
+    host.cloud_shown()
+
+
+@dataclass(frozen=True)
+class ShowJob(Job[Host]):
+    """Show a prepared cloud with ``settings`` (the app's first cloud; a scan put
+    aside, shown again with its cached grids)."""
+
+    m: MapFeature = field(compare=False)
+    loaded: LoadedCloud = field(compare=False)
+    settings: MapSettings
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick"})
+
+    @property
+    def title(self) -> str:
+        return "showing the cloud"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        show_cloud(self.m, self.loaded, self.settings)
+        yield "show"
+        yield from render_stages(self.m, run, self.settings)
+
+
+@dataclass(frozen=True)
+class RestoreMapJob(Job[Host]):
+    """A saved view's map: its settings in the controls and on the points, and its
+    camera in every browser."""
+
+    m: MapFeature = field(compare=False)
+    settings: MapSettings
+    camera: Camera | None = None
+    lane: ClassVar[str] = "render"
+    cancels: ClassVar[frozenset[str]] = frozenset({"panels"})
+
+    @property
+    def title(self) -> str:
+        return "the saved view's map"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        if self.camera is not None:
+            origin = ctx.session.shown.loaded.origin
+            c = self.camera
+            ctx.scene.set_camera(np.asarray(c.position) - origin, np.asarray(c.look_at) - origin,
+                                 c.up, float(np.radians(c.fov_deg)))
+        self.m.binding.show(self.settings)
+        yield "camera"
+        yield from render_stages(self.m, run, self.settings)
+
+
+# ----------------------------------------------------------------------------- scene
+
+
+@dataclass(frozen=True)
+class CameraJob(Job[Host]):
+    """Move every browser's camera to a preset view of the cloud."""
+
+    preset: str
+    """``"face-on"``, ``"top"`` or ``"side"`` (:func:`rough_viewer.app.scene.camera_pose`)."""
+    lane: ClassVar[str] = "camera"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.move_cameras(ctx.session.shown.loaded, self.preset)
+        yield "camera"
+
+
+@dataclass(frozen=True)
+class AxisJob(Job[Host]):
+    """Show or hide the dependent-axis marker."""
+
+    visible: bool
+    lane: ClassVar[str] = "axis"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        shown = ctx.session.shown
+        if shown.result is not None:
+            ctx.scene.draw_axis(shown.loaded, shown.result.axis,
+                                chosen=shown.settings.axis != "auto", visible=self.visible)
+        yield "axis"
+
+
+@dataclass(frozen=True)
+class PointSizeJob(Job[Host]):
+    """The points' size (the map's and every cloud that follows it)."""
+
+    size: float
+    lane: ClassVar[str] = "points"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.set_point_size(self.size)
+        yield "points"
+
+
+# ----------------------------------------------------------------------------- pick
+
+
+@dataclass(frozen=True)
+class PickJob(Job[Host]):
+    """A click in the scene: pick the point under the ray, then report its cell (or
+    hand it to a feature that takes clicks, e.g. the Profile tab)."""
+
+    m: MapFeature = field(compare=False)
+    origin: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    lane: ClassVar[str] = "pick"
+    keep_all: ClassVar[bool] = True
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        on_click(self.m, self.origin, self.direction)
+        yield "pick"
+
+
+def valid_ray(origin: object, direction: object) -> bool:
+    """Both are 3 finite numbers and the direction is not zero (a client's ray)."""
+    try:
+        o = np.asarray(origin, dtype=np.float64)
+        d = np.asarray(direction, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return (o.shape == (3,) and d.shape == (3,) and bool(np.all(np.isfinite(o)))
+            and bool(np.all(np.isfinite(d))) and float(np.linalg.norm(d)) > 0)
+
+
+def on_click(m: MapFeature, origin: object, direction: object) -> CellInfo | None:
+    """Pick the displayed point under a click ray; let a feature take it, or report
+    its cell and the roughness of its cells on every preset grid (returned: the
+    cell report). Worker."""
+    host = m.host
+    shown = host.session.shown
+    if shown.result is None or not valid_ray(origin, direction):
+        return None
+    t0 = time.perf_counter()
+    o = np.asarray(origin, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
+    i = pick_point(shown.loaded.display_points, o, d)
+    if i is None:  # the earlier point's report and plot go with it
+        m.forget_pick("No point under the click.")
+        return None
+    local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
+    pick = Pick(int(shown.loaded.display_index[i]), shown.loaded.to_file_frame(local), local)
+    if host.picked(pick):
+        return None
+    info = cell_info(shown.result, pick.point, pick.xyz)
+    g = shown.result.grid.cell_size
+    u = shown.loaded.units
+    host.session.last_pick = info
+    m.pick.content = format_cell_info(info, g, u)
+    host.scene.remove(m.pick_nodes)
+    m.pick_nodes = host.scene.mark_pick(shown.loaded, info, local, g)
+    t_cell = time.perf_counter() - t0
+    scales = across_scales(shown.loaded, shown.settings, shown.result, pick.point)
+    fig = point_scales_figure(scales, point_xyz=pick.xyz.tolist(), n_points=shown.loaded.n_total,
+                              unit=u.unit)
+    set_figure(m.scales, fig)
+    host.session.pick_scales = scales
+    m.pick_timings.append({"cell_s": t_cell, "pick_s": time.perf_counter() - t0,
+                           "grids": len(scales.cell_sizes)})
+    return info
+
+
+def across_scales(loaded: LoadedCloud, settings: MapSettings, result: GridRoughness,
+                  point: int) -> PointScales:
+    """ODR, OLS, hybrid roughness and e_ols of the cells holding cloud point ``point``
+    on every preset grid (with the shown axis and minimum points): only those cells
+    are evaluated, on the nested grids' cell membership (the finest preset's,
+    coarsened), so a click costs milliseconds."""
+    assert loaded.presets is not None
+    grids = [loaded.prepared(g) for g in loaded.presets]
+    return point_scales_from_prepared(loaded.cloud, grids, point, axis=result.axis,
+                                      min_points=settings.min_points)
+
+
+def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = None) -> str:
+    """Markdown of a picked cell (roughness in the roughness unit, mm for metric
+    input; coordinates and the grid in the cloud's unit)."""
+    u = units or Units("m")
+
+    def rough(v: float) -> str:
+        return "—" if not np.isfinite(v) else f"{u.rough(v):.4g} {u.rough_label}"
+
+    n = info.normal
+    normal = "—" if not np.all(np.isfinite(n)) else f"({n[0]:.3f}, {n[1]:.3f}, {n[2]:.3f})"
+    p = [c / u.per for c in info.point]
+    return "\n".join([
+        f"**Cell {info.ijk}** ({u.size_text(cell_size)}), {info.n_points} points  ",
+        f"point ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) {u.label}  ",
+        f"θ ODR {rough(info.theta['odr'])}, OLS ({info.axis}) {rough(info.theta['ols'])}  ",
+        f"θ hybrid {rough(info.theta['hybrid'])}, e_ols {rough(info.theta['e_ols'])}  ",
+        f"normal {normal}",
+    ])
+
+
+# ----------------------------------------------------------------------------- idle
+
+
+def prefetch_presets(host: Host, run: Run) -> bool:
+    """Compute one preset grid not yet cached; True if it did (call again)."""
+    shown = host.session.shown
+    if shown.result is None or shown.loaded.presets is None:
+        return False
+    for size in shown.loaded.presets:
+        candidate = shown.settings.with_(cell_size=size)
+        if not shown.loaded.is_cached(candidate):
+            if run.cancelled:
+                return False
+            shown.loaded.result(candidate, progress=run.progress())
+            # a grid that does not fit the cache budget is not prefetched again
+            return shown.loaded.is_cached(candidate)
+    return False
+
+
+# ----------------------------------------------------------------------------- mount
+
+
+def mount(host: Host) -> MapFeature:
+    """The colour bar above the tabs and the Map tab; every control queues a job."""
+    m = _add_controls(host)
+    _wire(host, m)
+    host.on_idle(lambda run: prefetch_presets(host, run))
+    return m
+
+
+def _add_controls(host: Host) -> MapFeature:
+    gui = host.gui
+    shown = host.session.shown
+    loaded, settings = shown.loaded, shown.settings
+    units = loaded.units
+    assert loaded.presets is not None
+    layers = loaded.layers
+    point_size = scene_mod.default_point_size(loaded)
+    colour_bar = gui.add_plotly(empty_figure("colour bar"), config=PLOTLY_CONFIG,
+                                aspect=0.27)  # height = width * aspect
+    values = grid_options(loaded.presets, units)
+    preset = f"{units.length(settings.cell_size):g}"
+    st = settings.stretch
+    if st.mode == "absolute":
+        lo_r, hi_r = round_limit(units.rough(st.lo)), round_limit(units.rough(st.hi))
+    else:
+        lo_r = hi_r = 0.0
+    with host.tab("Map"):
+        # what a click reports comes first: it is what the person looks for next
+        pick = gui.add_markdown(PICK_PROMPT)
+        # never hidden: viser's client fails to lay out a plot that was created hidden
+        placeholder = scales_placeholder()
+        scales = gui.add_plotly(placeholder, config=PLOTLY_CONFIG, aspect=panel_aspect(placeholder))
+        m = MapFeature(
+            host=host, colour_bar=colour_bar, pick=pick, scales=scales,
+            layer=gui.add_dropdown(
+                L_LAYER, tuple(COLOUR_LAYER_LABELS[n] for n in layers),
+                initial_value=COLOUR_LAYER_LABELS[settings.layer if settings.layer in layers
+                                                  else "roughness"],
+                hint="The roughness map, or the rock itself: scan colours, intensity, or "
+                "the distance to the whole-cloud face plane."),
+            grid=gui.add_dropdown(
+                l_grid(units), (*values, "free"),
+                initial_value=preset if preset in values else "free",
+                hint="Cell edge of the roughness grid: presets from the point spacing "
+                "(the finest holds about 16 points in a typical cell); 'free' uses the "
+                "number below."),
+            grid_free=gui.add_number(
+                l_grid_free(units), units.length(settings.cell_size),
+                min=units.length(MIN_CELL_SIZE), max=units.length(MAX_CELL_SIZE), step=0.001,
+                hint="Any cell size (switches the grid size to 'free')."),
+            model=gui.add_dropdown(L_MODEL, MODEL_OPTIONS,
+                                   initial_value=MODEL_LABELS[settings.model]),
+            toggle=gui.add_button(L_TOGGLE, hint="Same cells, other reference plane."),
+            axis=gui.add_dropdown(L_AXIS, tuple(AXIS_BY_NAME), initial_value=settings.axis,
+                                  hint="Dependent variable of the OLS and hybrid fits."),
+            axis_note=gui.add_markdown(""),
+            show_axis=gui.add_checkbox(L_SHOW_AXIS, True),
+            display=gui.add_dropdown(L_DISPLAY, tuple(DISPLAY_BY_NAME),
+                                     initial_value=settings.display),
+            threshold=gui.add_slider(
+                L_THRESHOLD, min=0.0, max=1.0, step=0.01, initial_value=settings.threshold,
+                hint="Binary view: cells with normalised roughness ≥ this are rough."),
+            min_points=gui.add_number(L_MIN_POINTS, int(settings.min_points), min=3,
+                                      max=MAX_MIN_POINTS, step=1),
+            colormap=gui.add_dropdown(L_COLORMAP, COLORMAP_OPTIONS, initial_value="auto",
+                                      hint="auto: viridis for roughness, magma for e_ols."),
+            stretch=gui.add_dropdown(
+                L_STRETCH, colormaps.STRETCH_MODES, initial_value=st.mode,
+                hint="percentile: the colours span these percentiles of the cells (robust "
+                "to a few extreme cells); absolute: fixed limits, so one colour means one "
+                "roughness on every grid and file."),
+            log=gui.add_checkbox(L_LOG, bool(st.log),
+                                 hint="Equal ratios of roughness get equal colour steps."),
+            percentiles=gui.add_multi_slider(
+                L_PERCENTILES, min=0.0, max=100.0, step=0.5, min_range=1.0,
+                initial_value=(st.lo, st.hi) if st.mode == "percentile" else (2.0, 98.0),
+                hint="Percentiles of the cells with a value at the first and last colour."),
+            range_lo=gui.add_number(l_range_lo(units), lo_r, min=0.0, max=1e9, step=0.001,
+                                    hint="Roughness at the first colour; typing here pins "
+                                    "the colours (absolute stretch)."),
+            range_hi=gui.add_number(l_range_hi(units), hi_r, min=0.0, max=1e9, step=0.001,
+                                    hint="Roughness at the last colour (absolute stretch)."),
+            point_size=gui.add_slider(L_POINT_SIZE, min=point_size / 10, max=point_size * 10,
+                                      step=point_size / 10, initial_value=point_size),
+            camera=gui.add_button_group(L_CAMERA, CAMERA_PRESETS,
+                                        hint="Look at the face straight on, from above, "
+                                        "or from the side."),
+        )
+    m.binding = MapBinding(m, loaded.presets, units)
+    host.allow(*m.inputs())
+    return m
+
+
+def _wire(host: Host, m: MapFeature) -> None:
+    """Every control submits a job naming itself; clicks on the scene submit a pick."""
+    b = m.binding
+    names = ("layer", "grid", "grid_free", "model", "axis", "display", "threshold",
+             "min_points", "colormap", "stretch", "log", "percentiles", "range_lo",
+             "range_hi", "toggle")
+    by_handle = {id(getattr(m, n)): n for n in names}
+    b.on_change([getattr(m, n) for n in names],
+                lambda handle: m.request(by_handle[id(handle)]))
+    b.on_change([m.point_size], lambda _h: host.submit(PointSizeJob(float(m.point_size.value))))
+    b.on_change([m.show_axis], lambda _h: host.submit(AxisJob(bool(m.show_axis.value))))
+
+    def camera(_handle: object) -> None:
+        if m.camera.value in CAMERA_PRESETS:
+            host.submit(CameraJob(m.camera.value))
+
+    b.on_change([m.camera], camera)
+
+    def clicked(event: viser.SceneClickEvent) -> None:
+        if valid_ray(event.ray_origin, event.ray_direction):
+            o, d = event.ray_origin, event.ray_direction
+            host.submit(PickJob(m, (float(o[0]), float(o[1]), float(o[2])),
+                                (float(d[0]), float(d[1]), float(d[2]))))
+
+    host.scene.on_click(clicked)

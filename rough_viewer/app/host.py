@@ -1,0 +1,252 @@
+"""The narrow interface every feature of the app is given: :class:`Host`.
+
+A feature (the Map tab, the Profile tab, the Export folder, ...) is mounted with a
+host and knows nothing else of the app. The host offers:
+
+- **a place for controls**: :meth:`Host.tab` (a tab of the app's tab group) or
+  :meth:`Host.folder`, the GUI to add controls with (:attr:`Host.gui`), and
+  :meth:`Host.allow` / :meth:`Host.rule` to let browsers set them (every value a
+  browser sends is checked; an unregistered control cannot be set);
+- **the scene** (:attr:`Host.scene`, :class:`rough_viewer.app.scene.Scene`) and
+  **the session** (:attr:`Host.session`): read anywhere, written only by jobs;
+- **work**: :meth:`Host.submit` a :class:`~rough_viewer.app.worker.Job` (callbacks do
+  nothing else), :meth:`Host.on_idle` for background work;
+- **events**, each delivered on the worker: :meth:`Host.on_cloud` (another cloud is
+  shown), :meth:`Host.on_render` (a map was coloured), :meth:`Host.on_click` (a point
+  was picked), :meth:`Host.on_connect` (a browser connected);
+- **messages**: notices, the error line, the status line, a pinned note;
+- **the other features**: :meth:`Host.feature` by type, :meth:`Host.features`.
+
+This module imports no feature and no viser internals: features depend on it, the
+shell (:mod:`rough_viewer.app.shell`) implements it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
+
+import numpy as np
+
+from rough_viewer.app.files import DataFolder
+from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
+from rough_viewer.app.state import DEFAULT_MAX_DISPLAY
+from rough_viewer.vocabulary import Unit
+
+if TYPE_CHECKING:
+    import viser
+
+    from rough_viewer.app.files import UploadedFile
+    from rough_viewer.app.scene import Scene
+    from rough_viewer.app.session import Session
+    from rough_viewer.app.worker import Job
+    from rough_viewer.report.view import View
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class AppOptions:
+    """Limits and switches of one app (``serve``'s options)."""
+
+    data: DataFolder
+    """The folder "Load file" reads from (and saved views are written to)."""
+    max_display: int = DEFAULT_MAX_DISPLAY
+    """Most points drawn in the browser (roughness uses every point)."""
+    variogram: bool = True
+    """Compute the semivariogram panel."""
+    prefetch: bool = True
+    """While idle, compute the preset grids for the current axis and minimum points."""
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD_MB << 20
+    """Largest upload accepted, bytes."""
+    cache_bytes: int = CACHE_BYTES
+    """Memory budget of the cached grids of the loaded cloud, bytes."""
+    units: Unit | None = None
+    """Unit of the coordinates of files loaded from the File tab (``serve --units``;
+    None: each file's CRS unit, else metres)."""
+    save_views: bool = False
+    """"Save view beside the input" may write into the data folder
+    (``serve --save-views``)."""
+    initial_source: Path | None = None
+    """The file the app was started on (the cloud given to ``serve``), if any."""
+
+
+@dataclass(frozen=True)
+class Pick:
+    """A displayed point under a click: its index in the cloud and its position."""
+
+    point: int
+    """Index into the loaded cloud."""
+    xyz: np.ndarray
+    """(3,) file frame, metres."""
+    local: np.ndarray
+    """(3,) display frame (relative to the local origin), metres."""
+
+
+ClickHandler = Callable[[Pick], bool]
+"""A feature's click handler (on the worker): True when it took the click (then no
+other feature, nor the cell report, gets it)."""
+
+Rule = Callable[[Any], Any]
+"""Extra check of a browser's value: returns the value to use or raises InputError."""
+
+
+@runtime_checkable
+class SavedViewPart(Protocol):
+    """A feature's part of a saved view (:class:`rough_viewer.report.view.View`).
+
+    :func:`rough_viewer.app.views.view_of` composes the parts of every feature that
+    has one and knows no feature's fields.
+    """
+
+    def snapshot(self) -> dict[str, Any]:
+        """The view's fields this feature fills (names of :class:`View`'s fields)."""
+        ...
+
+    def restore(self, view: View) -> Job[Host] | None:
+        """A job that puts this feature's part of ``view`` back (None: nothing to
+        do). Raises InputError when the view's values do not fit the feature."""
+        ...
+
+
+@runtime_checkable
+class FigureSource(Protocol):
+    """A feature whose panels can be exported (the Export folder's figure list)."""
+
+    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
+        """Name (a file-name part) -> (title shown to the user, the plotly panel)."""
+        ...
+
+
+class Host(Protocol):
+    """What a feature is given (see the module docstring)."""
+
+    @property
+    def options(self) -> AppOptions: ...
+
+    @property
+    def session(self) -> Session: ...
+
+    @property
+    def scene(self) -> Scene: ...
+
+    @property
+    def gui(self) -> viser.GuiApi: ...
+
+    def tab(self, label: str) -> AbstractContextManager[object]:
+        """A new tab of the app's tab group (controls added inside go there)."""
+        ...
+
+    def folder(self, label: str) -> AbstractContextManager[object]:
+        """A new folder below the tabs."""
+        ...
+
+    def allow(self, *handles: Any) -> None:
+        """Let browsers set these controls (each value checked against the control)."""
+        ...
+
+    def rule(self, handle: Any, check: Rule) -> None:
+        """An extra check of the values browsers send to ``handle``."""
+        ...
+
+    def take_uploads(self, handle: Any, on_file: Callable[[UploadedFile], object]) -> None:
+        """Files sent with the upload button ``handle`` go to ``on_file`` (streamed to
+        disk with a size limit)."""
+        ...
+
+    # ------------------------------------------------------------------ work
+    def submit(self, job: Job[Host]) -> int:
+        """Queue a job on the worker; 0 (with a notice) when too many wait."""
+        ...
+
+    def on_idle(self, work: Callable[[Any], bool]) -> None:
+        """Background work ``work(run) -> bool`` (more to do) while no job waits."""
+        ...
+
+    # ------------------------------------------------------------------ events
+    def on_cloud(self, listener: Callable[[], None]) -> None:
+        """Call ``listener()`` on the worker each time another cloud is shown."""
+        ...
+
+    def on_render(self, listener: Callable[[], None], *, late: bool = False) -> None:
+        """Call ``listener()`` on the worker after each map is coloured (keep it
+        quick: submit a job). ``late`` listeners come after the others (their jobs
+        then wait behind those of the quick ones: background panels)."""
+        ...
+
+    def on_click(self, handler: ClickHandler) -> None:
+        """Ask ``handler`` about each picked point, in order, before the cell report."""
+        ...
+
+    def on_connect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
+        """Call ``listener(client)`` when a browser connects (messages to it only)."""
+        ...
+
+    def cloud_shown(self) -> None:
+        """Tell the ``on_cloud`` listeners (the map does, on the worker)."""
+        ...
+
+    def rendered(self) -> None:
+        """Tell the ``on_render`` listeners (the map does, on the worker)."""
+        ...
+
+    def picked(self, pick: Pick) -> bool:
+        """Offer ``pick`` to the click handlers; True when one took it."""
+        ...
+
+    # ------------------------------------------------------------------ messages
+    def notify(self, title: str, body: str, *, color: Any = None,
+               seconds: float = 6.0) -> None:
+        """A notification in every browser (plain text, never Markdown)."""
+        ...
+
+    def notify_client(self, client_id: int, title: str, body: str) -> None:
+        """A red notification in one browser."""
+        ...
+
+    def show_error(self, message: str, *, kept: str = "The previous view is kept.") -> None:
+        """The error line (escaped) and a notice; ``kept`` says what stays."""
+        ...
+
+    def clear_error(self) -> None:
+        ...
+
+    def say(self, status: str) -> None:
+        """The status line (Markdown: escape user text first)."""
+        ...
+
+    def warn(self, notes: str) -> None:
+        """The notes that stay under the status line ("" hides them; Markdown)."""
+        ...
+
+    def pin(self, text: str) -> None:
+        """A note above the tabs that stays and is sent to each browser that connects
+        (a saved view's input moved or changed)."""
+        ...
+
+    def progress(self, percent: float | None) -> None:
+        """The progress bar at ``percent`` (None hides it)."""
+        ...
+
+    def clients(self) -> dict[int, viser.ClientHandle]:
+        """The connected browsers."""
+        ...
+
+    # ------------------------------------------------------------------ features
+    def feature(self, kind: type[T]) -> T:
+        """The mounted feature of type ``kind`` (KeyError if none)."""
+        ...
+
+    def features(self) -> Sequence[object]:
+        """Every mounted feature, in mount order."""
+        ...
+
+
+def parts(host: Host) -> Iterator[SavedViewPart]:
+    """The features of ``host`` that have a part in saved views, in mount order."""
+    for f in host.features():
+        if isinstance(f, SavedViewPart):
+            yield f

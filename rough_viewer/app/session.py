@@ -1,0 +1,88 @@
+"""The session: what the app shows, what is put aside, and the keys of what is drawn.
+
+One :class:`Session` per app, owned by the worker (:mod:`rough_viewer.app.worker`):
+every attribute is read from any thread, but written only on the worker's thread
+(a write from another thread raises :class:`~rough_viewer.app.worker.NotOnWorker`).
+Features read it through their host; jobs change it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rough_viewer.app.state import CellInfo, LoadedCloud, MapSettings, MapStats
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.scales import PointScales
+from rough_viewer.report.view import View
+
+
+@dataclass(frozen=True)
+class Shown:
+    """What the scene shows now (replaced as a whole by the worker)."""
+
+    loaded: LoadedCloud
+    settings: MapSettings
+    result: GridRoughness | None = None
+    stats: MapStats | None = None
+
+
+class Session:
+    """The app's state, written by the worker only.
+
+    Parameters
+    ----------
+    shown
+        What is shown first (the cloud given to the app, before its first render).
+    require_writer
+        ``require_writer(what)`` raises unless the calling thread may write (the
+        worker's :meth:`~rough_viewer.app.worker.Worker.require_worker`).
+    """
+
+    shown: Shown
+    """The cloud on screen, the map settings, its grid result and statistics."""
+    stashed: Shown | None
+    """The scan put aside while the board lesson is shown (None: nothing aside)."""
+    panel_key: tuple[object, ...] | None
+    """(grid key, model, semivariogram on) of the grid panels on screen."""
+    face_key: tuple[object, ...] | None
+    """(axis, minimum points, threshold) of the whole-face trend on screen."""
+    last_pick: CellInfo | None
+    """The cell report of the last clicked point (None: no point picked)."""
+    pick_scales: PointScales | None
+    """The last clicked point's roughness across the preset grids."""
+    view: View | None
+    """The saved view the session was opened with (None: none): saving a view keeps
+    its fields that no mounted feature fills."""
+
+    _require: Callable[[str], None]
+    _FIELDS = ("shown", "stashed", "panel_key", "face_key", "last_pick", "pick_scales", "view")
+
+    def __init__(self, shown: Shown, require_writer: Callable[[str], None]) -> None:
+        object.__setattr__(self, "_require", require_writer)
+        for name in self._FIELDS:
+            object.__setattr__(self, name, None)
+        object.__setattr__(self, "shown", shown)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if name not in self._FIELDS:
+            raise AttributeError(f"the session has no {name!r}")
+        self._require(f"session.{name}")
+        object.__setattr__(self, name, value)
+
+    def put_aside(self) -> None:
+        """Keep the scan shown now aside (once: a second board scan keeps the first
+        scan aside, not the first board)."""
+        if self.stashed is None:
+            self.stashed = self.shown
+
+    def new_cloud(self, loaded: LoadedCloud, settings: MapSettings) -> None:
+        """Another cloud is shown: nothing of the old one's grid is on screen."""
+        self.shown = Shown(loaded, settings)
+        self.panel_key = None
+        self.face_key = None
+        self.forget_pick()
+
+    def forget_pick(self) -> None:
+        self.last_pick = None
+        self.pick_scales = None
