@@ -1,14 +1,16 @@
 """The shape of the package: data flows one way, the science knows nothing of the UI.
 
-Every import in ``rough_viewer`` (top-level or inside a function) is read from the
-source and checked against the layers below. The science packages (io, grid,
-profiles, bias, synthetic, scale) import no UI library, print nothing and import
-nothing above them.
+Every import in ``rough_viewer`` (top-level, inside a function or under
+``TYPE_CHECKING``) is read from the source and checked against the layers below. The
+science packages (io, grid, profiles, bias, synthetic, scale) import no UI library,
+print nothing and import nothing above them. Inside the app the layers run one way
+too (:data:`APP_LAYERS`), and no module of the package takes part in an import cycle.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 import tomllib
 from pathlib import Path
 
@@ -37,8 +39,9 @@ ALLOWED: dict[str, set[str]] = {
             "visual", "report"},
     "cli": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
             "visual", "report", "app", "__init__"},
-    "__init__": set(),  # the flat API imports lazily (names only, for type checkers)
+    "__init__": {"_version"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
+    "_version": set(),
 }
 
 #: Libraries that belong to the UI or the terminal, never to the science.
@@ -75,8 +78,8 @@ def test_imports_flow_one_way(path: Path) -> None:
         parts = module.split(".")
         if parts[0] == "rough_viewer" and len(parts) > 1:
             target = parts[1]
-            if target.startswith("__"):
-                continue  # __version__ of the root package, which imports nothing
+            if target == "_version":
+                continue  # the version, a leaf module every layer may read
             if package == "__init__" and target != "__init__":
                 continue  # TYPE_CHECKING names of the flat API
             assert target in allowed, f"{path.name}:{line} ({package}) imports {module}"
@@ -110,3 +113,123 @@ def test_every_package_is_installed() -> None:
 def test_flat_api_names_resolve() -> None:
     for name in rough_viewer.__all__:
         assert getattr(rough_viewer, name) is not None, name
+
+
+# ----------------------------------------------------------------------------- the app
+
+#: Modules of ``rough_viewer.app`` by layer, lowest first. A module imports modules of
+#: its own layer or below: the session and the worker know nothing of the host, the
+#: host nothing of the UI, the UI nothing of the features, the features nothing of
+#: the build (server.py), which the command line uses.
+APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
+    ("core", frozenset({"limits", "markup", "sampling", "picking", "state", "files", "worker",
+                        "session", "scene"})),
+    ("host", frozenset({"host"})),
+    ("ui", frozenset({"hooks", "controls", "gate", "uploads", "binding", "layout", "shell"})),
+    ("features", frozenset({"features", "views"})),
+    ("build", frozenset({"server", "__init__"})),
+)
+
+
+def _app_layer(module: str) -> int:
+    """Layer index of a module named relative to ``rough_viewer.app``."""
+    head = module.split(".")[0]
+    for k, (_name, members) in enumerate(APP_LAYERS):
+        if head in members:
+            return k
+    raise AssertionError(f"rough_viewer.app.{module} is in no layer: add it to APP_LAYERS")
+
+
+APP_MODULES = sorted((ROOT / "app").rglob("*.py"))
+
+
+def _dotted(path: Path, root: Path = ROOT) -> str:
+    parts = list(path.relative_to(root.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@pytest.mark.parametrize("path", APP_MODULES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_app_layers_flow_one_way(path: Path) -> None:
+    me = _dotted(path)
+    mine = _app_layer(me.removeprefix("rough_viewer.app").lstrip(".") or "__init__")
+    for module in sorted(_package_graph()[me]):
+        if module.startswith("rough_viewer.app."):
+            target = _app_layer(module.removeprefix("rough_viewer.app."))
+            assert target <= mine, (f"{me} ({APP_LAYERS[mine][0]}) imports {module} "
+                                    f"({APP_LAYERS[target][0]})")
+
+
+def _module_graph(modules: list[Path] | None = None, root: Path = ROOT) -> dict[str, set[str]]:
+    """Every module of the package -> the modules of the package it imports (anywhere
+    in its source; ``from pkg import sub`` of a submodule counts as importing ``sub``)."""
+    names = {_dotted(p, root): p for p in (MODULES if modules is None else modules)}
+    graph: dict[str, set[str]] = {m: set() for m in names}
+    for m, p in names.items():
+        package = m.split(".") if p.name == "__init__.py" else m.split(".")[:-1]
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.Import):
+                graph[m] |= {a.name for a in node.names if a.name in names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package[:len(package) - (node.level - 1)]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                subs = {f"{base}.{a.name}" for a in node.names} & names.keys()
+                graph[m] |= subs
+                if base in names and len(subs) < len(node.names):
+                    graph[m].add(base)
+        graph[m].discard(m)
+    return graph
+
+
+@functools.cache
+def _package_graph() -> dict[str, set[str]]:
+    return _module_graph()
+
+
+def test_no_import_cycle_anywhere() -> None:
+    graph = _package_graph()
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert cycles == [], f"import cycles: {cycles}"
+
+
+def test_the_cycle_check_finds_a_cycle(tmp_path: Path) -> None:
+    """The checker itself: two modules importing each other inside functions."""
+    pkg = tmp_path / "rough_viewer"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("def f():\n    from rough_viewer import b\n")
+    (pkg / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                              "    from rough_viewer.a import f\n")
+    graph = _module_graph(sorted(pkg.rglob("*.py")), pkg)
+    assert graph["rough_viewer.a"] == {"rough_viewer.b"}
+    assert graph["rough_viewer.b"] == {"rough_viewer.a"}

@@ -21,7 +21,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from rough_viewer import __version__
+from rough_viewer._version import __version__
 from rough_viewer.vocabulary import InputError
 
 

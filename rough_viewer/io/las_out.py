@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer import __version__
+from rough_viewer._version import __version__
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.io.las import laz_backend, open_las
 from rough_viewer.io.output import write_path_atomic

@@ -12,7 +12,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from rough_viewer import __version__
+from rough_viewer._version import __version__
 from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane

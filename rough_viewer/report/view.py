@@ -50,7 +50,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-from rough_viewer import __version__
+from rough_viewer._version import __version__
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
 from rough_viewer.vocabulary import (
