@@ -1,0 +1,93 @@
+"""The single-writer rule: the session and the scene change on the worker only."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+
+from rough_viewer.app.session import Session, Shown
+from rough_viewer.app.worker import Job, NotOnWorker, Run
+
+
+def test_a_session_write_from_another_thread_fails(app):
+    shown = app.session.shown
+    with pytest.raises(NotOnWorker, match="session.shown"):
+        app.session.shown = shown  # the test's thread is not the worker
+    with pytest.raises(NotOnWorker, match="session.stashed"):
+        app.session.put_aside()
+    with pytest.raises(AttributeError):
+        app.session.anything = 1
+    assert app.session.shown is shown and app.session.stashed is None
+
+
+def test_a_scene_write_from_another_thread_fails(app):
+    before = np.asarray(app.host.scene.cloud.colors).copy()
+    grey = np.zeros_like(before)
+    for write in (lambda: app.host.scene.colour(grey),
+                  lambda: app.host.scene.set_point_size(0.5),
+                  lambda: app.host.scene.show_map(False),
+                  lambda: app.host.scene.marker("/x", np.zeros(3)),
+                  lambda: app.host.scene.move_cameras(app.session.shown.loaded, "top")):
+        with pytest.raises(NotOnWorker, match="the scene"):
+            write()
+    np.testing.assert_array_equal(app.host.scene.cloud.colors, before)
+    assert app.host.scene.cloud.visible
+
+
+@dataclass(frozen=True)
+class Writes(Job[Any]):
+    """Writes the session and the scene from inside a job (on the worker)."""
+
+    seen: list[str] = field(compare=False)
+    lane: ClassVar[str] = "writes"
+
+    def stages(self, ctx: Any, run: Run) -> Iterator[str]:
+        ctx.session.shown = ctx.session.shown
+        ctx.scene.set_point_size(ctx.scene.point_size)
+        self.seen.append(threading.current_thread().name)
+        yield "written"
+
+
+def test_jobs_write_on_the_worker(app):
+    seen: list[str] = []
+    app.submit(Writes(seen))
+    assert app.wait_idle(30)
+    assert seen == [app.worker._thread.name] and list(app.host.errors) == []
+
+
+def test_a_session_without_a_writer_check_is_refused_by_its_check():
+    def never(what: str) -> None:
+        raise NotOnWorker(what)
+
+    s = Session(Shown(loaded=None, settings=None), never)  # type: ignore[arg-type]
+    with pytest.raises(NotOnWorker):
+        s.face_key = (1,)
+    assert s.face_key is None
+
+
+@dataclass(frozen=True)
+class Bug(Job[Any]):
+    lane: ClassVar[str] = "bug"
+
+    @property
+    def title(self) -> str:
+        return "a broken job"
+
+    def stages(self, ctx: Any, run: Run) -> Iterator[str]:
+        raise KeyError("not a user's error")
+        yield "never"
+
+
+def test_a_bug_is_logged_and_named_as_an_internal_error(app, capfd):
+    app.submit(Bug())
+    assert app.wait_idle(30)
+    err = capfd.readouterr().err
+    assert "Traceback" in err and "KeyError" in err  # on the server's terminal
+    msg = app.host.errors[-1]
+    assert msg.startswith("internal error: a broken job failed (KeyError)")
+    assert "Traceback" not in app.host.error.content and "not a user" not in msg
