@@ -34,7 +34,8 @@ def synthetic_face(n: int, seed: int = 0):
 def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None:
     import viser
 
-    from rough_viewer.app.server import build_app, on_scene_click
+    from rough_viewer.app.features.map import PickJob
+    from rough_viewer.app.server import build_app
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     t0 = time.perf_counter()
@@ -81,7 +82,9 @@ def run(cloud, label: str, *, prefetch: bool, fine: float | None = None) -> None
     clicks = []
     for i in rng.choice(loaded.n_display, 7, replace=False):
         p = loaded.display_points[i].astype(float)
-        on_scene_click(app, p + 5.0 * loaded.plane.normal, -loaded.plane.normal)
+        o, d = p + 5.0 * loaded.plane.normal, -loaded.plane.normal
+        app.submit(PickJob(app.map, tuple(map(float, o)), tuple(map(float, d))))
+        app.wait_idle(None)
         clicks.append(app.map.pick_timings[-1]["pick_s"])
     print(f"  click (cell + {len(presets)} grids across scales): median "
           f"{np.median(clicks):.3f} s of {len(clicks)}")

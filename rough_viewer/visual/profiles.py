@@ -59,7 +59,7 @@ def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None
         Objects with ``profile`` (``distance`` and ``heights``, metres),
         ``denoised.heights`` (metres), ``raw_fit`` and ``denoised_fit``
         (:class:`~rough_viewer.profiles.fractal.RoughnessLength`), e.g.
-        ``rough_viewer.app.profile_mode.ProfileAnalysis``.
+        ``rough_viewer.app.features.profile.ProfileAnalysis``.
     exaggeration : float, optional
         None (default): the height axis spans the data (:func:`height_range_mm`), so
         millimetre relief fills the panel; its title says the plot is not to scale.
