@@ -86,5 +86,3 @@ class FileBars:
         self.overall.close()
 
 
-def null_progress(done: int, total: int) -> None:
-    """A progress callback that does nothing."""

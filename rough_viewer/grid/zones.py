@@ -167,11 +167,6 @@ class Zones:
             cols[name] = self.centroid[:, a]
         return cols
 
-    def cells_of(self, zone: int) -> np.ndarray:
-        """Row indices of the cells of zone ``zone`` (1..Z)."""
-        return np.flatnonzero(self.labels == zone)
-
-
 @dataclass(frozen=True, eq=False)
 class ZoneLabeller:
     """Everything about the cells of one grid result that zones need, computed once.

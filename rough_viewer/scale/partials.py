@@ -52,11 +52,6 @@ class Partial:
         return int(self.keys.nbytes + self.values.nbytes)
 
 
-def empty_partial(width: int) -> Partial:
-    """A table of no cells with ``width`` value columns."""
-    return Partial(keys=np.empty(0, dtype=np.int64), values=np.empty((0, width)))
-
-
 def _bounds(a: np.ndarray | None, b: np.ndarray | None, fn) -> np.ndarray | None:
     if a is None:
         return b

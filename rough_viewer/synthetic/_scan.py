@@ -55,16 +55,6 @@ def ray_grid(
     return kk.ravel() * step_rad, jj.ravel() * step_rad
 
 
-def pixel_index(
-    phi: np.ndarray, theta: np.ndarray, step_rad: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Integer angular-grid cell (azimuth index, elevation index) of each direction."""
-    return (
-        np.floor(phi / step_rad + 0.5).astype(np.int64),
-        np.floor(theta / step_rad + 0.5).astype(np.int64),
-    )
-
-
 def nearest_per_pixel(key: np.ndarray, rng: np.ndarray) -> np.ndarray:
     """Index of the nearest sample (smallest range) for every distinct pixel key.
 

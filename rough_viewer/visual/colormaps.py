@@ -46,8 +46,6 @@ import numpy as np
 
 from rough_viewer.vocabulary import InputError, hex_to_rgb
 
-ColormapName = Literal["viridis", "cividis", "magma", "coolwarm", "gray"]
-
 #: Colour of points whose cell has no value (too few points, degenerate plane).
 NEUTRAL_RGB: tuple[int, int, int] = (190, 190, 190)
 

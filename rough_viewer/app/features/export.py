@@ -234,14 +234,14 @@ def _stem(cloud: PointCloud) -> str:
     return safe_name(Path(cloud.source).stem if cloud.source else "cloud")
 
 
-def _points_plan(mode: ExportFeature, shown: Shown, fmt: str) -> Plan:
+def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import point_fields
     from rough_viewer.io.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
     from rough_viewer.io.ply import write_ply_fields
 
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result
-    source = mode.input_file(cloud)
+    source = e.input_file(cloud)
     name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_points.{fmt}"
     n_rows = cloud.n + cloud.dropped_nonfinite
 
@@ -260,7 +260,7 @@ def _points_plan(mode: ExportFeature, shown: Shown, fmt: str) -> Plan:
     return Plan(name, n_rows * BYTES_PER_POINT[fmt], write)
 
 
-def _table_plan(mode: ExportFeature, shown: Shown, fmt: str) -> Plan:
+def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.io.table import check_table_output, write_table
 
@@ -331,15 +331,15 @@ def _report_plan(shown: Shown) -> Plan:
                 REPORT_BYTES, write)
 
 
-def _view_plan(host: Host, mode: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
-    source = mode.input_file(shown.loaded.cloud)
+def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
+    source = e.input_file(shown.loaded.cloud)
     if source is None:
         raise InputError("a view records the input file on the server; this cloud was "
                          "uploaded, merged from several files or made in memory: put its "
                          "file in the data folder and load it from there")
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        ref = mode.input_ref(source, progress)
+        ref = e.input_ref(source, progress)
         text = view_text(view_of(host, ref, camera=camera))
         write_atomic(path, lambda fh: fh.write(text))
 
@@ -376,7 +376,7 @@ def _room(size: float, clients: int, what: str, folder: Path | None = None) -> N
 class ExportJob(Job[Host]):
     """Write one export into a private temporary folder and send it to a browser."""
 
-    mode: ExportFeature = field(compare=False)
+    e: ExportFeature = field(compare=False)
     kind: ExportKind
     fmt: str
     client_id: int | None
@@ -404,19 +404,19 @@ class ExportJob(Job[Host]):
         if self.shown.result is None:
             raise InputError("nothing to export yet: the map is still being computed")
         if self.kind == "points":
-            return _points_plan(self.mode, self.shown, self.fmt)
+            return _points_plan(self.e, self.shown, self.fmt)
         if self.kind == "table":
-            return _table_plan(self.mode, self.shown, self.fmt)
+            return _table_plan(self.e, self.shown, self.fmt)
         if self.kind == "figure":
             return _figure_plan(self.shown, self.fmt, self.panel, self.figures)
         if self.kind == "report":
             return _report_plan(self.shown)
-        return _view_plan(host, self.mode, self.shown, self.camera)
+        return _view_plan(host, self.e, self.shown, self.camera)
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        m, t0 = self.mode, time.perf_counter()
+        m, t0 = self.e, time.perf_counter()
         paths: dict[str, str] = {}
-        source = self.mode.input_file(self.shown.loaded.cloud)
+        source = self.e.input_file(self.shown.loaded.cloud)
         if source is not None:
             paths[str(source)] = source.name
         try:
@@ -464,7 +464,7 @@ class ExportJob(Job[Host]):
 class SaveViewJob(Job[Host]):
     """Write the view beside the input, in the data folder (``serve --save-views``)."""
 
-    mode: ExportFeature = field(compare=False)
+    e: ExportFeature = field(compare=False)
     camera: Camera | None = None
     lane: ClassVar[str] = "export"
     keep_all: ClassVar[bool] = True
@@ -474,7 +474,7 @@ class SaveViewJob(Job[Host]):
         return "saving the view"
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        m = self.mode
+        m = self.e
         shown = ctx.session.shown
         data = ctx.options.data
         source = m.input_file(shown.loaded.cloud)
