@@ -6,9 +6,9 @@ from __future__ import annotations
 import time
 
 import pytest
-from rough_viewer.app.controls import check_value
 
 from rough_viewer.app import hooks
+from rough_viewer.app.controls import check_value
 from rough_viewer.app.features.bias import BiasPanel
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.gate import open_server

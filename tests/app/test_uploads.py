@@ -5,10 +5,10 @@ from __future__ import annotations
 import time
 
 import pytest
-from rough_viewer.app.uploads import clean_name
 
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
+from rough_viewer.app.uploads import clean_name
 from tests.app.browser import wait_until
 from tests.app.protocol import ProtocolClient, join, settle
 from tests.helpers import face_cloud

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import scene
-from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.features.board import BACK_LABEL, BoardFeature
+from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.features.map import RenderJob
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.features.profile import ProfileFeature
