@@ -12,11 +12,9 @@ import math
 import plotly.graph_objects as go
 import viser
 
-from rough_viewer.visual.app import PANEL_WIDTH, panel_aspect
+from rough_viewer.visual.app import CONTROL_WIDTH, panel_aspect
 
-#: Width of the control panel, px: its plots are about PANEL_WIDTH + 60 px wide
-#: less the panel's padding (issue 13: at least ~480 px at a 1600 x 1000 window).
-CONTROL_WIDTH = PANEL_WIDTH + 80
+__all__ = ["CONTROL_WIDTH", "PLOTLY_CONFIG", "limit_step", "round_limit", "set_figure"]
 #: Plotly options of every panel: no mode bar (it covered the plots' titles at the top
 #: right; dragging still zooms, a double click resets, and the Export folder saves
 #: figures), no plotly logo.

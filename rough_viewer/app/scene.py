@@ -11,12 +11,14 @@ sizes are plain functions of the loaded cloud.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import viser
 
 from rough_viewer.app.state import CellInfo, LoadedCloud
+from rough_viewer.visual.app import CONTROL_WIDTH
 
 AXIS_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 AXIS_COLOUR = (230, 60, 40)
@@ -24,14 +26,16 @@ PICK_COLOUR = (255, 30, 200)
 GREY = 190
 
 
-#: Camera distance from the cloud's centre, in units of its largest extent: the
-#: cloud then fills most of the view left of the control panel (measured in
-#: Chromium at viser's default field of view, 1600 x 1000).
-CAMERA_DISTANCE = 0.95
-#: The camera looks this far (in units of the largest extent) right of the cloud's
-#: centre, so the cloud sits left of the control panel, which floats over the
-#: right third of the view.
-PANEL_SHIFT = 0.22
+#: The browser window the initial camera is framed for, px (a laptop's browser; the
+#: presets frame each browser's own window).
+FRAME_WINDOW = (1600, 1000)
+#: Width of the window the floating control panel covers at its right, px (the panel
+#: and its margin).
+PANEL_PX = CONTROL_WIDTH + 24
+#: viser's initial vertical field of view, radians.
+DEFAULT_FOV = float(np.radians(75.0))
+#: The cloud fills this share of the free part of the window (the rest is margin).
+FILL = 0.9
 #: Text of the scene markers: labels are drawn on top of the points and sized in
 #: screen pixels (viser draws labels without depth test), so a marker never hides
 #: inside a dense cloud and keeps its size when zoomed out.
@@ -40,21 +44,20 @@ MARKER = "✚"
 LINE_PX = 3.0
 
 
-def camera_pose(loaded: LoadedCloud, preset: str = "face-on"
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(position, look-at, up) of a camera preset, display frame, metres.
+@dataclass(frozen=True)
+class Pose:
+    """A camera: where it stands and looks (display frame, metres), its up vector and
+    its clipping planes (distances from the camera, metres)."""
 
-    ``face-on``: along the whole-cloud face normal (steep faces from the side that
-    keeps +x, or +y, to the right; near-horizontal surfaces from above); ``top``:
-    straight down, north up; ``side``: along the face, horizontally (the strike
-    direction), so the relief shows in profile. The camera stands far enough for the
-    whole cloud to fit the view, shifted right by :data:`PANEL_SHIFT` so that the
-    cloud sits left of the control panel.
-    """
-    pts = loaded.display_points.astype(np.float64)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    centre = 0.5 * (lo + hi)
-    extent = float(np.max(hi - lo)) or 1.0
+    eye: np.ndarray
+    target: np.ndarray
+    up: np.ndarray
+    near: float
+    far: float
+
+
+def _directions(loaded: LoadedCloud, preset: str) -> tuple[np.ndarray, np.ndarray]:
+    """(view direction from the cloud to the camera, up) of a preset."""
     normal = np.asarray(loaded.plane.normal, dtype=np.float64)
     z = np.array([0.0, 0.0, 1.0])
     horizontal = abs(normal[2]) > 0.8
@@ -76,22 +79,89 @@ def camera_pose(loaded: LoadedCloud, preset: str = "face-on"
         up = z
     else:
         raise ValueError(f"unknown camera preset {preset!r}")
-    direction = direction / np.linalg.norm(direction)
+    return direction / np.linalg.norm(direction), up
+
+
+def camera_pose(loaded: LoadedCloud, preset: str = "face-on", *,
+                window: tuple[int, int] = FRAME_WINDOW, panel_px: float = PANEL_PX,
+                fov: float = DEFAULT_FOV) -> Pose:
+    """The camera of a preset that frames the whole cloud in the part of a
+    ``window`` (width, height px) the control panel leaves free, at vertical field of
+    view ``fov`` (radians), at any extent (a 20 mm joint, a 10 km tile).
+
+    ``face-on``: along the whole-cloud face normal (steep faces from the side that
+    keeps +x, or +y, to the right; near-horizontal surfaces from above); ``top``:
+    straight down, north up; ``side``: along the face, horizontally (the strike
+    direction), so the relief shows in profile. The camera stands back until the
+    cloud's extent across the view fits :data:`FILL` of the free width and height,
+    and looks right of the cloud's centre so that the cloud sits in the middle of the
+    free part, left of the panel. The clipping planes follow the cloud's extent (viser's
+    default far plane of 1 km left a larger tile blank).
+    """
+    direction, up = _directions(loaded, preset)
     right = np.cross(-direction, up)
     right /= np.linalg.norm(right)
-    target = centre + PANEL_SHIFT * extent * right
-    # along the face the cloud reaches towards the camera: stand back further
-    distance = CAMERA_DISTANCE * extent * (1.6 if preset == "side" else 1.0)
-    return target + distance * direction, target, up
+    screen_up = np.cross(right, -direction)
+    pts = loaded.display_points.astype(np.float64)
+    if len(pts) > 200_000:  # the extent of an even subset is the extent
+        pts = pts[:: len(pts) // 200_000 + 1]
+    along = pts @ np.stack([right, screen_up, direction], axis=1)
+    lo, hi = along.min(axis=0), along.max(axis=0)
+    half = np.maximum(0.5 * (hi - lo), 1e-9)
+    centre = 0.5 * (lo[0] + hi[0]) * right + 0.5 * (lo[1] + hi[1]) * screen_up \
+        + 0.5 * (lo[2] + hi[2]) * direction
+    width, height = (max(int(v), 1) for v in window)
+    free = max(width - float(panel_px), 0.25 * width) / width
+    aspect = width / height
+    t = float(np.tan(0.5 * fov))
+    # fitted at the cloud's near side (perspective draws it largest): the camera
+    # stands that far from it, and looks right of the centre by as much as the free
+    # part's centre lies left of the window's there. Farther points come out smaller
+    # and nearer the window's centre: inside the free part too, unless the panel
+    # covers that centre (a narrow window), where a deep cloud needs more distance
+    wide = half[0] / (t * aspect)
+    fits = [wide / free, half[1] / t]
+    if free < 0.5:
+        fits.append((wide + (1.0 - 2.0 * free) * 2.0 * half[2]) / free)
+    near_side = max(fits) / FILL
+    distance = near_side + half[2]
+    target = centre + (1.0 - free) * near_side * t * aspect * right
+    extent = float(2.0 * half.max())
+    near = max(1e-3 * extent, 1e-6)
+    far = 100.0 * (distance + extent)
+    return Pose(target + distance * direction, target, up, near, far)
 
 
 def default_point_size(loaded: LoadedCloud) -> float:
-    """A point size (metres) that closes the gaps between displayed points."""
+    """A point size (metres) that closes the gaps between displayed points, at any
+    extent (a 20 mm joint's tenth of a millimetre, a 10 km tile's tens of metres)."""
     w = loaded.plane.eigenvalues  # descending: the two largest are the face's spreads
-    area = 12.0 * np.sqrt(max(w[0], 1e-12) * max(w[1], 1e-12))
+    area = 12.0 * np.sqrt(max(w[0], 1e-18) * max(w[1], 1e-18))
     spacing = np.sqrt(area / max(loaded.n_display, 1))
-    size = float(np.clip(1.5 * spacing, 1e-4, 1.0))
+    size = float(np.clip(1.5 * spacing, 1e-6, 0.1 * np.sqrt(area)))
     return float(f"{size:.2g}")
+
+
+def axis_segment(loaded: LoadedCloud, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """((2, 3) ends, (3,) label position) of the dependent-axis line, display frame:
+    a tenth of the cloud's extent long, along ``axis``, under the cloud as the
+    face-on camera sees it (a twentieth of the extent below its lowest point, at its
+    middle), going away from the rock; the label at its top end. Never over the
+    rock, inside the framed view."""
+    direction, up = _directions(loaded, "face-on")
+    right = np.cross(-direction, up)
+    right /= np.linalg.norm(right)
+    screen_up = np.cross(right, -direction)
+    pts = loaded.display_points.astype(np.float64)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    extent = float(np.max(hi - lo)) or 1.0
+    centre = 0.5 * (lo + hi)
+    below = float((pts @ screen_up).min()) - 0.05 * extent
+    top = centre + (below - float(centre @ screen_up)) * screen_up
+    vec = np.asarray(AXIS_VECTORS[axis], dtype=np.float64)
+    if float(vec @ screen_up) > 0:  # drawn downwards, away from the rock
+        vec = -vec
+    return np.stack([top, top + 0.1 * extent * vec]), top
 
 
 def box_edges(centre: np.ndarray, size: float) -> np.ndarray:
@@ -219,20 +289,16 @@ class Scene:
 
     # ------------------------------------------------------------------ what the map draws
     def draw_axis(self, loaded: LoadedCloud, axis: str, *, chosen: bool, visible: bool) -> None:
-        """The OLS dependent axis as a red line with a label through the cloud's centre."""
+        """The OLS dependent axis as a red line with its label, under the cloud,
+        outside the rock (:func:`axis_segment`)."""
         self._check("draw_axis")
-        pts = loaded.display_points
-        lo, hi = pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64)
-        centre = 0.5 * (lo + hi)
-        length = 0.3 * float(np.max(hi - lo))
-        vec = np.asarray(AXIS_VECTORS[axis])
-        seg = np.array([[centre, centre + length * vec]], dtype=np.float32)
-        self._server.scene.add_line_segments("/axis/line", seg, AXIS_COLOUR, thickness=4.0,
+        seg, label = axis_segment(loaded, axis)
+        self._server.scene.add_line_segments("/axis/line", seg[None].astype(np.float32),
+                                             AXIS_COLOUR, thickness=4.0,
                                              thickness_units="screen", visible=visible)
-        end = centre + 1.05 * length * vec
         how = "chosen" if chosen else "auto"
         self._server.scene.add_label("/axis/label", f"OLS dependent axis {axis} ({how})",
-                                     position=(float(end[0]), float(end[1]), float(end[2])),
+                                     position=_vec(label), anchor="bottom-center",
                                      visible=visible)
 
     def mark_pick(self, loaded: LoadedCloud, info: CellInfo, local: np.ndarray,
@@ -266,50 +332,73 @@ class Scene:
 
     # ------------------------------------------------------------------ cameras
     def frame(self, loaded: LoadedCloud) -> None:
-        """Make the face-on view of ``loaded`` every browser's initial camera and move
-        the connected browsers there."""
+        """Make the face-on view of ``loaded`` every browser's initial camera (framed
+        for :data:`FRAME_WINDOW`: viser's "reset view" returns there) and frame each
+        connected browser in its own window."""
         self._check("frame")
-        eye, target, up = camera_pose(loaded, "face-on")
+        pose = camera_pose(loaded, "face-on")
         init = self._server.initial_camera
-        init.look_at = (float(target[0]), float(target[1]), float(target[2]))
-        init.position = (float(eye[0]), float(eye[1]), float(eye[2]))
-        init.up = (float(up[0]), float(up[1]), float(up[2]))
+        init.position, init.look_at = _vec(pose.eye), _vec(pose.target)
+        init.up = _vec(pose.up)
+        init.fov = DEFAULT_FOV
+        init.near, init.far = pose.near, pose.far
         for client in self._server.get_clients().values():
-            _place(client, eye, target, up)
+            _place(client, camera_pose(loaded, "face-on", **_window(client)))
 
     def move_cameras(self, loaded: LoadedCloud, preset: str) -> None:
-        """Move every connected browser's camera to a preset (:func:`camera_pose`)."""
+        """Move every connected browser's camera to a preset, framed in its window
+        (:func:`camera_pose`)."""
         self._check("move_cameras")
-        eye, target, up = camera_pose(loaded, preset)
         for client in self._server.get_clients().values():
-            _place(client, eye, target, up)
+            _place(client, camera_pose(loaded, preset, **_window(client)))
 
     def set_camera(self, position: Sequence[float], look_at: Sequence[float],
-                   up: Sequence[float], fov_rad: float) -> None:
+                   up: Sequence[float], fov_rad: float, *, near: float, far: float) -> None:
         """Make this camera (display frame) the initial camera of every browser and
         move the connected ones there."""
         self._check("set_camera")
         p, t, u = (_vec(a) for a in (position, look_at, up))
         init = self._server.initial_camera
         init.position, init.look_at, init.up, init.fov = p, t, u, float(fov_rad)
+        init.near, init.far = float(near), float(far)
         for client in self._server.get_clients().values():
+            client.camera.near, client.camera.far = float(near), float(far)
             client.camera.position = p
             client.camera.look_at = t
             client.camera.up_direction = u
             client.camera.fov = float(fov_rad)
 
 
-def _vec(v: Sequence[float]) -> tuple[float, float, float]:
+def _vec(v: Sequence[float] | np.ndarray) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(3)
     return float(a[0]), float(a[1]), float(a[2])
 
 
-def _place(client: viser.ClientHandle, eye: np.ndarray, target: np.ndarray,
-           up: np.ndarray) -> None:
-    """Put one browser's camera at ``eye`` looking at ``target``. Order matters in
-    viser: setting the position moves the look-at point along, so the position goes
-    first, then the look-at point, then the up direction."""
+#: A canvas wider than this many pixels is taken to be drawn at two device pixels per
+#: CSS pixel (viser reports the canvas in device pixels; the panel is CSS pixels).
+HIDPI_WIDTH = 2200
+
+
+def _window(client: viser.ClientHandle) -> dict[str, Any]:
+    """A browser's window (CSS px) and field of view, once it has sent its camera."""
+    try:
+        cam = client.camera
+        w, h, fov = int(cam.image_width), int(cam.image_height), float(cam.fov)
+    except (AssertionError, AttributeError, TypeError, ValueError):
+        return {}
+    if w <= 0 or h <= 0 or not 0.0 < fov < np.pi:
+        return {}
+    scale = 2 if w > HIDPI_WIDTH else 1
+    return {"window": (w // scale, h // scale), "fov": fov}
+
+
+def _place(client: viser.ClientHandle, pose: Pose) -> None:
+    """Put one browser's camera at ``pose``. Order matters in viser: setting the
+    position moves the look-at point along, so the position goes first, then the
+    look-at point, then the up direction."""
     with client.atomic():
-        client.camera.position = (float(eye[0]), float(eye[1]), float(eye[2]))
-        client.camera.look_at = (float(target[0]), float(target[1]), float(target[2]))
-        client.camera.up_direction = (float(up[0]), float(up[1]), float(up[2]))
+        client.camera.near = pose.near
+        client.camera.far = pose.far
+        client.camera.position = _vec(pose.eye)
+        client.camera.look_at = _vec(pose.target)
+        client.camera.up_direction = _vec(pose.up)

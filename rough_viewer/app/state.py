@@ -63,8 +63,9 @@ MODEL_LABELS: dict[MapName, str] = {name: MAP_TITLES[name] for name in MAPS}
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000
 
-#: Smallest cell size the app accepts (metres); below it grids get absurdly large.
-MIN_CELL_SIZE = 1e-3
+#: Smallest cell size the app accepts (metres): 0.1 mm, for lab scans of joints (a
+#: 20 mm joint scanned densely has presets below 1 mm); the grid code checks memory.
+MIN_CELL_SIZE = 1e-4
 
 #: Largest cell size the app accepts (metres).
 MAX_CELL_SIZE = 10_000.0
@@ -162,12 +163,13 @@ class Units:
 def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     """The app's grid presets for ``cloud``, metres, coarsest first: the default
     grid from the point spacing (:func:`rough_viewer.grid.spacing.default_cell_size`,
-    a readable size in the cloud's own unit) times 8, 4, 2, 1. Nested, so every
+    a readable size in the cloud's own unit; at least :data:`MIN_CELL_SIZE`) times 8,
+    4, 2, 1. Nested, so every
     coarser preset is the finest coarsened by a whole factor."""
     per = UNIT_METRES[cloud.source_unit]
     xyz = cloud.xyz()
     finest = default_cell_size(xyz if per == 1.0 else xyz / per) * per
-    return cell_sizes_from(finest)
+    return cell_sizes_from(max(finest, MIN_CELL_SIZE))
 
 
 def check_settings(settings: MapSettings) -> None:

@@ -160,6 +160,9 @@ def colour_scale_figure(
 #: Width of an analysis panel the figures are laid out for, px (issue 13: at least
 #: ~480 px at a 1600 x 1000 window).
 PANEL_WIDTH = 480
+#: Width of the app's control panel, px: its plots are about PANEL_WIDTH + 60 px wide
+#: less the panel's padding (issue 13: at least ~480 px at a 1600 x 1000 window).
+CONTROL_WIDTH = PANEL_WIDTH + 80
 
 
 def panel_aspect(fig: go.Figure, width: int = PANEL_WIDTH) -> float:

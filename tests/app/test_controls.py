@@ -47,7 +47,7 @@ BAD = [
     ("Model", 3, "one of its options"),
     ("Grid size (m)", "0.3", "one of its options"),
     ("Free grid size (m)", "abc", "a number"),
-    ("Free grid size (m)", 1e-9, "at least 0.001"),
+    ("Free grid size (m)", 1e-9, "at least 0.0001"),
     ("Free grid size (m)", 1e9, "at most 10000"),
     ("Min points per cell", 4.5, "whole number"),
     ("Min points per cell", True, "a number"),

@@ -261,7 +261,11 @@ def test_figure_dropdown_lists_every_panel(exported):
     app, _, _ = exported
     names = set(panel_figures(app.host))
     assert {"colour_bar", "histogram", "variogram", "summary", "profile", "bias"} <= names
-    assert set(app.feature(ExportFeature).figure.options) == names | {em.ALL_FIGURES}
+    # the list shows each panel's title (no raw names); every title names one panel
+    titles = em.panel_titles(app.host)
+    assert set(titles.values()) == names and "colour_bar" not in titles
+    assert {"colour bar", "semivariogram", "summary (Table 1)"} <= set(titles)
+    assert set(app.feature(ExportFeature).figure.options) == set(titles) | {em.ALL_FIGURES}
 
 
 def test_in_memory_cloud_points_and_no_view(server, tmp_path):
@@ -306,7 +310,7 @@ def test_png_and_svg_downloads(exported):
     pixels = np.asarray(image.convert("RGB"))
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20  # bars, axes and text drawn
     client.set_value(em.L_FIGURE_FORMAT, "SVG")
-    client.set_value(em.L_FIGURE, "summary")
+    client.set_value(em.L_FIGURE, "summary (Table 1)")
     _, data = _download(client, app, em.L_FIGURE_BUTTON, "_summary.svg")
     svg = data.decode()
     assert svg.startswith("<svg") and "Table 1" in svg

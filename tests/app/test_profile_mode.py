@@ -91,7 +91,7 @@ def test_a_cloud_in_feet_has_its_profiles_in_feet(server):
         assert list(app.host.errors) == []
         a = m.items[0]
         assert a.settings.band_half_width == pytest.approx(0.5 * ft)
-        assert "| # | length (ft) | σ noise (ft) |" in m.note.content
+        assert "| # | length (ft) | band ± (ft) | σ noise (ft) |" in m.note.content
         assert f"| 1 | {a.profile.length / ft:.4g} |" in m.note.content
         fig = m.plot.figure
         assert fig.layout.xaxis.title.text == "distance along the line (ft)"

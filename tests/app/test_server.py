@@ -156,7 +156,7 @@ def test_axis_choice_and_free_grid(app):
 
 def test_bad_grid_keeps_previous_view(app):
     before = app.host.scene.cloud.colors.copy()
-    app.map.grid_free.value = 0.0001
+    app.map.grid_free.value = 0.00001
     assert app.wait_idle(60)
     assert app.host.errors and "too small" in app.host.errors[-1]
     assert app.host.error.visible and "previous view" in app.host.error.content

@@ -245,25 +245,59 @@ def test_the_board_lesson_keeps_the_scan_and_has_its_own_colour_range(app):
 # ----------------------------------------------------------------------------- camera
 
 
+def _ndc(pose, pts, window, fov):
+    """Normalised device coordinates (x, y in [-1, 1] on screen) of ``pts`` seen from
+    ``pose`` with a perspective camera of vertical ``fov`` in a ``window``."""
+    view = pose.eye - pose.target
+    back = view / np.linalg.norm(view)
+    right = np.cross(-back, pose.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    rel = pts - pose.eye
+    depth = rel @ -back
+    t = np.tan(0.5 * fov)
+    aspect = window[0] / window[1]
+    return (rel @ right) / (depth * t * aspect), (rel @ up) / (depth * t), depth
+
+
 def test_camera_presets_look_along_the_face_normal_down_and_along_the_face(app):
     loaded = app.session.shown.loaded  # a face looking along -y, 4 m along x
-    pts = loaded.display_points.astype(float)
-    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-    extent = np.ptp(pts, axis=0).max()
     for preset, axis in (("face-on", 1), ("top", 2), ("side", 0)):
-        eye, target, up = scene.camera_pose(loaded, preset)
-        view = (eye - target) / np.linalg.norm(eye - target)
+        pose = scene.camera_pose(loaded, preset)
+        view = (pose.eye - pose.target) / np.linalg.norm(pose.eye - pose.target)
         assert abs(view[axis]) > 0.98, (preset, view)
-        assert abs(np.dot(view, up)) < 0.2  # the up vector is across the view
-        # the camera stands back from the cloud and looks a little right of its
-        # centre (the cloud sits left of the control panel)
-        assert np.linalg.norm(eye - target) >= scene.CAMERA_DISTANCE * extent - 1e-9
-        shift = target - centre
-        assert np.linalg.norm(shift) == pytest.approx(scene.PANEL_SHIFT * extent)
-        assert abs(np.dot(shift, view)) < 1e-9 and abs(np.dot(shift, up)) < 1e-9
+        assert abs(np.dot(view, pose.up)) < 0.2  # the up vector is across the view
     app.map.camera.value = "top"
     assert app.wait_idle(30)
     assert [r.kind for r in app.worker.records][-1] == "CameraJob"
+
+
+@pytest.mark.parametrize("scale", [0.005, 1.0, 2500.0])  # a 20 mm joint .. a 10 km tile
+@pytest.mark.parametrize("preset", ["face-on", "top", "side"])
+def test_every_preset_frames_the_cloud_in_the_free_part_of_the_window(scale, preset):
+    """Every point lies in front of the camera, inside its clipping planes, left of
+    the control panel and inside the window; the cloud fills the free part (its
+    extent across the view spans FILL of the free width or height)."""
+    from dataclasses import replace
+
+    from rough_viewer.app.state import LoadedCloud
+    from tests.helpers import face_cloud
+
+    base = face_cloud(20_000, seed=3)
+    cloud = replace(base, x=base.x * scale, y=base.y * scale, z=base.z * scale)
+    loaded = LoadedCloud(cloud, presets=(scale,))
+    pts = loaded.display_points.astype(float)
+    for window in ((1600, 1000), (1280, 800), (1000, 1400)):
+        pose = scene.camera_pose(loaded, preset, window=window)
+        x, y, depth = _ndc(pose, pts, window, scene.DEFAULT_FOV)
+        assert np.all(depth > pose.near) and np.all(depth < pose.far), (window, preset)
+        edge = 1.0 - 2.0 * scene.PANEL_PX / window[0]  # the panel's left edge, in NDC
+        assert x.min() >= -1.0 and x.max() <= edge + 1e-9 and np.abs(y).max() <= 1.0 + 1e-9
+        fill = max((x.max() - x.min()) / (edge + 1.0), (y.max() - y.min()) / 2.0)
+        # where the panel covers the window's centre (a narrow window) a deep cloud
+        # must stand back further: perspective draws its far points towards the centre
+        assert fill > (0.75 if edge > 0 else 0.6), (window, preset, fill)
+        assert pose.far / pose.near < 1e8  # depth precision stays usable
 
 
 # ----------------------------------------------------------------------------- profiles
@@ -363,3 +397,81 @@ def test_a_threshold_change_redraws_only_the_face_trend(app):
     assert "grid sizes" in names and "variogram" not in names and "distribution" not in names
     assert "binary cells ≥ 0.2" in app.feature(PanelsFeature).face_scales.figure.layout.yaxis2.title.text
     assert app.feature(PanelsFeature).variogram.figure is before
+
+
+# ----------------------------------------------------------------------------- issue 22's minor items
+
+
+def test_the_dependent_axis_line_lies_under_the_rock(app):
+    """Seen from the face-on camera, the line is below every point of the rock (never
+    over it) and inside the framed view."""
+    loaded = app.session.shown.loaded
+    pts = loaded.display_points.astype(float)
+    extent = float(np.ptp(pts, axis=0).max())
+    pose = scene.camera_pose(loaded, "face-on")
+    _, y_rock, _ = _ndc(pose, pts, scene.FRAME_WINDOW, scene.DEFAULT_FOV)
+    for k, axis in enumerate("xyz"):
+        seg, label = scene.axis_segment(loaded, axis)
+        x, y, depth = _ndc(pose, seg, scene.FRAME_WINDOW, scene.DEFAULT_FOV)
+        assert y.max() < y_rock.min(), axis
+        assert np.all(np.abs(x) < 1) and np.all(np.abs(y) < 1) and np.all(depth > pose.near)
+        assert abs(abs((seg[1] - seg[0])[k]) - 0.1 * extent) < 1e-9
+        np.testing.assert_allclose(label, seg[0])
+
+
+def test_typed_percentiles_move_the_slider_and_the_colours(app):
+    m = app.map
+    assert (m.pct_lo.value, m.pct_hi.value) == (2.0, 98.0)
+    m.pct_lo.value = 5.0
+    m.pct_hi.value = 90.0
+    assert app.wait_idle(60)
+    st = app.session.shown.settings.stretch
+    assert (st.mode, st.lo, st.hi) == ("percentile", 5.0, 90.0)
+    assert tuple(m.percentiles.value) == (5.0, 90.0)
+    m.percentiles.value = (10.0, 80.0)  # dragged: the typed fields follow
+    assert app.wait_idle(60)
+    assert (m.pct_lo.value, m.pct_hi.value) == (10.0, 80.0)
+    assert app.session.shown.settings.stretch.lo == 10.0
+
+
+def test_a_band_change_extracts_kept_profiles_again_and_the_table_shows_it(app, cloud):
+    from rough_viewer.profiles.extraction import extract_profile
+
+    m = app.feature(ProfileFeature)
+    m.on.value = True
+    pts = app.session.shown.loaded.display_points
+    i = int(np.argmin(np.abs(pts[:, 0] - (-1.2)) + np.abs(pts[:, 2])))
+    j = int(np.argmin(np.abs(pts[:, 0] - 1.2) + np.abs(pts[:, 2])))
+    for k in (i, j):
+        pick(app, pts[k].astype(float) + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+    before = m.items[0]
+    m.band.value = 0.05  # metres (the cloud's unit)
+    assert app.wait_idle(60)
+    a = m.items[0]
+    ref = extract_profile(cloud.xyz(), before.source.start, before.source.end,
+                          band_half_width=0.05)
+    assert a.source.band_half_width == 0.05 != before.source.band_half_width
+    assert a.source.n_points == ref.n_points > before.source.n_points
+    np.testing.assert_allclose(a.profile.heights, ref.heights, equal_nan=True)
+    assert "band ± (mm)" in m.note.content and "| 50 |" in m.note.content
+    m.on.value = False
+
+
+def test_the_profile_csv_is_saved_at_once(cloud):
+    from rough_viewer.app.gate import open_server
+    from tests.app.protocol import ProtocolClient
+
+    server, _ = open_server("127.0.0.1", 0, token=None, log=False)
+    app = build_app(server, cloud, prefetch=False)
+    client = ProtocolClient(server.get_port())
+    try:
+        assert app.wait_idle(60)
+        client.press("Download CSV")
+        name, _data = client.wait_download("profiles.csv")
+        start = [msg for msg in client.of_type("FileTransferStartDownload")
+                 if msg["filename"] == name][-1]
+        assert start["save_immediately"] is True  # no second click in the browser
+    finally:
+        client.close()
+        app.stop()
+        server.stop()

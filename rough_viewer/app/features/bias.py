@@ -66,7 +66,7 @@ class BiasPanel:
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"bias": ("scanner bias: smoothing curve", self.plot)}
+        return {"bias": ("scanner bias", self.plot)}
 
     def update(self) -> BiasPrediction | None:
         """Recompute the prediction and the curve from the handles' values.

@@ -23,6 +23,7 @@ import viser
 
 from rough_viewer.app.binding import Binding
 from rough_viewer.app.features.map import (
+    Changes,
     LoadJob,
     MapFeature,
     RenderJob,
@@ -121,8 +122,7 @@ class BoardScanJob(Job[Host]):
     b: BoardFeature = field(compare=False)
     alpha_deg: float
     beta_deg: float
-    touched: tuple[str, ...] = ()
-    assigned: tuple[tuple[str, object], ...] = ()
+    changes: Changes = ()
     lane: ClassVar[str] = LoadJob.lane
     cancels: ClassVar[frozenset[str]] = LoadJob.cancels
 
@@ -132,13 +132,12 @@ class BoardScanJob(Job[Host]):
 
     def absorb(self, newer: Job[Host]) -> Job[Host] | None:
         if isinstance(newer, RenderJob):
-            return replace(self, touched=self.touched + newer.touched,
-                           assigned=self.assigned + newer.assigned)
+            return replace(self, changes=self.changes + newer.changes)
         return None
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         m = self.b.map
-        settings = resolve(m, None, self.touched, self.assigned) or ctx.session.shown.settings
+        settings = resolve(m, None, self.changes) or ctx.session.shown.settings
         lesson = board_lesson(self.alpha_deg, self.beta_deg)
         yield "scan"
         self.b.lesson = lesson

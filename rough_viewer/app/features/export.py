@@ -136,6 +136,15 @@ def panel_figures(host: Host) -> dict[str, viser.GuiPlotlyHandle]:
     return out
 
 
+def panel_titles(host: Host) -> dict[str, str]:
+    """Title shown in the figure list -> the panel's name, in mount order."""
+    out: dict[str, str] = {}
+    for f in host.features():
+        if isinstance(f, FigureSource):
+            out.update({title: name for name, (title, _handle) in f.figures().items()})
+    return out
+
+
 def _has_data(fig: Any) -> bool:
     """Whether a plotly figure shows anything (a trace with values)."""
     for trace in fig.data:
@@ -529,8 +538,9 @@ def mount(host: Host) -> ExportFeature:
                                         else ("CSV",), initial_value="CSV",
                                         hint="One row per cell (rough-viewer compute --out).")
         table = gui.add_button(L_TABLE)
-        figures = (*panel_figures(host), ALL_FIGURES)
-        figure = gui.add_dropdown(L_FIGURE, figures, initial_value=ALL_FIGURES)
+        figures = (*panel_titles(host), ALL_FIGURES)
+        figure = gui.add_dropdown(L_FIGURE, figures, initial_value=ALL_FIGURES,
+                                  hint="One panel of the app, or all of them in one ZIP.")
         figure_format = gui.add_dropdown(L_FIGURE_FORMAT, ("HTML", "PNG", "SVG") if has_kaleido
                                          else ("HTML",), initial_value="HTML")
         if not has_kaleido:
@@ -567,7 +577,9 @@ def _wire(host: Host, m: ExportFeature) -> None:
     m.points.on_click(export("points", lambda: m.points_format.value.lower()))
     m.table.on_click(export("table", lambda: m.table_format.value.lower()))
     m.figure_button.on_click(export("figure", lambda: m.figure_format.value.lower(),
-                                    panel=lambda: m.figure.value, figures=True))
+                                    panel=lambda: panel_titles(host).get(m.figure.value,
+                                                                         m.figure.value),
+                                    figures=True))
     m.report.on_click(export("report", lambda: "html"))
     m.view.on_click(export("view", lambda: "json", camera=True))
 

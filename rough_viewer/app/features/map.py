@@ -19,16 +19,17 @@ CameraJob      camera (a preset view)                                    camera
 PointSizeJob   points                                                    points
 =============  =======================================================  =================
 
-A control change submits a :class:`RenderJob` naming the control (its callbacks do
-nothing else); on the worker, :meth:`MapBinding.settle` moves the controls that
-follow it (a typed free size picks the "free" grid, a preset shows its size, dragged
+A control change submits a :class:`RenderJob` naming the control and its new value
+(its callbacks do nothing else); on the worker, :meth:`MapBinding.settle` puts the
+value back if the app showed another meanwhile, moves the controls that follow it (a typed free size picks the "free" grid, a preset shows its size, dragged
 percentiles or typed limits pick that stretch) and reads the controls. A pending
-RenderJob or LoadJob merges a newer RenderJob (the controls it names), so a load
+RenderJob or LoadJob merges a newer RenderJob (the changes it carries), so a load
 followed at once by a control change shows the new file with the new settings.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -109,6 +110,10 @@ L_LAYER = "Colour by"
 L_STRETCH = "Colour stretch"
 L_LOG = "Log colour scale"
 L_PERCENTILES = "Percentiles"
+L_PCT_LO = "Lowest percentile"
+L_PCT_HI = "Highest percentile"
+#: Numbers under the percentiles slider.
+PERCENTILE_MARKS: tuple[tuple[float, str], ...] = tuple((v, f"{v:g}") for v in (0, 25, 50, 75, 100))
 L_TOGGLE = "Toggle ODR / OLS"
 L_SHOW_AXIS = "Show dependent axis"
 L_CAMERA = "View"
@@ -152,6 +157,17 @@ def grid_options(presets: tuple[float, ...], units: Units) -> dict[str, float]:
     return {f"{units.length(g):g}": g for g in presets}
 
 
+def grid_step(presets: tuple[float, ...], units: Units) -> float:
+    """The free grid field's step, in the cloud's unit: the finest preset's third
+    significant digit, at most 0.001 (the field shows as many decimals).
+
+    >>> grid_step((0.64, 0.08), Units("m")), grid_step((0.0032, 0.0004), Units("m"))
+    (0.0001, 1e-06)
+    """
+    finest = units.length(min(presets))
+    return min(0.001, 10.0 ** (math.floor(math.log10(finest)) - 2)) if finest > 0 else 0.001
+
+
 def grid_choice(cell_size: float, options: dict[str, float]) -> str:
     """The grid dropdown entry for a cell size (metres): a preset, or ``free``.
 
@@ -185,6 +201,10 @@ def empty_figure(title: str) -> go.Figure:
 
 
 # ----------------------------------------------------------------------------- the binding
+
+Changes = tuple[tuple[str, object], ...]
+"""(control's name on :class:`MapFeature`, its value), oldest first."""
+
 
 
 class MapBinding(Binding):
@@ -235,16 +255,18 @@ class MapBinding(Binding):
         p_lo, p_hi = (float(v) for v in m.percentiles.value)
         return colormaps.Stretch("percentile", p_lo, p_hi, log=log)
 
-    def settle(self, touched: tuple[str, ...], assigned: tuple[tuple[str, object], ...]) -> None:
-        """Put values other features asked for into the controls, then move the
-        controls that follow the last touched one of their group (worker)."""
+    def settle(self, changes: Changes) -> None:
+        """Put each change's value back into its control (the app may have shown
+        another since: a colour range after a map), then move the controls that follow
+        the last changed one of their group (worker)."""
         m = self.m
         with self.quietly():
-            for name, value in assigned:
-                assign(getattr(m, name), value)
-            if "toggle" in touched:
-                assign(m.model, "OLS" if m.model.value == "ODR" else "ODR")
-        last = {name: k for k, name in enumerate(touched)}
+            for name, value in changes:
+                if name == "toggle":
+                    assign(m.model, "OLS" if m.model.value == "ODR" else "ODR")
+                elif getattr(m, name).value != value:
+                    assign(getattr(m, name), value)
+        last = {name: k for k, (name, _value) in enumerate(changes)}
         grid, free = last.get("grid", -1), last.get("grid_free", -1)
         if free > grid:
             self.set(m.grid, "free")
@@ -252,10 +274,23 @@ class MapBinding(Binding):
             size = self.grid_values.get(m.grid.value)
             if size is not None:
                 self.set(m.grid_free, self.units.length(size))
-        stretch = {k: last.get(k, -1) for k in ("stretch", "percentiles", "range_lo", "range_hi")}
+        typed = max(last.get("pct_lo", -1), last.get("pct_hi", -1))
+        if typed > last.get("percentiles", -1):  # typed percentiles move the slider
+            lo, hi = sorted((float(m.pct_lo.value), float(m.pct_hi.value)))
+            self.set(m.percentiles, (lo, hi))
+        stretch = {k: last.get(k, -1)
+                   for k in ("stretch", "percentiles", "pct_lo", "pct_hi", "range_lo", "range_hi")}
         latest = max(stretch, key=lambda k: stretch[k])
         if stretch[latest] >= 0 and latest != "stretch":
-            self.set(m.stretch, "percentile" if latest == "percentiles" else "absolute")
+            absolute = latest in ("range_lo", "range_hi")
+            self.set(m.stretch, "absolute" if absolute else "percentile")
+        self.show_percentiles()
+
+    def show_percentiles(self) -> None:
+        """The typed fields show the slider's two ends."""
+        lo, hi = (float(v) for v in self.m.percentiles.value)
+        self.set(self.m.pct_lo, lo)
+        self.set(self.m.pct_hi, hi)
 
     # ------------------------------------------------------------------ show
     def show(self, settings: MapSettings) -> None:
@@ -285,6 +320,7 @@ class MapBinding(Binding):
                     assign(handle, value)
             else:
                 assign(m.percentiles, (float(st.lo), float(st.hi)))
+        self.show_percentiles()
 
     def show_range(self, colour_range: colormaps.ColourRange) -> None:
         """Put the roughness range the colours span into the lowest/highest fields
@@ -312,6 +348,7 @@ class MapBinding(Binding):
             m.grid.label = l_grid(u)
             m.grid_free.label = l_grid_free(u)
             m.grid_free.min, m.grid_free.max = u.length(MIN_CELL_SIZE), u.length(MAX_CELL_SIZE)
+            m.grid_free.step = grid_step(loaded.presets, u)
             m.range_lo.label = l_range_lo(u)
             m.range_hi.label = l_range_hi(u)
             m.layer.options = tuple(COLOUR_LAYER_LABELS[n] for n in loaded.layers)
@@ -382,6 +419,9 @@ class MapFeature:
     stretch: viser.GuiDropdownHandle[str]
     log: viser.GuiCheckboxHandle
     percentiles: viser.GuiMultiSliderHandle[float]
+    pct_lo: viser.GuiNumberHandle[float]
+    """The slider's lower end, typed (the two follow each other)."""
+    pct_hi: viser.GuiNumberHandle[float]
     range_lo: viser.GuiNumberHandle[float]
     range_hi: viser.GuiNumberHandle[float]
     point_size: viser.GuiSliderHandle[float]
@@ -402,15 +442,14 @@ class MapFeature:
         return (self.layer, self.grid, self.grid_free, self.model, self.toggle, self.axis,
                 self.show_axis, self.display, self.threshold, self.min_points,
                 self.point_size, self.colormap, self.stretch, self.log, self.percentiles,
-                self.range_lo, self.range_hi, self.camera)
+                self.pct_lo, self.pct_hi, self.range_lo, self.range_hi, self.camera)
 
     # ------------------------------------------------------------------ for other features
-    def request(self, *touched: str, **assigned: object) -> int:
-        """Queue the map the controls show, after putting ``assigned`` values into
-        the named controls (as a person would set them; e.g. another tab's twin of a
-        control)."""
-        return self.host.submit(RenderJob(self, touched=touched,
-                                          assigned=tuple(assigned.items())))
+    def request(self, **changes: object) -> int:
+        """Queue the map the controls show once the named controls hold these values
+        (as a person sets them: a control's own change, or another tab's twin of a
+        control); ``toggle=True`` flips ODR and OLS."""
+        return self.host.submit(RenderJob(self, changes=tuple(changes.items())))
 
     def settings(self) -> MapSettings:
         """The settings the controls ask for, or the shown ones if a control is
@@ -451,7 +490,7 @@ class MapFeature:
 
     def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
         return {"colour_bar": ("colour bar", self.colour_bar),
-                "scales": ("roughness across grid sizes (clicked point)", self.scales)}
+                "scales": ("clicked point across grid sizes", self.scales)}
 
 
 #: Largest "Min points per cell" the Map tab's control takes.
@@ -491,14 +530,12 @@ def settings_of_view(view: View) -> MapSettings:
 @dataclass(frozen=True)
 class RenderJob(Job[Host]):
     """Colour the map: with ``settings``, or with what the controls show once the
-    controls that follow ``touched`` have moved (:meth:`MapBinding.settle`)."""
+    controls that follow ``changes`` have moved (:meth:`MapBinding.settle`)."""
 
     m: MapFeature = field(compare=False)
     settings: MapSettings | None = None
-    touched: tuple[str, ...] = ()
-    """Controls changed since the last render, oldest first."""
-    assigned: tuple[tuple[str, object], ...] = ()
-    """(control, value) other features asked to set first."""
+    changes: Changes = ()
+    """(control, value) changed since the last render, oldest first."""
     lane: ClassVar[str] = "render"
     cancels: ClassVar[frozenset[str]] = frozenset({"panels"})
 
@@ -512,7 +549,7 @@ class RenderJob(Job[Host]):
         return None
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        settings = resolve(self.m, self.settings, self.touched, self.assigned)
+        settings = resolve(self.m, self.settings, self.changes)
         if settings is None:
             return
         if self.settings is not None:
@@ -521,18 +558,18 @@ class RenderJob(Job[Host]):
 
 
 def merged(newer: RenderJob, older: RenderJob | LoadJob) -> RenderJob:
-    """``newer`` with the controls ``older`` named before its own."""
-    return replace(newer, touched=older.touched + newer.touched,
-                   assigned=older.assigned + newer.assigned)
+    """``newer`` with the changes ``older`` carried before its own."""
+    return replace(newer, changes=older.changes + newer.changes)
 
 
-def resolve(m: MapFeature, settings: MapSettings | None, touched: tuple[str, ...],
-            assigned: tuple[tuple[str, object], ...]) -> MapSettings | None:
-    """``settings``, or the controls' settings once those that follow ``touched``
-    moved; None (with the error shown and the controls put back) when unusable."""
+def resolve(m: MapFeature, settings: MapSettings | None,
+            changes: Changes) -> MapSettings | None:
+    """``settings``, or the controls' settings once ``changes`` are in them and the
+    controls that follow moved; None (with the error shown and the controls put
+    back) when unusable."""
     if settings is not None:
         return settings
-    m.binding.settle(touched, assigned)
+    m.binding.settle(changes)
     try:
         return m.binding.read()
     except InputError as exc:
@@ -733,8 +770,7 @@ class LoadJob(Job[Host]):
     source: CloudSource = field(compare=False)
     settings: MapSettings | None = None
     """Settings to show it with (None: the controls', read when the job runs)."""
-    touched: tuple[str, ...] = ()
-    assigned: tuple[tuple[str, object], ...] = ()
+    changes: Changes = ()
     lane: ClassVar[str] = "load"
     cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick"})
 
@@ -744,15 +780,14 @@ class LoadJob(Job[Host]):
 
     def absorb(self, newer: Job[Host]) -> Job[Host] | None:
         if isinstance(newer, RenderJob):
-            return replace(self, settings=newer.settings, touched=self.touched + newer.touched,
-                           assigned=self.assigned + newer.assigned)
+            return replace(self, settings=newer.settings, changes=self.changes + newer.changes)
         return None
 
     def release(self) -> None:
         self.source.release()
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        settings = resolve(self.m, self.settings, self.touched, self.assigned) \
+        settings = resolve(self.m, self.settings, self.changes) \
             or ctx.session.shown.settings
         return load_stages(self.m, run, lambda r: self.source.read(ctx, r), settings)
 
@@ -850,10 +885,13 @@ class RestoreMapJob(Job[Host]):
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         if self.camera is not None:
-            origin = ctx.session.shown.loaded.origin
+            loaded = ctx.session.shown.loaded
             c = self.camera
-            ctx.scene.set_camera(np.asarray(c.position) - origin, np.asarray(c.look_at) - origin,
-                                 c.up, float(np.radians(c.fov_deg)))
+            eye, look = np.asarray(c.position) - loaded.origin, np.asarray(c.look_at) - loaded.origin
+            framed = scene_mod.camera_pose(loaded)  # clipping planes for the cloud's extent
+            far = max(framed.far, 100.0 * float(np.linalg.norm(eye - look)))
+            ctx.scene.set_camera(eye, look, c.up, float(np.radians(c.fov_deg)),
+                                 near=framed.near, far=far)
         self.m.binding.show(self.settings)
         yield "camera"
         yield from render_stages(self.m, run, self.settings)
@@ -1044,6 +1082,7 @@ def _add_controls(host: Host) -> MapFeature:
     values = grid_options(loaded.presets, units)
     preset = f"{units.length(settings.cell_size):g}"
     st = settings.stretch
+    pct = (st.lo, st.hi) if st.mode == "percentile" else (2.0, 98.0)
     if st.mode == "absolute":
         lo_r, hi_r = round_limit(units.rough(st.lo)), round_limit(units.rough(st.hi))
     else:
@@ -1070,7 +1109,8 @@ def _add_controls(host: Host) -> MapFeature:
                 "number below."),
             grid_free=gui.add_number(
                 l_grid_free(units), units.length(settings.cell_size),
-                min=units.length(MIN_CELL_SIZE), max=units.length(MAX_CELL_SIZE), step=0.001,
+                min=units.length(MIN_CELL_SIZE), max=units.length(MAX_CELL_SIZE),
+                step=grid_step(loaded.presets, units),
                 hint="Any cell size (switches the grid size to 'free')."),
             model=gui.add_dropdown(L_MODEL, MODEL_OPTIONS,
                                    initial_value=MODEL_LABELS[settings.model]),
@@ -1097,8 +1137,12 @@ def _add_controls(host: Host) -> MapFeature:
                                  hint="Equal ratios of roughness get equal colour steps."),
             percentiles=gui.add_multi_slider(
                 L_PERCENTILES, min=0.0, max=100.0, step=0.5, min_range=1.0,
-                initial_value=(st.lo, st.hi) if st.mode == "percentile" else (2.0, 98.0),
+                initial_value=pct, marks=PERCENTILE_MARKS,
                 hint="Percentiles of the cells with a value at the first and last colour."),
+            pct_lo=gui.add_number(L_PCT_LO, pct[0], min=0.0, max=100.0, step=0.5,
+                                  hint="The percentile at the first colour (typed)."),
+            pct_hi=gui.add_number(L_PCT_HI, pct[1], min=0.0, max=100.0, step=0.5,
+                                  hint="The percentile at the last colour (typed)."),
             range_lo=gui.add_number(l_range_lo(units), lo_r, min=0.0, max=1e9, step=0.001,
                                     hint="Roughness at the first colour; typing here pins "
                                     "the colours (absolute stretch)."),
@@ -1119,11 +1163,11 @@ def _wire(host: Host, m: MapFeature) -> None:
     """Every control submits a job naming itself; clicks on the scene submit a pick."""
     b = m.binding
     names = ("layer", "grid", "grid_free", "model", "axis", "display", "threshold",
-             "min_points", "colormap", "stretch", "log", "percentiles", "range_lo",
-             "range_hi", "toggle")
+             "min_points", "colormap", "stretch", "log", "percentiles", "pct_lo", "pct_hi",
+             "range_lo", "range_hi", "toggle")
     by_handle = {id(getattr(m, n)): n for n in names}
     b.on_change([getattr(m, n) for n in names],
-                lambda handle: m.request(by_handle[id(handle)]))
+                lambda handle: m.request(**{by_handle[id(handle)]: handle.value}))
     b.on_change([m.point_size], lambda _h: host.submit(PointSizeJob(float(m.point_size.value))))
     b.on_change([m.show_axis], lambda _h: host.submit(AxisJob(bool(m.show_axis.value))))
 

@@ -161,7 +161,7 @@ class PanelsFeature:
     def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
         return {"histogram": ("histogram", self.histogram),
                 "variogram": ("semivariogram", self.variogram),
-                "summary": ("summary table (Table 1)", self.summary),
+                "summary": ("summary (Table 1)", self.summary),
                 "face_scales": ("roughness against grid size", self.face_scales)}
 
 

@@ -182,10 +182,12 @@ def summary_markdown(analyses: list[ProfileAnalysis], units: Units | None = None
     if not analyses:
         return "Tick *Profile mode* and click two points on the rock."
     u = units or Units("m")
-    rows = [f"| # | length ({u.label}) | σ noise ({u.rough_label}) | D raw | D de-noised |",
-            "|---:|---:|---:|---:|---:|"]
+    rows = [f"| # | length ({u.label}) | band ± ({u.rough_label}) | σ noise ({u.rough_label}) "
+            "| D raw | D de-noised |",
+            "|---:|---:|---:|---:|---:|---:|"]
     for k, a in enumerate(analyses, start=1):
-        rows.append(f"| {k} | {u.length(a.profile.length):.4g} | {u.rough(a.denoised.sigma):.3g} | "
+        rows.append(f"| {k} | {u.length(a.profile.length):.4g} | "
+                    f"{u.rough(a.source.band_half_width):.3g} | {u.rough(a.denoised.sigma):.3g} | "
                     f"{a.raw_fit.dimension:.3f} | {a.denoised_fit.dimension:.3f} |")
     notes = [f"- ⚠ **P{k}**: {md(w)}" for k, a in enumerate(analyses, start=1)
              for w in a.warnings]
@@ -444,9 +446,14 @@ class DenoiseJob(Job[Host]):
         redone = []
         try:
             settings = p.binding.read()
+            points = ctx.session.shown.loaded.cloud.xyz()
             for a in p.items:
                 run.check()
-                redone.append(redo(a.source, settings))
+                if settings.band_half_width != a.settings.band_half_width:
+                    # another band holds other points: extract the line again
+                    redone.append(analyse(points, a.source.start, a.source.end, settings))
+                else:
+                    redone.append(redo(a.source, settings))
         except InputError as exc:
             # the kept profiles stay as they were: so do the controls that made them
             if p.items:
@@ -503,8 +510,8 @@ class ProfilesCsvJob(Job[Host]):
         clients = ctx.clients()
         targets = list(clients.values()) if self.client_id is None else \
             [c for cid, c in clients.items() if cid == self.client_id]
-        for client in targets:
-            client.send_file_download("profiles.csv", data)
+        for client in targets:  # saved at once, as the Export folder's downloads are
+            client.send_file_download("profiles.csv", data, save_immediately=True)
         yield "send"
 
 
@@ -578,7 +585,7 @@ def mount(host: Host) -> ProfileFeature:
                p.band, p.detrend, p.exaggeration, p.clear, p.download)
     b = p.binding
     b.on_change([p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
-                 p.detrend], lambda _h: host.submit(DenoiseJob(p)))
+                 p.detrend, p.band], lambda _h: host.submit(DenoiseJob(p)))
     b.on_change([p.exaggeration], lambda _h: host.submit(ProfilePlotJob(p)))
     b.on_change([p.clear], lambda _h: host.submit(ClearProfilesJob(p)))
 

@@ -418,12 +418,12 @@ class ZonesFeature:
         if zones is not None:
             check_zone_settings(zones)
             if MODEL_BY_LABEL.get(self.map.model.value) != zones.map:
-                self.map.request("model", model=MODEL_LABELS[zones.map])
+                self.map.request(model=MODEL_LABELS[zones.map])
         self.host.submit(RestoreZonesJob(self, zones))
 
     def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
         return {"zones_table": ("zone table", self.table),
-                "zones_stereonet": ("stereonet of cell poles", self.stereonet)}
+                "zones_stereonet": ("zone stereonet", self.stereonet)}
 
     # ------------------------------------------------------------------ worker side
     def basis(self, loaded: LoadedCloud, result: GridRoughness, map_name: MapName,
@@ -764,7 +764,7 @@ def mount(host: Host) -> ZonesFeature:
     b.on_change([z.on, z.connectivity, z.min_cells], lambda _h: host.submit(ZonesJob(z)))
     # the twin moves the Map tab's slider; the map's render moves the twin back
     b.on_change([z.threshold],
-                lambda _h: m.request("threshold", threshold=float(z.threshold.value)))
+                lambda _h: m.request(threshold=float(z.threshold.value)))
 
     def select(_handle: object) -> None:
         lab = z.labelling
