@@ -5,22 +5,27 @@ For every cell of a grid result of a cloud whose scanner positions are known
 (:func:`rough_viewer.grid.scanner.scan_geometry`: scans, range, incidence, density
 ratio, occlusion) and the roughness bias the toolkit's models predict for it:
 
-- noise inflation: range noise ``sigma`` acts along the beam, so ``sigma cos(i)``
-  across the cell's plane; it adds ``k (sigma cos i)^2`` to the cell's squared
-  roughness, ``k`` the gain the simulation of the paper's target gives
-  (``(noise_only^2 - expected^2) / sigma^2``: 1 for the bias paper's signed
-  residuals, about 0.63 for the grid's absolute ones on target A);
+- noise inflation: range noise ``sigma`` acts along the beam, so ``s = sigma cos(i)``
+  across the cell's plane, and adds ``s^2`` to the mean squared orthogonal distance
+  ``m2`` of the cell's points (independent noise: exactly, in expectation; the
+  signed-residual roughness of ``bias predict`` is ``sqrt(m2)``, and its simulation of
+  target A gives 5.07 -> 5.31 mm as the paper). The grid's roughness (the std of the
+  absolute distances) keeps its ratio ``q = theta / sqrt(m2)`` to the RMS, so the
+  noise adds ``q^2 s^2`` to ``theta^2`` (exact for Gaussian heights, ``q^2 = 1 -
+  2/pi``; within 1 % on target A);
 - beam smoothing: the fraction the simulated target loses at the cell's ratio of
   effective radius (at its range) to asperity radius (``smoothing_effect_pct`` of
   the prediction); the asperity radius is ``--asperity-radius`` (default target A's
   19 mm), but at most half the grid size, the largest feature a cell can hold;
-- measured ``theta = sqrt((theta_true (1 + f_s))^2 + k (sigma cos i)^2)``, so
-  ``noise_pred = theta - sqrt(theta^2 - k (sigma cos i)^2)`` (>= 0),
+- measured ``theta = sqrt((theta_true (1 + f_s))^2 + q^2 s^2)``, so
+  ``noise_pred = theta - theta sqrt(1 - s^2 / m2)`` (>= 0; all of theta where
+  ``s^2 >= m2``),
   ``smoothing_pred`` the (negative) change the smoothing made, and
   ``bias_pred = noise_pred + smoothing_pred = theta - theta_true``.
 
-Every prediction runs through :func:`rough_viewer.bias.simulation.predict_paper_target`,
-the code path of ``rough-viewer bias predict``. Cells outside the papers'
+The smoothing, and the calibration's reference figure on target A, run through
+:func:`rough_viewer.bias.simulation.predict_paper_target`, the code path of
+``rough-viewer bias predict``. Cells outside the papers'
 recommendations are flagged: incidence above 22.5 degrees (the 2012 paper's
 half-angle), a range outside the calibrated span, predicted noise above 30 % of the
 measured roughness. ``trusted`` = a cell with a value and none of the flags.
@@ -132,7 +137,8 @@ class BiasModel:
 
     @property
     def noise_gain(self) -> float:
-        """``k``: squared roughness the noise adds, per squared noise sigma."""
+        """Squared roughness the noise adds to the simulated target, per squared noise
+        sigma (1 for signed residuals: the variance adds)."""
         p = self.noise
         if p.noise_sigma_m <= 0:
             return 0.0
@@ -358,8 +364,11 @@ def cell_trust(
     tick(3, 4)
     theta = result.theta_odr
     sigma = cal.noise_sigma_m * np.cos(np.radians(geo.incidence_deg))
-    with np.errstate(invalid="ignore"):
-        smoothed = np.sqrt(np.clip(theta * theta - model.noise_gain * sigma * sigma, 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # the noise adds sigma^2 to the mean squared distance m2; theta keeps its ratio
+        # to sqrt(m2) (signed residuals: theta = sqrt(m2))
+        keep = np.clip(1.0 - sigma * sigma / geo.plane_variance, 0.0, None)
+        smoothed = theta * np.sqrt(np.where(geo.plane_variance > 0, keep, 0.0))
         noise = theta - smoothed
         frac = model.smoothing_fraction(np.clip(ratio, 0.0, MAX_ER_RATIO))
         true = smoothed / (1.0 + frac)
@@ -423,8 +432,8 @@ class TrustSummary:
     """Rays per steradian of every scan."""
     n0_source: str
     """``"angular step"`` or ``"fitted"``."""
-    noise_gain: float
-    """The model's ``k``."""
+    target_noise_pct: float
+    """The calibration's noise inflation of the paper's target (``bias predict``), %."""
     asperity_scale_m: float
     """Asperity radius the smoothing was judged at, metres."""
     calibration: Calibration
@@ -448,7 +457,7 @@ class TrustSummary:
         out["angular_step_deg"] = [math.degrees(1.0 / math.sqrt(v)) if v > 0 else None
                                    for v in self.n0]
         out["n0_source"] = self.n0_source
-        out["noise_gain"] = self.noise_gain
+        out["target_noise_pct"] = self.target_noise_pct
         out["asperity_radius"] = self.asperity_scale_m / per
         out["noise_sigma"] = self.calibration.noise_sigma_m / per
         out["calibrated_span"] = (None if self.calibration.span_m is None
@@ -509,7 +518,7 @@ def trust_summary(trust: CellTrust) -> TrustSummary:
         trusted=int(np.count_nonzero(flags == 0)),
         n0=tuple(float(v) for v in geo.n0 if np.isfinite(v)),
         n0_source=geo.n0_source,
-        noise_gain=trust.model.noise_gain,
+        target_noise_pct=trust.model.noise.noise_effect_pct,
         asperity_scale_m=trust.asperity_scale_m,
         calibration=trust.settings.calibration,
     )

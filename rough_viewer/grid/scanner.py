@@ -18,16 +18,20 @@ its rows), from the scanner positions and each point's scan
   levelled scanner steps azimuth and elevation, so its rays crowd by ``1 / cos(e)``
   towards the zenith). The 2012 paper's point count ``N0 cos(alpha) cos(beta)`` is
   this density summed over its board;
-- ``occlusion``: the share of points the cell lacks against its densest neighbour
-  along the beam, ``1 - rho / max(rho_before, rho_behind)`` clipped to [0, 1], where
-  the neighbours are the cells one cell size away along the beam's projection on
-  the cell's plane: a protrusion casts its shadow along that direction.
+- ``occlusion``: the share of points the cell lacks against its best-covered
+  neighbour along the beam, ``1 - c / max(c_before, c_behind)`` clipped to [0, 1],
+  ``c`` the coverage (points over those the scanner would put on the whole cut of the
+  cell's plane), the neighbours the cells one cell size away along the beam's
+  projection on the cell's plane: a protrusion casts its shadow along that direction.
+  From the points alone a shadow and the end of the face look alike, so cells where
+  the face ends read as occluded too.
 
-The face area ``A`` of a cell is the area of its ODR plane inside the cube, cut
-exactly (:func:`plane_cut_area`), or the extent of its points where that is smaller
-(a cell the face only partly fills): ``12 sqrt(l1 l2)`` of the two largest
-eigenvalues of the cell's point covariance (exact for a uniformly filled
-parallelogram), with Sheppard's correction for points on a lattice.
+The face area ``A`` of the density ratio is where the scanner saw the cell: the area
+of its ODR plane inside the cube, cut exactly (:func:`plane_cut_area`), or the extent
+of its points where that is smaller (a cell the face, or the view, only partly fills):
+``12 sqrt(l1 l2)`` of the two largest eigenvalues of the cell's point covariance
+(exact for a uniformly filled parallelogram), with Sheppard's correction for points
+on a lattice. The coverage uses the whole cut.
 
 Everything is vectorised over cells and (cell, scan) pairs; one pass over the points
 gives the pairs and one the cell moments.
@@ -82,9 +86,18 @@ class ScanGeometry:
     occlusion: np.ndarray
     """(M,) share of points missing against the densest neighbour along the beam, 0..1."""
     expected_points: np.ndarray
-    """(M,) points the scanner(s) would put in the cell (``N0 A cos i / (r^2 cos e)``)."""
+    """(M,) points the scanner(s) would put where they saw the cell's face
+    (``N0 A cos i / (r^2 cos e)``)."""
+    coverage: np.ndarray
+    """(M,) points in the cell / points the scanner(s) would put on the whole cut of
+    its plane: below 1 where part of the cell was not seen (a shadow, or the face
+    ends in the cell)."""
     area_m2: np.ndarray
-    """(M,) area of face in the cell, square metres."""
+    """(M,) area of face the points cover in the cell, square metres."""
+    plane_variance: np.ndarray
+    """(M,) mean squared orthogonal distance of the cell's points to its ODR plane (the
+    smallest eigenvalue of their covariance), square metres: the variance range noise
+    adds to (:mod:`rough_viewer.bias.trust`)."""
     beam: np.ndarray
     """(M, 3) mean unit beam direction (scanner to cell), point-weighted over scans."""
     n0: np.ndarray
@@ -295,6 +308,7 @@ def scan_geometry(
 
     # (cell, scan) pairs and their geometry
     pc, ps, pn = _pairs(result.point_cell, scan, n_scans, result.n_points)
+    scans = np.bincount(pc, minlength=m).astype(np.int64)  # every cell, planes or not
     has = np.isfinite(result.centroid[:, 0]) & np.isfinite(result.normal[:, 0])
     keep = has[pc]
     pc, ps, pn = pc[keep], ps[keep], pn[keep]
@@ -311,7 +325,6 @@ def scan_geometry(
         beam = np.stack([np.bincount(pc, weights=w * b[:, a], minlength=m) for a in range(3)],
                         axis=1).astype(np.float64)
         beam = beam / np.linalg.norm(beam, axis=1)[:, None]
-    scans = np.bincount(pc, minlength=m).astype(np.int64)
     range_m[~has] = np.nan
     incidence[~has] = np.nan
     tick(1, 3)
@@ -322,16 +335,22 @@ def scan_geometry(
     cov = cell_moments(x, y, z, index, engine=engine).covariance()
     eig = np.linalg.eigvalsh(np.where(has[:, None, None], cov, 0.0))[:, ::-1]
     extent = points_extent_area(eig, result.n_points)
+    plane_variance = np.where(has, np.clip(eig[:, 2], 0.0, None), np.nan)
     lower = result.grid.origin + result.ijk * g
     normal = np.where(has[:, None], result.normal, [[0.0, 0.0, 1.0]])
     centroid = np.where(has[:, None], result.centroid, lower + 0.5 * g)
     cut = plane_cut_area(normal, centroid, lower, g)
     with np.errstate(invalid="ignore", divide="ignore"):
         fill = extent / cut
-    # the exact cut where the points fill it; their own extent where they fill only
-    # part of it (the face ends in the cell) or where the plane misrepresents them
-    area = np.where((fill > 1.0) & (fill <= MAX_EXTENT_OVER_CUT), cut, extent)
+    plane_ok = (cut > 0) & (fill <= MAX_EXTENT_OVER_CUT)
+    # where the scanner saw: the exact cut where the points fill it, their own extent
+    # where they fill only part of it (a shadow, or the face ends in the cell) or where
+    # the plane misrepresents them (a sliver of points)
+    area = np.where(plane_ok & (fill > 1.0), cut, extent)
+    # the whole cell: the cut wherever the plane represents the points
+    area_cut = np.where(plane_ok, cut, extent)
     area[~has] = np.nan
+    area_cut[~has] = np.nan
     tick(2, 3)
 
     # expected points: N0 A cos(i) / (r^2 cos(e)) per pair
@@ -357,17 +376,21 @@ def scan_geometry(
         # below one expected point (a sliver of points whose plane holds the beam) the
         # scanner's grid predicts nothing to compare with
         density = np.where(expected >= MIN_EXPECTED, result.n_points / expected, np.nan)
-    occlusion = _occlusion(result, density, beam, has)
+        whole = expected * (area_cut / area)
+        coverage = np.where(whole >= MIN_EXPECTED, result.n_points / whole, np.nan)
+    occlusion = _occlusion(result, coverage, beam, has)
     tick(3, 3)
     return ScanGeometry(scans=scans, range_m=range_m, incidence_deg=incidence,
                         density_ratio=density, occlusion=occlusion, expected_points=expected,
-                        area_m2=area, beam=beam, n0=n0, n0_source=source, positions=pos,
+                        coverage=coverage, area_m2=area, plane_variance=plane_variance,
+                        beam=beam, n0=n0, n0_source=source, positions=pos,
                         n_pairs=int(pc.shape[0]))
 
 
 def _occlusion(result: GridRoughness, density: np.ndarray, beam: np.ndarray,
                has: np.ndarray) -> np.ndarray:
-    """``1 - rho / max(rho of the two neighbours along the beam)``, clipped to [0, 1]."""
+    """``1 - rho / max(rho of the two neighbours along the beam)``, clipped to [0, 1],
+    ``rho`` the cells' coverage."""
     g = result.grid.cell_size
     n = np.where(has[:, None], result.normal, 0.0)
     t = beam - np.einsum("ij,ij->i", beam, n)[:, None] * n

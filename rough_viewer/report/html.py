@@ -265,7 +265,7 @@ def _scanner_html(report: Report, s: GridSection) -> list[str]:
          + f"; N0 {esc(t.n0_source)} (angular step {steps})"),
         ("occlusion (share of points missing)", spread(t.occlusion)),
         ("predicted noise inflation, % of ODR", spread(t.noise_pct, fmt="+.1f")
-         + f" (gain k = {t.noise_gain:.3f})"),
+         + f" (the paper's target A at this noise: {t.target_noise_pct:+.1f} %)"),
         ("predicted beam smoothing, % of ODR", spread(t.smoothing_pct, fmt="+.1f")
          + f" (asperity radius {t.asperity_scale_m / rper:.3g} {ru})"),
         ("net predicted bias, % of ODR", spread(t.bias_pct, fmt="+.1f")),

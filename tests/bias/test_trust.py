@@ -139,16 +139,56 @@ def test_flags_follow_the_papers_limits(wall):
 
 def test_noise_across_the_cell_falls_with_cos_incidence(wall):
     """Range noise acts along the beam: across a cell seen at incidence i it is
-    sigma cos(i), so the predicted inflation follows theta - sqrt(theta^2 - k s^2)."""
+    s = sigma cos(i), and it adds s^2 to the cell's mean squared distance m2."""
     cloud, res = wall
     trust = cell_trust(cloud, res, TrustSettings(calibration=calibration(
-        noise_sigma_m=0.002, effective_radius_m=0.0), trials=1))
+        noise_sigma_m=0.003, effective_radius_m=0.0), trials=1))
     k = trust.known
-    s = 0.002 * np.cos(np.radians(trust.geometry.incidence_deg[k]))
+    s = 0.003 * np.cos(np.radians(trust.geometry.incidence_deg[k]))
     th = trust.theta_m[k]
-    want = th - np.sqrt(np.clip(th**2 - trust.model.noise_gain * s**2, 0, None))
+    m2 = trust.geometry.plane_variance[k]
+    want = th - th * np.sqrt(np.clip(1 - s**2 / m2, 0, None))
     np.testing.assert_allclose(trust.noise_pred_m[k], want, rtol=1e-12)
     np.testing.assert_allclose(trust.bias_pred_m[k], trust.noise_pred_m[k], rtol=1e-12)
+    # this wall is flat: its roughness is its 3 mm of noise, nearly all predicted as
+    # noise (what is left is the sampling spread of a cell's own noise)
+    assert np.median(trust.noise_pred_m[k] / th) > 0.6
+
+
+@pytest.mark.parametrize("residual", ["absolute", "signed"])
+def test_gaussian_relief_gets_its_true_roughness_back(residual):
+    """Gaussian relief of 4 mm under 2 mm of range noise along the beam, seen at
+    20-40 degrees: each cell's roughness less its predicted noise is the roughness of
+    the same relief without noise (Gaussian heights keep the ratio of the std of
+    |distance| to the RMS, sqrt(1 - 2 / pi), whatever their size)."""
+    rng = np.random.default_rng(11)
+    n = 60_000
+    scanner = np.array([0.0, 0.0, 0.0])
+    xy = rng.uniform(-1.0, 1.0, (n, 2))
+    u, normal = np.array([np.cos(0.5), np.sin(0.5), 0.0]), np.array([-np.sin(0.5), np.cos(0.5), 0.0])
+    centre = 11.0 * (np.cos(np.radians(30)) * normal + np.sin(np.radians(30)) * u)
+    base = centre + xy[:, :1] * u + xy[:, 1:] * np.array([0.0, 0.0, 1.0])
+    clean = base + (0.004 * rng.standard_normal(n))[:, None] * normal
+    beams = clean - scanner
+    beams /= np.linalg.norm(beams, axis=1)[:, None]
+    noisy = clean + (0.002 * rng.standard_normal(n))[:, None] * beams
+    origin = centre - 1.25
+    res_c = grid_roughness(clean, 0.5, origin=origin, models=("odr",), residual=residual)
+    cloud = with_scanner(PointCloud.from_xyz(noisy), scanner)
+    res_n = grid_roughness(cloud, 0.5, origin=origin, models=("odr",), residual=residual)
+    trust = cell_trust(cloud, res_n, TrustSettings(calibration=calibration(
+        noise_sigma_m=0.002, effective_radius_m=0.0), trials=1))
+    both = np.isfinite(res_c.theta_odr) & np.isfinite(res_n.theta_odr) & (res_n.n_points > 500)
+    np.testing.assert_array_equal(res_c.ijk[both], res_n.ijk[both])
+    assert both.sum() >= 8
+    inc = trust.geometry.incidence_deg[both]
+    assert inc.min() > 15 and inc.max() < 45
+    measured = res_n.theta_odr[both]
+    predicted = measured - trust.bias_pred_m[both]
+    assert np.all(measured > 1.04 * res_c.theta_odr[both])  # the noise shows ...
+    ratio = predicted / res_c.theta_odr[both]  # ... and goes (up to each cell's sampling)
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.01)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.06)
 
 
 def test_beam_smoothing_follows_er_over_the_asperity_scale(wall):
