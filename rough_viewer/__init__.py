@@ -110,6 +110,11 @@ _API: dict[str, str] = {
     "predict_bias": "rough_viewer.bias.simulation",
     "simulate_target": "rough_viewer.bias.simulation",
     "smoothing_curve": "rough_viewer.bias.simulation",
+    # scanner-aware roughness (docs/scanner.md)
+    "with_scanner": "rough_viewer.io.scanners",
+    "scan_geometry": "rough_viewer.grid.scanner",
+    "cell_trust": "rough_viewer.bias.trust",
+    "TrustSettings": "rough_viewer.bias.trust",
     # synthetic data and demos
     "board_scan": "rough_viewer.synthetic.board",
     "generate_outcrop": "rough_viewer.synthetic.outcrop",
@@ -151,6 +156,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         target_roughness,
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
+    from rough_viewer.bias.trust import TrustSettings, cell_trust
     from rough_viewer.grid.maps import face_maps, face_raster
     from rough_viewer.grid.orientation import (
         cell_orientation,
@@ -168,6 +174,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         whole_cloud_axis,
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
+    from rough_viewer.grid.scanner import scan_geometry
     from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
@@ -186,6 +193,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.load import load_points
     from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.scanners import with_scanner
     from rough_viewer.io.table import write_table
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples

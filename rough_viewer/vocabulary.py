@@ -160,6 +160,27 @@ COLOUR_LAYER_LABELS: dict[str, str] = {
 }
 """Display name of each colour layer."""
 
+# ----------------------------------------------------------------------------- scanner trust
+
+TRUST_FIELDS: tuple[str, ...] = (
+    "scans", "range", "incidence_deg", "density_ratio", "occlusion",
+    "noise_pred", "smoothing_pred", "bias_pred", "trusted",
+)
+"""Per-cell scanner figures (docs/scanner.md), in the order of the cell table's
+columns and of the LAS/PLY fields."""
+TRUST_LABELS: dict[str, str] = {
+    "scans": "scans seeing the cell",
+    "range": "range to the scanner",
+    "incidence_deg": "incidence angle (degrees)",
+    "density_ratio": "point density / expected",
+    "occlusion": "occlusion (points missing)",
+    "noise_pred": "predicted noise inflation",
+    "smoothing_pred": "predicted beam smoothing",
+    "bias_pred": "net predicted bias",
+    "trusted": "trusted (papers' limits)",
+}
+"""Display name of each per-cell scanner figure (colour layers, legends)."""
+
 # ----------------------------------------------------------------------------- units
 
 Unit = Literal["m", "mm", "ft", "us-ft"]

@@ -193,3 +193,25 @@ def repeated_points_cloud(seed: int = 8) -> np.ndarray:
     rough = np.column_stack([rng.uniform(3, 6, 600), rng.uniform(0, 1, 600),
                              0.5 + 0.02 * rng.standard_normal(600)])
     return np.vstack([*blocks, rough])
+
+
+def ray_grid(scanner: np.ndarray, centre: np.ndarray, half_angle: float, step: float = 1e-3):
+    """Unit ray directions on a levelled scanner's azimuth-elevation grid around the
+    direction to ``centre`` (azimuth from +y towards +x, elevation from horizontal)."""
+    d = centre - scanner
+    phi0 = np.arctan2(d[0], d[1])
+    th0 = np.arctan2(d[2], np.hypot(d[0], d[1]))
+    k = np.arange(-int(half_angle / step), int(half_angle / step) + 1) * step
+    phi, th = np.meshgrid(phi0 + k, th0 + k, indexing="ij")
+    phi, th = phi.ravel(), th.ravel()
+    return np.column_stack([np.cos(th) * np.sin(phi), np.cos(th) * np.cos(phi), np.sin(th)])
+
+
+def scan_plane(scanner, point, normal, rays, *, extent, noise=0.0, seed=0):
+    """Points where the rays meet the plane (``point``, ``normal``) within ``extent``
+    of ``point``, with Gaussian range noise along each ray."""
+    t = ((point - scanner) @ normal) / (rays @ normal)
+    hit = scanner + t[:, None] * rays
+    keep = (t > 0) & (np.abs(hit - point).max(axis=1) < extent)
+    t = t[keep] + np.random.default_rng(seed).normal(0.0, noise, int(keep.sum()))
+    return scanner + t[:, None] * rays[keep]

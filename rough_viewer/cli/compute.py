@@ -8,6 +8,8 @@ Contract (other tools script against it)::
         [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
         [--units m|mm|ft|us-ft] [--force] [--quiet]
+        [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
+        [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
 Several inputs (files or quoted globs) are one merged cloud. At least one output is
 required. With several ``--grid`` values each output name gets ``_g<G>`` before its
@@ -15,7 +17,10 @@ extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--las-ou
 and ``--ply-out`` write every point with its cell's values as extra dimensions /
 scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
 that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
-the points, so neither goes with ``--las-out`` or ``--ply-out``.
+the points, so neither goes with ``--las-out``, ``--ply-out``, ``--scanner`` or
+``--scanners``. With scanner positions (E57 poses, ``--scanner``, ``--scanners``) the
+cell table's scanner columns and the LAS/PLY scanner fields are filled
+(docs/scanner.md); without, the columns are empty and one line says so.
 
 ``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
 input's coordinates and of ``--grid``, ``--origin``, the table printed, the cell
@@ -44,12 +49,14 @@ from rough_viewer.cli._options import (
     per_unit,
 )
 from rough_viewer.cli._scale import add_scale_options
+from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import all_or_nothing, check_outputs, write_atomic
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
+    from rough_viewer.bias.trust import CellTrust, TrustSettings
     from rough_viewer.grid.roughness import GridRoughness
     from rough_viewer.io.cloud import PointCloud
 
@@ -85,6 +92,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ply-out", metavar="OUT.ply",
                    help="every point with its cell's roughness as PLY scalar properties")
     add_scale_options(p)
+    add_scanner_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -129,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scale import chunked_results, wants_chunks
+    from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
     from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.io.load import resolve_units
@@ -151,16 +160,23 @@ def run(args: argparse.Namespace) -> int:
     source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
     residual: Residual = "signed" if args.signed else "absolute"
+    trust = trust_settings(args, unit)  # checked before any work
     results: Iterable[GridRoughness]
     cloud: PointCloud | None = None
     if wants_chunks(args):
         if args.las_out or args.ply_out:
             raise InputError("--las-out and --ply-out write every point, which --memory and "
                              "--scheduler do not keep; run without them for those outputs")
+        if args.scanner or args.scanners:
+            raise InputError("the per-cell scanner figures need every point, which --memory "
+                             "and --scheduler do not keep; run without them for --scanner "
+                             "and --scanners")
         results, dropped = chunked_results(args, paths, metres, origin=origin, models=models,
                                            residual=residual)
     else:
-        cloud = load_inputs(paths, units=getattr(args, "units", None), quiet=quiet)
+        cloud = apply_scanner_options(
+            load_inputs(paths, units=getattr(args, "units", None), quiet=quiet), paths, args,
+            unit)
         dropped = cloud.dropped_nonfinite
         results = (grid_roughness(
             cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
@@ -177,7 +193,9 @@ def run(args: argparse.Namespace) -> int:
             if i:
                 print()
             print(format_table(result, source=source, unit=unit))
-            written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit)
+            cells = _trust(cloud, result, trust, quiet, unit)
+            written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit,
+                                      cells)
     for line in written:
         print(line)
     return 0
@@ -206,9 +224,29 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
     return outputs
 
 
+def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSettings,
+           quiet: bool, unit: str) -> CellTrust | None:
+    """The per-cell scanner figures of one grid (printed as a few lines), or None
+    when the cloud has no scanner positions (said once, in one line)."""
+    from rough_viewer.bias.trust import cell_trust
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.io.scanners import NO_POSITIONS
+
+    if cloud is None:  # streamed: no points kept
+        return None
+    cells = cell_trust(cloud, result, settings,
+                       progress=None if quiet else ProgressBar("scanner", unit="step"))
+    if cells is None:
+        print(f"{NO_POSITIONS}; the scanner columns are empty")
+    else:
+        print("\n".join(cells.summary().lines(unit)))
+    return cells
+
+
 def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
                    cloud: PointCloud | None, dropped: int, source: str,
-                   args: argparse.Namespace, unit: str = "m") -> list[str]:
+                   args: argparse.Namespace, unit: str = "m",
+                   trust: CellTrust | None = None) -> list[str]:
     """Write every output of one grid size; return the lines that say so (printed
     once the run's outputs are all in place)."""
     from rough_viewer.cli._progress import ProgressBar
@@ -219,8 +257,9 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
 
     written = []
     if "out" in outputs:
-        write_table(outputs["out"][g], cell_columns(result, unit=unit),
-                    metadata=table_metadata(result, source, unit=unit))
+        write_table(outputs["out"][g], cell_columns(
+            result, unit=unit, trust=None if trust is None else trust.columns()),
+            metadata=table_metadata(result, source, unit=unit))
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
         data = summary_dict(result, source, dropped, unit,
@@ -233,7 +272,8 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         written.append(str(outputs["summary_json"][g]))
     lines = ["wrote " + " and ".join(written)] if written else []
     wants_points = "las_out" in outputs or "ply_out" in outputs
-    fields = point_fields(result) if wants_points and cloud is not None else None
+    fields = (point_fields(result, None if trust is None else trust.columns())
+              if wants_points and cloud is not None else None)
     if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
         info = write_las_fields(path, cloud, fields,

@@ -5,8 +5,11 @@ Contract::
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
         [--units m|mm|ft|us-ft] [--force] [--quiet]
+        [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
+        [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
-Default grid sizes: from the point spacing, the size at which the typical occupied
+With scanner positions (E57 poses, ``--scanner``, ``--scanners``) every grid size
+gets a scanner section (docs/scanner.md); without, one line says so. Default grid sizes: from the point spacing, the size at which the typical occupied
 cell holds 16 points, times 8, 4, 2 and 1 (``rough_viewer.grid.spacing``); the
 paper's are ``--grid 1 --grid 0.5 --grid 0.25 --grid 0.125``. ``--units`` is the unit
 of the input's coordinates and of every length given and shown. ``--format json`` writes
@@ -23,6 +26,7 @@ from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import add_axis, add_units, grid_sizes, per_unit, warn
+from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
@@ -53,11 +57,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
+    add_scanner_options(p)
     p.set_defaults(func=run)
 
 
 def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Path, list[Path]]:
     from rough_viewer.report import FIGURE_NAMES, check_png_export, png_name
+    from rough_viewer.report.html import SCANNER_FIGURE
 
     check_png_export()
     d = Path(directory)
@@ -65,7 +71,7 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
         raise InputError(f"--png expects a folder, got a file: {d}")
     if not d.parent.is_dir():
         raise InputError(f"output folder does not exist: {d.parent} (for --png {d})")
-    targets = [d / png_name(g, f) for g in grids for f in FIGURE_NAMES]
+    targets = [d / png_name(g, f) for g in grids for f in (*FIGURE_NAMES, SCANNER_FIGURE)]
     if d.is_symlink():
         raise InputError(f"--png folder is a symbolic link, refused: {d}")
     if d.is_dir():
@@ -79,17 +85,19 @@ def run(args: argparse.Namespace) -> int:
 
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
     from rough_viewer.io.load import resolve_units
     from rough_viewer.report import check_png_export, png_figures
     from rough_viewer.report.export import ReportSettings, compute_report, write_report
     from rough_viewer.visual.export import image_session, write_figure
 
     paths = input_paths(args)
+    unit_in = resolve_units(paths[0], args.units)[0]
     # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
-    given = tuple(grid_sizes(args.grid, resolve_units(paths[0], args.units)[0])) \
-        if args.grid else None
+    given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None
     settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
-                              axis=args.axis, threshold=args.threshold)
+                              axis=args.axis, threshold=args.threshold,
+                              trust=trust_settings(args, unit_in))
     try:
         settings.check()
     except InputError as exc:  # name the option as the user typed it
@@ -103,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
         check_png_export()
 
     quiet = args.quiet
-    cloud = load_inputs(paths, units=args.units, quiet=quiet)  # prints its warnings
+    cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet), paths,
+                                  args, unit_in)  # prints its warnings
     per = per_unit(cloud.source_unit)
     u = UNIT_LABELS[cloud.source_unit]
     if given is not None:  # lengths given in the input's unit

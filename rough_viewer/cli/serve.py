@@ -7,6 +7,8 @@ Contract::
         [--min-points K] [--max-points N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
         [--view VIEW.json] [--save-views]
+        [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
+        [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
@@ -19,6 +21,11 @@ The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL i
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
 (see :mod:`rough_viewer.app.gate`). Ctrl-C stops it.
+
+The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
+opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
+theirs) and are checked here; the app's scanner colour layers and cell report read
+them from the cloud.
 
 ``--view VIEW.json`` reopens a saved view (the Export folder's "Download view"): its
 input, grid, model, axis, units, threshold, colours, profiles, zone settings and
@@ -42,6 +49,7 @@ from pathlib import Path
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import add_axis, add_units
+from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
@@ -88,6 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="let the Export folder also save views next to the input in the data "
                    "folder (without it views are only downloaded)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
+    add_scanner_options(p)
     p.set_defaults(func=run)
 
 
@@ -97,16 +106,32 @@ def _load_cloud(args: argparse.Namespace) -> PointCloud:
     if args.inputs:
         from rough_viewer.cli._inputs import input_paths, load_inputs
 
-        return load_inputs(input_paths(args), units=getattr(args, "units", None), quiet=True)
+        paths = input_paths(args)
+        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True),
+                              paths, args)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
         raise InputError("no demo data in this installation; give a point-cloud file") from None
     name = args.demo or "outcrop"
     try:
-        return demos.load_demo(name)
+        return _with_scanners(demos.load_demo(name), [], args)  # the demos know theirs
     except KeyError:
         raise InputError(f"unknown demo {name!r}") from None
+
+
+def _with_scanners(cloud: PointCloud, paths: list[Path], args: argparse.Namespace) -> PointCloud:
+    """The cloud with the positions of ``--scanner`` / ``--scanners`` (the app reads them
+    from the cloud: ``scanner_positions``, ``scan_index``), after checking every scanner
+    option (:func:`rough_viewer.cli._scanner.trust_settings`: the calibration the app's
+    scanner layers will use)."""
+    from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
+
+    trust_settings(args, cloud.source_unit)
+    if args.scanners and not paths:
+        raise InputError("--scanners needs INPUT files (their point source ids); the demos "
+                         "carry their scanner's position")
+    return apply_scanner_options(cloud, paths, args, cloud.source_unit)
 
 
 def _check_options(args: argparse.Namespace) -> Path:
@@ -158,7 +183,9 @@ def run(args: argparse.Namespace) -> int:
     if opened is not None:
         from rough_viewer.cli._inputs import load_inputs
 
-        cloud = load_inputs([opened.input_path], units=opened.view.units, quiet=True)
+        cloud = _with_scanners(
+            load_inputs([opened.input_path], units=opened.view.units, quiet=True),
+            [opened.input_path], args)
     else:
         cloud = _load_cloud(args)
         if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)

@@ -2,7 +2,7 @@
 
 CSV is the ``compute`` contract: a header line, then one row per record; numbers at
 full precision (the shortest text that reads back to the same float64), an empty
-field where a value is NaN. Parquet (``.parquet``, needs the optional package
+field where a value is NaN (or masked, in an integer column given as a masked array). Parquet (``.parquet``, needs the optional package
 pyarrow: ``pip install 'rough_viewer[parquet]'``) keeps the column types, with null
 where a float is NaN. Both are written atomically (:mod:`rough_viewer.io.output`).
 
@@ -48,7 +48,16 @@ def check_table_output(path: str | os.PathLike[str]) -> None:
 
 def format_column(values: np.ndarray) -> list[str]:
     """Text of each value: integers as they are, floats as the shortest text that
-    reads back to the same float64 (full precision), NaN or infinite -> ``""``."""
+    reads back to the same float64 (full precision), NaN or infinite -> ``""``; the
+    masked entries of a masked array (an integer column with unknown values) -> ``""``.
+
+    >>> format_column(np.ma.masked_array([2, 0, 1], mask=[False, True, False]))
+    ['2', '', '1']
+    """
+    if isinstance(values, np.ma.MaskedArray):
+        text = np.array(format_column(np.ma.getdata(values)), dtype=object)
+        text[np.ma.getmaskarray(values)] = ""
+        return text.tolist()
     if np.issubdtype(values.dtype, np.integer) or values.dtype == np.bool_:
         return values.astype(np.int64).astype(str).tolist()
     text = values.astype(np.float64).astype(str)
@@ -60,7 +69,7 @@ def _columns(columns: Mapping[str, np.ndarray]) -> tuple[list[str], list[np.ndar
     names = list(columns)
     if not names:
         raise InputError("a table needs at least one column")
-    arrays = [np.asarray(columns[n]) for n in names]
+    arrays = [np.asanyarray(columns[n]) for n in names]  # masked arrays stay masked
     n = int(arrays[0].shape[0])
     for name, a in zip(names, arrays, strict=True):
         if a.ndim != 1 or a.shape[0] != n:
@@ -112,7 +121,9 @@ def _write_parquet(path: Path, names: list[str], arrays: list[np.ndarray],
     require(sum(a.nbytes for a in arrays) * 3.0, f"writing the table {path}")
     fields = []
     for a in arrays:
-        if np.issubdtype(a.dtype, np.floating):
+        if isinstance(a, np.ma.MaskedArray):
+            fields.append(pa.array(np.ma.getdata(a), mask=np.ma.getmaskarray(a)))
+        elif np.issubdtype(a.dtype, np.floating):
             fields.append(pa.array(a, mask=~np.isfinite(a)))
         else:
             fields.append(pa.array(a))

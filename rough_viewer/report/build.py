@@ -13,6 +13,7 @@ from typing import TypeVar
 import numpy as np
 
 from rough_viewer._version import __version__
+from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
@@ -22,6 +23,7 @@ from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, 
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
@@ -68,6 +70,9 @@ class GridSection:
     """Zones of the ODR map at the report's threshold."""
     stereonet: Stereonet | None = None
     """Poles of every cell's ODR plane."""
+    trust: CellTrust | None = None
+    """Scanner geometry and predicted bias of every cell (docs/scanner.md); None
+    without scanner positions (:attr:`Report.scanner_note` says so)."""
     figure_errors: dict[str, str] = field(default_factory=dict)
     """Figures that could not be made (``"variogram"``, ``"maps"``, ``"zones"``,
     ``"stereonet"``), each with why; the rest of the section (Table 1, histograms,
@@ -110,6 +115,8 @@ class Report:
     (:func:`rough_viewer.grid.spacing.preset_cell_sizes`)."""
     warnings: tuple[str, ...] = ()
     """What the reader and the report noticed (one line each)."""
+    scanner_note: str | None = None
+    """Why the report has no scanner section (no positions), else None."""
 
 
 def _section(
@@ -124,6 +131,7 @@ def _section(
     connectivity: Connectivity,
     tick: Callable[[], None],
     stage: ProgressFn,
+    trust: TrustSettings | None = None,
 ) -> GridSection:
     try:
         result = grid_roughness(cloud, g, min_points=min_points, axis=axis,  # type: ignore[arg-type]
@@ -157,10 +165,12 @@ def _section(
                     .zones(threshold, connectivity=connectivity, min_cells=min_cells))
     net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
     tick()
+    cells = None if trust is None else _figure(figure_errors, "scanner", g,
+                                               lambda: cell_trust(cloud, result, trust))
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
                        variograms=variograms or {}, maps=maps or {}, zones=zones,
-                       stereonet=net, figure_errors=figure_errors)
+                       stereonet=net, trust=cells, figure_errors=figure_errors)
 
 
 #: Most pixels of one face-plane image. A face whose image at the grid size would be
@@ -211,6 +221,7 @@ def build_report(
     connectivity: Connectivity = "vertex",
     unit: str | None = None,
     progress: ProgressFn | None = None,
+    trust: TrustSettings | None = None,
 ) -> Report:
     """Compute every number of the report.
 
@@ -239,6 +250,9 @@ def build_report(
         ``cloud.source_unit``); the numbers stay metres.
     progress : callable, optional
         ``progress(done, total)`` over all steps of all grid sizes.
+    trust : TrustSettings, optional
+        Calibration and options of the scanner section (default the paper's); the
+        section is made when the cloud has scanner positions.
 
     Returns
     -------
@@ -278,6 +292,10 @@ def build_report(
             show(base + round(ROUGHNESS_STAGES * min(stage_done, stage_total) / stage_total))
 
     show(0)
+    has_scanners = cloud_scanners(cloud) is not None
+    trust_used = (trust or TrustSettings()) if has_scanners else None
+    if trust_used is not None:
+        trust_used.check()
     plane = whole_cloud_plane(cloud)
     used_axis = dominant_axis(plane.normal) if axis == "auto" else axis
     sections = []
@@ -286,7 +304,8 @@ def build_report(
         done = base + ROUGHNESS_STAGES
         sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
                                  min_points=min_points, plane=plane, min_cells=min_cells,
-                                 connectivity=connectivity, tick=tick, stage=stage))
+                                 connectivity=connectivity, tick=tick, stage=stage,
+                                 trust=trust_used))
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
@@ -310,6 +329,7 @@ def build_report(
         unit=display_unit,
         grids_chosen=chosen,
         warnings=cloud.warnings + _coverage_warnings(sections, display_unit),
+        scanner_note=None if has_scanners else NO_POSITIONS,
     )
 
 

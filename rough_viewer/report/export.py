@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.io.output import write_atomic
 from rough_viewer.report.build import Report, build_report
@@ -54,6 +55,9 @@ class ReportSettings:
     unit: Unit | None = None
     """Unit lengths are shown in (default: the unit the file was in,
     ``PointCloud.source_unit``); the numbers stay metres."""
+    trust: TrustSettings | None = None
+    """Calibration and options of the scanner section, made when the cloud has scanner
+    positions (default: the bias paper's, :class:`rough_viewer.bias.trust.TrustSettings`)."""
 
     def check(self) -> None:
         """Raise InputError (one line, named as the command-line option) for a setting
@@ -74,6 +78,8 @@ class ReportSettings:
                 or self.min_points < 3:
             raise InputError(f"min points must be a whole number of at least 3, got "
                              f"{self.min_points!r}")
+        if self.trust is not None:
+            self.trust.check()
 
 
 def compute_report(cloud: PointCloud, settings: ReportSettings, *,
@@ -83,7 +89,8 @@ def compute_report(cloud: PointCloud, settings: ReportSettings, *,
     grids = (None if settings.grid_sizes is None
              else list(dict.fromkeys(float(g) for g in settings.grid_sizes)))
     return build_report(cloud, grids, axis=settings.axis, threshold=settings.threshold,
-                        min_points=settings.min_points, unit=settings.unit, progress=progress)
+                        min_points=settings.min_points, unit=settings.unit, progress=progress,
+                        trust=settings.trust)
 
 
 def report_page(cloud: PointCloud, settings: ReportSettings, *,

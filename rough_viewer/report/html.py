@@ -17,7 +17,7 @@ from rough_viewer.report.build import (
     report_raster,
 )
 from rough_viewer.visual.colormaps import zone_colour
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError
+from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError, roughness_scale
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -40,6 +40,7 @@ def figures_and_errors(report: Report, section: GridSection
         summary_table_figure,
         variogram_figure,
     )
+    from rough_viewer.visual.trust import trust_map_figure
     from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
 
     if section.error is not None:
@@ -77,6 +78,10 @@ def figures_and_errors(report: Report, section: GridSection
         draw("stereonet", lambda: stereonet_figure(
             net, highlight={f"zone {k}": zones.labels == k for k in shown},
             colours={f"zone {k}": zone_colour(k) for k in shown}, **kw))
+    trust = section.trust
+    if trust is not None and result is not None:
+        draw(SCANNER_FIGURE, lambda: trust_map_figure(
+            trust, report_raster(result, report.plane), **kw))
     return figures, errors
 
 
@@ -87,6 +92,8 @@ def png_name(grid_size: float, figure: str) -> str:
 
 FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram",
                 "zones_table", "zones_map", "stereonet")
+#: The figure of a section whose cloud has scanner positions (after FIGURE_NAMES).
+SCANNER_FIGURE = "scanner_map"
 STEREONET_ZONES = 6
 """The largest zones whose poles the report's stereonet highlights."""
 
@@ -153,6 +160,7 @@ def _meta_table(report: Report) -> list[str]:
            if report.grids_chosen == "default" else "") + "</td></tr>",
         f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness)</td></tr>",
         f"<tr><td>min points per cell</td><td>{report.min_points}</td></tr>",
+        f"<tr><td>scanner</td><td>{esc(_scanner_meta(report))}</td></tr>",
         f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
         f"<tr><td>created (UTC)</td><td>{esc(report.created)}</td></tr>",
         "</table>",
@@ -196,6 +204,7 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
             f'{cells["below_min_points"]:,} below {report.min_points} points, '
             f'{cells["degenerate"]:,} degenerate.</p>'
         )
+    parts += _scanner_html(report, s)
     figures, drawing_errors = figures_and_errors(report, s)
     for key, why in {**s.figure_errors, **drawing_errors}.items():
         parts.append(f'<p class="error">no {esc(key)} figure: {esc(why)}</p>')
@@ -216,6 +225,62 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
         parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
     parts.append("</section>")
     return parts
+
+
+def _scanner_meta(report: Report) -> str:
+    """The meta table's scanner line: the calibration used, or why there is none."""
+    if report.scanner_note is not None:
+        return report.scanner_note
+    trust = next((s.trust for s in report.sections if s.trust is not None), None)
+    if trust is None:
+        return "scanner positions given; no grid size has a scanner section"
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
+    rper, ru = roughness_scale(report.unit)
+    return (f"{trust.geometry.positions.shape[0]} position(s); "
+            + trust.settings.calibration.describe(per=per, unit=u, small_per=rper, small_unit=ru))
+
+
+def _scanner_html(report: Report, s: GridSection) -> list[str]:
+    """One grid size's scanner figures (docs/scanner.md) as a small table."""
+    if s.trust is None:
+        return []
+    esc = html.escape
+    per, u = UNIT_METRES[report.unit], UNIT_LABELS[report.unit]
+    rper, ru = roughness_scale(report.unit)
+    t = s.trust.summary()
+    if t.cells == 0:
+        return ['<h3>Scanner</h3><p class="note">No cell has both a value and a scanner '
+                "geometry.</p>"]
+
+    def spread(v: tuple[float, float, float], d: float = 1.0, fmt: str = ".2f") -> str:
+        return f"{v[0] / d:{fmt}} ({v[1] / d:{fmt}} to {v[2] / d:{fmt}})"
+
+    steps = ", ".join(f"{np.degrees(1.0 / np.sqrt(n)):.4f}°" for n in t.n0 if n > 0)
+    rows = [
+        ("cells judged", f"{t.cells:,}; seen by " + ", ".join(
+            f"{k} scan{'s' if k != 1 else ''}: {v:,}" for k, v in sorted(t.scans.items()))),
+        (f"range ({u}), median (5 to 95 %)", spread(t.range_m, per)),
+        ("incidence (degrees)", spread(t.incidence_deg, fmt=".1f")),
+        ("point density / expected", spread(t.density_ratio)
+         + f"; N0 {esc(t.n0_source)} (angular step {steps})"),
+        ("occlusion (share of points missing)", spread(t.occlusion)),
+        ("predicted noise inflation, % of ODR", spread(t.noise_pct, fmt="+.1f")
+         + f" (the paper's target A at this noise: {t.target_noise_pct:+.1f} %)"),
+        ("predicted beam smoothing, % of ODR", spread(t.smoothing_pct, fmt="+.1f")
+         + f" (asperity radius {t.asperity_scale_m / rper:.3g} {ru})"),
+        ("net predicted bias, % of ODR", spread(t.bias_pct, fmt="+.1f")),
+        ("flagged", f"incidence above 22.5°: {t.flagged['incidence']:,}; range outside the "
+                    f"calibrated span: {t.flagged['range']:,}; predicted noise above 30 % of "
+                    f"the roughness: {t.flagged['noise']:,}"),
+        ("trusted", f"{t.trusted:,} of {t.cells:,} ({100.0 * t.trusted / t.cells:.0f} %)"),
+    ]
+    body = "".join(f"<tr><td>{esc(a)}</td><td>{esc(b)}</td></tr>" for a, b in rows)
+    return ["<h3>Scanner</h3>", f'<table class="meta">{body}</table>',
+            '<p class="note">Per cell: range and incidence from the scanner to the cell '
+            "centroid against its ODR normal; density = points over those the scanner's "
+            "angular grid puts there; occlusion against the densest neighbour along the beam; "
+            "predicted bias from the bias paper's simulated target at the calibration "
+            "(docs/scanner.md).</p>"]
 
 
 def check_png_export() -> None:

@@ -104,6 +104,8 @@ def report_json(report: Report) -> dict[str, Any]:
             entry["figure_errors"] = dict(s.figure_errors)
             if s.zones is not None:
                 entry["zones"] = zones_dict(s.zones, s.stereonet)
+            entry["scanner"] = (None if s.trust is None
+                                else to_jsonable(s.trust.summary().as_dict(per=per)))
         grids.append(entry)
     return {
         "software": {"name": "rough_viewer", "version": report.version},
@@ -119,6 +121,7 @@ def report_json(report: Report) -> dict[str, Any]:
         "unit": report.unit,
         "grids_chosen": report.grids_chosen,
         "warnings": list(report.warnings),
+        "scanner_note": report.scanner_note,
         "axis": report.axis,
         "axis_requested": report.axis_requested,
         "threshold": report.threshold,

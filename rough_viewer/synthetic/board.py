@@ -196,6 +196,8 @@ class BoardScan:
     """Rays of the angular grid that were cast (hits and misses)."""
     theoretical_roughness: float
     """Closed-form roughness of the board (m), the value every model should report."""
+    angular_step_rad: float
+    """Angular step of the scanner's ray grid (radians): ``spacing / range_m``."""
     board: HemisphereBoard = field(repr=False)
     """The board that was scanned."""
 
@@ -371,7 +373,9 @@ def _board_scan_cached(
         t_seen = t_seen + np.random.default_rng(seed).normal(0.0, noise, t_seen.shape[0])
     xyz = scanner + t_seen[:, None] * d[seen]
     on_sphere = sphere_id[seen] >= 0
-    cloud = PointCloud.from_xyz(xyz, source="")
+    # one scan from a known position: the per-cell scanner geometry needs no option
+    cloud = PointCloud.from_xyz(xyz, source="", scan_index=np.zeros(xyz.shape[0], np.int32),
+                                scanner_positions=scanner[None, :])
     for arr in (on_sphere, axes, scanner, centre):
         arr.setflags(write=False)
     return BoardScan(
@@ -384,5 +388,6 @@ def _board_scan_cached(
         axes=axes,
         n_rays=int(d.shape[0]),
         theoretical_roughness=board_theoretical_roughness(board),
+        angular_step_rad=spacing / range_m,
         board=board,
     )

@@ -127,7 +127,8 @@ def demo_path(name: str) -> Path:
 
 
 def load_demo(name: str, *, alpha_deg: float = 0.0, beta_deg: float = 0.0) -> PointCloud:
-    """The points of demo ``name``.
+    """The points of demo ``name``, with the position of the scanner that scanned them
+    (``scanner_positions``, ``scan_index``).
 
     ``alpha_deg`` and ``beta_deg`` choose the board's rotation (degrees; ignored by
     the other demos). Board scans are cached in memory per rotation.
@@ -135,7 +136,23 @@ def load_demo(name: str, *, alpha_deg: float = 0.0, beta_deg: float = 0.0) -> Po
     _check_name(name)
     if name == "board":
         return _board.board_scan(alpha_deg, beta_deg).cloud
-    return load_points(demo_path(name))
+    return _with_demo_scanner(name, load_points(demo_path(name)))
+
+
+def demo_angular_step(name: str) -> float:
+    """Angular step of the scanner of demo ``name``, radians (the board: 2 mm at
+    4.5 m; the outcrops: their spec's ``angular_step_rad``)."""
+    _check_name(name)
+    if name == "board":
+        return _board.board_scan(0.0, 0.0).angular_step_rad
+    return float(_OUTCROPS[name][1].angular_step_rad)
+
+
+def _with_demo_scanner(name: str, cloud: PointCloud) -> PointCloud:
+    """A bundled outcrop's cloud with its spec's scanner position (one scan)."""
+    from rough_viewer.io.scanners import with_scanner
+
+    return with_scanner(cloud, _OUTCROPS[name][1].scanner)
 
 
 def demo_truth(name: str, *, alpha_deg: float = 0.0, beta_deg: float = 0.0) -> DemoTruth:
@@ -161,7 +178,8 @@ def load_demo_with_truth(
         return scan.cloud, truth
     p = demo_path(name)
     st = p.stat()
-    return _read_bundled(str(p), st.st_size, st.st_mtime_ns)
+    cloud, truth = _read_bundled(str(p), st.st_size, st.st_mtime_ns)
+    return _with_demo_scanner(name, cloud), truth
 
 
 @functools.lru_cache(maxsize=2)

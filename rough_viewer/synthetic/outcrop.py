@@ -444,5 +444,7 @@ def generate_outcrop(spec: OutcropSpec = OUTCROP, *, chunk_m: float = 2.0) -> Ou
         reflectance=reflectance,
         noise=noise_rng.lognormal(0.0, 0.12, rng_m.shape[0]),
     )
-    cloud = PointCloud.from_xyz(xyz, intensity=intensity, source="")
+    cloud = PointCloud.from_xyz(xyz, intensity=intensity, source="",
+                                scan_index=np.zeros(xyz.shape[0], np.int32),
+                                scanner_positions=scanner[None, :])
     return OutcropScan(cloud=cloud, truth=truth, face=face, spec=spec)

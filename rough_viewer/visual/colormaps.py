@@ -99,6 +99,17 @@ DEFAULT_COLORMAPS: dict[str, str] = {
     "e_ols": "magma",
     "intensity": "gray",
     "distance": "coolwarm",
+    # the per-cell scanner figures (rough_viewer.bias.trust, docs/scanner.md):
+    # quantities that only grow sequential, ratios about 1 and biases about 0 diverging
+    "scans": "viridis",
+    "range": "viridis",
+    "incidence_deg": "magma",
+    "density_ratio": "coolwarm",
+    "occlusion": "magma",
+    "noise_pred": "magma",
+    "smoothing_pred": "coolwarm",
+    "bias_pred": "coolwarm",
+    "trusted": "cividis",
 }
 
 

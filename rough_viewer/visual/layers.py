@@ -37,13 +37,27 @@ from rough_viewer.grid.planes import PlaneFit, signed_distance, whole_cloud_plan
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.colormaps import ColourRange, Stretch
-from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, InputError
+from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, TRUST_FIELDS, TRUST_LABELS, InputError
 
 #: Grey stretch of intensity: percentiles 2-98 of the points given, linear.
 INTENSITY_STRETCH = Stretch("percentile", 2.0, 98.0)
 #: Distance to the face plane: symmetric about 0, out to the larger of |2nd| and
 #: |98th| percentile of the signed distances, linear.
 DISTANCE_STRETCH = Stretch("percentile", 2.0, 98.0, symmetric=True)
+#: Stretches of the per-cell scanner figures (docs/scanner.md): biases symmetric about
+#: 0, the density ratio 0 to 2 (1, as expected, in the middle), occlusion and the
+#: trusted flag on their own 0..1, the others percentiles 2-98.
+TRUST_STRETCHES: dict[str, Stretch] = {
+    "scans": Stretch("percentile", 0.0, 100.0),
+    "range": Stretch("percentile", 2.0, 98.0),
+    "incidence_deg": Stretch("absolute", 0.0, 90.0),
+    "density_ratio": Stretch("absolute", 0.0, 2.0),
+    "occlusion": Stretch("absolute", 0.0, 1.0),
+    "noise_pred": Stretch("percentile", 2.0, 98.0),
+    "smoothing_pred": Stretch("percentile", 2.0, 98.0, symmetric=True),
+    "bias_pred": Stretch("percentile", 2.0, 98.0, symmetric=True),
+    "trusted": Stretch("absolute", 0.0, 1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -167,3 +181,25 @@ def face_plane_distance(
     ``LoadedCloud.plane``); by default it is fitted here.
     """
     return signed_distance(cloud, plane if plane is not None else whole_cloud_plane(cloud))
+
+
+def trust_layer(name: str, values: np.ndarray, *,
+                colour_range: ColourRange | None = None) -> ColourLayer:
+    """Colours of per-point values of one per-cell scanner figure (a
+    :data:`rough_viewer.vocabulary.TRUST_FIELDS` name; values from
+    ``CellTrust.layer(name)[result.point_cell]``, lengths in metres, NaN = the
+    neutral colour), on its colour map (:data:`colormaps.DEFAULT_COLORMAPS`) and
+    stretch (:data:`TRUST_STRETCHES`).
+
+    >>> layer = trust_layer("density_ratio", np.array([0.0, 1.0, 2.0, np.nan]))
+    >>> layer.colour_range.lo, layer.colour_range.hi, layer.colours.shape
+    (0.0, 2.0, (4, 3))
+    """
+    if name not in TRUST_FIELDS:
+        raise InputError(f"unknown scanner layer {name!r}; expected one of "
+                         f"{', '.join(TRUST_FIELDS)}")
+    v = np.asarray(values, dtype=np.float64).ravel()
+    rng = colour_range or colormaps.resolve(v, TRUST_STRETCHES[name])
+    cmap = colormaps.default_colormap(name)
+    return ColourLayer(name, TRUST_LABELS[name], colormaps.stretch_colours(v, rng, cmap), rng,
+                       cmap)

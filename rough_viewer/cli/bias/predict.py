@@ -16,7 +16,6 @@ from rough_viewer.cli.bias._shared import (
     add_simulation_options,
     check_simulation,
     emit,
-    layout,
     prediction_dict,
     prediction_text,
     progress_bar,
@@ -46,13 +45,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.bias.simulation import predict_bias
+    from rough_viewer.bias.simulation import predict_paper_target
 
     check_simulation(args, noise=[args.noise], ers=[args.er], radii=[target_radius(args)])
-    p = predict_bias(noise_sigma_m=args.noise, effective_radius_m=args.er,
-                     layout=layout(args, args.asperity_radius), spacing_m=args.spacing,
-                     ratio=args.ratio, trials=args.trials, seed=args.seed,
-                     residual=args.residual,
-                     progress=progress_bar(args, "bias trials", "trial"))
+    # the one path of every prediction on the paper's targets (per-cell ones too)
+    p = predict_paper_target(noise_sigma_m=args.noise, effective_radius_m=args.er,
+                             target=args.target or "A", asperity_radius_m=args.asperity_radius,
+                             spacing_m=args.spacing, ratio=args.ratio, trials=args.trials,
+                             seed=args.seed, residual=args.residual,
+                             progress=progress_bar(args, "bias trials", "trial"))
     emit(args, prediction_dict(p), prediction_text(p, "predicted roughness bias"))
     return 0
