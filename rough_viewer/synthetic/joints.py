@@ -263,7 +263,7 @@ def _layout(spec: JointBlockSpec, rng: np.random.Generator):
         # consecutive exposures zigzag across e; every second one must clear along e
         w = half_across + 0.5 * spec.gap_m
         reach = float(np.max(np.abs(along)))
-        if s.planes > 2 and 2.0 * (s.spacing_m * (1 - s.spacing_jitter)) / size < \
+        if s.planes > 2 and float((steps[1:] + steps[:-1]).min()) / size < \
                 2.0 * reach + spec.gap_m:
             raise InputError(f"joint set {k}: exposures of {s.dip_length_m:g} x "
                              f"{s.strike_length_m:g} m overlap at a spacing of {s.spacing_m:g} m")
