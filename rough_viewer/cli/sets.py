@@ -117,11 +117,12 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     lengths in ``unit``."""
     per, u = per_unit(unit), UNIT_LABELS[unit]
     planar = int(np.count_nonzero(sets.planar))
+    o = sets.options
     lines = [
         f"{source}: {result.n_points_total:,} points, grid {sets.cell_size / per:g} {u}, "
         f"{planar:,} planar cells (ODR roughness <= {sets.max_roughness / per:.4g} {u}, "
-        f">= {sets.min_planar_points} points), cone {sets.cone_deg:g} deg, peaks >= "
-        f"{sets.min_density:g} MUD and >= {sets.min_angle_deg:g} deg apart",
+        f">= {o.min_planar_points} points), cone {o.cone_deg:g} deg, peaks >= "
+        f"{o.min_density:g} MUD and >= {o.min_angle_deg:g} deg apart",
     ]
     if not sets.n_sets:
         lines.append(sets.note)
@@ -161,14 +162,13 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.grid.sets import check_options, joint_sets
+    from rough_viewer.grid.sets import joint_sets
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output
 
     if args.min_points is not None and args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
-    options = _set_options(args, 1.0)
-    check_options(**options)  # before any work
+    _set_options(args, 1.0)  # checked before any work (lengths in --units)
     inputs = input_paths(args)
     source = describe(inputs)
     unit, _ = resolve_units(inputs[0], args.units)
@@ -201,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
                     cloud, g * per, models=("odr",),
                     progress=None if quiet else ProgressBar(f"grid {g:g} {u}", unit="step"),
                     **grid_options)
-                sets = joint_sets(result, cloud, **_set_options(args, per))
+                sets = joint_sets(result, cloud, _set_options(args, per))
             if i:
                 print()
             print(format_sets(sets, result, source=source, unit=unit))
@@ -211,18 +211,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _set_options(args: argparse.Namespace, per: float) -> dict:
-    """The options of :func:`rough_viewer.grid.sets.joint_sets`, lengths in metres
-    (``per`` metres per unit of the command line)."""
-    return {
-        "max_roughness": None if args.max_roughness is None else args.max_roughness * per,
-        "min_planar_points": args.min_planar_points, "cone_deg": args.cone,
-        "min_angle_deg": args.min_angle, "max_sets": args.max_sets,
-        "smoothing_deg": args.smoothing, "min_density": args.min_density,
-        "min_set_cells": args.min_set_cells,
-        "plane_tolerance": None if args.plane_tolerance is None else args.plane_tolerance * per,
-        "min_plane_cells": args.min_plane_cells,
-    }
+def _set_options(args: argparse.Namespace, per: float):
+    """The :class:`~rough_viewer.grid.sets.SetOptions` of the command line, lengths in
+    metres (``per`` metres per unit of the command line); InputError for a bad one."""
+    from rough_viewer.grid.sets import SetOptions
+
+    return SetOptions(
+        max_roughness=None if args.max_roughness is None else args.max_roughness * per,
+        min_planar_points=args.min_planar_points, cone_deg=args.cone,
+        min_angle_deg=args.min_angle, max_sets=args.max_sets, smoothing_deg=args.smoothing,
+        min_density=args.min_density, min_set_cells=args.min_set_cells,
+        plane_tolerance=None if args.plane_tolerance is None else args.plane_tolerance * per,
+        min_plane_cells=args.min_plane_cells)
 
 
 def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud, source: str,

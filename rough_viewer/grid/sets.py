@@ -286,18 +286,12 @@ class JointSets:
     """The planes."""
     cell_size: float
     """Grid cell edge, metres."""
+    options: SetOptions
+    """The settings the sets were found with."""
     max_roughness: float
-    """Largest ODR roughness of a planar cell, metres."""
-    min_planar_points: int
-    """Least points of a planar cell."""
-    cone_deg: float
-    min_angle_deg: float
-    max_sets: int
-    min_density: float
-    min_set_cells: int
+    """Largest ODR roughness of a planar cell, metres (the option, or its default)."""
     plane_tolerance: float
-    """Offset tolerance within a plane, metres."""
-    min_plane_cells: int
+    """Offset tolerance within a plane, metres (the option, or its default)."""
     note: str
     """Why there is no set (empty when there are sets)."""
 
@@ -307,9 +301,9 @@ class JointSets:
         return int(self.cells.shape[0])
 
     @property
-    def smoothing_deg(self) -> float:
-        """Kernel ``sigma`` of the density, degrees."""
-        return self.net.smoothing_deg
+    def cone_deg(self) -> float:
+        """A cell joins the nearest peak within this angle, degrees."""
+        return self.options.cone_deg
 
     def set_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
         """Column -> (S,) values in :data:`SET_COLUMNS` order, lengths divided by
@@ -463,58 +457,76 @@ def density_peaks(
     return found[keep].reshape(-1, 3), exact[keep]
 
 
-def check_options(
-    *,
-    max_roughness: float | None = None,
-    min_planar_points: int = DEFAULT_MIN_PLANAR_POINTS,
-    cone_deg: float = DEFAULT_CONE_DEG,
-    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG,
-    max_sets: int = DEFAULT_MAX_SETS,
-    smoothing_deg: float = DEFAULT_SMOOTHING_DEG,
-    min_density: float = DEFAULT_MIN_DENSITY,
-    min_set_cells: int = DEFAULT_MIN_SET_CELLS,
-    plane_tolerance: float | None = None,
-    min_plane_cells: int = DEFAULT_MIN_PLANE_CELLS,
-) -> None:
-    """Raise InputError (one line) for an option :func:`joint_sets` cannot use; the
-    command line calls it before reading the input."""
-    if max_roughness is not None and not (np.isfinite(max_roughness) and max_roughness > 0):
-        raise InputError(f"the largest roughness of a planar cell must be a positive length, "
-                         f"got {max_roughness:g}")
-    if not (np.isfinite(cone_deg) and 0 < cone_deg <= 90):
-        raise InputError(f"the cone must be in (0, 90] degrees, got {cone_deg:g}")
-    if not (np.isfinite(min_angle_deg) and 0 <= min_angle_deg <= 90):
-        raise InputError(f"the least angle between sets must be in [0, 90] degrees, got "
-                         f"{min_angle_deg:g}")
-    if int(max_sets) != max_sets or not 1 <= max_sets <= 255:
-        raise InputError(f"the largest number of sets must be a whole number in 1..255, got "
-                         f"{max_sets}")
-    if not (np.isfinite(smoothing_deg) and 0 < smoothing_deg <= 90):
-        raise InputError(f"smoothing must be in (0, 90] degrees, got {smoothing_deg:g}")
-    if not (np.isfinite(min_density) and min_density >= 0):
-        raise InputError(f"the least peak density must be >= 0 MUD, got {min_density:g}")
-    for name, v in (("cells of a set", min_set_cells), ("cells of a plane", min_plane_cells),
-                    ("points of a planar cell", min_planar_points)):
-        if int(v) != v or v < 1:
-            raise InputError(f"the least number of {name} must be a whole number >= 1, got {v}")
-    if plane_tolerance is not None and not (np.isfinite(plane_tolerance) and plane_tolerance >= 0):
-        raise InputError(f"the plane tolerance must be a length >= 0, got {plane_tolerance:g}")
+@dataclass(frozen=True)
+class SetOptions:
+    """The settings of :func:`joint_sets` (lengths in metres, angles in degrees),
+    checked when made: an option that cannot be used raises InputError (one line),
+    so the command line makes them before reading the input."""
+
+    max_roughness: float | None = None
+    """Largest ODR roughness of a planar cell, metres (None: :data:`DEFAULT_PLANAR_SHARE`
+    times the cell size)."""
+    min_planar_points: int = DEFAULT_MIN_PLANAR_POINTS
+    """Least points of a planar cell."""
+    cone_deg: float = DEFAULT_CONE_DEG
+    """A cell joins the nearest peak within this angle."""
+    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG
+    """Least angle between two sets' peaks."""
+    max_sets: int = DEFAULT_MAX_SETS
+    """Largest number of sets (1..255)."""
+    smoothing_deg: float = DEFAULT_SMOOTHING_DEG
+    """Kernel ``sigma`` of the pole density (as the stereonet's)."""
+    min_density: float = DEFAULT_MIN_DENSITY
+    """Least density of a peak, MUD."""
+    min_set_cells: int = DEFAULT_MIN_SET_CELLS
+    """Least cells of a set."""
+    plane_tolerance: float | None = None
+    """Largest offset difference (metres, along the set's mean normal) between
+    touching cells of one plane, and the least normal spacing (None: half a cell)."""
+    min_plane_cells: int = DEFAULT_MIN_PLANE_CELLS
+    """Least cells of a plane."""
+
+    def __post_init__(self) -> None:
+        t, tol = self.max_roughness, self.plane_tolerance
+        if t is not None and not (np.isfinite(t) and t > 0):
+            raise InputError(f"the largest roughness of a planar cell must be a positive "
+                             f"length, got {t:g}")
+        if not (np.isfinite(self.cone_deg) and 0 < self.cone_deg <= 90):
+            raise InputError(f"the cone must be in (0, 90] degrees, got {self.cone_deg:g}")
+        if not (np.isfinite(self.min_angle_deg) and 0 <= self.min_angle_deg <= 90):
+            raise InputError(f"the least angle between sets must be in [0, 90] degrees, got "
+                             f"{self.min_angle_deg:g}")
+        if int(self.max_sets) != self.max_sets or not 1 <= self.max_sets <= 255:
+            raise InputError(f"the largest number of sets must be a whole number in 1..255, "
+                             f"got {self.max_sets}")
+        if not (np.isfinite(self.smoothing_deg) and 0 < self.smoothing_deg <= 90):
+            raise InputError(f"smoothing must be in (0, 90] degrees, got {self.smoothing_deg:g}")
+        if not (np.isfinite(self.min_density) and self.min_density >= 0):
+            raise InputError(f"the least peak density must be >= 0 MUD, got "
+                             f"{self.min_density:g}")
+        for name, v in (("cells of a set", self.min_set_cells),
+                        ("cells of a plane", self.min_plane_cells),
+                        ("points of a planar cell", self.min_planar_points)):
+            if int(v) != v or v < 1:
+                raise InputError(f"the least number of {name} must be a whole number >= 1, "
+                                 f"got {v}")
+        if tol is not None and not (np.isfinite(tol) and tol >= 0):
+            raise InputError(f"the plane tolerance must be a length >= 0, got {tol:g}")
+
+    def lengths(self, cell_size: float) -> tuple[float, float]:
+        """``(max_roughness, plane_tolerance)`` in metres on a grid of ``cell_size``
+        (the defaults where None)."""
+        t = DEFAULT_PLANAR_SHARE * cell_size if self.max_roughness is None else self.max_roughness
+        tol = (DEFAULT_PLANE_TOLERANCE_SHARE * cell_size if self.plane_tolerance is None
+               else self.plane_tolerance)
+        return float(t), float(tol)
 
 
 def joint_sets(
     result: GridRoughness,
     cloud: PointCloud | np.ndarray,
+    options: SetOptions | None = None,
     *,
-    max_roughness: float | None = None,
-    min_planar_points: int = DEFAULT_MIN_PLANAR_POINTS,
-    cone_deg: float = DEFAULT_CONE_DEG,
-    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG,
-    max_sets: int = DEFAULT_MAX_SETS,
-    smoothing_deg: float = DEFAULT_SMOOTHING_DEG,
-    min_density: float = DEFAULT_MIN_DENSITY,
-    min_set_cells: int = DEFAULT_MIN_SET_CELLS,
-    plane_tolerance: float | None = None,
-    min_plane_cells: int = DEFAULT_MIN_PLANE_CELLS,
     progress: ProgressFn | None = None,
 ) -> JointSets:
     """Discontinuity sets, their planes, spacing and persistence (see the module).
@@ -526,29 +538,11 @@ def joint_sets(
         is needed for the planes' fits, so not an out-of-core result).
     cloud : PointCloud or (N, 3) array
         The points ``result`` was computed from, metres.
-    max_roughness : float, optional
-        Largest ODR roughness of a planar cell, metres (default
-        :data:`DEFAULT_PLANAR_SHARE` times the cell size).
-    min_planar_points : int
-        Least points of a planar cell (default 10).
-    cone_deg : float
-        A cell joins the nearest peak within this angle, degrees (default 20).
-    min_angle_deg : float
-        Least angle between two sets' peaks, degrees (default 30).
-    max_sets : int
-        Largest number of sets (default 6).
-    smoothing_deg : float
-        Kernel ``sigma`` of the density, degrees (default 6, as the stereonet).
-    min_density : float
-        Least density of a peak, MUD (default 3).
-    min_set_cells : int
-        Least cells of a set (default 10).
-    plane_tolerance : float, optional
-        Largest offset difference (metres, along the set's mean normal) between
-        touching cells of one plane; also the least normal spacing (default half a
-        cell).
-    min_plane_cells : int
-        Least cells of a plane (default 3).
+    options : SetOptions, optional
+        The settings (default :class:`SetOptions()`: planar cells of at most 2 % of
+        the cell in roughness and 10 points, a cone of 20 degrees, peaks of at least
+        3 MUD and 30 degrees apart, at most 6 sets of 10 cells, planes of 3 cells
+        within half a cell of offset).
     progress : callable, optional
         ``progress(done, total)`` over 4 stages.
 
@@ -557,13 +551,12 @@ def joint_sets(
     JointSets
         With ``note`` saying why when there is no set.
     """
+    o = options if options is not None else SetOptions()
     g = float(result.grid.cell_size)
-    t = DEFAULT_PLANAR_SHARE * g if max_roughness is None else float(max_roughness)
-    tol = DEFAULT_PLANE_TOLERANCE_SHARE * g if plane_tolerance is None else float(plane_tolerance)
-    check_options(max_roughness=t, min_planar_points=min_planar_points, cone_deg=cone_deg,
-                  min_angle_deg=min_angle_deg, max_sets=max_sets, smoothing_deg=smoothing_deg,
-                  min_density=min_density, min_set_cells=min_set_cells, plane_tolerance=tol,
-                  min_plane_cells=min_plane_cells)
+    t, tol = o.lengths(g)
+    cone_deg, min_angle_deg, max_sets = o.cone_deg, o.min_angle_deg, o.max_sets
+    smoothing_deg, min_density, min_set_cells = o.smoothing_deg, o.min_density, o.min_set_cells
+    min_plane_cells, min_planar_points = o.min_plane_cells, o.min_planar_points
     x, y, z = as_columns(cloud)
     if result.point_cell.shape[0] != x.shape[0]:
         raise InputError("joint sets need the points of the grid result (its point_cell "
@@ -639,11 +632,8 @@ def joint_sets(
         dip_direction_deg=dd, kappa=kappa, alpha95_deg=alpha, cells=set_cells,
         points=set_points, n_planes_per_set=n_planes, spacing_mean=spacing[:, 0],
         spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
-        persistence_mean=persistence_mean, planes=planes, cell_size=g, max_roughness=t,
-        min_planar_points=int(min_planar_points),
-        cone_deg=float(cone_deg), min_angle_deg=float(min_angle_deg), max_sets=int(max_sets),
-        min_density=float(min_density), min_set_cells=int(min_set_cells), plane_tolerance=tol,
-        min_plane_cells=int(min_plane_cells), note=note)
+        persistence_mean=persistence_mean, planes=planes, cell_size=g, options=o,
+        max_roughness=t, plane_tolerance=tol, note=note)
 
 
 def _downward(normals: np.ndarray) -> np.ndarray:

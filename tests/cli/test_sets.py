@@ -11,7 +11,7 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import joint_sets
+from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
@@ -102,7 +102,8 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
 def test_options_reach_the_sets(tmp_path, block):
     path, _ = block
     cloud = load_points(path)
-    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud, max_sets=2, cone_deg=10.0)
+    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud,
+                     SetOptions(max_sets=2, cone_deg=10.0))
     out = tmp_path / "s.csv"
     assert main(["sets", str(path), "--grid", str(G), "--max-sets", "2", "--cone", "10",
                  "--out", str(out), "--quiet"]) == 0

@@ -18,7 +18,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.sets import (
     PLANE_COLUMNS,
     SET_COLUMNS,
-    check_options,
+    SetOptions,
     density_peaks,
     fisher_statistics,
     joint_sets,
@@ -356,14 +356,14 @@ def test_a_smooth_sphere_has_no_preferred_plane():
 
 def test_bad_options_are_refused():
     with pytest.raises(InputError, match="cone"):
-        check_options(cone_deg=120.0)
+        SetOptions(cone_deg=120.0)
     with pytest.raises(InputError, match="sets"):
-        check_options(max_sets=0)
+        SetOptions(max_sets=0)
     with pytest.raises(InputError, match="planar cell"):
-        check_options(min_planar_points=0)
+        SetOptions(min_planar_points=0)
     pts = tilted_plane(30.0, 90.0, n=5000)
     result = grid_roughness(pts, 0.5)
     with pytest.raises(InputError, match="points of the grid result"):
         joint_sets(result, pts[:100])
     with pytest.raises(InputError, match="roughness"):
-        joint_sets(result, pts, max_roughness=-1.0)
+        SetOptions(max_roughness=-1.0)
