@@ -6,7 +6,7 @@ Contract (other tools script against it)::
     rough-viewer sets INPUT [INPUT ...] --grid G [--grid G2 ...] [--max-roughness T]
         [--min-planar-points K] [--cone 20] [--min-angle 30] [--max-sets 6]
         [--smoothing 6] [--min-density 3] [--min-set-cells 10] [--plane-tolerance D]
-        [--min-plane-cells 3] [--min-points K] [--units m|mm|ft|us-ft]
+        [--min-plane-cells 3] [--max-plane-rms D] [--min-points K] [--units m|mm|ft|us-ft]
         --out SETS.csv [--planes-out PLANES.csv] [--cells-out CELLS.csv]
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--force] [--quiet]
@@ -93,6 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-plane-cells", type=positive_int, default=js.DEFAULT_MIN_PLANE_CELLS,
                    metavar="K", help="least cells of a plane (default "
                    f"{js.DEFAULT_MIN_PLANE_CELLS})")
+    p.add_argument("--max-plane-rms", type=positive, default=None, metavar="D",
+                   help="largest RMS of a plane's points about it, in --units: touching cells "
+                   "that curve more are no plane (default a quarter of the grid size)")
     p.add_argument("--min-points", type=int, default=None, metavar="K",
                    help="cells with fewer points get no roughness (default: as compute)")
     p.add_argument("--out", required=True, metavar="SETS.csv",
@@ -129,6 +132,10 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
         return "\n".join(lines)
     lines.append(f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}, "
                  f"{sets.planes.n_planes:,} planes")
+    if sets.curved_groups:
+        lines.append(f"{sets.curved_groups:,} group{'s' if sets.curved_groups != 1 else ''} of "
+                     f"touching cells curve (RMS about their best plane over "
+                     f"{sets.max_plane_rms / per:.3g} {u}): no planes")
     lines.append("")
     lines.append(f"{'set':>4} {'dip/dir':>9} {'kappa':>8} {'a95':>6} {'cells':>7} {'planes':>6} "
                  f"{'spacing ' + u:>11} {'persist. ' + u:>11}")
@@ -222,7 +229,8 @@ def _set_options(args: argparse.Namespace, per: float):
         min_angle_deg=args.min_angle, max_sets=args.max_sets, smoothing_deg=args.smoothing,
         min_density=args.min_density, min_set_cells=args.min_set_cells,
         plane_tolerance=None if args.plane_tolerance is None else args.plane_tolerance * per,
-        min_plane_cells=args.min_plane_cells)
+        min_plane_cells=args.min_plane_cells,
+        max_plane_rms=None if args.max_plane_rms is None else args.max_plane_rms * per)
 
 
 def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud, source: str,

@@ -39,7 +39,10 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    too few points to vote with their own normal) but a roughness of at most
    ``max_roughness``, whose centroid lies within 3 x the plane's RMS of it; they
    carry the plane's set and plane ids (the set's ``cells`` count only the cells
-   whose poles made it).
+   whose poles made it). A group whose points lie farther than ``max_plane_rms``
+   (RMS, default a quarter of a cell) from their best plane is a curved surface
+   chained cell by cell (a hillslope, a vault, an undulating face), not a plane: it
+   is dropped and counted (:attr:`JointSets.curved_groups`).
 8. **Per plane**, from its points: the ODR fit (dip, dip direction, centroid, RMS
    of the orthogonal distances = square root of the smallest covariance
    eigenvalue); the persistence along dip and along strike: the longest chord in
@@ -69,7 +72,7 @@ Everything is vectorised over cells and points; loops run over sets (at most
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -107,6 +110,8 @@ DEFAULT_PLANAR_SHARE = 0.02
 DEFAULT_MIN_PLANAR_POINTS = 10
 #: Default offset tolerance between the cells of one plane, as a share of the cell size.
 DEFAULT_PLANE_TOLERANCE_SHARE = 0.5
+#: Default largest RMS of a plane's points about it, as a share of the cell size.
+DEFAULT_PLANE_RMS_SHARE = 0.25
 #: Default least number of cells of a plane.
 DEFAULT_MIN_PLANE_CELLS = DEFAULT_MIN_CELLS
 #: Confidence of alpha95.
@@ -292,6 +297,12 @@ class JointSets:
     """Largest ODR roughness of a planar cell, metres (the option, or its default)."""
     plane_tolerance: float
     """Offset tolerance within a plane, metres (the option, or its default)."""
+    max_plane_rms: float
+    """Largest RMS of a plane's points about it, metres (the option, or its default)."""
+    curved_groups: int
+    """Groups of touching cells (of ``min_plane_cells`` or more) that were no plane:
+    their points' RMS about their best plane exceeds ``max_plane_rms`` (a curved
+    surface, chained cell by cell); their cells keep their set, plane 0."""
     note: str
     """Why there is no set (empty when there are sets)."""
 
@@ -485,9 +496,15 @@ class SetOptions:
     touching cells of one plane, and the least normal spacing (None: half a cell)."""
     min_plane_cells: int = DEFAULT_MIN_PLANE_CELLS
     """Least cells of a plane."""
+    max_plane_rms: float | None = None
+    """Largest RMS (metres) of a plane's points about their best plane: a group of
+    touching cells that curves more is no plane (None: a quarter of a cell)."""
 
     def __post_init__(self) -> None:
         t, tol = self.max_roughness, self.plane_tolerance
+        rms = self.max_plane_rms
+        if rms is not None and not (np.isfinite(rms) and rms > 0):
+            raise InputError(f"the largest RMS of a plane must be a positive length, got {rms:g}")
         if t is not None and not (np.isfinite(t) and t > 0):
             raise InputError(f"the largest roughness of a planar cell must be a positive "
                              f"length, got {t:g}")
@@ -513,13 +530,15 @@ class SetOptions:
         if tol is not None and not (np.isfinite(tol) and tol >= 0):
             raise InputError(f"the plane tolerance must be a length >= 0, got {tol:g}")
 
-    def lengths(self, cell_size: float) -> tuple[float, float]:
-        """``(max_roughness, plane_tolerance)`` in metres on a grid of ``cell_size``
-        (the defaults where None)."""
+    def lengths(self, cell_size: float) -> tuple[float, float, float]:
+        """``(max_roughness, plane_tolerance, max_plane_rms)`` in metres on a grid of
+        ``cell_size`` (the defaults where None)."""
         t = DEFAULT_PLANAR_SHARE * cell_size if self.max_roughness is None else self.max_roughness
         tol = (DEFAULT_PLANE_TOLERANCE_SHARE * cell_size if self.plane_tolerance is None
                else self.plane_tolerance)
-        return float(t), float(tol)
+        rms = (DEFAULT_PLANE_RMS_SHARE * cell_size if self.max_plane_rms is None
+               else self.max_plane_rms)
+        return float(t), float(tol), float(rms)
 
 
 def joint_sets(
@@ -553,7 +572,7 @@ def joint_sets(
     """
     o = options if options is not None else SetOptions()
     g = float(result.grid.cell_size)
-    t, tol = o.lengths(g)
+    t, tol, max_rms = o.lengths(g)
     cone_deg, min_angle_deg, max_sets = o.cone_deg, o.min_angle_deg, o.max_sets
     smoothing_deg, min_density, min_set_cells = o.smoothing_deg, o.min_density, o.min_set_cells
     min_plane_cells, min_planar_points = o.min_plane_cells, o.min_planar_points
@@ -611,8 +630,9 @@ def joint_sets(
     set_cells = np.bincount(labels, minlength=n_sets + 1)[1:].astype(np.int64)
     set_points = np.bincount(labels, weights=weights, minlength=n_sets + 1)[1:].astype(np.int64)
     tick(2, 4)
-    cell_plane, cell_set, planes = _planes(result, (x, y, z), cell_set, normal, tol,
-                                           int(min_plane_cells), t, int(min_planar_points))
+    cell_plane, cell_set, planes, curved = _planes(result, (x, y, z), cell_set, normal, tol,
+                                                   int(min_plane_cells), t,
+                                                   int(min_planar_points), max_rms)
     tick(3, 4)
     spacing = np.full((n_sets, 3), np.nan)
     persistence_mean = np.full(n_sets, np.nan)
@@ -633,7 +653,8 @@ def joint_sets(
         points=set_points, n_planes_per_set=n_planes, spacing_mean=spacing[:, 0],
         spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
         persistence_mean=persistence_mean, planes=planes, cell_size=g, options=o,
-        max_roughness=t, plane_tolerance=tol, note=note)
+        max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
+        note=note)
 
 
 def _downward(normals: np.ndarray) -> np.ndarray:
@@ -673,10 +694,10 @@ def _why_none(result: GridRoughness, rows: np.ndarray, has_plane: np.ndarray, t:
 
 def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
             cell_set: np.ndarray, set_normal: np.ndarray, tol: float, min_cells: int,
-            max_roughness: float, min_planar_points: int
-            ) -> tuple[np.ndarray, np.ndarray, JointPlanes]:
+            max_roughness: float, min_planar_points: int, max_rms: float
+            ) -> tuple[np.ndarray, np.ndarray, JointPlanes, int]:
     """Planes of every set: the plane and set of every cell (with the edge cells
-    the planes took in) and the plane table."""
+    the planes took in), the plane table and the number of curved groups dropped."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -685,7 +706,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     sid = cell_set[members].astype(np.int64)
     cell_plane = np.zeros(m, dtype=np.int32)
     if members.shape[0] == 0:
-        return cell_plane, cell_set, _no_planes()
+        return cell_plane, cell_set, _no_planes(), 0
     origin = result.grid.origin
     offset = np.einsum("ij,ij->i", result.centroid[members] - origin, set_normal[sid - 1])
     a, b, _ = _neighbour_pairs(result.ijk[members])
@@ -705,23 +726,38 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     cell_plane[members] = new_id[comp]
     n_p = int(big.shape[0])
     if n_p == 0:
-        return cell_plane, cell_set, _no_planes()
+        return cell_plane, cell_set, _no_planes(), 0
     plane_set = comp_set[big]
     cell_set = cell_set.copy()
-    fit = _fit_planes(result, xyz, cell_plane, n_p)
-    _take_edge_cells(result, cell_plane, cell_set, plane_set, fit[0], fit[1], fit[2],
-                     max_roughness, min_planar_points)
-    fit = _fit_planes(result, xyz, cell_plane, n_p)  # again, with the edge cells
+    first_fit = _fit_planes(result, xyz, cell_plane, n_p, measure=False)
+    # a group whose points do not fit one plane (a curved surface chained cell by
+    # cell) is no discontinuity plane: its cells keep their set, plane 0
+    flat = first_fit.rms <= max_rms
+    curved = int(np.count_nonzero(~flat))
+    if curved:
+        renumber = np.zeros(n_p + 1, dtype=np.int32)
+        renumber[1:][flat] = np.arange(1, int(flat.sum()) + 1, dtype=np.int32)
+        cell_plane[:] = renumber[cell_plane]
+        plane_set = plane_set[flat]
+        n_p = int(flat.sum())
+        if n_p == 0:
+            return cell_plane, cell_set, _no_planes(), curved
+        first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
+                         rms=first_fit.rms[flat], points=first_fit.points[flat])
+    _take_edge_cells(result, cell_plane, cell_set, plane_set, first_fit, max_roughness,
+                     min_planar_points)
+    fit = _fit_planes(result, xyz, cell_plane, n_p, measure=True)  # with the edge cells
+    assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
     plane_cells = np.bincount(cell_plane, minlength=n_p + 1)[1:].astype(np.int64)
     toward = result.whole_plane.normal
-    normal = orient_normals(fit[0], toward)
+    normal = orient_normals(fit.normal, toward)
     dip, dd = dip_and_direction(normal, toward)
-    centroid, rms, points, chords, area = fit[1], fit[2], fit[3], fit[4], fit[5]
-    offset_p = np.einsum("ij,ij->i", centroid - origin, set_normal[plane_set - 1])
+    offset_p = np.einsum("ij,ij->i", fit.centroid - origin, set_normal[plane_set - 1])
     return cell_plane, cell_set, JointPlanes(
-        set_id=plane_set, cells=plane_cells, points=points, normal=normal, dip_deg=dip,
-        dip_direction_deg=dd, centroid=centroid, rms=rms, area=area,
-        persistence_dip=chords[0], persistence_strike=chords[1], offset=offset_p)
+        set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
+        dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
+        persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
+        offset=offset_p), curved
 
 
 #: An edge cell joins a plane when its centroid lies within this many times the
@@ -730,8 +766,8 @@ EDGE_RMS_FACTOR = 3.0
 
 
 def _take_edge_cells(result: GridRoughness, cell_plane: np.ndarray, cell_set: np.ndarray,
-                     plane_set: np.ndarray, normal: np.ndarray, centroid: np.ndarray,
-                     rms: np.ndarray, max_roughness: float, min_planar_points: int) -> None:
+                     plane_set: np.ndarray, fit: _Fit, max_roughness: float,
+                     min_planar_points: int) -> None:
     """Let every plane take in the edge cells it touches (in place): cells in no set
     with an ODR value at most ``max_roughness`` but fewer than ``min_planar_points``
     points (slivers of the plane where it crosses a cell's corner; their own normal
@@ -755,8 +791,9 @@ def _take_edge_cells(result: GridRoughness, cell_plane: np.ndarray, cell_set: np
         return
     plane = cell_plane[rows[p]].astype(np.int64) - 1
     cell = rows[c]
-    dist = np.abs(np.einsum("ij,ij->i", result.centroid[cell] - centroid[plane], normal[plane]))
-    ok = dist <= EDGE_RMS_FACTOR * rms[plane]
+    dist = np.abs(np.einsum("ij,ij->i", result.centroid[cell] - fit.centroid[plane],
+                            fit.normal[plane]))
+    ok = dist <= EDGE_RMS_FACTOR * fit.rms[plane]
     plane, cell, dist = plane[ok], cell[ok], dist[ok]
     order = np.lexsort((dist, cell))
     cell, plane = cell[order], plane[order]
@@ -775,9 +812,23 @@ def _no_planes() -> JointPlanes:
                        persistence_strike=e, offset=e)
 
 
+@dataclass(frozen=True)
+class _Fit:
+    """Planes fitted to their points (per-plane arrays)."""
+
+    normal: np.ndarray
+    centroid: np.ndarray
+    rms: np.ndarray
+    points: np.ndarray
+    chord_dip: np.ndarray | None = None
+    chord_strike: np.ndarray | None = None
+    area: np.ndarray | None = None
+
+
 def _fit_planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
-                cell_plane: np.ndarray, n_p: int):
-    """ODR fit, RMS, points and chords of every plane from its points."""
+                cell_plane: np.ndarray, n_p: int, *, measure: bool) -> _Fit:
+    """ODR fit, RMS and points of every plane from its points; with ``measure`` also
+    its chords along dip and strike and its area."""
     plane_of_point = cell_plane[result.point_cell]
     sel = np.flatnonzero(plane_of_point > 0)
     k = sel.shape[0]
@@ -802,19 +853,20 @@ def _fit_planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.nda
             v = np.bincount(q, weights=rel[:, i] * rel[:, j], minlength=n_p) / count
             cov[:, i, j] = cov[:, j, i] = v - mean[:, i] * mean[:, j]
     evals, evecs = np.linalg.eigh(cov)
-    normal = evecs[:, :, 0]
-    rms = np.sqrt(np.maximum(evals[:, 0], 0.0))
-    centroid = ref + mean
-    dip_axis, strike_axis = dip_strike_axes(normal)
+    fit = _Fit(normal=evecs[:, :, 0], centroid=ref + mean,
+               rms=np.sqrt(np.maximum(evals[:, 0], 0.0)), points=count.astype(np.int64))
+    if not measure:
+        return fit
+    dip_axis, strike_axis = dip_strike_axes(fit.normal)
     rel -= mean[q]
     u_dip = np.einsum("ij,ij->i", rel, dip_axis[q])
     u_strike = np.einsum("ij,ij->i", rel, strike_axis[q])
+    del rel
     g = result.grid.cell_size
     strip = CHORD_STRIP_SHARE * g
     along_dip, covered = _chords(q, u_strike, u_dip, n_p, strip, g)
     along_strike, _ = _chords(q, u_dip, u_strike, n_p, strip, g)
-    return normal, centroid, rms, count.astype(np.int64), (along_dip, along_strike), \
-        covered * strip
+    return replace(fit, chord_dip=along_dip, chord_strike=along_strike, area=covered * strip)
 
 
 #: Width of the strips in which chords are measured, as a share of the cell size.
@@ -838,10 +890,12 @@ def _chords(group: np.ndarray, across: np.ndarray, along: np.ndarray, n_groups: 
     if group.shape[0] == 0:
         return longest, np.zeros(n_groups)
     band = np.floor(across / strip).astype(np.int64)
-    order = np.lexsort((along, band, group))
-    gq, bq, aq = group[order], band[order], along[order]
+    band -= band.min()
+    key = group * (int(band.max()) + 1) + band  # one sort key: group, then strip
+    order = np.lexsort((along, key))
+    gq, kq, aq = group[order], key[order], along[order]
     start = np.ones(gq.shape[0], dtype=bool)
-    start[1:] = (gq[1:] != gq[:-1]) | (bq[1:] != bq[:-1]) | (np.diff(aq) > gap)
+    start[1:] = (kq[1:] != kq[:-1]) | (np.diff(aq) > gap)
     first = np.flatnonzero(start)
     last = np.append(first[1:], gq.shape[0]) - 1
     length = aq[last] - aq[first]

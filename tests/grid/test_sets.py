@@ -328,6 +328,23 @@ def test_a_step_gives_two_planes_one_spacing_apart():
     assert np.all((pl.rms >= 0.0005 * 0.9) & (pl.rms < 0.001))  # a few riser points
 
 
+def test_a_curved_surface_chained_cell_by_cell_is_no_plane():
+    """A smooth vault (radius 6 m): its cells are planar and touch with small offset
+    steps, but together they curve far more than the plane tolerance."""
+    rng = np.random.default_rng(12)
+    n = 120_000
+    a = rng.uniform(-0.6, 0.6, n)  # radians along the arc
+    y = rng.uniform(0.0, 6.0, n)
+    r = 6.0 + 0.0005 * rng.standard_normal(n)
+    pts = np.column_stack([r * np.sin(a), y, r * np.cos(a)])
+    result = grid_roughness(pts, 0.25, models=("odr",))
+    sets = joint_sets(result, pts)
+    assert sets.n_sets >= 1 and sets.curved_groups >= 1
+    assert sets.planes.n_planes == 0 and not sets.cell_plane.any()
+    flat = tilted_plane(30.0, 100.0)
+    assert joint_sets(grid_roughness(flat, 0.5), flat).curved_groups == 0
+
+
 # ----------------------------------------------------------------------------- no planes
 
 
