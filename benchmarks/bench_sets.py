@@ -24,12 +24,13 @@ import argparse
 import functools
 import os
 import resource
-import statistics
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_zones import median_time  # noqa: E402
 
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
 from rough_viewer.grid.sets import joint_sets  # noqa: E402
@@ -42,15 +43,6 @@ from rough_viewer.visual.sets import (  # noqa: E402
     sets_stereonet_figure,
     sets_table_figure,
 )
-
-
-def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def figures(sets, res) -> None:

@@ -829,12 +829,14 @@ def _fit_planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.nda
                 cell_plane: np.ndarray, n_p: int, *, measure: bool) -> _Fit:
     """ODR fit, RMS and points of every plane from its points; with ``measure`` also
     its chords along dip and strike and its area."""
+    require(5.0 * result.point_cell.shape[0], "the planes of every point")
     plane_of_point = cell_plane[result.point_cell]
     sel = np.flatnonzero(plane_of_point > 0)
     k = sel.shape[0]
-    # indices, three relative coordinates, two in-plane coordinates, sort keys and
-    # the sort's permutations
-    require(k * 120.0, f"plane fits of {k:,} points", hint="choose a larger grid size")
+    # per point of a plane: its index and plane (16 bytes), three relative
+    # coordinates (24), two in-plane ones (16) and the chords' strip, key, order,
+    # sorted copies and the sort's own work (about 90)
+    require(k * 150.0, f"plane fits of {k:,} points", hint="choose a larger grid size")
     q = (plane_of_point[sel] - 1).astype(np.int64)
     # a reference point per plane (the points-weighted mean of its cells' centroids)
     # keeps the sums small on large coordinates (UTM)
