@@ -86,6 +86,9 @@ _API: dict[str, str] = {
     "ZoneLabeller": "rough_viewer.grid.zones",
     "Zones": "rough_viewer.grid.zones",
     "find_zones": "rough_viewer.grid.zones",
+    "joint_sets": "rough_viewer.grid.sets",
+    "JointSets": "rough_viewer.grid.sets",
+    "SetOptions": "rough_viewer.grid.sets",
     "dip_and_direction": "rough_viewer.grid.orientation",
     "trend_and_plunge": "rough_viewer.grid.orientation",
     "stereonet": "rough_viewer.grid.orientation",
@@ -175,6 +178,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
     from rough_viewer.grid.scanner import scan_geometry
+    from rough_viewer.grid.sets import JointSets, SetOptions, joint_sets
     from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,

@@ -82,3 +82,16 @@ def test_example_08_zones() -> None:
     assert rubble >= 0.65 and rock <= 0.15  # zones hold rubble, not smooth rock
     assert shares[0.05][0] > shares[0.2][0]  # a lower threshold takes in more
     assert "poles, peak density" in out
+
+
+def test_example_09_joint_sets() -> None:
+    import re
+
+    out = _run("09_joint_sets.py")
+    assert "3 sets, 18 planes" in out
+    rows = re.findall(r"^\s+\d\s+\d+/\d+\s+(\d+)\s+([\d.]+)\s+[\d.]+\s+\d+/\d+\s+(\d+)\s+([\d.]+)$",
+                      out, flags=re.M)
+    assert len(rows) == 3
+    for kappa, spacing, planted_kappa, planted_spacing in rows:
+        assert abs(float(kappa) / float(planted_kappa) - 1) < 0.25
+        assert abs(float(spacing) / float(planted_spacing) - 1) < 0.05

@@ -166,6 +166,40 @@ def line_vectors(trend_deg: np.ndarray, plunge_deg: np.ndarray) -> np.ndarray:
     return np.column_stack([np.cos(p) * np.sin(t), np.cos(p) * np.cos(t), -np.sin(p)])
 
 
+def plane_normals(dip_deg: np.ndarray, dip_direction_deg: np.ndarray) -> np.ndarray:
+    """(M, 3) upward unit normals of planes of dip and dip direction (degrees): the
+    inverse of :func:`dip_and_direction`.
+
+    >>> np.round(plane_normals(np.array([30.0]), np.array([180.0])), 6) + 0.0
+    array([[ 0.      , -0.5     ,  0.866025]])
+    """
+    dip = np.asarray(dip_deg, dtype=np.float64).reshape(-1)
+    dd = np.asarray(dip_direction_deg, dtype=np.float64).reshape(-1)
+    return -line_vectors(dd + 180.0, 90.0 - dip)
+
+
+def dip_strike_axes(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit down-dip and strike directions (each (M, 3)) of planes with the given
+    normals (either sign): the dip axis points down the dip direction, the strike
+    axis is horizontal, at the dip direction minus 90 degrees (right-hand rule), and
+    ``dip axis x strike axis`` is the upward normal. A horizontal plane takes north
+    (+y) as its dip axis and east as its strike.
+
+    >>> d, s = dip_strike_axes(np.array([[0.0, -0.5, np.sqrt(0.75)]]))
+    >>> np.round(d, 6) + 0.0, np.round(s, 6) + 0.0
+    (array([[ 0.      , -0.866025, -0.5     ]]), array([[1., 0., 0.]]))
+    """
+    n = orient_normals(normals)
+    h = np.hypot(n[:, 0], n[:, 1])
+    flat = h < VERTICAL_TOL
+    hs = np.where(flat, 1.0, h)
+    dip = np.column_stack([n[:, 0] * n[:, 2] / hs, n[:, 1] * n[:, 2] / hs, -h])
+    dip[flat] = (0.0, 1.0, 0.0)
+    strike = np.cross(n, dip)
+    strike /= np.linalg.norm(strike, axis=1, keepdims=True)
+    return dip, strike
+
+
 def poles(normals: np.ndarray, toward: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Trend and plunge (degrees) of the poles (downward normals) of planes:
     ``dip direction + 180`` and ``90 - dip``."""
@@ -222,6 +256,9 @@ class Stereonet:
     column = x; NaN outside the primitive circle (all NaN when there are no poles)."""
     smoothing_deg: float
     """Angular smoothing of the density (kernel ``sigma``), degrees."""
+    weights: np.ndarray | None = None
+    """(K,) weight of every pole in the density (e.g. its cell's points), or None:
+    every pole counts once."""
 
     @property
     def n_poles(self) -> int:
@@ -231,8 +268,67 @@ class Stereonet:
 
 def kernel_peak(smoothing_deg: float) -> float:
     """Density (MUD) at a point where all poles coincide: ``kappa / (1 - exp(-kappa))``."""
-    kappa = 1.0 / np.radians(smoothing_deg) ** 2
+    kappa = kernel_kappa(smoothing_deg)
     return float(kappa / -np.expm1(-kappa))
+
+
+def kernel_kappa(smoothing_deg: float) -> float:
+    """Concentration ``kappa = 1 / sigma^2`` of the density kernel (``sigma`` in radians)."""
+    return float(1.0 / np.radians(smoothing_deg) ** 2)
+
+
+def kernel_density(
+    directions: np.ndarray,
+    poles: np.ndarray,
+    weights: np.ndarray | None = None,
+    *,
+    smoothing_deg: float = DEFAULT_SMOOTHING_DEG,
+) -> np.ndarray:
+    """Axial Fisher-kernel density of ``poles`` at ``directions``, in multiples of a
+    uniform distribution (MUD), summed exactly over every pole.
+
+    ``density(d) = sum_i w_i exp(kappa (|p_i . d| - 1)) / (U sum_i w_i)`` with
+    ``U = (1 - exp(-kappa)) / kappa``, the mean of the kernel over uniformly spread
+    directions, so poles spread evenly give 1 everywhere. The stereonet's contours
+    and the joint sets' peaks (:mod:`rough_viewer.grid.sets`) both come from this
+    formula.
+
+    Parameters
+    ----------
+    directions : (G, 3) array
+        Unit vectors where the density is wanted (either sense).
+    poles : (K, 3) array
+        Unit pole vectors (either sense: the kernel is axial).
+    weights : (K,) array, optional
+        Weight of every pole (default 1 each).
+    smoothing_deg : float
+        Kernel ``sigma``, degrees.
+
+    Returns
+    -------
+    (G,) float64 array (NaN when the weights sum to 0)
+
+    Examples
+    --------
+    >>> d = np.array([[0.0, 0.0, -1.0]])
+    >>> bool(np.isclose(kernel_density(d, np.array([[0.0, 0.0, 1.0]]))[0], kernel_peak(6.0)))
+    True
+    """
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    p = np.asarray(poles, dtype=np.float64).reshape(-1, 3)
+    w = np.ones(p.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
+    kappa = kernel_kappa(smoothing_deg)
+    uniform = -np.expm1(-kappa) / kappa  # mean of exp(kappa (|c| - 1)), c uniform in [-1, 1]
+    total = float(w.sum())
+    out = np.full(d.shape[0], np.nan)
+    if total <= 0.0 or d.shape[0] == 0:
+        return out
+    chunk = max(1, (1 << 22) // max(1, p.shape[0]))
+    require(8.0 * min(chunk, d.shape[0]) * p.shape[0] * 3, "stereonet density")
+    for s in range(0, d.shape[0], chunk):
+        k = np.exp(kappa * (np.abs(d[s:s + chunk] @ p.T) - 1.0))
+        out[s:s + chunk] = (k @ w) / (total * uniform)
+    return out
 
 
 def stereonet(
@@ -241,6 +337,7 @@ def stereonet(
     toward: np.ndarray | None = None,
     smoothing_deg: float = DEFAULT_SMOOTHING_DEG,
     nodes: int = DEFAULT_NET_NODES,
+    weights: np.ndarray | None = None,
 ) -> Stereonet:
     """Poles of planes on the lower-hemisphere Schmidt net and their density.
 
@@ -255,6 +352,8 @@ def stereonet(
         Kernel ``sigma``, degrees (default 6).
     nodes : int
         Density nodes along each axis of the net (default 61).
+    weights : (M,) array_like, optional
+        Weight of every plane in the density (e.g. its cell's points; default 1 each).
 
     Returns
     -------
@@ -278,12 +377,19 @@ def stereonet(
     if n.ndim != 2 or n.shape[1] != 3:
         raise InputError(f"expected an (M, 3) array of normals, got shape {np.shape(normals)}")
     rows = np.flatnonzero(np.all(np.isfinite(n), axis=1) & np.any(n != 0.0, axis=1))
+    w = None
+    if weights is not None:
+        w_all = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if w_all.shape[0] != n.shape[0] or not np.all(np.isfinite(w_all) & (w_all >= 0)):
+            raise InputError(f"expected {n.shape[0]} finite weights >= 0, got shape "
+                             f"{np.shape(weights)}")
+        w = w_all[rows]
     trend, plunge = poles(n[rows], toward)
     x, y = schmidt(trend, plunge)
     grid = np.linspace(-1.0, 1.0, g_nodes)
-    density = _density(x, y, grid, smoothing_deg)
+    density = _density(x, y, grid, smoothing_deg, w)
     return Stereonet(x=x, y=y, rows=rows.astype(np.int64), nodes=grid, density=density,
-                     smoothing_deg=float(smoothing_deg))
+                     smoothing_deg=float(smoothing_deg), weights=w)
 
 
 def cell_orientation(result: GridRoughness) -> tuple[np.ndarray, np.ndarray]:
@@ -298,18 +404,23 @@ def cell_stereonet(
     *,
     smoothing_deg: float = DEFAULT_SMOOTHING_DEG,
     nodes: int = DEFAULT_NET_NODES,
+    weighted: bool = False,
 ) -> Stereonet:
     """The stereonet of the poles of ``result``'s cells (all, or the rows ``cells``:
-    an index array or a boolean mask); :attr:`Stereonet.rows` are cell rows."""
+    an index array or a boolean mask); :attr:`Stereonet.rows` are cell rows. With
+    ``weighted`` every pole counts in the density by its cell's points."""
     rows = np.arange(result.n_cells) if cells is None else np.arange(result.n_cells)[cells]
     net = stereonet(result.normal[rows], toward=result.whole_plane.normal,
-                    smoothing_deg=smoothing_deg, nodes=nodes)
+                    smoothing_deg=smoothing_deg, nodes=nodes,
+                    weights=result.n_points[rows] if weighted else None)
     return Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes,
-                     density=net.density, smoothing_deg=net.smoothing_deg)
+                     density=net.density, smoothing_deg=net.smoothing_deg, weights=net.weights)
 
 
-def _density(x: np.ndarray, y: np.ndarray, grid: np.ndarray, smoothing_deg: float) -> np.ndarray:
-    """Axial Fisher-kernel density (MUD) of the poles at ``(x, y)`` on the node grid."""
+def _density(x: np.ndarray, y: np.ndarray, grid: np.ndarray, smoothing_deg: float,
+             weights: np.ndarray | None = None) -> np.ndarray:
+    """Axial Fisher-kernel density (MUD) of the poles at ``(x, y)`` (weighted by
+    ``weights``, default 1 each) on the node grid."""
     g = grid.shape[0]
     gx, gy = np.meshgrid(grid, grid)
     d = schmidt_inverse(gx, gy).reshape(-1, 3)
@@ -323,20 +434,14 @@ def _density(x: np.ndarray, y: np.ndarray, grid: np.ndarray, smoothing_deg: floa
     iy = np.clip(((y + 1.0) * 0.5 * nb).astype(np.int64), 0, nb - 1)
     b = iy * nb + ix
     v = schmidt_inverse(x, y)
-    count = np.bincount(b, minlength=nb * nb)
-    occupied = np.flatnonzero(count)
-    sums = np.column_stack([np.bincount(b, weights=v[:, a], minlength=nb * nb)[occupied]
+    wt = np.ones(x.shape[0]) if weights is None else np.asarray(weights, dtype=np.float64)
+    count = np.bincount(b, weights=wt, minlength=nb * nb)
+    occupied = np.flatnonzero(count > 0)
+    if occupied.shape[0] == 0:
+        return out.reshape(g, g)
+    sums = np.column_stack([np.bincount(b, weights=wt * v[:, a], minlength=nb * nb)[occupied]
                             for a in range(3)])
     pv = sums / np.linalg.norm(sums, axis=1, keepdims=True)
-    w = count[occupied].astype(np.float64)
-    kappa = 1.0 / np.radians(smoothing_deg) ** 2
-    # uniform poles: mean of exp(kappa (|c| - 1)) over c uniform in [-1, 1]
-    uniform = -np.expm1(-kappa) / kappa
     inside = np.flatnonzero(np.isfinite(d[:, 0]))
-    chunk = max(1, (1 << 22) // max(1, occupied.shape[0]))
-    require(8.0 * chunk * occupied.shape[0] * 3, "stereonet density")
-    for s in range(0, inside.shape[0], chunk):
-        sel = inside[s:s + chunk]
-        k = np.exp(kappa * (np.abs(d[sel] @ pv.T) - 1.0))
-        out[sel] = (k @ w) / (w.sum() * uniform)
+    out[inside] = kernel_density(d[inside], pv, count[occupied], smoothing_deg=smoothing_deg)
     return out.reshape(g, g)

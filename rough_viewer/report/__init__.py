@@ -1,8 +1,8 @@
 """The grid-roughness report: the 2011 paper's Table 1 and Figs. 2-4 for one cloud.
 
 :func:`build_report` computes everything (roughness maps at each grid size, Table-1
-summaries, histograms, semivariograms, face-plane maps, zones and the stereonet of
-cell poles); :func:`report_json` turns it
+summaries, histograms, semivariograms, face-plane maps, zones, the stereonet of
+cell poles and the joint sets); :func:`report_json` turns it
 into plain numbers; :func:`report_html` into one self-contained HTML page (plotly.js
 inlined, works offline); :func:`report_figures` gives the plotly figures, e.g. for
 PNG export.
@@ -27,7 +27,7 @@ from rough_viewer.report.html import (
     report_figures,
     report_html,
 )
-from rough_viewer.report.numbers import report_json, variogram_dict, zones_dict
+from rough_viewer.report.numbers import report_json, sets_dict, variogram_dict, zones_dict
 from rough_viewer.vocabulary import HISTOGRAM_BIN, PAPER_GRIDS
 
 __all__ = [
@@ -46,6 +46,7 @@ __all__ = [
     "report_figures",
     "report_html",
     "report_json",
+    "sets_dict",
     "variogram_dict",
     "zones_dict",
 ]

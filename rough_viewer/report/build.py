@@ -1,6 +1,7 @@
 """Every number of the report: roughness maps at each grid size, Table-1 summaries,
 histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4),
-and the zones at the binary threshold with the stereonet of the cell poles."""
+the zones at the binary threshold with the stereonet of the cell poles, and the
+joint sets (:mod:`rough_viewer.grid.sets`, default settings)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text, grid_roughness
+from rough_viewer.grid.sets import JointSets, joint_sets
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
@@ -73,9 +75,11 @@ class GridSection:
     trust: CellTrust | None = None
     """Scanner geometry and predicted bias of every cell (docs/scanner.md); None
     without scanner positions (:attr:`Report.scanner_note` says so)."""
+    sets: JointSets | None = None
+    """Joint sets of the planar cells (default settings)."""
     figure_errors: dict[str, str] = field(default_factory=dict)
     """Figures that could not be made (``"variogram"``, ``"maps"``, ``"zones"``,
-    ``"stereonet"``), each with why; the rest of the section (Table 1, histograms,
+    ``"stereonet"``, ``"sets"``), each with why; the rest of the section (Table 1, histograms,
     other figures) stands."""
 
 
@@ -164,13 +168,15 @@ def _section(
     zones = _figure(figure_errors, "zones", g, lambda: ZoneLabeller.build(result, ZONES_MAP)
                     .zones(threshold, connectivity=connectivity, min_cells=min_cells))
     net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
+    sets = _figure(figure_errors, "sets", g, lambda: joint_sets(result, cloud))
     tick()
     cells = None if trust is None else _figure(figure_errors, "scanner", g,
                                                lambda: cell_trust(cloud, result, trust))
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
                        variograms=variograms or {}, maps=maps or {}, zones=zones,
-                       stereonet=net, trust=cells, figure_errors=figure_errors)
+                       stereonet=net, trust=cells, sets=sets,
+                       figure_errors=figure_errors)
 
 
 #: Most pixels of one face-plane image. A face whose image at the grid size would be

@@ -23,7 +23,8 @@ from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError, roughn
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     """The plotly figures of one grid section, keyed by a short file-name-safe name:
     ``summary``, ``maps_normalised``, ``maps_binary``, ``histogram``, ``variogram``,
-    ``zones_table``, ``zones_map``, ``stereonet``. Empty when the section has an
+    ``zones_table``, ``zones_map``, ``stereonet``, ``sets_stereonet``, ``sets_table``,
+    ``planes_table``. Empty when the section has an
     error; a figure that cannot be drawn (memory) is left out
     (:func:`figures_and_errors` says why)."""
     return figures_and_errors(report, section)[0]
@@ -39,6 +40,11 @@ def figures_and_errors(report: Report, section: GridSection
         histogram_figure,
         summary_table_figure,
         variogram_figure,
+    )
+    from rough_viewer.visual.sets import (
+        planes_table_figure,
+        sets_stereonet_figure,
+        sets_table_figure,
     )
     from rough_viewer.visual.trust import trust_map_figure
     from rough_viewer.visual.zones import stereonet_figure, zones_map_figure, zones_table_figure
@@ -82,6 +88,13 @@ def figures_and_errors(report: Report, section: GridSection
     if trust is not None and result is not None:
         draw(SCANNER_FIGURE, lambda: trust_map_figure(
             trust, report_raster(result, report.plane), **kw))
+    sets = section.sets
+    if sets is not None:
+        own: dict[str, Any] = {"axis": report.axis, "n_points": report.n_points,
+                               "unit": report.unit}
+        draw("sets_stereonet", lambda: sets_stereonet_figure(sets, **own))
+        draw("sets_table", lambda: sets_table_figure(sets, **own))
+        draw("planes_table", lambda: planes_table_figure(sets, **own))
     return figures, errors
 
 
@@ -91,7 +104,8 @@ def png_name(grid_size: float, figure: str) -> str:
 
 
 FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram",
-                "zones_table", "zones_map", "stereonet")
+                "zones_table", "zones_map", "stereonet", "sets_stereonet", "sets_table",
+                "planes_table")
 #: The figure of a section whose cloud has scanner positions (after FIGURE_NAMES).
 SCANNER_FIGURE = "scanner_map"
 STEREONET_ZONES = 6
@@ -183,7 +197,13 @@ def _method_note(report: Report) -> str:
         "whole-cloud ODR plane; trace = long axis of the cell centres as azimuth/plunge, "
         "orientation = point-weighted mean ODR normal as dip/dip direction (z up, azimuths "
         "clockwise from +y); stereonet: poles of every cell's ODR plane, lower hemisphere, "
-        "equal area, contours in multiples of a uniform distribution (MUD).</p>"
+        "equal area, contours in multiples of a uniform distribution (MUD). Joint sets: "
+        "poles of the planar cells (ODR roughness at most 2 % of the cell, 10 points or "
+        "more) weighted by their points, Fisher-kernel density peaks (at least 3 MUD, 30° "
+        "apart), cells within 20° of the nearest peak; Fisher mean, kappa and alpha95 per "
+        "set; planes = touching cells of a set within half a cell of offset along its "
+        "normal; normal spacing between consecutive planes; persistence = longest chord "
+        "of a plane's points along dip and along strike (docs/sets.md).</p>"
     )
 
 
@@ -214,6 +234,9 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
         parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
                      "to fit in memory (default: half the largest extent).</p>")
     for key, fig in figures.items():
+        if key == "sets_stereonet" and s.sets is not None:
+            parts.append("<h3>Joint sets</h3>")
+            parts.append(f'<p class="note">{esc(_sets_line(s.sets))}</p>')
         if key == "zones_table":
             z = s.zones
             parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
@@ -281,6 +304,14 @@ def _scanner_html(report: Report, s: GridSection) -> list[str]:
             "angular grid puts there; occlusion against the densest neighbour along the beam; "
             "predicted bias from the bias paper's simulated target at the calibration "
             "(docs/scanner.md).</p>"]
+
+
+def _sets_line(sets) -> str:
+    """One sentence on a section's joint sets."""
+    if not sets.n_sets:
+        return sets.note
+    return (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
+            f"{int(sets.cells.sum()):,} planar cells, {sets.planes.n_planes:,} planes.")
 
 
 def check_png_export() -> None:

@@ -6,6 +6,7 @@ from typing import Any
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.grid.orientation import Stereonet
+from rough_viewer.grid.sets import PLANE_COLUMNS, SET_COLUMNS, JointSets
 from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.grid.zones import ZONE_COLUMNS, Zones
 from rough_viewer.io.jsonable import to_jsonable
@@ -69,15 +70,43 @@ def zones_dict(zones: Zones, net: Stereonet | None) -> dict[str, Any]:
     return out
 
 
+def sets_dict(sets: JointSets, per: float = 1.0) -> dict[str, Any]:
+    """Plain numbers of one grid size's joint sets (the JSON contract): the settings,
+    the set and plane tables as ``columns`` (SETS.csv's and PLANES.csv's) and
+    ``rows``, lengths divided by ``per`` (metres per display unit, areas by its
+    square), and ``note`` (why there is no set, else empty)."""
+    o = sets.options
+    sets_t, planes_t = sets.set_table(per), sets.plane_table(per)
+    return {
+        "max_roughness": sets.max_roughness / per,
+        "min_planar_points": o.min_planar_points,
+        "planar_cells": int(sets.planar.sum()),
+        "cone_deg": o.cone_deg,
+        "min_angle_deg": o.min_angle_deg,
+        "max_sets": o.max_sets,
+        "smoothing_deg": o.smoothing_deg,
+        "min_density": o.min_density,
+        "plane_tolerance": sets.plane_tolerance / per,
+        "count": sets.n_sets,
+        "note": sets.note,
+        "columns": list(SET_COLUMNS),
+        "rows": [[to_jsonable(sets_t[c][k]) for c in SET_COLUMNS] for k in range(sets.n_sets)],
+        "plane_columns": list(PLANE_COLUMNS),
+        "plane_rows": [[to_jsonable(planes_t[c][k]) for c in PLANE_COLUMNS]
+                       for k in range(sets.planes.n_planes)],
+        "peak_density_mud": to_jsonable(sets.peak_density),
+    }
+
+
 def report_json(report: Report) -> dict[str, Any]:
     """The report's numbers as a JSON-ready dict (NaN -> null).
 
     Layout: ``grids`` is a list (in the order asked) of ``{"grid_size", "error",
     "cells", "models": {name: {"summary", "histogram", "semivariogram"}}, "zones",
-    "figure_errors"}`` for the names ``odr``, ``ols``, ``hybrid`` and ``e_ols``;
-    ``zones`` is :func:`zones_dict`. Every length and roughness is in ``unit`` (the
-    report's display unit; variances in its square); the zone table keeps its own
-    units (metres, square metres, degrees).
+    "sets", "figure_errors"}`` for the names ``odr``, ``ols``, ``hybrid`` and ``e_ols``;
+    ``zones`` is :func:`zones_dict`, ``sets`` :func:`sets_dict`. Every length and
+    roughness is in ``unit`` (the report's display unit; variances and areas in its
+    square); the zone table keeps its own units (metres, square metres, degrees).
     """
     frame = face_frame(report.plane)
     per = UNIT_METRES[report.unit]
@@ -106,6 +135,8 @@ def report_json(report: Report) -> dict[str, Any]:
                 entry["zones"] = zones_dict(s.zones, s.stereonet)
             entry["scanner"] = (None if s.trust is None
                                 else to_jsonable(s.trust.summary().as_dict(per=per)))
+            if s.sets is not None:
+                entry["sets"] = sets_dict(s.sets, per)
         grids.append(entry)
     return {
         "software": {"name": "rough_viewer", "version": report.version},

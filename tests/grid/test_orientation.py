@@ -11,9 +11,12 @@ from rough_viewer.grid.orientation import (
     cell_orientation,
     cell_stereonet,
     dip_and_direction,
+    dip_strike_axes,
+    kernel_density,
     kernel_peak,
     line_vectors,
     orient_normals,
+    plane_normals,
     poles,
     schmidt,
     schmidt_inverse,
@@ -153,3 +156,38 @@ def test_cell_orientation_of_a_tilted_face():
     px, py = schmidt(np.array([40.0]), np.array([55.0]))  # the pole: 220 - 180, 90 - 35
     np.testing.assert_allclose(net.x, px[0], atol=0.01)
     np.testing.assert_allclose(net.y, py[0], atol=0.01)
+
+
+def test_weights_count_as_repeated_poles():
+    rng = np.random.default_rng(3)
+    n = rng.normal(size=(200, 3))
+    k = rng.integers(1, 5, 200)
+    weighted = stereonet(n, weights=k.astype(float), nodes=31)
+    repeated = stereonet(np.repeat(n, k, axis=0), nodes=31)
+    assert np.allclose(weighted.density, repeated.density, equal_nan=True)
+    d = rng.normal(size=(50, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    p = n / np.linalg.norm(n, axis=1, keepdims=True)
+    assert np.allclose(kernel_density(d, p, k.astype(float)),
+                       kernel_density(d, np.repeat(p, k, axis=0)))
+    with pytest.raises(InputError, match="weights"):
+        stereonet(n, weights=np.ones(3))
+
+
+def test_plane_normals_invert_dip_and_direction():
+    rng = np.random.default_rng(4)
+    dip = rng.uniform(1.0, 89.0, 100)
+    dd = rng.uniform(0.0, 360.0, 100)
+    n = plane_normals(dip, dd)
+    assert np.all(n[:, 2] > 0)
+    back_dip, back_dd = dip_and_direction(n)
+    assert back_dip == pytest.approx(dip)
+    assert back_dd == pytest.approx(dd)
+    down, strike = dip_strike_axes(-n)  # either sign of the normal
+    assert np.einsum("ij,ij->i", down, n) == pytest.approx(0.0, abs=1e-12)
+    assert np.cross(down, strike) == pytest.approx(n)
+    trend, plunge = trend_and_plunge(down)
+    assert trend == pytest.approx(dd) and plunge == pytest.approx(dip)
+    assert strike[:, 2] == pytest.approx(0.0, abs=1e-12)
+    az = np.degrees(np.arctan2(strike[:, 0], strike[:, 1])) % 360.0
+    assert (az - dd + 90.0 + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-9)  # RHR

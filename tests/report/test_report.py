@@ -435,3 +435,31 @@ def test_cells_of_repeated_points_are_a_report_warning():
     rep = build_report(PointCloud.from_xyz(repeated_points_cloud()), grid_sizes=[1.0])
     assert any(w.startswith("grid 1 m: 3 of 6 cells with a value fit their plane exactly")
                and "--min-points" in w for w in rep.warnings)
+
+
+def test_each_grid_section_holds_its_joint_sets(report, cloud):
+    """The JSON's sets are the library's on the same grid (the report's display
+    unit), and the page says how many sets and planes each grid has."""
+    from rough_viewer.grid.sets import PLANE_COLUMNS, SET_COLUMNS, joint_sets
+
+    data = report_json(report)
+    page = report_html(report)
+    for g, entry in zip(GOOD, data["grids"], strict=False):
+        ref = joint_sets(grid_roughness(cloud, g, axis="y"), cloud)
+        sets = entry["sets"]
+        assert sets["columns"] == list(SET_COLUMNS) and sets["count"] == ref.n_sets
+        assert sets["plane_columns"] == list(PLANE_COLUMNS)
+        assert len(sets["plane_rows"]) == ref.planes.n_planes
+        table = ref.set_table()
+        for k, row in enumerate(sets["rows"]):
+            for name, value in zip(SET_COLUMNS, row, strict=True):
+                expected = table[name][k]
+                assert value == (None if not np.isfinite(expected) else pytest.approx(expected))
+        assert sets["note"] == ref.note and sets["max_roughness"] == pytest.approx(0.02 * g)
+        sid = f"grid-{g:g}".replace(".", "_")
+        section = page.split(f'<section id="{sid}"')[1].split("</section>")[0]
+        assert "<h3>Joint sets</h3>" in section
+        if ref.n_sets:
+            assert f"{ref.planes.n_planes:,} planes" in section
+        else:
+            assert "no joint set" in section

@@ -1,0 +1,919 @@
+"""Joint sets: from planar cells to discontinuity sets, their planes, spacing and
+persistence (after DSE, Riquelme et al. 2014, 2015, 2018, and CloudCompare's Facets,
+Dewez et al. 2016).
+
+The grid gives every cell an ODR plane and a roughness; smooth cells are pieces of
+discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientation`):
+
+1. **Planar cells**: cells with an ODR plane, at least ``min_planar_points``
+   points (default 10: a cell of 4 or 5 points of rough rock fits a plane by
+   chance, its roughness has 1 or 2 degrees of freedom) and an ODR roughness of at
+   most ``max_roughness`` (default :data:`DEFAULT_PLANAR_SHARE` of the cell size).
+2. **Poles**: the downward normals of the planar cells (lower hemisphere), each
+   weighted by its cell's points.
+3. **Density**: the axial Fisher kernel of the stereonet
+   (:func:`~rough_viewer.grid.orientation.kernel_density`, ``sigma`` =
+   ``smoothing_deg``), in multiples of a uniform distribution (MUD).
+4. **Peaks**: the local maxima of the density on the stereonet's node grid, each
+   refined by mean shift on the sphere to the exact local maximum of the kernel
+   sum over every pole; peaks below ``min_density`` are dropped, and of two peaks
+   closer than ``min_angle_deg`` the weaker; at most ``max_sets``, strongest first.
+   These are the sets' principal orientations.
+5. **Sets**: every planar cell goes to the nearest peak (axial angle) when that is
+   within ``cone_deg``; a peak that gathers fewer than ``min_set_cells`` cells is
+   dropped and its cells go to the next peak within the cone. Set ids 1..S by peak
+   density (strongest first); 0 = in no set.
+6. **Per set** (:func:`fisher_statistics`, every cell one observation of weight
+   its points): the Fisher mean pole, dip and dip direction of its plane,
+   ``kappa = (N - 1) / (N - R)`` and
+   ``alpha95 = arccos(1 - (N - R) / R ((1 / 0.05)^(1 / (N - 1)) - 1))``, with ``N``
+   the cells and ``R = N |sum w p| / sum w`` (``w`` the points; equal weights give
+   the textbook resultant length).
+7. **Planes** (single discontinuities): within a set, cells that touch (faces,
+   edges or corners) and whose offsets along the set's mean normal differ by at
+   most ``plane_tolerance`` (default half a cell) form one plane; planes of fewer
+   than ``min_plane_cells`` cells are dropped (their cells keep their set, plane
+   0). Plane ids 1..P by set, then by cells (largest first). Each plane then takes
+   in the **edge cells** it touches: cells in no set with fewer than
+   ``min_planar_points`` points (slivers where the plane crosses a cell's corner,
+   too few points to vote with their own normal) but a roughness of at most
+   ``max_roughness``, whose centroid lies within 3 x the plane's RMS of it; they
+   carry the plane's set and plane ids (the set's ``cells`` count only the cells
+   whose poles made it). A group whose points lie farther than ``max_plane_rms``
+   (RMS, default a quarter of a cell) from their best plane is a curved surface
+   chained cell by cell (a hillslope, a vault, an undulating face), not a plane: it
+   is dropped and counted (:attr:`JointSets.curved_groups`).
+8. **Per plane**, from its points: the ODR fit (dip, dip direction, centroid, RMS
+   of the orthogonal distances = square root of the smallest covariance
+   eigenvalue); the persistence along dip and along strike: the longest chord in
+   that direction, the points binned in strips a quarter of a cell wide across it
+   and a chord broken where two consecutive points lie more than one cell apart;
+   the area: the summed length of the chords along dip times the strip width.
+9. **Per set**: the normal spacing (Riquelme et al. 2015, persistent case): the
+   planes' centroids projected on the set's mean normal, sorted, consecutive
+   differences (differences of at most ``plane_tolerance`` are one plane exposed
+   twice, not a spacing); mean, median and population standard deviation; and the
+   mean persistence: the mean over the set's planes of the longer of their two
+   chords.
+
+Everything is vectorised over cells and points; loops run over sets (at most
+``max_sets``) and density peaks only.
+
+>>> import numpy as np
+>>> from rough_viewer.grid.roughness import grid_roughness
+>>> rng = np.random.default_rng(0)
+>>> xy = rng.uniform(0, 4, (20_000, 2))
+>>> z = np.where(xy[:, 0] < 2, 0.5 * xy[:, 0], 2.0 - 0.5 * xy[:, 0])  # a ridge: two planes
+>>> pts = np.column_stack([xy, z + 0.001 * rng.standard_normal(20_000)])
+>>> js = joint_sets(grid_roughness(pts, 0.25), pts)
+>>> js.n_sets, np.round(js.dip_deg, 1).tolist(), sorted(np.round(js.dip_direction_deg).tolist())
+(2, [26.6, 26.6], [90.0, 270.0])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from rough_viewer.grid.orientation import (
+    DEFAULT_SMOOTHING_DEG,
+    Stereonet,
+    dip_and_direction,
+    dip_strike_axes,
+    kernel_density,
+    kernel_kappa,
+    orient_normals,
+    schmidt_inverse,
+    stereonet,
+)
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.zones import _neighbour_pairs
+from rough_viewer.io.cloud import PointCloud, as_columns
+from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.memory import require
+from rough_viewer.vocabulary import DEFAULT_MIN_CELLS, InputError, ProgressFn
+
+#: Default cone (degrees) around a peak within which a cell joins its set.
+DEFAULT_CONE_DEG = 20.0
+#: Default least angle (degrees) between two peaks (sets).
+DEFAULT_MIN_ANGLE_DEG = 30.0
+#: Default largest number of sets.
+DEFAULT_MAX_SETS = 6
+#: Default least peak density (MUD) of a set.
+DEFAULT_MIN_DENSITY = 3.0
+#: Default least number of cells of a set.
+DEFAULT_MIN_SET_CELLS = 10
+#: Default largest ODR roughness of a planar cell, as a share of the cell size.
+DEFAULT_PLANAR_SHARE = 0.02
+#: Default least points of a planar cell.
+DEFAULT_MIN_PLANAR_POINTS = 10
+#: Default offset tolerance between the cells of one plane, as a share of the cell size.
+DEFAULT_PLANE_TOLERANCE_SHARE = 0.5
+#: Default largest RMS of a plane's points about it, as a share of the cell size.
+DEFAULT_PLANE_RMS_SHARE = 0.25
+#: Default least number of cells of a plane.
+DEFAULT_MIN_PLANE_CELLS = DEFAULT_MIN_CELLS
+#: Confidence of alpha95.
+ALPHA95_P = 0.05
+#: Mean-shift iterations refining a density peak at most, and the step (radians) at
+#: which they stop.
+_SHIFT_ITERATIONS = 200
+_SHIFT_TOLERANCE = 1e-11
+#: Poles farther than this many kernel sigmas from a peak do not move it (their
+#: weight is below exp(-12.5) = 4e-6 of a coinciding pole's).
+_SHIFT_REACH_SIGMAS = 5.0
+
+#: Columns of SETS.csv, in order (the ``rough-viewer sets`` contract).
+SET_COLUMNS: tuple[str, ...] = (
+    "set_id", "dip_deg", "dip_direction_deg", "fisher_kappa", "alpha95_deg", "cells",
+    "planes", "spacing_mean", "spacing_median", "spacing_std", "persistence_mean",
+)
+#: Columns of PLANES.csv, in order.
+PLANE_COLUMNS: tuple[str, ...] = (
+    "plane_id", "set_id", "dip_deg", "dip_direction_deg", "cx", "cy", "cz", "area",
+    "persistence_dip", "persistence_strike", "rms", "cells",
+)
+#: Length columns of the two tables (divided by the output unit; ``area`` by its square).
+LENGTH_COLUMNS = frozenset({"spacing_mean", "spacing_median", "spacing_std",
+                            "persistence_mean", "cx", "cy", "cz", "persistence_dip",
+                            "persistence_strike", "rms"})
+
+
+@dataclass(frozen=True)
+class FisherStats:
+    """Fisher statistics of unit vectors (one hemisphere), optionally weighted."""
+
+    mean: np.ndarray
+    """(3,) unit mean direction (the weighted resultant's direction)."""
+    n: int
+    """Number of vectors ``N``."""
+    resultant: float
+    """``R = N |sum w v| / sum w`` (the resultant length for equal weights)."""
+    kappa: float
+    """``(N - 1) / (N - R)`` (inf when every vector is the same)."""
+    alpha95_deg: float
+    """Cone of 95 % confidence about the mean, degrees (NaN for N < 2)."""
+
+
+def fisher_statistics(vectors: np.ndarray, weights: np.ndarray | None = None,
+                      *, p: float = ALPHA95_P) -> FisherStats:
+    """Fisher mean, ``kappa`` and ``alpha95`` of unit vectors (Fisher 1953).
+
+    Parameters
+    ----------
+    vectors : (N, 3) array
+        Unit vectors, all on the side of their mean (flip axial data first).
+    weights : (N,) array, optional
+        Weight of every vector (default 1): the mean is the weighted resultant's
+        direction and ``R = N |sum w v| / sum w``.
+    p : float
+        ``1 -`` confidence of the cone (default 0.05).
+
+    Returns
+    -------
+    FisherStats
+        ``kappa = (N - 1) / (N - R)``;
+        ``alpha95 = arccos(1 - (N - R) / R ((1 / p)^(1 / (N - 1)) - 1))``.
+
+    Examples
+    --------
+    >>> v = np.array([[0.0, 0.1, 1.0], [0.1, 0.0, 1.0], [0.0, -0.1, 1.0], [-0.1, 0.0, 1.0]])
+    >>> st = fisher_statistics(v / np.linalg.norm(v, axis=1, keepdims=True))
+    >>> st.mean.round(6) + 0.0, round(st.kappa, 2), round(st.alpha95_deg, 2)
+    (array([0., 0., 1.]), 151.12, 7.5)
+    """
+    v = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
+    n = int(v.shape[0])
+    if n == 0:
+        return FisherStats(np.full(3, np.nan), 0, float("nan"), float("nan"), float("nan"))
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=np.float64)
+    total = float(w.sum())
+    s = (w[:, None] * v).sum(axis=0)
+    length = float(np.linalg.norm(s))
+    mean = s / length if length > 0 else np.full(3, np.nan)
+    r = n * min(length / total, 1.0) if total > 0 else float("nan")
+    if n < 2:
+        return FisherStats(mean, n, r, float("nan"), float("nan"))
+    spread = n - r
+    kappa = (n - 1) / spread if spread > 0 else float("inf")
+    cos_a = 1.0 - spread / r * ((1.0 / p) ** (1.0 / (n - 1)) - 1.0)
+    alpha = float(np.degrees(np.arccos(np.clip(cos_a, -1.0, 1.0))))
+    return FisherStats(mean, n, float(r), float(kappa), alpha)
+
+
+@dataclass(frozen=True, eq=False)
+class JointPlanes:
+    """Single discontinuities (planes) of the sets, one row per plane (id ``k + 1``)."""
+
+    set_id: np.ndarray
+    """(P,) int64 set of every plane, 1..S."""
+    cells: np.ndarray
+    """(P,) int64 cells per plane."""
+    points: np.ndarray
+    """(P,) int64 points per plane."""
+    normal: np.ndarray
+    """(P, 3) unit normal of the plane's ODR fit to its points, upward."""
+    dip_deg: np.ndarray
+    """(P,) dip, degrees."""
+    dip_direction_deg: np.ndarray
+    """(P,) dip direction, degrees clockwise from +y."""
+    centroid: np.ndarray
+    """(P, 3) centroid of the plane's points, metres."""
+    rms: np.ndarray
+    """(P,) RMS of the points' orthogonal distances to the plane, metres."""
+    area: np.ndarray
+    """(P,) area of the plane's cells on the plane, square metres."""
+    persistence_dip: np.ndarray
+    """(P,) longest chord of its points along dip, metres."""
+    persistence_strike: np.ndarray
+    """(P,) longest chord of its points along strike, metres."""
+    offset: np.ndarray
+    """(P,) centroid's position along its set's mean normal, metres (from the grid origin)."""
+
+    @property
+    def n_planes(self) -> int:
+        """Number of planes."""
+        return int(self.set_id.shape[0])
+
+    @property
+    def persistence(self) -> np.ndarray:
+        """(P,) the longer of the two chords, metres."""
+        return np.maximum(self.persistence_dip, self.persistence_strike)
+
+
+@dataclass(frozen=True, eq=False)
+class JointSets:
+    """Discontinuity sets of one grid result: labels per cell, a row per set, the
+    planes, and the stereonet they were found on. Per-set arrays have length
+    ``n_sets``; row ``k`` is set ``k + 1``."""
+
+    cell_set: np.ndarray
+    """(M,) int32 set of every cell of the grid, 0 = in no set."""
+    cell_plane: np.ndarray
+    """(M,) int32 plane of every cell, 0 = in no plane."""
+    planar: np.ndarray
+    """(M,) bool: the planar cells (ODR roughness <= ``max_roughness``, at least
+    ``min_planar_points`` points)."""
+    net: Stereonet
+    """Poles of the planar cells (rows = cell rows), density weighted by points."""
+    peak: np.ndarray
+    """(S, 3) unit downward direction of every set's density peak."""
+    peak_density: np.ndarray
+    """(S,) density at the peak, MUD."""
+    mean_pole: np.ndarray
+    """(S, 3) unit downward Fisher mean pole."""
+    normal: np.ndarray
+    """(S, 3) unit mean normal, upward (vertical: toward the viewer)."""
+    dip_deg: np.ndarray
+    """(S,) dip of the mean plane, degrees."""
+    dip_direction_deg: np.ndarray
+    """(S,) dip direction of the mean plane, degrees clockwise from +y."""
+    kappa: np.ndarray
+    """(S,) Fisher ``kappa``."""
+    alpha95_deg: np.ndarray
+    """(S,) Fisher ``alpha95``, degrees."""
+    cells: np.ndarray
+    """(S,) int64 cells per set."""
+    points: np.ndarray
+    """(S,) int64 points per set."""
+    n_planes_per_set: np.ndarray
+    """(S,) int64 planes per set."""
+    spacing_mean: np.ndarray
+    """(S,) mean normal spacing, metres (NaN with fewer than two planes)."""
+    spacing_median: np.ndarray
+    """(S,) median normal spacing, metres."""
+    spacing_std: np.ndarray
+    """(S,) population standard deviation of the normal spacing, metres."""
+    persistence_mean: np.ndarray
+    """(S,) mean over the set's planes of the longer chord, metres."""
+    planes: JointPlanes
+    """The planes."""
+    cell_size: float
+    """Grid cell edge, metres."""
+    options: SetOptions
+    """The settings the sets were found with."""
+    max_roughness: float
+    """Largest ODR roughness of a planar cell, metres (the option, or its default)."""
+    plane_tolerance: float
+    """Offset tolerance within a plane, metres (the option, or its default)."""
+    max_plane_rms: float
+    """Largest RMS of a plane's points about it, metres (the option, or its default)."""
+    curved_groups: int
+    """Groups of touching cells (of ``min_plane_cells`` or more) that were no plane:
+    their points' RMS about their best plane exceeds ``max_plane_rms`` (a curved
+    surface, chained cell by cell); their cells keep their set, plane 0."""
+    note: str
+    """Why there is no set (empty when there are sets)."""
+
+    @property
+    def n_sets(self) -> int:
+        """Number of sets."""
+        return int(self.cells.shape[0])
+
+    @property
+    def cone_deg(self) -> float:
+        """A cell joins the nearest peak within this angle, degrees."""
+        return self.options.cone_deg
+
+    def set_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """Column -> (S,) values in :data:`SET_COLUMNS` order, lengths divided by
+        ``unit_m`` (metres per output unit)."""
+        cols: dict[str, np.ndarray] = {
+            "set_id": np.arange(1, self.n_sets + 1, dtype=np.int64),
+            "dip_deg": self.dip_deg, "dip_direction_deg": self.dip_direction_deg,
+            "fisher_kappa": self.kappa, "alpha95_deg": self.alpha95_deg,
+            "cells": self.cells, "planes": self.n_planes_per_set,
+            "spacing_mean": self.spacing_mean, "spacing_median": self.spacing_median,
+            "spacing_std": self.spacing_std, "persistence_mean": self.persistence_mean,
+        }
+        return _in_unit(cols, unit_m)
+
+    def plane_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """Column -> (P,) values in :data:`PLANE_COLUMNS` order, lengths divided by
+        ``unit_m`` and the area by its square."""
+        pl = self.planes
+        cols: dict[str, np.ndarray] = {
+            "plane_id": np.arange(1, pl.n_planes + 1, dtype=np.int64),
+            "set_id": pl.set_id, "dip_deg": pl.dip_deg,
+            "dip_direction_deg": pl.dip_direction_deg,
+            "cx": pl.centroid[:, 0], "cy": pl.centroid[:, 1], "cz": pl.centroid[:, 2],
+            "area": pl.area / unit_m**2,
+            "persistence_dip": pl.persistence_dip, "persistence_strike": pl.persistence_strike,
+            "rms": pl.rms, "cells": pl.cells,
+        }
+        return _in_unit(cols, unit_m)
+
+    def dips_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """The planes as Rocscience Dips reads them (Import CSV, Dip/Dip Direction
+        convention): ``Dip``, ``Dip Direction``, ``Quantity`` (1: each plane is one
+        discontinuity), ``X (East)``, ``Y (North)``, ``Z (Elev.)``, ``Persistence``
+        (the longer chord), then extra columns ``JOINT_SET``, ``PLANE``, ``AREA``,
+        ``PERSISTENCE_DIP``, ``PERSISTENCE_STRIKE``, ``RMS``, ``CELLS``; lengths
+        divided by ``unit_m``."""
+        pl = self.planes
+        return {
+            "Dip": pl.dip_deg, "Dip Direction": pl.dip_direction_deg,
+            "Quantity": np.ones(pl.n_planes, dtype=np.int64),
+            "X (East)": pl.centroid[:, 0] / unit_m, "Y (North)": pl.centroid[:, 1] / unit_m,
+            "Z (Elev.)": pl.centroid[:, 2] / unit_m, "Persistence": pl.persistence / unit_m,
+            "JOINT_SET": pl.set_id, "PLANE": np.arange(1, pl.n_planes + 1, dtype=np.int64),
+            "AREA": pl.area / unit_m**2, "PERSISTENCE_DIP": pl.persistence_dip / unit_m,
+            "PERSISTENCE_STRIKE": pl.persistence_strike / unit_m, "RMS": pl.rms / unit_m,
+            "CELLS": pl.cells,
+        }
+
+    def cells_of(self, set_id: int) -> np.ndarray:
+        """Row indices of the cells of set ``set_id`` (1..S)."""
+        return np.flatnonzero(self.cell_set == set_id)
+
+
+def _in_unit(cols: dict[str, np.ndarray], unit_m: float) -> dict[str, np.ndarray]:
+    return {k: (v / unit_m if k in LENGTH_COLUMNS else v) for k, v in cols.items()}
+
+
+def _axial_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Degrees between the axes of unit vectors ``a`` (K, 3) and ``b`` (S, 3): (K, S)."""
+    return np.degrees(np.arccos(np.clip(np.abs(a @ b.T), 0.0, 1.0)))
+
+
+def refine_peak(start: np.ndarray, poles: np.ndarray, weights: np.ndarray,
+                smoothing_deg: float) -> np.ndarray:
+    """The local maximum of the axial Fisher-kernel density of ``poles`` nearest
+    ``start`` (a unit vector), by mean shift on the sphere; downward unit vector.
+
+    Each step moves to the kernel-weighted mean of the poles (turned to the side of
+    the current estimate), the fixed point of which is where the density's gradient
+    vanishes.
+    """
+    kappa = kernel_kappa(smoothing_deg)
+    reach = np.cos(min(np.radians(_SHIFT_REACH_SIGMAS * smoothing_deg), np.pi / 2))
+    m = np.asarray(start, dtype=np.float64) / np.linalg.norm(start)
+    near = np.abs(poles @ m) >= reach
+    p, w = poles[near], weights[near]
+    for _ in range(_SHIFT_ITERATIONS):
+        c = p @ m
+        k = w * np.exp(kappa * (np.abs(c) - 1.0)) * np.where(c < 0, -1.0, 1.0)
+        s = k @ p
+        size = np.linalg.norm(s)
+        if size == 0:
+            break
+        new = s / size
+        step = np.linalg.norm(new - m)
+        m = new
+        if step < _SHIFT_TOLERANCE:
+            break
+    return -m if m[2] > 0 else m
+
+
+def density_peaks(
+    net: Stereonet,
+    poles: np.ndarray,
+    weights: np.ndarray,
+    *,
+    min_density: float = DEFAULT_MIN_DENSITY,
+    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG,
+    max_peaks: int = DEFAULT_MAX_SETS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The principal orientations: peaks of the pole density, strongest first.
+
+    Candidates are the local maxima (8 neighbours) of ``net.density`` on its node
+    grid of at least half ``min_density``; each is refined by :func:`refine_peak`
+    and its exact density computed over every pole
+    (:func:`~rough_viewer.grid.orientation.kernel_density`). Peaks below
+    ``min_density`` go; going down the list, a peak within ``min_angle_deg`` of a
+    stronger one goes; at most ``max_peaks`` stay.
+
+    Parameters
+    ----------
+    net : Stereonet
+        The poles' stereonet (its node density gives the starting points).
+    poles : (K, 3) array
+        Unit poles (either sense).
+    weights : (K,) array
+        Weight of every pole.
+
+    Returns
+    -------
+    peaks : (S, 3) array
+        Downward unit directions.
+    density : (S,) array
+        Density at each, MUD.
+    """
+    dens = net.density
+    if poles.shape[0] == 0 or not np.isfinite(dens).any():
+        return np.zeros((0, 3)), np.zeros(0)
+    padded = np.pad(np.where(np.isfinite(dens), dens, -np.inf), 1, constant_values=-np.inf)
+    g = dens.shape[0]
+    centre = padded[1:-1, 1:-1]
+    is_max = np.isfinite(centre) & (centre >= 0.5 * min_density)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                is_max &= centre >= padded[1 + di:1 + di + g, 1 + dj:1 + dj + g]
+    iy, ix = np.nonzero(is_max)
+    order = np.argsort(-centre[iy, ix], kind="stable")
+    starts = schmidt_inverse(net.nodes[ix[order]], net.nodes[iy[order]]).reshape(-1, 3)
+    found = np.array([refine_peak(s, poles, weights, net.smoothing_deg) for s in starts]
+                     ).reshape(-1, 3)
+    exact = kernel_density(found, poles, weights, smoothing_deg=net.smoothing_deg)
+    rank = np.argsort(-exact, kind="stable")
+    keep: list[int] = []
+    for i in rank:
+        if exact[i] < min_density or len(keep) >= max_peaks:
+            break
+        if keep and _axial_angle(found[i:i + 1], found[keep]).min() < min_angle_deg:
+            continue
+        keep.append(int(i))
+    return found[keep].reshape(-1, 3), exact[keep]
+
+
+@dataclass(frozen=True)
+class SetOptions:
+    """The settings of :func:`joint_sets` (lengths in metres, angles in degrees),
+    checked when made: an option that cannot be used raises InputError (one line),
+    so the command line makes them before reading the input."""
+
+    max_roughness: float | None = None
+    """Largest ODR roughness of a planar cell, metres (None: :data:`DEFAULT_PLANAR_SHARE`
+    times the cell size)."""
+    min_planar_points: int = DEFAULT_MIN_PLANAR_POINTS
+    """Least points of a planar cell."""
+    cone_deg: float = DEFAULT_CONE_DEG
+    """A cell joins the nearest peak within this angle."""
+    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG
+    """Least angle between two sets' peaks."""
+    max_sets: int = DEFAULT_MAX_SETS
+    """Largest number of sets (1..255)."""
+    smoothing_deg: float = DEFAULT_SMOOTHING_DEG
+    """Kernel ``sigma`` of the pole density (as the stereonet's)."""
+    min_density: float = DEFAULT_MIN_DENSITY
+    """Least density of a peak, MUD."""
+    min_set_cells: int = DEFAULT_MIN_SET_CELLS
+    """Least cells of a set."""
+    plane_tolerance: float | None = None
+    """Largest offset difference (metres, along the set's mean normal) between
+    touching cells of one plane, and the least normal spacing (None: half a cell)."""
+    min_plane_cells: int = DEFAULT_MIN_PLANE_CELLS
+    """Least cells of a plane."""
+    max_plane_rms: float | None = None
+    """Largest RMS (metres) of a plane's points about their best plane: a group of
+    touching cells that curves more is no plane (None: a quarter of a cell)."""
+
+    def __post_init__(self) -> None:
+        t, tol = self.max_roughness, self.plane_tolerance
+        rms = self.max_plane_rms
+        if rms is not None and not (np.isfinite(rms) and rms > 0):
+            raise InputError(f"the largest RMS of a plane must be a positive length, got {rms:g}")
+        if t is not None and not (np.isfinite(t) and t > 0):
+            raise InputError(f"the largest roughness of a planar cell must be a positive "
+                             f"length, got {t:g}")
+        if not (np.isfinite(self.cone_deg) and 0 < self.cone_deg <= 90):
+            raise InputError(f"the cone must be in (0, 90] degrees, got {self.cone_deg:g}")
+        if not (np.isfinite(self.min_angle_deg) and 0 <= self.min_angle_deg <= 90):
+            raise InputError(f"the least angle between sets must be in [0, 90] degrees, got "
+                             f"{self.min_angle_deg:g}")
+        if int(self.max_sets) != self.max_sets or not 1 <= self.max_sets <= 255:
+            raise InputError(f"the largest number of sets must be a whole number in 1..255, "
+                             f"got {self.max_sets}")
+        if not (np.isfinite(self.smoothing_deg) and 0 < self.smoothing_deg <= 90):
+            raise InputError(f"smoothing must be in (0, 90] degrees, got {self.smoothing_deg:g}")
+        if not (np.isfinite(self.min_density) and self.min_density >= 0):
+            raise InputError(f"the least peak density must be >= 0 MUD, got "
+                             f"{self.min_density:g}")
+        for name, v in (("cells of a set", self.min_set_cells),
+                        ("cells of a plane", self.min_plane_cells),
+                        ("points of a planar cell", self.min_planar_points)):
+            if int(v) != v or v < 1:
+                raise InputError(f"the least number of {name} must be a whole number >= 1, "
+                                 f"got {v}")
+        if tol is not None and not (np.isfinite(tol) and tol >= 0):
+            raise InputError(f"the plane tolerance must be a length >= 0, got {tol:g}")
+
+    def lengths(self, cell_size: float) -> tuple[float, float, float]:
+        """``(max_roughness, plane_tolerance, max_plane_rms)`` in metres on a grid of
+        ``cell_size`` (the defaults where None)."""
+        t = DEFAULT_PLANAR_SHARE * cell_size if self.max_roughness is None else self.max_roughness
+        tol = (DEFAULT_PLANE_TOLERANCE_SHARE * cell_size if self.plane_tolerance is None
+               else self.plane_tolerance)
+        rms = (DEFAULT_PLANE_RMS_SHARE * cell_size if self.max_plane_rms is None
+               else self.max_plane_rms)
+        return float(t), float(tol), float(rms)
+
+
+def joint_sets(
+    result: GridRoughness,
+    cloud: PointCloud | np.ndarray,
+    options: SetOptions | None = None,
+    *,
+    progress: ProgressFn | None = None,
+) -> JointSets:
+    """Discontinuity sets, their planes, spacing and persistence (see the module).
+
+    Parameters
+    ----------
+    result : GridRoughness
+        The grid result (ODR normals and roughness; :attr:`~GridRoughness.point_cell`
+        is needed for the planes' fits, so not an out-of-core result).
+    cloud : PointCloud or (N, 3) array
+        The points ``result`` was computed from, metres.
+    options : SetOptions, optional
+        The settings (default :class:`SetOptions()`: planar cells of at most 2 % of
+        the cell in roughness and 10 points, a cone of 20 degrees, peaks of at least
+        3 MUD and 30 degrees apart, at most 6 sets of 10 cells, planes of 3 cells
+        within half a cell of offset).
+    progress : callable, optional
+        ``progress(done, total)`` over 4 stages.
+
+    Returns
+    -------
+    JointSets
+        With ``note`` saying why when there is no set.
+    """
+    o = options if options is not None else SetOptions()
+    g = float(result.grid.cell_size)
+    t, tol, max_rms = o.lengths(g)
+    cone_deg, min_angle_deg, max_sets = o.cone_deg, o.min_angle_deg, o.max_sets
+    smoothing_deg, min_density, min_set_cells = o.smoothing_deg, o.min_density, o.min_set_cells
+    min_plane_cells, min_planar_points = o.min_plane_cells, o.min_planar_points
+    x, y, z = as_columns(cloud)
+    if result.point_cell.shape[0] != x.shape[0]:
+        raise InputError("joint sets need the points of the grid result (its point_cell "
+                         f"has {result.point_cell.shape[0]:,} rows, the cloud "
+                         f"{x.shape[0]:,} points); compute the grid in memory")
+    tick = progress or (lambda done, total: None)
+    tick(0, 4)
+    m_cells = result.n_cells
+    has_plane = np.all(np.isfinite(result.normal), axis=1) & np.isfinite(result.theta_odr)
+    planar = has_plane & (result.theta_odr <= t) & (result.n_points >= min_planar_points)
+    rows = np.flatnonzero(planar)
+    # 3 vectors and a few scalars per planar cell, the (K, S) angles, the peaks' work
+    require(rows.shape[0] * (200.0 + 16.0 * max_sets) + 8.0 * m_cells * 4,
+            f"joint sets of {rows.shape[0]:,} planar cells", hint="choose a larger grid size")
+    weights = result.n_points[rows].astype(np.float64)
+    toward = result.whole_plane.normal
+    net = stereonet(result.normal[rows], toward=toward, smoothing_deg=smoothing_deg,
+                    weights=weights)
+    net = Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes, density=net.density,
+                    smoothing_deg=net.smoothing_deg, weights=net.weights)
+    poles = _downward(result.normal[rows])
+    peaks, peak_density = density_peaks(net, poles, weights, min_density=min_density,
+                                        min_angle_deg=min_angle_deg, max_peaks=max_sets)
+    tick(1, 4)
+    labels = np.zeros(rows.shape[0], dtype=np.int64)  # set index + 1 per planar cell
+    while peaks.shape[0]:
+        labels = _assign(poles, peaks, cone_deg)
+        counts = np.bincount(labels, minlength=peaks.shape[0] + 1)[1:]
+        small = counts < min_set_cells
+        if not small.any():
+            break
+        peaks, peak_density = peaks[~small], peak_density[~small]
+    if not peaks.shape[0]:
+        labels[:] = 0
+    n_sets = int(peaks.shape[0])
+    cell_set = np.zeros(m_cells, dtype=np.int32)
+    cell_set[rows] = labels
+    note = _why_none(result, rows, has_plane, t, int(min_planar_points), min_density,
+                     min_set_cells, cone_deg) if n_sets == 0 else ""
+    # per set: Fisher statistics of its cells' poles, turned to the peak's side
+    mean_pole = np.zeros((n_sets, 3))
+    kappa = np.zeros(n_sets)
+    alpha = np.zeros(n_sets)
+    for s in range(n_sets):
+        on = labels == s + 1
+        p = poles[on] * np.where(poles[on] @ peaks[s] < 0, -1.0, 1.0)[:, None]
+        st = fisher_statistics(p, weights[on])
+        mean_pole[s] = -st.mean if st.mean[2] > 0 else st.mean
+        kappa[s], alpha[s] = st.kappa, st.alpha95_deg
+    normal = orient_normals(mean_pole, toward) if n_sets else np.zeros((0, 3))
+    dip, dd = dip_and_direction(normal, toward) if n_sets else (np.zeros(0), np.zeros(0))
+    set_cells = np.bincount(labels, minlength=n_sets + 1)[1:].astype(np.int64)
+    set_points = np.bincount(labels, weights=weights, minlength=n_sets + 1)[1:].astype(np.int64)
+    tick(2, 4)
+    cell_plane, cell_set, planes, curved = _planes(result, (x, y, z), cell_set, normal, tol,
+                                                   int(min_plane_cells), t,
+                                                   int(min_planar_points), max_rms)
+    tick(3, 4)
+    spacing = np.full((n_sets, 3), np.nan)
+    persistence_mean = np.full(n_sets, np.nan)
+    n_planes = np.bincount(planes.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
+    for s in range(n_sets):
+        mine = planes.set_id == s + 1
+        if mine.any():
+            persistence_mean[s] = float(planes.persistence[mine].mean())
+        gaps = np.diff(np.sort(planes.offset[mine]))
+        gaps = gaps[gaps > tol]
+        if gaps.size:
+            spacing[s] = (gaps.mean(), np.median(gaps), gaps.std())
+    tick(4, 4)
+    return JointSets(
+        cell_set=cell_set, cell_plane=cell_plane, planar=planar, net=net, peak=peaks,
+        peak_density=peak_density, mean_pole=mean_pole, normal=normal, dip_deg=dip,
+        dip_direction_deg=dd, kappa=kappa, alpha95_deg=alpha, cells=set_cells,
+        points=set_points, n_planes_per_set=n_planes, spacing_mean=spacing[:, 0],
+        spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
+        persistence_mean=persistence_mean, planes=planes, cell_size=g, options=o,
+        max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
+        note=note)
+
+
+def _downward(normals: np.ndarray) -> np.ndarray:
+    """Unit normals turned downward (the poles); horizontal ones kept as given."""
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.where((n[:, 2] > 0)[:, None], -n, n)
+
+
+def _assign(poles: np.ndarray, peaks: np.ndarray, cone_deg: float) -> np.ndarray:
+    """(K,) 1 + index of the nearest peak within the cone, 0 where none."""
+    angle = _axial_angle(poles, peaks)
+    nearest = np.argmin(angle, axis=1)
+    within = angle[np.arange(poles.shape[0]), nearest] <= cone_deg
+    return np.where(within, nearest + 1, 0)
+
+
+def _why_none(result: GridRoughness, rows: np.ndarray, has_plane: np.ndarray, t: float,
+              min_points: int, min_density: float, min_set_cells: int, cone_deg: float) -> str:
+    """One sentence: why no set was found."""
+    valued = int(np.count_nonzero(has_plane))
+    if valued == 0:
+        return "no cell has an ODR plane (too few points per cell?); no joint set"
+    if rows.shape[0] == 0:
+        enough = has_plane & (result.n_points >= min_points)
+        if not enough.any():
+            return (f"no planar cell: none of the {valued:,} cells with an ODR value has "
+                    f"{min_points} points (a larger grid size gives fuller cells); no joint set")
+        low = float(np.nanmin(result.theta_odr[enough]))
+        return (f"no planar cell: none of the {int(enough.sum()):,} cells with an ODR value "
+                f"and {min_points}+ points has a roughness of at most {t:.4g} m (the smoothest "
+                f"has {low:.4g} m); no joint set")
+    return (f"no joint set: the poles of the {rows.shape[0]:,} planar cells (of {valued:,}) "
+            f"have no density peak of at least {min_density:g} MUD gathering "
+            f"{min_set_cells} cells within {cone_deg:g} degrees (the rock has no preferred "
+            "plane orientation at this grid size)")
+
+
+def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+            cell_set: np.ndarray, set_normal: np.ndarray, tol: float, min_cells: int,
+            max_roughness: float, min_planar_points: int, max_rms: float
+            ) -> tuple[np.ndarray, np.ndarray, JointPlanes, int]:
+    """Planes of every set: the plane and set of every cell (with the edge cells
+    the planes took in), the plane table and the number of curved groups dropped."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = result.n_cells
+    members = np.flatnonzero(cell_set > 0)
+    sid = cell_set[members].astype(np.int64)
+    cell_plane = np.zeros(m, dtype=np.int32)
+    if members.shape[0] == 0:
+        return cell_plane, cell_set, _no_planes(), 0
+    origin = result.grid.origin
+    offset = np.einsum("ij,ij->i", result.centroid[members] - origin, set_normal[sid - 1])
+    a, b, _ = _neighbour_pairs(result.ijk[members])
+    keep = (sid[a] == sid[b]) & (np.abs(offset[a] - offset[b]) <= tol)
+    k = members.shape[0]
+    graph = coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (a[keep], b[keep])), shape=(k, k))
+    _, comp = connected_components(graph.tocsr(), directed=False)
+    sizes = np.bincount(comp)
+    comp_set = np.zeros(sizes.shape[0], dtype=np.int64)
+    comp_set[comp] = sid
+    first = np.full(sizes.shape[0], k, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(k))  # grid order breaks ties
+    big = np.flatnonzero(sizes >= min_cells)
+    big = big[np.lexsort((first[big], -sizes[big], comp_set[big]))]
+    new_id = np.zeros(sizes.shape[0], dtype=np.int32)
+    new_id[big] = np.arange(1, big.shape[0] + 1, dtype=np.int32)
+    cell_plane[members] = new_id[comp]
+    n_p = int(big.shape[0])
+    if n_p == 0:
+        return cell_plane, cell_set, _no_planes(), 0
+    plane_set = comp_set[big]
+    cell_set = cell_set.copy()
+    first_fit = _fit_planes(result, xyz, cell_plane, n_p, measure=False)
+    # a group whose points do not fit one plane (a curved surface chained cell by
+    # cell) is no discontinuity plane: its cells keep their set, plane 0
+    flat = first_fit.rms <= max_rms
+    curved = int(np.count_nonzero(~flat))
+    if curved:
+        renumber = np.zeros(n_p + 1, dtype=np.int32)
+        renumber[1:][flat] = np.arange(1, int(flat.sum()) + 1, dtype=np.int32)
+        cell_plane[:] = renumber[cell_plane]
+        plane_set = plane_set[flat]
+        n_p = int(flat.sum())
+        if n_p == 0:
+            return cell_plane, cell_set, _no_planes(), curved
+        first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
+                         rms=first_fit.rms[flat], points=first_fit.points[flat])
+    _take_edge_cells(result, cell_plane, cell_set, plane_set, first_fit, max_roughness,
+                     min_planar_points)
+    fit = _fit_planes(result, xyz, cell_plane, n_p, measure=True)  # with the edge cells
+    assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
+    plane_cells = np.bincount(cell_plane, minlength=n_p + 1)[1:].astype(np.int64)
+    toward = result.whole_plane.normal
+    normal = orient_normals(fit.normal, toward)
+    dip, dd = dip_and_direction(normal, toward)
+    offset_p = np.einsum("ij,ij->i", fit.centroid - origin, set_normal[plane_set - 1])
+    return cell_plane, cell_set, JointPlanes(
+        set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
+        dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
+        persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
+        offset=offset_p), curved
+
+
+#: An edge cell joins a plane when its centroid lies within this many times the
+#: plane's RMS of it.
+EDGE_RMS_FACTOR = 3.0
+
+
+def _take_edge_cells(result: GridRoughness, cell_plane: np.ndarray, cell_set: np.ndarray,
+                     plane_set: np.ndarray, fit: _Fit, max_roughness: float,
+                     min_planar_points: int) -> None:
+    """Let every plane take in the edge cells it touches (in place): cells in no set
+    with an ODR value at most ``max_roughness`` but fewer than ``min_planar_points``
+    points (slivers of the plane where it crosses a cell's corner; their own normal
+    is too poor to have voted), whose centroid lies within
+    :data:`EDGE_RMS_FACTOR` x the plane's RMS of the plane; the nearest plane when
+    several touch."""
+    small = np.flatnonzero((cell_set == 0) & np.isfinite(result.theta_odr)
+                           & (result.theta_odr <= max_roughness)
+                           & (result.n_points < min_planar_points)
+                           & np.all(np.isfinite(result.centroid), axis=1))
+    inside = np.flatnonzero(cell_plane > 0)
+    if small.shape[0] == 0:
+        return
+    rows = np.concatenate([inside, small])
+    a, b, _ = _neighbour_pairs(result.ijk[rows])
+    n_in = inside.shape[0]
+    # pairs of one plane cell (p) and one candidate (c), in either order
+    p = np.concatenate([a[(a < n_in) & (b >= n_in)], b[(b < n_in) & (a >= n_in)]])
+    c = np.concatenate([b[(a < n_in) & (b >= n_in)], a[(b < n_in) & (a >= n_in)]])
+    if p.shape[0] == 0:
+        return
+    plane = cell_plane[rows[p]].astype(np.int64) - 1
+    cell = rows[c]
+    dist = np.abs(np.einsum("ij,ij->i", result.centroid[cell] - fit.centroid[plane],
+                            fit.normal[plane]))
+    ok = dist <= EDGE_RMS_FACTOR * fit.rms[plane]
+    plane, cell, dist = plane[ok], cell[ok], dist[ok]
+    order = np.lexsort((dist, cell))
+    cell, plane = cell[order], plane[order]
+    first = np.ones(cell.shape[0], dtype=bool)
+    first[1:] = cell[1:] != cell[:-1]
+    cell_plane[cell[first]] = plane[first] + 1
+    cell_set[cell[first]] = plane_set[plane[first]]
+
+
+def _no_planes() -> JointPlanes:
+    e = np.zeros(0)
+    e3 = np.zeros((0, 3))
+    ei = np.zeros(0, dtype=np.int64)
+    return JointPlanes(set_id=ei, cells=ei, points=ei, normal=e3, dip_deg=e,
+                       dip_direction_deg=e, centroid=e3, rms=e, area=e, persistence_dip=e,
+                       persistence_strike=e, offset=e)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """Planes fitted to their points (per-plane arrays)."""
+
+    normal: np.ndarray
+    centroid: np.ndarray
+    rms: np.ndarray
+    points: np.ndarray
+    chord_dip: np.ndarray | None = None
+    chord_strike: np.ndarray | None = None
+    area: np.ndarray | None = None
+
+
+def _fit_planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+                cell_plane: np.ndarray, n_p: int, *, measure: bool) -> _Fit:
+    """ODR fit, RMS and points of every plane from its points; with ``measure`` also
+    its chords along dip and strike and its area."""
+    require(5.0 * result.point_cell.shape[0], "the planes of every point")
+    plane_of_point = cell_plane[result.point_cell]
+    sel = np.flatnonzero(plane_of_point > 0)
+    k = sel.shape[0]
+    # per point of a plane: its index and plane (16 bytes), three relative
+    # coordinates (24), two in-plane ones (16) and the chords' strip, key, order,
+    # sorted copies and the sort's own work (about 90)
+    require(k * 150.0, f"plane fits of {k:,} points", hint="choose a larger grid size")
+    q = (plane_of_point[sel] - 1).astype(np.int64)
+    # a reference point per plane (the points-weighted mean of its cells' centroids)
+    # keeps the sums small on large coordinates (UTM)
+    rows = np.flatnonzero(cell_plane > 0)
+    w = result.n_points[rows].astype(np.float64)
+    pr = cell_plane[rows].astype(np.int64) - 1
+    ref = np.column_stack([np.bincount(pr, weights=w * result.centroid[rows, a], minlength=n_p)
+                           for a in range(3)]) / np.bincount(pr, weights=w, minlength=n_p)[:, None]
+    rel = np.column_stack([xyz[a][sel] - ref[q, a] for a in range(3)])
+    count = np.bincount(q, minlength=n_p).astype(np.float64)
+    mean = np.column_stack([np.bincount(q, weights=rel[:, a], minlength=n_p)
+                            for a in range(3)]) / count[:, None]
+    cov = np.zeros((n_p, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            v = np.bincount(q, weights=rel[:, i] * rel[:, j], minlength=n_p) / count
+            cov[:, i, j] = cov[:, j, i] = v - mean[:, i] * mean[:, j]
+    evals, evecs = np.linalg.eigh(cov)
+    fit = _Fit(normal=evecs[:, :, 0], centroid=ref + mean,
+               rms=np.sqrt(np.maximum(evals[:, 0], 0.0)), points=count.astype(np.int64))
+    if not measure:
+        return fit
+    dip_axis, strike_axis = dip_strike_axes(fit.normal)
+    rel -= mean[q]
+    u_dip = np.einsum("ij,ij->i", rel, dip_axis[q])
+    u_strike = np.einsum("ij,ij->i", rel, strike_axis[q])
+    del rel
+    g = result.grid.cell_size
+    strip = CHORD_STRIP_SHARE * g
+    along_dip, covered = _chords(q, u_strike, u_dip, n_p, strip, g)
+    along_strike, _ = _chords(q, u_dip, u_strike, n_p, strip, g)
+    return replace(fit, chord_dip=along_dip, chord_strike=along_strike, area=covered * strip)
+
+
+#: Width of the strips in which chords are measured, as a share of the cell size.
+CHORD_STRIP_SHARE = 0.25
+
+
+def _chords(group: np.ndarray, across: np.ndarray, along: np.ndarray, n_groups: int,
+            strip: float, gap: float) -> tuple[np.ndarray, np.ndarray]:
+    """Chords along ``along`` of every group's points: points in strips of width
+    ``strip`` across, sorted along; a chord runs between consecutive points at most
+    ``gap`` apart, from its first to its last point.
+
+    Returns
+    -------
+    longest : (G,) array
+        The longest chord of every group.
+    total : (G,) array
+        The summed length of every group's chords (times ``strip``: its area).
+    """
+    longest = np.zeros(n_groups)
+    if group.shape[0] == 0:
+        return longest, np.zeros(n_groups)
+    band = np.floor(across / strip).astype(np.int64)
+    band -= band.min()
+    key = group * (int(band.max()) + 1) + band  # one sort key: group, then strip
+    order = np.lexsort((along, key))
+    gq, kq, aq = group[order], key[order], along[order]
+    start = np.ones(gq.shape[0], dtype=bool)
+    start[1:] = (kq[1:] != kq[:-1]) | (np.diff(aq) > gap)
+    first = np.flatnonzero(start)
+    last = np.append(first[1:], gq.shape[0]) - 1
+    length = aq[last] - aq[first]
+    np.maximum.at(longest, gq[first], length)
+    return longest, np.bincount(gq[first], weights=length, minlength=n_groups)
+
+
+def set_point_fields(sets: JointSets, result: GridRoughness) -> PointFields:
+    """The per-point fields of LAS/LAZ and PLY exports of the sets: ``set_id``
+    (uint8, 0 = in no set) and ``plane_id`` (int32, 0 = in no plane) of every
+    point's cell (0 for a point in no cell)."""
+    if sets.cell_set.shape[0] != result.n_cells:
+        raise InputError("the joint sets are of another grid result")
+    return PointFields(fields=(
+        CellField("set_id", sets.cell_set.astype(np.uint8), "joint set id (0 = none)",
+                  np.uint8(0)),
+        CellField("plane_id", sets.cell_plane.astype(np.int32), "joint plane id (0 = none)",
+                  np.int32(0)),
+    ), point_cell=result.point_cell)

@@ -1,0 +1,231 @@
+"""Plotly figures of joint sets: the stereonet with the pole density, the sets' peaks,
+mean poles and cones, and the tables of the sets and of their planes; and the
+colours of the points by set or by plane for the scene.
+
+Pure functions: a :class:`rough_viewer.grid.sets.JointSets` in, a figure out; the
+report uses them and the app's Sets view can. Set ``k`` is drawn in
+:func:`rough_viewer.visual.colormaps.zone_colour` ``(k)`` (the zone palette), in
+every figure and in the scene. The stereonet is
+:func:`rough_viewer.visual.zones.stereonet_figure` with the sets drawn on top.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+import plotly.graph_objects as go
+
+from rough_viewer.grid.orientation import schmidt, trend_and_plunge
+from rough_viewer.grid.sets import JointSets
+from rough_viewer.visual import colormaps
+from rough_viewer.visual.grid import describe
+from rough_viewer.visual.zones import MAX_POLES_DRAWN, azimuth_text, stereonet_figure
+from rough_viewer.vocabulary import InputError, unit_scale
+
+
+def set_colour(set_id: int) -> str:
+    """``"#rrggbb"`` of set ``set_id`` (1..S; grey for 0, in no set)."""
+    return colormaps.zone_colour(set_id)
+
+
+def point_colours(sets: JointSets, point_cell: np.ndarray, *,
+                  by: Literal["set", "plane"] = "set") -> np.ndarray:
+    """``(N, 3)`` uint8 colours of points by the set (or the plane) of their cell:
+    the scene's colours for a Sets view (grey in none)."""
+    labels = sets.cell_set if by == "set" else sets.cell_plane
+    return colormaps.zone_colours(labels[np.asarray(point_cell)])
+
+
+def _title(what: str, sets: JointSets, *, axis: str, n_points: int, unit: str) -> dict:
+    sub = describe(grid_size=sets.cell_size, axis=axis, n_points=n_points, models=("odr",),
+                   unit=unit)
+    return {"text": f"{what}<br><sup>{sub}</sup>", "x": 0.01, "xanchor": "left"}
+
+
+def _settings(sets: JointSets, unit: str) -> str:
+    f, u = unit_scale(unit)
+    o = sets.options
+    return (f"planar: ODR θ ≤ {sets.max_roughness / f:.3g} {u}, ≥ {o.min_planar_points} points; "
+            f"peaks ≥ {o.min_density:g} MUD, ≥ {o.min_angle_deg:g}° apart; "
+            f"cone {o.cone_deg:g}°")
+
+
+def cone_outline(axis: np.ndarray, angle_deg: float, n: int = 181) -> tuple[np.ndarray, np.ndarray]:
+    """The small circle of ``angle_deg`` about a (unit) axis on the lower-hemisphere
+    Schmidt net: ``(x, y)`` with NaN where it crosses the primitive circle (the part
+    above the horizon shows through the antipode, on the net's other side)."""
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+    u = np.cross(a, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    t = np.linspace(0.0, 2.0 * np.pi, n)
+    c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
+    d = c * a + s * (np.cos(t)[:, None] * u + np.sin(t)[:, None] * v)
+    trend, plunge = trend_and_plunge(d)  # downward senses: the lower hemisphere
+    x, y = schmidt(trend, plunge)
+    jump = np.flatnonzero(np.hypot(np.diff(x), np.diff(y)) > 0.5)
+    x, y = np.insert(x, jump + 1, np.nan), np.insert(y, jump + 1, np.nan)
+    return x, y
+
+
+def sets_stereonet_figure(
+    sets: JointSets,
+    *,
+    axis: str,
+    n_points: int,
+    selected: int | None = None,
+    max_poles: int = MAX_POLES_DRAWN,
+    unit: str = "m",
+) -> go.Figure:
+    """The stereonet of the planar cells' poles (density weighted by points, contours
+    in MUD) with every set's poles in its colour, its density peak (star), its Fisher
+    mean pole (circle) and its cone.
+
+    Parameters
+    ----------
+    sets : JointSets
+        From :func:`rough_viewer.grid.sets.joint_sets`.
+    axis, n_points : str, int
+        The caption's dependent axis and point count.
+    selected : int, optional
+        A set id drawn with a thicker cone (the others stay).
+    max_poles : int
+        Poles drawn per trace at most; the density uses every pole.
+    unit : {"m", "mm", "ft", "us-ft"}
+        Unit of the caption's lengths.
+    """
+    names = {k: f"set {k}" for k in range(1, sets.n_sets + 1)}
+    fig = stereonet_figure(
+        sets.net, grid_size=sets.cell_size, axis=axis, n_points=n_points,
+        highlight={names[k]: sets.cell_set == k for k in names},
+        colours={names[k]: set_colour(k) for k in names}, what="planar-cell poles",
+        max_poles=max_poles, unit=unit)
+    for k in names:
+        colour = set_colour(k)
+        cx, cy = cone_outline(sets.peak[k - 1], sets.cone_deg)
+        fig.add_trace(go.Scatter(
+            x=cx, y=cy, mode="lines", hoverinfo="skip", showlegend=False,
+            line={"color": colour, "width": 3.0 if selected == k else 1.5,
+                  "dash": "solid" if selected in (None, k) else "dot"}))
+        pt, pp = trend_and_plunge(sets.peak[k - 1:k])
+        px, py = schmidt(pt, pp)
+        mt, mp = trend_and_plunge(sets.mean_pole[k - 1:k])
+        mx, my = schmidt(mt, mp)
+        fig.add_trace(go.Scatter(
+            x=[px[0], mx[0]], y=[py[0], my[0]], mode="markers", showlegend=False,
+            marker={"symbol": ["star", "circle-open"], "size": [15, 12], "color": colour,
+                    "line": {"width": [1, 2.5], "color": ["black", colour]}},
+            hovertext=[f"set {k}: density peak {sets.peak_density[k - 1]:.1f} MUD",
+                       f"set {k}: mean plane {sets.dip_deg[k - 1]:02.0f} / "
+                       f"{azimuth_text(sets.dip_direction_deg[k - 1])}, κ "
+                       f"{sets.kappa[k - 1]:.0f}"],
+            hoverinfo="text"))
+    what = (f"{sets.n_sets} joint set{'s' if sets.n_sets != 1 else ''}" if sets.n_sets
+            else "No joint set")
+    fig.update_layout(title=_title(
+        f"{what}: planar-cell poles, lower hemisphere, equal area; density σ "
+        f"{sets.net.smoothing_deg:g}°, weighted by points<br><sup>{_settings(sets, unit)}</sup>",
+        sets, axis=axis, n_points=n_points, unit=unit), margin={"l": 10, "r": 10, "t": 110, "b": 10})
+    return fig
+
+
+def _coloured_table(ids: np.ndarray, header: Sequence[str], cells: Sequence[list[str]],
+                    widths: Sequence[int], id_colour: np.ndarray, selected: np.ndarray
+                    ) -> go.Table:
+    """A table whose first column is the ids in their colours, selected rows yellow."""
+    n = ids.shape[0]
+    row_fill = ["#fff3b0" if s else "white" for s in selected]
+    fill = [[set_colour(int(c)) for c in id_colour]] + [row_fill] * (len(header) - 1)
+    font = [["white"] * n] + [["#222"] * n] * (len(header) - 1)
+    return go.Table(columnwidth=list(widths),
+                    header={"values": list(header), "align": "left", "fill_color": "#e8e8e8"},
+                    cells={"values": list(cells), "align": "left", "fill_color": fill,
+                           "font": {"color": font}})
+
+
+def _dip(dip: np.ndarray, dd: np.ndarray) -> list[str]:
+    return [f"{d:02.0f} / {azimuth_text(a)}" for d, a in zip(dip, dd, strict=True)]
+
+
+def _num(values: np.ndarray, scale: float = 1.0, fmt: str = ".3g") -> list[str]:
+    return ["–" if not np.isfinite(v) else format(v / scale, fmt) for v in values]
+
+
+def sets_table_figure(
+    sets: JointSets,
+    *,
+    axis: str,
+    n_points: int,
+    selected: int | None = None,
+    unit: str = "m",
+) -> go.Figure:
+    """The set table: one row per set in its colour: mean plane dip / dip direction,
+    Fisher kappa and alpha95, cells, planes, normal spacing (mean, median, std) and
+    mean persistence in ``unit`` (the numbers in ``sets`` stay metres)."""
+    f, u = unit_scale(unit)
+    n = sets.n_sets
+    ids = np.arange(1, n + 1)
+    header = ["set", "dip / direction (°)", "κ", "α95 (°)", "cells", "planes",
+              f"spacing mean ({u})", f"median ({u})", f"std ({u})", f"persistence ({u})"]
+    cells = [[f"<b>{i}</b>" for i in ids], _dip(sets.dip_deg, sets.dip_direction_deg),
+             _num(sets.kappa, fmt=".0f"), _num(sets.alpha95_deg, fmt=".2f"),
+             [f"{c:,}" for c in sets.cells], [f"{c:,}" for c in sets.n_planes_per_set],
+             _num(sets.spacing_mean, f), _num(sets.spacing_median, f), _num(sets.spacing_std, f),
+             _num(sets.persistence_mean, f)]
+    table = _coloured_table(ids, header, cells, [32, 90, 45, 50, 55, 50, 80, 65, 60, 80],
+                            ids, ids == selected)
+    fig = go.Figure(table)
+    what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
+    fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
+                                   axis=axis, n_points=n_points, unit=unit),
+                      height=int(min(600, 210 + 31 * max(n, 1))),
+                      margin={"l": 10, "r": 10, "t": 100, "b": 10})
+    return fig
+
+
+def planes_table_figure(
+    sets: JointSets,
+    *,
+    axis: str,
+    n_points: int,
+    set_id: int | None = None,
+    selected: int | None = None,
+    max_rows: int = 50,
+    unit: str = "m",
+) -> go.Figure:
+    """The plane table: one row per plane (of every set, or of ``set_id``), the id in
+    its set's colour: set, dip / dip direction, centroid, area, persistence along
+    dip x strike, RMS and cells; lengths in ``unit``. ``selected`` is a plane id
+    whose row is highlighted; at most ``max_rows`` rows (the title says how many
+    there are)."""
+    f, u = unit_scale(unit)
+    pl = sets.planes
+    if set_id is not None and not 1 <= set_id <= max(sets.n_sets, 1):
+        raise InputError(f"no set {set_id}: there are {sets.n_sets}")
+    rows = np.arange(pl.n_planes) if set_id is None else np.flatnonzero(pl.set_id == set_id)
+    total = rows.shape[0]
+    rows = rows[:max(int(max_rows), 0)]
+    ids = rows + 1
+    header = ["plane", "set", "dip / direction (°)", f"centroid x, y, z ({u})", f"area ({u}²)",
+              f"dip × strike ({u})", f"rms ({u})", "cells"]
+    cells = [[f"<b>{i}</b>" for i in ids], [str(s) for s in pl.set_id[rows]],
+             _dip(pl.dip_deg[rows], pl.dip_direction_deg[rows]),
+             [", ".join(f"{c / f:.2f}" for c in row) for row in pl.centroid[rows]],
+             _num(pl.area[rows], f * f),
+             [f"{a / f:.3g} × {b / f:.3g}" for a, b in
+              zip(pl.persistence_dip[rows], pl.persistence_strike[rows], strict=True)],
+             _num(pl.rms[rows], f), [f"{c:,}" for c in pl.cells[rows]]]
+    table = _coloured_table(ids, header, cells, [40, 32, 90, 160, 60, 90, 60, 50],
+                            pl.set_id[rows], ids == selected)
+    fig = go.Figure(table)
+    scope = "" if set_id is None else f" of set {set_id}"
+    more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
+    fig.update_layout(title=_title(f"{total:,} plane{'s' if total != 1 else ''}{scope}{more}",
+                                   sets, axis=axis, n_points=n_points, unit=unit),
+                      height=int(min(1000, 170 + 31 * max(rows.shape[0], 1))),
+                      margin={"l": 10, "r": 10, "t": 80, "b": 10})
+    return fig

@@ -1,0 +1,185 @@
+"""`rough-viewer sets`: the output contract (SETS.csv, PLANES.csv, DIPS.csv, CELLS.csv,
+LAS/PLY ids), units, the options and the bad-input errors."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from rough_viewer.cli import main
+from rough_viewer.cli.compute import CSV_COLUMNS
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.grid.sets import SetOptions, joint_sets
+from rough_viewer.io import PointCloud, load_points, write_las
+from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
+
+SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,"
+               "spacing_mean,spacing_median,spacing_std,persistence_mean")
+PLANES_HEADER = ("plane_id,set_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
+                 "persistence_strike,rms,cells")
+G = 0.5
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    scan = generate_joint_block(JointBlockSpec(angular_step_rad=3e-3))  # 37 k points
+    folder = tmp_path_factory.mktemp("sets")
+    path = folder / "block.laz"
+    write_las(path, scan.cloud, scale=1e-4)
+    mm = folder / "block_mm.xyz"  # the same points in millimetres, as text
+    cloud = load_points(path)
+    np.savetxt(mm, cloud.xyz() * 1000.0, fmt="%.2f")
+    return path, mm
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], rows[1:]
+
+
+def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
+    path, _ = block
+    out = {k: tmp_path / f"{k}.csv" for k in ("sets", "planes", "cells", "dips")}
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out["sets"]),
+                 "--planes-out", str(out["planes"]), "--cells-out", str(out["cells"]),
+                 "--dips-out", str(out["dips"]), "--quiet"]) == 0
+    cloud = load_points(path)
+    result = grid_roughness(cloud, G, models=("odr",))
+    ref = joint_sets(result, cloud)
+    header, rows = read_csv(out["sets"])
+    assert ",".join(header) == SETS_HEADER and len(rows) == ref.n_sets == 3
+    table = ref.set_table()
+    for k, row in enumerate(rows):
+        for name, text in zip(header, row, strict=True):
+            assert float(text) == table[name][k]  # exact round trip
+    header, rows = read_csv(out["planes"])
+    assert ",".join(header) == PLANES_HEADER and len(rows) == ref.planes.n_planes
+    assert [int(r[0]) for r in rows] == list(range(1, ref.planes.n_planes + 1))
+    assert float(rows[0][header.index("area")]) == ref.planes.area[0]
+    header, rows = read_csv(out["dips"])
+    assert header[:7] == ["Dip", "Dip Direction", "Quantity", "X (East)", "Y (North)",
+                          "Z (Elev.)", "Persistence"]
+    assert [float(r[0]) for r in rows] == list(ref.planes.dip_deg)
+    assert [float(r[1]) for r in rows] == list(ref.planes.dip_direction_deg)
+    assert {r[2] for r in rows} == {"1"}
+    header, rows = read_csv(out["cells"])
+    assert tuple(header) == (*CSV_COLUMNS, "set_id", "plane_id")
+    keep = result.n_points >= result.min_points
+    assert len(rows) == int(keep.sum())
+    assert [int(r[-2]) for r in rows] == list(ref.cell_set[keep])
+    assert [int(r[-1]) for r in rows] == list(ref.cell_plane[keep])
+    text = capsys.readouterr().out
+    assert "3 sets" in text and "wrote" in text
+
+
+def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
+    path, mm = block
+    m_out, mm_out = tmp_path / "m.csv", tmp_path / "mm.csv"
+    pm, pmm = tmp_path / "pm.csv", tmp_path / "pmm.csv"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(m_out), "--planes-out",
+                 str(pm), "--quiet"]) == 0
+    assert main(["sets", str(mm), "--units", "mm", "--grid", str(G * 1000), "--out",
+                 str(mm_out), "--planes-out", str(pmm), "--quiet"]) == 0
+    h, rows_m = read_csv(m_out)
+    _, rows_mm = read_csv(mm_out)
+    assert len(rows_m) == len(rows_mm) == 3
+    lengths = {"spacing_mean", "spacing_median", "spacing_std", "persistence_mean"}
+    for a, b in zip(rows_m, rows_mm, strict=True):
+        for name, x, y in zip(h, a, b, strict=True):
+            scale = 1000.0 if name in lengths else 1.0
+            assert float(y) == pytest.approx(float(x) * scale, rel=1e-6, abs=1e-9)
+    h, rows_m = read_csv(pm)
+    _, rows_mm = read_csv(pmm)
+    i = h.index("area")
+    assert float(rows_mm[0][i]) == pytest.approx(float(rows_m[0][i]) * 1e6, rel=1e-6)
+    i = h.index("persistence_dip")
+    assert float(rows_mm[0][i]) == pytest.approx(float(rows_m[0][i]) * 1e3, rel=1e-6)
+
+
+def test_options_reach_the_sets(tmp_path, block):
+    path, _ = block
+    cloud = load_points(path)
+    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud,
+                     SetOptions(max_sets=2, cone_deg=10.0))
+    out = tmp_path / "s.csv"
+    assert main(["sets", str(path), "--grid", str(G), "--max-sets", "2", "--cone", "10",
+                 "--out", str(out), "--quiet"]) == 0
+    _, rows = read_csv(out)
+    assert len(rows) == 2 and [int(r[5]) for r in rows] == list(ref.cells)
+    out2 = tmp_path / "s2.csv"
+    assert main(["sets", str(path), "--grid", str(G), "--max-roughness", "1e-5",
+                 "--out", str(out2), "--quiet"]) == 0
+    assert len(read_csv(out2)[1]) == 0
+
+
+def test_las_and_ply_carry_the_ids(tmp_path, block):
+    import laspy
+    from plyfile import PlyData
+
+    path, _ = block
+    las, ply = tmp_path / "ids.laz", tmp_path / "ids.ply"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(tmp_path / "s.csv"),
+                 "--las-out", str(las), "--ply-out", str(ply), "--quiet"]) == 0
+    cloud = load_points(path)
+    result = grid_roughness(cloud, G, models=("odr",))
+    ref = joint_sets(result, cloud)
+    data = laspy.read(las)
+    assert np.array_equal(np.asarray(data["set_id"]), ref.cell_set[result.point_cell])
+    assert np.array_equal(np.asarray(data["plane_id"]), ref.cell_plane[result.point_cell])
+    vertex = PlyData.read(str(ply))["vertex"]
+    assert np.array_equal(np.asarray(vertex["plane_id"]), ref.cell_plane[result.point_cell])
+
+
+def test_a_cloud_without_planes_writes_headers_and_says_so(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0.0, 4.0, (20_000, 2))
+    path = tmp_path / "rubble.laz"
+    write_las(path, PointCloud.from_xyz(np.column_stack([xy, 0.05 * rng.standard_normal(20_000)])))
+    out, planes = tmp_path / "s.csv", tmp_path / "p.csv"
+    assert main(["sets", str(path), "--grid", "0.25", "--out", str(out), "--planes-out",
+                 str(planes), "--quiet"]) == 0
+    assert read_csv(out) == (SETS_HEADER.split(","), [])
+    assert read_csv(planes) == (PLANES_HEADER.split(","), [])
+    assert "no joint set" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--cone", "95"], "cone"),
+    (["--max-sets", "300"], "sets"),
+    (["--min-angle", "100"], "angle"),
+    (["--ply-out", "x.las"], "--ply-out"),
+    (["--las-out", "x.ply"], "--las-out"),
+    (["--min-points", "2"], "--min-points"),
+])
+def test_bad_input_one_line_exit_2_no_output(tmp_path, block, capsys, extra, message):
+    path, _ = block
+    out = tmp_path / "s.csv"
+    extra = [str(tmp_path / e) if e.startswith("x.") else e for e in extra]
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out), "--quiet",
+                 *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err
+    assert not out.exists()
+
+
+def test_existing_output_is_refused_without_force(tmp_path, block, capsys):
+    path, _ = block
+    out = tmp_path / "s.csv"
+    out.write_text("keep")
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out), "--quiet"]) == 2
+    assert "exists" in capsys.readouterr().err and out.read_text() == "keep"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out), "--quiet",
+                 "--force"]) == 0
+    assert read_csv(out)[0] == SETS_HEADER.split(",")
+
+
+def test_several_grids_name_outputs_as_compute(tmp_path, block):
+    path, _ = block
+    out = tmp_path / "s.csv"
+    assert main(["sets", str(path), "--grid", "0.5", "--grid", "0.4", "--out", str(out),
+                 "--quiet"]) == 0
+    assert (tmp_path / "s_g0.5.csv").exists() and (tmp_path / "s_g0.4.csv").exists()
+    assert not out.exists()
