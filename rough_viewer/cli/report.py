@@ -4,7 +4,7 @@ Contract::
 
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--units m|mm|ft|us-ft] [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
 
 Default grid sizes: from the point spacing, the size at which the typical occupied
 cell holds 16 points, times 8, 4, 2 and 1 (``rough_viewer.grid.spacing``); the
@@ -22,7 +22,14 @@ import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_axis, add_units, grid_sizes, per_unit, warn
+from rough_viewer.cli._options import (
+    add_axis,
+    add_keep_outliers,
+    add_units,
+    grid_sizes,
+    per_unit,
+    warn,
+)
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
 
@@ -50,6 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="html: the full report (default); json: the numbers alone")
     p.add_argument("--png", metavar="DIR",
                    help="also write every figure as PNG into DIR (needs kaleido)")
+    add_keep_outliers(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -89,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
     given = tuple(grid_sizes(args.grid, resolve_units(paths[0], args.units)[0])) \
         if args.grid else None
     settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
-                              axis=args.axis, threshold=args.threshold)
+                              axis=args.axis, threshold=args.threshold,
+                              keep_outliers=args.keep_outliers)
     try:
         settings.check()
     except InputError as exc:  # name the option as the user typed it

@@ -17,7 +17,7 @@ from rough_viewer.vocabulary import UNIT_METRES, InputError
 CELL_COLUMNS: tuple[str, ...] = (
     "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
     "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
-    "normal_x", "normal_y", "normal_z",
+    "normal_x", "normal_y", "normal_z", "outlier",
 )
 
 #: Per-point fields of LAS/LAZ and PLY exports, in order.
@@ -36,9 +36,14 @@ def cell_columns(result: GridRoughness, *, unit: str = "m") -> dict[str, np.ndar
 
     Columns :data:`CELL_COLUMNS`: cell index (``ix, iy, iz``), cell centre (``cx, cy,
     cz``), points in the cell, the roughness of each model and ``e_ols`` (NaN where
-    the cell has no value) and the cell's ODR unit normal. Lengths in ``unit``
-    (default metres; ``rough_viewer.vocabulary.UNITS``).
+    the cell has no value) and the cell's ODR unit normal, and ``outlier``: 0, or
+    the sum of 1 (OLS) and 2 (hybrid) for the models whose roughness is larger than
+    the cell (:func:`rough_viewer.grid.outliers.outlier_flags`; the values stay in
+    their columns). Lengths in ``unit`` (default metres;
+    ``rough_viewer.vocabulary.UNITS``).
     """
+    from rough_viewer.grid.outliers import outlier_flags
+
     keep = result.n_points >= result.min_points
     per = UNIT_METRES[unit]
 
@@ -54,6 +59,7 @@ def cell_columns(result: GridRoughness, *, unit: str = "m") -> dict[str, np.ndar
         "theta_hybrid": length(result.theta_hybrid), "e_ols": length(result.e_ols),
         "normal_x": result.normal[keep, 0], "normal_y": result.normal[keep, 1],
         "normal_z": result.normal[keep, 2],
+        "outlier": outlier_flags(result)[keep],
     }
 
 
