@@ -127,10 +127,11 @@ def outlier_text(result: GridRoughness, name: MapName = "hybrid", *, unit: str =
     g = result.grid.cell_size / per
     top = float(np.max(values[mask])) / per
     what = MAP_LABELS[name]
-    return (f"{n:,} of {valued:,} cells with a {what} value have a {what} roughness larger "
-            f"than the cell (up to {top:.4g} {u} in {g:g} {u} cells): their plane is nearly "
-            f"parallel to the dependent axis {result.axis}, along which {what} measures, so "
-            "the value says nothing about the rock; "
-            + ("they are kept in every statistic, as asked" if kept else
-               "they are left out of Table 1, the normalisation, histograms, "
-               "semivariograms and zones"))
+    return (f"{n:,} of {valued:,} cells with a {what} value {'has' if n == 1 else 'have'} a "
+            f"{what} roughness larger "
+            f"than the cell (up to {top:.4g} {u} in {g:g} {u} cells): "
+            f"{'its' if n == 1 else 'their'} plane is nearly parallel to the dependent axis "
+            f"{result.axis}, along which {what} measures, so the value says nothing about the "
+            "rock; " + ("kept in every statistic, as asked" if kept else
+                        "left out of Table 1, the normalisation, histograms, semivariograms "
+                        "and zones"))
