@@ -300,3 +300,27 @@ def test_hybrid_larger_than_the_cell_is_an_outlier(tmp_path, capsys):
     assert data["hybrid"]["max"] == pytest.approx(np.nanmax(hybrid), rel=1e-12)
     assert data["hybrid"]["outliers"] == 0 and data["keep_outliers"] is True
     assert "kept in every statistic, as asked" in capsys.readouterr().out
+
+
+def test_a_grid_with_no_valued_cell_says_so_and_writes_nothing(tmp_path, capsys):
+    """An airborne-like spacing (0.2 m) at a 1 cm grid: every cell holds one point. One
+    line with the smallest grid at which the typical cell has enough points (against
+    the spacing module), exit 2, no empty CSV."""
+    from rough_viewer.grid.spacing import default_cell_size
+
+    rng = np.random.default_rng(3)
+    xyz = np.column_stack([rng.uniform(0, 10, 2500), rng.uniform(0, 10, 2500),
+                           0.05 * rng.standard_normal(2500)])
+    path = tmp_path / "sparse.npy"
+    np.save(path, xyz)
+    out = tmp_path / "c.csv"
+    assert main(["compute", str(path), "--grid", "0.01", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    smallest = default_cell_size(xyz, target=4)
+    assert "\n" not in err and err.startswith("rough-viewer: error: --grid 0.01 m: no cell has a "
+                                              "value: the 2,500 points fall into 2,500 occupied")
+    assert f"the smallest grid at which the typical cell holds 4 points is about {smallest:g} m" \
+        in err
+    assert not out.exists()
+    assert main(["compute", str(path), "--grid", f"{smallest:g}", "--out", str(out),
+                 "--quiet"]) == 0
