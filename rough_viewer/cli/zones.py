@@ -154,10 +154,9 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.grid.outliers import analysed_values
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.table import cell_columns, table_metadata
-    from rough_viewer.grid.threshold import threshold_advice
+    from rough_viewer.grid.threshold import map_threshold_advice
     from rough_viewer.grid.zones import ZoneLabeller
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output, write_table
@@ -193,9 +192,8 @@ def run(args: argparse.Namespace) -> int:
                                           keep_outliers=args.keep_outliers)
             zones = labeller.zones(
                 args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
-            advice = threshold_advice(
-                analysed_values(result, args.method, keep_outliers=args.keep_outliers),
-                args.threshold)
+            advice = map_threshold_advice(result, args.method, args.threshold,
+                                          keep_outliers=args.keep_outliers)
             out = outputs["out"][g]
             write_table(out, zones.table())  # the ZONES.csv contract: metres
             names = [str(out)]

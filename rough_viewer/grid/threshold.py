@@ -12,7 +12,10 @@ Suggestion: **Otsu's method on the logarithm of the roughness** (Otsu 1979, IEEE
 Trans. Systems, Man and Cybernetics 9(1), 62-66): the split of the cells into two
 classes that maximises the between-class variance ``w0 w1 (mu0 - mu1)^2`` of
 ``log10 theta``, taken exactly over the sorted values (every distinct value a
-level, no histogram bins to choose). Why this rule:
+level, no histogram bins to choose), the values first clipped to their 2nd and 98th
+percentiles (the colour stretch's robust range) so that a few cells of near
+round-off roughness, decades below the rest in log, cannot make a class of their own
+(a lab mesh's flat facets did: a suggestion of 5e-6 mm). Why this rule:
 
 - roughness is a positive scale quantity spread over two to three decades and
   skewed (the colour maps use a log stretch for the same reason), so a split in
@@ -29,8 +32,10 @@ level, no histogram bins to choose). Why this rule:
 A knee of the histogram was the other candidate; it depends on the bin width and
 on the histogram's tail, which is exactly where the outliers were.
 
-Cells of roughness 0 (exact fits, :data:`rough_viewer.grid.roughness.EXACT_FIT`)
-have no logarithm and take no part in the split; they are below any threshold.
+Cells of roughness 0 to round-off (exact fits,
+:data:`rough_viewer.grid.roughness.EXACT_FIT`; 1e-17 m has a logarithm, and would
+be split off as a population of its own) take no part in the split; they are below
+any threshold.
 The suggestion is returned both as a roughness (metres) and on the normalised
 scale of the same map (its min-max over the cells given), so it can be used as the
 ``threshold`` of the binary transform and of the zones.
@@ -46,16 +51,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rough_viewer.vocabulary import DEFAULT_THRESHOLD, InputError, roughness_scale
+from rough_viewer.vocabulary import DEFAULT_THRESHOLD, InputError, MapName, roughness_scale
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
 
 #: A threshold flagging more than this share of the cells flags "most of the face".
 MOST_SHARE = 0.5
 #: Otsu separability at or above which the two classes are called distinct (a single
 #: normal population gives 2 / pi = 0.64 at its best split, a uniform one 0.75).
 CLEAR_SEPARATION = 0.8
+#: Percentiles of log10 theta the split's values are clipped to (robust to tails).
+CLIP_PERCENTILES = (2.0, 98.0)
 #: Name of the rule, as the text and the JSON give it.
 RULE = "Otsu's method on log10 roughness"
 
@@ -167,7 +178,23 @@ class ThresholdAdvice:
                 "separability": self.separability, "rule": self.rule}
 
 
-def threshold_advice(values: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> ThresholdAdvice:
+def map_threshold_advice(result: GridRoughness, name: MapName,
+                         threshold: float = DEFAULT_THRESHOLD, *,
+                         keep_outliers: bool = False) -> ThresholdAdvice:
+    """:func:`threshold_advice` of one map of a grid result, as the binary transform
+    and the zones see it: outliers left out unless ``keep_outliers``
+    (:func:`rough_viewer.grid.outliers.analysed_values`), exact fits
+    (:data:`~rough_viewer.grid.roughness.EXACT_FIT` times the cell size) out of the
+    split. What the command line, the report and the app's map and zones panels call."""
+    from rough_viewer.grid.outliers import analysed_values
+    from rough_viewer.grid.roughness import EXACT_FIT
+
+    return threshold_advice(analysed_values(result, name, keep_outliers=keep_outliers),
+                            threshold, exact_fit=EXACT_FIT * result.grid.cell_size)
+
+
+def threshold_advice(values: np.ndarray, threshold: float = DEFAULT_THRESHOLD, *,
+                     exact_fit: float | None = None) -> ThresholdAdvice:
     """The share of cells ``threshold`` flags on a map and the suggested threshold.
 
     Parameters
@@ -178,6 +205,10 @@ def threshold_advice(values: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -
         :func:`rough_viewer.grid.outliers.analysed_values`).
     threshold : float
         Threshold on min-max normalised roughness, in [0, 1].
+    exact_fit : float, optional
+        Values at or below it (cells that fit their plane exactly, roughness 0 to
+        round-off: 1e-17 m has a logarithm, but not one of rock) take no part in the
+        split; default 1e-9 times the largest value.
 
     Returns
     -------
@@ -193,8 +224,16 @@ def threshold_advice(values: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -
     span = hi - lo
     norm = (v - lo) / span if span > 0 else np.zeros_like(v)
     share = float(np.mean(norm >= threshold))
-    positive = v[v > 0]
-    split = otsu_split(np.log10(positive)) if positive.size else None
+    floor = 1e-9 * hi if exact_fit is None else float(exact_fit)
+    positive = v[v > max(floor, 0.0)]
+    split = None
+    if positive.size:
+        logs = np.log10(positive)
+        # the tails clipped to the 2nd and 98th percentiles (the colour stretch's robust
+        # range): a few cells of near-round-off roughness (mesh facets, repeated points)
+        # are decades away in log and would otherwise make a class of their own
+        low, high = np.percentile(logs, CLIP_PERCENTILES)
+        split = otsu_split(np.clip(logs, low, high))
     if split is None or span <= 0:
         return ThresholdAdvice(float(threshold), int(v.size), share, None, None, None, None)
     theta = 10.0 ** split.threshold

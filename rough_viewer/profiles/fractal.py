@@ -25,11 +25,11 @@ here):
   along x and 0.76 along y, i.e. D = 1.50 and 1.24) the extracted profiles are
   smoother than the grid below a few samples (the band averages neighbouring lattice
   columns and the resampling interpolates), which steepens the short windows: with
-  the paper's windows 7 of 44 extracted columns gave D < 1 (mean 1.08), with 3-30 %
-  2 of 44 (mean 1.15); on the grid's own rows and columns 3-30 % gives D = 1.54 and
-  1.24 (the paper's windows 1.59 and 1.22); and on exact fractional Brownian motion
-  (2048 samples) the log spacing keeps the bias (+0.01 to +0.03) and spread (0.05 to
-  0.09) of the paper's windows.
+  the paper's windows 7 of 44 extracted columns gave D < 1 (mean 1.09), with 3-30 %
+  2 of 44 (mean 1.15); on the grid's own 386 rows and 536 columns 3-30 % gives mean
+  D = 1.51 and 1.24 (the paper's windows 1.56 and 1.23); and on exact fractional
+  Brownian motion (2048 samples) the log spacing keeps the bias (+0.01 to +0.03) and
+  spread (0.05 to 0.09) of the paper's windows (``benchmarks/fault_dem_windows.py``).
 
 No value is clipped: heavily smoothed profiles can give ``H > 1`` and ``D < 1``, as in
 the paper's tables.

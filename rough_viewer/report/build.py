@@ -17,7 +17,7 @@ from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.outliers import analysed_values, outlier_text
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
-from rough_viewer.grid.roughness import GridRoughness, exact_fit_text, grid_roughness
+from rough_viewer.grid.roughness import EXACT_FIT, GridRoughness, exact_fit_text, grid_roughness
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
@@ -159,7 +159,8 @@ def _section(
         analysed[name] = analysed_values(result, name, keep_outliers=keep_outliers)
         normalised[name] = normalise(analysed[name])
         histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
-        advice[name] = threshold_advice(analysed[name], threshold)
+        advice[name] = threshold_advice(analysed[name], threshold,
+                                        exact_fit=EXACT_FIT * result.grid.cell_size)
     figure_errors: dict[str, str] = {}
     variograms = _figure(figure_errors, "variogram", g, lambda: {
         str(name): semivariogram(result.ijk, analysed[name], g) for name in MAPS})

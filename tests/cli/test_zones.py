@@ -189,7 +189,7 @@ def test_the_threshold_is_judged_and_the_data_suggest_one(tmp_path, face, capsys
     transform) and the data's own threshold with its share; a threshold flagging most
     of the face says so."""
     from rough_viewer.grid.summary import binary, normalise
-    from rough_viewer.grid.threshold import threshold_advice
+    from rough_viewer.grid.threshold import map_threshold_advice
     from rough_viewer.io import load_points
 
     ref = grid_roughness(load_points(face), 0.2)
@@ -199,7 +199,7 @@ def test_the_threshold_is_judged_and_the_data_suggest_one(tmp_path, face, capsys
         text = capsys.readouterr().out
         t = float(threshold)
         flagged = binary(normalise(ref.theta_odr), t).sum() / np.isfinite(ref.theta_odr).sum()
-        advice = threshold_advice(ref.theta_odr, t)
+        advice = map_threshold_advice(ref, "odr", t)
         assert advice.share == pytest.approx(flagged)
         assert f"threshold {t:g} flags {100 * flagged:.0f} % of the" in text
         assert f"the data suggest {advice.suggested:.3g}" in text

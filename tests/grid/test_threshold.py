@@ -86,3 +86,27 @@ def test_no_values_and_bad_threshold():
     assert one.suggested is None and "no suggestion" in one.text()
     with pytest.raises(InputError, match=r"threshold must lie in \[0, 1\]"):
         threshold_advice(np.ones(3), 1.5)
+
+
+def test_cells_that_fit_exactly_take_no_part_in_the_split():
+    """Round-off roughness (1e-17 m: repeated points, DEM lattices) has a logarithm but
+    is no rock: left in, Otsu splits those cells off as a population of their own (the
+    airborne LAZ: a suggestion of 1e-5 mm flagging 99 %)."""
+    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.grid.threshold import map_threshold_advice
+
+    rng = np.random.default_rng(4)
+    smooth = 0.001 * np.exp(0.2 * rng.standard_normal(8000))
+    rough = 0.02 * np.exp(0.2 * rng.standard_normal(2000))
+    exact = 1e-17 * rng.uniform(1, 5, 1500)
+    with_exact = threshold_advice(np.r_[smooth, rough, exact], 0.05, exact_fit=1e-9)
+    assert smooth.max() < with_exact.suggested_theta < rough.min()
+    naive = threshold_advice(np.r_[smooth, rough, exact], 0.05, exact_fit=0.0)
+    assert naive.suggested_theta < 1e-9  # what the exact fits did to the split
+    # a grid result: repeated points make exact fits; the map's advice leaves them out
+    xy = rng.uniform(0, 4, (3000, 2))
+    pts = np.column_stack([xy, 0.002 * rng.standard_normal(3000)])
+    pts = np.vstack([pts, np.repeat(pts[:3] + [[0.1, 0.1, 0]], 3, axis=0)])
+    res = grid_roughness(pts, 1.0, min_points=4)
+    advice = map_threshold_advice(res, "odr", 0.05)
+    assert advice.suggested_theta is None or advice.suggested_theta > 1e-6
