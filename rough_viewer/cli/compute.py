@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compute",
         help="per-cell roughness of a cloud to CSV (and a JSON summary)",
-        description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
+        description="Compute ODR, OLS and hybrid grid roughness (docs/science.md section 1) "
         "and write one CSV row per cell.",
     )
     add_inputs(p)

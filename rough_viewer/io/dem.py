@@ -139,18 +139,16 @@ def esri_affine(head: dict[str, float], p: Path) -> np.ndarray:
     if dx is None or dy is None or not (dx > 0 and dy > 0):
         raise InputError(f"{p}: the header needs a positive cellsize (or dx and dy)")
     rows = int(head["nrows"])
-    if "xllcorner" in head:
-        x0 = head["xllcorner"] + 0.5 * dx
-    elif "xllcenter" in head:
-        x0 = head["xllcenter"]
-    else:
-        raise InputError(f"{p}: the header needs xllcorner or xllcenter")
-    if "yllcorner" in head:
-        y_bottom = head["yllcorner"] + 0.5 * dy
-    elif "yllcenter" in head:
-        y_bottom = head["yllcenter"]
-    else:
-        raise InputError(f"{p}: the header needs yllcorner or yllcenter")
+
+    def first_centre(axis: str, step: float) -> float:
+        """The lower-left cell centre along ``axis``: from its corner or its centre."""
+        if f"{axis}llcorner" in head:
+            return head[f"{axis}llcorner"] + 0.5 * step
+        if f"{axis}llcenter" in head:
+            return head[f"{axis}llcenter"]
+        raise InputError(f"{p}: the header needs {axis}llcorner or {axis}llcenter")
+
+    x0, y_bottom = first_centre("x", dx), first_centre("y", dy)
     # row 0 is the top: its centre is (rows - 1) cells above the bottom row's
     return np.array([[dx, 0.0, x0], [0.0, -dy, y_bottom + (rows - 1) * dy]])
 
