@@ -241,13 +241,10 @@ class GridRoughness:
 
     def cell_report(self, name: MapName) -> dict[str, int]:
         """Counts of cells: occupied, below ``min_points``, degenerate, with a value,
-        ``exact_fit``: cells with a value below :data:`EXACT_FIT` times the cell
-        size (points on one plane to round-off; 0 for ``e_ols``, a difference), and
-        ``outliers``: cells with a value larger than the cell
-        (:func:`rough_viewer.grid.outliers.outlier_mask`; counted among those with a
-        value, which keep it)."""
-        from rough_viewer.grid.outliers import outlier_mask
-
+        and ``exact_fit``: cells with a value below :data:`EXACT_FIT` times the cell
+        size (points on one plane to round-off; 0 for ``e_ols``, a difference). Cells
+        larger than the cell are counted by
+        :func:`rough_viewer.grid.outliers.outlier_mask`."""
         v = self.values(name)
         below = int(np.count_nonzero(self.n_points < self.min_points))
         finite = np.isfinite(v)
@@ -260,7 +257,6 @@ class GridRoughness:
             "degenerate": self.n_cells - below - valued,
             "with_value": valued,
             "exact_fit": exact,
-            "outliers": int(np.count_nonzero(outlier_mask(self, name))),
         }
 
 

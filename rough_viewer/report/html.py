@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from rough_viewer.grid.maps import face_frame
+from rough_viewer.grid.outliers import outlier_mask
 from rough_viewer.report.build import (
     FACE_MAP_ORDER,
     VARIOGRAM_FIGURE_MAPS,
@@ -199,7 +200,7 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
         return parts + [f'<p class="error">{esc(s.error)}</p></section>']
     cells = s.result.cell_report("odr") if s.result is not None else {}
     if cells:
-        outliers = s.result.cell_report("hybrid")["outliers"] if s.result is not None else 0
+        outliers = int(outlier_mask(s.result, "hybrid").sum()) if s.result is not None else 0
         parts.append(
             f'<p class="note">{cells["occupied"]:,} occupied cells, '
             f'{cells["with_value"]:,} with an ODR value, '

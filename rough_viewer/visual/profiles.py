@@ -145,7 +145,7 @@ def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None
     fig.update_xaxes(title_text=f"window w ({lu})", type="log", row=2, col=1)
     fig.update_yaxes(title_text=f"s(w) ({hu})", type="log", row=2, col=1)
     fig.update_layout(height=620, margin={"l": 60, "r": 10, "t": 30, "b": 40},
-                      legend={"orientation": "h", "x": 0.0, "y": -0.1, "yanchor": "top",
+                      legend={"orientation": "h", "x": 0.0, "y": -0.13, "yanchor": "top",
                               "font": {"size": 10}},
                       showlegend=bool(analyses))
     return fig

@@ -189,7 +189,7 @@ def test_degenerate_cells_get_no_value():
     assert np.isfinite(res.theta_odr[by[(2, 0, 0)]])
     rep = res.cell_report("odr")
     assert rep == {"occupied": 3, "below_min_points": 0, "degenerate": 2, "with_value": 1,
-                   "exact_fit": 0, "outliers": 0}
+                   "exact_fit": 0}
 
 
 def test_repeated_points_fit_exactly_and_are_counted():
