@@ -89,7 +89,7 @@ out without a flag). Grid roughness keeps SCIENCE.md's absolute distances."""
 RESIDUAL_NAMES: dict[str, str] = {
     "signed": "std of signed orthogonal distances (the bias paper's definition)",
     "absolute": "std of absolute orthogonal distances (the grid-roughness convention, "
-                "SCIENCE.md section 1)",
+                "docs/science.md section 1)",
 }
 """How each residual convention is named in output (text and JSON)."""
 #: Trials a scanner-bias prediction averages unless told (``bias predict --trials``

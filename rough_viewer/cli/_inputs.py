@@ -21,7 +21,7 @@ from pathlib import Path
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.vocabulary import InputError
 
-FORMATS = ".las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl"
+FORMATS = ".las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl, DEMs .asc .tif"
 _GLOB_CHARS = "*?["
 
 

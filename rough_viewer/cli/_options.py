@@ -110,6 +110,17 @@ def add_axis(p: argparse.ArgumentParser, *, help: str | None = None) -> None:
                    "the whole cloud's normal)")
 
 
+def add_keep_outliers(p: argparse.ArgumentParser) -> None:
+    """``--keep-outliers``: keep cells whose OLS or hybrid roughness is larger than the
+    cell in Table 1, the normalisation, histograms, semivariograms and zones
+    (:mod:`rough_viewer.grid.outliers`; left out by default)."""
+    p.add_argument("--keep-outliers", action="store_true",
+                   help="keep cells whose OLS or hybrid roughness is larger than the cell "
+                   "(outliers of the definition: a plane nearly parallel to the dependent "
+                   "axis) in Table 1, normalisation, histograms, semivariograms and zones; "
+                   "by default they are left out and counted (docs/science.md)")
+
+
 def add_units(p: argparse.ArgumentParser) -> None:
     """``--units m|mm|ft|us-ft``: the unit of the input's coordinates and of every
     length given or shown (grid sizes, origins, points, roughness)."""

@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
+from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.summary import summaries
 from rough_viewer.vocabulary import MAP_LABELS, UNIT_LABELS, UNIT_METRES
@@ -17,8 +16,10 @@ def _num(v: float, fmt: str) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
 
 
-def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") -> str:
-    """Readable Table-1 style summary of all maps of one grid size, lengths in ``unit``."""
+def format_table(result: GridRoughness, *, source: str = "", unit: str = "m",
+                 keep_outliers: bool = False) -> str:
+    """Readable Table-1 style summary of all maps of one grid size, lengths in ``unit``;
+    cells larger than the cell left out unless ``keep_outliers`` (and said so)."""
     per, u = UNIT_METRES[unit], UNIT_LABELS[unit]
     g = result.grid.cell_size / per
     axis = result.axis + (" (auto)" if result.axis_requested == "auto" else "")
@@ -35,19 +36,18 @@ def format_table(result: GridRoughness, *, source: str = "", unit: str = "m") ->
     if rep["exact_fit"]:
         lines.append(f"note: {exact_fit_text(rep['exact_fit'], rep['with_value'])}. "
                      "Remove duplicate points or raise --min-points")
-    if "hybrid" in result.models:
-        steep = int(np.count_nonzero(result.theta_hybrid > result.grid.cell_size))
-        if steep:
-            lines.append(
-                f"note: {steep:,} cells have a hybrid roughness larger than the cell itself: "
-                f"their ODR plane is nearly parallel to the dependent axis {result.axis}, and "
-                "hybrid measures along that axis (steep faces: read ODR there)")
+    for name in ("ols", "hybrid"):
+        text = outlier_text(result, name, unit=unit, kept=keep_outliers) \
+            if name in result.models else None
+        if text:
+            lines.append(f"note: {text}" + ("" if keep_outliers else
+                         " (--keep-outliers keeps them; CELLS.csv marks them in 'outlier')"))
     lines.append("")
     cols = ("model", "cells", "mean pts", f"min ({u})", f"max ({u})", f"mean ({u})",
             f"variance ({u}2)", f"std ({u})")
     widths = (7, 9, 9, 11, 11, 11, 13, 11)
     lines.append("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(cols, widths, strict=True))))
-    for name, s in summaries(result).items():
+    for name, s in summaries(result, keep_outliers=keep_outliers).items():
         if name != "e_ols" and name not in result.models:
             continue
         if name == "e_ols" and not ("odr" in result.models and "ols" in result.models):

@@ -7,7 +7,7 @@ Contract (other tools script against it)::
         [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
         [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
-        [--units m|mm|ft|us-ft] [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
@@ -41,6 +41,7 @@ import numpy as np
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
     add_axis,
+    add_keep_outliers,
     add_units,
     at_grid,
     grid_sizes,
@@ -68,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compute",
         help="per-cell roughness of a cloud to CSV (and a JSON summary)",
-        description="Compute ODR, OLS and hybrid grid roughness (SCIENCE.md section 1) "
+        description="Compute ODR, OLS and hybrid grid roughness (docs/science.md section 1) "
         "and write one CSV row per cell.",
     )
     add_inputs(p)
@@ -93,6 +94,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="every point with its cell's roughness as PLY scalar properties")
     add_scale_options(p)
     add_scanner_options(p)
+    add_keep_outliers(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -100,15 +102,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
-                 warnings: tuple[str, ...] = ()) -> dict:
-    """The SUMMARY.json content for one grid size, lengths in ``unit``."""
+                 warnings: tuple[str, ...] = (), *, keep_outliers: bool = False) -> dict:
+    """The SUMMARY.json content for one grid size, lengths in ``unit``; Table 1
+    without the outlier cells unless ``keep_outliers`` (each map's ``outliers`` says
+    how many were left out)."""
     from rough_viewer.grid.summary import summarise
     from rough_viewer.vocabulary import MAPS, UNIT_METRES
 
     per = UNIT_METRES[unit]
     out: dict = {}
     for name in MAPS:
-        d = summarise(result, name).as_dict()
+        d = summarise(result, name, keep_outliers=keep_outliers).as_dict()
         for k in ("min", "max", "mean", "std"):
             d[k] = d[k] / per
         d["variance"] = d["variance"] / per**2
@@ -126,6 +130,7 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
             "min_points": result.min_points,
             "residual": result.residual,
             "models": list(result.models),
+            "keep_outliers": keep_outliers,
             "cells": result.cell_report("odr"),
             "input": cloud_source,
         }
@@ -190,15 +195,42 @@ def run(args: argparse.Namespace) -> int:
         for i, g in enumerate(grids):
             with at_grid(g, unit):
                 result = next(results_iter)
+                check_has_values(result, unit, cloud)
             if i:
                 print()
-            print(format_table(result, source=source, unit=unit))
+            print(format_table(result, source=source, unit=unit,
+                               keep_outliers=args.keep_outliers))
             cells = _trust(cloud, result, trust, quiet, unit)
             written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit,
                                       cells)
     for line in written:
         print(line)
     return 0
+
+
+def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None) -> None:
+    """Refuse a grid on which no cell has a value (every cell below ``min_points``, or
+    degenerate): its outputs would be empty. The message says how many points the
+    cells hold and, when the points are in memory, the smallest grid at which the
+    typical occupied cell has enough of them."""
+    from rough_viewer.grid.spacing import default_cell_size
+
+    if any(np.isfinite(result.values(m)).any() for m in result.models):
+        return
+    per, u = per_unit(unit), UNIT_LABELS[unit]
+    most = int(result.n_points.max()) if result.n_cells else 0
+    text = (f"no cell has a value: the {result.n_points_total:,} points fall into "
+            f"{result.n_cells:,} occupied cells, at most {most:,} in one, and a cell needs "
+            f"{result.min_points} points with a unique plane (--min-points)")
+    if cloud is not None:
+        smallest = default_cell_size(cloud, target=result.min_points)
+        suggested = default_cell_size(cloud)
+        text += (f"; the smallest grid at which the typical cell holds {result.min_points} "
+                 f"points is about {smallest / per:g} {u} (the point spacing suggests "
+                 f"{suggested / per:g} {u}: 16 points per cell)")
+    else:
+        text += "; use a larger --grid"
+    raise InputError(text)
 
 
 def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
@@ -263,7 +295,8 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
         data = summary_dict(result, source, dropped, unit,
-                            cloud.warnings if cloud is not None else ())
+                            cloud.warnings if cloud is not None else (),
+                            keep_outliers=args.keep_outliers)
 
         def dump(fh, d: dict = data) -> None:
             json.dump(d, fh, indent=2)

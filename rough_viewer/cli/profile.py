@@ -3,12 +3,17 @@
 Contract::
 
     rough-viewer profile INPUT --from X,Y,Z --to X,Y,Z [--band M] [--spacing M]
-        [--max-gap M] [--wavelet db3] [--level 3] [--json] [--csv OUT.csv] [--force]
+        [--max-gap M] [--windows W1,W2,...|default|paper] [--wavelet db3] [--level 3]
+        [--json] [--csv OUT.csv] [--force]
     rough-viewer profile PROFILE.txt [--profile-file] [--profile-units m|mm] ...
 
 INPUT is a point cloud (any format ``load_points`` reads) and the profile is
 extracted between the two points; or a two-column text file (distance, height), used
 as it is (``--profile-file``, or detected when a text file has exactly two columns).
+
+``--windows`` sets the roughness-length windows: lengths in the input's unit, or
+``default`` (8 evenly in log from 3 % to 30 % of the profile) or ``paper`` (the
+paper's 8 from 3 % to 10 %); docs/profiles.md says why the default is wider.
 
 Prints the noise sigma, the thresholds and the fractal dimension D of the raw profile
 and of every decomposition x threshold x mode (the layout of Khoshelham & Altundag's
@@ -48,7 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Extract a roughness profile between two points of a cloud (or read "
         "a distance,height profile file), de-noise it with wavelets (DWT and wavelet "
         "packets; fixed and penalized thresholds; hard and soft) and report the fractal "
-        "dimension of each version by the roughness-length method (SCIENCE.md section 2).",
+        "dimension of each version by the roughness-length method (docs/science.md, "
+        "profiles).",
     )
     p.add_argument("input", help="point cloud (.las .laz .xyz .txt .csv .pts .npy .ply .stl) "
                    "or a two-column profile file (distance height)")
@@ -66,6 +72,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--detrend", type=int, metavar="DEGREE",
                    help="remove a least-squares polynomial trend of this degree from the "
                    "profile first (2 removes a curvature that makes D < 1)")
+    p.add_argument("--windows", metavar="W1,W2,...", default=None,
+                   help="roughness-length window lengths in --units, separated by commas, or "
+                   "'default' (8 evenly in log from 3 %% to 30 %% of the profile) or 'paper' "
+                   "(8 from 3 %% to 10 %%, as Khoshelham & Altundag)")
     p.add_argument("--wavelet", default="db3", help="PyWavelets discrete wavelet (default db3)")
     p.add_argument("--level", type=int, default=3, help="decomposition levels (default 3)")
     p.add_argument("--profile-file", action="store_true",
@@ -225,8 +235,9 @@ def format_tables(info: dict, comparison) -> str:
         f"wavelet {comparison.wavelet}, {comparison.level} levels; noise sigma (MAD of level-1 "
         f"details) {comparison.sigma * mm:.4f} {uf}"
     )
+    wf, wu = (mm, uf) if w[-1] * mm < 1000 else (big, ub)
     lines.append(
-        f"roughness length: {w.size} windows {w[0] * mm:.1f}-{w[-1] * mm:.1f} {uf}; D = 2 - H"
+        f"roughness length: {w.size} windows {w[0] * wf:.4g}-{w[-1] * wf:.4g} {wu}; D = 2 - H"
     )
     lines.append("")
     head = f"{'':34s}{'DWT (Table 1)':>22s}{'Wavelet packets (Table 2)':>28s}"
@@ -296,6 +307,10 @@ def _check_options(args: argparse.Namespace) -> None:
         raise InputError(f"--wavelet {args.wavelet!r} is not a discrete PyWavelets wavelet (e.g. db3, sym4, haar)")
     if args.level < 1:
         raise InputError(f"--level must be at least 1, got {args.level}")
+    if args.windows is not None:
+        from rough_viewer.profiles.fractal import parse_windows
+
+        parse_windows(args.windows)  # the form, before any reading; the unit comes later
     if args.detrend is not None and not 0 <= args.detrend <= 5:
         raise InputError(f"--detrend must be a degree from 0 to 5, got {args.detrend}")
 
@@ -370,6 +385,8 @@ def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
 
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.profiles.comparison import compare_denoising
+    from rough_viewer.profiles.fractal import parse_windows
+    from rough_viewer.vocabulary import UNIT_METRES
 
     path = Path(args.input)
     _check_options(args)
@@ -390,8 +407,11 @@ def run(args: argparse.Namespace) -> int:
 
         with naming(path):
             heights = detrend(heights, step, degree=args.detrend)
+    windows = None if args.windows is None else parse_windows(
+        args.windows, UNIT_METRES[info["unit"]])
     with naming(f"{path}: {distance.size} samples"):
-        comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level)
+        comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level,
+                                       windows=windows)
     # every fit's dimension is checked: the raw profile's and each de-noised variant's
     info["warnings"] = [f"{path}: {w}" for w in comparison.warnings]
     warn(info["warnings"])

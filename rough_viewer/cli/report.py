@@ -4,7 +4,7 @@ Contract::
 
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--units m|mm|ft|us-ft] [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
@@ -25,7 +25,14 @@ import sys
 from pathlib import Path
 
 from rough_viewer.cli._inputs import add_inputs
-from rough_viewer.cli._options import add_axis, add_units, grid_sizes, per_unit, warn
+from rough_viewer.cli._options import (
+    add_axis,
+    add_keep_outliers,
+    add_units,
+    grid_sizes,
+    per_unit,
+    warn,
+)
 from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
@@ -54,6 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="html: the full report (default); json: the numbers alone")
     p.add_argument("--png", metavar="DIR",
                    help="also write every figure as PNG into DIR (needs kaleido)")
+    add_keep_outliers(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -97,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
     given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None
     settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
                               axis=args.axis, threshold=args.threshold,
-                              trust=trust_settings(args, unit_in))
+                              trust=trust_settings(args, unit_in),
+                              keep_outliers=args.keep_outliers)
     try:
         settings.check()
     except InputError as exc:  # name the option as the user typed it

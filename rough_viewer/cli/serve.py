@@ -193,8 +193,9 @@ def run(args: argparse.Namespace) -> int:
                                     model=args.model, axis=args.axis,
                                     min_points=args.min_points)
             check_settings(settings)
-    for warning in cloud.warnings:
-        print(f"rough-viewer: warning: {warning}", file=sys.stderr)
+    if not args.inputs and opened is None:  # files: load_inputs said them already, once
+        for warning in cloud.warnings:
+            print(f"rough-viewer: warning: {warning}", file=sys.stderr)
 
     from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app

@@ -5,7 +5,7 @@ Contract (other tools script against it)::
     rough-viewer zones INPUT [INPUT ...] --grid G [--grid G2 ...] [--method odr|ols|hybrid]
         [--axis auto|x|y|z] [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
         [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--units m|mm|ft|us-ft]
-        [--force] [--quiet]
+        [--keep-outliers] [--force] [--quiet]
 
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
 :data:`rough_viewer.grid.zones.ZONE_COLUMNS`, always in metres whatever ``--units``
@@ -18,7 +18,13 @@ writes its cell table. Both go through :func:`rough_viewer.io.table.write_table`
 quoted globs) are one merged cloud.
 
 ``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
-input's coordinates, of ``--grid`` and of the summary printed. With several
+input's coordinates, of ``--grid`` and of the summary printed (which names the
+metres ZONES.csv holds beside it). The summary also says what share of the cells
+the threshold flags and gives the data's own threshold
+(:func:`rough_viewer.grid.threshold.threshold_advice`: Otsu's method on log
+roughness), with a warning when the threshold flags most of the face. Cells whose
+roughness is larger than the cell (outliers of the definition) take no part unless
+``--keep-outliers``. With several
 ``--grid`` values every output name gets ``_g<G>`` before its extension, as in
 ``compute`` (``zones.csv`` -> ``zones_g0.5.csv``). The outputs appear only when the
 whole run succeeds (:func:`rough_viewer.io.output.all_or_nothing`).
@@ -34,6 +40,7 @@ import numpy as np
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
     add_axis,
+    add_keep_outliers,
     add_units,
     at_grid,
     grid_sizes,
@@ -86,21 +93,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cells-out", metavar="CELLS.csv",
                    help="per-cell CSV output: compute's columns plus zone, lengths in --units "
                    "as compute writes them")
+    add_keep_outliers(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
     p.set_defaults(func=run)
 
 
-def format_zones(zones, result, *, source: str, unit: str = "m") -> str:
+def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
+                 keep_outliers: bool = False) -> str:
     """Readable summary of the zones (the first :data:`SHOWN`) for the terminal,
-    lengths in ``unit`` (areas in its square)."""
+    lengths in ``unit`` (areas in its square; the metres of ZONES.csv named beside
+    them), with the threshold ``advice``
+    (:class:`rough_viewer.grid.threshold.ThresholdAdvice`) where given."""
     from rough_viewer.grid.orientation import dip_and_direction
+    from rough_viewer.grid.outliers import analysed_values, outlier_text
 
     per, u = per_unit(unit), UNIT_LABELS[unit]
     dip, dd = dip_and_direction(result.whole_plane.normal[None])
-    valued = int(np.count_nonzero(np.isfinite(result.values(zones.map_name))))
+    valued = int(np.count_nonzero(np.isfinite(
+        analysed_values(result, zones.map_name, keep_outliers=keep_outliers))))
     in_zones = int(zones.cells.sum())
+    area_m2 = float(zones.area_m2.sum())
+    in_csv = "" if unit == "m" else f" (ZONES.csv: {area_m2:.4g} m2; it is always in metres)"
     lines = [
         f"{source}: {result.n_points_total:,} points, grid {zones.cell_size / per:g} {u}, "
         f"{MAP_LABELS[zones.map_name]} roughness, threshold {zones.threshold:g}, "
@@ -108,8 +123,13 @@ def format_zones(zones, result, *, source: str, unit: str = "m") -> str:
         f"face (whole-cloud ODR plane): dip {dip[0]:.1f}, dip direction {dd[0]:.1f} deg",
         f"{zones.n_zones:,} zone{'s' if zones.n_zones != 1 else ''}, {in_zones:,} cells "
         f"({100.0 * in_zones / max(valued, 1):.1f} % of {valued:,} cells with a value), "
-        f"{float(zones.area_m2.sum()) / per**2:.4g} {u}2 of face",
+        f"{area_m2 / per**2:.4g} {u}2 of face{in_csv}",
     ]
+    if advice is not None:
+        lines.insert(2, ("warning: " if advice.most else "") + advice.text(unit))
+    text = outlier_text(result, zones.map_name, unit=unit, kept=keep_outliers)
+    if text:
+        lines.insert(2, f"note: {text}")
     if zones.n_zones:
         lines.append("")
         lines.append(f"{'zone':>5} {'cells':>7} {'points':>9} {'area ' + u + '2':>9} "
@@ -125,6 +145,9 @@ def format_zones(zones, result, *, source: str, unit: str = "m") -> str:
                 f"{zones.mean_theta[k] / per:13.4e}")
         if zones.n_zones > SHOWN:
             lines.append(f"  ... {zones.n_zones - SHOWN:,} more in the CSV")
+        if unit != "m":
+            lines.append(f"  (lengths in {u} here; ZONES.csv holds area_m2, length_m, width_m, "
+                         "mean_theta, max_theta and cx, cy, cz in metres)")
     return "\n".join(lines)
 
 
@@ -133,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.table import cell_columns, table_metadata
+    from rough_viewer.grid.threshold import map_threshold_advice
     from rough_viewer.grid.zones import ZoneLabeller
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output, write_table
@@ -164,8 +188,12 @@ def run(args: argparse.Namespace) -> int:
                 result = grid_roughness(
                     cloud, g * per, axis=args.axis,
                     progress=None if quiet else ProgressBar(f"grid {g:g} {u}"), **options)
-            zones = ZoneLabeller.build(result, args.method).zones(
+            labeller = ZoneLabeller.build(result, args.method,
+                                          keep_outliers=args.keep_outliers)
+            zones = labeller.zones(
                 args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
+            advice = map_threshold_advice(result, args.method, args.threshold,
+                                          keep_outliers=args.keep_outliers)
             out = outputs["out"][g]
             write_table(out, zones.table())  # the ZONES.csv contract: metres
             names = [str(out)]
@@ -178,7 +206,8 @@ def run(args: argparse.Namespace) -> int:
                 names.append(str(cells_out))
             if i:
                 print()
-            print(format_zones(zones, result, source=source, unit=unit))
+            print(format_zones(zones, result, source=source, unit=unit, advice=advice,
+                               keep_outliers=args.keep_outliers))
             written.append("wrote " + " and ".join(names))
     for line in written:
         print(line)

@@ -242,7 +242,9 @@ class GridRoughness:
     def cell_report(self, name: MapName) -> dict[str, int]:
         """Counts of cells: occupied, below ``min_points``, degenerate, with a value,
         and ``exact_fit``: cells with a value below :data:`EXACT_FIT` times the cell
-        size (points on one plane to round-off; 0 for ``e_ols``, a difference)."""
+        size (points on one plane to round-off; 0 for ``e_ols``, a difference). Cells
+        larger than the cell are counted by
+        :func:`rough_viewer.grid.outliers.outlier_mask`."""
         v = self.values(name)
         below = int(np.count_nonzero(self.n_points < self.min_points))
         finite = np.isfinite(v)

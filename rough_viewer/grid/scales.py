@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rough_viewer.grid.cells import CellIndex, cell_moments
+from rough_viewer.grid.outliers import analysed_values
 from rough_viewer.grid.roughness import GridRoughness, PreparedGrid, grid_roughness, map_values
 from rough_viewer.grid.summary import Summary, binary, normalise, summarise
 from rough_viewer.io.cloud import PointCloud, as_columns
@@ -261,7 +262,8 @@ class FaceScales:
 
 
 def face_scales(
-    results: Sequence[GridRoughness], *, threshold: float = DEFAULT_THRESHOLD
+    results: Sequence[GridRoughness], *, threshold: float = DEFAULT_THRESHOLD,
+    keep_outliers: bool = False,
 ) -> FaceScales:
     """Table-1 statistics and binary rough-cell shares of every map against grid size.
 
@@ -271,6 +273,9 @@ def face_scales(
         The same cloud on several grid sizes (one axis, one ``min_points``); any order.
     threshold : float
         Binary threshold on min-max normalised roughness (paper: 0.05).
+    keep_outliers : bool
+        Keep cells larger than the cell (:mod:`rough_viewer.grid.outliers`) in the
+        statistics and the normalisation; default: left out.
 
     Returns
     -------
@@ -282,13 +287,14 @@ def face_scales(
     shares: dict[str, list[float]] = {name: [] for name in MAPS}
     for r in ordered:
         for name in MAPS:
-            v = r.values(name)
+            v = analysed_values(r, name, keep_outliers=keep_outliers)
             ok = np.isfinite(v)
             rough = binary(normalise(v), threshold)
             shares[name].append(float(rough.sum()) / ok.sum() if ok.any() else float("nan"))
     return FaceScales(
         cell_sizes=np.array([r.grid.cell_size for r in ordered]),
-        summaries=tuple({name: summarise(r, name) for name in MAPS} for r in ordered),
+        summaries=tuple({name: summarise(r, name, keep_outliers=keep_outliers) for name in MAPS}
+                        for r in ordered),
         rough_share={name: np.array(v) for name, v in shares.items()},
         threshold=float(threshold),
         axis=ordered[0].axis,

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rough_viewer.grid.outliers import analysed_values
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.vocabulary import DEFAULT_THRESHOLD, HISTOGRAM_BIN, MAPS, InputError, MapName
 
@@ -36,6 +37,9 @@ class Summary:
     """Population variance (divide by the number of cells), square metres."""
     std: float
     """Population standard deviation, metres."""
+    outliers: int = 0
+    """Cells with a value left out as outliers of the definition (larger than the
+    cell, :mod:`rough_viewer.grid.outliers`); 0 when they were kept."""
 
     def as_dict(self) -> dict[str, float | int]:
         """Plain dict, for JSON."""
@@ -47,16 +51,21 @@ class Summary:
             "mean": self.mean,
             "variance": self.variance,
             "std": self.std,
+            "outliers": self.outliers,
         }
 
 
-def summarise(result: GridRoughness, name: MapName) -> Summary:
-    """Table-1 summary of one map of ``result`` (NaN statistics when no cell has a value)."""
-    v = result.values(name)
+def summarise(result: GridRoughness, name: MapName, *, keep_outliers: bool = False) -> Summary:
+    """Table-1 summary of one map of ``result`` (NaN statistics when no cell has a
+    value); cells larger than the cell are left out unless ``keep_outliers``
+    (:func:`rough_viewer.grid.outliers.analysed_values`) and counted in
+    ``Summary.outliers``."""
+    v = analysed_values(result, name, keep_outliers=keep_outliers)
     ok = np.isfinite(v)
+    left_out = int(np.count_nonzero(np.isfinite(result.values(name)))) - int(ok.sum())
     vals = v[ok]
     if vals.size == 0:
-        return Summary(0, float("nan"), *(float("nan"),) * 5)
+        return Summary(0, float("nan"), *(float("nan"),) * 5, outliers=left_out)
     mean = float(vals.mean())
     var = float(np.mean((vals - mean) ** 2))
     return Summary(
@@ -67,6 +76,7 @@ def summarise(result: GridRoughness, name: MapName) -> Summary:
         mean=mean,
         variance=var,
         std=float(np.sqrt(var)),
+        outliers=left_out,
     )
 
 
@@ -128,6 +138,7 @@ def histogram(normalised: np.ndarray, bin_width: float = HISTOGRAM_BIN) -> Histo
     return Histogram(edges=edges, counts=counts, fractions=fractions)
 
 
-def summaries(result: GridRoughness) -> dict[MapName, Summary]:
-    """Table-1 summary of every map (odr, ols, hybrid, e_ols) of a result."""
-    return {name: summarise(result, name) for name in MAPS}
+def summaries(result: GridRoughness, *, keep_outliers: bool = False) -> dict[MapName, Summary]:
+    """Table-1 summary of every map (odr, ols, hybrid, e_ols) of a result (outliers
+    left out unless ``keep_outliers``, as :func:`summarise`)."""
+    return {name: summarise(result, name, keep_outliers=keep_outliers) for name in MAPS}

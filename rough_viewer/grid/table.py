@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
+from rough_viewer.grid.outliers import outlier_flags
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.vocabulary import TRUST_FIELDS, UNIT_METRES, InputError
@@ -27,7 +28,7 @@ TRUST_INTEGERS: tuple[str, ...] = ("scans", "trusted")
 CELL_COLUMNS: tuple[str, ...] = (
     "ix", "iy", "iz", "cx", "cy", "cz", "n_points",
     "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
-    "normal_x", "normal_y", "normal_z",
+    "normal_x", "normal_y", "normal_z", "outlier",
     *TRUST_COLUMNS,
 )
 
@@ -48,10 +49,13 @@ def cell_columns(result: GridRoughness, *, unit: str = "m",
 
     Columns :data:`CELL_COLUMNS`: cell index (``ix, iy, iz``), cell centre (``cx, cy,
     cz``), points in the cell, the roughness of each model and ``e_ols`` (NaN where
-    the cell has no value), the cell's ODR unit normal, and the scanner columns
-    :data:`TRUST_COLUMNS` from ``trust`` (per-cell arrays aligned with the result's
-    cells, lengths in metres: :meth:`rough_viewer.bias.trust.CellTrust.columns`),
-    all empty without it. Lengths in ``unit`` (default metres;
+    the cell has no value), the cell's ODR unit normal, ``outlier``: 0, or the sum of
+    1 (OLS) and 2 (hybrid) for the models whose roughness is larger than the cell
+    (:func:`rough_viewer.grid.outliers.outlier_flags`; the values stay in their
+    columns), and the scanner columns :data:`TRUST_COLUMNS` from ``trust`` (per-cell
+    arrays aligned with the result's cells, lengths in metres:
+    :meth:`rough_viewer.bias.trust.CellTrust.columns`), all empty without it. Lengths
+    in ``unit`` (default metres;
     ``rough_viewer.vocabulary.UNITS``).
     """
     keep = result.n_points >= result.min_points
@@ -93,6 +97,7 @@ def _roughness_columns(result: GridRoughness, keep: np.ndarray,
         "theta_hybrid": length(result.theta_hybrid), "e_ols": length(result.e_ols),
         "normal_x": result.normal[keep, 0], "normal_y": result.normal[keep, 1],
         "normal_z": result.normal[keep, 2],
+        "outlier": outlier_flags(result)[keep],
     }
 
 

@@ -61,6 +61,7 @@ from rough_viewer.grid.orientation import (
     orient_normals,
     trend_and_plunge,
 )
+from rough_viewer.grid.outliers import analysed_values
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.summary import normalise
 from rough_viewer.memory import require
@@ -194,15 +195,18 @@ class ZoneLabeller:
     """Face pixels covered by every cell: the zones' areas."""
 
     @classmethod
-    def build(cls, result: GridRoughness, map_name: MapName = "odr") -> ZoneLabeller:
-        """Prepare zone labelling of ``result``'s map ``map_name``.
+    def build(cls, result: GridRoughness, map_name: MapName = "odr", *,
+              keep_outliers: bool = False) -> ZoneLabeller:
+        """Prepare zone labelling of ``result``'s map ``map_name``. Cells larger than
+        the cell (:mod:`rough_viewer.grid.outliers`) take no part, as if they had no
+        value, unless ``keep_outliers``: they would set the normalisation's maximum.
 
         Cost: one sort-or-look-up per neighbour offset (13) over the cells with a
         value, and one clipping of every cell's plane; memory about 100 bytes per cell.
         """
         if map_name not in MAPS:
             raise InputError(f"unknown map {map_name!r}; expected one of {', '.join(MAPS)}")
-        values = result.values(map_name)
+        values = analysed_values(result, map_name, keep_outliers=keep_outliers)
         rows = np.flatnonzero(np.isfinite(values) & np.all(np.isfinite(result.normal), axis=1))
         v = int(rows.shape[0])
         # pairs (<= 13 per cell, two int64 ends), per-offset temporaries, the dense
@@ -365,10 +369,11 @@ def find_zones(
     map_name: MapName = "odr",
     connectivity: Connectivity = "vertex",
     min_cells: int = DEFAULT_MIN_CELLS,
+    keep_outliers: bool = False,
 ) -> Zones:
     """The zones of ``result``'s map at ``threshold`` (builds a :class:`ZoneLabeller`;
-    keep one instead to re-label at other thresholds)."""
-    return ZoneLabeller.build(result, map_name).zones(
+    keep one instead to re-label at other thresholds; outliers as there)."""
+    return ZoneLabeller.build(result, map_name, keep_outliers=keep_outliers).zones(
         threshold, connectivity=connectivity, min_cells=min_cells)
 
 

@@ -98,18 +98,22 @@ class PointCloud:
             scan_index=None if self.scan_index is None else self.scan_index[which],
         )
 
-    def scaled(self, metres_per_unit: float, unit: str) -> PointCloud:
+    def scaled(self, metres_per_unit: float, unit: str, *,
+               z_metres_per_unit: float | None = None) -> PointCloud:
         """The cloud with coordinates multiplied by ``metres_per_unit`` (a file in
-        ``unit`` read into metres); scanner positions likewise."""
-        if metres_per_unit == 1.0:
+        ``unit`` read into metres), z by ``z_metres_per_unit`` where the file's
+        vertical unit differs (default the same); scanner positions likewise."""
+        fz = metres_per_unit if z_metres_per_unit is None else z_metres_per_unit
+        if metres_per_unit == 1.0 and fz == 1.0:
             return replace(self, source_unit=unit)
+        factors = np.array([metres_per_unit, metres_per_unit, fz])
         return replace(
             self,
-            x=self.x * metres_per_unit,
-            y=self.y * metres_per_unit,
-            z=self.z * metres_per_unit,
+            x=self.x * metres_per_unit if metres_per_unit != 1.0 else self.x,
+            y=self.y * metres_per_unit if metres_per_unit != 1.0 else self.y,
+            z=self.z * fz if fz != 1.0 else self.z,
             scanner_positions=None if self.scanner_positions is None
-            else self.scanner_positions * metres_per_unit,
+            else self.scanner_positions * factors,
             source_unit=unit,
         )
 

@@ -3,8 +3,10 @@ and linear unit, read without pyproj.
 
 LAS/LAZ files declare their CRS in variable-length records (VLRs, or extended VLRs
 in LAS 1.4) of user id ``LASF_Projection``: an OGC WKT string (record 2112) or the
-GeoTIFF keys (records 34735 directory, 34736 doubles, 34737 text). E57 coordinates
-are metres by the standard. Text, NPY, PLY and STL files carry no CRS.
+GeoTIFF keys (records 34735 directory, 34736 doubles, 34737 text). GeoTIFF rasters
+carry the same keys in TIFF tags; an ESRI ASCII grid may have a ``.prj`` file (WKT)
+beside it. E57 coordinates are metres by the standard. Text, NPY, PLY and STL files
+carry no CRS.
 
 >>> info = parse_wkt_crs('PROJCS["NAD83 / UTM zone 11N",GEOGCS["NAD83",'
 ...     'UNIT["degree",0.0174532925199433]],UNIT["metre",1],AUTHORITY["EPSG","26911"]]')
@@ -88,7 +90,35 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
         return _las_crs(p)
     if suffix == ".e57":
         return CrsInfo(description=None, unit="m", source="e57")
+    if suffix in (".tif", ".tiff"):
+        return _geotiff_crs(p)
+    if suffix == ".asc":
+        return _prj_crs(p)
     return NO_CRS
+
+
+def _geotiff_crs(p: Path) -> CrsInfo:
+    """The GeoKeys of a GeoTIFF raster (the same keys a LAS file may carry)."""
+    from rough_viewer.io.dem import GEO_KEY_DIRECTORY, geokey_bytes, geotiff_tags
+
+    check_input_file(p)
+    with foreign_errors(f"cannot read the tags of {p}"):
+        tags = geotiff_tags(p)
+    if GEO_KEY_DIRECTORY not in tags:
+        return NO_CRS
+    return parse_geotiff_keys(*geokey_bytes(tags))
+
+
+def _prj_crs(p: Path) -> CrsInfo:
+    """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any."""
+    from rough_viewer.io.dem import prj_beside
+
+    prj = prj_beside(p)
+    if prj is None:
+        return NO_CRS
+    with foreign_errors(f"cannot read {prj}"):
+        text = prj.read_text(encoding="utf-8", errors="replace").strip()
+    return parse_wkt_crs(text) if text else NO_CRS
 
 
 def _las_crs(p: Path) -> CrsInfo:

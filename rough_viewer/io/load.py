@@ -12,12 +12,18 @@ Supported inputs (by file extension):
 - ``.stl``: ASCII or binary; the mesh's vertices, each once.
 - ``.e57``: every scan, transformed by its pose into the file's frame and merged
   (pye57); intensity, colour, scan index and scanner positions kept.
+- ``.asc`` (ESRI ASCII grid), ``.tif``/``.tiff`` (GeoTIFF, needs the optional
+  package tifffile): elevation rasters, one point per cell with a value at the
+  cell's centre (:mod:`rough_viewer.io.dem`).
 
 Units: the cloud is always in metres. A file's coordinates are taken to be in
-``units`` when given, else in the linear unit of its CRS (LAS/LAZ; E57 is metres),
-else metres, and scaled to metres on reading (``PointCloud.source_unit`` says which
-unit the file was in). Given units that contradict the CRS are used as asked, with
-a warning on the cloud naming the file.
+``units`` when given, else in the linear unit of its CRS (LAS/LAZ, GeoTIFF, an ESRI
+grid's ``.prj``; E57 is metres), else metres, and scaled to metres on reading
+(``PointCloud.source_unit`` says which unit the file was in). Given units that
+contradict the CRS are used as asked, with a warning on the cloud naming the file.
+A CRS whose vertical unit differs from its horizontal one (z in US feet, x and y in
+metres) has z converted by its own unit, as a reprojection to a metre CRS would do:
+z is never taken to be in the horizontal unit (:func:`axis_units`).
 
 Rows with NaN or infinite coordinates are dropped and counted
 (:attr:`PointCloud.dropped_nonfinite`). Every problem raises
@@ -31,6 +37,7 @@ from pathlib import Path
 
 from rough_viewer.io.cloud import PointCloud, check_input_file
 from rough_viewer.io.crs import read_crs
+from rough_viewer.io.dem import DEM_SUFFIXES, read_dem
 from rough_viewer.io.e57 import read_e57
 from rough_viewer.io.las import read_las
 from rough_viewer.io.ply import read_ply
@@ -46,7 +53,8 @@ from rough_viewer.vocabulary import (
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
-SUPPORTED_SUFFIXES = (".las", ".laz", ".e57", *TEXT_SUFFIXES, ".npy", ".ply", ".stl")
+SUPPORTED_SUFFIXES = (".las", ".laz", ".e57", *TEXT_SUFFIXES, ".npy", ".ply", ".stl",
+                      *DEM_SUFFIXES)
 
 
 def load_points(
@@ -61,7 +69,7 @@ def load_points(
     Parameters
     ----------
     path : path-like
-        A ``.las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl`` file.
+        A ``.las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl .asc .tif .tiff`` file.
     progress : callable, optional
         ``progress(done, total)`` in points, for LAS/LAZ and E57 files.
     cache : bool
@@ -107,7 +115,7 @@ def load_points(
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     try:
         cloud = _read(p, suffix, progress=progress, cache=cache)
-        unit, notes = _resolve_units(p, units)
+        unit, z_unit, notes = axis_units(p, units)
     except InputError:
         raise
     except MemoryError:
@@ -118,7 +126,8 @@ def load_points(
         if type(exc).__module__.startswith("laspy") or "Laz" in type(exc).__name__:
             raise InputError(f"cannot read {p}: {error_line(exc)}") from None
         raise
-    return cloud.scaled(UNIT_METRES[unit], unit).with_warnings(*notes)
+    return cloud.scaled(UNIT_METRES[unit], unit,
+                        z_metres_per_unit=UNIT_METRES[z_unit]).with_warnings(*notes)
 
 
 def _read(p: Path, suffix: str, *, progress: ProgressFn | None, cache: bool) -> PointCloud:
@@ -132,6 +141,8 @@ def _read(p: Path, suffix: str, *, progress: ProgressFn | None, cache: bool) -> 
         return read_npy(p)
     if suffix == ".ply":
         return read_ply(p)
+    if suffix in DEM_SUFFIXES:
+        return read_dem(p)
     return read_stl(p)
 
 
@@ -140,12 +151,24 @@ def resolve_units(path: str | os.PathLike[str], units: Unit | None) -> tuple[Uni
 
     ``units`` when given (a warning naming the file if the file's CRS declares
     another linear unit), else the CRS's unit, else metres. A geographic CRS
-    (degrees) or a vertical unit unlike the horizontal one also gives a warning.
+    (degrees) or a vertical unit unlike the horizontal one also gives a warning
+    (:func:`axis_units` has the unit of z).
     """
-    return _resolve_units(Path(path), units)
+    unit, _, notes = axis_units(path, units)
+    return unit, notes
 
 
-def _resolve_units(p: Path, units: Unit | None) -> tuple[Unit, tuple[str, ...]]:
+def axis_units(path: str | os.PathLike[str], units: Unit | None
+               ) -> tuple[Unit, Unit, tuple[str, ...]]:
+    """(unit of x and y, unit of z, warnings) a file is read in.
+
+    ``units`` given: both axes in it (the user's word overrides the CRS, with a
+    warning where they disagree). Else x and y in the CRS's horizontal unit (metres
+    without one) and z in the CRS's vertical unit where it declares one, else in the
+    horizontal unit; a vertical unit unlike the horizontal one is said once, with
+    the conversion.
+    """
+    p = Path(path)
     info = read_crs(p)
     notes: list[str] = []
     if info.geographic:
@@ -155,11 +178,12 @@ def _resolve_units(p: Path, units: Unit | None) -> tuple[Unit, tuple[str, ...]]:
     if units is not None and info.unit is not None and info.unit != units:
         notes.append(f"--units {units} contradicts the CRS of {p} "
                      f"({UNIT_LABELS[info.unit]}); reading it in {UNIT_LABELS[units]} as asked")
+    z_unit: Unit = unit
     horizontal = info.unit or "m"
-    if info.vertical_unit is not None and info.vertical_unit != horizontal:
-        # only about the file itself: --units overriding both is the warning above
-        notes.append(f"the CRS of {p} gives z in {UNIT_LABELS[info.vertical_unit]} but x, y "
-                     f"in {UNIT_LABELS[horizontal]}; z is read in {UNIT_LABELS[unit]} too")
-    return unit, tuple(notes)
-
-
+    if units is None and info.vertical_unit is not None and info.vertical_unit != horizontal:
+        z_unit = info.vertical_unit
+        factor = UNIT_METRES[z_unit] / UNIT_METRES[horizontal]
+        notes.append(f"the CRS of {p} gives z in {UNIT_LABELS[z_unit]} but x, y in "
+                     f"{UNIT_LABELS[horizontal]}: z is converted to {UNIT_LABELS[horizontal]} "
+                     f"(x {factor:.7g}), as a reprojection would")
+    return unit, z_unit, tuple(notes)

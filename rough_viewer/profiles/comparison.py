@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rough_viewer.profiles.fractal import RoughnessLength, roughness_length
+from rough_viewer.profiles.fractal import RoughnessLength, Windows, roughness_length
 from rough_viewer.profiles.wavelets import (
     DECOMPOSITIONS,
     MODES,
@@ -63,16 +63,21 @@ class Comparison:
 
     @property
     def warnings(self) -> tuple[str, ...]:
-        """The plausibility warnings of every fit (``RoughnessLength.warnings``: a
-        dimension outside ``[1, 2]``), one line each, each naming its fit once:
-        ``"raw profile: ..."``, then ``"de-noised dwt_penalized-low_soft: ..."`` per
-        variant (:attr:`Variant.key`) in :attr:`variants` order. Variants that could
-        not be fitted have no dimension and give none."""
+        """At most two lines: the raw profile's plausibility warning
+        (``"raw profile: D = ... is below 1: ..."``, :func:`~rough_viewer.profiles.
+        fractal.plausibility`), and one line counting the de-noised versions whose
+        D is outside ``[1, 2]`` (their D is in the table). Variants that could not be
+        fitted have no dimension and count for nothing."""
         out = [f"raw profile: {w}" for w in self.raw.warnings]
-        for v in self.variants:
-            if v.fractal is not None:
-                out.extend(f"de-noised {v.key}: {w}" for w in v.fractal.warnings)
-        return tuple(dict.fromkeys(out))
+        dims = [v.fractal.dimension for v in self.variants if v.fractal is not None]
+        low = sum(d < 1.0 for d in dims)
+        high = sum(d > 2.0 for d in dims)
+        if low or high:
+            parts = ([f"{low} below 1 (de-noising smooths the profile further)"] if low else []) \
+                + ([f"{high} above 2"] if high else [])
+            out.append(f"de-noised: D of {' and '.join(parts)} of the {len(dims)} versions; "
+                       "try larger windows")
+        return tuple(out)
 
     def thresholds(self) -> dict[str, dict[str, float]]:
         """``{decomposition: {threshold rule: threshold in metres}}``."""
@@ -95,7 +100,7 @@ def compare_denoising(
     *,
     wavelet: str = "db3",
     level: int = 3,
-    windows: Sequence[float] | np.ndarray | None = None,
+    windows: Windows = None,
     decompositions: Sequence[Decomposition] = DECOMPOSITIONS,
     threshold_rules: Sequence[ThresholdRule] = THRESHOLD_RULES,
     modes: Sequence[Mode] = MODES,
@@ -111,7 +116,9 @@ def compare_denoising(
     wavelet, level
         Passed to :func:`rough_viewer.profiles.wavelets.denoise_result`.
     windows
-        Roughness-length window lengths, metres (default 8 from 3 % to 10 %).
+        Roughness-length window lengths, metres, or a rule (``"default"``: 8 evenly in
+        log from 3 % to 30 % of the length; ``"paper"``: 3 % to 10 %);
+        :func:`~rough_viewer.profiles.fractal.roughness_length`.
     decompositions, threshold_rules, modes
         Subsets of the settings to run (default all: 16 variants).
 

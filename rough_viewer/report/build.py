@@ -17,11 +17,13 @@ from rough_viewer._version import __version__
 from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
+from rough_viewer.grid.outliers import analysed_values, outlier_text
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
-from rough_viewer.grid.roughness import GridRoughness, exact_fit_text, grid_roughness
+from rough_viewer.grid.roughness import EXACT_FIT, GridRoughness, exact_fit_text, grid_roughness
 from rough_viewer.grid.sets import JointSets, joint_sets
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
+from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
@@ -31,6 +33,7 @@ from rough_viewer.vocabulary import (
     DEFAULT_MIN_CELLS,
     DEFAULT_MIN_POINTS,
     HISTOGRAM_BIN,
+    MAP_LABELS,
     MAPS,
     UNIT_LABELS,
     UNIT_METRES,
@@ -70,6 +73,9 @@ class GridSection:
     maps: dict[str, FaceMaps] = field(default_factory=dict)
     zones: Zones | None = None
     """Zones of the ODR map at the report's threshold."""
+    advice: dict[str, ThresholdAdvice] = field(default_factory=dict)
+    """Per map: the share of cells the report's threshold flags and the data's own
+    threshold (:func:`rough_viewer.grid.threshold.threshold_advice`)."""
     stereonet: Stereonet | None = None
     """Poles of every cell's ODR plane."""
     trust: CellTrust | None = None
@@ -121,6 +127,9 @@ class Report:
     """What the reader and the report noticed (one line each)."""
     scanner_note: str | None = None
     """Why the report has no scanner section (no positions), else None."""
+    keep_outliers: bool = False
+    """Cells larger than the cell (:mod:`rough_viewer.grid.outliers`) were kept in
+    every statistic and figure (default: left out and counted)."""
 
 
 def _section(
@@ -133,6 +142,7 @@ def _section(
     plane: PlaneFit,
     min_cells: int,
     connectivity: Connectivity,
+    keep_outliers: bool,
     tick: Callable[[], None],
     stage: ProgressFn,
     trust: TrustSettings | None = None,
@@ -154,19 +164,25 @@ def _section(
     summaries: dict[str, Summary] = {}
     histograms: dict[str, Histogram] = {}
     normalised: dict[str, np.ndarray] = {}
+    analysed: dict[str, np.ndarray] = {}
+    advice: dict[str, ThresholdAdvice] = {}
     for name in MAPS:
-        summaries[name] = summarise(result, name)
-        normalised[name] = normalise(result.values(name))
+        summaries[name] = summarise(result, name, keep_outliers=keep_outliers)
+        analysed[name] = analysed_values(result, name, keep_outliers=keep_outliers)
+        normalised[name] = normalise(analysed[name])
         histograms[name] = histogram(normalised[name], HISTOGRAM_BIN)
+        advice[name] = threshold_advice(analysed[name], threshold,
+                                        exact_fit=EXACT_FIT * result.grid.cell_size)
     figure_errors: dict[str, str] = {}
     variograms = _figure(figure_errors, "variogram", g, lambda: {
-        str(name): semivariogram(result.ijk, result.values(name), g) for name in MAPS})
+        str(name): semivariogram(result.ijk, analysed[name], g) for name in MAPS})
     for _ in MAPS:
         tick()
     maps = _figure(figure_errors, "maps", g,
                    lambda: _face_maps(result, plane, normalised, threshold))
-    zones = _figure(figure_errors, "zones", g, lambda: ZoneLabeller.build(result, ZONES_MAP)
-                    .zones(threshold, connectivity=connectivity, min_cells=min_cells))
+    zones = _figure(figure_errors, "zones", g, lambda: ZoneLabeller.build(
+        result, ZONES_MAP, keep_outliers=keep_outliers).zones(
+            threshold, connectivity=connectivity, min_cells=min_cells))
     net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
     sets = _figure(figure_errors, "sets", g, lambda: joint_sets(result, cloud))
     tick()
@@ -175,7 +191,7 @@ def _section(
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
                        variograms=variograms or {}, maps=maps or {}, zones=zones,
-                       stereonet=net, trust=cells, sets=sets,
+                       advice=advice, stereonet=net, trust=cells, sets=sets,
                        figure_errors=figure_errors)
 
 
@@ -226,6 +242,7 @@ def build_report(
     min_cells: int = DEFAULT_MIN_CELLS,
     connectivity: Connectivity = "vertex",
     unit: str | None = None,
+    keep_outliers: bool = False,
     progress: ProgressFn | None = None,
     trust: TrustSettings | None = None,
 ) -> Report:
@@ -254,6 +271,10 @@ def build_report(
     unit : {"m", "mm", "ft", "us-ft"}, optional
         Unit to show lengths in (default: the unit the file was in,
         ``cloud.source_unit``); the numbers stay metres.
+    keep_outliers : bool
+        Keep cells whose OLS or hybrid roughness is larger than the cell in Table 1,
+        the normalisation, histograms, semivariograms, face maps and zones (default:
+        left out; :mod:`rough_viewer.grid.outliers`).
     progress : callable, optional
         ``progress(done, total)`` over all steps of all grid sizes.
     trust : TrustSettings, optional
@@ -310,8 +331,8 @@ def build_report(
         done = base + ROUGHNESS_STAGES
         sections.append(_section(cloud, g, axis=used_axis, threshold=threshold,
                                  min_points=min_points, plane=plane, min_cells=min_cells,
-                                 connectivity=connectivity, tick=tick, stage=stage,
-                                 trust=trust_used))
+                                 connectivity=connectivity, keep_outliers=keep_outliers,
+                                 tick=tick, stage=stage, trust=trust_used))
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
@@ -334,8 +355,9 @@ def build_report(
         connectivity=connectivity,
         unit=display_unit,
         grids_chosen=chosen,
-        warnings=cloud.warnings + _coverage_warnings(sections, display_unit),
+        warnings=cloud.warnings + _coverage_warnings(sections, display_unit, keep_outliers),
         scanner_note=None if has_scanners else NO_POSITIONS,
+        keep_outliers=bool(keep_outliers),
     )
 
 
@@ -343,21 +365,32 @@ def build_report(
 SPARSE_SHARE = 0.5
 
 
-def _coverage_warnings(sections: list[GridSection], unit: str) -> tuple[str, ...]:
-    """A line for every grid where most occupied cells have no value, and for every
-    grid with cells that fit their plane exactly (``EXACT_FIT``)."""
+def _coverage_warnings(sections: list[GridSection], unit: str,
+                       keep_outliers: bool = False) -> tuple[str, ...]:
+    """A line for every grid where most occupied cells have no value, for every grid
+    with cells that fit their plane exactly (``EXACT_FIT``), with outlier cells
+    (:mod:`rough_viewer.grid.outliers`) and where the threshold flags most of the
+    zones' map (:class:`rough_viewer.grid.threshold.ThresholdAdvice`)."""
     out = []
     for s in sections:
         if s.result is None:
             continue
+        size = s.grid_size / UNIT_METRES[unit]
+        for name in ("ols", "hybrid"):
+            text = outlier_text(s.result, name, unit=unit, kept=keep_outliers)
+            if text:
+                out.append(f"grid {size:g} {UNIT_LABELS[unit]}: {text}"
+                           + ("" if keep_outliers else " (--keep-outliers keeps them)"))
+        advice = s.advice.get(ZONES_MAP)
+        if advice is not None and advice.most:
+            out.append(f"grid {size:g} {UNIT_LABELS[unit]}, {MAP_LABELS[ZONES_MAP]}: "
+                       f"{advice.text(unit)}")
         rep = s.result.cell_report("odr")
         if rep["occupied"] and rep["with_value"] < SPARSE_SHARE * rep["occupied"]:
-            size = s.grid_size / UNIT_METRES[unit]
             out.append(f"grid {size:g} {UNIT_LABELS[unit]}: only {rep['with_value']:,} of "
                        f"{rep['occupied']:,} occupied cells have a value (too few points per "
                        "cell); a larger grid size gives a fuller map")
         if rep["exact_fit"]:
-            size = s.grid_size / UNIT_METRES[unit]
             out.append(f"grid {size:g} {UNIT_LABELS[unit]}: "
                        f"{exact_fit_text(rep['exact_fit'], rep['with_value'])} of Table 1 "
                        "(remove duplicate points or raise --min-points)")

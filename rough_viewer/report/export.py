@@ -58,6 +58,10 @@ class ReportSettings:
     trust: TrustSettings | None = None
     """Calibration and options of the scanner section, made when the cloud has scanner
     positions (default: the bias paper's, :class:`rough_viewer.bias.trust.TrustSettings`)."""
+    keep_outliers: bool = False
+    """Keep cells whose OLS or hybrid roughness is larger than the cell in every
+    statistic and figure (``--keep-outliers``; default: left out and counted,
+    :mod:`rough_viewer.grid.outliers`)."""
 
     def check(self) -> None:
         """Raise InputError (one line, named as the command-line option) for a setting
@@ -89,7 +93,8 @@ def compute_report(cloud: PointCloud, settings: ReportSettings, *,
     grids = (None if settings.grid_sizes is None
              else list(dict.fromkeys(float(g) for g in settings.grid_sizes)))
     return build_report(cloud, grids, axis=settings.axis, threshold=settings.threshold,
-                        min_points=settings.min_points, unit=settings.unit, progress=progress,
+                        min_points=settings.min_points, unit=settings.unit,
+                        keep_outliers=settings.keep_outliers, progress=progress,
                         trust=settings.trust)
 
 

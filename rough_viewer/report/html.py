@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from rough_viewer.grid.maps import face_frame
+from rough_viewer.grid.outliers import outlier_mask
 from rough_viewer.report.build import (
     FACE_MAP_ORDER,
     VARIOGRAM_FIGURE_MAPS,
@@ -17,7 +18,13 @@ from rough_viewer.report.build import (
     report_raster,
 )
 from rough_viewer.visual.colormaps import zone_colour
-from rough_viewer.vocabulary import UNIT_LABELS, UNIT_METRES, InputError, roughness_scale
+from rough_viewer.vocabulary import (
+    MAP_LABELS,
+    UNIT_LABELS,
+    UNIT_METRES,
+    InputError,
+    roughness_scale,
+)
 
 
 def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
@@ -70,7 +77,9 @@ def figures_and_errors(report: Report, section: GridSection
         draw("maps_normalised", lambda: face_map_figure(maps, kind="normalised", **kw))
         draw("maps_binary", lambda: face_map_figure(maps, kind="binary", **kw))
     draw("histogram", lambda: histogram_figure(
-        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")}, **kw))
+        {n: section.histograms[n] for n in ("ols", "odr", "hybrid", "e_ols")},
+        threshold=report.threshold,
+        suggestions={n: a.suggested for n, a in section.advice.items()}, **kw))
     if section.variograms:
         draw("variogram", lambda: variogram_figure(
             {n: section.variograms[n] for n in VARIOGRAM_FIGURE_MAPS}, **kw))
@@ -172,7 +181,14 @@ def _meta_table(report: Report) -> list[str]:
         f"{', '.join(f'{s.grid_size / per:g}' for s in report.sections)}"
         + (" (default: from the point spacing, the typical occupied cell holds 16 points)"
            if report.grids_chosen == "default" else "") + "</td></tr>",
-        f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness)</td></tr>",
+        f"<tr><td>binary threshold</td><td>{report.threshold:g} (normalised roughness; "
+        "each grid gives the share it flags and the data's own threshold, Otsu's method on "
+        "log roughness)</td></tr>",
+        "<tr><td>outlier cells</td><td>"
+        + ("kept in every statistic and figure (--keep-outliers)" if report.keep_outliers
+           else "cells whose OLS or hybrid roughness is larger than the cell are left out of "
+           "Table 1, the normalisation, histograms, semivariograms, face maps and zones "
+           "(their values stay in the cell table)") + "</td></tr>",
         f"<tr><td>min points per cell</td><td>{report.min_points}</td></tr>",
         f"<tr><td>scanner</td><td>{esc(_scanner_meta(report))}</td></tr>",
         f"<tr><td>software</td><td>rough_viewer {esc(report.version)}</td></tr>",
@@ -218,12 +234,20 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
         return parts + [f'<p class="error">{esc(s.error)}</p></section>']
     cells = s.result.cell_report("odr") if s.result is not None else {}
     if cells:
+        outliers = int(outlier_mask(s.result, "hybrid").sum()) if s.result is not None else 0
         parts.append(
             f'<p class="note">{cells["occupied"]:,} occupied cells, '
             f'{cells["with_value"]:,} with an ODR value, '
             f'{cells["below_min_points"]:,} below {report.min_points} points, '
-            f'{cells["degenerate"]:,} degenerate.</p>'
+            f'{cells["degenerate"]:,} degenerate'
+            + (f'; {outliers:,} hybrid outliers (larger than the cell), '
+               + ("kept" if report.keep_outliers else "left out") if outliers else "")
+            + ".</p>"
         )
+    for name, advice in s.advice.items():
+        if name in ("odr", "ols", "hybrid"):
+            parts.append(f'<p class="{"error" if advice.most else "note"}">'
+                         f'{esc(MAP_LABELS[name])}: {esc(advice.text(report.unit))}.</p>')
     parts += _scanner_html(report, s)
     figures, drawing_errors = figures_and_errors(report, s)
     for key, why in {**s.figure_errors, **drawing_errors}.items():
@@ -241,8 +265,14 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
             z = s.zones
             parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
             if z is not None:
-                parts.append(f'<p class="note">{z.n_zones:,} zones holding '
-                             f'{int(z.cells.sum()):,} cells.</p>')
+                flagged = s.advice.get(z.map_name)
+                valued = flagged.cells if flagged is not None else 0
+                parts.append(f'<p class="note">{z.n_zones:,} zone{"s" if z.n_zones != 1 else ""} '
+                             f'holding {int(z.cells.sum()):,} cells'
+                             + (f' ({100 * int(z.cells.sum()) / valued:.0f} % of the cells with a '
+                                'value)' if valued else "") + ".</p>")
+                if flagged is not None and flagged.most:
+                    parts.append(f'<p class="error">{esc(flagged.text(report.unit))}.</p>')
         div = fig.to_html(full_html=False, include_plotlyjs=False,
                           div_id=f"{sid}-{key}", config={"displaylogo": False})
         parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')

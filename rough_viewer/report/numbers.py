@@ -131,6 +131,8 @@ def report_json(report: Report) -> dict[str, Any]:
                 for name in MAPS
             }
             entry["figure_errors"] = dict(s.figure_errors)
+            entry["threshold_advice"] = {name: to_jsonable(a.as_dict())
+                                         for name, a in s.advice.items()}
             if s.zones is not None:
                 entry["zones"] = zones_dict(s.zones, s.stereonet)
             entry["scanner"] = (None if s.trust is None
@@ -156,6 +158,7 @@ def report_json(report: Report) -> dict[str, Any]:
         "axis": report.axis,
         "axis_requested": report.axis_requested,
         "threshold": report.threshold,
+        "keep_outliers": report.keep_outliers,
         "min_points": report.min_points,
         "min_cells": report.min_cells,
         "connectivity": report.connectivity,

@@ -56,11 +56,19 @@ class Source:
     """Rows with NaN or infinite coordinates (formats other than LAS), dropped."""
     warnings: tuple[str, ...] = ()
     """What the user should know about this file (units against its CRS, ...)."""
+    z_unit: str | None = None
+    """Unit of the file's z where its CRS gives a vertical unit unlike ``unit``
+    (:func:`rough_viewer.io.load.axis_units`); None: ``unit``."""
 
     @property
     def factor(self) -> float:
-        """Metres per unit of the file's coordinates."""
+        """Metres per unit of the file's x and y."""
         return UNIT_METRES[self.unit]
+
+    @property
+    def z_factor(self) -> float:
+        """Metres per unit of the file's z."""
+        return UNIT_METRES[self.z_unit or self.unit]
 
 
 @dataclass(frozen=True)
@@ -77,7 +85,8 @@ class Chunk:
         return self.stop - self.start
 
 
-def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
+def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None = None
+                ) -> Source:
 
     from rough_viewer.io.las import laz_backend, open_las
 
@@ -88,11 +97,10 @@ def _las_source(p: Path, unit: str, notes: tuple[str, ...]) -> Source:
         hi = np.asarray(hdr.maxs, dtype=np.float64)
     if n < 1:
         raise InputError(f"no points in {p}")
-    f = UNIT_METRES[unit]
-    if f != 1.0:
-        lo, hi = lo * f, hi * f
+    f = np.array([UNIT_METRES[unit]] * 2 + [UNIT_METRES[z_unit or unit]])
+    lo, hi = lo * f, hi * f
     return Source(path=str(p), n_points=n, bounds_min=lo, bounds_max=hi, unit=unit,
-                  streamed=True, warnings=notes)
+                  streamed=True, warnings=notes, z_unit=None if z_unit == unit else z_unit)
 
 
 def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
@@ -114,7 +122,7 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
     InputError
         A file that cannot be read, has no points, or none at all given.
     """
-    from rough_viewer.io.load import SUPPORTED_SUFFIXES, load_points, resolve_units
+    from rough_viewer.io.load import SUPPORTED_SUFFIXES, axis_units, load_points
 
     if not paths:
         raise InputError("no input files")
@@ -126,8 +134,8 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
         if suffix in STREAMED:
             check_input_file(p)
             with foreign_errors(f"cannot read {p}"):
-                unit, notes_p = resolve_units(p, units)
-                out.append(_las_source(p, unit, notes_p))
+                unit, z_unit, notes_p = axis_units(p, units)
+                out.append(_las_source(p, unit, notes_p, z_unit))
         else:
             if suffix not in SUPPORTED_SUFFIXES:
                 load_points(p)  # raises the one message for unknown types
@@ -137,6 +145,7 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
                               unit=cloud.source_unit, streamed=False,
                               dropped_nonfinite=cloud.dropped_nonfinite,
                               warnings=tuple(cloud.warnings)))
+    notes += overlap_warnings([(s.path, s.bounds_min, s.bounds_max) for s in out])
     if notes:
         out[0] = replace(out[0], warnings=out[0].warnings + notes)
     return out
@@ -172,11 +181,14 @@ def _file_columns(points, hdr) -> Columns:
     return cols[0], cols[1], cols[2]
 
 
-def _metres(cols: Columns, factor: float) -> Columns:
-    """Columns in metres (times metres-per-unit, as ``PointCloud.scaled``)."""
-    if factor == 1.0:
+def _metres(cols: Columns, factor: float, z_factor: float | None = None) -> Columns:
+    """Columns in metres (times metres-per-unit, z by its own where given, as
+    ``PointCloud.scaled``)."""
+    fz = factor if z_factor is None else z_factor
+    if factor == 1.0 and fz == 1.0:
         return cols
-    return cols[0] * factor, cols[1] * factor, cols[2] * factor
+    return (cols[0] * factor if factor != 1.0 else cols[0],
+            cols[1] * factor if factor != 1.0 else cols[1], cols[2] * fz if fz != 1.0 else cols[2])
 
 
 def _uses_cache(source: Source) -> bool:
@@ -191,7 +203,7 @@ def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
     if not _uses_cache(source) or cached_points(p) != source.n_points:
         return None
     cols = cache_read_slice(p, chunk.start, chunk.stop)
-    return None if cols is None else _metres(cols, source.factor)
+    return None if cols is None else _metres(cols, source.factor, source.z_factor)
 
 
 def _open_las(path: str, *, parallel: bool = True):
@@ -218,7 +230,8 @@ def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Column
     if not source.streamed:
         from rough_viewer.io.load import load_points
 
-        cloud = load_points(source.path, units=source.unit)  # type: ignore[arg-type]
+        # a z in its own vertical unit comes from the CRS again, not from --units
+        cloud = load_points(source.path, units=None if source.z_unit else source.unit)  # type: ignore[arg-type]
         return (cloud.x[chunk.start:chunk.stop], cloud.y[chunk.start:chunk.stop],
                 cloud.z[chunk.start:chunk.stop])
     cached = _from_cache(source, chunk)
@@ -232,7 +245,7 @@ def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Column
         if len(points) != chunk.n:
             raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
                              f"the {source.n_points:,} points its header declares")
-        return _metres(_file_columns(points, reader.header), source.factor)
+        return _metres(_file_columns(points, reader.header), source.factor, source.z_factor)
 
 
 def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bool = False
@@ -284,7 +297,7 @@ def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bo
                              else None)
                     writer.append(*cols, intensity=inten, rgb=rgb)
                 del points
-                yield c, _metres(cols, source.factor)
+                yield c, _metres(cols, source.factor, source.z_factor)
         if writer is not None:
             writer.commit()
             writer = None
@@ -313,10 +326,13 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
     codes, their descriptions) differ; in unit when the units they are read in
     (``units``, else each CRS's linear unit, else metres) differ.
 
+    Files that declare no CRS (no unit) beside files that do are refused unless
+    ``units`` is given: their unit would be a guess.
+
     Returns
     -------
     tuple of str
-        Warnings: files that declare no CRS beside files that do.
+        Warnings: files that declare no CRS beside files that do (``units`` given).
 
     Raises
     ------
@@ -360,9 +376,73 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
                 "(reproject them to one CRS first)")
     if first_crs is not None and bare:
         names = ", ".join(str(b) for b in bare[:3]) + (" ..." if len(bare) > 3 else "")
+        if units is None:
+            raise InputError(
+                f"{names} declare{'s' if len(bare) == 1 else ''} no CRS or unit but "
+                f"{first_crs[0]} is in {_crs_name(first_crs[1])} "
+                f"({first_unit[1] if first_unit else 'm'}): give --units to say which unit "
+                "every file is in, and merge only files of one coordinate system")
         return (f"{names} declare{'s' if len(bare) == 1 else ''} no CRS; taken to be in "
                 f"{_crs_name(first_crs[1])} like {first_crs[0]}",)
     return ()
+
+
+#: Boxes closer than this share of the larger one's diagonal count as touching.
+OVERLAP_MARGIN = 0.1
+
+
+def overlap_warnings(boxes: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> tuple[str, ...]:
+    """A warning when the files of a merged cloud fall into groups that do not touch.
+
+    Two files touch when their bounding boxes, each grown by :data:`OVERLAP_MARGIN`
+    of the larger box's diagonal, intersect (tiles side by side touch; a lab scan in
+    millimetres beside an airborne tile in UTM does not). Groups are the connected
+    sets of touching files.
+
+    Parameters
+    ----------
+    boxes : sequence of (name, (3,) min, (3,) max)
+        Each file's name and bounding box, metres.
+
+    >>> a = ("a.laz", np.array([0.0, 0, 0]), np.array([100.0, 100, 10]))
+    >>> b = ("b.laz", np.array([100.0, 0, 0]), np.array([200.0, 100, 10]))
+    >>> c = ("c.stl", np.array([5e5, 4e6, 0]), np.array([5e5 + 0.03, 4e6 + 0.03, 0.01]))
+    >>> overlap_warnings([a, b]), len(overlap_warnings([a, b, c]))
+    ((), 1)
+    """
+    n = len(boxes)
+    if n < 2:
+        return ()
+    lo = np.array([b[1] for b in boxes], dtype=np.float64)
+    hi = np.array([b[2] for b in boxes], dtype=np.float64)
+    diag = np.linalg.norm(hi - lo, axis=1)
+    margin = OVERLAP_MARGIN * np.maximum(diag[:, None], diag[None, :])
+    touch = np.all((lo[:, None, :] <= hi[None, :, :] + margin[..., None])
+                   & (lo[None, :, :] <= hi[:, None, :] + margin[..., None]), axis=2)
+    from scipy.sparse.csgraph import connected_components
+
+    groups, label = connected_components(touch, directed=False)
+    if groups < 2:
+        return ()
+    span = float(np.linalg.norm(hi.max(axis=0) - lo.min(axis=0)))
+    parts = []
+    for g in range(min(groups, 3)):
+        members = np.flatnonzero(label == g)
+        glo, ghi = lo[members].min(axis=0), hi[members].max(axis=0)
+        centre = ", ".join(f"{v:.6g}" for v in 0.5 * (glo + ghi))
+        names = boxes[members[0]][0] + (f" and {members.size - 1} more" if members.size > 1
+                                         else "")
+        parts.append(f"{names}: {_length(float(np.linalg.norm(ghi - glo)))} across at "
+                     f"({centre})")
+    return (f"the inputs do not overlap: they form {groups} separate groups ("
+            + "; ".join(parts) + (" ..." if groups > 3 else "")
+            + f"), so the merged cloud is {_length(span)} across; check that the files "
+            "belong together and share one coordinate system",)
+
+
+def _length(metres: float) -> str:
+    """A length for a message, in m or km."""
+    return f"{metres / 1000:,.4g} km" if metres >= 10_000 else f"{metres:.4g} m"
 
 
 def merge_clouds(clouds: Sequence[PointCloud]) -> PointCloud:
@@ -430,4 +510,5 @@ def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None =
     notes = check_compatible(paths, units=units)
     clouds = [load_points(p, units=units, progress=None if progress is None else progress[i])
               for i, p in enumerate(paths)]
+    notes += overlap_warnings([(str(p), *c.bounds()) for p, c in zip(paths, clouds, strict=True)])
     return merge_clouds(clouds).with_warnings(*notes)

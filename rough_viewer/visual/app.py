@@ -95,6 +95,8 @@ def colour_scale_figure(
     no_value: int = 0,
     no_value_what: str = "cells",
     max_ticks: int = 6,
+    exact_fit: int = 0,
+    outliers: int = 0,
 ) -> go.Figure:
     """Horizontal colour bar of a resolved colour stretch, ticked at round numbers.
 
@@ -119,6 +121,13 @@ def colour_scale_figure(
         Count of grey (no value) cells or points, stated under the bar.
     max_ticks : int
         Most tick labels.
+    exact_fit : int
+        Cells of roughness 0 to round-off among the range's values
+        (``GridRoughness.cell_report(...)["exact_fit"]``): they sit below any log
+        stretch, so the caption names them instead of counting them as "below".
+    outliers : int
+        Cells drawn in :data:`~rough_viewer.visual.colormaps.OUTLIER_RGB` (roughness
+        larger than the cell), stated under the bar.
     """
     t = np.linspace(0.0, 1.0, 256)
     rgb = colormaps.apply(t, colormap)
@@ -135,12 +144,19 @@ def colour_scale_figure(
     ))
     stretch = colour_range.stretch.describe(scale=scale, unit=unit)
     notes = [stretch]
-    if colour_range.below:
-        notes.append(f"{colour_range.below * 100:.0f} % below")
+    n = max(colour_range.n_values, 1)
+    exact = min(int(exact_fit), int(round(colour_range.below * n)))
+    below = colour_range.below - exact / n
+    if below * 100 >= 0.5:
+        notes.append(f"{below * 100:.0f} % below")
+    if exact:
+        notes.append(f"{exact:,} exact-fit cells (θ = 0)")
     if colour_range.above:
         notes.append(f"{colour_range.above * 100:.0f} % above")
     if no_value:
         notes.append(f"grey: no value ({no_value:,} {no_value_what})")
+    if outliers:
+        notes.append(f"cyan: {outliers:,} outlier cells (larger than the cell)")
     axis_title = f"{quantity} ({unit})" if unit else quantity
     fig.update_layout(
         title={"text": title, "font": {"size": 12}, "x": 0.01, "xanchor": "left"},

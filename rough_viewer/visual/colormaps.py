@@ -48,6 +48,11 @@ from rough_viewer.vocabulary import InputError, hex_to_rgb
 
 #: Colour of points whose cell has no value (too few points, degenerate plane).
 NEUTRAL_RGB: tuple[int, int, int] = (190, 190, 190)
+#: Colour of points whose cell is an outlier of the definition (roughness larger than
+#: the cell, :mod:`rough_viewer.grid.outliers`): a bright cyan that none of the maps
+#: (viridis, cividis, magma, coolwarm, gray) reaches, so such a cell never reads as
+#: the roughest rock.
+OUTLIER_RGB: tuple[int, int, int] = (0, 229, 255)
 
 #: Plotly colour scale of the 2011 paper's binary maps (Fig. 2): grey below the
 #: threshold, black at or above it.
@@ -210,13 +215,27 @@ def apply_binary(
     name: str = "viridis",
     *,
     nan_rgb: tuple[int, int, int] = NEUTRAL_RGB,
+    outliers: np.ndarray | None = None,
 ) -> np.ndarray:
     """Two-colour map: ``flags`` True -> the map's last colour, False -> its first;
-    entries where ``valid`` is False get ``nan_rgb``. Returns ``(N, 3)`` uint8."""
+    entries where ``valid`` is False get ``nan_rgb``, those where ``outliers`` is True
+    :data:`OUTLIER_RGB`. Returns ``(N, 3)`` uint8."""
     table = lut(name)
     out = np.where(np.asarray(flags, bool)[:, None], table[-1], table[0]).astype(np.uint8)
     out[~np.asarray(valid, bool)] = np.asarray(nan_rgb, dtype=np.uint8)
-    return out
+    return mark_outliers(out, outliers)
+
+
+def mark_outliers(rgb: np.ndarray, outliers: np.ndarray | None) -> np.ndarray:
+    """``rgb`` ((N, 3) uint8, changed in place and returned) with the entries where
+    ``outliers`` ((N,) bool, or None for none) is True in :data:`OUTLIER_RGB`.
+
+    >>> mark_outliers(np.zeros((3, 3), np.uint8), np.array([False, True, False]))[1].tolist()
+    [0, 229, 255]
+    """
+    if outliers is not None:
+        rgb[np.asarray(outliers, bool)] = np.asarray(OUTLIER_RGB, dtype=np.uint8)
+    return rgb
 
 
 def plotly_colorscale(name: str, steps: int = 11) -> list[list[float | str]]:
@@ -403,9 +422,13 @@ def stretch_colours(
     name: str = "viridis",
     *,
     nan_rgb: tuple[int, int, int] = NEUTRAL_RGB,
+    outliers: np.ndarray | None = None,
 ) -> np.ndarray:
-    """``(N, 3)`` uint8 colours of ``values`` under ``colour_range`` on map ``name``."""
-    return apply(positions(values, colour_range), name, nan_rgb=nan_rgb)
+    """``(N, 3)`` uint8 colours of ``values`` under ``colour_range`` on map ``name``;
+    entries where ``outliers`` is True in :data:`OUTLIER_RGB` (pass the per-point
+    :func:`rough_viewer.grid.outliers.outlier_mask` of each point's cell)."""
+    return mark_outliers(apply(positions(values, colour_range), name, nan_rgb=nan_rgb),
+                         outliers)
 
 
 def largest_colour_share(positions_: np.ndarray, *, band: int = 1) -> float:

@@ -185,13 +185,23 @@ def histogram_figure(
     axis: str,
     n_points: int,
     unit: str = "m",
+    threshold: float | None = None,
+    suggestions: Mapping[str, float | None] | None = None,
 ) -> go.Figure:
-    """Histograms of normalised roughness with the first-bin shares (2011 Fig. 3).
+    """Histograms of normalised roughness with the first-bin shares (2011 Fig. 3),
+    and the binary threshold in use and the data's own suggestion for each map as
+    vertical lines.
 
     Parameters
     ----------
     histograms : dict map name -> ``rough_viewer.grid.roughness.Histogram``
         Objects with ``edges`` (K+1,) and ``fractions`` (K,) over normalised values.
+    threshold : float, optional
+        The binary threshold in use (normalised roughness): a black dashed line.
+    suggestions : dict map name -> float or None, optional
+        The suggested threshold of each map
+        (:attr:`rough_viewer.grid.threshold.ThresholdAdvice.suggested`): a dotted
+        line in the map's colour.
     """
     names = list(histograms)
     fig = go.Figure()
@@ -223,7 +233,25 @@ def histogram_figure(
         legend={"x": 0.99, "xanchor": "right", "y": 0.99, "bgcolor": "rgba(255,255,255,0.7)"},
     )
     fig.update_xaxes(range=[0, 1], ticks="outside", ticklen=5, tickcolor="rgba(0,0,0,0)")
+    _threshold_lines(fig, threshold, {n: v for n, v in (suggestions or {}).items()
+                                      if n in histograms})
     return fig
+
+
+def _threshold_lines(fig: go.Figure, threshold: float | None,
+                     suggestions: Mapping[str, float | None]) -> None:
+    """The threshold in use (black, dashed) and each map's suggested threshold
+    (its colour, dotted) as vertical lines over a histogram, named in the legend."""
+    lines = [(threshold, "threshold", "#000000", "dash")] if threshold is not None else []
+    lines += [(v, f"{label(n)} suggested", MAP_COLOURS.get(n, "#555555"), "dot")
+              for n, v in suggestions.items() if v is not None and np.isfinite(v)]
+    for value, name, colour, dash in lines:
+        fig.add_trace(go.Scatter(
+            x=[value, value], y=[0, 1], yaxis="y2", mode="lines", name=f"{name} {value:.3g}",
+            line={"color": colour, "dash": dash, "width": 1.5},
+            hovertemplate=f"{name}: %{{x:.3g}}<extra></extra>"))
+    if lines:
+        fig.update_layout(yaxis2={"overlaying": "y", "range": [0, 1], "visible": False})
 
 
 def variogram_figure(

@@ -47,6 +47,29 @@ def height_range_mm(analyses: Sequence[Any], *, per: float = 1e-3) -> tuple[floa
     return (mid - half, mid + half)
 
 
+#: Height span, in the small height unit, from which heights are shown in the length
+#: unit instead (1,000 mm: a 195 m airborne profile's 25 m of relief reads in m, not
+#: as -15k..10k mm).
+HEIGHT_UNIT_SWITCH = 1000.0
+
+
+def height_unit_for(analyses: Sequence[Any], length_unit: tuple[str, float],
+                    height_unit: tuple[str, float]) -> tuple[str, float]:
+    """The unit heights are drawn in: ``height_unit`` (mm for metric input) unless
+    the heights span :data:`HEIGHT_UNIT_SWITCH` of it or more and ``length_unit`` is
+    larger, then ``length_unit``.
+
+    >>> from types import SimpleNamespace as NS
+    >>> a = NS(profile=NS(heights=[-15.0, 10.0]), denoised=NS(heights=[-14.0, 9.0]))
+    >>> height_unit_for([a], METRES, MILLIMETRES), height_unit_for([], METRES, MILLIMETRES)
+    (('m', 1.0), ('mm', 0.001))
+    """
+    if length_unit[1] <= height_unit[1]:
+        return height_unit
+    lo, hi = height_range_mm(analyses, per=height_unit[1])
+    return length_unit if hi - lo >= HEIGHT_UNIT_SWITCH else height_unit
+
+
 def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None,
                    length_unit: tuple[str, float] = METRES,
                    height_unit: tuple[str, float] = MILLIMETRES) -> go.Figure:
@@ -70,10 +93,11 @@ def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None
     length_unit, height_unit : (str, float)
         Label and metres per unit of distances (along the line, windows) and of
         heights (profiles, s(w)): metres and millimetres by default; a cloud in feet
-        gives ``("ft", 0.3048)`` for both.
+        gives ``("ft", 0.3048)`` for both. Heights spanning a metre or more are drawn
+        in the length unit (:func:`height_unit_for`).
     """
     lu, lper = length_unit
-    hu, hper = height_unit
+    hu, hper = height_unit_for(analyses, length_unit, height_unit)
     if exaggeration is not None and not (np.isfinite(exaggeration) and exaggeration > 0):
         raise InputError(f"vertical exaggeration must be a positive number, got {exaggeration}")
     fig = make_subplots(rows=2, cols=1, vertical_spacing=0.2,
@@ -121,7 +145,7 @@ def profile_figure(analyses: Sequence[Any], *, exaggeration: float | None = None
     fig.update_xaxes(title_text=f"window w ({lu})", type="log", row=2, col=1)
     fig.update_yaxes(title_text=f"s(w) ({hu})", type="log", row=2, col=1)
     fig.update_layout(height=620, margin={"l": 60, "r": 10, "t": 30, "b": 40},
-                      legend={"orientation": "h", "x": 0.0, "y": -0.1, "yanchor": "top",
+                      legend={"orientation": "h", "x": 0.0, "y": -0.13, "yanchor": "top",
                               "font": {"size": 10}},
                       showlegend=bool(analyses))
     return fig

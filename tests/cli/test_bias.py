@@ -176,7 +176,7 @@ def test_predict_reproduces_the_papers_numbers_without_a_flag(capsys):
     grid = _json(capsys, ["bias", "predict", "--noise", "0.0016", "--er", "0", "--target", "A",
                           "--trials", "2", "--residual", "absolute", "--json"])
     assert grid["expected_m"] * 1e3 == pytest.approx(3.64, rel=0.01)
-    assert grid["residual"] == "absolute" and "SCIENCE.md" in grid["residual_definition"]
+    assert grid["residual"] == "absolute" and "docs/science.md" in grid["residual_definition"]
     assert main(["bias", "predict", "--noise", "0.0016", "--er", "0", "--target", "A",
                  "--trials", "1"]) == 0
     text = capsys.readouterr().out

@@ -61,7 +61,8 @@ def test_csv_and_json_contract(tmp_path, cloud_file, capsys):
     np.testing.assert_allclose(data["origin"], xyz.min(axis=0))
     for name in ("odr", "ols", "hybrid", "e_ols"):
         s = summarise(ref, name)
-        assert set(data[name]) == {"cells", "mean_points", "min", "max", "mean", "variance", "std"}
+        assert set(data[name]) == {"cells", "mean_points", "min", "max", "mean", "variance", "std",
+                                   "outliers"}
         assert data[name]["cells"] == s.cells
         assert data[name]["std"] == pytest.approx(s.std, rel=1e-12)
     text = capsys.readouterr().out
@@ -265,21 +266,61 @@ def test_cells_of_repeated_points_are_explained(tmp_path, capsys):
     assert "repeats points" in out
 
 
-def test_hybrid_larger_than_the_cell_is_explained(tmp_path, capsys):
+def test_hybrid_larger_than_the_cell_is_an_outlier(tmp_path, capsys):
     """A vertical face read with z as the dependent axis: hybrid (the distance along
-    z to the ODR plane) exceeds the cell in the cells whose plane is nearly vertical;
-    the summary counts them against the CSV."""
+    z to the ODR plane) exceeds the cell where the cell's plane is nearly vertical.
+    Those cells are named, marked in the CSV's outlier column (bit 2) with their value
+    kept, and left out of Table 1 unless --keep-outliers."""
     rng = np.random.default_rng(4)
     n = 4000
-    xyz = np.column_stack([rng.uniform(0, 2, n), 0.003 * rng.standard_normal(n),
-                           rng.uniform(0, 2, n)])
+    x, z = rng.uniform(0, 2, n), rng.uniform(0, 2, n)
+    lean = np.where(x >= 1.0, 0.5 * z, 0.0)  # the wall's right half leans back 27 degrees
+    xyz = np.column_stack([x, lean + 0.003 * rng.standard_normal(n), z])
     path = tmp_path / "wall.npy"
     np.save(path, xyz)
-    out = tmp_path / "c.csv"
+    out, js = tmp_path / "c.csv", tmp_path / "s.json"
     assert main(["compute", str(path), "--grid", "0.5", "--axis", "z", "--out", str(out),
-                 "--quiet"]) == 0
+                 "--summary-json", str(js), "--quiet"]) == 0
     text = capsys.readouterr().out
     table = np.genfromtxt(out, delimiter=",", names=True)
-    steep = int(np.count_nonzero(table["theta_hybrid"] > 0.5))
-    assert steep > 0
-    assert f"note: {steep:,} cells have a hybrid roughness larger than the cell itself" in text
+    hybrid = table["theta_hybrid"]
+    steep = hybrid > 0.5
+    assert 0 < steep.sum() < np.isfinite(hybrid).sum()
+    assert f"note: {steep.sum():,} of {np.isfinite(hybrid).sum():,} cells with a hybrid value " \
+        "have a hybrid roughness larger than the cell" in text
+    np.testing.assert_array_equal(table["outlier"], np.where(steep, 2, 0))  # OLS <= g / 2
+    data = json.loads(js.read_text())
+    kept = hybrid[np.isfinite(hybrid) & ~steep]
+    assert data["hybrid"]["cells"] == kept.size and data["hybrid"]["outliers"] == steep.sum()
+    assert data["hybrid"]["max"] == pytest.approx(kept.max(), rel=1e-12)
+    assert data["keep_outliers"] is False
+    assert main(["compute", str(path), "--grid", "0.5", "--axis", "z", "--summary-json",
+                 str(js), "--keep-outliers", "--force", "--quiet"]) == 0
+    data = json.loads(js.read_text())
+    assert data["hybrid"]["max"] == pytest.approx(np.nanmax(hybrid), rel=1e-12)
+    assert data["hybrid"]["outliers"] == 0 and data["keep_outliers"] is True
+    assert "kept in every statistic, as asked" in capsys.readouterr().out
+
+
+def test_a_grid_with_no_valued_cell_says_so_and_writes_nothing(tmp_path, capsys):
+    """An airborne-like spacing (0.2 m) at a 1 cm grid: every cell holds one point. One
+    line with the smallest grid at which the typical cell has enough points (against
+    the spacing module), exit 2, no empty CSV."""
+    from rough_viewer.grid.spacing import default_cell_size
+
+    rng = np.random.default_rng(3)
+    xyz = np.column_stack([rng.uniform(0, 10, 2500), rng.uniform(0, 10, 2500),
+                           0.05 * rng.standard_normal(2500)])
+    path = tmp_path / "sparse.npy"
+    np.save(path, xyz)
+    out = tmp_path / "c.csv"
+    assert main(["compute", str(path), "--grid", "0.01", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    smallest = default_cell_size(xyz, target=4)
+    assert "\n" not in err and err.startswith("rough-viewer: error: --grid 0.01 m: no cell has a "
+                                              "value: the 2,500 points fall into 2,500 occupied")
+    assert f"the smallest grid at which the typical cell holds 4 points is about {smallest:g} m" \
+        in err
+    assert not out.exists()
+    assert main(["compute", str(path), "--grid", f"{smallest:g}", "--out", str(out),
+                 "--quiet"]) == 0

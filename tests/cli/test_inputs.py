@@ -99,14 +99,48 @@ def test_different_crs_or_units_refused_one_line(tmp_path, capsys, other, messag
     assert not (tmp_path / "o.csv").exists()
 
 
-def test_same_crs_merges_and_bare_file_warns(tmp_path, capsys):
+def test_same_crs_merges_and_a_bare_file_needs_units(tmp_path, capsys):
+    """A file without CRS or unit beside files with one: refused (its unit would be a
+    guess) unless --units says it, then merged with a warning."""
     a = _las(tmp_path / "a.las", WKT_UTM10)
     b = _las(tmp_path / "b.las", WKT_UTM10, offset=5.0)
     np.savetxt(tmp_path / "c.xyz", np.random.default_rng(0).uniform(0, 10, (300, 3)))
-    assert main(["compute", str(a), str(b), str(tmp_path / "c.xyz"), "--grid", "2",
-                 "--out", str(tmp_path / "o.csv"), "--quiet"]) == 0
+    argv = ["compute", str(a), str(b), str(tmp_path / "c.xyz"), "--grid", "2",
+            "--out", str(tmp_path / "o.csv"), "--quiet"]
+    for memory in ([], ["--memory", "300MB"]):
+        assert main(argv + memory) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "c.xyz declares no CRS or unit but" in err
+        assert "a.las is in EPSG:32610 (m): give --units" in err
+        assert not (tmp_path / "o.csv").exists()
+    assert main(argv + ["--units", "m"]) == 0
     err = capsys.readouterr().err
     assert "declares no CRS" in err and "EPSG:32610" in err
+
+
+def test_clouds_that_do_not_overlap_are_flagged_once(tmp_path, capsys):
+    """A UTM tile and a lab scan near the origin merged with --units: one warning that
+    names the groups and the merged extent, on stderr and in SUMMARY.json."""
+    import json
+
+    a = _las(tmp_path / "a.las", WKT_UTM10, offset=500_000.0)
+    np.savetxt(tmp_path / "lab.xyz", np.random.default_rng(0).uniform(0, 0.03, (300, 3)))
+    for memory in ([], ["--memory", "300MB"]):
+        js = tmp_path / f"s{len(memory)}.json"
+        assert main(["compute", str(a), str(tmp_path / "lab.xyz"), "--units", "m", "--grid",
+                     "2", "--summary-json", str(js), "--quiet", *memory]) == 0
+        err = capsys.readouterr().err
+        lines = [line for line in err.splitlines() if "do not overlap" in line]
+        assert len(lines) == 1, err
+        assert "they form 2 separate groups" in lines[0] and "a.las: " in lines[0]
+        assert "the merged cloud is 866 km across" in lines[0]
+        assert any("do not overlap" in w for w in json.loads(js.read_text())["warnings"]) \
+            or memory  # the chunked path has no cloud warnings in its JSON
+    # files side by side touch: no warning
+    b = _las(tmp_path / "b.las", WKT_UTM10, offset=500_010.0)
+    assert main(["compute", str(a), str(b), "--grid", "2", "--summary-json",
+                 str(tmp_path / "t.json"), "--quiet"]) == 0
+    assert "overlap" not in capsys.readouterr().err
 
 
 def test_no_match_glob_exit_2(tmp_path, capsys):

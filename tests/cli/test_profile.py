@@ -11,6 +11,7 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.profiles.comparison import compare_denoising
 from rough_viewer.profiles.extraction import extract_profile
+from rough_viewer.profiles.fractal import roughness_length
 from rough_viewer.profiles.wavelets import noise_sigma
 from rough_viewer.synthetic.fbm import fbm_profile
 
@@ -188,7 +189,7 @@ def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> No
     captured = capsys.readouterr()
     data = json.loads(captured.out)
     assert data["raw"]["dimension"] < 1.0
-    assert "below 1" in data["warnings"][0] and "--detrend 2" in data["warnings"][0]
+    assert "below 1" in data["warnings"][0] and "remove the trend" in data["warnings"][0]
     assert "warning" in captured.err and "fold.txt" in captured.err
     assert main(["profile", str(path), "--detrend", "2", "--json"]) == 0
     fixed = json.loads(capsys.readouterr().out)
@@ -197,31 +198,30 @@ def test_curved_profile_warns_and_detrend_fixes_it(tmp_path: Path, capsys) -> No
 
 
 def _variant_warnings(tmp_path: Path, capsys, noise: float) -> tuple[dict, str]:
-    # a smooth wave plus white noise: the raw profile's D lies in [1, 2]; with little
-    # noise the de-noised variants are the bare wave, smoother than the windows (D < 1)
+    # a smooth wave plus white noise: the raw profile's D lies in [1, 2] on the paper's
+    # windows; with little noise the de-noised variants are the bare wave, smoother
+    # than the windows (D < 1)
     x = np.arange(900) * 1e-3
     h = 0.01 * np.sin(20 * x) + np.random.default_rng(1).normal(0.0, noise, x.size)
     path = tmp_path / f"wave_{noise:g}.txt"
     np.savetxt(path, np.column_stack([x, h]))
-    assert main(["profile", str(path), "--json"]) == 0
+    assert main(["profile", str(path), "--windows", "paper", "--json"]) == 0
     captured = capsys.readouterr()
     return json.loads(captured.out), captured.err
 
 
-def test_every_denoised_variant_outside_1_2_warns_once_by_name(tmp_path: Path, capsys) -> None:
+def test_denoised_variants_outside_1_2_are_one_counted_line(tmp_path: Path, capsys) -> None:
     data, err = _variant_warnings(tmp_path, capsys, 0.0005)
     assert 1.0 <= data["raw"]["dimension"] <= 2.0
-    keys = {f"{v['decomposition']}_{v['threshold']}_{v['mode']}": v["dimension"]
-            for v in data["variants"]}
-    implausible = {k for k, d in keys.items() if d is not None and not 1.0 <= d <= 2.0}
-    assert len(implausible) == 16  # every variant here: D = 0.52-0.55
-    assert len(data["warnings"]) == len(implausible)
-    for key in implausible:
-        mine = [w for w in data["warnings"] if f"de-noised {key}:" in w]
-        assert len(mine) == 1, key
-        assert f"D = {keys[key]:.2f} is below 1" in mine[0]
-        assert sum(f"de-noised {key}:" in line for line in err.splitlines()) == 1
-    assert not any("raw profile" in w for w in data["warnings"])
+    dims = [v["dimension"] for v in data["variants"] if v["dimension"] is not None]
+    low = sum(d < 1.0 for d in dims)
+    assert low == len(dims) == 16  # every variant here: D = 0.52-0.55
+    (line,) = data["warnings"]
+    assert line.endswith(f"wave_0.0005.txt: de-noised: D of {low} below 1 (de-noising smooths "
+                         "the profile further) of the 16 versions; try larger windows")
+    assert sum("de-noised:" in line for line in err.splitlines()) == 1
+    assert all(len(line.split()) <= 40 for line in err.splitlines())  # one short line each
+    assert "profiles.fractal" not in err and "detrend" not in err  # no Python names
     # the same wave with more noise: every variant in [1, 2], no warning at all
     data, err = _variant_warnings(tmp_path, capsys, 0.002)
     assert all(1.0 <= v["dimension"] <= 2.0 for v in data["variants"])
@@ -234,3 +234,25 @@ def test_raw_warning_names_the_raw_profile(tmp_path: Path, capsys) -> None:
     data = json.loads(capsys.readouterr().out)
     raw = [w for w in data["warnings"] if "raw profile:" in w]
     assert len(raw) == 1 and f"D = {data['raw']['dimension']:.2f}" in raw[0]
+
+
+def test_windows_option_in_the_input_unit(tmp_path: Path, capsys) -> None:
+    """--windows in the input's unit reaches the fit; 'paper' gives the paper's 3-10 %;
+    a malformed value is one line before any reading."""
+    x = np.arange(2000) * 1e-3
+    path = tmp_path / "p.txt"
+    np.savetxt(path, np.column_stack([x * 1e3, fbm_profile(2000, 0.6, spacing=1e-3, rng=2) * 1e3]))
+    assert main(["profile", str(path), "--profile-units", "mm", "--windows", "20,40,80,160",
+                 "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(data["windows_m"], [0.02, 0.04, 0.08, 0.16])
+    ref = roughness_length(fbm_profile(2000, 0.6, spacing=1e-3, rng=2), 1e-3,
+                           windows=[0.02, 0.04, 0.08, 0.16])
+    assert data["raw"]["dimension"] == pytest.approx(ref.dimension, rel=1e-9)
+    assert main(["profile", str(path), "--profile-units", "mm", "--windows", "paper",
+                 "--json"]) == 0
+    np.testing.assert_allclose(json.loads(capsys.readouterr().out)["windows_m"],
+                               np.arange(0.03, 0.1001, 0.01) * 1.999, rtol=0.02)
+    assert main(["profile", str(tmp_path / "missing.txt"), "--windows", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "windows '5': give two or more positive lengths" in err and "missing" not in err

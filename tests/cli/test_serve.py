@@ -140,3 +140,22 @@ def test_terminate_cleans_up_like_ctrl_c(tmp_path, monkeypatch, signame):
         assert list(temp.iterdir()) == []
     finally:
         proc.stop()
+
+
+def test_serve_says_a_files_warnings_once(tmp_path, capsys):
+    """A file whose CRS is geographic: the warning on stderr once (it was printed by
+    the reading and again by serve)."""
+    import laspy
+
+    hdr = laspy.LasHeader(point_format=1, version="1.2")
+    hdr.scales = np.array([1e-7, 1e-7, 1e-3])
+    hdr.vlrs.append(laspy.VLR("LASF_Projection", 2112, "", b'GEOGCS["WGS 84",UNIT["degree",'
+                              b'0.0174532925199433],AUTHORITY["EPSG","4326"]]\0'))
+    las = laspy.LasData(hdr)
+    rng = np.random.default_rng(0)
+    las.x, las.y = -122 + rng.uniform(0, 1e-3, 2000), 37 + rng.uniform(0, 1e-3, 2000)
+    las.z = rng.uniform(0, 5, 2000)
+    path = tmp_path / "geo.las"
+    las.write(str(path))
+    assert main(["serve", str(path), "--port", "0", "--grid", "0.001", "--no-block"]) == 0
+    assert capsys.readouterr().err.count("is geographic (degrees)") == 1

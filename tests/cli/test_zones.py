@@ -178,8 +178,33 @@ def test_units_mm_grid_and_summary_in_mm_zones_csv_in_metres(tmp_path, face, fac
                                    rtol=1e-3)
     area_m2 = sum(float(r[3]) for r in rows_mm)
     assert "grid 200 mm" in text
-    assert f"{area_m2 * 1e6:.4g} mm2 of face" in text
+    assert f"{area_m2 * 1e6:.4g} mm2 of face (ZONES.csv: {area_m2:.4g} m2; it is always in " \
+        "metres)" in text
     assert "area mm2" in text and "mean theta mm" in text
+    assert "(lengths in mm here; ZONES.csv holds area_m2, length_m, width_m" in text
+
+
+def test_the_threshold_is_judged_and_the_data_suggest_one(tmp_path, face, capsys):
+    """The summary gives the share the threshold flags (against the library's binary
+    transform) and the data's own threshold with its share; a threshold flagging most
+    of the face says so."""
+    from rough_viewer.grid.summary import binary, normalise
+    from rough_viewer.grid.threshold import map_threshold_advice
+    from rough_viewer.io import load_points
+
+    ref = grid_roughness(load_points(face), 0.2)
+    for threshold in ("0.2", "0.01"):
+        assert main(["zones", str(face), "--grid", "0.2", "--threshold", threshold, "--out",
+                     str(tmp_path / f"z{threshold}.csv"), "--quiet"]) == 0
+        text = capsys.readouterr().out
+        t = float(threshold)
+        flagged = binary(normalise(ref.theta_odr), t).sum() / np.isfinite(ref.theta_odr).sum()
+        advice = map_threshold_advice(ref, "odr", t)
+        assert advice.share == pytest.approx(flagged)
+        assert f"threshold {t:g} flags {100 * flagged:.0f} % of the" in text
+        assert f"the data suggest {advice.suggested:.3g}" in text
+        assert ("warning: threshold" in text) == (flagged > 0.5)
+    assert flagged > 0.5  # 0.01 flags most of this face
 
 
 def test_units_mm_cells_csv_is_computes_cell_table(tmp_path, face_mm):

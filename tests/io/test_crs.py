@@ -111,4 +111,30 @@ def test_units_warnings_name_the_files_own_units(tmp_path):
     mixed = _las_with(tmp_path, "mixed.las", [keys(9002)])
     unit, notes = resolve_units(mixed, None)
     assert unit == "m" and len(notes) == 1
-    assert notes[0].endswith("gives z in ft but x, y in m; z is read in m too")
+    assert notes[0].endswith("gives z in ft but x, y in m: z is converted to m (x 0.3048), "
+                             "as a reprojection would")
+
+
+def test_a_vertical_unit_of_its_own_converts_z(tmp_path):
+    """x, y in metres and z in US survey feet: z is converted by 1200/3937 (as a
+    reprojection to a metre CRS would), in memory and in chunks alike; --units
+    overrides both axes; the warning is said once."""
+    from rough_viewer.io.load import axis_units, load_points
+    from rough_viewer.scale.sources import chunk_plan, open_sources, read_chunk
+
+    vlr = laspy.VLR("LASF_Projection", 34735, "", _geokeys(
+        [(1024, 0, 1, 1), (3072, 0, 1, 32611), (3076, 0, 1, 9001), (4099, 0, 1, 9003)]))
+    path = _las_with(tmp_path, "usft.las", [vlr])
+    assert axis_units(path, None)[:2] == ("m", "us-ft")
+    cloud = load_points(path)
+    np.testing.assert_allclose(cloud.z, [0.0, 0.0, 1200 / 3937], rtol=1e-15)
+    np.testing.assert_allclose(cloud.x, [0.0, 1.0, 2.0])
+    assert cloud.source_unit == "m" and len(cloud.warnings) == 1
+    assert "z in US ft but x, y in m: z is converted to m (x 0.3048006)" in cloud.warnings[0]
+    sources = open_sources([path])
+    (chunk,) = chunk_plan(sources, 10)
+    x, y, z = read_chunk(sources[0], chunk)
+    np.testing.assert_array_equal(z, cloud.z)
+    np.testing.assert_allclose(sources[0].bounds_max, [2.0, 1.0, 1200 / 3937])
+    asked = load_points(path, units="m")
+    np.testing.assert_allclose(asked.z, [0.0, 0.0, 1.0])

@@ -1,9 +1,10 @@
 """Roughness-length method on exact fractional Brownian motion and against brute force.
 
-Accuracy measured (200 seeds per H, 2048-sample fBm, default windows 3-10 %): the
-per-profile error of D has a bias of +0.005 (H 0.3) to +0.015 (H 0.8) and a standard
-deviation of 0.046 (H 0.3) to 0.085 (H 0.8); the mean over 16 seeds is therefore within
-about +-0.07 of 2 - H, which is what the test asserts.
+Accuracy measured (100 seeds per H, 2048-sample fBm, default windows 3-30 % in log):
+the per-profile error of D has a bias of +0.014 (H 0.3) to +0.031 (H 0.8) and a standard
+deviation of 0.052 (H 0.3) to 0.084 (H 0.8) (the paper's 3-10 %: +0.008 to +0.027,
+0.050 to 0.088); the mean over 16 seeds is therefore within about +-0.07 of 2 - H,
+which is what the test asserts.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import pytest
 
 from rough_viewer.profiles.fractal import (
     detrend,
+    parse_windows,
+    plausibility,
     roughness_length,
     roughness_length_2d,
     window_std_1d,
@@ -73,11 +76,42 @@ def test_amplitude_and_hurst_scale_properly() -> None:
 
 def test_default_windows() -> None:
     r = roughness_length(np.random.default_rng(0).normal(size=1001), 1e-3)
-    # 8 lengths from 3 % to 10 % of 1.000 m = 30, 40, ..., 100 mm: 31..101 samples
-    np.testing.assert_array_equal(r.window_samples, np.arange(31, 102, 10))
-    np.testing.assert_allclose(r.windows, np.arange(0.03, 0.1001, 0.01))
+    # 8 lengths evenly in log from 3 % to 30 % of 1.000 m: 30, 41.6, ..., 300 mm
+    lengths = 0.03 * 10.0 ** (np.arange(8) / 7)
+    np.testing.assert_array_equal(r.window_samples, np.rint(lengths / 1e-3).astype(int) + 1)
+    np.testing.assert_allclose(r.windows, (r.window_samples - 1) * 1e-3)
     np.testing.assert_array_equal(r.n_windows, 1001 - r.window_samples + 1)
     assert r.ndim == 1 and r.dimension == pytest.approx(2 - r.hurst)
+
+
+def test_paper_windows_and_given_windows() -> None:
+    h = np.random.default_rng(0).normal(size=1001)
+    # the paper's: 8 lengths from 3 % to 10 % of 1.000 m = 30, 40, ..., 100 mm: 31..101 samples
+    r = roughness_length(h, 1e-3, windows="paper")
+    np.testing.assert_array_equal(r.window_samples, np.arange(31, 102, 10))
+    np.testing.assert_allclose(r.windows, np.arange(0.03, 0.1001, 0.01))
+    given = roughness_length(h, 1e-3, windows=parse_windows("20,50,100", 1e-3))
+    np.testing.assert_array_equal(given.window_samples, [21, 51, 101])
+    assert parse_windows(" Paper ") == "paper" and parse_windows("default") == "default"
+    for bad in ("", "5", "1,-2", "a,b", "1,nan"):
+        with pytest.raises(InputError, match="two or more positive lengths"):
+            parse_windows(bad)
+    with pytest.raises(InputError, match="unknown window rule"):
+        roughness_length(h, 1e-3, windows="wide")
+
+
+def test_warnings_are_one_short_line_in_words() -> None:
+    """A fold (D < 1) and white noise on a short profile (D > 2): one line each, in the
+    words of the controls (windows, trend, de-noising), no function names."""
+    x = np.arange(2000) * 1e-3
+    fold = 0.5 * x**2 + fbm_profile(2000, 0.7, spacing=1e-3, sigma=1e-5, rng=3)
+    (low,) = roughness_length(fold, 1e-3).warnings
+    assert low.startswith("D = ") and "is below 1" in low and "remove the trend" in low
+    (high,) = plausibility(2.31, -0.31, 1)
+    assert high.startswith("D = 2.31 is above 2") and "larger windows" in high
+    assert plausibility(1.5, 0.5, 1) == () and "is below 2" in plausibility(1.9, 1.1, 2)[0]
+    for line in (low, high):
+        assert len(line.split()) <= 40 and "fractal." not in line and "--" not in line
 
 
 # ----------------------------------------------------------------------------- brute force

@@ -21,7 +21,7 @@ def test_report_page_follows_the_settings(cloud):
     settings = ReportSettings(min_points=5, grid_sizes=(0.5, 0.25), axis="z", threshold=0.2)
     page = report_page(cloud, settings)
     assert '<section id="grid-0_5"' in page and '<section id="grid-0_25"' in page
-    assert "<td>binary threshold</td><td>0.2 (normalised roughness)</td>" in page
+    assert "<td>binary threshold</td><td>0.2 (normalised roughness;" in page
     assert "<td>min points per cell</td><td>5</td>" in page
     assert "Binary transform at 0.2" in page
 

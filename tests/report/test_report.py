@@ -208,7 +208,8 @@ def test_a_png_that_fails_leaves_nothing(cloud_file, tmp_path, monkeypatch, caps
     assert main(["report", str(cloud_file), "--grid", "0.5", "--out", str(out),
                  "--png", str(png), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "PNG export failed: the browser went away" in err and err.count("\n") == 1
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert errors == ["rough-viewer: error: PNG export failed: the browser went away"]
     assert not out.exists() and not png.exists() and len(calls) == 4
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
@@ -463,3 +464,42 @@ def test_each_grid_section_holds_its_joint_sets(report, cloud):
             assert f"{ref.planes.n_planes:,} planes" in section
         else:
             assert "no joint set" in section
+
+
+def test_outliers_are_left_out_and_the_threshold_judged():
+    """A wall read along z whose vertical half gives hybrid values larger than the
+    cell: the report's hybrid Table 1, histogram and semivariogram leave those cells
+    out (or keep them when asked), the warnings name them, and every map carries the
+    share its threshold flags with the data's own threshold."""
+    from rough_viewer.grid.outliers import analysed_values, outlier_mask
+    from rough_viewer.grid.threshold import threshold_advice
+    from tests.grid.test_outliers import leaning_wall
+
+    cloud = PointCloud.from_xyz(leaning_wall(20_000), source="wall.xyz")
+    ref = grid_roughness(cloud, 0.25, axis="z")
+    steep = outlier_mask(ref, "hybrid")
+    assert steep.any()
+    for keep in (False, True):
+        rep = build_report(cloud, [0.25], axis="z", keep_outliers=keep)
+        data = json.loads(json.dumps(report_json(rep), allow_nan=False))
+        assert data["keep_outliers"] is keep
+        entry = data["grids"][0]["models"]["hybrid"]
+        values = analysed_values(ref, "hybrid", keep_outliers=keep)
+        assert entry["summary"] == pytest.approx(
+            summarise(ref, "hybrid", keep_outliers=keep).as_dict(), rel=1e-12)
+        assert entry["summary"]["max"] == pytest.approx(np.nanmax(values), rel=1e-12)
+        np.testing.assert_allclose(entry["histogram"]["fractions"],
+                                   histogram(normalise(values)).fractions)
+        assert entry["semivariogram"]["n_cells"] == np.isfinite(values).sum()
+        advice = data["grids"][0]["threshold_advice"]
+        for name in MAPS:
+            expected = threshold_advice(analysed_values(ref, name, keep_outliers=keep), 0.05,
+                                        exact_fit=1e-9 * 0.25)
+            assert advice[name]["share"] == pytest.approx(expected.share)
+            assert advice[name]["suggested"] == pytest.approx(expected.suggested)
+        named = [w for w in rep.warnings if "larger than the cell" in w]
+        assert len(named) == 1 and named[0].startswith(f"grid 0.25 m: {steep.sum()} of ")
+        assert ("--keep-outliers keeps them" in named[0]) is not keep
+    page = report_html(rep)
+    assert "hybrid outliers (larger than the cell), kept" in page
+    assert "threshold 0.05 flags" in page

@@ -46,3 +46,16 @@ def test_panel_aspect_gives_the_laid_out_height():
     assert panel_aspect(fig, 300) == 0.8
     with pytest.raises(ValueError):
         panel_aspect(go.Figure())
+
+
+def test_cells_of_roughness_zero_are_named_not_counted_below():
+    """26 % of the cells fit their plane exactly (θ = 0): the caption names them as
+    exact-fit cells, and 'below' counts only the other cells under the stretch."""
+    v = np.r_[np.zeros(260), np.geomspace(5e-4, 3e-2, 740)]
+    rng = colormaps.resolve(v)
+    assert rng.below > 0.26  # the zeros and the 2 % under the 2nd percentile
+    text = colour_scale_figure(rng, colormap="viridis", exact_fit=260,
+                               outliers=3).layout.xaxis.title.text
+    assert "260 exact-fit cells (θ = 0)" in text
+    assert f"{rng.below * 100:.0f} % below" not in text  # the zeros are not "below"
+    assert "cyan: 3 outlier cells (larger than the cell)" in text

@@ -238,3 +238,27 @@ def test_default_stretch_shows_the_demo_in_many_colours(demo_quarter, name):
     assert colormaps.largest_colour_share(minmax[res.point_cell], band=8) > 0.5
     if name == "hybrid":  # metre-sized outliers: three quarters in the first colour
         assert colormaps.largest_colour_share(minmax) > 0.7
+
+
+def test_outlier_colour_is_none_of_the_maps_and_marks_points():
+    """Outlier cells take their own colour in both displays, a colour no map reaches."""
+    from rough_viewer.visual.colormaps import (
+        COLORMAP_NAMES,
+        OUTLIER_RGB,
+        apply_binary,
+        lut,
+        resolve,
+        stretch_colours,
+    )
+
+    for name in COLORMAP_NAMES:
+        nearest = np.abs(lut(name).astype(int) - np.array(OUTLIER_RGB)).sum(axis=1).min()
+        assert nearest > 60, name
+    values = np.array([0.001, 0.002, 0.5, np.nan])
+    out = np.array([False, False, True, False])
+    rng = resolve(values[:2])
+    rgb = stretch_colours(values, rng, outliers=out)
+    assert rgb[2].tolist() == list(OUTLIER_RGB) and rgb[0].tolist() != list(OUTLIER_RGB)
+    np.testing.assert_array_equal(rgb[[0, 1, 3]], stretch_colours(values, rng)[[0, 1, 3]])
+    flags = apply_binary(values > 0.0015, np.isfinite(values), outliers=out)
+    assert flags[2].tolist() == list(OUTLIER_RGB) and flags[3].tolist() == [190, 190, 190]

@@ -80,3 +80,45 @@ def test_png_and_svg_with_kaleido(tmp_path):
     path = write_figure(_figure(), tmp_path / "fig.svg", width=400, height=300)
     svg = path.read_text()
     assert svg.startswith("<svg") and "ODR roughness, grid 0.25 m" in svg
+
+
+def test_a_zip_of_html_figures_holds_one_plotly_js(tmp_path):
+    """Nine HTML figures in a ZIP: one plotly.min.js beside them (each page loads it
+    by a relative name, nothing from a network), not nine inlined copies; unpacked,
+    a page and the script are side by side."""
+    import zipfile
+
+    from plotly.offline import get_plotlyjs
+
+    from rough_viewer.visual.export import PLOTLY_JS_NAME, write_figures_zip
+
+    figures = [(f"fig{k}", _figure()) for k in range(9)]
+    steps = []
+    buf = io.BytesIO()
+    names = write_figures_zip(buf, figures, "html", progress=lambda d, t: steps.append(d))
+    assert names == [PLOTLY_JS_NAME] + [f"fig{k}.html" for k in range(9)]
+    with zipfile.ZipFile(io.BytesIO(buf.getvalue())) as zf:
+        assert zf.namelist() == names
+        assert zf.read(PLOTLY_JS_NAME).decode() == get_plotlyjs()
+        page = zf.read("fig3.html").decode()
+    assert len(page) < 20_000 and f'src="{PLOTLY_JS_NAME}"' in page
+    assert not re.search(r"<script[^>]+src=\"https?:", page)
+    assert sum(zi.file_size for zi in zipfile.ZipFile(io.BytesIO(buf.getvalue())).infolist()) \
+        < 1.2 * len(get_plotlyjs())
+    assert steps == list(range(10))
+
+
+def test_titles_and_formats_for_people(monkeypatch):
+    from rough_viewer.visual.export import (
+        FORMATS_NOTE,
+        figure_formats,
+        figure_title,
+        formats_note,
+    )
+
+    assert figure_title("colour_bar") == "Colour bar"
+    assert figure_title("face_scales") == "Whole-face roughness against grid size"
+    assert figure_title("zones_new_thing") == "Zones new thing"
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None)
+    assert figure_formats() == ("html",) and formats_note() == FORMATS_NOTE
+    assert "pip install 'rough_viewer[images]'" in FORMATS_NOTE

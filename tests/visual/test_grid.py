@@ -21,6 +21,7 @@ from rough_viewer.visual.grid import (
     variogram_figure,
     wrap_caption,
 )
+from rough_viewer.vocabulary import MAP_COLOURS
 
 KW = {"grid_size": 0.125, "axis": "y", "n_points": 1_234_567}
 
@@ -77,6 +78,18 @@ def test_histogram_bars_and_first_bin_shares():
     np.testing.assert_allclose(fig.data[1].x, 0.5 * (odr.edges[:-1] + odr.edges[1:]))
     assert "OLS 86 %" in fig.layout.title.text and "ODR 63 %" in fig.layout.title.text
     assert_caption(fig, "OLS", "ODR")
+    assert len(fig.data) == 2  # no threshold given: bars only
+
+
+def test_histogram_shows_the_threshold_and_the_suggestions():
+    odr = histogram(np.r_[np.zeros(63), np.linspace(0.06, 1, 37)], 0.05)
+    fig = histogram_figure({"odr": odr, "ols": odr}, threshold=0.05,
+                           suggestions={"odr": 0.31, "ols": None, "hybrid": 0.2}, **KW)
+    lines = [t for t in fig.data if t.type == "scatter"]
+    assert [(t.name, tuple(t.x)) for t in lines] == [("threshold 0.05", (0.05, 0.05)),
+                                                     ("ODR suggested 0.31", (0.31, 0.31))]
+    assert lines[0].line.dash == "dash" and lines[1].line.color == MAP_COLOURS["odr"]
+    assert all(t.yaxis == "y2" for t in lines) and fig.layout.yaxis2.range == (0, 1)
 
 
 def test_variogram_points_and_symbols():

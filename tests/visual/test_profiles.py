@@ -89,3 +89,20 @@ def test_units_follow_the_cloud(analyses):
     np.testing.assert_allclose(mm.data[0].x, analyses[0].profile.distance * 1e3)
     assert mm.layout.yaxis.scaleratio == pytest.approx(2.0)
     assert mm.layout.xaxis.title.text == "distance along the line (mm)"
+
+
+def test_metres_of_relief_are_drawn_in_metres():
+    """A 195 m airborne profile with 25 m of relief: heights in m, not -15k..10k mm;
+    the s(w) plot follows."""
+    x = np.linspace(0, 195, 600)
+    h = 12.5 * np.sin(x / 30.0) - 2.5
+    fit = roughness_length(h + 0.01 * np.random.default_rng(1).standard_normal(600),
+                           x[1] - x[0])
+    a = SimpleNamespace(profile=SimpleNamespace(distance=x, heights=h),
+                        denoised=SimpleNamespace(heights=h), raw_fit=fit, denoised_fit=fit)
+    fig = profile_figure([a])
+    np.testing.assert_allclose(fig.data[0].y, h)
+    assert fig.layout.yaxis.title.text.startswith("height (m)")
+    lo, hi = fig.layout.yaxis.range
+    assert -17 < lo < -15 and 10 < hi < 12
+    assert fig.layout.yaxis2.title.text == "s(w) (m)"

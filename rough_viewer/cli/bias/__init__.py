@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="scanner bias: range noise, beam effective radius, rough-target simulation",
         description="Measure a scanner's range noise (flat board) and beam effective radius "
         "(thin wire), simulate rough targets and predict how noise and beam smoothing bias "
-        "roughness (SCIENCE.md section 3, docs/bias.md).",
+        "roughness (docs/science.md section 3, docs/bias.md).",
     )
     s = p.add_subparsers(dest="bias_command", metavar="SUBCOMMAND", parser_class=type(p))
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])

@@ -129,7 +129,7 @@ def add_residual_option(q: argparse.ArgumentParser) -> None:
     q.add_argument("--residual", choices=("signed", "absolute"), default=BIAS_RESIDUAL,
                    help="signed (default): std of the signed orthogonal distances, the bias "
                    "paper's definition; absolute: std of the absolute distances, the "
-                   "grid-roughness convention (SCIENCE.md section 1)")
+                   "grid-roughness convention (docs/science.md section 1)")
     q.add_argument("--signed", dest="residual", action="store_const", const="signed",
                    help=argparse.SUPPRESS)
 

@@ -1,0 +1,181 @@
+"""io/dem.py: elevation rasters as points, each cell centre one point, nodata dropped,
+the georeferencing honoured; files written here byte by byte (ESRI ASCII) or with
+tifffile's writer and the GeoTIFF tags set by hand."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from rough_viewer.cli import main
+from rough_viewer.io import load_points
+from rough_viewer.io.crs import read_crs
+from rough_viewer.vocabulary import InputError
+
+Z = np.array([[1.0, 2.0, 3.0, 4.0], [5.0, -9999.0, 7.0, 8.0], [9.0, 10.0, np.nan, 12.0]])
+
+
+def centres(x0: float, y_top: float, dx: float, dy: float) -> tuple[np.ndarray, np.ndarray]:
+    """Brute force: the centre of every cell, row 0 at the top, row-major."""
+    xs, ys = [], []
+    for r in range(Z.shape[0]):
+        for c in range(Z.shape[1]):
+            xs.append(x0 + c * dx)
+            ys.append(y_top - r * dy)
+    return np.array(xs), np.array(ys)
+
+
+def write_asc(path, corner: bool = True) -> None:
+    ll = ("xllcorner 1000.0\nyllcorner 2000.0\n" if corner
+          else "xllcenter 1002.5\nyllcenter 2002.5\n")
+    rows = "\n".join(" ".join("nan" if np.isnan(v) else f"{v:g}" for v in row) for row in Z)
+    path.write_text(f"ncols 4\nnrows 3\n{ll}cellsize 5\nNODATA_value -9999\n{rows}\n")
+
+
+@pytest.mark.parametrize("corner", [True, False])
+def test_esri_ascii_cell_centres_and_nodata(tmp_path, corner):
+    path = tmp_path / "dem.asc"
+    write_asc(path, corner)
+    cloud = load_points(path)
+    x, y = centres(1002.5, 2012.5, 5.0, 5.0)  # the top row's centre is 2.5 m below its top
+    keep = np.isfinite(Z.ravel()) & (Z.ravel() != -9999.0)
+    np.testing.assert_array_equal(cloud.x, x[keep])
+    np.testing.assert_array_equal(cloud.y, y[keep])
+    np.testing.assert_array_equal(cloud.z, Z.ravel()[keep])
+    assert cloud.n == 10 and cloud.dropped_nonfinite == 2
+    assert read_crs(path).unit is None  # no .prj beside it
+
+
+def test_esri_ascii_prj_gives_the_crs_and_its_unit(tmp_path):
+    path = tmp_path / "dem.asc"
+    write_asc(path)
+    (tmp_path / "dem.prj").write_text(
+        'PROJCS["NAD83 / California zone 3 (ftUS)",GEOGCS["NAD83",UNIT["degree",'
+        '0.0174532925199433]],UNIT["US survey foot",0.304800609601219],'
+        'AUTHORITY["EPSG","2227"]]')
+    info = read_crs(path)
+    assert info.unit == "us-ft" and info.epsg == 2227
+    cloud = load_points(path)
+    assert cloud.source_unit == "us-ft"
+    np.testing.assert_allclose(cloud.x[0], 1002.5 * 1200 / 3937)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3\n", "holds 3 values"),
+    ("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\n1 2\n3 4\n", "positive cellsize"),
+    ("ncols 2\nnrows 2\nxllcorner 0\ncellsize 1\n1 2\n3 4\n", "yllcorner or yllcenter"),
+    ("ncols 2\nrows 2\n1 2\n", "unknown header line"),
+    ("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 x\n3 4\n", "cannot read the values"),
+])
+def test_esri_ascii_errors_are_one_line(tmp_path, text, message):
+    path = tmp_path / "bad.asc"
+    path.write_text(text)
+    with pytest.raises(InputError, match=message) as info:
+        load_points(path)
+    assert "\n" not in str(info.value) and "bad.asc" in str(info.value)
+
+
+# ----------------------------------------------------------------------------- GeoTIFF
+
+
+def geokeys(*entries: tuple[int, int, int, int]) -> tuple[int, ...]:
+    return (1, 1, 0, len(entries), *[v for e in entries for v in e])
+
+
+def write_tif(path, *, point: bool = False, transform: np.ndarray | None = None,
+              vertical: int | None = None, nodata: str | None = "-9999") -> None:
+    tifffile = pytest.importorskip("tifffile")
+    keys = [(1024, 0, 1, 1), (1025, 0, 1, 2 if point else 1), (3072, 0, 1, 32611)]
+    if vertical is not None:
+        keys.append((4099, 0, 1, vertical))
+    directory = geokeys(*keys)
+    tags = [(34735, "H", len(directory), directory, True)]
+    if transform is None:
+        tags += [(33550, "d", 3, (5.0, 5.0, 0.0), True),
+                 (33922, "d", 6, (0.0, 0.0, 0.0, 1000.0, 2015.0, 0.0), True)]
+    else:
+        tags.append((34264, "d", 16, tuple(transform.ravel()), True))
+    if nodata is not None:
+        tags.append((42113, "s", 0, nodata, True))
+    tifffile.imwrite(path, Z.astype(np.float32), extratags=tags)
+
+
+def test_geotiff_pixel_is_area_and_point(tmp_path):
+    area, point = tmp_path / "area.tif", tmp_path / "point.tif"
+    write_tif(area)
+    write_tif(point, point=True)
+    keep = np.isfinite(Z.ravel()) & (Z.ravel() != -9999.0)
+    a = load_points(area)
+    x, y = centres(1002.5, 2012.5, 5.0, 5.0)  # the tie point is the top-left corner
+    np.testing.assert_array_equal(a.x, x[keep])
+    np.testing.assert_array_equal(a.y, y[keep])
+    np.testing.assert_array_equal(a.z, Z.ravel()[keep])
+    assert a.dropped_nonfinite == 2
+    p = load_points(point)
+    x, y = centres(1000.0, 2015.0, 5.0, 5.0)  # the tie point is the top-left centre
+    np.testing.assert_array_equal(p.x, x[keep])
+    np.testing.assert_array_equal(p.y, y[keep])
+    info = read_crs(area)
+    assert info.epsg == 32611 and info.unit == "m" and info.source == "geotiff"
+
+
+def test_geotiff_transformation_matrix_with_rotation(tmp_path):
+    """ModelTransformationTag: raster (i, j) -> model by an affine matrix (rotation
+    30 degrees, 2 m pixels); centres at (c + 0.5, r + 0.5)."""
+    a = np.radians(30)
+    m = np.eye(4)
+    m[:2, :2] = 2.0 * np.array([[np.cos(a), -np.sin(a)], [-np.sin(a), -np.cos(a)]])
+    m[:2, 3] = (500.0, 800.0)
+    path = tmp_path / "rot.tif"
+    write_tif(path, transform=m, nodata=None)
+    cloud = load_points(path)
+    keep = np.isfinite(Z.ravel())
+    r, c = np.divmod(np.arange(Z.size), Z.shape[1])
+    model = m @ np.vstack([c + 0.5, r + 0.5, np.zeros(Z.size), np.ones(Z.size)])
+    np.testing.assert_allclose(cloud.x, model[0][keep], rtol=1e-14)
+    np.testing.assert_allclose(cloud.y, model[1][keep], rtol=1e-14)
+    assert cloud.n == 11  # -9999 stays a height without a nodata tag
+
+
+def test_geotiff_vertical_feet_are_converted(tmp_path, capsys):
+    path = tmp_path / "usft.tif"
+    write_tif(path, vertical=9003)
+    cloud = load_points(path)
+    np.testing.assert_allclose(cloud.z[:3], np.array([1.0, 2.0, 3.0]) * 1200 / 3937)
+    assert "z in US ft but x, y in m: z is converted to m" in cloud.warnings[0]
+    assert main(["compute", str(path), "--grid", "20", "--summary-json",
+                 str(tmp_path / "s.json"), "--quiet"]) == 0
+    assert capsys.readouterr().err.count("z is converted") == 1
+
+
+def test_geotiff_without_georeferencing_or_without_tifffile(tmp_path, monkeypatch):
+    tifffile = pytest.importorskip("tifffile")
+    path = tmp_path / "plain.tif"
+    tifffile.imwrite(path, Z.astype(np.float32))
+    with pytest.raises(InputError, match="TIFF without georeferencing"):
+        load_points(path)
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "tifffile" else real(name, *a))
+    with pytest.raises(InputError, match=r"needs the optional package tifffile: pip install "
+                       r"'rough_viewer\[dem\]'"):
+        load_points(path)
+
+
+def test_dem_through_compute(tmp_path, capsys):
+    """A 60 x 80 ESRI grid of a tilted plane with a bump: compute reads it like any
+    cloud (one point per cell centre)."""
+    rows, cols = 60, 80
+    r, c = np.mgrid[0:rows, 0:cols]
+    z = 0.1 * c + 0.05 * r + 0.2 * np.exp(-((c - 40) ** 2 + (r - 30) ** 2) / 50.0)
+    path = tmp_path / "plane.asc"
+    body = "\n".join(" ".join(f"{v:.6f}" for v in row) for row in z)
+    path.write_text(f"ncols {cols}\nnrows {rows}\nxllcorner 0\nyllcorner 0\ncellsize 1\n{body}\n")
+    assert main(["compute", str(path), "--grid", "10", "--summary-json",
+                 str(tmp_path / "s.json"), "--quiet"]) == 0
+    assert "4,800 points, grid 10 m" in capsys.readouterr().out
+    assert struct.calcsize("<H") == 2  # GeoKeys are little-endian uint16 words
