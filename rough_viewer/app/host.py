@@ -116,8 +116,9 @@ class SavedViewPart(Protocol):
 class FigureSource(Protocol):
     """A feature whose panels can be exported (the Export folder's figure list)."""
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        """Name (a file-name part) -> (title shown to the user, the plotly panel)."""
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        """Name (a file-name part; :func:`rough_viewer.visual.export.figure_title`
+        gives its title) -> the plotly panel."""
         ...
 
 

@@ -21,8 +21,10 @@ import numpy as np
 
 from rough_viewer.app.limits import CACHE_BYTES
 from rough_viewer.app.sampling import display_subset
+from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
+    EXACT_FIT,
     GridRoughness,
     PreparedGrid,
     coarsen_prepared,
@@ -31,6 +33,7 @@ from rough_viewer.grid.roughness import (
 )
 from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.grid.summary import normalise
+from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.io import PointCloud
 from rough_viewer.report.build import SPARSE_SHARE
 from rough_viewer.visual import colormaps
@@ -95,6 +98,11 @@ class MapSettings:
     layer: ColourLayerName = "roughness"
     """What colours the points: the roughness map, the scan's RGB, its intensity, or
     the distance to the whole-cloud face plane."""
+    keep_outliers: bool = False
+    """Keep cells whose roughness is larger than the cell (outliers of the hybrid or
+    OLS definition, :mod:`rough_viewer.grid.outliers`) in the colour stretch, the
+    binary transform, the panels and the zones; by default they are left out and
+    drawn in :data:`rough_viewer.visual.colormaps.OUTLIER_RGB`."""
 
     @property
     def grid_key(self) -> tuple[float, str, int]:
@@ -476,15 +484,31 @@ class LoadedCloud:
         return prep
 
 
-def normalised_map(result: GridRoughness, model: MapName) -> np.ndarray:
-    """Min-max normalised roughness of every cell of ``result`` for ``model`` (NaN: no value)."""
-    return normalise(result.values(model))
+def map_values(result: GridRoughness, settings: MapSettings) -> np.ndarray:
+    """(M,) the shown map's roughness as the colours, panels and zones use it, metres:
+    NaN without a value and, unless ``settings.keep_outliers``, for outlier cells
+    (:func:`rough_viewer.grid.outliers.analysed_values`)."""
+    return analysed_values(result, settings.model, keep_outliers=settings.keep_outliers)
+
+
+def normalised_map(result: GridRoughness, settings: MapSettings) -> np.ndarray:
+    """Min-max normalised roughness of every cell of the shown map (NaN: no value, or
+    an outlier left out)."""
+    return normalise(map_values(result, settings))
 
 
 def colour_range(result: GridRoughness, settings: MapSettings) -> colormaps.ColourRange:
     """The stretch of ``settings`` resolved on the cells of the shown map (one vote
-    per cell with a value, as Table 1 counts), metres."""
-    return colormaps.resolve(result.values(settings.model), settings.stretch)
+    per cell with a value, as Table 1 counts; outliers left out unless kept), metres."""
+    return colormaps.resolve(map_values(result, settings), settings.stretch)
+
+
+def shown_outliers(result: GridRoughness, settings: MapSettings) -> np.ndarray | None:
+    """(M,) bool: the cells drawn in the outlier colour (None: none, or kept)."""
+    if settings.keep_outliers:
+        return None
+    mask = outlier_mask(result, settings.model)
+    return mask if mask.any() else None
 
 
 def point_colours(
@@ -501,18 +525,22 @@ def point_colours(
     or absolute limits) on ``settings.colormap``. Binary display: the 2011 paper's
     transform, min-max normalised roughness ``>= threshold`` in the map's last
     colour, the rest in its first. Points in cells without a value get
-    :data:`colormaps.NEUTRAL_RGB`. ``colours_range`` may pass a precomputed
+    :data:`colormaps.NEUTRAL_RGB`, points in outlier cells (left out)
+    :data:`colormaps.OUTLIER_RGB`. ``colours_range`` may pass a precomputed
     :func:`colour_range`.
     """
     cell = result.point_cell[point_index]
+    out = shown_outliers(result, settings)
+    per_cell_out = None if out is None else out[cell]
     if settings.display == "binary":
-        per_point = normalised_map(result, settings.model)[cell]
+        per_point = normalised_map(result, settings)[cell]
         valid = np.isfinite(per_point)
         with np.errstate(invalid="ignore"):
             flags = per_point >= settings.threshold
-        return colormaps.apply_binary(flags, valid, settings.colormap)
+        return colormaps.apply_binary(flags, valid, settings.colormap, outliers=per_cell_out)
     rng = colours_range if colours_range is not None else colour_range(result, settings)
-    return colormaps.stretch_colours(result.values(settings.model)[cell], rng, settings.colormap)
+    return colormaps.stretch_colours(map_values(result, settings)[cell], rng, settings.colormap,
+                                     outliers=per_cell_out)
 
 
 @dataclass(frozen=True)
@@ -534,6 +562,10 @@ class MapStats:
     exact_fit: int = 0
     """Cells with a value of 0 to round-off (points exactly on a plane, e.g. repeated
     points; :data:`rough_viewer.grid.roughness.EXACT_FIT`)."""
+    outliers: int = 0
+    """Cells whose roughness is larger than the cell (left out unless kept)."""
+    advice: ThresholdAdvice | None = None
+    """What the binary threshold flags, and the data's own threshold."""
 
     @property
     def sparse(self) -> bool:
@@ -543,8 +575,9 @@ class MapStats:
 
 
 def map_stats(result: GridRoughness, settings: MapSettings) -> MapStats:
-    """Range and counts of the current map (see :class:`MapStats`)."""
-    values = result.values(settings.model)
+    """Range and counts of the current map (see :class:`MapStats`); outliers left out
+    unless kept."""
+    values = map_values(result, settings)
     finite = np.isfinite(values)
     norm = normalise(values)
     valid = int(finite.sum())
@@ -555,7 +588,10 @@ def map_stats(result: GridRoughness, settings: MapSettings) -> MapStats:
         lo = hi = rough = float("nan")
     return MapStats(lo, hi, len(values), valid, rough,
                     colormaps.resolve(values, settings.stretch),
-                    exact_fit=result.cell_report(settings.model)["exact_fit"])
+                    exact_fit=result.cell_report(settings.model)["exact_fit"],
+                    outliers=int(outlier_mask(result, settings.model).sum()),
+                    advice=threshold_advice(values, settings.threshold,
+                                            exact_fit=EXACT_FIT * result.grid.cell_size))
 
 
 @dataclass(frozen=True)

@@ -146,7 +146,7 @@ def test_ply_download(exported):
 
 def test_figure_html_and_all_panels(exported):
     app, client, _ = exported
-    client.set_value(em.L_FIGURE, "histogram")
+    client.set_value(em.L_FIGURE, "Histogram of normalised roughness")
     _, data = _download(client, app, em.L_FIGURE_BUTTON, "_histogram.html")
     html = data.decode()
     hist = app.feature(PanelsFeature).histogram.figure
@@ -264,7 +264,7 @@ def test_figure_dropdown_lists_every_panel(exported):
     # the list shows each panel's title (no raw names); every title names one panel
     titles = em.panel_titles(app.host)
     assert set(titles.values()) == names and "colour_bar" not in titles
-    assert {"colour bar", "semivariogram", "summary (Table 1)"} <= set(titles)
+    assert {"Colour bar", "Semivariograms", "Table 1: summary statistics"} <= set(titles)
     assert set(app.feature(ExportFeature).figure.options) == set(titles) | {em.ALL_FIGURES}
 
 
@@ -303,14 +303,14 @@ def test_png_and_svg_downloads(exported):
     mode = app.feature(ExportFeature)
     assert tuple(mode.figure_format.options) == ("HTML", "PNG", "SVG")
     client.set_value(em.L_FIGURE_FORMAT, "PNG")
-    client.set_value(em.L_FIGURE, "histogram")
+    client.set_value(em.L_FIGURE, "Histogram of normalised roughness")
     name, data = _download(client, app, em.L_FIGURE_BUTTON, "_histogram.png")
     image = Image.open(io.BytesIO(data))
     assert image.format == "PNG" and image.size[0] >= 800
     pixels = np.asarray(image.convert("RGB"))
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20  # bars, axes and text drawn
     client.set_value(em.L_FIGURE_FORMAT, "SVG")
-    client.set_value(em.L_FIGURE, "summary (Table 1)")
+    client.set_value(em.L_FIGURE, "Table 1: summary statistics")
     _, data = _download(client, app, em.L_FIGURE_BUTTON, "_summary.svg")
     svg = data.decode()
     assert svg.startswith("<svg") and "Table 1" in svg

@@ -52,7 +52,7 @@ class BiasPanel:
     ratio: viser.GuiNumberHandle[float]
     """Background : asperity ratio of the normalisation."""
     residual: viser.GuiDropdownHandle[Residual]
-    """"absolute" (SCIENCE.md) or "signed" (the paper's numbers)."""
+    """"absolute" (docs/science.md) or "signed" (the paper's numbers)."""
     button: viser.GuiButtonHandle
     """Runs :meth:`update`."""
     result: viser.GuiMarkdownHandle
@@ -65,8 +65,8 @@ class BiasPanel:
     """The latest prediction."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"bias": ("scanner bias", self.plot)}
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"bias": self.plot}
 
     def update(self) -> BiasPrediction | None:
         """Recompute the prediction and the curve from the handles' values.
@@ -174,7 +174,7 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
                                     initial_value=BIAS_RESIDUAL,
                                     hint="signed distances (the bias paper's definition "
                                     "and published numbers; default) or absolute (the "
-                                    "grid maps' convention, SCIENCE.md)")
+                                    "grid maps' convention, docs/science.md)")
         button = api.add_button("Predict bias")
         result = api.add_markdown("Set the scanner values and press **Predict bias**.")
         plot = api.add_plotly(go.Figure(), config=PLOTLY_CONFIG, aspect=1.2)

@@ -41,7 +41,6 @@ import re
 import shutil
 import tempfile
 import time
-import zipfile
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -61,6 +60,7 @@ from rough_viewer.io import PointCloud
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
 from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
+from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
 from rough_viewer.vocabulary import InputError
 
 if TYPE_CHECKING:
@@ -95,8 +95,10 @@ DISK_MARGIN = 256 << 20
 #: compressed, the check after writing is the exact one) and per cell (CSV, Parquet).
 BYTES_PER_POINT = {"las": 64.0, "laz": 16.0, "ply": 60.0}
 BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
-#: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes.
+#: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes;
+#: in a ZIP of figures each page loads the one plotly.js beside it.
 FIGURE_BYTES = 5 << 20
+ZIP_FIGURE_BYTES = 1 << 20
 REPORT_BYTES = 12 << 20
 #: Finished downloads kept in :attr:`ExportFeature.sent`.
 MAX_SENT_RECORDS = 100
@@ -132,17 +134,14 @@ def panel_figures(host: Host) -> dict[str, viser.GuiPlotlyHandle]:
     out: dict[str, viser.GuiPlotlyHandle] = {}
     for f in host.features():
         if isinstance(f, FigureSource):
-            out.update({name: handle for name, (_title, handle) in f.figures().items()})
+            out.update(f.figures())
     return out
 
 
 def panel_titles(host: Host) -> dict[str, str]:
-    """Title shown in the figure list -> the panel's name, in mount order."""
-    out: dict[str, str] = {}
-    for f in host.features():
-        if isinstance(f, FigureSource):
-            out.update({title: name for name, (title, _handle) in f.figures().items()})
-    return out
+    """Title shown in the figure list (:func:`rough_viewer.visual.export.figure_title`)
+    -> the panel's name, in mount order."""
+    return {figure_title(name): name for name in panel_figures(host)}
 
 
 def _has_data(fig: Any) -> bool:
@@ -288,7 +287,7 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
 
 def _figure_plan(shown: Shown, fmt: str, panel: str,
                  figures: tuple[tuple[str, Any], ...]) -> Plan:
-    from rough_viewer.visual.export import check_figure_export, figure_bytes, image_session
+    from rough_viewer.visual.export import check_figure_export, figure_bytes, write_figures_zip
 
     check_figure_export(fmt)  # type: ignore[arg-type]
     assert shown.result is not None
@@ -309,18 +308,13 @@ def _figure_plan(shown: Shown, fmt: str, panel: str,
         raise InputError("no panel has anything to export yet")
 
     def write_all(path: Path, progress: Callable[[int, int], None]) -> None:
-        def fill(fh: Any) -> None:
-            with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED) as zf, \
-                    image_session(fmt):  # type: ignore[arg-type]
-                for k, (n, fig) in enumerate(chosen):
-                    progress(k, len(chosen))
-                    zf.writestr(f"{base}_{safe_name(n)}.{fmt}",
-                                figure_bytes(fig, fmt))  # type: ignore[arg-type]
-                progress(len(chosen), len(chosen))
+        # one plotly.js in the ZIP for every HTML page (9 copies made a 40 MB ZIP)
+        named = [(f"{base}_{safe_name(n)}", fig) for n, fig in chosen]
+        write_atomic(path, lambda fh: write_figures_zip(fh, named, fmt,  # type: ignore[arg-type]
+                                                        progress=progress), mode="wb")
 
-        write_atomic(path, fill, mode="wb")
-
-    return Plan(f"{base}_figures_{fmt}.zip", FIGURE_BYTES * len(chosen), write_all)
+    return Plan(f"{base}_figures_{fmt}.zip", FIGURE_BYTES + ZIP_FIGURE_BYTES * len(chosen),
+                write_all)
 
 
 def _report_plan(shown: Shown) -> Plan:
@@ -527,7 +521,7 @@ def mount(host: Host) -> ExportFeature:
     """Add the Export folder (downloads, saved views); mount it last, so its figure
     list holds every other feature's panels."""
     gui = host.gui
-    has_kaleido = _has("kaleido")
+    formats = figure_formats() if _has("kaleido") else ("html",)
     with host.folder("Export"):
         points_format = gui.add_dropdown(L_POINTS_FORMAT, POINTS_OPTIONS, initial_value="LAZ",
                                          hint="Every point with its cell's roughness: LAS/LAZ "
@@ -541,11 +535,10 @@ def mount(host: Host) -> ExportFeature:
         figures = (*panel_titles(host), ALL_FIGURES)
         figure = gui.add_dropdown(L_FIGURE, figures, initial_value=ALL_FIGURES,
                                   hint="One panel of the app, or all of them in one ZIP.")
-        figure_format = gui.add_dropdown(L_FIGURE_FORMAT, ("HTML", "PNG", "SVG") if has_kaleido
-                                         else ("HTML",), initial_value="HTML")
-        if not has_kaleido:
-            gui.add_markdown("PNG and SVG need the optional package kaleido on the server "
-                             "(`pip install 'rough_viewer[images]'`); HTML works offline.")
+        figure_format = gui.add_dropdown(L_FIGURE_FORMAT, tuple(f.upper() for f in formats),
+                                         initial_value="HTML")
+        if "png" not in formats:
+            gui.add_markdown(f"{md(FORMATS_NOTE)} (on the server).")
         figure_button = gui.add_button(L_FIGURE_BUTTON)
         report = gui.add_button(L_REPORT, hint="The page of rough-viewer report for the "
                                 "shown grid, axis, minimum points and threshold.")

@@ -65,6 +65,7 @@ from rough_viewer.app.state import (
     point_colours,
 )
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
 from rough_viewer.io import PointCloud
@@ -116,6 +117,7 @@ L_PCT_HI = "Highest percentile"
 PERCENTILE_MARKS: tuple[tuple[float, str], ...] = tuple((v, f"{v:g}") for v in (0, 25, 50, 75, 100))
 L_TOGGLE = "Toggle ODR / OLS"
 L_SHOW_AXIS = "Show dependent axis"
+L_KEEP_OUTLIERS = "Keep outlier cells"
 L_CAMERA = "View"
 #: What the Map tab says before a click.
 PICK_PROMPT = "Click a point to see its cell and its roughness across grid sizes."
@@ -239,7 +241,8 @@ class MapBinding(Binding):
                            min_points=int(m.min_points.value), display=display,
                            threshold=float(m.threshold.value),
                            colormap=resolve_colormap(m.colormap.value, model),
-                           stretch=self.read_stretch(), layer=layer)
+                           stretch=self.read_stretch(), layer=layer,
+                           keep_outliers=bool(m.keep_outliers.value))
 
     def read_stretch(self) -> colormaps.Stretch:
         """The colour stretch the controls ask for: percentiles of the cells, or the
@@ -301,6 +304,7 @@ class MapBinding(Binding):
             assign(m.grid, grid_choice(settings.cell_size, self.grid_values))
             assign(m.grid_free, u.length(settings.cell_size))
             assign(m.model, MODEL_LABELS[settings.model])
+            assign(m.keep_outliers, bool(settings.keep_outliers))
             assign(m.axis, settings.axis)
             assign(m.min_points, int(settings.min_points))
             assign(m.display, settings.display)
@@ -408,6 +412,9 @@ class MapFeature:
     grid: viser.GuiDropdownHandle[str]
     grid_free: viser.GuiNumberHandle[float]
     model: viser.GuiDropdownHandle[str]
+    keep_outliers: viser.GuiCheckboxHandle
+    """Cells whose roughness is larger than the cell take part (default: left out,
+    in their own colour)."""
     toggle: viser.GuiButtonHandle
     axis: viser.GuiDropdownHandle[str]
     axis_note: viser.GuiMarkdownHandle
@@ -439,7 +446,8 @@ class MapFeature:
 
     def inputs(self) -> tuple[Any, ...]:
         """The controls a browser may set."""
-        return (self.layer, self.grid, self.grid_free, self.model, self.toggle, self.axis,
+        return (self.layer, self.grid, self.grid_free, self.model, self.keep_outliers,
+                self.toggle, self.axis,
                 self.show_axis, self.display, self.threshold, self.min_points,
                 self.point_size, self.colormap, self.stretch, self.log, self.percentiles,
                 self.pct_lo, self.pct_hi, self.range_lo, self.range_hi, self.camera)
@@ -488,9 +496,9 @@ class MapFeature:
     def restore(self, view: View) -> Job[Host]:
         return RestoreMapJob(self, check_view_for_app(view, "saved view"), view.camera)
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"colour_bar": ("colour bar", self.colour_bar),
-                "scales": ("clicked point across grid sizes", self.scales)}
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"colour_bar": self.colour_bar,
+                "scales": self.scales}
 
 
 #: Largest "Min points per cell" the Map tab's control takes.
@@ -665,7 +673,7 @@ def _show_map_text(m: MapFeature, loaded: LoadedCloud, result: GridRoughness, st
             and settings.stretch.mode == "percentile"):
         m.binding.show_range(stats.colour_range)  # the typed limits start from what is shown
     m.host.say(status_text(loaded, result, stats, settings, seconds, cached))
-    m.host.warn(notice_text(loaded, stats, settings))
+    m.host.warn(notice_text(loaded, stats, settings, result))
     m.axis_note.content = (f"auto chose **{loaded.auto_axis}** (closest to the whole-cloud "
                            f"normal); using **{result.axis}**")
     m.host.scene.draw_axis(loaded, result.axis, chosen=settings.axis != "auto",
@@ -681,6 +689,7 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
     title = (f"{MODEL_LABELS[settings.model]} roughness · grid {u.size_text(settings.cell_size)}"
              f" · axis {result.axis} · {loaded.n_total:,} points")
     if settings.layer == "roughness":
+        kept_out = 0 if settings.keep_outliers else stats.outliers
         if settings.display == "binary":
             return colour_bar_figure(
                 colormap=settings.colormap, theta_min_m=stats.theta_min,
@@ -689,7 +698,8 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
                 unit=u.rough_label, scale=scale)
         return colour_scale_figure(stats.colour_range, colormap=settings.colormap, title=title,
                                    unit=u.rough_label, scale=scale,
-                                   no_value=stats.cells - stats.valid_cells)
+                                   no_value=stats.cells - stats.valid_cells - kept_out,
+                                   exact_fit=stats.exact_fit, outliers=kept_out)
     layer = loaded.layer(settings.layer)
     shown = f"{loaded.n_display:,} points shown"
     if layer.colour_range is None or layer.colormap is None:
@@ -745,11 +755,24 @@ def sparse_message(loaded: LoadedCloud, stats: MapStats, settings: MapSettings) 
             f"{u.size_text(loaded.default_cell_size)}, holds about 16 points in a typical cell)")
 
 
-def notice_text(loaded: LoadedCloud, stats: MapStats | None, settings: MapSettings) -> str:
+def notice_text(loaded: LoadedCloud, stats: MapStats | None, settings: MapSettings,
+                result: GridRoughness | None = None) -> str:
     """Markdown of the notices that stay on screen: the reader's warnings (escaped),
-    a grid where most occupied cells have no value, and cells that fit their plane
-    exactly. Empty when there is none."""
+    outlier cells, what the binary threshold flags (with the data's own threshold;
+    in the binary display, where it is used), a grid where most
+    occupied cells have no value, and cells that fit their plane exactly. Empty when
+    there is none."""
     lines = [f"**Warning:** {md(w, max_chars=400)}" for w in loaded.cloud.warnings[:10]]
+    unit = loaded.units.unit
+    if result is not None:
+        text = outlier_text(result, settings.model, unit=unit, kept=settings.keep_outliers)
+        if text is not None:
+            how = ("*Keep outlier cells* is ticked: they take part" if settings.keep_outliers
+                   else "they are left out and drawn in cyan; *Keep outlier cells* keeps them")
+            lines.append(f"**Outliers:** {md(text)}; {how}.")
+    if stats is not None and stats.advice is not None and settings.layer == "roughness" \
+            and settings.display == "binary":  # where the threshold is used
+        lines.append(f"**Threshold:** {md(stats.advice.text(unit))}.")
     if stats is not None and stats.sparse:
         lines.append(f"**Most cells have no value:** {md(sparse_message(loaded, stats, settings))}")
     if stats is not None and stats.exact_fit:
@@ -1114,6 +1137,11 @@ def _add_controls(host: Host) -> MapFeature:
                 hint="Any cell size (switches the grid size to 'free')."),
             model=gui.add_dropdown(L_MODEL, MODEL_OPTIONS,
                                    initial_value=MODEL_LABELS[settings.model]),
+            keep_outliers=gui.add_checkbox(
+                L_KEEP_OUTLIERS, bool(settings.keep_outliers),
+                hint="Hybrid or OLS roughness larger than the cell (a plane nearly along "
+                "the dependent axis) is an outlier of the definition, not rock: left "
+                "out of the colours, panels and zones and drawn in cyan unless kept."),
             toggle=gui.add_button(L_TOGGLE, hint="Same cells, other reference plane."),
             axis=gui.add_dropdown(L_AXIS, tuple(AXIS_BY_NAME), initial_value=settings.axis,
                                   hint="Dependent variable of the OLS and hybrid fits."),
@@ -1162,7 +1190,8 @@ def _add_controls(host: Host) -> MapFeature:
 def _wire(host: Host, m: MapFeature) -> None:
     """Every control submits a job naming itself; clicks on the scene submit a pick."""
     b = m.binding
-    names = ("layer", "grid", "grid_free", "model", "axis", "display", "threshold",
+    names = ("layer", "grid", "grid_free", "model", "keep_outliers", "axis", "display",
+             "threshold",
              "min_points", "colormap", "stretch", "log", "percentiles", "pct_lo", "pct_hi",
              "range_lo", "range_hi", "toggle")
     by_handle = {id(getattr(m, n)): n for n in names}

@@ -31,9 +31,11 @@ from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
 from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.outliers import analysed_values
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import face_scales
 from rough_viewer.grid.summary import histogram, normalise, summarise
+from rough_viewer.grid.threshold import map_threshold_advice
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.visual.grid import histogram_figure, summary_table_figure, variogram_figure
 from rough_viewer.visual.scales import face_scales_figure
@@ -70,13 +72,29 @@ def _figure_kw(result: GridRoughness, unit: str = "m") -> dict[str, Any]:
 
 def distribution_figures(result: GridRoughness, settings: MapSettings, *,
                          unit: str = "m") -> Distribution:
-    """Histogram of normalised roughness (0.05 bins) and the summary table (Table 1),
-    lengths in ``unit`` (the cloud's), roughness in its roughness unit."""
+    """Histogram of normalised roughness (0.05 bins, with the binary threshold and
+    each map's suggested threshold) and the summary table (Table 1), outliers left
+    out unless ``settings.keep_outliers``; lengths in ``unit`` (the cloud's),
+    roughness in its roughness unit."""
     kw = _figure_kw(result, unit)
-    hist = histogram_figure({m: histogram(normalise(result.values(m)), HISTOGRAM_BIN)
-                             for m in histogram_maps(settings.model)}, **kw)
-    summary = summary_table_figure({m: summarise(result, m) for m in MAPS}, **kw)
-    return Distribution(hist, summary)
+    summary = summary_table_figure(
+        {m: summarise(result, m, keep_outliers=settings.keep_outliers) for m in MAPS}, **kw)
+    return Distribution(histogram_of(result, settings, unit=unit), summary)
+
+
+def histogram_of(result: GridRoughness, settings: MapSettings, *, unit: str = "m") -> go.Figure:
+    """The histogram panel: normalised roughness of ODR, OLS and the shown map (0.05
+    bins), the binary threshold and each map's suggested threshold as lines."""
+    keep = settings.keep_outliers
+    maps = histogram_maps(settings.model)
+    return histogram_figure(
+        {m: histogram(normalise(analysed_values(result, m, keep_outliers=keep)), HISTOGRAM_BIN)
+         for m in maps}, threshold=settings.threshold,
+        suggestions={m: map_threshold_advice(result, m, settings.threshold,
+                                             keep_outliers=keep).suggested for m in maps},
+        **_figure_kw(result, unit))
+
+
 
 
 def variograms(
@@ -85,6 +103,7 @@ def variograms(
     *,
     is_stale: Callable[[], bool] = lambda: False,
     progress: ProgressFn | None = None,
+    keep_outliers: bool = False,
 ) -> dict[str, Semivariogram] | None:
     """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell size),
     or None if ``is_stale()`` turned True between maps (fine grids take seconds).
@@ -96,7 +115,8 @@ def variograms(
     for m in maps:
         if is_stale():
             return None
-        out[m] = semivariogram(result.ijk, result.values(m), g, progress=progress)
+        out[m] = semivariogram(result.ijk, analysed_values(result, m, keep_outliers=keep_outliers),
+                               g, progress=progress)
     return out
 
 
@@ -110,16 +130,17 @@ def variogram_figure_of(
 ) -> go.Figure | None:
     """The semivariogram panel, or None if ``is_stale()`` turned True on the way."""
     vgs = variograms(result, variogram_maps(settings.model), is_stale=is_stale,
-                     progress=progress)
+                     progress=progress, keep_outliers=settings.keep_outliers)
     return None if vgs is None else variogram_figure(vgs, **_figure_kw(result, unit))
 
 
 def face_scales_figure_of(results: Sequence[GridRoughness], *, threshold: float,
-                          unit: str = "m") -> go.Figure:
+                          unit: str = "m", keep_outliers: bool = False) -> go.Figure:
     """The whole face against grid size (2011 Table 1 as a picture): mean roughness
     and the share of binary cells of ODR, OLS and hybrid on each grid of ``results``
-    (the presets: nested, one axis and minimum points)."""
-    return face_scales_figure(face_scales(results, threshold=threshold), unit=unit)
+    (the presets: nested, one axis and minimum points; outliers left out unless kept)."""
+    return face_scales_figure(face_scales(results, threshold=threshold,
+                                          keep_outliers=keep_outliers), unit=unit)
 
 
 # ----------------------------------------------------------------------------- the tab
@@ -139,7 +160,8 @@ class PanelsFeature:
 
     def panel_key(self, settings: MapSettings) -> tuple[object, ...]:
         """What the grid's panels (histogram, semivariogram, Table 1) depend on."""
-        return (settings.grid_key, settings.model, self.host.options.variogram)
+        return (settings.grid_key, settings.model, settings.keep_outliers,
+                self.host.options.variogram)
 
     def after_render(self) -> None:
         """A map was coloured: queue its panels unless they are on screen (worker)."""
@@ -158,16 +180,16 @@ class PanelsFeature:
     def restore(self, view: object) -> None:
         return None  # the tab always draws every panel
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"histogram": ("histogram", self.histogram),
-                "variogram": ("semivariogram", self.variogram),
-                "summary": ("summary (Table 1)", self.summary),
-                "face_scales": ("roughness against grid size", self.face_scales)}
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"histogram": self.histogram,
+                "variogram": self.variogram,
+                "summary": self.summary,
+                "face_scales": self.face_scales}
 
 
 def face_key(settings: MapSettings) -> tuple[object, ...]:
     """What the whole-face trend against the preset grids depends on."""
-    return (settings.axis, settings.min_points, settings.threshold)
+    return (settings.axis, settings.min_points, settings.threshold, settings.keep_outliers)
 
 
 @dataclass(frozen=True)
@@ -198,10 +220,14 @@ class PanelsJob(Job[Host]):
             for g in loaded.presets:  # cached after prefetching; each stops if cancelled
                 results.append(loaded.result(s.with_(cell_size=g), progress=run.progress()))
                 yield f"grid {g:g}"
-            trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit)
+            trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit,
+                                          keep_outliers=s.keep_outliers)
             set_figure(p.face_scales, trend)
             session.face_key = face_key(s)
             yield "grid sizes"
+            if p.panel_key(s) == session.panel_key:  # the threshold's line moved
+                set_figure(p.histogram, histogram_of(self.result, s, unit=unit))
+                yield "histogram"
         if p.panel_key(s) == session.panel_key:
             return  # only the trend changed (the binary threshold)
         dist = distribution_figures(self.result, s, unit=unit)

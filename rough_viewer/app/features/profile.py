@@ -30,7 +30,13 @@ from rough_viewer.app.scene import MARKER
 from rough_viewer.app.state import LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
-from rough_viewer.profiles.fractal import RoughnessLength, detrend, roughness_length
+from rough_viewer.profiles.fractal import (
+    RoughnessLength,
+    Windows,
+    detrend,
+    parse_windows,
+    roughness_length,
+)
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
 from rough_viewer.report.view import ProfilePick, View
 from rough_viewer.visual.profiles import profile_figure
@@ -97,6 +103,9 @@ class ProfileSettings:
     detrend: int | None = None
     """Degree of the polynomial trend removed from the heights before de-noising and
     fitting; None = none (each window of the fit is detrended linearly anyway)."""
+    windows: Windows = None
+    """Window lengths of the roughness-length fit, metres, or a rule (None: the
+    default, 3-30 % of the profile in log steps; ``"paper"``: 3-10 %)."""
     exaggeration: float | None = None
     """Vertical exaggeration of the profile plot (display only): None = the height
     axis fitted to the data (default); a number E draws 1 mm of height E times as
@@ -152,8 +161,10 @@ def redo(profile: Profile, settings: ProfileSettings) -> ProfileAnalysis:
     den = denoise_result(used.heights, wavelet=settings.wavelet, level=settings.level,
                          decomposition=settings.decomposition,
                          threshold=settings.threshold_rule, mode=settings.threshold_mode)
-    return ProfileAnalysis(used, den, roughness_length(used.heights, used.spacing),
-                           roughness_length(den.heights, used.spacing), settings,
+    return ProfileAnalysis(used, den,
+                           roughness_length(used.heights, used.spacing, windows=settings.windows),
+                           roughness_length(den.heights, used.spacing, windows=settings.windows),
+                           settings,
                            extracted=None if used is profile else profile)
 
 
@@ -199,6 +210,22 @@ def summary_markdown(analyses: list[ProfileAnalysis], units: Units | None = None
     return "\n".join(rows)
 
 
+def windows_of(text: str, metres_per_unit: float) -> Windows:
+    """The windows typed in the tab (lengths in the cloud's unit) in metres, or a rule;
+    InputError names what is wrong.
+
+    >>> windows_of("default", 1.0), windows_of("20, 40, 80", 1e-3)
+    (None, (0.02, 0.04, 0.08))
+    """
+    windows = parse_windows(text, metres_per_unit)
+    return None if windows == "default" else windows
+
+
+def windows_label(units: Units) -> str:
+    """The label of the windows field."""
+    return f"Fit windows ({units.label})"
+
+
 def band_label(units: Units) -> str:
     """The label of the band half-width control."""
     return f"Band half-width ({units.label})"
@@ -222,6 +249,7 @@ class ProfileBinding(Binding):
             threshold_rule=cast(ThresholdRule, p.threshold_rule.value),
             threshold_mode=cast(Mode, p.threshold_mode.value),
             band_half_width=bw if bw > 0 else None,
+            windows=windows_of(p.windows.value, p.units.per),
             exaggeration=exaggeration_of(p.exaggeration.value))
 
     def show(self, settings: ProfileSettings, *, band: bool = False) -> None:
@@ -247,6 +275,7 @@ class ProfileBinding(Binding):
         p = self.p
         p.band.label = band_label(units)
         p.band.max = units.length(MAX_BAND_M)
+        p.windows.label = windows_label(units)
 
 
 @dataclass(eq=False)
@@ -262,6 +291,8 @@ class ProfileFeature:
     threshold_mode: viser.GuiDropdownHandle[str]
     band: viser.GuiNumberHandle[float]
     detrend: viser.GuiDropdownHandle[str]
+    windows: viser.GuiTextHandle
+    """Window lengths of the fractal fit typed in the cloud's unit, or default / paper."""
     exaggeration: viser.GuiDropdownHandle[str]
     note: viser.GuiMarkdownHandle
     plot: viser.GuiPlotlyHandle
@@ -418,8 +449,8 @@ class ProfileFeature:
     def restore(self, view: View) -> Job[Host] | None:
         return RestoreProfilesJob(self, view.profiles) if view.profiles else None
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"profile": ("profile plot", self.plot)}
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"profile": self.plot}
 
 
 def settings_of_pick(pick: ProfilePick) -> ProfileSettings:
@@ -571,6 +602,11 @@ def mount(host: Host) -> ProfileFeature:
                 hint="Take a polynomial trend of this degree off the heights before "
                 "de-noising and the fractal fit (for curved faces: D below 1 is the mark "
                 "of a trend)."),
+            windows=gui.add_text(
+                windows_label(units), "default",
+                hint="Window lengths of the roughness-length fit of D, separated by commas, "
+                "or 'default' (3-30 % of the profile) or 'paper' (the paper's 3-10 %); "
+                "larger windows for smooth or curved profiles whose D comes out below 1."),
             exaggeration=gui.add_dropdown(
                 "Vertical exaggeration", EXAGGERATIONS, initial_value="auto",
                 hint="auto: the height axis spans the profile's relief; 1× is true scale; "
@@ -582,10 +618,10 @@ def mount(host: Host) -> ProfileFeature:
         )
     p.cloud = host.session.shown.loaded
     host.allow(p.on, p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
-               p.band, p.detrend, p.exaggeration, p.clear, p.download)
+               p.band, p.detrend, p.windows, p.exaggeration, p.clear, p.download)
     b = p.binding
     b.on_change([p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
-                 p.detrend, p.band], lambda _h: host.submit(DenoiseJob(p)))
+                 p.detrend, p.band, p.windows], lambda _h: host.submit(DenoiseJob(p)))
     b.on_change([p.exaggeration], lambda _h: host.submit(ProfilePlotJob(p)))
     b.on_change([p.clear], lambda _h: host.submit(ClearProfilesJob(p)))
 

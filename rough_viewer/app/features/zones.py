@@ -62,6 +62,7 @@ from rough_viewer.app.state import MODEL_LABELS, ByteCache, LoadedCloud, Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.threshold import map_threshold_advice
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.memory import require
 from rough_viewer.report.view import View, ZoneSettings
@@ -129,6 +130,8 @@ class ZoneParams:
     """Cells with normalised roughness ``>= threshold`` are rough (the Map tab's)."""
     connectivity: Connectivity
     min_cells: int
+    keep_outliers: bool = False
+    """Cells larger than the cell take part (the Map tab's *Keep outlier cells*)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,12 +145,14 @@ class ZoneBasis:
     """(M,) bool: the cell has a value (a plane and the map)."""
 
 
-def zone_basis(result: GridRoughness, map_name: MapName, display_index: np.ndarray) -> ZoneBasis:
-    """Build the labeller of ``result``'s map and the cells of the displayed points."""
+def zone_basis(result: GridRoughness, map_name: MapName, display_index: np.ndarray, *,
+               keep_outliers: bool = False) -> ZoneBasis:
+    """Build the labeller of ``result``'s map (outlier cells left out unless kept) and
+    the cells of the displayed points."""
     # the cells of the shown points (int32), and a colour and a zone id per point per
     # re-label
     require(16.0 * display_index.shape[0], f"zones of {display_index.shape[0]:,} shown points")
-    labeller = ZoneLabeller.build(result, map_name)
+    labeller = ZoneLabeller.build(result, map_name, keep_outliers=keep_outliers)
     valid = np.zeros(result.n_cells, dtype=bool)
     valid[labeller.rows] = True
     cell = result.point_cell[display_index]
@@ -241,10 +246,14 @@ def status_markdown(lab: Labelling, seconds: float, cached: bool) -> str:
     share = 100.0 * in_zones / valid if valid else 0.0
     how = "labeller cached" if cached else "labeller built"
     zones = "1 zone" if lab.n_zones == 1 else f"{lab.n_zones:,} zones"
+    p = lab.params
+    advice = map_threshold_advice(lab.result, p.map_name, p.threshold,
+                                  keep_outliers=p.keep_outliers)
+    judged = f"  \n{'⚠ ' if advice.most else ''}{md(advice.text(lab.loaded.units.unit))}"
     return (f"**{zones}** at {describe_params(lab.params)}, grid "
             f"{lab.loaded.units.size_text(lab.result.grid.cell_size)}: "
             f"{in_zones:,} of {valid:,} cells with a value "
-            f"({share:.1f} %)  \nre-labelled and coloured in {seconds:.2f} s ({how})")
+            f"({share:.1f} %)  \nre-labelled and coloured in {seconds:.2f} s ({how}){judged}")
 
 
 def zone_markdown(zones: Zones, zone: int, units: Units | None = None) -> str:
@@ -300,7 +309,8 @@ class ZonesBinding(Binding):
             raise InputError("the connectivity control holds a value that is not one of its "
                              "options")
         return ZoneParams(map_name=shown.model, threshold=float(shown.threshold),
-                          connectivity=conn, min_cells=int(z.min_cells.value))
+                          connectivity=conn, min_cells=int(z.min_cells.value),
+                          keep_outliers=bool(shown.keep_outliers))
 
     def show(self, zones: ZoneSettings | None) -> None:
         """Saved zone settings in the controls (None: "Show zones" off)."""
@@ -421,21 +431,22 @@ class ZonesFeature:
                 self.map.request(model=MODEL_LABELS[zones.map])
         self.host.submit(RestoreZonesJob(self, zones))
 
-    def figures(self) -> dict[str, tuple[str, viser.GuiPlotlyHandle]]:
-        return {"zones_table": ("zone table", self.table),
-                "zones_stereonet": ("zone stereonet", self.stereonet)}
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"zones_table": self.table,
+                "zones_stereonet": self.stereonet}
 
     # ------------------------------------------------------------------ worker side
     def basis(self, loaded: LoadedCloud, result: GridRoughness, map_name: MapName,
-              grid_key: tuple[object, ...]) -> tuple[ZoneBasis, bool]:
+              grid_key: tuple[object, ...], keep_outliers: bool = False
+              ) -> tuple[ZoneBasis, bool]:
         """The cached :class:`ZoneBasis` of ``result`` and ``map_name`` (built if
         needed); True when it was cached."""
         self._own(loaded)
-        key = ("basis", grid_key, map_name)
+        key = ("basis", grid_key, map_name, keep_outliers)
         hit = self.cache.get(key)
         if isinstance(hit, ZoneBasis) and hit.labeller.result is result:
             return hit, True
-        basis = zone_basis(result, map_name, loaded.display_index)
+        basis = zone_basis(result, map_name, loaded.display_index, keep_outliers=keep_outliers)
         self.cache.put(key, basis)
         return basis, False
 
@@ -611,7 +622,7 @@ class ZonesJob(Job[Host]):
             return
         t0 = time.perf_counter()
         basis, cached = z.basis(shown.loaded, shown.result, params.map_name,
-                                shown.settings.grid_key)
+                                shown.settings.grid_key, params.keep_outliers)
         t_basis = time.perf_counter() - t0
         yield "basis"
         t1 = time.perf_counter()
