@@ -147,19 +147,6 @@ CONNECTIVITIES: tuple[Connectivity, ...] = ("vertex", "edge", "face")
 DEFAULT_MIN_CELLS = 3
 """Zones with fewer cells are dropped."""
 
-# ----------------------------------------------------------------------------- colour layers
-
-ColourLayerName = Literal["roughness", "rgb", "intensity", "distance"]
-"""What colours the points: the roughness map, or a layer that shows the rock itself."""
-COLOUR_LAYERS: tuple[ColourLayerName, ...] = ("roughness", "rgb", "intensity", "distance")
-COLOUR_LAYER_LABELS: dict[str, str] = {
-    "roughness": "roughness map",
-    "rgb": "scan colours (RGB)",
-    "intensity": "intensity",
-    "distance": "distance to face plane",
-}
-"""Display name of each colour layer."""
-
 # ----------------------------------------------------------------------------- scanner trust
 
 TRUST_FIELDS: tuple[str, ...] = (
@@ -180,6 +167,25 @@ TRUST_LABELS: dict[str, str] = {
     "trusted": "trusted (papers' limits)",
 }
 """Display name of each per-cell scanner figure (colour layers, legends)."""
+
+# ----------------------------------------------------------------------------- colour layers
+
+ColourLayerName = Literal["roughness", "rgb", "intensity", "distance", "scans", "range",
+                          "incidence_deg", "density_ratio", "occlusion", "noise_pred",
+                          "smoothing_pred", "bias_pred", "trusted"]
+"""What colours the points: the roughness map, a layer that shows the rock itself,
+or one of the scanner figures of the cells (:data:`TRUST_FIELDS`)."""
+COLOUR_LAYERS: tuple[ColourLayerName, ...] = (
+    "roughness", "rgb", "intensity", "distance", "scans", "range", "incidence_deg",
+    "density_ratio", "occlusion", "noise_pred", "smoothing_pred", "bias_pred", "trusted")
+COLOUR_LAYER_LABELS: dict[str, str] = {
+    "roughness": "roughness map",
+    "rgb": "scan colours (RGB)",
+    "intensity": "intensity",
+    "distance": "distance to face plane",
+    **{name: f"scanner: {label}" for name, label in TRUST_LABELS.items()},
+}
+"""Display name of each colour layer."""
 
 # ----------------------------------------------------------------------------- units
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
@@ -34,6 +33,7 @@ import numpy as np
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.app.state import DEFAULT_MAX_DISPLAY
+from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.vocabulary import Unit
 
 if TYPE_CHECKING:
@@ -70,8 +70,9 @@ class AppOptions:
     save_views: bool = False
     """"Save view beside the input" may write into the data folder
     (``serve --save-views``)."""
-    initial_source: Path | None = None
-    """The file the app was started on (the cloud given to ``serve``), if any."""
+    trust: TrustSettings | None = None
+    """Calibration of the scanner colour layers and cell report (``serve --noise``,
+    ``--beam-radius``, ``--calibration``, ...; None: the bias paper's)."""
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from rough_viewer.app.session import Session, Shown
 from rough_viewer.app.shell import Shell
 from rough_viewer.app.state import DEFAULT_MAX_DISPLAY, LoadedCloud, MapSettings
 from rough_viewer.app.worker import Job, Worker
+from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import UNITS, InputError, Unit
 
@@ -128,6 +129,7 @@ def build_app(
     units: Unit | None = None,
     presets: Sequence[float] | None = None,
     save_views: bool = False,
+    trust: TrustSettings | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -167,6 +169,9 @@ def build_app(
     save_views
         "Save view beside the input" may write into the data folder
         (``serve --save-views``).
+    trust
+        Calibration of the scanner colour layers and cell report of clouds with
+        scanner positions (default: the bias paper's; docs/scanner.md).
 
     Returns
     -------
@@ -178,9 +183,11 @@ def build_app(
     data = DataFolder.of(data_dir if data_dir is not None else _default_data_dir(cloud))
     options = AppOptions(data=data, max_display=max_display, variogram=variogram,
                          prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
-                         cache_bytes=int(cache_bytes), units=units, save_views=save_views)
+                         cache_bytes=int(cache_bytes), units=units, save_views=save_views,
+                         trust=trust)
     loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
-                         presets=tuple(presets) if presets is not None else None)
+                         presets=tuple(presets) if presets is not None else None,
+                         trust_settings=trust)
     settings = settings or MapSettings(cell_size=loaded.default_cell_size)
     server.scene.set_up_direction("+z")
     server.gui.configure_theme(control_width="large", show_share_button=False)

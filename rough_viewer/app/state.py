@@ -21,6 +21,7 @@ import numpy as np
 
 from rough_viewer.app.limits import CACHE_BYTES
 from rough_viewer.app.sampling import display_subset
+from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
@@ -43,12 +44,14 @@ from rough_viewer.visual.layers import (
     intensity_layer,
     plane_distance_layer,
     rgb_layer,
+    trust_layer,
 )
 from rough_viewer.vocabulary import (
     COLOUR_LAYERS,
     MAP_TITLES,
     MAPS,
     ROUGHNESS_UNIT,
+    TRUST_FIELDS,
     UNIT_LABELS,
     UNIT_METRES,
     AxisChoice,
@@ -316,12 +319,14 @@ class LoadedCloud:
     label: str = ""
     """What the status line calls a cloud that is no file (e.g. the board lesson);
     default: its file's name."""
+    trust_settings: TrustSettings | None = None
+    """Calibration of the scanner figures (default: the bias paper's)."""
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)
     plane: PlaneFit = field(init=False)
     auto_axis: str = field(init=False)
-    _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid] = \
+    _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid | CellTrust] = \
         field(init=False, repr=False)
     _layers: dict[str, ColourLayer] = field(init=False, repr=False)
     _shown_key: tuple[str, tuple[float, str, int]] | None = field(init=False, repr=False)
@@ -373,19 +378,50 @@ class LoadedCloud:
     def layers(self) -> tuple[ColourLayerName, ...]:
         """The colour layers this cloud has: always the roughness map and the
         distance to the face plane; the scan's RGB and intensity where the file has
-        them."""
+        them; the scanner figures of the cells (:data:`rough_viewer.vocabulary.
+        TRUST_FIELDS`) where it has scanner positions."""
         out: list[ColourLayerName] = ["roughness"]
         if self.cloud.rgb is not None:
             out.append("rgb")
         if self.cloud.intensity is not None:
             out.append("intensity")
         out.append("distance")
+        if self.cloud.scanner_positions is not None and self.cloud.scan_index is not None:
+            out += [name for name in COLOUR_LAYERS if name in TRUST_FIELDS]
         return tuple(out)
+
+    def trust(self, result: GridRoughness, *, progress: ProgressFn | None = None
+              ) -> CellTrust | None:
+        """Scanner geometry and predicted bias of every cell of ``result`` (one of
+        this cloud's grids), with :attr:`trust_settings`; cached per grid. None
+        without scanner positions. The first call of a calibration simulates its
+        bias curves (seconds)."""
+        if self.cloud.scanner_positions is None or self.cloud.scan_index is None:
+            return None
+        key = ("trust", (round(float(result.grid.cell_size), 9), result.axis,
+                         int(result.min_points)))
+        hit = self._cache.get(key)
+        if isinstance(hit, CellTrust) and hit.theta_m.shape[0] == result.n_cells:
+            return hit
+        made = cell_trust(self.cloud, result, self.trust_settings, progress=progress)
+        if made is not None:
+            self._cache.put(key, made)
+        return made
+
+    def cell_layer(self, name: ColourLayerName, result: GridRoughness) -> ColourLayer:
+        """The colours of the displayed points for a per-cell scanner figure of
+        ``result`` (InputError without scanner positions)."""
+        trust = self.trust(result)
+        if trust is None:
+            raise InputError(f"{self.cloud.source or 'this cloud'} has no scanner positions "
+                             "(serve --scanner X,Y,Z or --scanners FILE; E57 scans carry "
+                             "theirs)")
+        return trust_layer(name, trust.layer(name)[result.point_cell[self.display_index]])
 
     def layer(self, name: ColourLayerName) -> ColourLayer:
         """The colours of the displayed points for colour layer ``name`` (not
         ``roughness``), computed once per cloud. InputError when the cloud lacks it."""
-        if name not in self.layers or name == "roughness":
+        if name not in self.layers or name == "roughness" or name in TRUST_FIELDS:
             what = {"rgb": "RGB colours", "intensity": "intensities"}.get(name, repr(name))
             raise InputError(f"{self.cloud.source or 'this cloud'} has no {what}")
         hit = self._layers.get(name)

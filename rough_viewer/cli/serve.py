@@ -212,9 +212,12 @@ def run(args: argparse.Namespace) -> int:
             settings = MapSettings(cell_size=presets[-1], model=args.model,
                                     axis=args.axis, min_points=args.min_points)
             check_settings(settings)
+        from rough_viewer.cli._scanner import trust_settings
+
         app = build_app(server, cloud, settings=settings, max_display=args.max_points,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
-                        units=args.units, presets=presets, save_views=args.save_views)
+                        units=args.units, presets=presets, save_views=args.save_views,
+                        trust=trust_settings(args, cloud.source_unit))
         app.wait_idle(timeout=None if not args.no_block else 120.0)
         if opened is not None:
             from rough_viewer.app.views import apply_view

@@ -65,6 +65,7 @@ from rough_viewer.app.state import (
     point_colours,
 )
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
@@ -72,11 +73,14 @@ from rough_viewer.io import PointCloud
 from rough_viewer.report.view import Camera, ColourSettings, View
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.app import colour_bar_figure, colour_scale_figure, panel_aspect
+from rough_viewer.visual.layers import ColourLayer
 from rough_viewer.visual.scales import point_scales_figure
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
     COLOUR_LAYER_LABELS,
     COLOUR_LAYERS,
+    TRUST_FIELDS,
+    TRUST_LABELS,
     UNITS,
     AxisChoice,
     ColourLayerName,
@@ -601,8 +605,10 @@ def render_stages(m: MapFeature, run: Run, settings: MapSettings, *,
     loaded = host.session.shown.loaded
     try:
         check_settings(settings)
-        if settings.layer != "roughness":
-            loaded.layer(settings.layer)  # InputError when the cloud lacks it
+        if settings.layer not in loaded.layers:
+            loaded.layer(settings.layer)  # InputError: the cloud lacks it
+        if settings.layer != "roughness" and settings.layer not in TRUST_FIELDS:
+            loaded.layer(settings.layer)
     except InputError as exc:
         reject(m, str(exc))
         return
@@ -618,7 +624,11 @@ def render_stages(m: MapFeature, run: Run, settings: MapSettings, *,
         colours = point_colours(result, settings, loaded.display_index,
                                 colours_range=stats.colour_range)
     else:
-        colours = loaded.layer(settings.layer).colours
+        try:
+            colours = layer_of(loaded, result, settings).colours
+        except InputError as exc:
+            reject(m, str(exc))
+            return
     host.scene.colour(colours)
     host.session.shown = Shown(loaded, settings, result, stats)
     loaded.mark_shown(settings)
@@ -700,8 +710,21 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
                                    unit=u.rough_label, scale=scale,
                                    no_value=stats.cells - stats.valid_cells - kept_out,
                                    exact_fit=stats.exact_fit, outliers=kept_out)
-    layer = loaded.layer(settings.layer)
+    layer = layer_of(loaded, result, settings)
     shown = f"{loaded.n_display:,} points shown"
+    if settings.layer in TRUST_FIELDS:
+        assert layer.colour_range is not None and layer.colormap is not None
+        what = f"{TRUST_LABELS[settings.layer]} · grid {u.size_text(settings.cell_size)} · {shown}"
+        if settings.layer in TRUST_LENGTHS:  # ranges in the cloud's unit, bias in mm
+            small = settings.layer != "range"
+            return colour_scale_figure(
+                layer.colour_range, colormap=layer.colormap, title=f"Scanner: {what}",
+                quantity=settings.layer.replace("_", " "),
+                unit=u.rough_label if small else u.label,
+                scale=1.0 / (u.rough_per if small else u.per))
+        return colour_scale_figure(layer.colour_range, colormap=layer.colormap,
+                                   title=f"Scanner: {what}",
+                                   quantity=settings.layer.replace("_", " "), unit="", scale=1.0)
     if layer.colour_range is None or layer.colormap is None:
         fig = go.Figure()
         fig.update_layout(
@@ -722,6 +745,18 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
         title=f"Distance to the whole-cloud face plane · {shown}",
         quantity="distance", unit=u.label if big else u.rough_label,
         scale=1.0 / u.per if big else scale)
+
+
+#: Scanner figures that are lengths (metres in the cells' arrays).
+TRUST_LENGTHS = frozenset({"range", "noise_pred", "smoothing_pred", "bias_pred"})
+
+
+def layer_of(loaded: LoadedCloud, result: GridRoughness, settings: MapSettings) -> ColourLayer:
+    """The colour layer that colours the points (not the roughness map): one of the
+    cloud's own, or a scanner figure of the shown grid's cells."""
+    if settings.layer in TRUST_FIELDS:
+        return loaded.cell_layer(settings.layer, result)
+    return loaded.layer(settings.layer)
 
 
 def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
@@ -833,7 +868,8 @@ def load_stages(m: MapFeature, run: Run, read: Callable[[Run], PointCloud],
         cloud = read(run)
         yield "read"
         loaded = LoadedCloud(cloud, max_display=host.options.max_display,
-                             cache_bytes=host.options.cache_bytes, label=label)
+                             cache_bytes=host.options.cache_bytes, label=label,
+                             trust_settings=host.options.trust)
     except (InputError, MemoryError) as exc:
         host.show_error(str(exc) if isinstance(exc, InputError) else "not enough memory "
                         "to load this cloud")
@@ -1016,7 +1052,7 @@ def on_click(m: MapFeature, origin: object, direction: object) -> CellInfo | Non
     g = shown.result.grid.cell_size
     u = shown.loaded.units
     host.session.last_pick = info
-    m.pick.content = format_cell_info(info, g, u)
+    m.pick.content = format_cell_info(info, g, u, trust=shown.loaded.trust(shown.result))
     host.scene.remove(m.pick_nodes)
     m.pick_nodes = host.scene.mark_pick(shown.loaded, info, local, g)
     t_cell = time.perf_counter() - t0
@@ -1042,9 +1078,11 @@ def across_scales(loaded: LoadedCloud, settings: MapSettings, result: GridRoughn
                                       min_points=settings.min_points)
 
 
-def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = None) -> str:
+def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = None, *,
+                     trust: CellTrust | None = None) -> str:
     """Markdown of a picked cell (roughness in the roughness unit, mm for metric
-    input; coordinates and the grid in the cloud's unit)."""
+    input; coordinates and the grid in the cloud's unit), with the scanner's figures
+    of the cell where the cloud has scanner positions (``trust``)."""
     u = units or Units("m")
 
     def rough(v: float) -> str:
@@ -1059,6 +1097,8 @@ def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = Non
         f"θ ODR {rough(info.theta['odr'])}, OLS ({info.axis}) {rough(info.theta['ols'])}  ",
         f"θ hybrid {rough(info.theta['hybrid'])}, e_ols {rough(info.theta['e_ols'])}  ",
         f"normal {normal}",
+        *(f"  \nscanner: {md(line)}" for line in
+          (trust.lines(info.cell, u.unit) if trust is not None else ())),
     ])
 
 

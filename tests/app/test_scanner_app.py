@@ -1,0 +1,79 @@
+"""Issue 27 in the app: a cloud with scanner positions gets the per-cell scanner
+figures as colour layers and in the cell report; a cloud without them lists none."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rough_viewer.app.server import build_app
+from rough_viewer.app.state import MapSettings
+from rough_viewer.bias.trust import TrustSettings, cell_trust
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.io import PointCloud
+from rough_viewer.visual.layers import trust_layer
+from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, COLOUR_LAYERS, TRUST_FIELDS
+from tests.app.protocol import pick
+from tests.helpers import ray_grid, scan_plane
+
+SCANNER = np.array([0.0, -8.0, 1.5])
+
+
+@pytest.fixture
+def scanned(server):
+    """A wall in the x-z plane at y = 0, ray-cast from a scanner 8 m in front of it."""
+    rays = ray_grid(SCANNER, np.array([0.0, 0.0, 1.0]), 0.2, step=1.2e-3)
+    xyz = scan_plane(SCANNER, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), rays,
+                     extent=1.2, noise=0.002, seed=3)
+    cloud = _with_positions(xyz)
+    settings = TrustSettings()
+    app = build_app(server, cloud, prefetch=False, presets=(0.4,),
+                    settings=MapSettings(cell_size=0.4), trust=settings)
+    assert app.wait_idle(120)
+    yield app, cloud, settings
+    app.stop()
+
+
+def _with_positions(xyz: np.ndarray) -> PointCloud:
+    from dataclasses import replace
+
+    return replace(PointCloud.from_xyz(xyz, source="wall"),
+                   scan_index=np.zeros(len(xyz), dtype=np.int64),
+                   scanner_positions=SCANNER[None, :].astype(np.float64))
+
+
+def test_the_layers_are_the_scanner_fields():
+    assert COLOUR_LAYERS[4:] == TRUST_FIELDS  # one list of scanner figures
+    assert all(COLOUR_LAYER_LABELS[n].startswith("scanner: ") for n in TRUST_FIELDS)
+
+
+def test_scanner_layers_colour_the_points_and_the_cell_report_says_them(scanned):
+    app, cloud, settings = scanned
+    loaded = app.session.shown.loaded
+    labels = tuple(app.map.layer.options)
+    assert all(COLOUR_LAYER_LABELS[n] in labels for n in TRUST_FIELDS)
+    ref = grid_roughness(cloud, 0.4)
+    trust = cell_trust(cloud, ref, settings)
+    app.map.layer.value = COLOUR_LAYER_LABELS["incidence_deg"]
+    assert app.wait_idle(120) and list(app.host.errors) == []
+    want = trust_layer("incidence_deg",
+                       trust.layer("incidence_deg")[ref.point_cell[loaded.display_index]])
+    np.testing.assert_array_equal(app.host.scene.cloud.colors, want.colours)
+    assert "Scanner: incidence angle" in app.map.colour_bar.figure.layout.title.text
+    app.map.layer.value = COLOUR_LAYER_LABELS["range"]
+    assert app.wait_idle(120)
+    assert "range (m)" in app.map.colour_bar.figure.layout.xaxis.title.text
+    # a click reports the cell's scanner figures (range and incidence of the geometry)
+    i = int(np.argmin(np.abs(loaded.display_points[:, 0]) + np.abs(loaded.display_points[:, 2])))
+    target = loaded.display_points[i].astype(float)
+    info = pick(app, target + [0.0, -5.0, 0.0], (0.0, 1.0, 0.0))
+    assert info is not None
+    r = trust.geometry.range_m[info.cell]
+    assert f"range {r:.2f} m" in app.map.pick.content
+    assert "scanner: seen by 1 scan" in app.map.pick.content
+
+
+def test_a_cloud_without_positions_has_no_scanner_layers(app):
+    labels = tuple(app.map.layer.options)
+    assert not any(label.startswith("scanner: ") for label in labels)
+    assert "scanner" not in app.map.pick.content
