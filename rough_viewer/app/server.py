@@ -19,7 +19,7 @@ from typing import Any, TypeVar
 
 import viser
 
-from rough_viewer.app.features import bias, board, export, file, panels, profile, zones
+from rough_viewer.app.features import bias, board, export, file, panels, profile, sets, zones
 from rough_viewer.app.features import map as roughness_map
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.features.map import InMemory, LoadJob, MapFeature, ShowJob
@@ -52,6 +52,7 @@ FEATURES: tuple[Mount, ...] = (
     board.mount,
     bias.mount,
     zones.mount,
+    sets.mount,
     export.mount,  # the Export folder (below the tabs, lists every panel): keep it last
 )
 

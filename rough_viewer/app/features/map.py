@@ -447,6 +447,10 @@ class MapFeature:
     across-scales plot (``pick_s``); the last :data:`MAX_TIMINGS`."""
     pick_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
     """The clicked point's marker and its cell's outline."""
+    overlay: object | None = None
+    """The feature whose colours are on the points instead of the map's (the zones,
+    the joint sets), or None."""
+    _release: Callable[[], None] = field(default=lambda: None, repr=False)
 
     def inputs(self) -> tuple[Any, ...]:
         """The controls a browser may set."""
@@ -470,6 +474,21 @@ class MapFeature:
             return self.binding.read()
         except InputError:
             return self.host.session.shown.settings
+
+    def take_overlay(self, owner: object, release: Callable[[], None]) -> None:
+        """``owner`` shows its own colours on the points: the map's cloud and colour
+        bar hide, and a feature that held the points before is told to let go
+        (``release`` is how ``owner`` will be told; worker)."""
+        if self.overlay is not None and self.overlay is not owner:
+            self._release()
+        self.overlay, self._release = owner, release
+        self.show_map(False)
+
+    def give_back_overlay(self, owner: object) -> None:
+        """``owner`` no longer colours the points: the map shows again (worker)."""
+        if self.overlay is owner:
+            self.overlay, self._release = None, lambda: None
+            self.show_map(True)
 
     def show_map(self, visible: bool) -> None:
         """Show the map's cloud and colour bar, or hide both while a feature shows its

@@ -483,14 +483,22 @@ class ZonesFeature:
             if colours is not None:
                 scene.update(node, colors=colours)
             scene.update(node, visible=True)
-        self.map.show_map(False)  # the points show zones, not roughness
+        self.map.take_overlay(self, self.let_go)  # the points show zones, not roughness
 
     def hide(self) -> None:
         """Show the map's cloud again; hide the zones."""
+        self._hide_nodes()
+        self.map.give_back_overlay(self)
+
+    def let_go(self) -> None:
+        """Another feature colours the points now: "Show zones" goes off (worker)."""
+        self.binding.set(self.on, False)
+        self._hide_nodes()
+
+    def _hide_nodes(self) -> None:
         if self.cloud_node is not None:
             self.host.scene.update(self.cloud_node, visible=False)
         self._clear_highlight()
-        self.map.show_map(True)
 
     def _clear_highlight(self) -> None:
         self.host.scene.remove(self.selected_nodes)

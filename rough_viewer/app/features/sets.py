@@ -1,0 +1,373 @@
+"""The Sets tab: discontinuity (joint) sets of the shown grid, on the rock, on the
+stereonet and as tables (:mod:`rough_viewer.grid.sets`, docs/sets.md).
+
+The tab follows the map: its sets are of the Map tab's grid (its ODR planes), with
+the tab's own settings (the largest roughness of a planar cell as a share of the
+cell, the cone, the least angle between sets, the most sets). "Show sets" colours the
+rock by set, or by plane, in a cloud of its own (the map's cloud and colour bar hide;
+the zones, if shown, go off: one feature colours the points at a time). A click on
+the rock or the "Selected set" list selects a set: the stereonet marks it, the set
+table highlights it and the plane table lists its planes.
+
+Jobs (on the worker; callbacks only submit them):
+
+=============  ============================================  ===============
+job            stages                                        lane
+=============  ============================================  ===============
+SetsJob        sets (cached per grid and settings), colours  sets (figures)
+SetFiguresJob  stereonet, tables                             sets-figures
+=============  ============================================  ===============
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+import plotly.graph_objects as go
+import viser
+
+from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.features.map import MapFeature
+from rough_viewer.app.host import Host, Pick
+from rough_viewer.app.layout import PLOTLY_CONFIG
+from rough_viewer.app.markup import md
+from rough_viewer.app.state import ByteCache, LoadedCloud
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.sets import (
+    DEFAULT_CONE_DEG,
+    DEFAULT_MAX_SETS,
+    DEFAULT_MIN_ANGLE_DEG,
+    DEFAULT_PLANAR_SHARE,
+    JointSets,
+    SetOptions,
+    joint_sets,
+)
+from rough_viewer.memory import require
+from rough_viewer.visual.sets import (
+    planes_table_figure,
+    point_colours,
+    sets_stereonet_figure,
+    sets_table_figure,
+)
+from rough_viewer.vocabulary import InputError
+
+#: Labels (the browser tests find controls by these).
+L_ON = "Show sets"
+L_COLOUR = "Colour sets by"
+L_ROUGHNESS = "Planar cells: roughness ≤ % of cell"
+L_CONE = "Cone (°)"
+L_MIN_ANGLE = "Least angle between sets (°)"
+L_MAX_SETS = "Most sets"
+L_SELECTED = "Selected set"
+#: The "Selected set" entry for no selection.
+NO_SET = "none"
+COLOUR_BY: tuple[str, ...] = ("set", "plane")
+#: Scene node of the tab's cloud.
+NODE_CLOUD = "/sets/cloud"
+
+
+@dataclass(frozen=True)
+class SetsParams:
+    """How the sets on screen were found."""
+
+    grid_key: tuple[object, ...]
+    options: SetOptions
+
+
+def set_option(sets: JointSets, k: int) -> str:
+    """The dropdown entry of set ``k`` (1..S)."""
+    return (f"Set {k} — {sets.dip_deg[k - 1]:02.0f}/{sets.dip_direction_deg[k - 1]:03.0f}, "
+            f"{int(sets.cells[k - 1]):,} cells")
+
+
+def set_of_option(value: str) -> int | None:
+    """Set id of a dropdown entry (``Set 2 — 78/221, 412 cells``), None if it is not one."""
+    parts = value.split(" ", 2)
+    if len(parts) >= 2 and parts[0] == "Set" and parts[1].isdigit():
+        return int(parts[1])
+    return None
+
+
+def status_markdown(sets: JointSets, cell_size_text: str) -> str:
+    """The tab's status line (escaped)."""
+    if not sets.n_sets:
+        return f"**No joint set** at grid {md(cell_size_text)}: {md(sets.note)}"
+    planar = int(np.count_nonzero(sets.planar))
+    n = sets.curved_groups
+    curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
+    return (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
+            f"{md(cell_size_text)}: {int(sets.cells.sum()):,} of {planar:,} planar cells in "
+            f"sets, {sets.planes.n_planes:,} planes{md(curved)}")
+
+
+class SetsBinding(Binding):
+    """The tab's controls and :class:`~rough_viewer.grid.sets.SetOptions`."""
+
+    def __init__(self, f: SetsFeature) -> None:
+        self.f = f
+
+    def read(self, cell_size: float) -> SetOptions:
+        """The settings the controls ask for on a grid of ``cell_size`` metres
+        (InputError for values the science refuses)."""
+        f = self.f
+        return SetOptions(max_roughness=float(f.roughness.value) / 100.0 * cell_size,
+                          cone_deg=float(f.cone.value), min_angle_deg=float(f.min_angle.value),
+                          max_sets=int(f.max_sets.value))
+
+    def show_selection(self, sets: JointSets, k: int) -> None:
+        f = self.f
+        options = (NO_SET, *(set_option(sets, i) for i in range(1, sets.n_sets + 1)))
+        with self.quietly():
+            if tuple(f.selected.options) != options:
+                f.selected.options = options
+            value = set_option(sets, k) if 1 <= k <= sets.n_sets else NO_SET
+            if f.selected.value != value:
+                assign(f.selected, value)
+
+
+@dataclass(eq=False)
+class SetsFeature:
+    """Handles and state of the Sets tab (the state is changed by the worker only)."""
+
+    host: Host
+    map: MapFeature
+    on: viser.GuiCheckboxHandle
+    colour_by: viser.GuiDropdownHandle[str]
+    roughness: viser.GuiNumberHandle[float]
+    cone: viser.GuiNumberHandle[float]
+    min_angle: viser.GuiNumberHandle[float]
+    max_sets: viser.GuiNumberHandle[int]
+    status: viser.GuiMarkdownHandle
+    selected: viser.GuiDropdownHandle[str]
+    stereonet: viser.GuiPlotlyHandle
+    table: viser.GuiPlotlyHandle
+    planes: viser.GuiPlotlyHandle
+    binding: SetsBinding = field(init=False)
+    sets: JointSets | None = None
+    """The sets on screen (of :attr:`result`)."""
+    result: GridRoughness | None = None
+    selected_set: int = 0
+    """The selected set (0: none)."""
+    cloud_node: viser.PointCloudHandle | None = None
+    node_for: LoadedCloud | None = None
+    cache: ByteCache[tuple[object, ...], JointSets] = field(default_factory=lambda: ByteCache(0))
+    cache_for: LoadedCloud | None = None
+
+    def __post_init__(self) -> None:
+        self.binding = SetsBinding(self)
+
+    @property
+    def active(self) -> bool:
+        return bool(self.on.value)
+
+    def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
+        return {"sets_stereonet": self.stereonet, "sets_table": self.table,
+                "planes_table": self.planes}
+
+    # ------------------------------------------------------------------ worker side
+    def sets_of(self, loaded: LoadedCloud, result: GridRoughness, grid_key: tuple[object, ...],
+                options: SetOptions) -> JointSets:
+        """The sets of ``result`` with ``options`` (cached per grid and settings)."""
+        if self.cache_for is not loaded:
+            self.cache = ByteCache(self.host.options.cache_bytes // 4)
+            self.cache_for = loaded
+        key = (grid_key, options)
+        hit = self.cache.get(key)
+        if hit is not None:
+            return hit
+        made = joint_sets(result, loaded.cloud, options)
+        self.cache.put(key, made)
+        return made
+
+    def colours(self, loaded: LoadedCloud) -> np.ndarray:
+        assert self.sets is not None and self.result is not None
+        by: Literal["set", "plane"] = "plane" if self.colour_by.value == "plane" else "set"
+        return point_colours(self.sets, self.result.point_cell[loaded.display_index], by=by)
+
+    def show_cloud(self, loaded: LoadedCloud) -> None:
+        """The tab's cloud of the shown points in the sets' colours (the map's hides)."""
+        scene = self.host.scene
+        require(3.0 * loaded.n_display, f"set colours of {loaded.n_display:,} shown points")
+        colours = self.colours(loaded)
+        if self.cloud_node is None or self.node_for is not loaded:
+            if self.cloud_node is not None:
+                scene.remove([self.cloud_node])
+            self.cloud_node = scene.add_points(NODE_CLOUD, loaded.display_points, colours)
+            self.node_for = loaded
+        else:
+            scene.update(self.cloud_node, colors=colours, visible=True)
+        self.map.take_overlay(self, self.let_go)
+
+    def hide(self) -> None:
+        self._hide_node()
+        self.map.give_back_overlay(self)
+
+    def let_go(self) -> None:
+        """Another feature colours the points now: "Show sets" goes off (worker)."""
+        self.binding.set(self.on, False)
+        self._hide_node()
+
+    def _hide_node(self) -> None:
+        if self.cloud_node is not None:
+            self.host.scene.update(self.cloud_node, visible=False)
+
+    def show_figures(self) -> None:
+        """The stereonet, the set table and the selected set's planes."""
+        sets, res = self.sets, self.result
+        if sets is None or res is None:
+            return
+        unit = self.host.session.shown.loaded.units.unit
+        own: dict[str, Any] = {"axis": res.axis, "n_points": res.n_points_total, "unit": unit}
+        k = self.selected_set or None
+        self.stereonet.figure = _compact(sets_stereonet_figure(sets, selected=k, **own))
+        self.table.figure = _compact(sets_table_figure(sets, selected=k, **own))
+        self.planes.figure = _compact(planes_table_figure(sets, set_id=k, **own))
+        self.binding.show_selection(sets, self.selected_set)
+
+    def on_pick(self, pick: Pick) -> bool:
+        """A click while sets are shown selects the set under it (worker)."""
+        if not self.active or self.sets is None or self.result is None:
+            return False
+        cell = int(self.result.point_cell[pick.point])
+        self.selected_set = int(self.sets.cell_set[cell])
+        self.host.submit(SetFiguresJob(self))
+        return True
+
+    def on_render(self) -> None:
+        """After every map: the sets of its grid, when shown (worker)."""
+        if self.active:
+            self.host.submit(SetsJob(self))
+
+
+def _compact(fig: go.Figure) -> go.Figure:
+    fig.update_layout(width=None, margin={"l": 4, "r": 4, "t": 90, "b": 4}, title_font_size=11)
+    return fig
+
+
+@dataclass(frozen=True)
+class SetsJob(Job[Host]):
+    """Find the sets of the shown grid with the tab's settings and colour the rock by
+    them (or hide them when "Show sets" is off); then queue the figures."""
+
+    f: SetsFeature = field(compare=False)
+    lane: ClassVar[str] = "sets"
+    cancels: ClassVar[frozenset[str]] = frozenset({"sets-figures"})
+
+    @property
+    def title(self) -> str:
+        return "joint sets"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        f, shown = self.f, ctx.session.shown
+        if not f.active:
+            f.hide()
+            yield "hide"
+            return
+        if shown.result is None:
+            return
+        options = f.binding.read(shown.result.grid.cell_size)  # InputError: named
+        f.status.content = "_finding the joint sets…_"
+        sets = f.sets_of(shown.loaded, shown.result, shown.settings.grid_key, options)
+        yield "sets"
+        if f.selected_set > sets.n_sets:
+            f.selected_set = 0
+        f.sets, f.result = sets, shown.result
+        f.show_cloud(shown.loaded)
+        f.status.content = status_markdown(sets, shown.loaded.units.size_text(
+            shown.result.grid.cell_size))
+        yield "colours"
+        ctx.submit(SetFiguresJob(f))
+
+
+@dataclass(frozen=True)
+class SetFiguresJob(Job[Host]):
+    """The stereonet and the tables of the sets on screen (the selection marked)."""
+
+    f: SetsFeature = field(compare=False)
+    lane: ClassVar[str] = "sets-figures"
+
+    @property
+    def title(self) -> str:
+        return "joint set figures"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        self.f.show_figures()
+        yield "figures"
+
+
+def _empty(title: str) -> go.Figure:
+    fig = go.Figure()
+    fig.update_layout(title={"text": title, "font": {"size": 12}},
+                      margin={"l": 10, "r": 10, "t": 30, "b": 10})
+    return fig
+
+
+def mount(host: Host) -> SetsFeature:
+    """Add the Sets tab; the sets follow every map while shown and take clicks."""
+    gui = host.gui
+    with host.tab("Sets"):
+        f = SetsFeature(
+            host=host, map=host.feature(MapFeature),
+            on=gui.add_checkbox(L_ON, False, hint="Colour the rock by joint set: planar "
+                                "cells (smooth ODR planes) grouped by the orientation of "
+                                "their poles (the Map tab's grid)."),
+            colour_by=gui.add_dropdown(L_COLOUR, COLOUR_BY, initial_value="set",
+                                       hint="By set, or by discontinuity plane."),
+            roughness=gui.add_number(L_ROUGHNESS, 100.0 * DEFAULT_PLANAR_SHARE, min=0.1,
+                                     max=50.0, step=0.1,
+                                     hint="A cell is planar when its ODR roughness is at "
+                                     "most this share of the cell's edge."),
+            cone=gui.add_number(L_CONE, DEFAULT_CONE_DEG, min=1.0, max=90.0, step=1.0,
+                                hint="A planar cell joins the nearest set's peak within "
+                                "this angle."),
+            min_angle=gui.add_number(L_MIN_ANGLE, DEFAULT_MIN_ANGLE_DEG, min=0.0, max=90.0,
+                                     step=1.0),
+            max_sets=gui.add_number(L_MAX_SETS, DEFAULT_MAX_SETS, min=1, max=20, step=1),
+            status=gui.add_markdown("Tick **Show sets** to find the joint sets of the map's "
+                                    "grid."),
+            selected=gui.add_dropdown(L_SELECTED, (NO_SET,), initial_value=NO_SET,
+                                      hint="Or click a set on the rock."),
+            stereonet=gui.add_plotly(_empty("stereonet of planar cells"), config=PLOTLY_CONFIG,
+                                     aspect=0.95),
+            table=gui.add_plotly(_empty("joint sets"), config=PLOTLY_CONFIG, aspect=0.5),
+            planes=gui.add_plotly(_empty("planes of the selected set"), config=PLOTLY_CONFIG,
+                                  aspect=0.6),
+        )
+    f.cache = ByteCache(host.options.cache_bytes // 4)
+    host.allow(f.on, f.colour_by, f.roughness, f.cone, f.min_angle, f.max_sets, f.selected)
+    b = f.binding
+    b.on_change([f.on, f.colour_by, f.roughness, f.cone, f.min_angle, f.max_sets],
+                lambda _h: host.submit(SetsJob(f)))
+
+    def select(_handle: object) -> None:
+        k = 0 if f.selected.value == NO_SET else set_of_option(f.selected.value)
+        if k is not None:
+            host.submit(SelectSetJob(f, k))
+
+    b.on_change([f.selected], select)
+    host.on_click(f.on_pick)
+    host.on_render(f.on_render)
+    return f
+
+
+@dataclass(frozen=True)
+class SelectSetJob(Job[Host]):
+    """Select set ``k`` (0: none) from the list."""
+
+    f: SetsFeature = field(compare=False)
+    k: int
+    lane: ClassVar[str] = "sets-select"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        f = self.f
+        if f.sets is None:
+            return
+        if not 0 <= self.k <= f.sets.n_sets:
+            raise InputError(f"there is no set {self.k}")
+        f.selected_set = self.k
+        f.show_figures()
+        yield "select"

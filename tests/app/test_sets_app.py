@@ -1,0 +1,101 @@
+"""Issue 26 in the app: the Sets tab finds the joint sets of the shown grid (the
+library's, with the tab's settings), colours the rock by set or plane, takes clicks,
+and shares the points with the zones (one colours them at a time)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rough_viewer.app.features.sets import NO_SET, SetsFeature, set_option
+from rough_viewer.app.features.zones import ZonesFeature
+from rough_viewer.app.server import build_app
+from rough_viewer.app.state import MapSettings
+from rough_viewer.grid.sets import SetOptions, joint_sets
+from rough_viewer.synthetic.joints import JOINT_BLOCK, generate_joint_block
+from rough_viewer.visual.sets import point_colours
+from tests.app.protocol import pick
+
+G = 0.25
+
+
+@pytest.fixture(scope="module")
+def block():
+    return generate_joint_block(JOINT_BLOCK)
+
+
+@pytest.fixture
+def sapp(server, block):
+    app = build_app(server, block.cloud, prefetch=False, variogram=False, presets=(G,),
+                    settings=MapSettings(cell_size=G), max_display=60_000)
+    assert app.wait_idle(120)
+    f = app.feature(SetsFeature)
+    f.on.value = True
+    assert app.wait_idle(120)
+    yield app, f
+    app.stop()
+
+
+def test_the_planted_sets_are_found_and_the_rock_coloured_by_them(sapp, block):
+    app, f = sapp
+    res = app.session.shown.result
+    ref = joint_sets(res, block.cloud, SetOptions(max_roughness=0.02 * G))
+    assert f.sets is not None and f.sets.n_sets == ref.n_sets == 3
+    np.testing.assert_array_equal(f.sets.cell_set, ref.cell_set)
+    loaded = app.session.shown.loaded
+    np.testing.assert_array_equal(f.cloud_node.colors,
+                                  point_colours(ref, res.point_cell[loaded.display_index]))
+    assert f.cloud_node.visible and not app.host.scene.cloud.visible
+    assert not app.map.colour_bar.visible
+    assert "**3 sets**" in f.status.content
+    assert f.selected.options == (NO_SET, *(set_option(ref, k) for k in (1, 2, 3)))
+    assert "3 joint sets" in f.table.figure.layout.title.text
+    f.colour_by.value = "plane"  # the same sets, coloured by plane
+    assert app.wait_idle(60)
+    np.testing.assert_array_equal(
+        f.cloud_node.colors, point_colours(ref, res.point_cell[loaded.display_index], by="plane"))
+    f.on.value = False
+    assert app.wait_idle(60)
+    assert not f.cloud_node.visible and app.host.scene.cloud.visible
+
+
+def test_a_click_selects_the_set_under_it_and_its_planes_are_listed(sapp):
+    app, f = sapp
+    res = app.session.shown.result
+    loaded = app.session.shown.loaded
+    per_point = f.sets.cell_set[res.point_cell[loaded.display_index]]
+    row = int(np.flatnonzero(per_point == 2)[0])
+    target = loaded.display_points[row].astype(float)
+    normal = f.sets.normal[1]
+    assert pick(app, target + 3.0 * normal, -normal) is None  # the tab took it
+    assert f.selected_set == 2 and f.selected.value == f.selected.options[2]
+    assert "set 2" in f.planes.figure.layout.title.text.lower()
+    f.selected.value = NO_SET
+    assert app.wait_idle(60)
+    assert f.selected_set == 0
+
+
+def test_zones_and_sets_take_turns_on_the_points(sapp):
+    app, f = sapp
+    z = app.feature(ZonesFeature)
+    z.on.value = True  # the zones take the points: the sets let go
+    assert app.wait_idle(60)
+    assert not f.on.value and not f.cloud_node.visible and z.cloud_node.visible
+    f.on.value = True  # and back
+    assert app.wait_idle(60)
+    assert not z.on.value and not z.cloud_node.visible and f.cloud_node.visible
+    assert not app.host.scene.cloud.visible
+
+
+def test_the_tab_settings_reach_the_sets(sapp, block):
+    """A narrower cone and a stricter planar share give the library's sets with those
+    settings (fewer cells in sets)."""
+    app, f = sapp
+    before = int(f.sets.cells.sum())
+    f.cone.value = 8.0
+    f.roughness.value = 1.0  # % of the cell
+    assert app.wait_idle(60)
+    res = app.session.shown.result
+    ref = joint_sets(res, block.cloud, SetOptions(max_roughness=0.01 * G, cone_deg=8.0))
+    np.testing.assert_array_equal(f.sets.cell_set, ref.cell_set)
+    assert int(f.sets.cells.sum()) < before
