@@ -230,10 +230,18 @@ def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: f
     )
 
 
-def _resample(
+def resample_band(
     along: np.ndarray, height: np.ndarray, n_samples: int, spacing: float, max_gap: float
 ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...]]:
-    """Bin, average and interpolate; returns (heights, counts, gaps)."""
+    """Bin, average and interpolate band points onto ``n_samples`` samples at
+    ``0, spacing, ...`` (step 5 of the module docstring).
+
+    ``along`` (M,) are the points' distances along the line from its start, metres,
+    each rounding to a sample (``-spacing/2 <= along < (n_samples - 1/2) spacing``);
+    ``height`` (M,) their residual heights. Returns ``(heights, counts, gaps)``:
+    (n_samples,) heights (NaN in gaps longer than ``max_gap``), points per sample
+    and the data-free intervals.
+    """
     bins = np.rint(along / spacing).astype(np.int64)
     counts = np.bincount(bins, minlength=n_samples)
     occupied = np.flatnonzero(counts)
@@ -377,7 +385,7 @@ def extract_profile(
         )
     a = along[in_band]
     resid = height[in_band]  # distance from the patch's ODR plane: the plane removed
-    heights, counts, gaps = _resample(a, resid, n_samples, step, gap)
+    heights, counts, gaps = resample_band(a, resid, n_samples, step, gap)
     return Profile(
         distance=np.arange(n_samples) * step,
         heights=heights,
@@ -444,6 +452,6 @@ def regular_samples(
     rel = d - d[0]
     n_samples = int(np.rint(rel[-1] / step)) + 1
     inside = np.rint(rel / step) <= n_samples - 1
-    out, _, gaps = _resample(rel[inside], h[inside], n_samples, step, gap)
+    out, _, gaps = resample_band(rel[inside], h[inside], n_samples, step, gap)
     shifted = tuple((a + d[0], b + d[0]) for a, b in gaps)
     return d[0] + np.arange(n_samples) * step, out, shifted
