@@ -34,6 +34,8 @@ JRC_INTERCEPT = 32.2
 JRC_SLOPE = 32.47
 #: Sampling intervals (metres) the JRC estimate holds for: about 0.5 to 1 mm.
 JRC_SPACING_M = (0.5e-3, 1.0e-3)
+#: "About": intervals within this share outside that range give no warning.
+JRC_SPACING_TOLERANCE = 0.1
 
 
 def z2(heights: np.ndarray, spacing: float) -> float:
@@ -71,9 +73,10 @@ def jrc_from_z2(value: float | np.ndarray) -> float | np.ndarray:
 
 def jrc_warnings(spacing: float) -> tuple[str, ...]:
     """One warning when profiles sampled every ``spacing`` metres lie outside the
-    0.5-1 mm the JRC estimate was calibrated for (else none)."""
+    0.5-1 mm the JRC estimate was calibrated for, by more than
+    :data:`JRC_SPACING_TOLERANCE` (else none)."""
     lo, hi = JRC_SPACING_M
-    if lo * (1 - 1e-9) <= spacing <= hi * (1 + 1e-9):
+    if lo * (1 - JRC_SPACING_TOLERANCE) <= spacing <= hi * (1 + JRC_SPACING_TOLERANCE):
         return ()
     return (f"JRC estimates (Tse and Cruden 1979) hold for profiles sampled at about "
             f"{lo * 1e3:g}-{hi * 1e3:g} mm; these are sampled every {spacing * 1e3:.3g} mm, "

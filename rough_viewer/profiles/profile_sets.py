@@ -14,11 +14,12 @@ Definitions (``docs/directions.md`` gives them with their sources):
   along ``v``. ``alpha`` and ``alpha + 180`` are the same lines run the other way:
   every number here is the same for both (the TIN parameters of
   :mod:`rough_viewer.tin` are not).
-- Profiles: centre lines at ``across = k * spacing`` (``across = (p - origin) . (n x
-  t)``, k any integer whose band holds points), each taking the points within
-  ``band_half_width`` of its line (bands overlap when ``spacing < 2
-  band_half_width``); a profile runs from its band's first point to its last along
-  ``t``. The points are projected once per direction and sorted by ``across``, so
+- Profiles: centre lines at ``across = c_min + k * spacing``, k = 0, 1, ... up to
+  the largest ``across`` (``across = (p - origin) . (n x t)``, ``c_min`` its lowest
+  value over the points: on a grid whose row step divides the spacing, every line
+  runs along a row), each taking the points within ``band_half_width`` of its line
+  (bands overlap when ``spacing < 2 band_half_width``); a profile runs from its
+  band's first point to its last along ``t``. The points are projected once per direction and sorted by ``across``, so
   every band is a slice of one sorted array (no pass over the cloud per profile).
 - Each profile is resampled exactly as a picked profile is
   (:func:`rough_viewer.profiles.extraction.resample_band`: nearest-sample bins,
@@ -144,7 +145,8 @@ class ProfileSet:
     windows: np.ndarray | None
     """Roughness-length window lengths given, metres; None: 3-10 % of each profile."""
     offsets: np.ndarray
-    """(P,) ``across`` position of each profile line, metres from the frame origin."""
+    """(P,) ``across`` position of each profile line, metres from the frame origin
+    (lines without points are left out)."""
     starts: np.ndarray
     """(P, 3) first sample of each profile on its fitted line, file frame, metres."""
     ends: np.ndarray
@@ -161,8 +163,12 @@ class ProfileSet:
     skipped: tuple[tuple[str, int], ...]
     """Why profiles were not used: (reason, count), most common first."""
     warnings: tuple[str, ...]
-    """What the reader should know (implausible fits, JRC outside its sampling)."""
+    """What the reader should know (JRC outside its sampling); implausible fits are
+    counted in ``implausible`` and said once for all sets by :func:`set_warnings`."""
     denoise: DenoiseSettings = DenoiseSettings()
+    implausible: int = 0
+    """Used profiles whose raw fractal dimension lies outside [1, 2]
+    (:func:`rough_viewer.profiles.fractal.plausibility`)."""
 
     @property
     def n_profiles(self) -> int:
@@ -313,8 +319,7 @@ def _one_direction(
     cs = c[order]
     del c
     s, band = prep.spacing, prep.band
-    k = np.arange(np.ceil((cs[0] - band) / s), np.floor((cs[-1] + band) / s) + 1)
-    centres = k * s
+    centres = cs[0] + s * np.arange(int(np.floor((cs[-1] - cs[0]) / s + 1e-9)) + 1)
     lo = np.searchsorted(cs, centres - band, side="left")
     hi = np.searchsorted(cs, centres + band, side="right")
     keep = hi > lo
@@ -370,17 +375,13 @@ def _one_direction(
     if progress is not None:
         progress(p, p)
     warnings = list(jrc_warnings(prep.step)) if used.any() else []
-    if implausible:
-        warnings.append(
-            f"azimuth {azimuth_deg:g}: {implausible} of {int(used.sum())} profiles have a "
-            "fractal dimension outside [1, 2] (trend or curvature the windows do not "
-            "remove, or windows too long or too short for the profiles)")
     return ProfileSet(
         azimuth_deg=float(azimuth_deg), frame=f, direction=t, across=w, spacing=s,
         band_half_width=band, sample_spacing=prep.step, max_gap=prep.gap, windows=windows,
         offsets=centres, starts=starts, ends=ends, n_points=count.astype(np.int64),
         n_samples=n_samples, used=used, values=values,
         skipped=tuple(reasons.most_common()), warnings=tuple(warnings), denoise=denoise,
+        implausible=implausible,
     )
 
 
@@ -495,6 +496,17 @@ def summaries(sets: Sequence[ProfileSet]) -> list[DirectionSummary]:
 
 
 def set_warnings(sets: Sequence[ProfileSet]) -> tuple[str, ...]:
-    """Every set's warnings once, in order."""
-    return tuple(dict.fromkeys(w for s in sets for w in s.warnings))
+    """Every set's warnings once, in order, and one line for the profiles of all
+    directions whose fractal dimension is implausible (each line direction counted
+    once)."""
+    out = list(dict.fromkeys(w for s in sets for w in s.warnings))
+    lines = {round(s.azimuth_deg % 180.0, 9): s for s in sets}.values()
+    bad = sum(s.implausible for s in lines)
+    used = sum(int(np.count_nonzero(s.used)) for s in lines)
+    if bad:
+        out.append(f"{bad} of {used} profiles have a fractal dimension outside [1, 2]: a "
+                   "trend or curvature their windows do not remove, or a surface smoother "
+                   "(D < 1) or noisier (D > 2) than its windows; try larger roughness-length "
+                   "windows (directions --windows)")
+    return tuple(out)
 
