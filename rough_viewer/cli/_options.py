@@ -86,6 +86,26 @@ def list_of(kind: Callable[[str], float]) -> Callable[[str], list[float]]:
     return parse
 
 
+def add_windows(p: argparse.ArgumentParser) -> None:
+    """``--windows W1,W2,...``: the roughness-length window lengths, in ``--units``
+    (at least two; default: 8 from 3 % to 10 % of each profile's length)."""
+    p.add_argument("--windows", type=list_of(positive), metavar="W1,W2,...",
+                   help="roughness-length window lengths in --units, comma-separated (at "
+                   "least 2; default: 8 from 3 %% to 10 %% of each profile's length)")
+
+
+def window_lengths(values: list[float] | None, unit: str) -> tuple[float, ...] | None:
+    """``--windows`` in metres (the distinct values, sorted), or None; at least two
+    distinct lengths, else one line naming the option."""
+    if values is None:
+        return None
+    distinct = sorted(set(values))
+    if len(distinct) < 2:
+        raise InputError("--windows needs at least 2 different window lengths, got "
+                         f"{','.join(f'{v:g}' for v in values)} {UNIT_LABELS[unit]}")
+    return tuple(v * UNIT_METRES[unit] for v in distinct)
+
+
 def segments(text: str) -> int | tuple[int, int]:
     """argparse type: a segment count (``8``) or rows x cols (``4x2``)."""
     t = text.lower().strip()
