@@ -5,7 +5,7 @@ Contract (other tools script against it)::
     rough-viewer directions INPUT --step 15 [--spacing S] [--half-width W]
         [--windows W1,W2,...] [--units m|mm|ft|us-ft] --out DIRECTIONS.csv
         [--windows-out WINDOWS.csv [--window-radius R] [--window-step S]]
-        [--sample-spacing S] [--force] [--quiet]
+        [--sample-spacing S] [--min-samples K] [--force] [--quiet]
 
 DIRECTIONS.csv: one row per azimuth (0, step, ... below 360 degrees, counter-clockwise
 from the face's u axis towards v), columns ``azimuth_deg, profiles, h_mean, h_std,
@@ -66,6 +66,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sample-spacing", type=positive, metavar="S",
                    help="sample spacing along the profiles, in --units (default: the point "
                    "spacing; the JRC estimates hold for 0.5-1 mm)")
+    p.add_argument("--min-samples", type=int, default=None, metavar="K",
+                   help="fewest samples with data a profile needs (default 64; at least 40, "
+                   "the wavelet de-noising's shortest run)")
     add_units(p)
     p.add_argument("--out", required=True, metavar="DIRECTIONS.csv",
                    help="one row per azimuth (.csv, or .parquet)")
@@ -94,6 +97,13 @@ def run(args: argparse.Namespace) -> int:
         format_directions,
     )
 
+    from rough_viewer.profiles.profile_sets import DEFAULT_MIN_SAMPLES
+    from rough_viewer.profiles.wavelets import min_run_length
+
+    shortest = min_run_length("db3", 3)
+    if args.min_samples is not None and args.min_samples < shortest:
+        raise InputError(f"--min-samples must be at least {shortest} (the de-noising's "
+                         f"shortest run), got {args.min_samples}")
     if not args.step <= 360:
         raise InputError(f"--step must be at most 360 degrees, got {args.step:g}")
     path = Path(args.input)
@@ -118,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
         step_deg=args.step, spacing=metres(args.spacing), half_width=metres(args.half_width),
         sample_spacing=metres(args.sample_spacing), windows=window_lengths(args.windows, unit),
         window_radius=metres(args.window_radius), window_step=metres(args.window_step),
-        window_map=bool(args.windows_out))
+        window_map=bool(args.windows_out),
+        min_samples=args.min_samples if args.min_samples is not None else DEFAULT_MIN_SAMPLES)
     with naming(path):
         result = analyse_directions(cloud, settings, mesh=mesh, source=str(path),
                                     progress=None if args.quiet else ProgressBar("directions"))

@@ -254,6 +254,15 @@ def describe(result: DirectionsResult, *, unit: str = "m") -> list[str]:
         f"samples every {s0.sample_spacing / per:.4g} {u}; "
         f"{min(used)}-{max(used)} profiles measured per direction",
     ]
+    skipped: dict[str, int] = {}
+    for x in result.sets[: max(1, result.azimuth_deg.size // 2)]:
+        for reason, n in x.skipped:
+            skipped[reason] = skipped.get(reason, 0) + n
+    if skipped:
+        lines.append("profiles not measured: " + "; ".join(
+            f"{n} {reason}" for reason, n in sorted(skipped.items(), key=lambda r: -r[1]))
+            + (" (--min-samples, or a finer --sample-spacing)"
+               if any("samples" in r for r in skipped) else ""))
     if result.tin is not None:
         what = ("the file's mesh" if result.surface == "mesh"
                 else "the cloud triangulated in its plane")
