@@ -90,15 +90,14 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.io.load import load_points
     from rough_viewer.io.mesh import load_mesh
     from rough_viewer.io.table import check_table_output, write_table
+    from rough_viewer.profiles.profile_sets import DEFAULT_MIN_SAMPLES
+    from rough_viewer.profiles.wavelets import min_run_length
     from rough_viewer.report.directions import (
         DirectionSettings,
         analyse_directions,
         directions_table,
         format_directions,
     )
-
-    from rough_viewer.profiles.profile_sets import DEFAULT_MIN_SAMPLES
-    from rough_viewer.profiles.wavelets import min_run_length
 
     shortest = min_run_length("db3", 3)
     if args.min_samples is not None and args.min_samples < shortest:
