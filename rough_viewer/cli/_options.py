@@ -87,23 +87,27 @@ def list_of(kind: Callable[[str], float]) -> Callable[[str], list[float]]:
 
 
 def add_windows(p: argparse.ArgumentParser) -> None:
-    """``--windows W1,W2,...``: the roughness-length window lengths, in ``--units``
-    (at least two; default: 8 from 3 % to 10 % of each profile's length)."""
-    p.add_argument("--windows", type=list_of(positive), metavar="W1,W2,...",
-                   help="roughness-length window lengths in --units, comma-separated (at "
-                   "least 2; default: 8 from 3 %% to 10 %% of each profile's length)")
+    """``--windows W1,W2,...|default|paper``: the roughness-length windows, lengths in
+    ``--units`` or a rule (parsed by :func:`window_lengths`)."""
+    p.add_argument("--windows", metavar="W1,W2,...", default=None,
+                   help="roughness-length window lengths in --units, separated by commas, or "
+                   "'default' (8 evenly in log from 3 %% to 30 %% of the profile) or 'paper' "
+                   "(8 from 3 %% to 10 %%, as Khoshelham & Altundag)")
 
 
-def window_lengths(values: list[float] | None, unit: str) -> tuple[float, ...] | None:
-    """``--windows`` in metres (the distinct values, sorted), or None; at least two
-    distinct lengths, else one line naming the option."""
-    if values is None:
+def window_lengths(text: str | None, unit: str) -> tuple[float, ...] | str | None:
+    """``--windows`` as the profile code takes it: lengths in metres, a rule name, or
+    None (:func:`rough_viewer.profiles.fractal.parse_windows`; an error names the
+    option)."""
+    from rough_viewer.profiles.fractal import parse_windows
+
+    if text is None:
         return None
-    distinct = sorted(set(values))
-    if len(distinct) < 2:
-        raise InputError("--windows needs at least 2 different window lengths, got "
-                         f"{','.join(f'{v:g}' for v in values)} {UNIT_LABELS[unit]}")
-    return tuple(v * UNIT_METRES[unit] for v in distinct)
+    try:
+        got = parse_windows(text, UNIT_METRES[unit])
+    except InputError as exc:
+        raise InputError(f"--{exc}") from None
+    return got if got is None or isinstance(got, str) else tuple(float(w) for w in got)
 
 
 def segments(text: str) -> int | tuple[int, int]:

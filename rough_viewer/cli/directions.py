@@ -3,7 +3,7 @@
 Contract (other tools script against it)::
 
     rough-viewer directions INPUT --step 15 [--spacing S] [--half-width W]
-        [--windows W1,W2,...] [--units m|mm|ft|us-ft] --out DIRECTIONS.csv
+        [--windows W1,W2,...|default|paper] [--units m|mm|ft|us-ft] --out DIRECTIONS.csv
         [--windows-out WINDOWS.csv [--window-radius R] [--window-step S]]
         [--sample-spacing S] [--min-samples K] [--force] [--quiet]
 

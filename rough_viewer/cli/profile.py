@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.cli._options import add_units, naming, parse_xyz, per_unit, warn
+from rough_viewer.cli._options import add_units, add_windows, naming, parse_xyz, per_unit, warn
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
@@ -73,10 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--detrend", type=int, metavar="DEGREE",
                    help="remove a least-squares polynomial trend of this degree from the "
                    "profile first (2 removes a curvature that makes D < 1)")
-    p.add_argument("--windows", metavar="W1,W2,...", default=None,
-                   help="roughness-length window lengths in --units, separated by commas, or "
-                   "'default' (8 evenly in log from 3 %% to 30 %% of the profile) or 'paper' "
-                   "(8 from 3 %% to 10 %%, as Khoshelham & Altundag)")
+    add_windows(p)
     p.add_argument("--wavelet", default="db3", help="PyWavelets discrete wavelet (default db3)")
     p.add_argument("--level", type=int, default=3, help="decomposition levels (default 3)")
     p.add_argument("--profile-file", action="store_true",

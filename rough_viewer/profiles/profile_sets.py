@@ -42,7 +42,8 @@ Defaults: ``band_half_width`` and the sample spacing = the point spacing (median
 distance to the 4th nearest neighbour in the face plane, as for a picked
 profile); ``spacing`` = the larger of ``2 band_half_width`` (bands that do not
 overlap) and the face's larger extent / :data:`DEFAULT_MAX_PROFILES`; roughness-
-length windows: 3-10 % of each profile's length (the paper's), or the lengths given.
+length windows: the default rule of :mod:`rough_viewer.profiles.fractal` (shares of
+each profile's length), or the lengths or rule given.
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ from rough_viewer.grid.spacing import neighbour_distance
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.memory import require
 from rough_viewer.profiles.extraction import DEFAULT_MAX_GAP_SPACINGS, resample_band
-from rough_viewer.profiles.fractal import roughness_length
+from rough_viewer.profiles.fractal import Windows, roughness_length
 from rough_viewer.profiles.jrc import jrc_from_z2, jrc_warnings, z2
 from rough_viewer.profiles.wavelets import denoise_result, min_run_length
 from rough_viewer.vocabulary import (
@@ -142,8 +143,10 @@ class ProfileSet:
     """Sample spacing along the profiles, metres."""
     max_gap: float
     """Longest stretch without points interpolated across, metres."""
-    windows: np.ndarray | None
-    """Roughness-length window lengths given, metres; None: 3-10 % of each profile."""
+    windows: np.ndarray | str | None
+    """Roughness-length window lengths given, metres, or a rule (``"default"``,
+    ``"paper"``); None: the default rule, shares of each profile's length
+    (:func:`rough_viewer.profiles.fractal.window_lengths`)."""
     offsets: np.ndarray
     """(P,) ``across`` position of each profile line, metres from the frame origin
     (lines without points are left out)."""
@@ -278,7 +281,7 @@ def _fit_line(heights: np.ndarray) -> tuple[np.ndarray, float, float]:
     return heights - (icpt + slope * i), float(icpt), float(icpt + slope * (heights.size - 1))
 
 
-def _measure(heights: np.ndarray, step: float, windows: np.ndarray | None,
+def _measure(heights: np.ndarray, step: float, windows: np.ndarray | str | None,
              denoise: DenoiseSettings) -> dict[str, float]:
     """Every value of one profile (heights with the line removed); InputError when
     its roughness length cannot be fitted. The de-noised values are NaN where the
@@ -305,7 +308,7 @@ def _one_direction(
     prep: _Prepared,
     azimuth_deg: float,
     *,
-    windows: np.ndarray | None,
+    windows: np.ndarray | str | None,
     min_samples: int,
     denoise: DenoiseSettings,
     progress: ProgressFn | None = None,
@@ -385,9 +388,9 @@ def _one_direction(
     )
 
 
-def _windows(windows: Sequence[float] | np.ndarray | None) -> np.ndarray | None:
-    if windows is None:
-        return None
+def _windows(windows: Windows) -> np.ndarray | str | None:
+    if windows is None or isinstance(windows, str):
+        return windows
     w = np.asarray(windows, dtype=np.float64).ravel()
     if w.size < 2 or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise InputError("roughness-length windows must be at least 2 positive lengths "
@@ -402,7 +405,7 @@ def profile_sets(
     spacing: float | None = None,
     band_half_width: float | None = None,
     sample_spacing: float | None = None,
-    windows: Sequence[float] | np.ndarray | None = None,
+    windows: Windows = None,
     max_gap: float | None = None,
     region: tuple[Sequence[float], Sequence[float]] | None = None,
     plane: Plane | None = None,
@@ -426,9 +429,10 @@ def profile_sets(
         spacing).
     sample_spacing : float, optional
         Sample spacing along the profiles, metres (default: the point spacing).
-    windows : sequence of float, optional
-        Roughness-length window lengths, metres, for every profile (default: 8 from
-        3 % to 10 % of each profile's length).
+    windows : sequence of float or str, optional
+        Roughness-length window lengths, metres, for every profile, or a rule
+        (``"default"``: 8 evenly in log from 3 % to 30 % of each profile's length;
+        ``"paper"``: 8 from 3 % to 10 %); default the default rule.
     max_gap : float, optional
         Longest stretch without points interpolated across, metres (default: 3
         sample spacings).

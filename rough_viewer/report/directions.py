@@ -65,8 +65,9 @@ class DirectionSettings:
     """Band half-width of each profile (default: the point spacing)."""
     sample_spacing: float | None = None
     """Sample spacing along the profiles (default: the point spacing)."""
-    windows: tuple[float, ...] | None = None
-    """Roughness-length window lengths (default: 3-10 % of each profile)."""
+    windows: tuple[float, ...] | str | None = None
+    """Roughness-length window lengths, or a rule (default: the default rule of
+    :mod:`rough_viewer.profiles.fractal`)."""
     window_radius: float | None = None
     """Radius of the circular windows of the map; None: no map unless
     ``window_map`` (then :data:`DEFAULT_WINDOW_RADIUS_SHARE` of the shorter extent)."""
