@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io.cloud import PointCloud, check_input_file
+from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit, error_line
+from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
 
 #: Formats whose files may carry triangles.
 MESH_SUFFIXES = (".stl", ".ply")
@@ -112,14 +112,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     # the file's bytes, a few copies of its corners and the faces
     require(8.0 * p.stat().st_size, f"reading the mesh of {p.name}")
-    try:
+    with read_errors(p):
         read = read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
-    except InputError:
-        raise
-    except MemoryError:
-        raise InputError(f"not enough memory to read {p}") from None
-    except (OSError, ValueError, EOFError, KeyError, IndexError) as exc:
-        raise InputError(f"cannot read {p}: {error_line(exc)}") from None
     if read is None:
         return None
     vertices, faces = read

@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from rough_viewer.grid.planes import fit_plane
 from rough_viewer.grid.spacing import neighbour_distance
+from rough_viewer.io.cloud import as_xyz
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
@@ -142,15 +143,6 @@ class Profile:
 # ----------------------------------------------------------------------------- helpers
 
 
-def _as_xyz(points: Any) -> np.ndarray:
-    if hasattr(points, "xyz") and callable(points.xyz):
-        points = points.xyz()
-    xyz = np.asarray(points, dtype=float)
-    if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
-    return xyz
-
-
 def _as_point(p: Any, name: str) -> np.ndarray:
     a = np.asarray(p, dtype=float).ravel()
     if a.shape != (3,) or not np.all(np.isfinite(a)):
@@ -158,7 +150,9 @@ def _as_point(p: Any, name: str) -> np.ndarray:
     return a
 
 
-def _positive(value: float | None, name: str) -> float | None:
+def positive_length(value: float | None, name: str) -> float | None:
+    """``value`` as a float, or None; InputError unless it is a finite length > 0
+    (``name`` the setting, for the message)."""
     if value is None:
         return None
     v = float(value)
@@ -335,16 +329,16 @@ def extract_profile(
     >>> round(float(np.nanstd(prof.heights)) * 1e3, 2)
     0.67
     """
-    xyz = _as_xyz(points)
+    xyz = as_xyz(points)
     p0 = _as_point(start, "start")
     p1 = _as_point(end, "end")
     length3 = float(np.linalg.norm(p1 - p0))
     if length3 <= 0:
         raise InputError("start and end are the same point")
-    band = _positive(band_half_width, "band_half_width")
-    step = _positive(spacing, "spacing")
-    gap = _positive(max_gap, "max_gap")
-    radius = _positive(frame_radius, "frame_radius")
+    band = positive_length(band_half_width, "band_half_width")
+    step = positive_length(spacing, "spacing")
+    gap = positive_length(max_gap, "max_gap")
+    radius = positive_length(frame_radius, "frame_radius")
     if radius is None:
         radius = max(0.25 * length3, 3.0 * band if band is not None else 0.0)
 
@@ -445,8 +439,8 @@ def regular_samples(
     steps = np.diff(d)
     if np.any(steps <= 0):
         raise InputError("distances must be strictly increasing")
-    step = _positive(spacing, "spacing") or float(np.median(steps))
-    gap = _positive(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
+    step = positive_length(spacing, "spacing") or float(np.median(steps))
+    gap = positive_length(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
     if keep.all() and np.all(np.abs(steps - step) <= 1e-6 * step):
         return d, h, ()
     rel = d - d[0]

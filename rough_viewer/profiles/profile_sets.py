@@ -57,9 +57,13 @@ import numpy as np
 from rough_viewer.grid.maps import FaceFrame, Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.grid.spacing import neighbour_distance
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import PointCloud, as_xyz
 from rough_viewer.memory import require
-from rough_viewer.profiles.extraction import DEFAULT_MAX_GAP_SPACINGS, resample_band
+from rough_viewer.profiles.extraction import (
+    DEFAULT_MAX_GAP_SPACINGS,
+    positive_length,
+    resample_band,
+)
 from rough_viewer.profiles.fractal import Windows, roughness_length
 from rough_viewer.profiles.jrc import jrc_from_z2, jrc_warnings, z2
 from rough_viewer.profiles.wavelets import denoise_result, min_run_length
@@ -209,24 +213,6 @@ class _Prepared:
     gap: float
 
 
-def _as_xyz(points: PointCloud | np.ndarray) -> np.ndarray:
-    if isinstance(points, PointCloud):
-        return points.xyz()
-    xyz = np.asarray(points, dtype=np.float64)
-    if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
-    return xyz
-
-
-def _positive(value: float | None, name: str) -> float | None:
-    if value is None:
-        return None
-    v = float(value)
-    if not (np.isfinite(v) and v > 0):
-        raise InputError(f"{name} must be a positive length in metres, got {value!r}")
-    return v
-
-
 def crop(xyz: np.ndarray, region: tuple[Sequence[float], Sequence[float]] | None) -> np.ndarray:
     """The points (N, 3) inside the box ``region = (lo, hi)`` (file frame, metres,
     bounds included); all of them for None."""
@@ -252,20 +238,20 @@ def _prepare(
     sample_spacing: float | None,
     max_gap: float | None,
 ) -> _Prepared:
-    xyz = crop(_as_xyz(points), region)
+    xyz = crop(as_xyz(points), region)
     n = xyz.shape[0]
     require(n * (PROJECTION_BYTES + 24.0), f"profiles across {n:,} points")
     frame = face_frame(plane if plane is not None else whole_cloud_plane(xyz))
     rel = xyz - frame.origin
     uv = np.column_stack([rel @ frame.u_axis, rel @ frame.v_axis])
-    step = _positive(sample_spacing, "sample_spacing")
-    band = _positive(band_half_width, "band_half_width")
+    step = positive_length(sample_spacing, "sample_spacing")
+    band = positive_length(band_half_width, "band_half_width")
     if step is None or band is None:
         spacing_est = neighbour_distance(uv, k=4)
         step = spacing_est if step is None else step
         band = spacing_est if band is None else band
-    gap = _positive(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
-    between = _positive(spacing, "spacing")
+    gap = positive_length(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
+    between = positive_length(spacing, "spacing")
     if between is None:
         extent = float(np.max(uv.max(axis=0) - uv.min(axis=0)))
         between = max(2.0 * band, extent / DEFAULT_MAX_PROFILES)

@@ -49,6 +49,16 @@ TABLE_COLUMNS = ("azimuth_deg", "profiles", "h_mean", "h_std", "d_mean", "d_std"
 #: Columns after the contracted ones.
 EXTRA_COLUMNS = ("h_denoised_mean", "h_denoised_std", "d_denoised_mean", "d_denoised_std",
                  "rms_std", "z2_std", "jrc_std", "theta_max", "c", "a0")
+#: Table columns of the profile sets: (column, :class:`DirectionSummary` field), in
+#: the table's order (the TIN columns follow ``jrc_mean`` and close the table).
+_PROFILE_COLUMNS = (
+    ("h_mean", "hurst_mean"), ("h_std", "hurst_std"), ("d_mean", "dimension_mean"),
+    ("d_std", "dimension_std"), ("rms_mean", "rms_mean"), ("z2_mean", "z2_mean"),
+    ("jrc_mean", "jrc_mean"), ("h_denoised_mean", "hurst_denoised_mean"),
+    ("h_denoised_std", "hurst_denoised_std"), ("d_denoised_mean", "dimension_denoised_mean"),
+    ("d_denoised_std", "dimension_denoised_std"), ("rms_std", "rms_std"), ("z2_std", "z2_std"),
+    ("jrc_std", "jrc_std"),
+)
 #: Window radius by default: this share of the face's shorter extent.
 DEFAULT_WINDOW_RADIUS_SHARE = 0.1
 
@@ -200,35 +210,26 @@ def directions_table(result: DirectionsResult, *, unit: str = "m") -> dict[str, 
     ``unit``, angles in degrees, Z2, H, D, C and JRC dimensionless."""
     per = UNIT_METRES[unit]
     s = [x.summary() for x in result.sets]
-    a = result.azimuth_deg.size
-    nan = np.full(a, np.nan)
+    nan = np.full(result.azimuth_deg.size, np.nan)
     tin = result.tin
+
+    def profiles(attr: str, scale: float = 1.0) -> np.ndarray:
+        return np.array([getattr(x, attr) for x in s], dtype=np.float64) * scale
+
+    def triangles(attr: str) -> np.ndarray:
+        return getattr(tin, attr).copy() if tin is not None else nan
+
     cols: dict[str, np.ndarray] = {
         "azimuth_deg": result.azimuth_deg.copy(),
-        "profiles": np.array([x.profiles for x in s], dtype=np.int64),
-        "h_mean": np.array([x.hurst_mean for x in s]),
-        "h_std": np.array([x.hurst_std for x in s]),
-        "d_mean": np.array([x.dimension_mean for x in s]),
-        "d_std": np.array([x.dimension_std for x in s]),
-        "rms_mean": np.array([x.rms_mean for x in s]) / per,
-        "z2_mean": np.array([x.z2_mean for x in s]),
-        "jrc_mean": np.array([x.jrc_mean for x in s]),
-        "theta_max_c1": tin.theta_max_c1.copy() if tin is not None else nan,
-    }
-    if tin is not None:
-        cols["delta_t"] = tin.delta_t.copy()
-    cols.update({
-        "h_denoised_mean": np.array([x.hurst_denoised_mean for x in s]),
-        "h_denoised_std": np.array([x.hurst_denoised_std for x in s]),
-        "d_denoised_mean": np.array([x.dimension_denoised_mean for x in s]),
-        "d_denoised_std": np.array([x.dimension_denoised_std for x in s]),
-        "rms_std": np.array([x.rms_std for x in s]) / per,
-        "z2_std": np.array([x.z2_std for x in s]),
-        "jrc_std": np.array([x.jrc_std for x in s]),
-        "theta_max": tin.theta_max.copy() if tin is not None else nan,
-        "c": tin.c.copy() if tin is not None else nan,
-        "a0": tin.a0.copy() if tin is not None else nan,
-    })
+        "profiles": np.array([x.profiles for x in s], dtype=np.int64)}
+    for name, attr in _PROFILE_COLUMNS:
+        cols[name] = profiles(attr, 1.0 / per if name.startswith("rms") else 1.0)
+        if name == "jrc_mean":
+            cols["theta_max_c1"] = triangles("theta_max_c1")
+            if tin is not None:
+                cols["delta_t"] = triangles("delta_t")
+    for name in ("theta_max", "c", "a0"):
+        cols[name] = triangles(name)
     return cols
 
 

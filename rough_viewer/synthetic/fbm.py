@@ -63,11 +63,8 @@ def fbm_profile(
         raise InputError(f"need at least 2 samples, got {n}")
     gen = np.random.default_rng(rng)
     m = n - 1  # number of increments
-    g = fgn_autocovariance(m + 1, hurst)
-    row = np.concatenate([g[: m + 1], g[m - 1 : 0 : -1]])  # circulant first row, size 2m
-    lam = np.fft.fft(row).real
-    lam[lam < 0] = 0.0  # round-off only; exact values are >= 0 for fGn
-    size = row.size
+    lam = _circulant_fgn_eigenvalues(m, hurst)
+    size = lam.size
     z = gen.standard_normal(size) + 1j * gen.standard_normal(size)
     w = np.fft.fft(np.sqrt(lam / size) * z)
     incr = w.real[:m] * (sigma * spacing**hurst)

@@ -22,7 +22,7 @@ import numpy as np
 from rough_viewer.grid.maps import Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.grid.spacing import neighbour_distance
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import PointCloud, as_xyz
 from rough_viewer.io.mesh import TriangleMesh, check_mesh
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, error_line
@@ -50,15 +50,6 @@ class Facets:
     index: np.ndarray
     """(T,) row of each facet in the mesh's faces (triangles of zero area are left
     out)."""
-
-
-def _xyz(points: PointCloud | np.ndarray) -> np.ndarray:
-    if isinstance(points, PointCloud):
-        return points.xyz()
-    xyz = np.asarray(points, dtype=np.float64)
-    if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
-    return xyz
 
 
 def triangulate_cloud(
@@ -94,7 +85,7 @@ def triangulate_cloud(
     >>> mesh.n_faces
     8
     """
-    xyz = _xyz(points)
+    xyz = as_xyz(points)
     n = xyz.shape[0]
     if n < 3:
         raise InputError(f"triangulating needs at least 3 points, got {n}")
