@@ -20,7 +20,7 @@ import rough_viewer
 
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
-SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale")
+SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -32,13 +32,15 @@ ALLOWED: dict[str, set[str]] = {
     "bias": {"vocabulary", "memory", "io", "grid", "profiles"},
     "synthetic": {"vocabulary", "memory", "io", "grid"},
     "scale": {"vocabulary", "memory", "io", "grid"},
-    "visual": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale"},
+    "tin": {"vocabulary", "memory", "io", "grid"},
+    "visual": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
+               "tin"},
     "report": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "visual"},
+               "visual", "tin"},
     "app": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report"},
+            "visual", "report", "tin"},
     "cli": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "__init__"},
+            "visual", "report", "app", "tin", "__init__"},
     "__init__": {"_version"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

@@ -86,6 +86,30 @@ def list_of(kind: Callable[[str], float]) -> Callable[[str], list[float]]:
     return parse
 
 
+def add_windows(p: argparse.ArgumentParser) -> None:
+    """``--windows W1,W2,...|default|paper``: the roughness-length windows, lengths in
+    ``--units`` or a rule (parsed by :func:`window_lengths`)."""
+    p.add_argument("--windows", metavar="W1,W2,...", default=None,
+                   help="roughness-length window lengths in --units, separated by commas, or "
+                   "'default' (8 evenly in log from 3 %% to 30 %% of the profile) or 'paper' "
+                   "(8 from 3 %% to 10 %%, as Khoshelham & Altundag)")
+
+
+def window_lengths(text: str | None, unit: str) -> tuple[float, ...] | str | None:
+    """``--windows`` as the profile code takes it: lengths in metres, a rule name, or
+    None (:func:`rough_viewer.profiles.fractal.parse_windows`; an error names the
+    option)."""
+    from rough_viewer.profiles.fractal import parse_windows
+
+    if text is None:
+        return None
+    try:
+        got = parse_windows(text, UNIT_METRES[unit])
+    except InputError as exc:
+        raise InputError(f"--{exc}") from None
+    return got if got is None or isinstance(got, str) else tuple(float(w) for w in got)
+
+
 def segments(text: str) -> int | tuple[int, int]:
     """argparse type: a segment count (``8``) or rows x cols (``4x2``)."""
     t = text.lower().strip()

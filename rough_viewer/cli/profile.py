@@ -15,8 +15,9 @@ as it is (``--profile-file``, or detected when a text file has exactly two colum
 ``default`` (8 evenly in log from 3 % to 30 % of the profile) or ``paper`` (the
 paper's 8 from 3 % to 10 %); docs/profiles.md says why the default is wider.
 
-Prints the noise sigma, the thresholds and the fractal dimension D of the raw profile
-and of every decomposition x threshold x mode (the layout of Khoshelham & Altundag's
+Prints the profile's Z2 (RMS slope) and its JRC estimate (Tse and Cruden 1979), the
+noise sigma, the thresholds and the fractal dimension D of the raw profile and of
+every decomposition x threshold x mode (the layout of Khoshelham & Altundag's
 Tables 1 and 2 side by side); ``--json`` prints the same numbers as JSON (metres);
 ``--csv`` writes the samples: distance, raw and one column per de-noised variant.
 """
@@ -32,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.cli._options import add_units, naming, parse_xyz, per_unit, warn
+from rough_viewer.cli._options import add_units, add_windows, naming, parse_xyz, per_unit, warn
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.vocabulary import InputError
@@ -72,10 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--detrend", type=int, metavar="DEGREE",
                    help="remove a least-squares polynomial trend of this degree from the "
                    "profile first (2 removes a curvature that makes D < 1)")
-    p.add_argument("--windows", metavar="W1,W2,...", default=None,
-                   help="roughness-length window lengths in --units, separated by commas, or "
-                   "'default' (8 evenly in log from 3 %% to 30 %% of the profile) or 'paper' "
-                   "(8 from 3 %% to 10 %%, as Khoshelham & Altundag)")
+    add_windows(p)
     p.add_argument("--wavelet", default="db3", help="PyWavelets discrete wavelet (default db3)")
     p.add_argument("--level", type=int, default=3, help="decomposition levels (default 3)")
     p.add_argument("--profile-file", action="store_true",
@@ -229,6 +227,9 @@ def format_tables(info: dict, comparison) -> str:
         )
     else:
         lines.append("  no gaps")
+    if info.get("z2") is not None:
+        lines.append(f"  Z2 (RMS slope) {info['z2']:.4f}; JRC estimate {info['jrc_estimate']:.1f} "
+                     "(Tse and Cruden 1979, for profiles sampled at 0.5-1 mm)")
     raw = comparison.raw
     w = comparison.raw.windows
     lines.append(
@@ -412,8 +413,12 @@ def run(args: argparse.Namespace) -> int:
     with naming(f"{path}: {distance.size} samples"):
         comparison = compare_denoising(heights, step, wavelet=args.wavelet, level=args.level,
                                        windows=windows)
+    from rough_viewer.profiles.jrc import jrc_from_z2, jrc_warnings, z2
+
+    info["z2"] = z2(heights, step)  # RMS slope of the raw profile, and its JRC estimate
+    info["jrc_estimate"] = float(jrc_from_z2(info["z2"]))
     # every fit's dimension is checked: the raw profile's and each de-noised variant's
-    info["warnings"] = [f"{path}: {w}" for w in comparison.warnings]
+    info["warnings"] = [f"{path}: {w}" for w in (*comparison.warnings, *jrc_warnings(step))]
     warn(info["warnings"])
 
     if csv_path is not None:

@@ -4,7 +4,7 @@ Contract::
 
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
+        [--directions DEG] [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
@@ -15,7 +15,8 @@ paper's are ``--grid 1 --grid 0.5 --grid 0.25 --grid 0.125``. ``--units`` is the
 of the input's coordinates and of every length given and shown. ``--format json`` writes
 the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>.png``
 (needs the optional package kaleido; the HTML does not). Several inputs (files or
-quoted globs) are one merged cloud.
+quoted globs) are one merged cloud. ``--directions DEG`` adds a section per input
+file: its roughness by direction (``rough-viewer directions`` with its defaults).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from rough_viewer.cli._options import (
     add_units,
     grid_sizes,
     per_unit,
+    positive,
     warn,
 )
 from rough_viewer.cli._scanner import add_scanner_options
@@ -56,6 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
                    help="cells with fewer points get no value (default 4: three points fix a "
                    "plane exactly, so their roughness is 0 by construction; 3 is accepted)")
+    p.add_argument("--directions", type=positive, metavar="DEG",
+                   help="add roughness by direction at this azimuth step (degrees), one "
+                   "section per input file, with rough-viewer directions' defaults")
     p.add_argument("--out", required=True, metavar="REPORT.html", help="output file")
     p.add_argument("--format", choices=("html", "json"), default="html",
                    help="html: the full report (default); json: the numbers alone")
@@ -115,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
                              ("min points", "--min-points")):
             text = text.replace(word, option, 1) if text.startswith(word) else text
         raise InputError(text) from None
+    if args.directions is not None and args.directions > 360:
+        raise InputError(f"--directions must be at most 360 degrees, got {args.directions:g}")
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()
@@ -131,6 +138,15 @@ def run(args: argparse.Namespace) -> int:
         png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force)
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     warn(report.warnings[len(cloud.warnings):])
+    if args.directions is not None:
+        from rough_viewer.report.directions import DirectionSettings, analyse_paths
+
+        found = analyse_paths(paths, DirectionSettings(step_deg=args.directions),
+                              units=args.units,
+                              progress=None if quiet else ProgressBar("directions"))
+        for d in found:
+            warn([f"{d.source}: {w}" for w in d.warnings])
+        report = replace(report, directions=tuple(found))
     if given is None:
         print("grid sizes from the point spacing: "
               + ", ".join(f"{s.grid_size / per:g}" for s in report.sections) + f" {u}")

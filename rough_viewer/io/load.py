@@ -35,7 +35,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from rough_viewer.io.cloud import PointCloud, check_input_file
+from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
 from rough_viewer.io.crs import read_crs
 from rough_viewer.io.dem import DEM_SUFFIXES, read_dem
 from rough_viewer.io.e57 import read_e57
@@ -49,7 +49,6 @@ from rough_viewer.vocabulary import (
     InputError,
     ProgressFn,
     Unit,
-    error_line,
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
@@ -113,19 +112,9 @@ def load_points(
         raise InputError(f"cannot read {p}: permission denied")
     if units is not None and units not in UNIT_METRES:
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
-    try:
+    with read_errors(p):
         cloud = _read(p, suffix, progress=progress, cache=cache)
         unit, z_unit, notes = axis_units(p, units)
-    except InputError:
-        raise
-    except MemoryError:
-        raise InputError(f"not enough memory to read {p}") from None
-    except (OSError, ValueError, EOFError, KeyError, IndexError) as exc:
-        raise InputError(f"cannot read {p}: {error_line(exc)}") from None
-    except Exception as exc:  # laspy raises its own error types
-        if type(exc).__module__.startswith("laspy") or "Laz" in type(exc).__name__:
-            raise InputError(f"cannot read {p}: {error_line(exc)}") from None
-        raise
     return cloud.scaled(UNIT_METRES[unit], unit,
                         z_metres_per_unit=UNIT_METRES[z_unit]).with_warnings(*notes)
 

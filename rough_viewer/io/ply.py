@@ -1,5 +1,6 @@
 """PLY point files: reading ASCII or binary (either byte order) vertex ``x``, ``y``,
-``z``; writing binary little-endian PLY with per-point fields (through plyfile)."""
+``z`` (:func:`read_ply`) or the vertices with their faces (:func:`read_ply_mesh`);
+writing binary little-endian PLY with per-point fields (through plyfile)."""
 
 from __future__ import annotations
 
@@ -91,6 +92,71 @@ def read_ply(p: Path) -> PointCloud:
             x, y, z = (rec[k].astype(np.float64) for k in "xyz")
             del rec
     return finite_cloud(x, y, z, None, p)
+
+
+#: Names a face element's list of vertex indices goes by.
+_FACE_LISTS = ("vertex_indices", "vertex_index")
+
+
+def read_ply_mesh(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """The vertices and triangles of a PLY file, or None when it has no faces.
+
+    Returns
+    -------
+    (vertices, faces) or None
+        ``vertices`` (V, 3) float64, the file's vertex ``x, y, z`` in its order;
+        ``faces`` (T, 3) int64 indices into them. Polygons of more than three corners
+        are split into a fan of triangles (corner 0 with each later edge); faces with
+        an index outside the vertices, or a non-finite corner, are dropped. Vertices
+        are kept as they are (an unused one changes nothing downstream).
+    """
+    from plyfile import PlyData, PlyParseError
+
+    triangles = {"face": {k: 3 for k in _FACE_LISTS}}
+    try:
+        try:  # all triangles (binary): read as a fixed-size list, fast
+            ply = PlyData.read(str(p), known_list_len=triangles)
+        except PlyParseError:  # polygons of other sizes: the general reader
+            ply = PlyData.read(str(p))
+    except PlyParseError as exc:
+        raise InputError(f"cannot read the mesh of {p}: {exc}") from None
+    names = [e.name for e in ply.elements]
+    if "vertex" not in names:
+        raise InputError(f"PLY file has no vertex element: {p}")
+    vertex = ply["vertex"].data
+    if not all(k in (vertex.dtype.names or ()) for k in "xyz"):
+        raise InputError(f"PLY vertex element lacks x, y, z properties: {p}")
+    if "face" not in names or len(ply["face"].data) == 0:
+        return None
+    face = ply["face"].data
+    key = next((k for k in _FACE_LISTS if k in (face.dtype.names or ())), None)
+    if key is None:
+        raise InputError(f"PLY face element has no vertex_indices list: {p}")
+    vertices = np.column_stack([np.asarray(vertex[k], dtype=np.float64) for k in "xyz"])
+    lists = face[key]
+    if lists.dtype != object:  # (T, 3) already
+        faces = np.asarray(lists, dtype=np.int64).reshape(-1, 3)
+    else:
+        faces = _fans(lists, p)
+    ok = np.all((faces >= 0) & (faces < vertices.shape[0]), axis=1)
+    faces = faces[ok]
+    finite = np.all(np.isfinite(vertices), axis=1)
+    faces = faces[np.all(finite[faces], axis=1)]
+    return vertices, faces
+
+
+def _fans(lists: np.ndarray, p: Path) -> np.ndarray:
+    """(T, 3) triangles of polygons given as an object array of index lists: a fan
+    per polygon, (corner 0, corner j, corner j + 1) for j = 1 .. size - 2."""
+    sizes = np.fromiter((len(f) for f in lists), dtype=np.int64, count=len(lists))
+    require(48.0 * float(sizes.sum()), f"the faces of {p.name}")
+    flat = np.concatenate([np.asarray(f, dtype=np.int64).ravel() for f in lists])
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    fans = np.clip(sizes - 2, 0, None)
+    owner = np.repeat(np.arange(sizes.size), fans)
+    j = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans) + 1
+    base = start[owner]
+    return np.column_stack([flat[base], flat[base + j], flat[base + j + 1]])
 
 
 

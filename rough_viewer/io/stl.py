@@ -1,4 +1,5 @@
-"""STL meshes (ASCII or binary): the mesh's vertices, each once."""
+"""STL meshes (ASCII or binary): the mesh's vertices, each once (:func:`read_stl`),
+or its vertices and triangles (:func:`read_stl_mesh`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ from rough_viewer.vocabulary import InputError
 _STL_DTYPE = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
 
 
-def read_stl(p: Path) -> PointCloud:
+def _corners(p: Path) -> np.ndarray:
+    """(3 T, 3) float64 corners of the file's T triangles, three rows per triangle in
+    the file's order (non-finite ones included)."""
     size = p.stat().st_size
     with open(p, "rb") as fh:
         head = fh.read(84)
@@ -42,6 +45,29 @@ def read_stl(p: Path) -> PointCloud:
             raise InputError(f"malformed vertex line in {p}") from None
     if verts.shape[0] == 0:
         raise InputError(f"no points in {p}")
+    return verts
+
+
+def read_stl(p: Path) -> PointCloud:
+    verts = _corners(p)
     verts = verts[np.all(np.isfinite(verts), axis=1)] if not np.all(np.isfinite(verts)) else verts
     uniq = np.unique(verts, axis=0)
     return finite_cloud(uniq[:, 0].copy(), uniq[:, 1].copy(), uniq[:, 2].copy(), None, p)
+
+
+def read_stl_mesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh of an STL file: ``(vertices, faces)``.
+
+    ``vertices`` (V, 3) float64 are the distinct corners, sorted as :func:`read_stl`
+    sorts its points (for a file whose corners are all finite the two agree row for
+    row); ``faces``
+    (T, 3) int64 index them, one row per triangle of the file whose three corners
+    are finite, in the file's order and corner order (its winding).
+    """
+    corners = _corners(p)
+    tri = corners.reshape(-1, 3, 3)
+    tri = tri[np.all(np.isfinite(tri), axis=(1, 2))]
+    if tri.shape[0] == 0:
+        raise InputError(f"no triangle with finite corners in {p}")
+    vertices, inverse = np.unique(tri.reshape(-1, 3), axis=0, return_inverse=True)
+    return vertices, np.asarray(inverse, dtype=np.int64).reshape(-1, 3)

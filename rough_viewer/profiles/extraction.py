@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from rough_viewer.grid.planes import fit_plane
 from rough_viewer.grid.spacing import neighbour_distance
+from rough_viewer.io.cloud import as_xyz
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError
 
@@ -142,15 +143,6 @@ class Profile:
 # ----------------------------------------------------------------------------- helpers
 
 
-def _as_xyz(points: Any) -> np.ndarray:
-    if hasattr(points, "xyz") and callable(points.xyz):
-        points = points.xyz()
-    xyz = np.asarray(points, dtype=float)
-    if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
-    return xyz
-
-
 def _as_point(p: Any, name: str) -> np.ndarray:
     a = np.asarray(p, dtype=float).ravel()
     if a.shape != (3,) or not np.all(np.isfinite(a)):
@@ -158,7 +150,9 @@ def _as_point(p: Any, name: str) -> np.ndarray:
     return a
 
 
-def _positive(value: float | None, name: str) -> float | None:
+def positive_length(value: float | None, name: str) -> float | None:
+    """``value`` as a float, or None; InputError unless it is a finite length > 0
+    (``name`` the setting, for the message)."""
     if value is None:
         return None
     v = float(value)
@@ -230,10 +224,18 @@ def local_frame(patch: np.ndarray, start: np.ndarray, end: np.ndarray, radius: f
     )
 
 
-def _resample(
+def resample_band(
     along: np.ndarray, height: np.ndarray, n_samples: int, spacing: float, max_gap: float
 ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...]]:
-    """Bin, average and interpolate; returns (heights, counts, gaps)."""
+    """Bin, average and interpolate band points onto ``n_samples`` samples at
+    ``0, spacing, ...`` (step 5 of the module docstring).
+
+    ``along`` (M,) are the points' distances along the line from its start, metres,
+    each rounding to a sample (``-spacing/2 <= along < (n_samples - 1/2) spacing``);
+    ``height`` (M,) their residual heights. Returns ``(heights, counts, gaps)``:
+    (n_samples,) heights (NaN in gaps longer than ``max_gap``), points per sample
+    and the data-free intervals.
+    """
     bins = np.rint(along / spacing).astype(np.int64)
     counts = np.bincount(bins, minlength=n_samples)
     occupied = np.flatnonzero(counts)
@@ -327,16 +329,16 @@ def extract_profile(
     >>> round(float(np.nanstd(prof.heights)) * 1e3, 2)
     0.67
     """
-    xyz = _as_xyz(points)
+    xyz = as_xyz(points)
     p0 = _as_point(start, "start")
     p1 = _as_point(end, "end")
     length3 = float(np.linalg.norm(p1 - p0))
     if length3 <= 0:
         raise InputError("start and end are the same point")
-    band = _positive(band_half_width, "band_half_width")
-    step = _positive(spacing, "spacing")
-    gap = _positive(max_gap, "max_gap")
-    radius = _positive(frame_radius, "frame_radius")
+    band = positive_length(band_half_width, "band_half_width")
+    step = positive_length(spacing, "spacing")
+    gap = positive_length(max_gap, "max_gap")
+    radius = positive_length(frame_radius, "frame_radius")
     if radius is None:
         radius = max(0.25 * length3, 3.0 * band if band is not None else 0.0)
 
@@ -377,7 +379,7 @@ def extract_profile(
         )
     a = along[in_band]
     resid = height[in_band]  # distance from the patch's ODR plane: the plane removed
-    heights, counts, gaps = _resample(a, resid, n_samples, step, gap)
+    heights, counts, gaps = resample_band(a, resid, n_samples, step, gap)
     return Profile(
         distance=np.arange(n_samples) * step,
         heights=heights,
@@ -437,13 +439,13 @@ def regular_samples(
     steps = np.diff(d)
     if np.any(steps <= 0):
         raise InputError("distances must be strictly increasing")
-    step = _positive(spacing, "spacing") or float(np.median(steps))
-    gap = _positive(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
+    step = positive_length(spacing, "spacing") or float(np.median(steps))
+    gap = positive_length(max_gap, "max_gap") or DEFAULT_MAX_GAP_SPACINGS * step
     if keep.all() and np.all(np.abs(steps - step) <= 1e-6 * step):
         return d, h, ()
     rel = d - d[0]
     n_samples = int(np.rint(rel[-1] / step)) + 1
     inside = np.rint(rel / step) <= n_samples - 1
-    out, _, gaps = _resample(rel[inside], h[inside], n_samples, step, gap)
+    out, _, gaps = resample_band(rel[inside], h[inside], n_samples, step, gap)
     shifted = tuple((a + d[0], b + d[0]) for a, b in gaps)
     return d[0] + np.arange(n_samples) * step, out, shifted

@@ -264,25 +264,20 @@ def _detrend_global_1d(h: np.ndarray) -> np.ndarray:
     return h - np.nanmean(h)
 
 
-def window_std_1d(heights: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Linearly detrended RMS residual of every window of ``m`` consecutive samples.
-
-    Returns ``(std, valid)``: (K - m + 1,) arrays; ``valid`` is False for windows
-    containing a NaN (their std is NaN).
-    """
+def _cumulative_1d(heights: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Cumulative sums (heights, squares, index x heights, NaN count; each with a
+    leading 0) of a profile after the global detrend, for every window size."""
     h = _detrend_global_1d(np.asarray(heights, dtype=float))
     nan = ~np.isfinite(h)
     z = np.where(nan, 0.0, h)
     idx = np.arange(z.size, dtype=float)
+    return tuple(np.concatenate(([0.0], np.cumsum(a)))
+                 for a in (z, z * z, idx * z, nan.astype(float)))
 
-    def wsum(a: np.ndarray) -> np.ndarray:
-        c = np.concatenate(([0.0], np.cumsum(a)))
-        return c[m:] - c[:-m]
 
-    s_h = wsum(z)
-    s_hh = wsum(z * z)
-    s_ih = wsum(idx * z)
-    n_nan = wsum(nan.astype(float))
+def _window_std_from(sums: tuple[np.ndarray, ...], m: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`window_std_1d` from :func:`_cumulative_1d`'s sums."""
+    s_h, s_hh, s_ih, n_nan = (c[m:] - c[:-m] for c in sums)
     start = np.arange(s_h.size, dtype=float)
     s_xh = s_ih - start * s_h  # local abscissa x = 0..m-1
     mean_h = s_h / m
@@ -293,6 +288,15 @@ def window_std_1d(heights: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
     valid = n_nan < 0.5
     std = np.where(valid, np.sqrt(res), np.nan)
     return std, valid
+
+
+def window_std_1d(heights: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Linearly detrended RMS residual of every window of ``m`` consecutive samples.
+
+    Returns ``(std, valid)``: (K - m + 1,) arrays; ``valid`` is False for windows
+    containing a NaN (their std is NaN).
+    """
+    return _window_std_from(_cumulative_1d(heights), m)
 
 
 def roughness_length(
@@ -336,8 +340,9 @@ def roughness_length(
     m_all = _window_samples((h.size - 1) * spacing, spacing, windows, h.size)
     s = np.full(m_all.size, np.nan)
     counts = np.zeros(m_all.size, dtype=np.int64)
+    sums = _cumulative_1d(h)  # once for every window size
     for k, m in enumerate(m_all):  # a loop over the window sizes only
-        std, valid = window_std_1d(h, int(m))
+        std, valid = _window_std_from(sums, int(m))
         counts[k] = int(valid.sum())
         if counts[k]:
             s[k] = float(std[valid].mean())

@@ -28,6 +28,7 @@ from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
+from rough_viewer.report.directions import DirectionsResult
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
@@ -130,6 +131,8 @@ class Report:
     keep_outliers: bool = False
     """Cells larger than the cell (:mod:`rough_viewer.grid.outliers`) were kept in
     every statistic and figure (default: left out and counted)."""
+    directions: tuple[DirectionsResult, ...] = ()
+    """Roughness by direction, one section per input file (``report --directions``)."""
 
 
 def _section(

@@ -17,6 +17,7 @@ from rough_viewer.report.build import (
     Report,
     report_raster,
 )
+from rough_viewer.report.directions import directions_html
 from rough_viewer.visual.colormaps import zone_colour
 from rough_viewer.vocabulary import (
     MAP_LABELS,
@@ -155,6 +156,8 @@ def report_html(report: Report) -> str:
         parts.append(f'<p class="error">warning: {esc(line)}</p>')
     for s in report.sections:
         parts += _section_html(report, s)
+    for i, d in enumerate(report.directions):
+        parts += directions_html(d, unit=report.unit, sid=f"directions-{i}")
     parts.append("</body></html>")
     return "\n".join(parts)
 

@@ -11,6 +11,7 @@ from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.grid.zones import ZONE_COLUMNS, Zones
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.report.build import Report
+from rough_viewer.report.directions import directions_dict
 from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, UNIT_METRES
 
 
@@ -170,4 +171,5 @@ def report_json(report: Report) -> dict[str, Any]:
             "v_axis": to_jsonable(frame.v_axis),
         },
         "grids": grids,
+        "directions": [directions_dict(d, unit=report.unit) for d in report.directions],
     }

@@ -256,3 +256,26 @@ def test_windows_option_in_the_input_unit(tmp_path: Path, capsys) -> None:
     assert main(["profile", str(tmp_path / "missing.txt"), "--windows", "5"]) == 2
     err = capsys.readouterr().err
     assert "windows '5': give two or more positive lengths" in err and "missing" not in err
+
+
+def test_z2_and_jrc_estimate_beside_the_profile(scene, capsys) -> None:
+    """The profile's Z2 (RMS slope of its samples) and the Tse and Cruden JRC estimate
+    are in the JSON and the text; the 1 mm sampling is inside the estimate's range,
+    a 0.25 mm profile file is not and says so."""
+    from rough_viewer.profiles.jrc import jrc_from_z2, z2
+
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    prof = extract_profile(scene["xyz"], scene["start"], scene["end"])
+    assert code == 0 and data["z2"] == z2(prof.heights, prof.spacing)
+    assert data["jrc_estimate"] == pytest.approx(32.2 + 32.47 * np.log10(data["z2"]))
+    assert not any("JRC" in w for w in data["warnings"])
+    code = main(["profile", str(scene["hand"]), "--profile-units", "mm"])
+    out = capsys.readouterr()
+    g = np.loadtxt(scene["hand"])[:, 1] * 1e-3
+    assert f"Z2 (RMS slope) {z2(g, 1e-3):.4f}" in out.out
+    assert f"JRC estimate {jrc_from_z2(z2(g, 1e-3)):.1f}" in out.out
+    quarter = scene["folder"] / "quarter.txt"
+    np.savetxt(quarter, np.column_stack([np.arange(N) * 0.25, g[:N] * 1e3]))
+    main(["profile", str(quarter), "--profile-units", "mm"])
+    assert "0.5-1 mm" in capsys.readouterr().err
