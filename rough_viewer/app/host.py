@@ -139,7 +139,8 @@ class Host(Protocol):
     def gui(self) -> viser.GuiApi: ...
 
     def tab(self, label: str) -> AbstractContextManager[object]:
-        """A new tab of the app's tab group (controls added inside go there)."""
+        """A tab of the app's tab group (made by the first call with ``label``; later
+        calls add to it, after what is there)."""
         ...
 
     def folder(self, label: str) -> AbstractContextManager[object]:

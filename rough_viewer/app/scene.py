@@ -144,24 +144,28 @@ def default_point_size(loaded: LoadedCloud) -> float:
 
 def axis_segment(loaded: LoadedCloud, axis: str) -> tuple[np.ndarray, np.ndarray]:
     """((2, 3) ends, (3,) label position) of the dependent-axis line, display frame:
-    a tenth of the cloud's extent long, along ``axis``, under the cloud as the
-    face-on camera sees it (a twentieth of the extent below its lowest point, at its
-    middle), going away from the rock; the label at its top end. Never over the
-    rock, inside the framed view."""
-    direction, up = _directions(loaded, "face-on")
-    right = np.cross(-direction, up)
+    8 % of the cloud's extent long, along ``axis``, under the cloud as the face-on
+    camera draws it (from 3 % of the extent below the point lowest on its screen,
+    perspective included), going away from the rock; the label at its top end,
+    beside it. Never over the rock."""
+    pose = camera_pose(loaded, "face-on")
+    back = pose.eye - pose.target
+    back /= np.linalg.norm(back)
+    right = np.cross(-back, pose.up)
     right /= np.linalg.norm(right)
-    screen_up = np.cross(right, -direction)
+    screen_up = np.cross(right, -back)
     pts = loaded.display_points.astype(np.float64)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    extent = float(np.max(hi - lo)) or 1.0
-    centre = 0.5 * (lo + hi)
-    below = float((pts @ screen_up).min()) - 0.05 * extent
-    top = centre + (below - float(centre @ screen_up)) * screen_up
+    if len(pts) > 200_000:
+        pts = pts[:: len(pts) // 200_000 + 1]
+    rel = pts - pose.eye
+    depth = rel @ -back
+    lowest = pts[int(np.argmin((rel @ screen_up) / np.maximum(depth, 1e-12)))]
+    extent = float(np.max(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+    top = lowest - 0.03 * extent * screen_up
     vec = np.asarray(AXIS_VECTORS[axis], dtype=np.float64)
     if float(vec @ screen_up) > 0:  # drawn downwards, away from the rock
         vec = -vec
-    return np.stack([top, top + 0.1 * extent * vec]), top
+    return np.stack([top, top + 0.08 * extent * vec]), top
 
 
 def box_edges(centre: np.ndarray, size: float) -> np.ndarray:
@@ -274,6 +278,15 @@ class Scene:
             name, np.asarray(segments, dtype=np.float32), colour, thickness=thickness,
             thickness_units="screen", visible=visible)
 
+    def segments(self, name: str, segments: np.ndarray, colours: np.ndarray, *,
+                 thickness: float = LINE_PX, visible: bool = True) -> viser.LineSegmentsHandle:
+        """Line segments ``(K, 2, 3)`` (display frame) each in its own colours
+        ``(K, 2, 3)`` uint8, ``thickness`` screen pixels."""
+        self._check("segments")
+        return self._server.scene.add_line_segments(
+            name, np.asarray(segments, dtype=np.float32), np.asarray(colours, dtype=np.uint8),
+            thickness=thickness, thickness_units="screen", visible=visible)
+
     def update(self, node: viser.SceneNodeHandle, **props: Any) -> None:
         """Set properties of a node this scene made (``colors``, ``visible``, ...)."""
         self._check("update")
@@ -298,7 +311,7 @@ class Scene:
                                              thickness_units="screen", visible=visible)
         how = "chosen" if chosen else "auto"
         self._server.scene.add_label("/axis/label", f"OLS dependent axis {axis} ({how})",
-                                     position=_vec(label), anchor="bottom-center",
+                                     position=_vec(label), anchor="center-left",
                                      visible=visible)
 
     def mark_pick(self, loaded: LoadedCloud, info: CellInfo, local: np.ndarray,

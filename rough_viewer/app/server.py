@@ -19,7 +19,17 @@ from typing import Any, TypeVar
 
 import viser
 
-from rough_viewer.app.features import bias, board, export, file, panels, profile, sets, zones
+from rough_viewer.app.features import (
+    bias,
+    board,
+    directions,
+    export,
+    file,
+    panels,
+    profile,
+    sets,
+    zones,
+)
 from rough_viewer.app.features import map as roughness_map
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.features.map import InMemory, LoadJob, MapFeature, ShowJob
@@ -49,6 +59,7 @@ FEATURES: tuple[Mount, ...] = (
     panels.mount,
     file.mount,
     profile.mount,
+    directions.mount,  # a folder in the Profile tab
     board.mount,
     bias.mount,
     zones.mount,

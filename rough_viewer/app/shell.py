@@ -86,6 +86,7 @@ class Shell:
         """Notes that stay (reader warnings, a grid where most cells have no value)."""
         self.progress_bar = gui.add_progress_bar(0.0, visible=False, animated=True)
         self._tabs: viser.GuiTabGroupHandle | None = None
+        self._tab_by_label: dict[str, Any] = {}
 
         @server.on_client_connect
         def _(client: viser.ClientHandle) -> None:
@@ -113,7 +114,9 @@ class Shell:
     def tab(self, label: str) -> contextlib.AbstractContextManager[object]:
         if self._tabs is None:
             self._tabs = self.server.gui.add_tab_group()
-        return self._tabs.add_tab(label)
+        if label not in self._tab_by_label:  # a second call adds to the same tab
+            self._tab_by_label[label] = self._tabs.add_tab(label)
+        return self._tab_by_label[label]
 
     def folder(self, label: str) -> contextlib.AbstractContextManager[object]:
         return self.server.gui.add_folder(label)

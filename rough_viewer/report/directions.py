@@ -91,6 +91,9 @@ class DirectionSettings:
     max_edge: float | None = None
     """Longest triangle edge kept when a cloud is triangulated (default 5 point
     spacings)."""
+    tin: bool = True
+    """Measure the TIN parameters (θ*max/(C+1), ΔT); False leaves them out (a cloud's
+    triangulation takes most of the time)."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +161,8 @@ def analyse_directions(
     surface, tin, tin_error, n_tri = "none", None, None, 0
     surf = mesh
     try:
+        if not settings.tin:
+            raise InputError("not asked for")
         if surf is None:
             surf = triangulate_cloud(cloud, plane=plane, max_edge=settings.max_edge)
             surface = "triangulated"
@@ -167,7 +172,8 @@ def analyse_directions(
         n_tri = tin.n_triangles
     except InputError as exc:
         tin_error, surface, surf = str(exc), "none", None
-        warnings.append(f"no TIN parameters (theta*max/(C+1), Delta-T): {exc}")
+        if settings.tin:
+            warnings.append(f"no TIN parameters (theta*max/(C+1), Delta-T): {exc}")
     stage(2)
     windows, window_error = None, None
     if settings.window_map and surf is not None:

@@ -76,3 +76,18 @@ def test_table_columns_and_dict():
     d = directions_dict(r, unit="mm")
     assert d["surface"] == "triangulated" and d["triangles"] == r.tin.n_triangles
     assert d["sample_spacing"] == r.sets[0].sample_spacing * 1e3
+
+
+def test_the_tin_parameters_can_be_left_out():
+    """tin=False (the app's default: triangulating a large cloud takes most of the
+    time): the same profile sets, no triangles, no warning about them."""
+    z = fbm_sheet((60, 60), 0.3, 0.7, spacing=0.002, rng=4)
+    yy, xx = np.mgrid[0:60, 0:60] * 0.002
+    cloud = PointCloud.from_xyz(np.column_stack([xx.ravel(), yy.ravel(), z.ravel()]))
+    full = analyse_directions(cloud, DirectionSettings(step_deg=90.0, min_samples=40))
+    bare = analyse_directions(cloud, DirectionSettings(step_deg=90.0, min_samples=40, tin=False))
+    assert bare.tin is None and bare.surface == "none" and bare.n_triangles == 0
+    assert not any("TIN" in w for w in bare.warnings)
+    for a, b in zip(bare.sets, full.sets, strict=True):
+        np.testing.assert_array_equal(a.values["hurst"], b.values["hurst"])
+    assert np.all(np.isnan(directions_table(bare)["theta_max_c1"]))

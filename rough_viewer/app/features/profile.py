@@ -617,6 +617,7 @@ def mount(host: Host) -> ProfileFeature:
             download=gui.add_button("Download CSV"),
         )
     p.cloud = host.session.shown.loaded
+    p.refresh()  # the plot's axes in the cloud's unit
     host.allow(p.on, p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
                p.band, p.detrend, p.windows, p.exaggeration, p.clear, p.download)
     b = p.binding

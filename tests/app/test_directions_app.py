@@ -1,0 +1,53 @@
+"""Issue 25 in the app: the Profile tab's Directions folder measures the shown cloud
+by direction, as the library does, and draws its profile lines on the rock."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rough_viewer.app.features.directions import DirectionsFeature
+from rough_viewer.app.server import build_app
+from rough_viewer.io import PointCloud
+from rough_viewer.report.directions import DirectionSettings, analyse_directions
+from rough_viewer.synthetic.fbm import fbm_sheet
+
+
+@pytest.fixture
+def sheet_app(server):
+    """A 2 x 2 m anisotropic surface (rougher across x than along it)."""
+    z = fbm_sheet((100, 100), 0.3, 0.7, spacing=0.02, sigma=0.01, rng=1)
+    y, x = np.meshgrid(np.arange(100) * 0.02, np.arange(100) * 0.02, indexing="ij")
+    cloud = PointCloud.from_xyz(np.column_stack([x.ravel(), y.ravel(), z.ravel()]),
+                                source="sheet")
+    app = build_app(server, cloud, prefetch=False, variogram=False)
+    assert app.wait_idle(60)
+    yield app, cloud
+    app.stop()
+
+
+def test_measure_directions_gives_the_library_numbers_and_lines(sheet_app):
+    app, cloud = sheet_app
+    f = app.feature(DirectionsFeature)
+    f.step.value = 45.0
+    f.tin.value = True
+    f.measure.value = True
+    assert app.wait_idle(120) and list(app.host.errors) == []
+    ref = analyse_directions(cloud, DirectionSettings(step_deg=45.0))
+    got = f.result
+    assert got is not None and list(got.azimuth_deg) == list(ref.azimuth_deg)
+    for a, b in zip(got.sets, ref.sets, strict=True):
+        np.testing.assert_allclose(a.values["hurst"], b.values["hurst"], equal_nan=True)
+    np.testing.assert_allclose(got.tin.theta_max_c1, ref.tin.theta_max_c1)
+    assert "**8 directions**" in f.status.content
+    names = [t.name for t in f.rose.figure.data]
+    assert any("θ" in (n or "") or "theta" in (n or "").lower() for n in names)
+    assert len(f.table.figure.data[0].cells.values[0]) == 8
+    assert len(f.nodes) == 2  # the lines on both sides of the rock
+    lines = f.nodes[0]
+    assert lines.visible and lines.points.shape[1:] == (2, 3) and len(lines.points) > 10
+    f.lines.value = False
+    assert app.wait_idle(30) and not any(n.visible for n in f.nodes)
+    app.load(cloud=cloud.subset(np.arange(cloud.n // 2)))
+    assert app.wait_idle(60)
+    assert f.result is None and f.nodes == []
