@@ -14,11 +14,24 @@ import viser
 
 from rough_viewer.visual.app import CONTROL_WIDTH, panel_aspect
 
-__all__ = ["CONTROL_WIDTH", "PLOTLY_CONFIG", "limit_step", "round_limit", "set_figure"]
+__all__ = ["CONTROL_WIDTH", "PLOTLY_CONFIG", "limit_step", "placeholder", "round_limit",
+           "set_figure"]
 #: Plotly options of every panel: no mode bar (it covered the plots' titles at the top
 #: right; dragging still zooms, a double click resets, and the Export folder saves
 #: figures), no plotly logo.
 PLOTLY_CONFIG: dict[str, object] = {"displayModeBar": False, "displaylogo": False}
+
+
+def placeholder(title: str, note: str = "") -> go.Figure:
+    """A panel before it has anything to show: its title (and a note), no axes (empty
+    plotly axes draw overlapping ticks)."""
+    fig = go.Figure()
+    text = title if not note else f"{title}<br><sup>{note}</sup>"
+    fig.update_layout(title={"text": text, "font": {"size": 12}, "x": 0.01, "xanchor": "left"},
+                      height=60 if not note else 70,
+                      margin={"l": 10, "r": 10, "t": 44 if not note else 54, "b": 4},
+                      xaxis={"visible": False}, yaxis={"visible": False}, plot_bgcolor="white")
+    return fig
 
 
 def set_figure(handle: viser.GuiPlotlyHandle, fig: go.Figure) -> None:

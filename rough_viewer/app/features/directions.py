@@ -17,13 +17,12 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
-import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.binding import Binding
 from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder, set_figure
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.worker import Job, Run
@@ -188,13 +187,6 @@ class LinesJob(Job[Host]):
         yield "lines"
 
 
-def _empty(title: str) -> go.Figure:
-    fig = go.Figure()
-    fig.update_layout(title={"text": title, "font": {"size": 12}},
-                      margin={"l": 10, "r": 10, "t": 30, "b": 10})
-    return fig
-
-
 def mount(host: Host) -> DirectionsFeature:
     """The Directions folder at the end of the Profile tab."""
     gui = host.gui
@@ -216,8 +208,11 @@ def mount(host: Host) -> DirectionsFeature:
             lines=gui.add_checkbox(L_LINES, True),
             status=gui.add_markdown("Press **Measure directions** to profile the face "
                                     "in every direction."),
-            rose=gui.add_plotly(_empty("rose"), config=PLOTLY_CONFIG, aspect=1.0),
-            table=gui.add_plotly(_empty("directions"), config=PLOTLY_CONFIG, aspect=0.8),
+            rose=gui.add_plotly(placeholder("Rose of roughness by direction",
+                                            "press Measure directions"),
+                                config=PLOTLY_CONFIG, aspect=0.2),
+            table=gui.add_plotly(placeholder("Roughness by direction: table"),
+                                 config=PLOTLY_CONFIG, aspect=0.15),
         )
     f.cloud = host.session.shown.loaded
     host.allow(f.step, f.spacing, f.tin, f.measure, f.lines)

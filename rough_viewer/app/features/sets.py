@@ -32,7 +32,7 @@ import viser
 from rough_viewer.app.binding import Binding, assign
 from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG
+from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import ByteCache, LoadedCloud
 from rough_viewer.app.worker import Job, Run
@@ -299,13 +299,6 @@ class SetFiguresJob(Job[Host]):
         yield "figures"
 
 
-def _empty(title: str) -> go.Figure:
-    fig = go.Figure()
-    fig.update_layout(title={"text": title, "font": {"size": 12}},
-                      margin={"l": 10, "r": 10, "t": 30, "b": 10})
-    return fig
-
-
 def mount(host: Host) -> SetsFeature:
     """Add the Sets tab; the sets follow every map while shown and take clicks."""
     gui = host.gui
@@ -331,11 +324,12 @@ def mount(host: Host) -> SetsFeature:
                                     "grid."),
             selected=gui.add_dropdown(L_SELECTED, (NO_SET,), initial_value=NO_SET,
                                       hint="Or click a set on the rock."),
-            stereonet=gui.add_plotly(_empty("stereonet of planar cells"), config=PLOTLY_CONFIG,
-                                     aspect=0.95),
-            table=gui.add_plotly(_empty("joint sets"), config=PLOTLY_CONFIG, aspect=0.5),
-            planes=gui.add_plotly(_empty("planes of the selected set"), config=PLOTLY_CONFIG,
-                                  aspect=0.6),
+            stereonet=gui.add_plotly(placeholder("Stereonet of the planar cells' poles",
+                                                 "tick Show sets"),
+                                     config=PLOTLY_CONFIG, aspect=0.95),
+            table=gui.add_plotly(placeholder("Joint sets"), config=PLOTLY_CONFIG, aspect=0.5),
+            planes=gui.add_plotly(placeholder("Planes of the selected set"),
+                                  config=PLOTLY_CONFIG, aspect=0.6),
         )
     f.cache = ByteCache(host.options.cache_bytes // 4)
     host.allow(f.on, f.colour_by, f.roughness, f.cone, f.min_angle, f.max_sets, f.selected)
