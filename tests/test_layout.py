@@ -2,7 +2,7 @@
 
 Every import in ``rough_viewer`` (top-level, inside a function or under
 ``TYPE_CHECKING``) is read from the source and checked against the layers below. The
-science packages (io, grid, profiles, bias, synthetic, scale) import no UI library,
+science packages (io, grid, lod, profiles, bias, synthetic, scale) import no UI library,
 print nothing and import nothing above them. Inside the app the layers run one way
 too (:data:`APP_LAYERS`), and no module of the package takes part in an import cycle.
 """
@@ -20,7 +20,7 @@ import rough_viewer
 
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
-SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale")
+SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "lod")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -32,12 +32,13 @@ ALLOWED: dict[str, set[str]] = {
     "bias": {"vocabulary", "memory", "io", "grid", "profiles"},
     "synthetic": {"vocabulary", "memory", "io", "grid"},
     "scale": {"vocabulary", "memory", "io", "grid"},
-    "visual": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale"},
-    "report": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
+    "lod": {"vocabulary", "memory", "io", "grid"},
+    "visual": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale", "lod"},
+    "report": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale", "lod",
                "visual"},
-    "app": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
+    "app": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale", "lod",
             "visual", "report"},
-    "cli": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
+    "cli": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale", "lod",
             "visual", "report", "app", "__init__"},
     "__init__": {"_version"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},

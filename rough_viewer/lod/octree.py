@@ -1,0 +1,496 @@
+"""An additive octree of a whole cloud, for showing every point where the camera looks.
+
+Layout (Potree's and COPC's idea; docs/lod.md "Definitions"):
+
+- The **cube** of the octree: its corner is the bounding-box minimum of the cloud,
+  its edge ``side`` the largest extent. Node ``(L, key)`` is the cube's cell of edge
+  ``side / 2**L`` whose Morton index at level ``L`` is ``key``; the root is ``(0, 0)``.
+- **Additive**: every point is in exactly one node, and the points of a node and of
+  all its ancestors together are every point of the cloud inside that node's cube.
+- **Spacing**: a node at level ``L`` holds at most one point per cell of a
+  ``root_grid**3`` grid over its cube (its *sample cells*): the root's spacing is
+  ``side / root_grid`` (default 128), and each level halves it. The point kept in a
+  sample cell is the middle one in Morton order (near the cell's centre); the others
+  go down to the children.
+- A node keeps at most ``max_node_points`` (default 20 000) points: where more
+  sample cells are occupied (a crumpled or volumetric cloud), an even share of them,
+  in Morton order, is kept and the rest go down a level. Only a leaf of the finest
+  level (points closer than ``side / 2**21``: duplicates) can hold more.
+
+Built without a Python loop over points: 63-bit Morton codes (21 bits per axis)
+from the coordinates, one sort, then one vectorised pass per level over the points
+not yet placed (a run-length scan of the sorted codes). Memory: the octree keeps an
+index permutation (4 bytes per point, 8 beyond 2**31 points) and small per-node
+arrays, never a copy of the points; the build peaks at about
+:data:`BUILD_BYTES_PER_POINT` bytes per point (:func:`build_bytes`).
+
+>>> import numpy as np
+>>> rng = np.random.default_rng(0)
+>>> xyz = rng.uniform(0.0, 10.0, (50_000, 3))
+>>> tree = build_octree(xyz, root_grid=8, max_node_points=500)
+>>> int(tree.counts.sum()), bool(np.array_equal(np.sort(tree.order), np.arange(50_000)))
+(50000, True)
+>>> int(tree.level[0]), int(tree.parent[0])
+(0, -1)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rough_viewer.io.cloud import PointCloud
+from rough_viewer.memory import require
+from rough_viewer.vocabulary import InputError, ProgressFn
+
+#: Bits of the Morton code per axis (63 bits in all): the finest level of the octree.
+DEPTH_BITS = 21
+#: Default sample cells per axis of a node's cube: the root spacing is ``side / 128``.
+DEFAULT_ROOT_GRID = 128
+#: Default largest number of points in one node.
+DEFAULT_MAX_NODE_POINTS = 20_000
+#: Peak bytes per point while building: the Morton codes (8), the sort's int64
+#: permutation (8) and its int32 copy (4); afterwards codes (8), the points not yet
+#: placed (4) and the output permutation (4).
+BUILD_BYTES_PER_POINT = 20
+#: Points handled at a time in the passes over the points (bounds the temporaries).
+CHUNK_POINTS = 1 << 22
+#: Bytes of the temporaries of one chunk (codes, shifts, masks, candidate rows).
+CHUNK_BYTES = 48 * CHUNK_POINTS
+#: Bytes per node of the octree's own arrays.
+NODE_BYTES = 8 + 1 + 8 + 4 + 4 + 4 + 6 * 8 + 4 * 8
+
+
+@dataclass(frozen=True)
+class Node:
+    """One node: where it is, and which points it holds (a view, no copy)."""
+
+    id: int
+    """Row of the node in the octree's arrays."""
+    level: int
+    """Depth, 0 for the root."""
+    cube_lo: np.ndarray
+    """(3,) corner of the node's cube, metres."""
+    size: float
+    """Edge of the node's cube, metres (``side / 2**level``)."""
+    spacing: float
+    """Distance between the node's sample cells, metres (``size / root_grid``)."""
+    rows: np.ndarray
+    """(n,) indices of the node's points in the cloud (a view into
+    :attr:`Octree.order`)."""
+
+    @property
+    def centre(self) -> np.ndarray:
+        """(3,) centre of the node's cube, metres."""
+        return self.cube_lo + 0.5 * self.size
+
+    @property
+    def n(self) -> int:
+        """Points in the node."""
+        return int(self.rows.shape[0])
+
+
+@dataclass(frozen=True)
+class Octree:
+    """An additive octree over a cloud (see the module's text). Nodes are rows of the
+    arrays, ordered by level, then by Morton key: the children of a node are
+    contiguous rows ``child_start[k]:child_stop[k]`` and node 0 is the root."""
+
+    origin: np.ndarray
+    """(3,) corner of the cube (the cloud's bounding-box minimum), metres."""
+    side: float
+    """Edge of the cube, metres (the cloud's largest extent)."""
+    root_grid: int
+    """Sample cells per axis of a node's cube (a power of two)."""
+    max_node_points: int
+    """Largest number of points of a node (finest-level leaves excepted)."""
+    order: np.ndarray
+    """(N,) int32 (int64 beyond 2**31 points) point indices, node after node: node
+    ``k`` holds ``order[start[k]:start[k + 1]]``."""
+    start: np.ndarray
+    """(M + 1,) int64 offsets of the nodes' points in :attr:`order`."""
+    level: np.ndarray
+    """(M,) int8 depth of each node."""
+    key: np.ndarray
+    """(M,) uint64 Morton index of each node's cube at its level."""
+    parent: np.ndarray
+    """(M,) int32 row of the parent, -1 for the root."""
+    child_start: np.ndarray
+    """(M,) int32 first child row."""
+    child_stop: np.ndarray
+    """(M,) int32 one past the last child row (= ``child_start`` for a leaf)."""
+    cube_lo: np.ndarray
+    """(M, 3) corner of each node's cube, metres."""
+    box_lo: np.ndarray
+    """(M, 3) minimum of the points of each node's subtree (the node and its
+    descendants), metres: a tight bound for culling."""
+    box_hi: np.ndarray
+    """(M, 3) maximum of the points of each node's subtree, metres."""
+
+    @property
+    def n_points(self) -> int:
+        """Points of the cloud (N)."""
+        return int(self.order.shape[0])
+
+    @property
+    def n_nodes(self) -> int:
+        """Nodes (M)."""
+        return int(self.level.shape[0])
+
+    @property
+    def counts(self) -> np.ndarray:
+        """(M,) points in each node."""
+        return np.diff(self.start)
+
+    @property
+    def size(self) -> np.ndarray:
+        """(M,) edge of each node's cube, metres."""
+        return self.side / np.exp2(self.level.astype(np.float64))
+
+    @property
+    def spacing(self) -> np.ndarray:
+        """(M,) distance between each node's sample cells, metres."""
+        return self.size / self.root_grid
+
+    @property
+    def root_spacing(self) -> float:
+        """The root's spacing, metres (``side / root_grid``)."""
+        return self.side / self.root_grid
+
+    @property
+    def depth(self) -> int:
+        """Deepest level with a node."""
+        return int(self.level.max())
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the octree's arrays."""
+        return int(sum(a.nbytes for a in (
+            self.order, self.start, self.level, self.key, self.parent, self.child_start,
+            self.child_stop, self.cube_lo, self.box_lo, self.box_hi)))
+
+    def rows(self, k: int) -> np.ndarray:
+        """Indices of node ``k``'s points in the cloud (a view)."""
+        return self.order[self.start[k]:self.start[k + 1]]
+
+    def node(self, k: int) -> Node:
+        """Node ``k``."""
+        k = int(k)
+        if not 0 <= k < self.n_nodes:
+            raise InputError(f"no node {k}: the octree has {self.n_nodes} nodes")
+        size = self.side / 2.0 ** int(self.level[k])
+        return Node(id=k, level=int(self.level[k]), cube_lo=self.cube_lo[k].copy(), size=size,
+                    spacing=size / self.root_grid, rows=self.rows(k))
+
+    def children(self, k: int) -> range:
+        """Rows of node ``k``'s children."""
+        return range(int(self.child_start[k]), int(self.child_stop[k]))
+
+
+def build_bytes(n_points: int) -> float:
+    """Estimated peak bytes of :func:`build_octree` for ``n_points`` points, besides
+    the points themselves (which it reads and never copies)."""
+    return float(n_points) * BUILD_BYTES_PER_POINT + min(n_points, CHUNK_POINTS) * 48.0
+
+
+def octree_bytes(n_points: int, n_nodes: int) -> float:
+    """Bytes an octree of ``n_points`` points and ``n_nodes`` nodes keeps."""
+    index = 4 if n_points < 2**31 else 8
+    return float(n_points) * index + float(n_nodes) * NODE_BYTES
+
+
+def _columns(points: PointCloud | np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, z of a cloud, an (N, 3) array or three columns (views where possible)."""
+    if isinstance(points, PointCloud):
+        return points.x, points.y, points.z
+    if isinstance(points, tuple):
+        if len(points) != 3:
+            raise InputError("points must be a PointCloud, an (N, 3) array or (x, y, z)")
+        cols = tuple(np.asarray(c, dtype=np.float64) for c in points)
+        if not (cols[0].ndim == 1 and cols[0].shape == cols[1].shape == cols[2].shape):
+            raise InputError("x, y and z must be 1-D arrays of one length")
+        return cols[0], cols[1], cols[2]
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"points must be an (N, 3) array, got shape {arr.shape}")
+    return arr[:, 0], arr[:, 1], arr[:, 2]
+
+
+def _spread_bits(q: np.ndarray) -> np.ndarray:
+    """The 21 low bits of ``q`` (uint32) spread to every third bit of a uint64."""
+    v = q.astype(np.uint64)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF),
+                        (8, 0x100F00F00F00F00F), (4, 0x10C30C30C30C30C3),
+                        (2, 0x1249249249249249)):
+        v |= v << np.uint64(shift)
+        v &= np.uint64(mask)
+    return v
+
+
+def _compact_bits(code: np.ndarray, axis: int, bits: int) -> np.ndarray:
+    """The cell index along ``axis`` of Morton ``code``s of ``bits`` levels (int64)."""
+    out = np.zeros(code.shape[0], dtype=np.int64)
+    c = code.astype(np.uint64)
+    for b in range(bits):
+        out |= ((c >> np.uint64(3 * b + axis)) & np.uint64(1)).astype(np.int64) << b
+    return out
+
+
+def morton_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray,
+                 side: float) -> np.ndarray:
+    """(N,) uint64 Morton codes of points in the cube ``origin + [0, side]**3``: the
+    cell index ``floor((p - origin) / side * 2**21)`` per axis (clipped to the cube),
+    bits interleaved x, y, z from the lowest (x is bit 0)."""
+    n = int(x.shape[0])
+    scale = float(2**DEPTH_BITS) / side
+    top = np.uint32(2**DEPTH_BITS - 1)
+    out = np.empty(n, dtype=np.uint64)
+    for s in range(0, n, CHUNK_POINTS):
+        e = min(n, s + CHUNK_POINTS)
+        o = out[s:e]
+        o[:] = 0
+        for axis, col in enumerate((x, y, z)):
+            f = (col[s:e] - origin[axis]) * scale
+            np.clip(f, 0.0, None, out=f)
+            q = f.astype(np.uint32)  # floor of a non-negative value
+            np.minimum(q, top, out=q)
+            o |= _spread_bits(q) << np.uint64(axis)
+    return out
+
+
+def _kept_evenly(counts: np.ndarray, cap: int) -> np.ndarray:
+    """For groups of ``counts`` consecutive items, which items to keep so that each
+    group keeps ``min(count, cap)`` of them spread evenly through it."""
+    total = int(counts.sum())
+    group_start = np.repeat(np.cumsum(counts) - counts, counts)
+    rank = np.arange(total, dtype=np.int64) - group_start
+    c = np.repeat(counts, counts)
+    over = c > cap
+    keep = np.ones(total, dtype=bool)
+    r, cc = rank[over], c[over]
+    keep[over] = ((r + 1) * cap) // cc > (r * cap) // cc
+    return keep
+
+
+def _chunk_stop(codes: np.ndarray, start: int, node_shift: int) -> int:
+    """End of a run of whole level nodes starting at ``start`` holding about
+    :data:`CHUNK_POINTS` points (more when one node is larger)."""
+    n = int(codes.shape[0])
+    guess = start + CHUNK_POINTS
+    if guess >= n or node_shift >= 63:
+        return n
+    prefix = int(codes[guess - 1]) >> node_shift
+    bound = (prefix + 1) << node_shift
+    if bound >= 2**64:
+        return n
+    return int(np.searchsorted(codes[start:], np.uint64(bound), side="left")) + start
+
+
+
+def _sample_starts(codes: np.ndarray, a: int, b: int, shift: np.uint64) -> np.ndarray:
+    """Positions (relative to ``a``) where a new sample cell (``code >> shift``)
+    begins in the sorted ``codes[a:b]``, found a chunk at a time."""
+    found = [np.zeros(1, dtype=np.int64)]
+    for s in range(a, b, CHUNK_POINTS):
+        e = min(b, s + CHUNK_POINTS)
+        lo = max(a, s - 1)  # the chunk's first code against the one before it
+        cell = codes[lo:e] >> shift
+        found.append(np.flatnonzero(cell[1:] != cell[:-1]) + (lo + 1 - a))
+    return np.concatenate(found)
+
+
+def _drop_taken(codes: np.ndarray, rest: np.ndarray, a: int, b: int, take: np.ndarray,
+                write: int) -> int:
+    """Move the rows of ``[a, b)`` not in ``take`` (positions relative to ``a``,
+    ascending) down to ``write``, a chunk at a time, in place; return the new end.
+    Safe because ``write <= a``: each chunk is copied out before it is written."""
+    for s in range(a, b, CHUNK_POINTS):
+        e = min(b, s + CHUNK_POINTS)
+        keep = np.ones(e - s, dtype=bool)
+        i0, i1 = np.searchsorted(take, [s - a, e - a])
+        keep[take[i0:i1] - (s - a)] = False
+        kept_codes = codes[s:e][keep]
+        kept_rest = rest[s:e][keep]
+        m = int(kept_codes.shape[0])
+        codes[write:write + m] = kept_codes
+        rest[write:write + m] = kept_rest
+        write += m
+    return write
+
+
+def build_octree(
+    points: PointCloud | np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray],
+    *,
+    root_grid: int = DEFAULT_ROOT_GRID,
+    max_node_points: int = DEFAULT_MAX_NODE_POINTS,
+    progress: ProgressFn | None = None,
+) -> Octree:
+    """Build the additive octree of a cloud.
+
+    Parameters
+    ----------
+    points : PointCloud, (N, 3) array or (x, y, z) columns
+        Finite coordinates, metres (read, never copied).
+    root_grid : int
+        Sample cells per axis of a node (a power of two from 2 to 1024; default 128:
+        the root spacing is about ``extent / 128``).
+    max_node_points : int
+        Largest number of points of a node (default 20 000).
+    progress : callable, optional
+        ``progress(done, total)`` in points placed.
+
+    Returns
+    -------
+    Octree
+
+    Raises
+    ------
+    InputError
+        No points, a non-finite coordinate, bad settings, or not enough memory
+        (:func:`build_bytes`, checked first).
+    """
+    x, y, z = _columns(points)
+    n = int(x.shape[0])
+    if n == 0:
+        raise InputError("an octree needs at least one point")
+    g = int(root_grid)
+    if g != root_grid or g < 2 or g > 1024 or g & (g - 1):
+        raise InputError(f"root grid must be a power of two from 2 to 1024, got {root_grid}")
+    cap = int(max_node_points)
+    if cap != max_node_points or cap < 1:
+        raise InputError(f"max node points must be a whole number >= 1, got {max_node_points}")
+    require(build_bytes(n), f"the level-of-detail octree of {n:,} points")
+    lo = np.array([x.min(), y.min(), z.min()])
+    hi = np.array([x.max(), y.max(), z.max()])
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise InputError("the octree needs finite coordinates (a NaN or infinite one found)")
+    side = float(np.max(hi - lo))
+    if not side > 0.0:
+        side = max(1.0, float(np.max(np.abs(lo)))) * 1e-9  # one spot: any cube holds it
+    g_bits = g.bit_length() - 1
+    if progress:
+        progress(0, n)
+
+    codes = morton_codes(x, y, z, lo, side)
+    perm = np.argsort(codes)
+    codes.sort()  # in place: the same order as codes[perm], without a second copy
+    index_dtype = np.int32 if n < 2**31 else np.int64
+    rest = np.empty(n, dtype=index_dtype)  # points not yet placed, by code
+    for s in range(0, n, CHUNK_POINTS):
+        rest[s:s + CHUNK_POINTS] = perm[s:s + CHUNK_POINTS]
+    del perm
+    order = np.empty(n, dtype=index_dtype)
+
+    keys: list[np.ndarray] = []
+    counts: list[np.ndarray] = []
+    placed = 0
+    n_rest = n
+    for level in range(DEPTH_BITS + 1):
+        if n_rest == 0:
+            break
+        node_shift = 3 * (DEPTH_BITS - level)
+        sample_shift = np.uint64(3 * max(DEPTH_BITS - level - g_bits, 0))
+        last = level == DEPTH_BITS
+        level_keys: list[np.ndarray] = []
+        level_counts: list[np.ndarray] = []
+        write = 0
+        a = 0
+        while a < n_rest:
+            b = _chunk_stop(codes[:n_rest], a, node_shift)
+            if last:
+                take = np.arange(b - a, dtype=np.int64)
+            else:
+                starts = _sample_starts(codes, a, b, sample_shift)
+                runs = np.diff(np.append(starts, b - a))
+                take = starts + runs // 2  # the middle point of each sample cell
+                node_of = codes[a:b][take] >> np.uint64(node_shift)
+                edge = np.flatnonzero(node_of[1:] != node_of[:-1]) + 1
+                per_node = np.diff(np.concatenate(([0], edge, [take.shape[0]])))
+                if per_node.max() > cap:
+                    take = take[_kept_evenly(per_node, cap)]
+            taken = codes[a:b][take] >> np.uint64(node_shift)
+            k = int(take.shape[0])
+            order[placed:placed + k] = rest[a:b][take]
+            placed += k
+            edge = np.flatnonzero(taken[1:] != taken[:-1]) + 1
+            bounds = np.concatenate(([0], edge, [k]))
+            level_keys.append(taken[bounds[:-1]])
+            level_counts.append(np.diff(bounds))
+            write = _drop_taken(codes, rest, a, b, take, write)
+            a = b
+        n_rest = write
+        keys.append(np.concatenate(level_keys))
+        counts.append(np.concatenate(level_counts))
+        if progress:
+            progress(placed, n)
+    del codes, rest
+    return _assemble(order, keys, counts, lo, side, g, cap, x, y, z)
+
+
+def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray],
+              origin: np.ndarray, side: float, root_grid: int, cap: int,
+              x: np.ndarray, y: np.ndarray, z: np.ndarray) -> Octree:
+    """The node arrays from the per-level keys and counts (levels in order, keys
+    ascending within a level, points of ``order`` node after node)."""
+    sizes = [k.shape[0] for k in keys]
+    offsets = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
+    m = int(offsets[-1])
+    level = np.concatenate([np.full(s, lv, dtype=np.int8) for lv, s in enumerate(sizes)])
+    key = np.concatenate(keys).astype(np.uint64)
+    start = np.concatenate(([0], np.cumsum(np.concatenate(counts)))).astype(np.int64)
+    parent = np.full(m, -1, dtype=np.int32)
+    child_start = np.zeros(m, dtype=np.int32)
+    child_stop = np.zeros(m, dtype=np.int32)
+    for lv in range(1, len(keys)):
+        up = keys[lv] >> np.uint64(3)
+        above = keys[lv - 1]
+        at = np.searchsorted(above, up)
+        if np.any(at >= above.shape[0]) or np.any(above[np.minimum(at, above.shape[0] - 1)] != up):
+            raise AssertionError("octree: a node without its parent")  # cannot happen
+        parent[offsets[lv]:offsets[lv + 1]] = at + offsets[lv - 1]
+        child_start[offsets[lv - 1]:offsets[lv]] = np.searchsorted(up, above, "left") + offsets[lv]
+        child_stop[offsets[lv - 1]:offsets[lv]] = np.searchsorted(up, above, "right") + offsets[lv]
+    last = len(keys) - 1
+    child_start[offsets[last]:] = m
+    child_stop[offsets[last]:] = m
+
+    cube_lo = np.empty((m, 3))
+    cell = side / np.exp2(level.astype(np.float64))
+    for axis in range(3):
+        idx = np.zeros(m, dtype=np.int64)
+        for lv in range(len(keys)):
+            sl = slice(offsets[lv], offsets[lv + 1])
+            idx[sl] = _compact_bits(key[sl], axis, lv)
+        cube_lo[:, axis] = origin[axis] + idx * cell
+
+    box_lo, box_hi = _node_boxes(order, start, x, y, z)
+    for lv in range(last, 0, -1):  # a subtree's box holds its children's boxes
+        sl = slice(offsets[lv], offsets[lv + 1])
+        np.minimum.at(box_lo, parent[sl], box_lo[sl])
+        np.maximum.at(box_hi, parent[sl], box_hi[sl])
+    return Octree(origin=origin, side=side, root_grid=root_grid, max_node_points=cap,
+                  order=order, start=start, level=level, key=key, parent=parent,
+                  child_start=child_start, child_stop=child_stop, cube_lo=cube_lo,
+                  box_lo=box_lo, box_hi=box_hi)
+
+
+def _node_boxes(order: np.ndarray, start: np.ndarray, x: np.ndarray, y: np.ndarray,
+                z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) minimum and maximum of each node's own points, a few nodes at a time."""
+    m = int(start.shape[0] - 1)
+    box_lo = np.empty((m, 3))
+    box_hi = np.empty((m, 3))
+    k = 0
+    while k < m:
+        stop = int(np.searchsorted(start, start[k] + CHUNK_POINTS, side="right")) - 1
+        stop = min(m, max(stop, k + 1))
+        rows = order[start[k]:start[stop]]
+        local = start[k:stop] - start[k]
+        for axis, col in enumerate((x, y, z)):
+            v = col[rows]
+            box_lo[k:stop, axis] = np.minimum.reduceat(v, local)
+            box_hi[k:stop, axis] = np.maximum.reduceat(v, local)
+        k = stop
+    return box_lo, box_hi
