@@ -13,9 +13,9 @@ from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.crop import CropBox, crop_cloud, crop_mask
 from rough_viewer.io.las_out import write_las_fields
 from rough_viewer.vocabulary import InputError
-from tests.helpers import rough_surface
+from tests.io.test_las_out import make_pf3  # LAS 1.2 format 3, every kind of dimension
 
-OFFSET = np.array([238_000.0, 3_765_000.0, 250.0])
+OFFSET = np.array([238_000.0, 3_765_000.0, 250.0])  # make_pf3's
 
 
 def brute_force_inside(xyz: np.ndarray, lo, hi) -> np.ndarray:
@@ -69,31 +69,10 @@ def test_box_around_a_selection_and_in_another_unit():
     assert "removed the points inside the box (1, 2, 3) to (4, 5, 6) m" in box.describe()
 
 
-def make_las(path, n: int = 4000, seed: int = 3) -> None:
-    """LAS 1.2 format 3 with RGB, GPS time, returns, classification and a VLR."""
-    rng = np.random.default_rng(seed)
-    header = laspy.LasHeader(version="1.2", point_format=3)
-    header.scales = np.array([0.001, 0.001, 0.001])
-    header.offsets = OFFSET
-    header.vlrs.append(laspy.VLR("NIIRS10", 4, "private", b"\x01\x02\x03\x04"))
-    las = laspy.LasData(header)
-    xyz = rough_surface(n, seed=seed, size=3.0) + OFFSET
-    las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    las.intensity = rng.integers(0, 65535, n, dtype=np.uint16)
-    las.return_number = rng.integers(1, 4, n, dtype=np.uint8)
-    las.number_of_returns = np.full(n, 3, dtype=np.uint8)
-    las.classification = rng.integers(0, 10, n, dtype=np.uint8)
-    las.gps_time = 1e5 + np.cumsum(rng.uniform(0, 1e-3, n))
-    las.red = rng.integers(0, 65535, n, dtype=np.uint16)
-    las.green = rng.integers(0, 65535, n, dtype=np.uint16)
-    las.blue = rng.integers(0, 65535, n, dtype=np.uint16)
-    las.write(str(path))
-
-
 @pytest.mark.parametrize("suffix", [".las", ".laz"])
 def test_las_copy_of_a_crop_holds_the_kept_points_with_every_dimension(tmp_path, suffix):
     src = tmp_path / "scan.las"
-    make_las(src)
+    make_pf3(src, n=4000)
     cloud = load_points(src, cache=False)
     box = CropBox(tuple(OFFSET + [0.5, 0.7, -1.0]), tuple(OFFSET + [2.2, 2.5, 1.0]))
     cropped = crop_cloud(cloud, box)
@@ -110,14 +89,14 @@ def test_las_copy_of_a_crop_holds_the_kept_points_with_every_dimension(tmp_path,
     for f, values in zip(fields.fields, fields.gather(0, cropped.kept), strict=True):
         assert np.array_equal(np.asarray(written[f.name]), values, equal_nan=True), f.name
     assert [v.record_data for v in written.header.vlrs if v.user_id == "NIIRS10"] == [
-        b"\x01\x02\x03\x04"]
+        b"\x01\x02\x03\x04\x05"]
     assert np.allclose(written.header.mins, cropped.cloud.bounds()[0], atol=1e-6)
     assert np.allclose(written.header.maxs, cropped.cloud.bounds()[1], atol=1e-6)
 
 
 def test_las_copy_of_a_crop_without_its_mask_says_so(tmp_path):
     src = tmp_path / "scan.las"
-    make_las(src, n=500)
+    make_pf3(src, n=500)
     cropped = crop_cloud(load_points(src, cache=False),
                          CropBox(tuple(OFFSET), tuple(OFFSET + [1.5, 3.0, 1.0])))
     fields = point_fields(grid_roughness(cropped.cloud, 0.5))
