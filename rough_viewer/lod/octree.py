@@ -107,7 +107,7 @@ class Octree:
     """Largest number of points of a node (finest-level leaves excepted)."""
     order: np.ndarray
     """(N,) int32 (int64 beyond 2**31 points) point indices, node after node: node
-    ``k`` holds ``order[start[k]:start[k + 1]]``."""
+    ``k`` holds ``order[start[k]:start[k + 1]]``, ascending (file order)."""
     start: np.ndarray
     """(M + 1,) int64 offsets of the nodes' points in :attr:`order`."""
     level: np.ndarray
@@ -229,6 +229,18 @@ def _spread_bits(q: np.ndarray) -> np.ndarray:
     return v
 
 
+_SPREAD_TABLE: np.ndarray | None = None
+
+
+def _spread21(q: np.ndarray) -> np.ndarray:
+    """:func:`_spread_bits` of 21-bit values by a 65 536-entry table (twice as fast)."""
+    global _SPREAD_TABLE
+    if _SPREAD_TABLE is None:
+        _SPREAD_TABLE = _spread_bits(np.arange(1 << 16, dtype=np.uint32))
+    table = _SPREAD_TABLE
+    return table[q & np.uint32(0xFFFF)] | (table[q >> np.uint32(16)] << np.uint64(48))
+
+
 def _compact_bits(code: np.ndarray, axis: int, bits: int) -> np.ndarray:
     """The cell index along ``axis`` of Morton ``code``s of ``bits`` levels (int64)."""
     out = np.zeros(code.shape[0], dtype=np.int64)
@@ -256,7 +268,7 @@ def morton_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray
             np.clip(f, 0.0, None, out=f)
             q = f.astype(np.uint32)  # floor of a non-negative value
             np.minimum(q, top, out=q)
-            o |= _spread_bits(q) << np.uint64(axis)
+            o |= _spread21(q) << np.uint64(axis)
     return out
 
 
@@ -465,6 +477,7 @@ def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray
             idx[sl] = _compact_bits(key[sl], axis, lv)
         cube_lo[:, axis] = origin[axis] + idx * cell
 
+    _sort_rows_within_nodes(order, start)
     box_lo, box_hi = _node_boxes(order, start, x, y, z)
     for lv in range(last, 0, -1):  # a subtree's box holds its children's boxes
         sl = slice(offsets[lv], offsets[lv + 1])
@@ -476,21 +489,43 @@ def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray
                   box_lo=box_lo, box_hi=box_hi)
 
 
+def _node_chunks(start: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of whole nodes ``[k, stop)`` of about :data:`CHUNK_POINTS` points each."""
+    m = int(start.shape[0] - 1)
+    out = []
+    k = 0
+    while k < m:
+        stop = int(np.searchsorted(start, start[k] + CHUNK_POINTS, side="right")) - 1
+        stop = min(m, max(stop, k + 1))
+        out.append((k, stop))
+        k = stop
+    return out
+
+
+def _sort_rows_within_nodes(order: np.ndarray, start: np.ndarray) -> None:
+    """Each node's rows in ascending order, in place: gathers from the cloud (encoding,
+    colours) then read it in file order, which for a scan is nearly spatial order."""
+    if order.shape[0] >= 2**32:
+        return  # the (node, row) key would not fit 64 bits; the order is still valid
+    for k, stop in _node_chunks(start):
+        a, b = int(start[k]), int(start[stop])
+        local = np.repeat(np.arange(stop - k, dtype=np.uint64), np.diff(start[k:stop + 1]))
+        key = (local << np.uint64(32)) | order[a:b].astype(np.uint64)
+        key.sort()
+        order[a:b] = key & np.uint64(0xFFFFFFFF)
+
+
 def _node_boxes(order: np.ndarray, start: np.ndarray, x: np.ndarray, y: np.ndarray,
                 z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) minimum and maximum of each node's own points, a few nodes at a time."""
     m = int(start.shape[0] - 1)
     box_lo = np.empty((m, 3))
     box_hi = np.empty((m, 3))
-    k = 0
-    while k < m:
-        stop = int(np.searchsorted(start, start[k] + CHUNK_POINTS, side="right")) - 1
-        stop = min(m, max(stop, k + 1))
+    for k, stop in _node_chunks(start):
         rows = order[start[k]:start[stop]]
         local = start[k:stop] - start[k]
         for axis, col in enumerate((x, y, z)):
             v = col[rows]
             box_lo[k:stop, axis] = np.minimum.reduceat(v, local)
             box_hi[k:stop, axis] = np.maximum.reduceat(v, local)
-        k = stop
     return box_lo, box_hi

@@ -35,6 +35,7 @@ def test_every_point_in_exactly_one_node(cloud, tree):
     assert np.array_equal(np.bincount(tree.order, minlength=cloud.shape[0]),
                           np.ones(cloud.shape[0], dtype=np.int64))
     assert int(tree.counts.sum()) == cloud.shape[0] and tree.counts.min() >= 1
+    assert all(np.all(np.diff(tree.rows(k)) > 0) for k in range(tree.n_nodes))  # file order
     assert tree.n_nodes > 100 and tree.depth >= 4
 
 
@@ -184,3 +185,20 @@ def test_memory_is_estimated_first(monkeypatch):
 def test_octree_keeps_an_index_not_the_points(tree):
     assert tree.order.dtype == np.int32
     assert tree.nbytes < 4 * tree.n_points + 200 * tree.n_nodes
+
+
+def test_morton_codes_interleave_the_cell_indices():
+    """Against a bit-by-bit interleave of the 21-bit cell indices (x lowest)."""
+    from rough_viewer.lod.octree import morton_codes
+
+    rng = np.random.default_rng(9)
+    xyz = rng.uniform(0.0, 7.0, (2_000, 3))
+    xyz[0], xyz[1] = 0.0, 7.0  # the cube's corners: the top is clipped into the last cell
+    codes = morton_codes(xyz[:, 0], xyz[:, 1], xyz[:, 2], np.zeros(3), 7.0)
+    q = np.minimum(np.floor(xyz / 7.0 * 2**21).astype(np.int64), 2**21 - 1)
+    for i in range(2_000):
+        want = 0
+        for bit in range(DEPTH_BITS):
+            for axis in range(3):
+                want |= ((int(q[i, axis]) >> bit) & 1) << (3 * bit + axis)
+        assert int(codes[i]) == want
