@@ -18,8 +18,9 @@ Layout (Potree's and COPC's idea; docs/lod.md "Definitions"):
   level (points closer than ``side / 2**21``: duplicates) can hold more.
 
 Built without a Python loop over points: 63-bit Morton codes (21 bits per axis)
-from the coordinates, one sort, then one vectorised pass per level over the points
-not yet placed (a run-length scan of the sorted codes). Memory: the octree keeps an
+from the coordinates, sorted (a counting sort by the level-3 cell, then each of its
+512 buckets on its own, on a thread pool), then one vectorised pass per level over
+the points not yet placed (a run-length scan of the sorted codes). Memory: the octree keeps an
 index permutation (4 bytes per point, 8 beyond 2**31 points) and small per-node
 arrays, never a copy of the points; the build peaks at about
 :data:`BUILD_BYTES_PER_POINT` bytes per point (:func:`build_bytes`).
@@ -36,7 +37,11 @@ arrays, never a copy of the points; the build peaks at about
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -50,14 +55,20 @@ DEPTH_BITS = 21
 DEFAULT_ROOT_GRID = 128
 #: Default largest number of points in one node.
 DEFAULT_MAX_NODE_POINTS = 20_000
-#: Peak bytes per point while building: the Morton codes (8), the sort's int64
-#: permutation (8) and its int32 copy (4); afterwards codes (8), the points not yet
-#: placed (4) and the output permutation (4).
-BUILD_BYTES_PER_POINT = 20
+#: Peak bytes per point while building: the sorted Morton codes (8), the points not
+#: yet placed (4) and the output permutation (4); while sorting, a 2-byte bucket per
+#: point instead of the output (then 12 bytes per point of the buckets being sorted,
+#: checked once their sizes are known).
+BUILD_BYTES_PER_POINT = 16
 #: Points handled at a time in the passes over the points (bounds the temporaries).
 CHUNK_POINTS = 1 << 22
-#: Bytes of the temporaries of one chunk (codes, shifts, masks, candidate rows).
-CHUNK_BYTES = 48 * CHUNK_POINTS
+#: Bytes per point of the temporaries of one chunk (codes, shifts, masks, candidates).
+CHUNK_BYTES_PER_POINT = 48
+#: Points of one task of the parallel counting sort, and its temporaries (bytes).
+SORT_CHUNK = 1 << 20
+SORT_CHUNK_BYTES_PER_POINT = 64
+#: Bits of the Morton code the first pass sorts by (the level-3 cell: 512 buckets).
+TOP_BITS = 9
 #: Bytes per node of the octree's own arrays.
 NODE_BYTES = 8 + 1 + 8 + 4 + 4 + 4 + 6 * 8 + 4 * 8
 
@@ -188,10 +199,17 @@ class Octree:
         return range(int(self.child_start[k]), int(self.child_stop[k]))
 
 
-def build_bytes(n_points: int) -> float:
-    """Estimated peak bytes of :func:`build_octree` for ``n_points`` points, besides
-    the points themselves (which it reads and never copies)."""
-    return float(n_points) * BUILD_BYTES_PER_POINT + min(n_points, CHUNK_POINTS) * 48.0
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def build_bytes(n_points: int, workers: int = 2) -> float:
+    """Estimated peak bytes of :func:`build_octree` for ``n_points`` points on
+    ``workers`` threads, besides the points themselves (read, never copied) and the
+    buckets being sorted (checked once their sizes are known)."""
+    n = float(n_points)
+    return (n * BUILD_BYTES_PER_POINT + min(n, CHUNK_POINTS) * CHUNK_BYTES_PER_POINT
+            + workers * min(n, SORT_CHUNK) * SORT_CHUNK_BYTES_PER_POINT)
 
 
 def octree_bytes(n_points: int, n_nodes: int) -> float:
@@ -250,6 +268,20 @@ def _compact_bits(code: np.ndarray, axis: int, bits: int) -> np.ndarray:
     return out
 
 
+def _morton_chunk(x: np.ndarray, y: np.ndarray, z: np.ndarray, s: int, e: int,
+                  origin: np.ndarray, scale: float) -> np.ndarray:
+    """Morton codes of points ``s:e`` (see :func:`morton_codes`)."""
+    top = np.uint32(2**DEPTH_BITS - 1)
+    out = np.zeros(e - s, dtype=np.uint64)
+    for axis, col in enumerate((x, y, z)):
+        f = (col[s:e] - origin[axis]) * scale
+        np.clip(f, 0.0, None, out=f)
+        q = f.astype(np.uint32)  # floor of a non-negative value
+        np.minimum(q, top, out=q)
+        out |= _spread21(q) << np.uint64(axis)
+    return out
+
+
 def morton_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray,
                  side: float) -> np.ndarray:
     """(N,) uint64 Morton codes of points in the cube ``origin + [0, side]**3``: the
@@ -257,19 +289,94 @@ def morton_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray
     bits interleaved x, y, z from the lowest (x is bit 0)."""
     n = int(x.shape[0])
     scale = float(2**DEPTH_BITS) / side
-    top = np.uint32(2**DEPTH_BITS - 1)
     out = np.empty(n, dtype=np.uint64)
     for s in range(0, n, CHUNK_POINTS):
         e = min(n, s + CHUNK_POINTS)
-        o = out[s:e]
-        o[:] = 0
-        for axis, col in enumerate((x, y, z)):
-            f = (col[s:e] - origin[axis]) * scale
-            np.clip(f, 0.0, None, out=f)
-            q = f.astype(np.uint32)  # floor of a non-negative value
-            np.minimum(q, top, out=q)
-            o |= _spread21(q) << np.uint64(axis)
+        out[s:e] = _morton_chunk(x, y, z, s, e, origin, scale)
     return out
+
+
+def _parallel(fn: Callable[[T], R], items: Sequence[T], workers: int) -> list[R]:
+    """``[fn(i) for i in items]``, on ``workers`` threads (numpy lets go of the GIL in
+    its sorts, gathers and arithmetic on large arrays)."""
+    if workers <= 1 or len(items) <= 1:
+        return [fn(i) for i in items]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(fn, items))
+
+
+def _bucketed(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray, side: float,
+              index_dtype: type, workers: int, what: str
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The points' Morton codes and indices in order of their top :data:`TOP_BITS`
+    bits (a counting sort, chunks in parallel), with the buckets' starts and sizes."""
+    n = int(x.shape[0])
+    scale = float(2**DEPTH_BITS) / side
+    shift = 3 * DEPTH_BITS - TOP_BITS
+    top_scale = scale / 2.0 ** (DEPTH_BITS - TOP_BITS // 3)  # a power of two apart: exact
+    n_buckets = 1 << TOP_BITS
+    chunks = [(s, min(n, s + SORT_CHUNK)) for s in range(0, n, SORT_CHUNK)]
+    bucket = np.empty(n, dtype=np.uint16)
+
+    def count(chunk: tuple[int, int]) -> np.ndarray:
+        s, e = chunk
+        b = np.zeros(e - s, dtype=np.uint16)
+        for axis, col in enumerate((x, y, z)):
+            f = (col[s:e] - origin[axis]) * top_scale
+            np.clip(f, 0.0, 2 ** (TOP_BITS // 3) - 1, out=f)
+            b |= _spread21(f.astype(np.uint32)).astype(np.uint16) << np.uint16(axis)
+        bucket[s:e] = b
+        return np.bincount(b, minlength=n_buckets)
+
+    per_chunk = np.array(_parallel(count, chunks, workers), dtype=np.int64).reshape(-1, n_buckets)
+    sizes = per_chunk.sum(axis=0)
+    biggest = np.sort(sizes)[-max(1, workers):].sum()
+    require(14.0 * n + 12.0 * float(biggest)
+            + workers * min(n, SORT_CHUNK) * SORT_CHUNK_BYTES_PER_POINT,
+            f"sorting the {n:,} points of {what}")
+    bucket_start = np.concatenate(([0], np.cumsum(sizes)))
+    chunk_offset = bucket_start[:-1] + np.cumsum(per_chunk, axis=0) - per_chunk
+    codes = np.empty(n, dtype=np.uint64)
+    rest: np.ndarray = np.empty(n, dtype=index_dtype)
+
+    def scatter(i: int) -> None:
+        s, e = chunks[i]
+        code = _morton_chunk(x, y, z, s, e, origin, scale)
+        b = bucket[s:e]
+        by_bucket = np.argsort(b, kind="stable")  # a radix sort of 16-bit keys
+        sb = b[by_bucket].astype(np.int64)
+        rank = np.arange(e - s, dtype=np.int64) - (np.cumsum(per_chunk[i]) - per_chunk[i])[sb]
+        dest = chunk_offset[i][sb] + rank
+        if np.any((code[by_bucket] >> np.uint64(shift)).astype(np.int64) != sb):
+            raise AssertionError("octree: bucket and Morton code disagree")  # cannot happen
+        codes[dest] = code[by_bucket]
+        rest[dest] = (by_bucket + s).astype(index_dtype)
+
+    _parallel(scatter, list(range(len(chunks))), workers)
+    return codes, rest, bucket_start, sizes
+
+
+def _sorted_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray,
+                  side: float, index_dtype: type, workers: int, what: str
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The points' Morton codes sorted, and the point index of each.
+
+    A counting sort by the top :data:`TOP_BITS` bits (the level-3 cell,
+    :func:`_bucketed`), then each bucket sorted on its own, buckets in parallel: no
+    full argsort, and at most 14 bytes per point besides the buckets being sorted."""
+    codes, rest, bucket_start, sizes = _bucketed(x, y, z, origin, side, index_dtype, workers,
+                                                 what)
+
+    def sort_bucket(k: int) -> None:
+        a, b = int(bucket_start[k]), int(bucket_start[k + 1])
+        if b - a > 1:
+            local = np.argsort(codes[a:b])
+            rest[a:b] = rest[a:b][local]
+            codes[a:b] = codes[a:b][local]
+
+    busy = [int(k) for k in np.argsort(-sizes, kind="stable") if sizes[k] > 1]  # largest first
+    _parallel(sort_bucket, busy, workers)
+    return codes, rest
 
 
 def _kept_evenly(counts: np.ndarray, cap: int) -> np.ndarray:
@@ -337,6 +444,7 @@ def build_octree(
     *,
     root_grid: int = DEFAULT_ROOT_GRID,
     max_node_points: int = DEFAULT_MAX_NODE_POINTS,
+    workers: int | None = None,
     progress: ProgressFn | None = None,
 ) -> Octree:
     """Build the additive octree of a cloud.
@@ -350,6 +458,9 @@ def build_octree(
         the root spacing is about ``extent / 128``).
     max_node_points : int
         Largest number of points of a node (default 20 000).
+    workers : int, optional
+        Threads for the sorts and gathers (default: the CPU count); the result does
+        not depend on it.
     progress : callable, optional
         ``progress(done, total)`` in points placed.
 
@@ -373,7 +484,8 @@ def build_octree(
     cap = int(max_node_points)
     if cap != max_node_points or cap < 1:
         raise InputError(f"max node points must be a whole number >= 1, got {max_node_points}")
-    require(build_bytes(n), f"the level-of-detail octree of {n:,} points")
+    workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
+    require(build_bytes(n, workers), f"the level-of-detail octree of {n:,} points")
     lo = np.array([x.min(), y.min(), z.min()])
     hi = np.array([x.max(), y.max(), z.max()])
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
@@ -385,14 +497,10 @@ def build_octree(
     if progress:
         progress(0, n)
 
-    codes = morton_codes(x, y, z, lo, side)
-    perm = np.argsort(codes)
-    codes.sort()  # in place: the same order as codes[perm], without a second copy
     index_dtype = np.int32 if n < 2**31 else np.int64
-    rest = np.empty(n, dtype=index_dtype)  # points not yet placed, by code
-    for s in range(0, n, CHUNK_POINTS):
-        rest[s:s + CHUNK_POINTS] = perm[s:s + CHUNK_POINTS]
-    del perm
+    # codes sorted, and the points not yet placed (all of them yet), by code
+    codes, rest = _sorted_codes(x, y, z, lo, side, index_dtype, workers,
+                                f"the level-of-detail octree of {n:,} points")
     order = np.empty(n, dtype=index_dtype)
 
     keys: list[np.ndarray] = []
@@ -438,12 +546,12 @@ def build_octree(
         if progress:
             progress(placed, n)
     del codes, rest
-    return _assemble(order, keys, counts, lo, side, g, cap, x, y, z)
+    return _assemble(order, keys, counts, lo, side, g, cap, x, y, z, workers)
 
 
 def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray],
               origin: np.ndarray, side: float, root_grid: int, cap: int,
-              x: np.ndarray, y: np.ndarray, z: np.ndarray) -> Octree:
+              x: np.ndarray, y: np.ndarray, z: np.ndarray, workers: int) -> Octree:
     """The node arrays from the per-level keys and counts (levels in order, keys
     ascending within a level, points of ``order`` node after node)."""
     sizes = [k.shape[0] for k in keys]
@@ -477,8 +585,8 @@ def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray
             idx[sl] = _compact_bits(key[sl], axis, lv)
         cube_lo[:, axis] = origin[axis] + idx * cell
 
-    _sort_rows_within_nodes(order, start)
-    box_lo, box_hi = _node_boxes(order, start, x, y, z)
+    _sort_rows_within_nodes(order, start, workers)
+    box_lo, box_hi = _node_boxes(order, start, x, y, z, workers)
     for lv in range(last, 0, -1):  # a subtree's box holds its children's boxes
         sl = slice(offsets[lv], offsets[lv + 1])
         np.minimum.at(box_lo, parent[sl], box_lo[sl])
@@ -502,30 +610,36 @@ def _node_chunks(start: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
-def _sort_rows_within_nodes(order: np.ndarray, start: np.ndarray) -> None:
+def _sort_rows_within_nodes(order: np.ndarray, start: np.ndarray, workers: int) -> None:
     """Each node's rows in ascending order, in place: gathers from the cloud (encoding,
     colours) then read it in file order, which for a scan is nearly spatial order."""
     if order.shape[0] >= 2**32:
         return  # the (node, row) key would not fit 64 bits; the order is still valid
-    for k, stop in _node_chunks(start):
+
+    def run(chunk: tuple[int, int]) -> None:
+        k, stop = chunk
         a, b = int(start[k]), int(start[stop])
         local = np.repeat(np.arange(stop - k, dtype=np.uint64), np.diff(start[k:stop + 1]))
         key = (local << np.uint64(32)) | order[a:b].astype(np.uint64)
         key.sort()
         order[a:b] = key & np.uint64(0xFFFFFFFF)
 
+    _parallel(run, _node_chunks(start), workers)
+
 
 def _node_boxes(order: np.ndarray, start: np.ndarray, x: np.ndarray, y: np.ndarray,
-                z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                z: np.ndarray, workers: int) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) minimum and maximum of each node's own points, a few nodes at a time."""
     m = int(start.shape[0] - 1)
     box_lo = np.empty((m, 3))
     box_hi = np.empty((m, 3))
-    for k, stop in _node_chunks(start):
-        rows = order[start[k]:start[stop]]
+
+    def run(job: tuple[tuple[int, int], int]) -> None:
+        (k, stop), axis = job
+        v = (x, y, z)[axis][order[start[k]:start[stop]]]
         local = start[k:stop] - start[k]
-        for axis, col in enumerate((x, y, z)):
-            v = col[rows]
-            box_lo[k:stop, axis] = np.minimum.reduceat(v, local)
-            box_hi[k:stop, axis] = np.maximum.reduceat(v, local)
+        box_lo[k:stop, axis] = np.minimum.reduceat(v, local)
+        box_hi[k:stop, axis] = np.maximum.reduceat(v, local)
+
+    _parallel(run, [(c, axis) for c in _node_chunks(start) for axis in range(3)], workers)
     return box_lo, box_hi
