@@ -17,7 +17,8 @@ Packages, data flowing one way (each imports only those above it):
 
 - :mod:`rough_viewer.vocabulary`: models, maps, axes, labels, the one error type;
 - :mod:`rough_viewer.io`: reading points, the decode cache, writers;
-- :mod:`rough_viewer.grid`: grid roughness, maps, semivariograms;
+- :mod:`rough_viewer.grid`: grid roughness, maps, semivariograms, measurements;
+- :mod:`rough_viewer.lod`: the level-of-detail octree and node selection;
 - :mod:`rough_viewer.profiles`: profiles, wavelets, fractal dimension;
 - :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
 - :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
@@ -51,6 +52,8 @@ _API: dict[str, str] = {
     "write_las_fields": "rough_viewer.io.las_out",
     "write_ply_fields": "rough_viewer.io.ply",
     "write_table": "rough_viewer.io.table",
+    "CropBox": "rough_viewer.io.crop",
+    "crop_cloud": "rough_viewer.io.crop",
     # grid roughness
     "grid_roughness": "rough_viewer.grid.roughness",
     "prepare_grid": "rough_viewer.grid.roughness",
@@ -94,6 +97,12 @@ _API: dict[str, str] = {
     "stereonet": "rough_viewer.grid.orientation",
     "cell_stereonet": "rough_viewer.grid.orientation",
     "cell_orientation": "rough_viewer.grid.orientation",
+    "point_distance": "rough_viewer.grid.measure",
+    "region_plane": "rough_viewer.grid.measure",
+    # level of detail
+    "build_octree": "rough_viewer.lod.octree",
+    "select_nodes": "rough_viewer.lod.select",
+    "ViewCamera": "rough_viewer.lod.camera",
     # profiles
     "extract_profile": "rough_viewer.profiles.extraction",
     "regular_samples": "rough_viewer.profiles.extraction",
@@ -161,6 +170,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
     from rough_viewer.bias.trust import TrustSettings, cell_trust
     from rough_viewer.grid.maps import face_maps, face_raster
+    from rough_viewer.grid.measure import point_distance, region_plane
     from rough_viewer.grid.orientation import (
         cell_orientation,
         cell_stereonet,
@@ -192,6 +202,7 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
     from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.crop import CropBox, crop_cloud
     from rough_viewer.io.crs import CrsInfo, read_crs
     from rough_viewer.io.las import write_las
     from rough_viewer.io.las_out import write_las_fields
@@ -199,6 +210,9 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.io.ply import write_ply_fields
     from rough_viewer.io.scanners import with_scanner
     from rough_viewer.io.table import write_table
+    from rough_viewer.lod.camera import ViewCamera
+    from rough_viewer.lod.octree import build_octree
+    from rough_viewer.lod.select import select_nodes
     from rough_viewer.profiles.comparison import compare_denoising
     from rough_viewer.profiles.extraction import extract_profile, regular_samples
     from rough_viewer.profiles.fractal import detrend, roughness_length, roughness_length_2d

@@ -2,7 +2,7 @@
 
 Every import in ``rough_viewer`` (top-level, inside a function or under
 ``TYPE_CHECKING``) is read from the source and checked against the layers below. The
-science packages (io, grid, profiles, bias, synthetic, scale) import no UI library,
+science packages (io, grid, lod, profiles, bias, synthetic, scale) import no UI library,
 print nothing and import nothing above them. Inside the app the layers run one way
 too (:data:`APP_LAYERS`), and no module of the package takes part in an import cycle.
 """
@@ -20,7 +20,7 @@ import rough_viewer
 
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
-SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin")
+SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -33,14 +33,15 @@ ALLOWED: dict[str, set[str]] = {
     "synthetic": {"vocabulary", "memory", "io", "grid"},
     "scale": {"vocabulary", "memory", "io", "grid"},
     "tin": {"vocabulary", "memory", "io", "grid"},
+    "lod": {"vocabulary", "memory", "io", "grid"},
     "visual": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "tin"},
+               "tin", "lod"},
     "report": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "visual", "tin"},
+               "visual", "tin", "lod"},
     "app": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "tin"},
+            "visual", "report", "tin", "lod"},
     "cli": {"vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "tin", "__init__"},
+            "visual", "report", "app", "tin", "lod", "__init__"},
     "__init__": {"_version"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

@@ -7,9 +7,11 @@ Contract (other tools script against it)::
         [--origin X,Y,Z] [--signed] [--out CELLS.csv|CELLS.parquet]
         [--summary-json SUMMARY.json] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
-        [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
+        [--units m|mm|ft|us-ft] [--keep-outliers]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
+        [--crop XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [--crop-mode keep|remove] | --crop-file VIEW.json]
+        [--force] [--quiet]
 
 Several inputs (files or quoted globs) are one merged cloud. At least one output is
 required. With several ``--grid`` values each output name gets ``_g<G>`` before its
@@ -17,10 +19,12 @@ extension (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g0.25.csv``). ``--las-ou
 and ``--ply-out`` write every point with its cell's values as extra dimensions /
 scalar properties (docs/export.md). ``--memory`` streams the points in chunks within
 that budget; ``--scheduler`` runs the chunks on Dask (docs/scale.md); neither keeps
-the points, so neither goes with ``--las-out``, ``--ply-out``, ``--scanner`` or
-``--scanners``. With scanner positions (E57 poses, ``--scanner``, ``--scanners``) the
-cell table's scanner columns and the LAS/PLY scanner fields are filled
+the points, so neither goes with ``--las-out``, ``--ply-out``, ``--scanner``,
+``--scanners`` or a crop. With scanner positions (E57 poses, ``--scanner``,
+``--scanners``) the cell table's scanner columns and the LAS/PLY scanner fields are filled
 (docs/scanner.md); without, the columns are empty and one line says so.
+``--crop`` and ``--crop-file`` compute on the points inside (or outside) a box
+(docs/lod.md); ``--las-out`` and ``--ply-out`` then hold the kept points only.
 
 ``--units`` (default: the unit of a LAS file's CRS, else m) is the unit of the
 input's coordinates and of ``--grid``, ``--origin``, the table printed, the cell
@@ -38,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rough_viewer.cli._crop import add_crop_options
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
     add_axis,
@@ -95,6 +100,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_scale_options(p)
     add_scanner_options(p)
     add_keep_outliers(p)
+    add_crop_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -139,6 +145,7 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._crop import apply_crop, crop_from_args, refuse_with_chunks
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scale import chunked_results, wants_chunks
@@ -157,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
     grids = grid_sizes(args.grid, unit)
     several = len(grids) > 1
     outputs = _outputs(args, grids, several, paths)
+    box = crop_from_args(args, unit)
     quiet = args.quiet
     per = per_unit(unit)
     metres = [g * per for g in grids]
@@ -168,7 +176,9 @@ def run(args: argparse.Namespace) -> int:
     trust = trust_settings(args, unit)  # checked before any work
     results: Iterable[GridRoughness]
     cloud: PointCloud | None = None
+    keep: np.ndarray | None = None
     if wants_chunks(args):
+        refuse_with_chunks(args)
         if args.las_out or args.ply_out:
             raise InputError("--las-out and --ply-out write every point, which --memory and "
                              "--scheduler do not keep; run without them for those outputs")
@@ -179,9 +189,10 @@ def run(args: argparse.Namespace) -> int:
         results, dropped = chunked_results(args, paths, metres, origin=origin, models=models,
                                            residual=residual)
     else:
-        cloud = apply_scanner_options(
+        cloud, cropped = apply_crop(apply_scanner_options(
             load_inputs(paths, units=getattr(args, "units", None), quiet=quiet), paths, args,
-            unit)
+            unit), box, unit)
+        keep = None if cropped is None else cropped.mask
         dropped = cloud.dropped_nonfinite
         results = (grid_roughness(
             cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
@@ -202,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
                                keep_outliers=args.keep_outliers))
             cells = _trust(cloud, result, trust, quiet, unit)
             written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit,
-                                      cells)
+                                      cells, keep=keep)
     for line in written:
         print(line)
     return 0
@@ -278,9 +289,11 @@ def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSetti
 def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
                    cloud: PointCloud | None, dropped: int, source: str,
                    args: argparse.Namespace, unit: str = "m",
-                   trust: CellTrust | None = None) -> list[str]:
+                   trust: CellTrust | None = None, *,
+                   keep: np.ndarray | None = None) -> list[str]:
     """Write every output of one grid size; return the lines that say so (printed
-    once the run's outputs are all in place)."""
+    once the run's outputs are all in place). ``keep``: the crop's mask over the
+    points read, for LAS copies of the kept points."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
     from rough_viewer.io.las_out import write_las_fields
@@ -309,7 +322,7 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
               if wants_points and cloud is not None else None)
     if "las_out" in outputs and fields is not None and cloud is not None:
         path = outputs["las_out"][g]
-        info = write_las_fields(path, cloud, fields,
+        info = write_las_fields(path, cloud, fields, keep=keep,
                                 progress=None if args.quiet else ProgressBar(f"writing {path.name}"))
         lines.append(f"wrote {path}: {info}")
     if "ply_out" in outputs and fields is not None and cloud is not None:

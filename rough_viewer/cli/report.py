@@ -4,9 +4,11 @@ Contract::
 
     rough-viewer report INPUT [INPUT ...] [--grid G ...] [--axis auto|x|y|z] [--threshold T]
         [--min-points K] --out REPORT.html [--format html|json] [--png DIR]
-        [--directions DEG] [--units m|mm|ft|us-ft] [--keep-outliers] [--force] [--quiet]
+        [--directions DEG] [--units m|mm|ft|us-ft] [--keep-outliers]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
+        [--crop XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [--crop-mode keep|remove] | --crop-file VIEW.json]
+        [--force] [--quiet]
 
 With scanner positions (E57 poses, ``--scanner``, ``--scanners``) every grid size
 gets a scanner section (docs/scanner.md); without, one line says so. Default grid sizes: from the point spacing, the size at which the typical occupied
@@ -17,6 +19,8 @@ the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>
 (needs the optional package kaleido; the HTML does not). Several inputs (files or
 quoted globs) are one merged cloud. ``--directions DEG`` adds a section per input
 file: its roughness by direction (``rough-viewer directions`` with its defaults).
+``--crop`` / ``--crop-file`` report on the points inside (or outside) a box; the
+report's warnings say so (docs/lod.md).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from rough_viewer.cli._crop import add_crop_options
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
     add_axis,
@@ -67,6 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--png", metavar="DIR",
                    help="also write every figure as PNG into DIR (needs kaleido)")
     add_keep_outliers(p)
+    add_crop_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -96,6 +102,7 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
+    from rough_viewer.cli._crop import apply_crop, crop_from_args
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
@@ -125,10 +132,12 @@ def run(args: argparse.Namespace) -> int:
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()
+    box = crop_from_args(args, resolve_units(paths[0], args.units)[0])
 
     quiet = args.quiet
     cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet), paths,
                                   args, unit_in)  # prints its warnings
+    cloud, _ = apply_crop(cloud, box, cloud.source_unit)
     per = per_unit(cloud.source_unit)
     u = UNIT_LABELS[cloud.source_unit]
     if given is not None:  # lengths given in the input's unit

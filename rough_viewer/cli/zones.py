@@ -5,7 +5,9 @@ Contract (other tools script against it)::
     rough-viewer zones INPUT [INPUT ...] --grid G [--grid G2 ...] [--method odr|ols|hybrid]
         [--axis auto|x|y|z] [--threshold T] [--min-cells K] [--connectivity face|edge|vertex]
         [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--units m|mm|ft|us-ft]
-        [--keep-outliers] [--force] [--quiet]
+        [--keep-outliers]
+        [--crop XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [--crop-mode keep|remove] | --crop-file VIEW.json]
+        [--force] [--quiet]
 
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
 :data:`rough_viewer.grid.zones.ZONE_COLUMNS`, always in metres whatever ``--units``
@@ -37,6 +39,7 @@ import math
 
 import numpy as np
 
+from rough_viewer.cli._crop import add_crop_options
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import (
     add_axis,
@@ -94,6 +97,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="per-cell CSV output: compute's columns plus zone, lengths in --units "
                    "as compute writes them")
     add_keep_outliers(p)
+    add_crop_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -152,6 +156,7 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.cli._crop import apply_crop, crop_from_args
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
@@ -177,8 +182,9 @@ def run(args: argparse.Namespace) -> int:
     for path in paths:
         check_table_output(path)
     check_outputs(paths, force=args.force, inputs=inputs)
+    box = crop_from_args(args, unit)
     quiet = args.quiet
-    cloud = load_inputs(inputs, units=args.units, quiet=quiet)
+    cloud, _ = apply_crop(load_inputs(inputs, units=args.units, quiet=quiet), box, unit)
     per, u = per_unit(unit), UNIT_LABELS[unit]
     options = {} if args.min_points is None else {"min_points": args.min_points}
     written: list[str] = []

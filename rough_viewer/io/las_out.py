@@ -17,6 +17,11 @@ Two cases (:func:`write_las_fields` picks):
 
 Rows of the input whose coordinates are not finite are not in the cloud; in a
 copied LAS they are kept with each field's fill value (NaN roughness, no cell).
+
+A cropped cloud (:mod:`rough_viewer.io.crop`) is written with ``keep=`` its mask over
+the cloud read from the file: the copy then holds the kept points only (rows with
+non-finite coordinates, which no crop can keep, are left out too), every dimension
+byte for byte as above.
 """
 
 from __future__ import annotations
@@ -82,11 +87,13 @@ def write_las_fields(
     *,
     progress: ProgressFn | None = None,
     chunk_points: int = COPY_CHUNK,
+    keep: np.ndarray | None = None,
 ) -> str:
     """Write ``cloud`` with per-point ``fields`` as LAS (``.las``) or LAZ (``.laz``),
     atomically. A cloud read from a LAS/LAZ file is copied from that file
-    (:func:`copy_las_with_fields`); any other is written from its coordinates
-    (:func:`write_las_points`).
+    (:func:`copy_las_with_fields`; ``keep`` is the crop's mask over the cloud read
+    from it, when ``cloud`` is a crop); any other is written from its coordinates
+    (:func:`write_las_points`: a cropped cloud is written as it is).
 
     Returns
     -------
@@ -97,7 +104,7 @@ def write_las_fields(
     source = Path(cloud.source) if cloud.source else None
     if source is not None and source.suffix.lower() in LAS_SUFFIXES and source.is_file():
         return copy_las_with_fields(source, path, cloud, fields, progress=progress,
-                                    chunk_points=chunk_points)
+                                    chunk_points=chunk_points, keep=keep)
     return write_las_points(path, cloud, fields, progress=progress, chunk_points=chunk_points)
 
 
@@ -141,6 +148,7 @@ def copy_las_with_fields(
     *,
     progress: ProgressFn | None = None,
     chunk_points: int = COPY_CHUNK,
+    keep: np.ndarray | None = None,
 ) -> str:
     """Copy a LAS/LAZ file point by point, in chunks, adding ``fields`` as extra bytes.
 
@@ -158,6 +166,10 @@ def copy_las_with_fields(
         ``progress(done, total)`` in points.
     chunk_points : int
         Points per chunk (memory grows with it).
+    keep : (M,) bool array, optional
+        A crop: which points of the cloud read from ``source`` (its finite rows, in
+        file order) to write; ``cloud`` and ``fields`` are then the kept points.
+        Rows with non-finite coordinates are left out.
 
     Returns
     -------
@@ -171,21 +183,31 @@ def copy_las_with_fields(
     check_las_output(out, "output")
     if fields.n_points != cloud.n:
         raise InputError(f"{fields.n_points} per-point values for a cloud of {cloud.n} points")
+    read_n = cloud.n
+    if keep is not None:
+        keep = np.asarray(keep, dtype=bool)
+        if keep.ndim != 1 or int(np.count_nonzero(keep)) != cloud.n:
+            raise InputError(f"the crop keeps {int(np.count_nonzero(keep)):,} points but the "
+                             f"cropped cloud has {cloud.n:,}")
+        read_n = int(keep.shape[0])
     chunk_points = max(1, int(chunk_points))
     with foreign_errors(f"cannot read {src}"):
         reader_cm = open_las(src, laz_backend=laz_backend())
     with reader_cm as reader:
         header_in = reader.header
         n_file = int(header_in.point_count)
-        if n_file != cloud.n + cloud.dropped_nonfinite:
+        if n_file != read_n + cloud.dropped_nonfinite:
+            hint = "" if keep is not None else "; a cropped cloud needs its crop mask (keep=)"
             raise InputError(f"{src} has {n_file:,} points but the cloud read from it has "
-                             f"{cloud.n + cloud.dropped_nonfinite:,} (did the file change?)")
+                             f"{read_n + cloud.dropped_nonfinite:,} (did the file change?{hint})")
         header = _output_header(header_in, fields, src)
         size_in = header_in.point_format.size
         size_out = header.point_format.size
         m = min(chunk_points, max(n_file, 1))
         # input and output records, coordinates for the finite check, gathered fields
-        require(m * (2.0 * size_in + 2.0 * size_out + 40.0 + 2.0 * fields.bytes_per_point),
+        # a crop copies the kept records once more
+        copies = 2.0 if keep is None else 3.0
+        require(m * (2.0 * size_in + copies * size_out + 40.0 + 2.0 * fields.bytes_per_point),
                 f"copying {src.name} in chunks of {m:,} points",
                 hint="a smaller chunk size needs less")
         evlrs = header_in.evlrs
@@ -193,7 +215,7 @@ def copy_las_with_fields(
         offsets = np.asarray(header_in.offsets, dtype=np.float64)
 
         def write_to(tmp: Path) -> None:
-            done = kept_total = 0
+            done = kept_total = finite_total = 0
             if progress:
                 progress(0, n_file)
             with laspy.open(tmp, mode="w", header=header, do_compress=out.suffix.lower() == ".laz",
@@ -207,17 +229,33 @@ def copy_las_with_fields(
                     raw_out = record.array.view(np.uint8).reshape(k, size_out)
                     raw_out[:, :size_in] = raw_in
                     kept = _finite_rows(chunk, scales, offsets)
-                    values = fields.gather_rows(kept, kept_total)
+                    n_finite = int(np.count_nonzero(kept))
+                    if keep is None:
+                        values = fields.gather_rows(kept, kept_total)
+                    else:  # a crop: the kept finite rows only
+                        if finite_total + n_finite > read_n:
+                            raise InputError(f"{src} has more finite points than when it "
+                                             "was read (did the file change?)")
+                        rows = kept.copy()
+                        rows[kept] = keep[finite_total:finite_total + n_finite]
+                        finite_total += n_finite
+                        n_rows = int(np.count_nonzero(rows))
+                        if n_rows < k:
+                            record = record[rows]
+                        values = fields.gather(kept_total, kept_total + n_rows)
+                        kept = rows
                     for f, v in zip(fields.fields, values, strict=True):
                         record.array[f.name] = v
-                    writer.write_points(record)
+                    if len(record):
+                        writer.write_points(record)
                     kept_total += int(np.count_nonzero(kept))
                     done += k
                     if progress:
                         progress(done, n_file)
                 if evlrs:
                     writer.write_evlrs(evlrs)
-            if kept_total != fields.n_points or done != n_file:
+            if kept_total != fields.n_points or done != n_file or (
+                    keep is not None and finite_total != read_n):
                 raise InputError(f"{src} gave {done:,} points ({kept_total:,} finite) on the "
                                  f"second read, expected {n_file:,} ({fields.n_points:,} "
                                  "finite): did the file change?")

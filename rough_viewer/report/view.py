@@ -32,9 +32,14 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
                    "threshold_rule": "fixed", "mode": "hard", "detrend": null}],
      "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null},
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
-                "fov_deg": 50.0}}
+                "fov_deg": 50.0},
+     "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"}}
 
-``zones`` and ``camera`` may be ``null``; coordinates are metres in the file's frame.
+``zones``, ``camera`` and ``crop`` may be ``null``, and ``crop`` may be absent (views
+saved before crops existed read as uncropped); coordinates are metres in the file's
+frame. ``crop`` is an axis-aligned box whose points every analysis keeps (``mode``
+``keep``) or drops (``remove``): :class:`rough_viewer.io.crop.CropBox`, also read by
+``compute``, ``report`` and ``zones --crop-file``.
 """
 
 from __future__ import annotations
@@ -51,6 +56,7 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 from rough_viewer._version import __version__
+from rough_viewer.io.crop import CROP_MODES, CropBox
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
 from rough_viewer.vocabulary import (
@@ -194,6 +200,8 @@ class View:
     profiles: tuple[ProfilePick, ...] = ()
     zones: ZoneSettings | None = None
     camera: Camera | None = None
+    crop: CropBox | None = None
+    """The crop every analysis runs on, or None (all points)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -338,6 +346,9 @@ def view_to_dict(view: View) -> dict[str, Any]:
                      for p in d["profiles"]]
     if d["camera"] is not None:
         d["camera"] = {k: list(v) if isinstance(v, tuple) else v for k, v in d["camera"].items()}
+    crop = d.pop("crop")
+    if crop is not None:
+        d["crop"] = {"min": list(crop["lo"]), "max": list(crop["hi"]), "mode": crop["mode"]}
     return d
 
 
@@ -441,7 +452,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     r = _Reader(source)
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera"])
+                 "profiles", "zones", "camera", "crop"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -482,6 +493,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
                        enumerate(r.items(top.get("profiles", []), "profiles", MAX_PROFILES))),
         zones=_optional(top.get("zones"), lambda v: _zones(r, v)),
         camera=_optional(top.get("camera"), lambda v: _camera(r, v)),
+        crop=_optional(top.get("crop"), lambda v: _crop(r, v)),
     )
     return {
         "view": view,
@@ -568,6 +580,15 @@ def _camera(r: _Reader, value: Any) -> Camera:
     return Camera(position=position, look_at=look_at, up=up,
                   fov_deg=r.number(c.get("fov_deg", 50.0), "camera.fov_deg", 0.0, 180.0,
                                    lo_open=True))
+
+
+def _crop(r: _Reader, value: Any) -> CropBox:
+    c = r.obj(value, "crop", ["min", "max"], ["mode"])
+    lo, hi = r.vec3(c["min"], "crop.min"), r.vec3(c["max"], "crop.max")
+    for axis, a, b in zip("xyz", lo, hi, strict=True):
+        if a > b:
+            raise r.fail("crop", f"has its {axis} minimum {a:g} above its maximum {b:g}")
+    return CropBox(lo, hi, r.choice(c.get("mode", "keep"), "crop.mode", CROP_MODES))
 
 
 # ----------------------------------------------------------------------------- files

@@ -190,3 +190,49 @@ def test_with_validates(scan):
     assert view.with_(threshold=0.2).threshold == 0.2
     with pytest.raises(InputError, match="threshold"):
         view.with_(threshold=-1.0)
+
+
+# ----------------------------------------------------------------------------- crop
+
+
+def test_a_crop_is_saved_and_reloaded(scan, tmp_path):
+    from rough_viewer.io.crop import CropBox
+
+    box = CropBox((0.1, -2.0, 0.0), (0.9, 2.0, 0.05), "remove")
+    view = full_view(scan).with_(crop=box)
+    path = save_view(tmp_path / "crop.json", view)
+    doc = json.loads(path.read_text())
+    assert doc["crop"] == {"min": [0.1, -2.0, 0.0], "max": [0.9, 2.0, 0.05], "mode": "remove"}
+    assert load_view(path).view.crop == box
+    assert load_view(path).view == view
+
+
+def test_views_without_a_crop_stay_as_before(scan, tmp_path):
+    """A view saved today (no "crop" key) reads as uncropped; a view without a crop
+    is written without the key, so older versions still read it; null is no crop."""
+    path = save_view(tmp_path / "v.json", full_view(scan))
+    doc = json.loads(path.read_text())
+    assert "crop" not in doc and load_view(path).view.crop is None
+    doc["crop"] = None
+    path.write_text(json.dumps(doc))
+    assert load_view(path).view.crop is None
+    doc["crop"] = {"min": [0, 0, 0], "max": [1, 1, 1]}
+    path.write_text(json.dumps(doc))
+    assert load_view(path).view.crop.mode == "keep"
+
+
+@pytest.mark.parametrize("crop, message", [
+    ({"min": [2, 0, 0], "max": [1, 1, 1]}, "crop has its x minimum 2 above its maximum 1"),
+    ({"min": [0, 0, 0], "max": [1, 1, 1], "mode": "cut"}, "crop.mode must be one of keep, remove"),
+    ({"min": [0, 0, 0], "max": [1, 1, 1], "box": 1}, "crop has an unknown key 'box'"),
+    ({"min": [0, 0], "max": [1, 1, 1]}, "crop.min must be a list of three numbers"),
+    ({"max": [1, 1, 1]}, "crop lacks 'min'"),
+    ({"min": [0, 0, float("inf")], "max": [1, 1, 1]}, "not valid JSON"),
+])
+def test_bad_crops_are_refused_naming_the_field(scan, tmp_path, crop, message):
+    path = save_view(tmp_path / "v.json", full_view(scan))
+    doc = json.loads(path.read_text())
+    doc["crop"] = crop
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=message):
+        load_view(path)
