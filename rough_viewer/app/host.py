@@ -34,6 +34,7 @@ from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.app.state import DEFAULT_MAX_DISPLAY
 from rough_viewer.bias.trust import TrustSettings
+from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import Unit
 
 if TYPE_CHECKING:
@@ -55,7 +56,10 @@ class AppOptions:
     data: DataFolder
     """The folder "Load file" reads from (and saved views are written to)."""
     max_display: int = DEFAULT_MAX_DISPLAY
-    """Most points drawn in the browser (roughness uses every point)."""
+    """Points of the even overview sample (camera framing, point size, highlights);
+    browser tabs draw the cloud by level of detail (``point_budget``)."""
+    point_budget: int = DEFAULT_BUDGET
+    """Most points a browser tab shows at once (``serve --point-budget``)."""
     variogram: bool = True
     """Compute the semivariogram panel."""
     prefetch: bool = True
@@ -186,6 +190,10 @@ class Host(Protocol):
 
     def on_connect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
         """Call ``listener(client)`` when a browser connects (messages to it only)."""
+        ...
+
+    def on_disconnect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
+        """Call ``listener(client)`` when a browser leaves (submit a job)."""
         ...
 
     def cloud_shown(self) -> None:

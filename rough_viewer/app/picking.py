@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rough_viewer.io import PointCloud
+
 
 def ray_distances(
     points: np.ndarray, origin: np.ndarray, direction: np.ndarray
@@ -73,3 +75,39 @@ def pick_point(
     depth = float(along[near].min())
     front_layer = near[along[near] <= depth * (1.0 + 10.0 * tolerance_rad)]
     return int(front_layer[np.argmin(angle[front_layer])])
+
+
+#: Points a pick looks at per chunk (the temporaries of one chunk: about 80 bytes a point).
+PICK_CHUNK = 1 << 20
+
+
+def pick_cloud_point(
+    cloud: PointCloud,
+    origin: np.ndarray,
+    direction: np.ndarray,
+    *,
+    tolerance_rad: float = 0.004,
+) -> int | None:
+    """:func:`pick_point` on every point of ``cloud`` (its frame, metres), in chunks
+    of :data:`PICK_CHUNK` points: a click picks at full resolution, whatever a browser
+    tab shows. Returns an index into the cloud, or None."""
+    n = cloud.n
+    keep_i, keep_p = [], []
+    o = np.asarray(origin, dtype=np.float64)
+    for start in range(0, n, PICK_CHUNK):
+        stop = min(n, start + PICK_CHUNK)
+        pts = np.column_stack([cloud.x[start:stop], cloud.y[start:stop], cloud.z[start:stop]])
+        perp, along = ray_distances(pts, o, direction)
+        front = along > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            close = front & (perp <= 10 * tolerance_rad * along + 1e-300)
+        idx = np.flatnonzero(close)
+        keep_i.append(idx + start)
+        keep_p.append(pts[idx])
+    if not keep_i:
+        return None
+    rows = np.concatenate(keep_i)
+    if rows.size == 0:
+        return None
+    hit = pick_point(np.concatenate(keep_p), o, direction, tolerance_rad=tolerance_rad)
+    return None if hit is None else int(rows[hit])

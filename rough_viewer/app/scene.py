@@ -11,14 +11,20 @@ sizes are plain functions of the loaded cloud.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import viser
 
-from rough_viewer.app.state import CellInfo, LoadedCloud
+from rough_viewer.app.state import CellInfo, Colouring, LoadedCloud
+from rough_viewer.lod.camera import ViewCamera, camera_moved
+from rough_viewer.lod.encode import encode_node, node_scale
+from rough_viewer.lod.octree import Octree
+from rough_viewer.lod.residency import Residency
+from rough_viewer.lod.select import DEFAULT_BUDGET, select_nodes
 from rough_viewer.visual.app import CONTROL_WIDTH
+from rough_viewer.vocabulary import InputError
 
 AXIS_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 AXIS_COLOUR = (230, 60, 40)
@@ -144,10 +150,10 @@ def default_point_size(loaded: LoadedCloud) -> float:
 
 def axis_segment(loaded: LoadedCloud, axis: str) -> tuple[np.ndarray, np.ndarray]:
     """((2, 3) ends, (3,) label position) of the dependent-axis line, display frame:
-    8 % of the cloud's extent long, along ``axis``, under the cloud as the face-on
-    camera draws it (from 3 % of the extent below the point lowest on its screen,
-    perspective included), going away from the rock; the label at its top end,
-    beside it. Never over the rock."""
+    8 % of the cloud's extent long, along ``axis``, under the middle of the cloud as
+    the face-on camera draws it (its top 2 % of the window's height below the point
+    lowest on that camera's screen, perspective included), going away from the rock;
+    the label at its top end, beside it. Never over the rock."""
     pose = camera_pose(loaded, "face-on")
     back = pose.eye - pose.target
     back /= np.linalg.norm(back)
@@ -158,10 +164,15 @@ def axis_segment(loaded: LoadedCloud, axis: str) -> tuple[np.ndarray, np.ndarray
     if len(pts) > 200_000:
         pts = pts[:: len(pts) // 200_000 + 1]
     rel = pts - pose.eye
-    depth = rel @ -back
-    lowest = pts[int(np.argmin((rel @ screen_up) / np.maximum(depth, 1e-12)))]
-    extent = float(np.max(pts.max(axis=0) - pts.min(axis=0))) or 1.0
-    top = lowest - 0.03 * extent * screen_up
+    depth = np.maximum(rel @ -back, 1e-12)
+    t = float(np.tan(0.5 * DEFAULT_FOV))
+    lowest = float(((rel @ screen_up) / depth).min()) * (1.0 / t)  # NDC y of the lowest point
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    extent = float(np.max(hi - lo)) or 1.0
+    centre = 0.5 * (lo + hi)  # the line stands under the middle of the cloud
+    d_c = float((centre - pose.eye) @ -back)
+    y_c = float((centre - pose.eye) @ screen_up) / (d_c * t)
+    top = centre - (y_c - (lowest - 0.04)) * d_c * t * screen_up
     vec = np.asarray(AXIS_VECTORS[axis], dtype=np.float64)
     if float(vec @ screen_up) > 0:  # drawn downwards, away from the rock
         vec = -vec
@@ -178,8 +189,29 @@ def box_edges(centre: np.ndarray, size: float) -> np.ndarray:
     return np.array([[corners[a], corners[b]] for a, b in pairs], dtype=np.float32)
 
 
+@dataclass(eq=False)
+class Tab:
+    """What one browser tab shows of the cloud: its nodes of the octree (level of
+    detail from its own camera)."""
+
+    residency: Residency
+    handles: dict[int, viser.PointCloudHandle] = field(default_factory=dict)
+    camera: ViewCamera | None = None
+    """The camera the tab's nodes were chosen for."""
+    nearest_m: float = float("inf")
+    """Distance to the nearest node shown (how far a camera move shifts the view)."""
+    sent_points: int = 0
+    """Points sent to the tab so far (every node once; a colour change resends none)."""
+
+
 class Scene:
     """The scene of one app (see the module docstring).
+
+    The cloud is shown in every browser tab by level of detail: each tab (viser's
+    per-client scene) holds the nodes of the cloud's octree (:mod:`rough_viewer.lod`)
+    its own camera sees, within the point budget (:meth:`refine`), and every node is
+    coloured by the one :data:`~rough_viewer.app.state.Colouring` of the points
+    (:meth:`colour_by`): the map's, or a feature's (the zones, the sets).
 
     Parameters
     ----------
@@ -187,17 +219,24 @@ class Scene:
         The viser server whose scene this writes.
     require_writer
         ``require_writer(what)`` raises unless the calling thread may write.
+    budget
+        Most points a tab shows at once.
     """
 
-    def __init__(self, server: viser.ViserServer, require_writer: Callable[[str], None]) -> None:
+    def __init__(self, server: viser.ViserServer, require_writer: Callable[[str], None], *,
+                 budget: int = DEFAULT_BUDGET) -> None:
         self._server = server
         self._require = require_writer
-        self.cloud: viser.PointCloudHandle | None = None
-        """The map's cloud: the displayed points, coloured by the map."""
         self.point_size = 0.01
-        """The size of the map's points (metres); clouds added with a ``size_factor``
-        follow it."""
+        """The size of the points (metres); clouds added with a ``size_factor`` follow it."""
+        self.budget = int(budget)
+        """Most points a browser tab shows at once."""
         self._followers: dict[str, tuple[viser.PointCloudHandle, float]] = {}
+        self._loaded: LoadedCloud | None = None
+        self._tree: Octree | None = None
+        self._colouring: Colouring | None = None
+        self.tabs: dict[int, Tab] = {}
+        """Each connected browser's nodes, by client id."""
 
     def _check(self, what: str) -> None:
         self._require(f"the scene ({what})")
@@ -211,38 +250,134 @@ class Scene:
         """Call ``callback`` (on viser's thread pool: submit a job) for each click."""
         self._server.scene.on_click()(callback)
 
-    # ------------------------------------------------------------------ the map's cloud
-    def show_cloud(self, loaded: LoadedCloud, point_size: float) -> viser.PointCloudHandle:
-        """Draw the displayed points of ``loaded`` as the map's cloud (grey until the
-        map colours them), replacing the cloud before."""
+    # ------------------------------------------------------------------ the cloud
+    def show_cloud(self, loaded: LoadedCloud, point_size: float) -> None:
+        """Show ``loaded`` (grey until it is coloured) in every tab, replacing the cloud
+        before: its octree is built here (once per cloud, memory checked)."""
         self._check("show_cloud")
         self.point_size = float(point_size)
-        grey = np.full((loaded.n_display, 3), GREY, dtype=np.uint8)
-        self.cloud = self._server.scene.add_point_cloud(
-            "/cloud", points=loaded.display_points, colors=grey, point_size=self.point_size,
-            point_shape="square", point_shading="flat", precision="float32")
-        return self.cloud
+        tree = loaded.octree()
+        for tab in self.tabs.values():
+            self._drop_nodes(tab)
+            tab.residency = Residency(tree.counts, self.budget)
+        self._loaded, self._tree = loaded, tree
+        grey = np.array([GREY, GREY, GREY], dtype=np.uint8)
+        self._colouring = lambda idx: np.broadcast_to(grey, (len(idx), 3))
+        for client_id in list(self.tabs):
+            self.refine(client_id)
 
-    def colour(self, colours: np.ndarray) -> None:
-        """Colour the map's cloud (one RGB triple per displayed point)."""
-        self._check("colour")
-        assert self.cloud is not None
-        self.cloud.colors = colours
+    def colour_by(self, colouring: Colouring) -> None:
+        """Colour the cloud's points by ``colouring`` in every tab (the nodes it shows
+        now; hidden ones when shown again)."""
+        self._check("colour_by")
+        self._colouring = colouring
+        if self._tree is None:
+            return
+        for tab in self.tabs.values():
+            ids = tab.residency.colours_changed()
+            for k, colours in zip(ids, nodes_colours_of(self._tree, ids, colouring), strict=True):
+                tab.handles[k].colors = colours
 
-    def show_map(self, visible: bool) -> None:
-        """Show or hide the map's cloud (a feature shows its own cloud instead)."""
-        self._check("show_map")
-        if self.cloud is not None:
-            self.cloud.visible = visible
+    def colours(self, idx: np.ndarray) -> np.ndarray:
+        """(K, 3) uint8: the colours points ``idx`` of the cloud show now."""
+        if self._colouring is None:
+            return np.full((len(idx), 3), GREY, dtype=np.uint8)
+        return np.asarray(self._colouring(np.asarray(idx)))
 
     def set_point_size(self, size: float) -> None:
-        """The map's point size (metres); clouds that follow it scale with it."""
+        """The points' size (metres); clouds that follow it scale with it."""
         self._check("set_point_size")
         self.point_size = float(size)
-        if self.cloud is not None:
-            self.cloud.point_size = self.point_size
+        for tab in self.tabs.values():
+            for k, handle in tab.handles.items():
+                handle.point_size = self._node_size(k)
         for node, factor in self._followers.values():
             node.point_size = factor * self.point_size
+
+    def _node_size(self, k: int) -> float:
+        assert self._tree is not None
+        scale = node_scale(float(self._tree.size[k]))
+        return self.point_size / scale
+
+    # ------------------------------------------------------------------ tabs
+    def set_budget(self, budget: int) -> None:
+        """Most points a tab shows (every tab chooses its nodes again)."""
+        self._check("set_budget")
+        self.budget = int(budget)
+        for client_id, tab in self.tabs.items():
+            tab.residency.set_budget(self.budget)
+            tab.camera = None
+            self.refine(client_id)
+
+    def refine(self, client_id: int, *, force: bool = False) -> bool:
+        """Choose the nodes tab ``client_id`` should show for its camera now and send,
+        show, hide or drop nodes to match (the nodes it held are kept hidden until
+        twice the budget). False when the tab has no camera yet or it did not move
+        enough (unless ``force``)."""
+        self._check("refine")
+        client = self._server.get_clients().get(client_id)
+        if client is None or self._tree is None or self._loaded is None:
+            return False
+        tab = self.tabs.get(client_id)
+        if tab is None:
+            tab = self.tabs[client_id] = Tab(Residency(self._tree.counts, self.budget))
+        try:
+            camera = ViewCamera.from_viser(client.camera, self._loaded.origin)
+        except (AssertionError, AttributeError, InputError, ValueError, ZeroDivisionError):
+            return False  # no camera message yet
+        if not (force or tab.camera is None
+                or camera_moved(tab.camera, camera, distance_m=tab.nearest_m)):
+            return False
+        sel = select_nodes(self._tree, camera, tab.residency.budget)
+        plan = tab.residency.plan(sel.nodes)
+        tab.camera, tab.nearest_m = camera, sel.nearest_m
+        for k in plan.evict:
+            handle = tab.handles.pop(k, None)
+            if handle is not None:
+                handle.remove()
+        for k in plan.hide:
+            tab.handles[k].visible = False
+        recolour = set(plan.recolour)
+        for k in plan.show:
+            if k in recolour and self._colouring is not None:
+                tab.handles[k].colors = self._colouring(self._tree.node(k).rows)
+            tab.handles[k].visible = True
+        for k in plan.send:
+            tab.handles[k] = self._send(client, k)
+            tab.sent_points += int(self._tree.counts[k])
+        return True
+
+    def _send(self, client: viser.ClientHandle, k: int) -> viser.PointCloudHandle:
+        assert self._tree is not None and self._loaded is not None
+        node = self._tree.node(k)
+        enc = encode_node(self._loaded.cloud, node)
+        colours = self.colours(node.rows)
+        return client.scene.add_point_cloud(
+            f"/lod/{k}", points=enc.points, colors=colours, point_size=self._node_size(k),
+            point_shape="square", point_shading="flat", precision="float16",
+            position=_vec(enc.centre - self._loaded.origin), scale=enc.scale)
+
+    def drop_tab(self, client_id: int) -> None:
+        """A browser left: forget its nodes."""
+        self._check("drop_tab")
+        self.tabs.pop(client_id, None)
+
+    def _drop_nodes(self, tab: Tab) -> None:
+        for handle in tab.handles.values():
+            handle.remove()
+        tab.handles.clear()
+        tab.camera = None
+
+    def shown_points(self, client_id: int) -> np.ndarray:
+        """Indices of the cloud's points tab ``client_id`` shows now."""
+        tab = self.tabs.get(client_id)
+        if tab is None or self._tree is None:
+            return np.empty(0, dtype=np.int64)
+        ids = tab.residency.shown
+        if not ids:
+            return np.empty(0, dtype=np.int64)
+        return np.concatenate([self._tree.node(k).rows for k in ids])
+
 
     # ------------------------------------------------------------------ nodes
     def add_points(self, name: str, points: np.ndarray, colours: np.ndarray, *,
@@ -415,3 +550,18 @@ def _place(client: viser.ClientHandle, pose: Pose) -> None:
         client.camera.position = _vec(pose.eye)
         client.camera.look_at = _vec(pose.target)
         client.camera.up_direction = _vec(pose.up)
+
+
+def nodes_colours_of(tree: Octree, ids: Sequence[int], colouring: Colouring
+                     ) -> list[np.ndarray]:
+    """The colours of several nodes under ``colouring``: one call for all their points,
+    then one array per node."""
+    if not ids:
+        return []
+    rows = [tree.node(k).rows for k in ids]
+    colours = colouring(np.concatenate(rows))
+    out, at = [], 0
+    for r in rows:
+        out.append(colours[at:at + len(r)])
+        at += len(r)
+    return out

@@ -43,6 +43,7 @@ from rough_viewer.app.state import DEFAULT_MAX_DISPLAY, LoadedCloud, MapSettings
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io import PointCloud
+from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import UNITS, InputError, Unit
 
 __all__ = ["App", "AppOptions", "FEATURES", "build_app"]
@@ -142,6 +143,7 @@ def build_app(
     presets: Sequence[float] | None = None,
     save_views: bool = False,
     trust: TrustSettings | None = None,
+    point_budget: int = DEFAULT_BUDGET,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -157,7 +159,11 @@ def build_app(
         (the finest of its presets, from the point spacing:
         :func:`rough_viewer.app.state.grid_presets`).
     max_display
-        Most points drawn in the browser (roughness uses every point).
+        Points of the even overview sample (camera framing, point size, highlights;
+        roughness uses every point).
+    point_budget
+        Most points a browser tab shows at once: each tab gets the nodes of the
+        cloud's octree its camera sees (level of detail, :mod:`rough_viewer.lod`).
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
     prefetch
@@ -196,7 +202,7 @@ def build_app(
     options = AppOptions(data=data, max_display=max_display, variogram=variogram,
                          prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
                          cache_bytes=int(cache_bytes), units=units, save_views=save_views,
-                         trust=trust)
+                         trust=trust, point_budget=int(point_budget))
     loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
                          presets=tuple(presets) if presets is not None else None,
                          trust_settings=trust)

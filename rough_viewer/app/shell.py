@@ -70,7 +70,7 @@ class Shell:
                                             max_pending=MAX_PENDING_JOBS,
                                             max_records=MAX_JOB_RECORDS)
         self._session = Session(shown, self.worker.require_worker)
-        self._scene = Scene(server, self.worker.require_worker)
+        self._scene = Scene(server, self.worker.require_worker, budget=options.point_budget)
         self.controls = ClientValues(server, self.notify_client)
         """The checks of every value a browser sends."""
         self.uploads = Uploads(
@@ -171,6 +171,9 @@ class Shell:
 
     def on_connect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
         self.server.on_client_connect(listener)
+
+    def on_disconnect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
+        self.server.on_client_disconnect(listener)
 
     def cloud_shown(self) -> None:
         self.worker.require_worker("the new-cloud event")

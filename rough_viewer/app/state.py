@@ -36,6 +36,7 @@ from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.grid.summary import normalise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.io import PointCloud
+from rough_viewer.lod.octree import Octree, build_octree
 from rough_viewer.report.build import SPARSE_SHARE
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.layers import (
@@ -329,6 +330,7 @@ class LoadedCloud:
     _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid | CellTrust] = \
         field(init=False, repr=False)
     _layers: dict[str, ColourLayer] = field(init=False, repr=False)
+    _octree: Octree | None = field(init=False, repr=False, default=None)
     _shown_key: tuple[str, tuple[float, str, int]] | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -407,6 +409,44 @@ class LoadedCloud:
         if made is not None:
             self._cache.put(key, made)
         return made
+
+    def octree(self) -> Octree:
+        """The level-of-detail octree of every point (built once, memory checked:
+        :func:`rough_viewer.lod.octree.build_octree`); browser tabs get its nodes."""
+        if self._octree is None:
+            self._octree = build_octree(self.cloud)
+        return self._octree
+
+    def layer_colouring(self, name: ColourLayerName, result: GridRoughness) -> Colouring:
+        """The colouring of colour layer ``name`` (not ``roughness``) for any points:
+        the layer's colour range is resolved once, on the displayed points
+        (:meth:`layer`); a scanner figure is per cell of ``result``."""
+        if name in TRUST_FIELDS:
+            trust = self.trust(result)
+            if trust is None:
+                self.cell_layer(name, result)  # InputError: no positions
+            assert trust is not None
+            cells = trust.layer(name)
+            rng = self.cell_layer(name, result).colour_range
+            return by_cell(trust_layer(name, cells, colour_range=rng).colours, result.point_cell)
+        shown = self.layer(name)  # InputError when the cloud lacks it
+        cloud = self.cloud
+        if name == "rgb":
+            assert cloud.rgb is not None
+            rgb = np.asarray(cloud.rgb)
+            return lambda idx: rgb_layer(rgb[idx]).colours
+        if name == "intensity":
+            assert cloud.intensity is not None
+            values = np.asarray(cloud.intensity)
+            return lambda idx: intensity_layer(values[idx], colour_range=shown.colour_range).colours
+        plane = self.plane
+
+        def distance(idx: np.ndarray) -> np.ndarray:
+            xyz = np.column_stack([cloud.x[idx], cloud.y[idx], cloud.z[idx]])
+            return plane_distance_layer(face_plane_distance(xyz, plane),
+                                        colour_range=shown.colour_range).colours
+
+        return distance
 
     def cell_layer(self, name: ColourLayerName, result: GridRoughness) -> ColourLayer:
         """The colours of the displayed points for a per-cell scanner figure of
@@ -547,6 +587,38 @@ def shown_outliers(result: GridRoughness, settings: MapSettings) -> np.ndarray |
     return mask if mask.any() else None
 
 
+Colouring = Callable[[np.ndarray], np.ndarray]
+"""What colours the points: ``colouring(idx)`` gives the (K, 3) uint8 colours of cloud
+points ``idx`` (indices into the loaded cloud), for any subset (the nodes a browser
+tab shows)."""
+
+
+def by_cell(cell_rgb: np.ndarray, point_cell: np.ndarray) -> Colouring:
+    """The colouring that gives each point its cell's colour ((M, 3) ``cell_rgb``)."""
+    def colouring(idx: np.ndarray) -> np.ndarray:
+        return cell_rgb[point_cell[idx]]
+
+    return colouring
+
+
+def cell_colours(
+    result: GridRoughness,
+    settings: MapSettings,
+    *,
+    colours_range: colormaps.ColourRange | None = None,
+) -> np.ndarray:
+    """(M, 3) uint8 colour of every cell of the shown map (see :func:`point_colours`)."""
+    out = shown_outliers(result, settings)
+    if settings.display == "binary":
+        norm = normalised_map(result, settings)
+        with np.errstate(invalid="ignore"):
+            flags = norm >= settings.threshold
+        return colormaps.apply_binary(flags, np.isfinite(norm), settings.colormap, outliers=out)
+    rng = colours_range if colours_range is not None else colour_range(result, settings)
+    return colormaps.stretch_colours(map_values(result, settings), rng, settings.colormap,
+                                     outliers=out)
+
+
 def point_colours(
     result: GridRoughness,
     settings: MapSettings,
@@ -565,18 +637,8 @@ def point_colours(
     :data:`colormaps.OUTLIER_RGB`. ``colours_range`` may pass a precomputed
     :func:`colour_range`.
     """
-    cell = result.point_cell[point_index]
-    out = shown_outliers(result, settings)
-    per_cell_out = None if out is None else out[cell]
-    if settings.display == "binary":
-        per_point = normalised_map(result, settings)[cell]
-        valid = np.isfinite(per_point)
-        with np.errstate(invalid="ignore"):
-            flags = per_point >= settings.threshold
-        return colormaps.apply_binary(flags, valid, settings.colormap, outliers=per_cell_out)
-    rng = colours_range if colours_range is not None else colour_range(result, settings)
-    return colormaps.stretch_colours(map_values(result, settings)[cell], rng, settings.colormap,
-                                     outliers=per_cell_out)
+    return cell_colours(result, settings, colours_range=colours_range)[
+        result.point_cell[point_index]]
 
 
 @dataclass(frozen=True)

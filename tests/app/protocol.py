@@ -46,10 +46,21 @@ class ProtocolClient:
         self._zstd = zstandard.ZstdDecompressor()
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
-        self.send({"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0],
-                   "position": [0.0, -3.0, 1.0], "fov": 1.0, "near": 0.01, "far": 1000.0,
-                   "image_height": 800, "image_width": 1280, "look_at": [0.0, 0.0, 0.0],
-                   "up_direction": [0.0, 0.0, 1.0]})
+        self.look_from((0.0, -3.0, 1.0), (0.0, 0.0, 0.0))
+
+    def look_from(self, position: Any, look_at: Any, *, fov: float = 1.0,
+                  width: int = 1280, height: int = 800) -> None:
+        """Send this tab's camera: at ``position`` looking at ``look_at`` (the scene's
+        frame), z up, as a browser reports it (viser's camera frame: x right, y down,
+        z forward)."""
+        from rough_viewer.lod.camera import ViewCamera
+
+        cam = ViewCamera.looking_at(position, look_at, fov_rad=fov, aspect=width / height,
+                                    height_px=height)
+        self.send({"type": "ViewerCameraMessage", "wxyz": [float(v) for v in cam.wxyz],
+                   "position": [float(v) for v in position], "fov": fov, "near": 0.01,
+                   "far": 1e6, "image_height": height, "image_width": width,
+                   "look_at": [float(v) for v in look_at], "up_direction": [0.0, 0.0, 1.0]})
 
     def _read(self) -> None:
         try:
@@ -188,3 +199,9 @@ def pick(app: Any, origin: Any, direction: Any, timeout: float = 60.0) -> Any:
     app.submit(PickJob(app.map, (o[0], o[1], o[2]), (d[0], d[1], d[2])))
     assert app.wait_idle(timeout)
     return app.session.last_pick if len(app.map.pick_timings) > before else None
+
+
+def shown_colours(app: Any) -> Any:
+    """The colours the points of the overview sample show now (what every tab's nodes
+    are coloured by, read at those points)."""
+    return app.host.scene.colours(app.session.shown.loaded.display_index)

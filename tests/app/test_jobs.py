@@ -19,7 +19,7 @@ from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import App, build_app
 from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
-from tests.app.protocol import join, settle
+from tests.app.protocol import join, settle, shown_colours
 from tests.helpers import PAPER_PRESETS
 
 #: Fixed presets for tests about the job pipeline, not the data's grid.
@@ -155,7 +155,7 @@ def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, cloud, monkeypatc
 
     app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
-    before = app.host.scene.cloud.colors.copy()
+    before = shown_colours(app).copy()
     monkeypatch.setattr(memory, "available_bytes", lambda: 1e6)
     app.map.grid_free.value = 0.002
     assert app.wait_idle(60)
@@ -164,7 +164,7 @@ def test_a_fine_grid_that_cannot_fit_ends_in_a_message(server, cloud, monkeypatc
     assert app.host.error.visible and "previous view is kept" in app.host.error.content
     # the view and the controls are the previous ones
     assert app.session.shown.settings.cell_size == 0.25 and app.map.grid.value == "0.25"
-    assert np.array_equal(app.host.scene.cloud.colors, before)
+    assert np.array_equal(shown_colours(app), before)
     monkeypatch.undo()
     app.map.grid.value = "0.5"  # the server is still up and answers
     assert app.wait_idle(60) and app.session.shown.settings.cell_size == 0.5

@@ -13,7 +13,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.io import PointCloud
 from rough_viewer.visual.layers import trust_layer
 from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, COLOUR_LAYERS, TRUST_FIELDS
-from tests.app.protocol import pick
+from tests.app.protocol import pick, shown_colours
 from tests.helpers import ray_grid, scan_plane
 
 SCANNER = np.array([0.0, -8.0, 1.5])
@@ -58,7 +58,7 @@ def test_scanner_layers_colour_the_points_and_the_cell_report_says_them(scanned)
     assert app.wait_idle(120) and list(app.host.errors) == []
     want = trust_layer("incidence_deg",
                        trust.layer("incidence_deg")[ref.point_cell[loaded.display_index]])
-    np.testing.assert_array_equal(app.host.scene.cloud.colors, want.colours)
+    np.testing.assert_array_equal(shown_colours(app), want.colours)
     assert "Scanner: incidence angle" in app.map.colour_bar.figure.layout.title.text
     app.map.layer.value = COLOUR_LAYER_LABELS["range"]
     assert app.wait_idle(120)

@@ -15,7 +15,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from tests.app.protocol import pick
+from tests.app.protocol import pick, shown_colours
 
 
 def expected_colours(app, cloud, cell, name, cmap="viridis"):
@@ -42,8 +42,8 @@ def test_first_view_is_odr_at_the_default_grid(app, cloud):
     assert loaded.presets == (0.64, 0.32, 0.16, 0.08)
     assert app.map.grid.options == ("0.64", "0.32", "0.16", "0.08", "free")
     assert app.map.grid.value == "0.08" and app.session.shown.settings.cell_size == 0.08
-    assert np.array_equal(app.host.scene.cloud.colors, expected_colours(app, cloud, 0.08, "odr"))
-    assert "40,000 points shown of 40,000 used" in app.host.status.content
+    assert np.array_equal(shown_colours(app), expected_colours(app, cloud, 0.08, "odr"))
+    assert "40,000 points, each tab draws up to 3,000,000" in app.host.status.content
     assert "auto chose **y**" in app.map.axis_note.content
     fig = app.map.colour_bar.figure
     title = fig.layout.title.text
@@ -59,12 +59,12 @@ def test_first_view_is_odr_at_the_default_grid(app, cloud):
 
 
 def test_grid_and_model_change_colours_and_panels(app, cloud):
-    before = app.host.scene.cloud.colors.copy()
+    before = shown_colours(app).copy()
     app.map.grid.value = "0.16"
     assert app.wait_idle(60)
     assert app.map.grid_free.value == 0.16
     assert app.session.shown.result.grid.cell_size == 0.16
-    now = app.host.scene.cloud.colors
+    now = shown_colours(app)
     assert not np.array_equal(before, now)
     assert np.array_equal(now, expected_colours(app, cloud, 0.16, "odr"))
     # histogram panel: ODR and OLS fractions equal the core's 0.05-bin histogram
@@ -79,7 +79,7 @@ def test_grid_and_model_change_colours_and_panels(app, cloud):
 
     app.map.model.value = "OLS"
     assert app.wait_idle(60)
-    assert np.array_equal(app.host.scene.cloud.colors, expected_colours(app, cloud, 0.16, "ols"))
+    assert np.array_equal(shown_colours(app), expected_colours(app, cloud, 0.16, "ols"))
     assert [t.name for t in app.feature(PanelsFeature).variogram.figure.data] == ["OLS", "ODR", "e_OLS"]
     table = app.feature(PanelsFeature).summary.figure.data[0]
     assert list(table.cells.values[0]) == ["ODR", "OLS", "hybrid", "e_OLS"]
@@ -112,17 +112,17 @@ def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
     app.map.display.value = "binary"
     app.map.threshold.value = 0.3
     assert app.wait_idle(60)
-    colours = app.host.scene.cloud.colors
+    colours = shown_colours(app)
     lut = colormaps.lut("viridis")
     distinct = {tuple(c) for c in np.unique(colours, axis=0)}
     assert distinct <= {tuple(lut[0]), tuple(lut[-1]), colormaps.NEUTRAL_RGB}
     rough = np.all(colours == lut[-1], axis=1).mean()
     app.map.threshold.value = 0.8
     assert app.wait_idle(60)
-    assert np.all(app.host.scene.cloud.colors == lut[-1], axis=1).mean() < rough
+    assert np.all(shown_colours(app) == lut[-1], axis=1).mean() < rough
     app.map.colormap.value = "magma"
     assert app.wait_idle(60)
-    assert {tuple(c) for c in np.unique(app.host.scene.cloud.colors, axis=0)} <= {
+    assert {tuple(c) for c in np.unique(shown_colours(app), axis=0)} <= {
         tuple(colormaps.lut("magma")[0]), tuple(colormaps.lut("magma")[-1]),
         colormaps.NEUTRAL_RGB}
     assert calls == []  # every change above reused the cached planes
@@ -133,7 +133,7 @@ def test_e_ols_gets_a_sequential_map_and_toggle_button(app, cloud):
     app.map.model.value = "OLS error e_ols"
     assert app.wait_idle(60)
     assert app.session.shown.settings.colormap == "magma"  # e_ols >= 0: sequential, not diverging
-    assert np.array_equal(app.host.scene.cloud.colors,
+    assert np.array_equal(shown_colours(app),
                           expected_colours(app, cloud, 0.08, "e_ols", "magma"))
     app.map.model.value = "ODR"
     app.map.toggle.value = True  # fires on_click like a browser press
@@ -155,12 +155,12 @@ def test_axis_choice_and_free_grid(app):
 
 
 def test_bad_grid_keeps_previous_view(app):
-    before = app.host.scene.cloud.colors.copy()
+    before = shown_colours(app).copy()
     app.map.grid_free.value = 0.00001
     assert app.wait_idle(60)
     assert app.host.errors and "too small" in app.host.errors[-1]
     assert app.host.error.visible and "previous view" in app.host.error.content
-    assert np.array_equal(app.host.scene.cloud.colors, before)
+    assert np.array_equal(shown_colours(app), before)
     assert app.map.grid.value == "0.08" and app.session.shown.settings.cell_size == 0.08
     app.map.grid.value = "0.32"  # a good change clears the message
     assert app.wait_idle(60)
@@ -197,7 +197,7 @@ def test_load_files_from_the_data_folder_and_an_upload(server, cloud, tmp_path):
     assert app.wait_idle(60)
     assert app.session.shown.loaded.n_total == len(xyz)
     assert "quarter.npy" in app.host.status.content
-    assert len(app.host.scene.cloud.colors) == len(xyz)
+    assert len(shown_colours(app)) == len(xyz)
     app.load(path=str(data / "quarter.npy"))  # an absolute path inside is fine
     assert app.wait_idle(60) and app.session.shown.loaded.n_total == len(xyz)
     up = tmp_path / "upload-1.xyz"
@@ -246,15 +246,15 @@ def test_click_reports_cell(app, cloud):
     assert [t.name for t in app.map.scales.figure.data] != ["ODR", "OLS", "hybrid"]
 
 
-def test_big_cloud_is_thinned_for_display(server):
+def test_big_cloud_has_an_even_overview_sample(server):
     rng = np.random.default_rng(2)
     xyz = np.column_stack([rng.uniform(0, 3, 30_000), rng.normal(0, 0.002, 30_000),
                            rng.uniform(0, 3, 30_000)])
     app = build_app(server, PointCloud.from_xyz(xyz), max_display=5_000)
     assert app.wait_idle(60)
-    assert len(app.host.scene.cloud.points) == 5_000
+    assert app.session.shown.loaded.n_display == 5_000  # framing, point size, highlights
     assert app.session.shown.result.point_cell.shape == (30_000,)
-    assert "5,000 points shown of 30,000 used" in app.host.status.content
+    assert "30,000 points, each tab draws up to" in app.host.status.content
     app.stop()
 
 

@@ -12,6 +12,7 @@ import pytest
 
 from rough_viewer.app.session import Session, Shown
 from rough_viewer.app.worker import Job, NotOnWorker, Run
+from tests.app.protocol import shown_colours
 
 
 def test_a_session_write_from_another_thread_fails(app):
@@ -26,17 +27,17 @@ def test_a_session_write_from_another_thread_fails(app):
 
 
 def test_a_scene_write_from_another_thread_fails(app):
-    before = np.asarray(app.host.scene.cloud.colors).copy()
+    before = np.asarray(shown_colours(app)).copy()
     grey = np.zeros_like(before)
-    for write in (lambda: app.host.scene.colour(grey),
+    for write in (lambda: app.host.scene.colour_by(lambda idx: grey[:len(idx)]),
                   lambda: app.host.scene.set_point_size(0.5),
-                  lambda: app.host.scene.show_map(False),
+                  lambda: app.host.scene.set_budget(10),
                   lambda: app.host.scene.marker("/x", np.zeros(3)),
                   lambda: app.host.scene.move_cameras(app.session.shown.loaded, "top")):
         with pytest.raises(NotOnWorker, match="the scene"):
             write()
-    np.testing.assert_array_equal(app.host.scene.cloud.colors, before)
-    assert app.host.scene.cloud.visible
+    np.testing.assert_array_equal(shown_colours(app), before)
+    assert app.host.scene.point_size != 0.5 and app.host.scene.budget != 10
 
 
 @dataclass(frozen=True)

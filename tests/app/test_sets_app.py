@@ -14,7 +14,7 @@ from rough_viewer.app.state import MapSettings
 from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import JOINT_BLOCK, generate_joint_block
 from rough_viewer.visual.sets import point_colours
-from tests.app.protocol import pick
+from tests.app.protocol import pick, shown_colours
 
 G = 0.25
 
@@ -43,9 +43,9 @@ def test_the_planted_sets_are_found_and_the_rock_coloured_by_them(sapp, block):
     assert f.sets is not None and f.sets.n_sets == ref.n_sets == 3
     np.testing.assert_array_equal(f.sets.cell_set, ref.cell_set)
     loaded = app.session.shown.loaded
-    np.testing.assert_array_equal(f.cloud_node.colors,
+    np.testing.assert_array_equal(shown_colours(app),
                                   point_colours(ref, res.point_cell[loaded.display_index]))
-    assert f.cloud_node.visible and not app.host.scene.cloud.visible
+    assert app.map.overlay is f
     assert not app.map.colour_bar.visible
     assert "**3 sets**" in f.status.content
     assert f.selected.options == (NO_SET, *(set_option(ref, k) for k in (1, 2, 3)))
@@ -53,10 +53,10 @@ def test_the_planted_sets_are_found_and_the_rock_coloured_by_them(sapp, block):
     f.colour_by.value = "plane"  # the same sets, coloured by plane
     assert app.wait_idle(60)
     np.testing.assert_array_equal(
-        f.cloud_node.colors, point_colours(ref, res.point_cell[loaded.display_index], by="plane"))
+        shown_colours(app), point_colours(ref, res.point_cell[loaded.display_index], by="plane"))
     f.on.value = False
     assert app.wait_idle(60)
-    assert not f.cloud_node.visible and app.host.scene.cloud.visible
+    assert app.map.overlay is None
 
 
 def test_a_click_selects_the_set_under_it_and_its_planes_are_listed(sapp):
@@ -80,11 +80,10 @@ def test_zones_and_sets_take_turns_on_the_points(sapp):
     z = app.feature(ZonesFeature)
     z.on.value = True  # the zones take the points: the sets let go
     assert app.wait_idle(60)
-    assert not f.on.value and not f.cloud_node.visible and z.cloud_node.visible
+    assert not f.on.value and app.map.overlay is z
     f.on.value = True  # and back
     assert app.wait_idle(60)
-    assert not z.on.value and not z.cloud_node.visible and f.cloud_node.visible
-    assert not app.host.scene.cloud.visible
+    assert not z.on.value and app.map.overlay is f
 
 
 def test_the_tab_settings_reach_the_sets(sapp, block):

@@ -22,7 +22,7 @@ from rough_viewer.grid.threshold import map_threshold_advice
 from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
-from tests.app.protocol import pick
+from tests.app.protocol import pick, shown_colours
 from tests.grid.test_outliers import leaning_wall
 
 
@@ -44,7 +44,7 @@ def test_outlier_cells_are_left_out_in_their_own_colour_or_kept(wall):
     assert out.any() and not out.all()
     shown = app.session.shown
     idx = shown.loaded.display_index
-    colours = np.asarray(app.host.scene.cloud.colors)
+    colours = np.asarray(shown_colours(app))
     in_outlier = out[ref.point_cell[idx]]
     assert np.all(colours[in_outlier] == colormaps.OUTLIER_RGB)
     assert not np.any(np.all(colours[~in_outlier] == colormaps.OUTLIER_RGB, axis=1))
@@ -61,7 +61,7 @@ def test_outlier_cells_are_left_out_in_their_own_colour_or_kept(wall):
     # kept: coloured by their value like every cell, the stretch reaches them
     app.map.keep_outliers.value = True
     assert app.wait_idle(60)
-    colours = np.asarray(app.host.scene.cloud.colors)
+    colours = np.asarray(shown_colours(app))
     assert not np.any(np.all(colours == colormaps.OUTLIER_RGB, axis=1))
     assert app.session.shown.stats.theta_max == pytest.approx(np.nanmax(ref.theta_hybrid))
     assert "they take part" in app.host.notice.content

@@ -34,7 +34,7 @@ from rough_viewer.report.view import (
 from rough_viewer.visual.colormaps import Stretch
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
-from tests.app.protocol import ProtocolClient
+from tests.app.protocol import ProtocolClient, shown_colours
 from tests.helpers import PAPER_PRESETS
 from tests.io.test_las_out import make_pf3
 
@@ -115,7 +115,7 @@ def test_view_saved_and_reopened_gives_the_same_picture(scan):
         assert (s1.cell_size, s1.model, s1.display, s1.threshold, s1.colormap) == \
             (0.5, "ols", "binary", 0.3, "cividis")
         # the same colours went to the scene, and they are the settings' colours
-        c1, c2 = np.asarray(app1.host.scene.cloud.colors), np.asarray(app2.host.scene.cloud.colors)
+        c1, c2 = np.asarray(shown_colours(app1)), np.asarray(shown_colours(app2))
         np.testing.assert_array_equal(c2, c1)
         loaded = app2.session.shown.loaded
         np.testing.assert_array_equal(

@@ -19,7 +19,7 @@ from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.server import build_app
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.visual import colormaps
-from tests.app.protocol import pick
+from tests.app.protocol import pick, shown_colours
 from tests.helpers import face_cloud, write_las_with_colours
 
 # ----------------------------------------------------------------------------- colours
@@ -48,7 +48,7 @@ def test_percentiles_log_absolute_and_typed_limits_in_mm(app):
     t = np.clip((theta - st.lo) / (st.hi - st.lo), 0, 1)
     want = colormaps.lut("viridis")[np.round(np.nan_to_num(t) * 255).astype(int)]
     want[~np.isfinite(theta)] = colormaps.NEUTRAL_RGB
-    assert np.array_equal(app.host.scene.cloud.colors, want)
+    assert np.array_equal(shown_colours(app), want)
     assert f"absolute {lo_mm:g}–3 mm, linear" in g.colour_bar.figure.layout.xaxis.title.text
     # the pinned range stays on another grid size: one colour, one roughness
     g.grid.value = "0.32"
@@ -68,7 +68,7 @@ def test_percentiles_log_absolute_and_typed_limits_in_mm(app):
 
 
 def test_no_colour_covers_half_the_points_at_the_default_stretch(app):
-    colours = app.host.scene.cloud.colors
+    colours = shown_colours(app)
     _, counts = np.unique(colours, axis=0, return_counts=True)
     assert counts.max() / len(colours) < 0.5
     res = app.session.shown.result
@@ -95,11 +95,11 @@ def test_rgb_intensity_and_distance_layers(server, tmp_path):
     g.layer.value = "scan colours (RGB)"
     assert app.wait_idle(60)
     assert app.session.shown.settings.layer == "rgb"
-    assert np.array_equal(app.host.scene.cloud.colors, rgb8[idx])  # 16-bit back to 8-bit exactly
+    assert np.array_equal(shown_colours(app), rgb8[idx])  # 16-bit back to 8-bit exactly
     assert "no colour scale" in g.colour_bar.figure.layout.title.text
     g.layer.value = "intensity"
     assert app.wait_idle(60)
-    grey = app.host.scene.cloud.colors.astype(int)
+    grey = shown_colours(app).astype(int)
     assert np.all(grey[:, 0] == grey[:, 1])  # grey levels, brighter with intensity
     order = np.argsort(intensity[idx])
     assert grey[order[-50:], 0].mean() > grey[order[:50], 0].mean() + 150
@@ -110,7 +110,7 @@ def test_rgb_intensity_and_distance_layers(server, tmp_path):
     centre = xyz.mean(axis=0)
     normal = np.linalg.svd(xyz - centre, full_matrices=False)[2][-1]
     d = (xyz[idx] - centre) @ normal
-    c = app.host.scene.cloud.colors.astype(int)
+    c = shown_colours(app).astype(int)
     warm = c[:, 0] > c[:, 2]
     far = np.abs(d) > np.percentile(np.abs(d), 60)
     agree = np.mean((warm == (d * np.sign(normal[np.argmax(np.abs(normal))]) > 0))[far])

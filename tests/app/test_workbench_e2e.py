@@ -15,6 +15,7 @@ import pytest
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.visual import colormaps
 from tests.app import browser as b
+from tests.app.protocol import shown_colours
 from tests.helpers import face_cloud, write_las_with_colours
 from tests.visual import figure_browser as fb
 
@@ -81,7 +82,7 @@ def test_no_colour_covers_half_of_the_drawn_demo_at_the_default_stretch(demo):
     page.get_by_text("percentiles 2–98, log").first.wait_for()  # the colour bar says which
     rgba = b.canvas_rgba(page)
     share, n = b.drawn_colour_share(rgba, colormaps.lut("viridis"))
-    sent = app.host.scene.cloud.colors
+    sent = shown_colours(app)
     _, counts = np.unique(sent, axis=0, return_counts=True)
     print(f"\nlargest colour: {share:.3f} of {n:,} drawn cloud pixels, "
           f"{counts.max() / len(sent):.3f} of the {len(sent):,} colours sent")

@@ -17,13 +17,13 @@ from rough_viewer.app.features.zones import (
 )
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.state import MapSettings, point_colours
 from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.io import PointCloud
 from rough_viewer.report.view import ZoneSettings
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import InputError, hex_to_rgb
-from tests.app.protocol import join, pick, settle
+from tests.app.protocol import join, pick, settle, shown_colours
 from tests.helpers import PAPER_PRESETS, banded_face
 
 #: Three rough bands (1 cm noise on a 1 mm face): along strike, at 60 and -30 degrees.
@@ -79,21 +79,27 @@ def test_planted_bands_become_three_zones_in_their_colours(zapp, banded):
     point_zone = want[app.session.shown.result.point_cell]
     held = [int(np.bincount(band[point_zone == k] + 1).argmax()) - 1 for k in (1, 2, 3)]
     assert sorted(held) == [0, 1, 2] and held[0] == 0
-    # the scene: the zone cloud replaces the map's cloud; each shown point in its zone's
-    # colour, light grey in no zone (every cell of this face has a value)
-    assert m.cloud_node is not None and m.cloud_node.visible and not app.host.scene.cloud.visible
+    # the scene: the points show their zone's colour instead of the map's, light grey in
+    # no zone (every cell of this face has a value)
+    assert app.map.overlay is m
     assert not app.map.colour_bar.visible  # the points show zones: no roughness colour bar
     per_point = shown_point_labels(app, want)
     palette = np.array([hex_to_rgb(c) for c in colormaps.ZONE_PALETTE])
     expect = np.where(per_point[:, None] > 0, palette[np.maximum(per_point, 1) - 1],
                       np.asarray(NO_ZONE_RGB))
-    assert np.array_equal(m.cloud_node.colors, expect)
-    assert np.array_equal(m.cloud_node.points, app.session.shown.loaded.display_points)
+    assert np.array_equal(shown_colours(app), expect)
+    every = np.arange(app.session.shown.loaded.n_total)  # at full resolution too
+    full = want[app.session.shown.result.point_cell]
+    assert np.array_equal(app.host.scene.colours(every),
+                          np.where(full[:, None] > 0, palette[np.maximum(full, 1) - 1],
+                                   np.asarray(NO_ZONE_RGB)))
     assert "**3 zones**" in m.status.content and list(app.host.errors) == []
     m.on.value = False  # back to the map
     assert app.wait_idle(60)
-    assert app.host.scene.cloud.visible and not m.cloud_node.visible
-    assert app.map.colour_bar.visible
+    assert app.map.overlay is None and app.map.colour_bar.visible
+    assert np.array_equal(shown_colours(app), point_colours(
+        app.session.shown.result, app.session.shown.settings,
+        app.session.shown.loaded.display_index))  # the map's colours are back
 
 
 def test_table_and_list_are_sorted_largest_first(zapp):
@@ -242,20 +248,19 @@ def test_saved_view_settings_round_trip(zapp):
                                         selected=2)
     m.apply(None)
     assert app.wait_idle(60)
-    assert not m.active and app.host.scene.cloud.visible and not m.cloud_node.visible
+    assert not m.active and app.map.overlay is None
     with pytest.raises(InputError):
         m.apply(ZoneSettings(min_cells=0))
 
 
 def test_another_cloud_gets_its_own_zone_cloud(zapp, banded):
     app, m = zapp
-    first = m.cloud_node
+    first = m.colouring
     pts, _ = banded_face(90.0, 180.0, BANDS[:1], rough=0.01, n=40_000, seed=9)
     app.load(cloud=PointCloud.from_xyz(pts, source="one band"))
     assert app.wait_idle(60)
-    assert m.cloud_node is not first and m.labelling.loaded is app.session.shown.loaded
-    assert np.array_equal(m.cloud_node.points, app.session.shown.loaded.display_points)
-    assert m.labelling.n_zones == 1 and not app.host.scene.cloud.visible
+    assert m.colouring is not first and m.labelling.loaded is app.session.shown.loaded
+    assert m.labelling.n_zones == 1 and app.map.overlay is m
 
 
 @pytest.fixture

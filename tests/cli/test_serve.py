@@ -71,7 +71,7 @@ def _labels_and_status(proc_args):
         grid = client.wait_for(lambda m: m.get("type") == "GuiDropdownMessage"
                                and str(m["props"].get("label", "")).startswith("Grid size"),
                                what="the grid dropdown")
-        status = client.wait_for(lambda m: "points shown of" in str(m), what="the status")
+        status = client.wait_for(lambda m: "each tab draws up to" in str(m), what="the status")
         return grid["props"]["label"], tuple(grid["props"]["options"]), grid["value"], str(status)
     finally:
         client.close()

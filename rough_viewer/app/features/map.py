@@ -30,6 +30,7 @@ followed at once by a control change shows the new file with the new settings.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -47,22 +48,24 @@ from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, limit_step, round_limit, set_figure
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.picking import pick_point
+from rough_viewer.app.picking import pick_cloud_point
 from rough_viewer.app.session import Shown
 from rough_viewer.app.state import (
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
     CellInfo,
+    Colouring,
     DisplayMode,
     LoadedCloud,
     MapSettings,
     MapStats,
     Units,
+    by_cell,
+    cell_colours,
     cell_info,
     check_settings,
     map_stats,
-    point_colours,
 )
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.trust import CellTrust
@@ -70,6 +73,7 @@ from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
 from rough_viewer.io import PointCloud
+from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.report.view import Camera, ColourSettings, View
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.app import colour_bar_figure, colour_scale_figure, panel_aspect
@@ -110,6 +114,10 @@ L_DISPLAY = "Display"
 L_THRESHOLD = "Threshold"
 L_MIN_POINTS = "Min points per cell"
 L_POINT_SIZE = "Point size"
+L_BUDGET = "Point budget"
+#: The point budget control's range.
+MIN_BUDGET = 10_000
+MAX_BUDGET = 50_000_000
 L_COLORMAP = "Colour map"
 L_LAYER = "Colour by"
 L_STRETCH = "Colour stretch"
@@ -436,6 +444,8 @@ class MapFeature:
     range_lo: viser.GuiNumberHandle[float]
     range_hi: viser.GuiNumberHandle[float]
     point_size: viser.GuiSliderHandle[float]
+    budget: viser.GuiNumberHandle[int]
+    """Most points a browser tab shows at once (level of detail)."""
     camera: viser.GuiButtonGroupHandle
     binding: MapBinding = field(init=False)
     timings: deque[dict[str, object]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
@@ -450,6 +460,8 @@ class MapFeature:
     overlay: object | None = None
     """The feature whose colours are on the points instead of the map's (the zones,
     the joint sets), or None."""
+    colouring: Colouring | None = None
+    """The map's colours of the points (shown unless a feature holds them)."""
     _release: Callable[[], None] = field(default=lambda: None, repr=False)
 
     def inputs(self) -> tuple[Any, ...]:
@@ -458,7 +470,8 @@ class MapFeature:
                 self.toggle, self.axis,
                 self.show_axis, self.display, self.threshold, self.min_points,
                 self.point_size, self.colormap, self.stretch, self.log, self.percentiles,
-                self.pct_lo, self.pct_hi, self.range_lo, self.range_hi, self.camera)
+                self.pct_lo, self.pct_hi, self.range_lo, self.range_hi, self.budget,
+                self.camera)
 
     # ------------------------------------------------------------------ for other features
     def request(self, **changes: object) -> int:
@@ -475,26 +488,25 @@ class MapFeature:
         except InputError:
             return self.host.session.shown.settings
 
-    def take_overlay(self, owner: object, release: Callable[[], None]) -> None:
-        """``owner`` shows its own colours on the points: the map's cloud and colour
-        bar hide, and a feature that held the points before is told to let go
+    def take_overlay(self, owner: object, release: Callable[[], None],
+                     colouring: Colouring) -> None:
+        """``owner`` colours the points with ``colouring`` instead of the map: the
+        colour bar hides, and a feature that held the points before is told to let go
         (``release`` is how ``owner`` will be told; worker)."""
         if self.overlay is not None and self.overlay is not owner:
             self._release()
         self.overlay, self._release = owner, release
-        self.show_map(False)
+        self.colour_bar.visible = False
+        self.host.scene.colour_by(colouring)
 
     def give_back_overlay(self, owner: object) -> None:
-        """``owner`` no longer colours the points: the map shows again (worker)."""
+        """``owner`` no longer colours the points: the map's colours and colour bar
+        come back (worker)."""
         if self.overlay is owner:
             self.overlay, self._release = None, lambda: None
-            self.show_map(True)
-
-    def show_map(self, visible: bool) -> None:
-        """Show the map's cloud and colour bar, or hide both while a feature shows its
-        own colours on the points (worker)."""
-        self.host.scene.show_map(visible)
-        self.colour_bar.visible = visible
+            self.colour_bar.visible = True
+            if self.colouring is not None:
+                self.host.scene.colour_by(self.colouring)
 
     def forget_pick(self, text: str) -> None:
         """Drop the clicked point's marker, report and across-scales plot; the click
@@ -640,15 +652,17 @@ def render_stages(m: MapFeature, run: Run, settings: MapSettings, *,
     yield "grid"
     stats = map_stats(result, settings)
     if settings.layer == "roughness":
-        colours = point_colours(result, settings, loaded.display_index,
-                                colours_range=stats.colour_range)
+        colouring: Colouring = by_cell(
+            cell_colours(result, settings, colours_range=stats.colour_range), result.point_cell)
     else:
         try:
-            colours = layer_of(loaded, result, settings).colours
+            colouring = loaded.layer_colouring(settings.layer, result)
         except InputError as exc:
             reject(m, str(exc))
             return
-    host.scene.colour(colours)
+    m.colouring = colouring
+    if m.overlay is None:  # a feature that colours the points recolours them itself
+        host.scene.colour_by(colouring)
     host.session.shown = Shown(loaded, settings, result, stats)
     loaded.mark_shown(settings)
     t_colours = time.perf_counter() - t0
@@ -701,7 +715,8 @@ def _show_map_text(m: MapFeature, loaded: LoadedCloud, result: GridRoughness, st
     if (settings.layer == "roughness" and settings.display == "continuous"
             and settings.stretch.mode == "percentile"):
         m.binding.show_range(stats.colour_range)  # the typed limits start from what is shown
-    m.host.say(status_text(loaded, result, stats, settings, seconds, cached))
+    m.host.say(status_text(loaded, result, stats, settings, seconds, cached,
+                           budget=m.host.scene.budget))
     m.host.warn(notice_text(loaded, stats, settings, result))
     m.axis_note.content = (f"auto chose **{loaded.auto_axis}** (closest to the whole-cloud "
                            f"normal); using **{result.axis}**")
@@ -730,7 +745,7 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
                                    no_value=stats.cells - stats.valid_cells - kept_out,
                                    exact_fit=stats.exact_fit, outliers=kept_out)
     layer = layer_of(loaded, result, settings)
-    shown = f"{loaded.n_display:,} points shown"
+    shown = f"{loaded.n_total:,} points"
     if settings.layer in TRUST_FIELDS:
         assert layer.colour_range is not None and layer.colormap is not None
         what = f"{TRUST_LABELS[settings.layer]} · grid {u.size_text(settings.cell_size)} · {shown}"
@@ -779,7 +794,8 @@ def layer_of(loaded: LoadedCloud, result: GridRoughness, settings: MapSettings) 
 
 
 def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
-                settings: MapSettings, seconds: float, cached: bool) -> str:
+                settings: MapSettings, seconds: float, cached: bool, *,
+                budget: int = DEFAULT_BUDGET) -> str:
     """Markdown of the status line (the file name escaped)."""
     where = "cached" if cached else f"computed in {seconds:.2f} s"
     name = md(loaded.label or Path(loaded.cloud.source).name or "in-memory cloud",
@@ -787,7 +803,8 @@ def status_text(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
     colours = "" if settings.layer == "roughness" else \
         f"; colours: {COLOUR_LAYER_LABELS[settings.layer]}"
     return "\n".join([
-        f"**{name}**: {loaded.n_display:,} points shown of {loaded.n_total:,} used  ",
+        f"**{name}**: {loaded.n_total:,} points, each tab draws up to {budget:,} where it "
+        "looks  ",
         f"{MODEL_LABELS[settings.model]}, grid {loaded.units.size_text(settings.cell_size)}, "
         f"axis {result.axis}, {stats.valid_cells:,} of {stats.cells:,} cells with a value "
         f"({where}){colours}",
@@ -1018,6 +1035,104 @@ class PointSizeJob(Job[Host]):
         yield "points"
 
 
+# ----------------------------------------------------------------------------- level of detail
+
+#: Seconds a camera rests before its tab chooses its nodes again (and, while it
+#: moves, the longest wait between two choices).
+CAMERA_REST_S = 0.15
+CAMERA_MOVING_S = 0.5
+
+
+@dataclass(frozen=True)
+class RefineJob(Job[Host]):
+    """Browser tabs choose their nodes for their cameras (level of detail)."""
+
+    clients: frozenset[int]
+    lane: ClassVar[str] = "lod"
+
+    @property
+    def title(self) -> str:
+        return "level of detail"
+
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
+        if isinstance(newer, RefineJob):
+            return RefineJob(self.clients | newer.clients)
+        return None
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        for cid in sorted(self.clients):
+            ctx.scene.refine(cid)
+        yield "refine"
+
+
+@dataclass(frozen=True)
+class DropTabJob(Job[Host]):
+    """A browser tab left: its nodes are forgotten."""
+
+    client_id: int
+    lane: ClassVar[str] = "lod-drop"
+    keep_all: ClassVar[bool] = True
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.drop_tab(self.client_id)
+        yield "drop"
+
+
+@dataclass(frozen=True)
+class BudgetJob(Job[Host]):
+    """Every tab's point budget."""
+
+    budget: int
+    lane: ClassVar[str] = "budget"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.set_budget(self.budget)
+        yield "budget"
+
+
+class CameraWatch:
+    """Debounces the cameras of the browser tabs: a tab chooses its nodes again once
+    its camera has rested :data:`CAMERA_REST_S` (and every :data:`CAMERA_MOVING_S`
+    while it moves), as a :class:`RefineJob` on the worker."""
+
+    def __init__(self, host: Host) -> None:
+        self._host = host
+        self._lock = threading.Lock()
+        self._timers: dict[int, threading.Timer] = {}
+        self._last: dict[int, float] = {}
+
+    def moved(self, client_id: int) -> None:
+        """A tab's camera changed (viser's thread pool)."""
+        now = time.monotonic()
+        with self._lock:
+            timer = self._timers.pop(client_id, None)
+            if timer is not None:
+                timer.cancel()
+            due = now - self._last.get(client_id, 0.0) >= CAMERA_MOVING_S
+            if due:
+                self._last[client_id] = now
+            timer = threading.Timer(CAMERA_REST_S, self._rested, args=(client_id,))
+            timer.daemon = True
+            self._timers[client_id] = timer
+            timer.start()
+        if due:
+            self._host.submit(RefineJob(frozenset({client_id})))
+
+    def _rested(self, client_id: int) -> None:
+        with self._lock:
+            self._timers.pop(client_id, None)
+            self._last[client_id] = time.monotonic()
+        self._host.submit(RefineJob(frozenset({client_id})))
+
+    def left(self, client_id: int) -> None:
+        with self._lock:
+            timer = self._timers.pop(client_id, None)
+            self._last.pop(client_id, None)
+        if timer is not None:
+            timer.cancel()
+        self._host.submit(DropTabJob(client_id))
+
+
 # ----------------------------------------------------------------------------- pick
 
 
@@ -1059,12 +1174,14 @@ def on_click(m: MapFeature, origin: object, direction: object) -> CellInfo | Non
     t0 = time.perf_counter()
     o = np.asarray(origin, dtype=np.float64)
     d = np.asarray(direction, dtype=np.float64)
-    i = pick_point(shown.loaded.display_points, o, d)
+    loaded = shown.loaded
+    i = pick_cloud_point(loaded.cloud, loaded.to_file_frame(o), d)  # every point, not a sample
     if i is None:  # the earlier point's report and plot go with it
         m.forget_pick("No point under the click.")
         return None
-    local = np.asarray(shown.loaded.display_points[i], dtype=np.float64)
-    pick = Pick(int(shown.loaded.display_index[i]), shown.loaded.to_file_frame(local), local)
+    xyz = np.array([loaded.cloud.x[i], loaded.cloud.y[i], loaded.cloud.z[i]], dtype=np.float64)
+    pick = Pick(int(i), xyz, loaded.to_local(xyz))
+    local = pick.local
     if host.picked(pick):
         return None
     info = cell_info(shown.result, pick.point, pick.xyz)
@@ -1237,6 +1354,10 @@ def _add_controls(host: Host) -> MapFeature:
                                     hint="Roughness at the last colour (absolute stretch)."),
             point_size=gui.add_slider(L_POINT_SIZE, min=point_size / 10, max=point_size * 10,
                                       step=point_size / 10, initial_value=point_size),
+            budget=gui.add_number(
+                L_BUDGET, int(host.scene.budget), min=MIN_BUDGET, max=MAX_BUDGET, step=100_000,
+                hint="Most points each browser tab shows: where the camera looks, every "
+                "point up to this many (a slower GPU wants fewer)."),
             camera=gui.add_button_group(L_CAMERA, CAMERA_PRESETS,
                                         hint="Look at the face straight on, from above, "
                                         "or from the side."),
@@ -1257,6 +1378,16 @@ def _wire(host: Host, m: MapFeature) -> None:
     b.on_change([getattr(m, n) for n in names],
                 lambda handle: m.request(**{by_handle[id(handle)]: handle.value}))
     b.on_change([m.point_size], lambda _h: host.submit(PointSizeJob(float(m.point_size.value))))
+    b.on_change([m.budget], lambda _h: host.submit(BudgetJob(int(m.budget.value))))
+    watch = CameraWatch(host)
+
+    def connected(client: viser.ClientHandle) -> None:
+        cid = client.client_id
+        client.camera.on_update(lambda _camera: watch.moved(cid))
+        watch.moved(cid)  # its first camera may have come before this callback
+
+    host.on_connect(connected)
+    host.on_disconnect(lambda client: watch.left(client.client_id))
     b.on_change([m.show_axis], lambda _h: host.submit(AxisJob(bool(m.show_axis.value))))
 
     def camera(_handle: object) -> None:

@@ -4,7 +4,7 @@ stereonet and as tables (:mod:`rough_viewer.grid.sets`, docs/sets.md).
 The tab follows the map: its sets are of the Map tab's grid (its ODR planes), with
 the tab's own settings (the largest roughness of a planar cell as a share of the
 cell, the cone, the least angle between sets, the most sets). "Show sets" colours the
-rock by set, or by plane, in a cloud of its own (the map's cloud and colour bar hide;
+rock by set, or by plane (the map's colour bar hides;
 the zones, if shown, go off: one feature colours the points at a time). A click on
 the rock or the "Selected set" list selects a set: the stereonet marks it, the set
 table highlights it and the plane table lists its planes.
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import numpy as np
 import plotly.graph_objects as go
@@ -34,7 +34,7 @@ from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import ByteCache, LoadedCloud
+from rough_viewer.app.state import ByteCache, Colouring, LoadedCloud, by_cell
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.sets import (
@@ -46,10 +46,9 @@ from rough_viewer.grid.sets import (
     SetOptions,
     joint_sets,
 )
-from rough_viewer.memory import require
+from rough_viewer.visual import colormaps
 from rough_viewer.visual.sets import (
     planes_table_figure,
-    point_colours,
     sets_stereonet_figure,
     sets_table_figure,
 )
@@ -66,8 +65,6 @@ L_SELECTED = "Selected set"
 #: The "Selected set" entry for no selection.
 NO_SET = "none"
 COLOUR_BY: tuple[str, ...] = ("set", "plane")
-#: Scene node of the tab's cloud.
-NODE_CLOUD = "/sets/cloud"
 
 
 @dataclass(frozen=True)
@@ -152,8 +149,6 @@ class SetsFeature:
     result: GridRoughness | None = None
     selected_set: int = 0
     """The selected set (0: none)."""
-    cloud_node: viser.PointCloudHandle | None = None
-    node_for: LoadedCloud | None = None
     cache: ByteCache[tuple[object, ...], JointSets] = field(default_factory=lambda: ByteCache(0))
     cache_for: LoadedCloud | None = None
 
@@ -183,37 +178,22 @@ class SetsFeature:
         self.cache.put(key, made)
         return made
 
-    def colours(self, loaded: LoadedCloud) -> np.ndarray:
+    def colouring(self) -> Colouring:
+        """The points' colours by set (or by plane) of their cell."""
         assert self.sets is not None and self.result is not None
-        by: Literal["set", "plane"] = "plane" if self.colour_by.value == "plane" else "set"
-        return point_colours(self.sets, self.result.point_cell[loaded.display_index], by=by)
+        labels = self.sets.cell_plane if self.colour_by.value == "plane" else self.sets.cell_set
+        return by_cell(colormaps.zone_colours(labels), self.result.point_cell)
 
-    def show_cloud(self, loaded: LoadedCloud) -> None:
-        """The tab's cloud of the shown points in the sets' colours (the map's hides)."""
-        scene = self.host.scene
-        require(3.0 * loaded.n_display, f"set colours of {loaded.n_display:,} shown points")
-        colours = self.colours(loaded)
-        if self.cloud_node is None or self.node_for is not loaded:
-            if self.cloud_node is not None:
-                scene.remove([self.cloud_node])
-            self.cloud_node = scene.add_points(NODE_CLOUD, loaded.display_points, colours)
-            self.node_for = loaded
-        else:
-            scene.update(self.cloud_node, colors=colours, visible=True)
-        self.map.take_overlay(self, self.let_go)
+    def show_colours(self) -> None:
+        """Colour the points by set or plane (the map's colours and colour bar give way)."""
+        self.map.take_overlay(self, self.let_go, self.colouring())
 
     def hide(self) -> None:
-        self._hide_node()
         self.map.give_back_overlay(self)
 
     def let_go(self) -> None:
         """Another feature colours the points now: "Show sets" goes off (worker)."""
         self.binding.set(self.on, False)
-        self._hide_node()
-
-    def _hide_node(self) -> None:
-        if self.cloud_node is not None:
-            self.host.scene.update(self.cloud_node, visible=False)
 
     def show_figures(self) -> None:
         """The stereonet, the set table and the selected set's planes."""
@@ -276,7 +256,7 @@ class SetsJob(Job[Host]):
         if f.selected_set > sets.n_sets:
             f.selected_set = 0
         f.sets, f.result = sets, shown.result
-        f.show_cloud(shown.loaded)
+        f.show_colours()
         f.status.content = status_markdown(sets, shown.loaded.units.size_text(
             shown.result.grid.cell_size))
         yield "colours"

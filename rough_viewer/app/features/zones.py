@@ -58,7 +58,7 @@ from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import MODEL_LABELS, ByteCache, LoadedCloud, Units
+from rough_viewer.app.state import MODEL_LABELS, ByteCache, Colouring, LoadedCloud, Units, by_cell
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
@@ -113,7 +113,6 @@ PANEL_POLES = 5000
 #: Zones highlighted on the stereonet when none is selected (the largest).
 NET_ZONES = 6
 #: Scene nodes of the tab.
-NODE_CLOUD = "/zones/cloud"
 NODE_SELECTED = "/zones/selected"
 NODE_LABEL = "/zones/label"
 
@@ -199,6 +198,14 @@ class Labelling:
         return self.labels[self.basis.display_cell] == zone
 
 
+def zone_cell_colours(labels: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(M, 3) uint8 colour of every cell: its zone's colour, :data:`NO_ZONE_RGB` with a
+    value in no zone, the neutral grey without a value."""
+    per_cell = colormaps.zone_colours(labels, none_rgb=NO_ZONE_RGB)
+    per_cell[~valid] = np.asarray(colormaps.NEUTRAL_RGB, dtype=np.uint8)
+    return per_cell
+
+
 def zone_point_colours(labels: np.ndarray, valid: np.ndarray, display_cell: np.ndarray) -> np.ndarray:
     """(K, 3) uint8 colour of every displayed point: its cell's zone colour,
     :data:`NO_ZONE_RGB` in a cell with a value in no zone, the neutral grey in a
@@ -213,9 +220,7 @@ def zone_point_colours(labels: np.ndarray, valid: np.ndarray, display_cell: np.n
     display_cell : (K,) int
         Cell row of every displayed point.
     """
-    per_cell = colormaps.zone_colours(labels, none_rgb=NO_ZONE_RGB)
-    per_cell[~valid] = np.asarray(colormaps.NEUTRAL_RGB, dtype=np.uint8)
-    return per_cell[display_cell]
+    return zone_cell_colours(labels, valid)[display_cell]
 
 
 def zone_option(zone: int, cells: int) -> str:
@@ -377,9 +382,8 @@ class ZonesFeature:
     """One record per labelling: ``label_s`` (labels), ``colours_s`` (labels and the
     scene's colours), ``basis_s`` (0 when cached), ``done`` (``perf_counter`` when the
     colours were assigned); ``table_s`` is added by the table job."""
-    cloud_node: viser.PointCloudHandle | None = None
-    node_for: LoadedCloud | None = None
-    """The loaded cloud whose points :attr:`cloud_node` shows."""
+    colouring: Colouring | None = None
+    """The points' colours by zone of :attr:`labelling` (shown while the zones are)."""
     cloud_for: LoadedCloud | None = None
     """The loaded cloud whose grids :attr:`cache` holds."""
     selected_nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
@@ -467,23 +471,10 @@ class ZonesFeature:
             self.cloud_for = loaded
             self.labelling, self.zones = None, None
 
-    def show_cloud(self, loaded: LoadedCloud, colours: np.ndarray | None) -> None:
-        """Show the zone cloud with ``colours`` (None: as it is; a new zone cloud
-        for a new cloud) and hide the map's cloud and colour bar."""
-        scene = self.host.scene
-        node = self.cloud_node
-        if node is None or self.node_for is not loaded:
-            if node is not None:
-                scene.remove([node])
-            if colours is None:
-                colours = np.full((loaded.n_display, 3), colormaps.NEUTRAL_RGB, np.uint8)
-            self.cloud_node = scene.add_points(NODE_CLOUD, loaded.display_points, colours)
-            self.node_for = loaded
-        else:
-            if colours is not None:
-                scene.update(node, colors=colours)
-            scene.update(node, visible=True)
-        self.map.take_overlay(self, self.let_go)  # the points show zones, not roughness
+    def show_colours(self) -> None:
+        """Colour the points by zone (the map's colours and colour bar give way)."""
+        assert self.colouring is not None
+        self.map.take_overlay(self, self.let_go, self.colouring)
 
     def hide(self) -> None:
         """Show the map's cloud again; hide the zones."""
@@ -496,8 +487,6 @@ class ZonesFeature:
         self._hide_nodes()
 
     def _hide_nodes(self) -> None:
-        if self.cloud_node is not None:
-            self.host.scene.update(self.cloud_node, visible=False)
         self._clear_highlight()
 
     def _clear_highlight(self) -> None:
@@ -578,8 +567,6 @@ class ZonesFeature:
         follows, and the zones are labelled again when shown (worker)."""
         self.binding.follow_map()
         if self.active:
-            if self.host.session.shown.loaded is not self.node_for and self.cloud_node is not None:
-                self.host.scene.update(self.cloud_node, visible=False)  # old points: hidden
             self.host.submit(ZonesJob(self))
 
 
@@ -621,9 +608,9 @@ class ZonesJob(Job[Host]):
             return
         lab = z.labelling
         if (lab is not None and lab.result is shown.result and lab.params == params
-                and lab.loaded is shown.loaded and z.node_for is shown.loaded
+                and lab.loaded is shown.loaded and z.colouring is not None
                 and z.pending_selection is None):
-            z.show_cloud(shown.loaded, None)  # e.g. after "Show zones" off and on
+            z.show_colours()  # e.g. after "Show zones" off and on
             if not z.selected_nodes:
                 z.draw_highlight()
             yield "unchanged"
@@ -640,8 +627,8 @@ class ZonesJob(Job[Host]):
         yield "label"
         lab = Labelling(shown.loaded, shown.result, shown.settings.grid_key, basis, params,
                         labels)
-        colours = zone_point_colours(labels, basis.valid, basis.display_cell)
-        z.show_cloud(shown.loaded, colours)
+        z.colouring = by_cell(zone_cell_colours(labels, basis.valid), shown.result.point_cell)
+        z.show_colours()
         z.labelling, z.zones = lab, None
         if z.pending_selection is not None:
             z.anchor = lab.anchor_of(z.pending_selection)
