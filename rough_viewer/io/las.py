@@ -7,6 +7,7 @@ import datetime as _dt
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,23 @@ VLR_HEADER_BYTES = 54
 EVLR_HEADER_BYTES = 60
 
 
-def check_las_layout(path: str | os.PathLike[str]) -> None:
+@dataclass(frozen=True)
+class LasLayout:
+    """What a LAS/LAZ header says about the file's size, read from its raw bytes."""
+
+    size: int
+    """Bytes of the file."""
+    point_count: int
+    """Points the header declares (LAS 1.4's 64-bit count where it has one)."""
+    record_length: int
+    """Bytes of one point record (uncompressed)."""
+    compressed: bool
+    """True for LAZ (the point format's compression bit)."""
+    data_offset: int
+    """Byte where the point data start."""
+
+
+def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
     """Refuse a LAS/LAZ file whose header cannot describe the file, from its raw
     bytes, before laspy reads it: laspy walks the declared records, so a 34 KB file
     declaring 4e9 VLRs grew the reader past several GB (and a file that only starts
@@ -46,6 +63,11 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
     the VLRs fitting between the header and the point data, coordinate scales and
     offsets that can place points (a finite, non-zero scale; a finite offset), and
     (LAS 1.4) the EVLRs fitting after the point data.
+
+    Returns
+    -------
+    LasLayout
+        The point count, record length and compression the header declares.
 
     Raises
     ------
@@ -92,6 +114,12 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
             raise InputError(f"{bad} declares {n_evlrs:,} extended records from byte "
                              f"{evlr_start:,}, outside the file ({size:,} bytes): a damaged "
                              "or lying header")
+    point_format, record_length, legacy_count = struct.unpack_from("<BHI", head, 104)
+    count = legacy_count
+    if minor >= 4 and len(head) >= 255:
+        count = struct.unpack_from("<Q", head, 247)[0] or legacy_count
+    return LasLayout(size=size, point_count=int(count), record_length=int(record_length),
+                     compressed=bool(point_format & 0xC0), data_offset=int(data_offset))
 
 
 def open_las(path: str | os.PathLike[str], **kwargs):
