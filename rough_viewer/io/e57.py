@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.estimates import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
-#: Bytes per point at the peak of a read: pye57's per-scan buffers (x, y, z float64,
-#: intensity float32, 3 colour bytes, invalid state) and the merged columns.
-E57_BYTES_PER_POINT = 24 + 4 + 3 + 1 + 24 + 4 + 3 + 4 + 24
+#: Bytes per point at the peak of a read (measured: :data:`rough_viewer.io.estimates.COSTS`).
+E57_BYTES_PER_POINT = COSTS["e57"].per_point
 
 _XYZ = ("cartesianX", "cartesianY", "cartesianZ")
 _RGB = ("colorRed", "colorGreen", "colorBlue")

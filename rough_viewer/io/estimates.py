@@ -21,8 +21,8 @@ that declares many more points than its bytes can hold (a 0.34 MB LAZ declaring
 limit: it is refused before decoding (:func:`check_plausible`) unless its points
 are within ``max_points`` (``--max-points``).
 
->>> round(COSTS["text"].per_byte)
-5
+>>> COSTS["text"].per_point, COSTS["text"].worst_per_byte
+(52.0, 20.0)
 """
 
 from __future__ import annotations
@@ -56,22 +56,27 @@ class ReadCost:
     line); 0 when the shape does not matter."""
 
 
-#: Measured peaks (``benchmarks/bench_read_memory.py``, the median of 3 runs of
-#: each file; see docs/robustness.md for the table).
+#: Measured peaks (``benchmarks/bench_read_memory.py --points 1000000``: the largest
+#: peak per point of the formats' shapes, rounded up; the worst per byte is a text
+#: line of 3 million single digits; see docs/robustness.md for the table). A text
+#: cloud's points are bounded by its size (one per :data:`MIN_TEXT_ROW` bytes).
 COSTS: dict[str, ReadCost] = {
-    "las": ReadCost(per_byte=1.0, per_point=75.0),
-    "laz": ReadCost(per_byte=1.0, per_point=75.0),
-    "e57": ReadCost(per_byte=4.0, per_point=120.0),
-    "text": ReadCost(per_byte=5.0, per_point=48.0, worst_per_byte=36.0),
-    "ply-ascii": ReadCost(per_byte=5.0, per_point=48.0, worst_per_byte=36.0),
-    "ply-binary": ReadCost(per_byte=1.0, per_point=48.0),
-    "stl-ascii": ReadCost(per_byte=1.0, per_point=120.0),
-    "stl-binary": ReadCost(per_byte=1.0, per_point=120.0),
-    "npy": ReadCost(per_byte=1.0, per_point=48.0),
+    "las": ReadCost(per_byte=0.0, per_point=72.0),
+    "laz": ReadCost(per_byte=0.0, per_point=90.0),
+    "e57": ReadCost(per_byte=0.0, per_point=118.0),
+    "text": ReadCost(per_byte=0.0, per_point=52.0, worst_per_byte=20.0),
+    "ply-ascii": ReadCost(per_byte=0.0, per_point=52.0, worst_per_byte=20.0),
+    "ply-binary": ReadCost(per_byte=0.0, per_point=50.0),
+    "stl-ascii": ReadCost(per_byte=0.0, per_point=90.0),
+    "stl-binary": ReadCost(per_byte=0.0, per_point=94.0),
+    "npy": ReadCost(per_byte=0.0, per_point=52.0),
 }
 
 #: Fewest bytes per row of a text cloud (``"0 0 0\n"``): a bound on its points.
 MIN_TEXT_ROW = 6
+#: Fewest bytes per vertex of an ASCII STL (a facet of three ``vertex 0 0 0`` lines
+#: and its four other lines): a bound on its points.
+MIN_STL_VERTEX = 27
 #: Typical bytes per row of a text cloud (for the progress bar's total).
 TYPICAL_TEXT_ROW = 30
 #: Typical bytes per point of an E57 file (its points are unknown until its XML is
@@ -226,7 +231,7 @@ def estimate_stl(p: Path, max_points: int | None) -> Estimate:
     size = p.stat().st_size
     if binary:
         return _cost("stl-binary", size, 3 * n_tri, declared=True)
-    return _cost("stl-ascii", size, size // 40)  # ``vertex x y z`` lines of >= 40 bytes
+    return _cost("stl-ascii", size, size // MIN_STL_VERTEX)
 
 
 #: Most raster cells a byte of a compressed GeoTIFF plausibly holds (for the isolated

@@ -14,6 +14,7 @@ import numpy as np
 
 from rough_viewer.io.cache import cache_read, cache_write
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.estimates import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
@@ -130,9 +131,8 @@ def open_las(path: str | os.PathLike[str], **kwargs):
     return laspy.open(path, **kwargs)
 
 
-#: Bytes held per point while reading: x, y, z (float64), intensity (uint16), RGB
-#: (3 x uint16), and the finite-row filter's copies of the coordinates at its peak.
-READ_BYTES_PER_POINT = 3 * 8 + 2 + 6 + 3 * 8 + 1
+#: Bytes held per point while reading (measured: :data:`rough_viewer.io.estimates.COSTS`).
+READ_BYTES_PER_POINT = COSTS["laz"].per_point
 
 
 def _selection(point_format):
