@@ -424,6 +424,20 @@ def _signal_name(number: int) -> str:
     return f"signal {number}, {name}" if name else f"signal {number}"
 
 
+def memory_message(label: str, path: object, limits: Limits) -> str:
+    """The one line for a reader that went past its memory limit.
+
+    >>> memory_message("LAZ", "a.laz", Limits(2**30, 60))
+    'the LAZ reader went past its memory limit of 1.0 GiB on a.laz (a file of its size and header needs far less): the file is damaged or crafted; stopped'
+    """
+    if limits.capped:
+        return (f"the {label} reader ran out of memory on {path}: it needed more than the "
+                f"{format_bytes(limits.memory)} available")
+    return (f"the {label} reader went past its memory limit of {format_bytes(limits.memory)} "
+            f"on {path} (a file of its size and header needs far less): the file is damaged "
+            "or crafted; stopped")
+
+
 def death_message(label: str, path: object, returncode: int | None, stderr: str,
                   limits: Limits) -> str:
     """The one line for a child that ended without an answer.
@@ -433,14 +447,9 @@ def death_message(label: str, path: object, returncode: int | None, stderr: str,
     """
     out_of_memory = ("memory allocation of" in stderr or "MemoryError" in stderr
                      or "bad_alloc" in stderr or "Cannot allocate memory" in stderr)
-    if out_of_memory or returncode == -signal.SIGKILL:
-        if limits.capped:
-            return (f"the {label} reader ran out of memory on {path}: it needed more than the "
-                    f"{format_bytes(limits.memory)} available")
-        if out_of_memory:
-            return (f"the {label} reader went past its memory limit of "
-                    f"{format_bytes(limits.memory)} on {path} (a file of its size and header "
-                    "needs far less): the file is damaged or crafted; stopped")
+    if out_of_memory:
+        return memory_message(label, path, limits)
+    if returncode == -signal.SIGKILL:
         return f"the {label} reader was killed (out of memory?) on {path}"
     if returncode is not None and returncode < 0:
         return (f"the {label} reader crashed ({_signal_name(-returncode)}) on {path}; the file "
@@ -510,6 +519,8 @@ class _Session:
                 if message.get("t") == "error":
                     for fd in fds:
                         os.close(fd)
+                    if message.get("kind") == "memory":
+                        raise self.fail(memory_message(self.label, self.path, self.limits))
                     raise self.fail(str(message.get("message") or "")[:2000]
                                     or f"cannot read {self.path}")
                 return message, fds

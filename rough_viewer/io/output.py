@@ -109,7 +109,6 @@ def _publish(tmp: Path, p: Path) -> None:
             os.replace(tmp, p)
         else:
             tmp.unlink(missing_ok=True)
-        _claim(p, False)
     _fsync(_parent(p), folder=True)
 
 

@@ -102,6 +102,8 @@ def read_ply_header(fh: BinaryIO, p: Path) -> PlyHeader:
                     elements[-1][2].append((parts[2], None, parts[1]))
             elif parts[0] == "end_header":
                 break
+        except InputError:
+            raise
         except (IndexError, ValueError):
             raise InputError(f"malformed PLY header line {' '.join(parts)[:80]!r} in {p}") from None
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
