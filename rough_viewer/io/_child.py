@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-#: Imported before the request arrives (the common case: LAS/LAZ).
-PRELOAD = ("numpy", "laspy", "lazrs")
+#: Imported before the request arrives (the common case: LAS/LAZ, and the readers).
+PRELOAD = ("numpy", "laspy", "lazrs", "rough_viewer.io.load")
 #: Least time between two progress messages, seconds.
 PROGRESS_INTERVAL_S = 0.1
 

@@ -28,6 +28,12 @@ z is never taken to be in the horizontal unit (:func:`axis_units`).
 Rows with NaN or infinite coordinates are dropped and counted
 (:attr:`PointCloud.dropped_nonfinite`). Every problem raises
 :class:`rough_viewer.vocabulary.InputError` with the file's name.
+
+Each format is one :class:`Reader` in :data:`READERS`. Before a file is read its
+header is checked and its peak memory estimated (:mod:`rough_viewer.io.estimates`:
+measured figures, the decompression-bomb guard); an ``untrusted`` reader then runs in
+a child process with memory and time limits (:mod:`rough_viewer.io.isolate`), so a
+file that crashes its decoder is one error line, never the end of this process.
 """
 
 from __future__ import annotations
