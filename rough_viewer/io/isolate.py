@@ -239,7 +239,7 @@ def unpack(fd: int, layout: object, *, names: frozenset[str] | None = None
 
 
 #: PointCloud fields that hold arrays, and those of them with one row per point.
-_ARRAY_FIELDS = frozenset({"x", "y", "z", "intensity", "rgb", "scan_index", "scanner_positions"})
+_ARRAY_FIELDS = frozenset(f.name for f in dataclasses.fields(PointCloud) if "ndarray" in str(f.type))
 _PER_POINT = ("intensity", "rgb", "scan_index")
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -334,7 +334,7 @@ def write_las(
 
 
 def load_las_with_extra(
-    path: str | os.PathLike[str], names: tuple[str, ...]
+    path: str | os.PathLike[str], names: tuple[str, ...], *, trusted: bool = False
 ) -> tuple[PointCloud, dict[str, np.ndarray]]:
     """Read a LAS/LAZ file's points and some of its extra dimensions in one decode.
 
@@ -344,14 +344,53 @@ def load_las_with_extra(
         A ``.las`` or ``.laz`` file.
     names : tuple of str
         Extra dimensions to return (e.g. ``("truth",)``).
+    trusted : bool
+        Decode in this process (files the package made itself, the bundled demos);
+        else in a child process (:mod:`rough_viewer.io.isolate`).
 
     Returns
     -------
     PointCloud, dict
         The points (metres, with intensity) and name -> (N,) array, row-aligned.
     """
+    from rough_viewer.io import isolate
+    from rough_viewer.io.estimates import BUDGET_FLOOR, MARGIN
 
     p = Path(path)
+    if trusted or not isolate.available():
+        return _load_las_with_extra(p, names)
+    layout = check_las_layout(p)
+    need = layout.point_count * (READ_BYTES_PER_POINT + 2.0 * layout.record_length)
+    limits = isolate.Limits(memory=max(MARGIN * need, need + BUDGET_FLOOR),
+                            seconds=isolate.time_limit(layout.size))
+    items = isolate.stream_isolated(
+        f"{__name__}:_extra_items", p, label="LAS/LAZ", limits=limits,
+        names=frozenset({"x", "y", "z", "intensity", "dropped", *(f"extra.{n}" for n in names)}),
+        options={"names": list(names)})
+    try:
+        item = next(items)
+    finally:
+        items.close()
+    cloud = PointCloud(x=item["x"], y=item["y"], z=item["z"], intensity=item.get("intensity"),
+                       source=str(p), dropped_nonfinite=int(item["dropped"][0]))
+    return cloud, {n: item[f"extra.{n}"] for n in names}
+
+
+def _extra_items(p: Path, *, progress: ProgressFn | None = None,
+                 names: tuple[str, ...] = ()) -> Iterator[dict[str, np.ndarray]]:
+    """:func:`_load_las_with_extra` as one item of a stream (the child process's part)."""
+    cloud, extra = _load_las_with_extra(p, tuple(names))
+    item: dict[str, np.ndarray] = {
+        "x": cloud.x, "y": cloud.y, "z": cloud.z,
+        "dropped": np.array([cloud.dropped_nonfinite], dtype=np.int64)}
+    if cloud.intensity is not None:
+        item["intensity"] = np.asarray(cloud.intensity)
+    item.update({f"extra.{n}": v for n, v in extra.items()})
+    yield item
+
+
+def _load_las_with_extra(p: Path, names: tuple[str, ...]
+                         ) -> tuple[PointCloud, dict[str, np.ndarray]]:
     with foreign_errors(f"cannot read {p}"), \
             open_las(p, laz_backend=laz_backend()) as reader:
         # the whole record is decoded too

@@ -238,3 +238,21 @@ def test_the_las_output_of_two_runs_is_exclusive_too(tmp_path):
     with pytest.raises(InputError, match="output file exists"):
         write_path_atomic(out, lambda tmp: write_las(tmp, cloud, scale=1e-3))
     assert out.read_bytes() == first
+
+
+@needs_isolation
+def test_extra_dimensions_and_point_source_ids_decode_in_the_child_too(tmp_path, capsys):
+    """bias normalise --truth-dim and --scanners decode the file again: isolated too."""
+    from rough_viewer.io import read_las_extra
+    from rough_viewer.io.scanners import point_source_ids
+
+    bad = crafted.laz_ff_chunk(tmp_path / "ff.laz")
+    with pytest.raises(InputError, match="the LAS/LAZ reader crashed .* on .*ff.laz"):
+        read_las_extra(bad, "truth")
+    with pytest.raises(InputError, match="the LAS/LAZ reader crashed .* on .*ff.laz"):
+        point_source_ids(bad)
+    good = tmp_path / "good.laz"
+    cloud = PointCloud.from_xyz(np.random.default_rng(2).uniform(0, 1, (300, 3)))
+    write_las(good, cloud, extra={"truth": (np.arange(300) % 200).astype(np.uint8)})
+    np.testing.assert_array_equal(read_las_extra(good, "truth"), np.arange(300) % 200)
+    assert point_source_ids(good).tolist() == [0] * 300
