@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
-from rough_viewer.io.estimates import COSTS
+from rough_viewer.io.costs import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 

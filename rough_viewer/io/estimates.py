@@ -37,40 +37,10 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.io.isolate import Limits, time_limit
+from rough_viewer.io.costs import COSTS
+from rough_viewer.io.isolate import BUDGET_FLOOR, MARGIN, Limits, time_limit
 from rough_viewer.memory import USABLE_SHARE, available_bytes, format_bytes
 from rough_viewer.vocabulary import InputError
-
-
-@dataclass(frozen=True)
-class ReadCost:
-    """Peak memory of one reader: ``per_byte * file bytes + per_point * points``
-    above the interpreter's own."""
-
-    per_byte: float
-    """Bytes per byte of file (buffers, text)."""
-    per_point: float
-    """Bytes per point read (decoded records, the columns, the finite-row filter)."""
-    worst_per_byte: float = 0.0
-    """Bytes per byte of file for the worst shape of file measured (text: one long
-    line); 0 when the shape does not matter."""
-
-
-#: Measured peaks (``benchmarks/bench_read_memory.py --points 1000000``: the largest
-#: peak per point of the formats' shapes, rounded up; the worst per byte is a text
-#: line of 3 million single digits; see docs/robustness.md for the table). A text
-#: cloud's points are bounded by its size (one per :data:`MIN_TEXT_ROW` bytes).
-COSTS: dict[str, ReadCost] = {
-    "las": ReadCost(per_byte=0.0, per_point=72.0),
-    "laz": ReadCost(per_byte=0.0, per_point=90.0),
-    "e57": ReadCost(per_byte=0.0, per_point=118.0),
-    "text": ReadCost(per_byte=0.0, per_point=52.0, worst_per_byte=20.0),
-    "ply-ascii": ReadCost(per_byte=0.0, per_point=52.0, worst_per_byte=20.0),
-    "ply-binary": ReadCost(per_byte=0.0, per_point=50.0),
-    "stl-ascii": ReadCost(per_byte=0.0, per_point=90.0),
-    "stl-binary": ReadCost(per_byte=0.0, per_point=94.0),
-    "npy": ReadCost(per_byte=0.0, per_point=52.0),
-}
 
 #: Fewest bytes per row of a text cloud (``"0 0 0\n"``): a bound on its points.
 MIN_TEXT_ROW = 6
@@ -114,10 +84,6 @@ def max_points_limit(max_points: int | None = None) -> int:
         return int(max_points)
     return _MAX_POINTS.get() or DEFAULT_MAX_POINTS
 
-#: Share of the estimate added as margin to a child's memory budget, and the least
-#: budget of any read.
-MARGIN = 1.5
-BUDGET_FLOOR = 256 << 20
 
 
 @dataclass(frozen=True)
@@ -244,7 +210,7 @@ def estimate_dem(p: Path, max_points: int | None) -> Estimate:
     header's rows and columns (a cell takes at least 2 bytes of text); a GeoTIFF,
     whose header only the isolated reader parses, from its size (4 bytes a cell,
     uncompressed float32), at worst :data:`TIFF_CELLS_PER_BYTE` cells a byte."""
-    from rough_viewer.io.dem import BYTES_PER_CELL, _esri_header
+    from rough_viewer.io.dem import BYTES_PER_CELL, _esri_header, _tifffile
 
     size = p.stat().st_size
     if p.suffix.lower() == ".asc":
@@ -252,6 +218,7 @@ def estimate_dem(p: Path, max_points: int | None) -> Estimate:
         cells = min(int(head["nrows"]) * int(head["ncols"]), size // 2)
         return Estimate(points=cells, typical=cells * (BYTES_PER_CELL + 40.0),
                         worst=cells * (BYTES_PER_CELL + 40.0), declared=True)
+    _tifffile()  # the optional package's absence said before any work
     cells = size // 4
     most = max(max_points_limit(max_points), TIFF_CELLS_PER_BYTE * size)
     return Estimate(points=cells, typical=cells * float(BYTES_PER_CELL),

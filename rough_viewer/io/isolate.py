@@ -101,6 +101,19 @@ class Limits:
     says the machine lacked memory rather than that the file is crafted)."""
 
 
+#: Share of a read's memory estimate added as margin to its budget ...
+MARGIN = 1.5
+#: ... and the least budget of any read, bytes.
+BUDGET_FLOOR = 256 << 20
+
+
+def limits_for(need: float, size_bytes: float) -> Limits:
+    """The limits of a read expected to need ``need`` bytes at its peak, of a file of
+    ``size_bytes``: the estimate with :data:`MARGIN`, at least :data:`BUDGET_FLOOR`
+    beyond it, and :func:`time_limit`."""
+    return Limits(memory=max(MARGIN * need, need + BUDGET_FLOOR), seconds=time_limit(size_bytes))
+
+
 def time_limit(size_bytes: float) -> float:
     """Seconds a read of a file of ``size_bytes`` may take: ``ROUGH_VIEWER_READ_SECONDS``
     when set, else :data:`TIME_BASE_S` plus :data:`TIME_PER_MB_S` per MB.

@@ -14,7 +14,7 @@ import numpy as np
 
 from rough_viewer.io.cache import cache_read, cache_write
 from rough_viewer.io.cloud import PointCloud, finite_cloud
-from rough_viewer.io.estimates import COSTS
+from rough_viewer.io.costs import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
@@ -354,15 +354,13 @@ def load_las_with_extra(
         The points (metres, with intensity) and name -> (N,) array, row-aligned.
     """
     from rough_viewer.io import isolate
-    from rough_viewer.io.estimates import BUDGET_FLOOR, MARGIN
 
     p = Path(path)
     if trusted or not isolate.available():
         return _load_las_with_extra(p, names)
     layout = check_las_layout(p)
     need = layout.point_count * (READ_BYTES_PER_POINT + 2.0 * layout.record_length)
-    limits = isolate.Limits(memory=max(MARGIN * need, need + BUDGET_FLOOR),
-                            seconds=isolate.time_limit(layout.size))
+    limits = isolate.limits_for(need, layout.size)
     items = isolate.stream_isolated(
         f"{__name__}:_extra_items", p, label="LAS/LAZ", limits=limits,
         names=frozenset({"x", "y", "z", "intensity", "dropped", *(f"extra.{n}" for n in names)}),

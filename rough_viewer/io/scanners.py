@@ -245,7 +245,6 @@ def _isolated_ids(p: Path) -> np.ndarray:
     """:func:`_las_ids` in a child process where reads are isolated
     (:mod:`rough_viewer.io.isolate`): lazrs decodes the file again, another layer."""
     from rough_viewer.io import isolate
-    from rough_viewer.io.estimates import BUDGET_FLOOR, MARGIN
     from rough_viewer.io.las import LAS_CHUNK, check_las_layout
 
     if not isolate.available():
@@ -253,8 +252,7 @@ def _isolated_ids(p: Path) -> np.ndarray:
     layout = check_las_layout(p)
     n = layout.point_count
     need = n * IDS_BYTES_PER_POINT + min(n, LAS_CHUNK) * 90.0
-    limits = isolate.Limits(memory=max(MARGIN * need, need + BUDGET_FLOOR),
-                            seconds=isolate.time_limit(layout.size))
+    limits = isolate.limits_for(need, layout.size)
     items = isolate.stream_isolated(f"{__name__}:_las_id_items", p, label="LAS/LAZ",
                                     limits=limits, names=frozenset({"ids"}))
     try:

@@ -266,7 +266,7 @@ def _decoded(source: Source, plan: list[Chunk], *, parallel: bool = True,
     """:func:`decode_las_chunks` of ``plan``, in a child process where reads are
     isolated (memory for the largest chunk, time per chunk)."""
     from rough_viewer.io import isolate
-    from rough_viewer.io.estimates import COSTS, MARGIN
+    from rough_viewer.io.costs import COSTS
     from rough_viewer.io.load import reader_for
 
     ranges = [[c.start, c.stop] for c in plan]
@@ -279,8 +279,7 @@ def _decoded(source: Source, plan: list[Chunk], *, parallel: bool = True,
     biggest = max((c.n for c in plan), default=0)
     kind = "laz" if source.path.lower().endswith(".laz") else "las"
     need = COSTS[kind].per_point * biggest
-    limits = isolate.Limits(memory=max(MARGIN * need, need + (256 << 20)),
-                            seconds=isolate.time_limit(biggest * 8))
+    limits = isolate.limits_for(need, biggest * 8)
     yield from isolate.stream_isolated(
         f"{__name__}:decode_las_chunks", source.path, label=reader.label, limits=limits,
         names=_CHUNK_ARRAYS, options=options)
