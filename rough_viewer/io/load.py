@@ -63,6 +63,7 @@ from rough_viewer.vocabulary import (
     InputError,
     ProgressFn,
     Unit,
+    error_line,
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")

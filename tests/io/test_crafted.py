@@ -256,3 +256,20 @@ def test_extra_dimensions_and_point_source_ids_decode_in_the_child_too(tmp_path,
     write_las(good, cloud, extra={"truth": (np.arange(300) % 200).astype(np.uint8)})
     np.testing.assert_array_equal(read_las_extra(good, "truth"), np.arange(300) % 200)
     assert point_source_ids(good).tolist() == [0] * 300
+
+
+@needs_isolation
+def test_a_mesh_declaring_4e9_faces_stops_at_its_memory_limit(tmp_path):
+    """plyfile would allocate 52 GB for the faces of a 200-byte PLY (directions, report)."""
+    import struct
+
+    from rough_viewer.io.mesh import load_mesh
+
+    path = tmp_path / "faces.ply"
+    path.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                     b"property float y\nproperty float z\nelement face 4000000000\n"
+                     b"property list uchar int vertex_indices\nend_header\n"
+                     + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + bytes([3])
+                     + struct.pack("<3i", 0, 1, 2))
+    with pytest.raises(InputError, match="the PLY reader went past its memory limit of"):
+        load_mesh(path)
