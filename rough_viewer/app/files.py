@@ -3,10 +3,15 @@
 "Load file" takes a path typed in the browser, so it is restricted to one
 folder, the data folder (``--data-dir``; default the folder of the file given to
 ``serve``, or the current folder): the path is resolved (symbolic links
-followed) and refused unless it lies inside. Before a file is read its size is
-checked against the memory a reader needs (:func:`read_estimate`); LAS/LAZ/E57
-headers are checked by the readers themselves. Error messages name the file as
-the user gave it and never carry server paths or text read from the file
+followed) and refused unless it lies inside. Reading goes through
+:func:`rough_viewer.io.load.load_points`, which checks the file's header and its
+measured memory estimate first (:mod:`rough_viewer.io.estimates`: a file that
+cannot fit, or a decompression bomb beyond :func:`configure`'s ``max_points``, is
+refused before decoding) and decodes it in a child process
+(:mod:`rough_viewer.io.isolate`): a damaged or crafted file that crashes its
+reader, or runs past its memory or time limit, is one notice, and the server
+keeps serving every browser. Error messages name the file as the user gave it and
+never carry server paths or text read from the file
 (:func:`rough_viewer.app.markup.public_message`).
 """
 
@@ -18,20 +23,21 @@ from pathlib import Path
 
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
-from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES
-from rough_viewer.memory import require
+from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
+from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
-#: Bytes of memory per byte of file a reader may need at its peak, by format. Text
-#: rows can be as short as "1 2 3\n" (6 bytes for 24 bytes of float64, parsed in
-#: chunks then copied into columns); binary formats hold the file's numbers once
-#: more as float64. LAS/LAZ/E57 check their header's point count themselves.
-READ_FACTOR: dict[str, float] = {
-    **{s: 12.0 for s in TEXT_SUFFIXES},
-    ".npy": 3.0,
-    ".ply": 4.0,
-    ".stl": 6.0,
-}
+#: The decompression-bomb guard's limit for files the browser loads or uploads
+#: (``serve --max-points``; :func:`configure`).
+_limits = {"max_points": DEFAULT_MAX_POINTS}
+
+
+def configure(*, max_points: int) -> None:
+    """Set how many points a compressed file may declare however small it is, for
+    every file the app reads (``serve --max-points``)."""
+    if max_points < 1:
+        raise InputError(f"--max-points must be positive, got {max_points}")
+    _limits["max_points"] = int(max_points)
 
 
 @dataclass(frozen=True)
@@ -95,17 +101,19 @@ class UploadedFile:
 
 
 def read_estimate(path: Path) -> float:
-    """Bytes of memory reading ``path`` may need at its peak (0 when the reader
-    checks for itself), from its size and :data:`READ_FACTOR`."""
-    factor = READ_FACTOR.get(path.suffix.lower(), 0.0)
-    return factor * path.stat().st_size
+    """Bytes of memory reading ``path`` is expected to need at its peak (the reader's
+    measured figures, :mod:`rough_viewer.io.estimates`; 0 for an unknown type)."""
+    reader = reader_for(path)
+    if reader is None:
+        return 0.0
+    return reader.estimate(path, _limits["max_points"]).typical
 
 
 def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None = None,
                progress: ProgressFn | None = None) -> PointCloud:
-    """Read ``path`` after checking that it fits in memory; errors and the reader's
-    warnings mention ``shown`` (the name the user knows), never the server path or
-    the file's content.
+    """Read ``path`` (its memory checked first, decoded in a child process); errors
+    and the reader's warnings mention ``shown`` (the name the user knows), never the
+    server path or the file's content.
 
     ``units``: the unit of the file's coordinates (None: the CRS's, else metres;
     see :func:`rough_viewer.io.load.load_points`).
@@ -113,9 +121,8 @@ def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None
     Raises InputError.
     """
     try:
-        require(read_estimate(path), f"reading {shown}",
-                hint="the file is too large for this server's memory")
-        cloud = load_points(path, units=units, cache=cache, progress=progress)
+        cloud = load_points(path, units=units, cache=cache, progress=progress,
+                            max_points=_limits["max_points"])
         if cloud.warnings:
             paths = _variants(path, shown)
             cloud = replace(cloud, warnings=tuple(public_message(w, paths=paths, quoted=False)

@@ -19,6 +19,15 @@ refuses a WebSocket handshake unless
 Plain HTTP requests outside ``/t/<token>/`` get a short page saying the URL with
 the token is needed (the client page itself holds no data; the data flows only
 through the WebSocket).
+
+What each browser may cost is bounded too: at most ``max_connections``
+WebSocket connections are open at once (``serve --max-connections``; more are
+refused with 503), and a connection whose client stops reading is closed
+(:meth:`Gate.backlog_check`): when its unsent bytes stay above
+:data:`STALL_BYTES` for :data:`STALL_SECONDS` without the client taking any, or
+exceed :data:`MAX_UNSENT_BYTES` at any time. A browser that reads slowly keeps
+taking bytes and is never closed; one that comes back reconnects and gets the
+scene again.
 """
 
 from __future__ import annotations
@@ -28,9 +37,10 @@ import secrets
 import socket
 import sys
 import threading
+import time
 import weakref
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
@@ -41,10 +51,21 @@ from websockets.http11 import Request, Response
 
 from rough_viewer.app import hooks
 from rough_viewer.app.limits import MAX_REFUSALS
+from rough_viewer.memory import format_bytes
 from rough_viewer.vocabulary import InputError
 
 #: URL path prefix of the app when a token is used: ``/t/<token>/``.
 TOKEN_PREFIX = "/t/"
+
+#: WebSocket connections open at once, by default (``serve --max-connections``).
+DEFAULT_MAX_CONNECTIONS = 32
+#: A connection whose unsent bytes stay above this ...
+STALL_BYTES = 1 << 20
+#: ... for this long, without the client taking any, is closed (seconds).
+STALL_SECONDS = 20.0
+#: A connection with more unsent bytes than this is closed at once (the demo's
+#: whole scene is about 80 MiB).
+MAX_UNSENT_BYTES = 1 << 30
 
 _LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 _WILDCARD_HOSTS = ("", "0.0.0.0", "::")
@@ -123,8 +144,19 @@ class Gate:
     origins: frozenset[str]
     log: bool = False
     refused: deque[Refusal] = field(default_factory=lambda: deque(maxlen=MAX_REFUSALS))
+    max_connections: int = DEFAULT_MAX_CONNECTIONS
+    """WebSocket connections open at once; more are refused."""
+    stall_bytes: int = STALL_BYTES
+    stall_seconds: float = STALL_SECONDS
+    max_unsent: int = MAX_UNSENT_BYTES
+    shed: deque[str] = field(default_factory=lambda: deque(maxlen=MAX_REFUSALS))
+    """Why connections were closed for not reading (the last 100)."""
+    count: Callable[[], int] | None = None
+    """Open WebSocket connections now (set by :func:`guard`)."""
     _admitted: weakref.WeakSet[ServerConnection] = field(default_factory=weakref.WeakSet)
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    _backlog: weakref.WeakKeyDictionary[ServerConnection, tuple[int, float]] = field(
+        default_factory=weakref.WeakKeyDictionary)
 
     @property
     def path(self) -> str:
@@ -153,6 +185,33 @@ class Gate:
                 return "missing or wrong token"
         return None
 
+    def backlog_check(self, connection: ServerConnection, unsent: int, *,
+                      now: float | None = None) -> str | None:
+        """Why ``connection`` (with ``unsent`` bytes not yet taken by its client) must be
+        closed, or None: above :attr:`max_unsent`, or above :attr:`stall_bytes` with
+        nothing taken for :attr:`stall_seconds`."""
+        t = time.monotonic() if now is None else now
+        reason = None
+        if unsent > self.max_unsent:
+            reason = (f"{format_bytes(unsent)} unsent, more than the "
+                      f"{format_bytes(self.max_unsent)} a connection may hold")
+        elif unsent <= self.stall_bytes:
+            self._backlog.pop(connection, None)
+        else:
+            last = self._backlog.get(connection)
+            if last is None or last[0] != unsent:  # it took some (or more was sent)
+                self._backlog[connection] = (unsent, t)
+            elif t - last[1] >= self.stall_seconds:
+                reason = (f"the client stopped reading ({format_bytes(unsent)} unsent for "
+                          f"{t - last[1]:.0f} s)")
+        if reason is not None:
+            self._backlog.pop(connection, None)
+            self.shed.append(reason)
+            if self.log:
+                print(f"rough-viewer: closed a connection: {reason}", file=sys.stderr,
+                      flush=True)
+        return reason
+
     def admitted(self, connection: ServerConnection) -> bool:
         with self._lock:
             return connection in self._admitted
@@ -165,6 +224,10 @@ class Gate:
                 reason = self.websocket_refusal(request)
                 if reason is not None:
                     return self._refuse(reason, request)
+                if self.count is not None and self.count() >= self.max_connections:
+                    return self._refuse(
+                        f"too many connections (this server allows {self.max_connections}; "
+                        "close another tab)", request, status=503)
                 with self._lock:
                     self._admitted.add(connection)
                 return None
@@ -187,7 +250,7 @@ class Gate:
 
         return process_request
 
-    def _refuse(self, reason: str, request: Request) -> Response:
+    def _refuse(self, reason: str, request: Request, *, status: int = 403) -> Response:
         origin = ", ".join(request.headers.get_all("Origin"))[:200] or None
         path = request.path.partition("?")[0]
         if self.token is not None and self.token in path:
@@ -197,7 +260,8 @@ class Gate:
             hint = (" (allow it with --allow-origin)" if reason.startswith("origin") else "")
             print(f"rough-viewer: refused a connection from origin {origin or '(none)'}: "
                   f"{reason}{hint}", file=sys.stderr, flush=True)
-        return hooks.http_response(403, "Forbidden", reason.encode(), "text/plain")
+        return hooks.http_response(status, "Forbidden" if status == 403 else "Service Unavailable",
+                                   reason.encode(), "text/plain")
 
 
 def _redirect(location: str) -> Response:
@@ -213,6 +277,7 @@ def guard(
     allow_origins: Iterable[str] = (),
     host: str | None = None,
     log: bool = False,
+    max_connections: int = DEFAULT_MAX_CONNECTIONS,
 ) -> Gate:
     """Put the Origin check and the token in front of a running viser server.
 
@@ -227,7 +292,10 @@ def guard(
     host
         The address the server listens on (default: the server's own).
     log
-        Print each refused handshake on stderr.
+        Print each refused handshake (and each connection closed for not reading) on
+        stderr.
+    max_connections
+        WebSocket connections open at once; more are refused.
 
     Returns
     -------
@@ -236,8 +304,12 @@ def guard(
     """
     port = server.get_port()
     extra = {normalise_origin(o) for o in allow_origins}
-    gate = Gate(token=token, origins=own_origins(host or server.get_host(), port) | extra, log=log)
+    if max_connections < 1:
+        raise InputError(f"--max-connections must be positive, got {max_connections}")
+    gate = Gate(token=token, origins=own_origins(host or server.get_host(), port) | extra, log=log,
+                max_connections=max_connections, count=lambda: hooks.open_connections(server))
     hooks.set_process_request(server, gate.wrap, admitted=gate.admitted)
+    hooks.watch_connections(server, gate.backlog_check)
     return gate
 
 
@@ -248,12 +320,16 @@ def open_server(
     token: str | None,
     allow_origins: Iterable[str] = (),
     log: bool = True,
+    max_connections: int = DEFAULT_MAX_CONNECTIONS,
 ) -> tuple[viser.ViserServer, Gate]:
     """Start a viser server with the gate in front of it (what ``serve`` does)."""
     extra = [normalise_origin(o) for o in allow_origins]  # bad values: before listening
+    if max_connections < 1:
+        raise InputError(f"--max-connections must be positive, got {max_connections}")
     server = viser.ViserServer(host=host, port=port, verbose=False)
     try:
-        gate = guard(server, token=token, allow_origins=extra, host=host, log=log)
+        gate = guard(server, token=token, allow_origins=extra, host=host, log=log,
+                     max_connections=max_connections)
     except BaseException:
         server.stop()
         raise

@@ -17,6 +17,12 @@ uses its internals, and nothing else in the app does:
   viser's own handler of a message type, or drop a type altogether.
 - **Sending a raw message** (:func:`broadcast`): to put a control's value back in
   the one browser that sent a bad one, and to acknowledge upload parts.
+- **Watching connections** (:func:`watch_connections`, :func:`open_connections`):
+  viser sends each browser its messages with ``await websocket.send``; a browser
+  that stops reading leaves its whole frame (80 MiB on the demo) in the
+  connection's write buffer for good. A timer on viser's event loop reads each
+  connection's unsent bytes (``transport.get_write_buffer_size()``) and closes
+  the ones a check condemns; the handshake hook counts the open connections.
 
 Each of these is exercised by the tests (tests/app/test_gate.py, test_controls.py,
 test_uploads.py), so a viser release that moves them fails there first.
@@ -26,6 +32,7 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import weakref
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar, cast
 
@@ -52,12 +59,55 @@ def event_loop(server: viser.ViserServer) -> asyncio.AbstractEventLoop:
     return loop
 
 
+_WS_SERVERS: weakref.WeakKeyDictionary[viser.ViserServer, Server] = weakref.WeakKeyDictionary()
+
+
 def _ws_server(server: viser.ViserServer) -> Server:
+    found = _WS_SERVERS.get(server)
+    if found is not None:
+        return found
     loop = event_loop(server)
-    found = [o for o in gc.get_objects() if isinstance(o, Server) and o.loop is loop]
-    if len(found) != 1:
-        raise RuntimeError(f"cannot find viser's WebSocket server ({len(found)} candidates)")
-    return found[0]
+    candidates = [o for o in gc.get_objects() if isinstance(o, Server) and o.loop is loop]
+    if len(candidates) != 1:
+        raise RuntimeError(f"cannot find viser's WebSocket server ({len(candidates)} candidates)")
+    _WS_SERVERS[server] = candidates[0]
+    return candidates[0]
+
+
+def open_connections(server: viser.ViserServer) -> int:
+    """WebSocket connections open now (call on viser's event loop: the handshake hook)."""
+    return len(_ws_server(server).connections)
+
+
+def watch_connections(
+    server: viser.ViserServer,
+    check: Callable[[ServerConnection, int], str | None],
+    *,
+    interval: float = 1.0,
+) -> None:
+    """Every ``interval`` seconds, on viser's event loop, call ``check(connection,
+    unsent_bytes)`` for each connection (``unsent_bytes``: what its write buffer holds,
+    not yet taken by the client); a connection for which it returns a reason is
+    closed at once. Stops when the server stops serving."""
+    ws = _ws_server(server)
+    loop = event_loop(server)
+
+    def tick() -> None:
+        if not ws.is_serving():
+            return
+        for connection in list(ws.handlers):
+            transport = connection.transport
+            if transport is None or transport.is_closing():
+                continue
+            try:
+                unsent = int(transport.get_write_buffer_size())
+            except (AttributeError, RuntimeError, OSError):  # pragma: no cover
+                continue
+            if check(connection, unsent) is not None:
+                transport.abort()
+        loop.call_later(interval, tick)
+
+    loop.call_soon_threadsafe(tick)
 
 
 def set_process_request(

@@ -48,18 +48,48 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that the same clean-up runs (temporary output
+    files, the reader's child process)."""
+
+
+def _terminate(_signum: int, _frame: object) -> None:
+    raise Terminated
+
+
+#: Commands that read point clouds: a reader process is started with the command,
+#: so its start-up overlaps the command's own (:func:`rough_viewer.io.isolate.warm`).
+READING_COMMANDS = frozenset({"compute", "report", "zones", "profile", "serve"})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rough-viewer`` console script; returns the exit status."""
+    import signal
+    import threading
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return int(args.func(args) or 0)
+        if args.command in READING_COMMANDS and getattr(args, "inputs", None):
+            from rough_viewer.io import isolate
+
+            isolate.warm()
+        from rough_viewer.io.estimates import points_limit
+
+        with points_limit(getattr(args, "file_max_points", None)):
+            return int(args.func(args) or 0)
     except InputError as exc:
         print(f"rough-viewer: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated:
+        print("rough-viewer: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("rough-viewer: interrupted", file=sys.stderr)
         return 130
@@ -69,6 +99,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,9 @@ cloud in memory (with per-file and overall progress bars).
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import glob
+import os
 import sys
 from pathlib import Path
 
@@ -26,29 +28,93 @@ _GLOB_CHARS = "*?["
 
 
 def add_inputs(parser: argparse.ArgumentParser, *, optional: bool = False,
-               what: str = "point cloud") -> None:
+               what: str = "point cloud", max_points: bool = True) -> None:
     """Add the ``inputs`` positional argument (one or more files or quoted globs;
-    none allowed when ``optional``)."""
+    none allowed when ``optional``) and, with ``max_points``, ``--max-points N``: the
+    decompression-bomb guard's limit (:mod:`rough_viewer.io.estimates`), applied by
+    :func:`rough_viewer.cli.main` to every read of the command."""
     parser.add_argument(
         "inputs", nargs="*" if optional else "+", metavar="INPUT",
         help=f"{what}: {FORMATS}; several files and quoted globs (\"scans/*.laz\") "
         "are merged into one cloud (same CRS and units)")
+    if max_points:
+        from rough_viewer.cli._options import positive_int
+        from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
+
+        parser.add_argument(
+            "--max-points", dest="file_max_points", type=positive_int, metavar="N",
+            help=f"read a compressed file (LAZ, E57) that declares more points than its "
+            f"size can hold (a decompression bomb, refused) if they are at most N "
+            f"(default {DEFAULT_MAX_POINTS:,})")
 
 
 def expand_inputs(patterns: list[str]) -> list[Path]:
     """Files named by ``patterns``: plain paths as given, glob patterns expanded
-    (sorted). A pattern that matches nothing is an InputError; a plain path is
-    checked when it is read."""
+    (sorted; :func:`glob_files`). A pattern that matches nothing is an InputError; a
+    plain path is checked when it is read."""
     out: list[Path] = []
     for pattern in patterns:
         if any(c in pattern for c in _GLOB_CHARS) and not Path(pattern).exists():
-            found = sorted(p for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
+            found = glob_files(pattern)
             if not found:
                 raise InputError(f"no files match {pattern!r}")
             out.extend(Path(p) for p in found)
         else:
             out.append(Path(pattern))
     return out
+
+
+def glob_files(pattern: str) -> list[str]:
+    """The files ``pattern`` matches, sorted: ``*``, ``?`` and ``[...]`` within one name
+    (not matching a leading dot), ``**`` for any depth of folders, as bash's
+    ``globstar`` and ``find`` do: ``**`` does not descend into folders reached through
+    symbolic links (Python's ``glob`` does: one link back up counted a file 41 times,
+    two never finished), while a link to a file, or a folder named without ``**``,
+    is followed."""
+    parts = pattern.split(os.sep)
+    if parts[0] == "":  # an absolute pattern
+        base, parts = os.sep, parts[1:]
+    else:
+        base = ""
+    found: set[str] = set()
+    _expand(base, [q for q in parts if q not in ("", ".")] or [""], found)
+    return sorted(f for f in found if os.path.isfile(f))
+
+
+def _expand(base: str, parts: list[str], found: set[str]) -> None:
+    if not parts:
+        if base:
+            found.add(base)
+        return
+    head, rest = parts[0], parts[1:]
+    here = base or os.curdir
+    if head == "**":
+        _expand(base, rest, found)  # zero folders
+        for name in _names(here, "*"):
+            sub = os.path.join(base, name)
+            if os.path.isdir(sub) and not os.path.islink(sub):
+                _expand(sub, parts, found)
+            elif not rest:  # a trailing ``**`` matches the files too
+                found.add(sub)
+        return
+    if glob.has_magic(head):
+        for name in _names(here, head):
+            _expand(os.path.join(base, name), rest, found)
+        return
+    target = os.path.join(base, head)
+    if os.path.lexists(target):
+        _expand(target, rest, found)
+
+
+def _names(folder: str, pattern: str) -> list[str]:
+    """Names in ``folder`` matching one component (a leading dot only when the
+    pattern has one)."""
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return []
+    hidden = pattern.startswith(".")
+    return [n for n in fnmatch.filter(names, pattern) if hidden or not n.startswith(".")]
 
 
 def input_paths(args: argparse.Namespace) -> list[Path]:

@@ -5,8 +5,8 @@ Contract::
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--max-points N] [--units m|mm|ft|us-ft]
-        [--data-dir DIR] [--max-upload-mb MB] [--allow-origin ORIGIN ...] [--no-token]
-        [--view VIEW.json] [--save-views]
+        [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
+        [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
@@ -20,7 +20,13 @@ times 1, 2, 4 and 8).
 The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
 printed once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
-(see :mod:`rough_viewer.app.gate`). Ctrl-C stops it.
+(see :mod:`rough_viewer.app.gate`); at most ``--max-connections`` (default 32) are
+open at once, and one whose browser stops reading is closed. Ctrl-C stops it.
+
+Files opened from the browser ("Load file", uploads) are decoded in a child process
+(:mod:`rough_viewer.io.isolate`): a file that crashes its reader is a notice, and the
+server keeps serving. ``--max-points`` also bounds the points a compressed file may
+declare when its size cannot hold them (a decompression bomb is refused).
 
 The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
 opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
@@ -46,6 +52,7 @@ import sys
 import time
 from pathlib import Path
 
+from rough_viewer.app.gate import DEFAULT_MAX_CONNECTIONS
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.cli._inputs import add_inputs
 from rough_viewer.cli._options import add_axis, add_units
@@ -60,7 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="open the roughness viewer in the browser",
         description="Start the interactive roughness viewer (viser) on a cloud or a demo.",
     )
-    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)")
+    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)",
+               max_points=False)
     p.add_argument("--demo", metavar="NAME", help="open a bundled demo instead of INPUT")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
     p.add_argument("--host", default="127.0.0.1",
@@ -75,13 +83,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="initial minimum points per cell (default 4)")
     p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",
                    help="most points drawn in the browser (default 2000000; roughness "
-                   "always uses every point)")
+                   "always uses every point); also the most points a compressed file "
+                   "(LAZ, E57) may declare beyond what its size can hold (a decompression "
+                   "bomb is refused)")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
                    "folder of the first INPUT, or the current folder); paths outside are "
                    "refused")
     p.add_argument("--max-upload-mb", type=float, default=DEFAULT_MAX_UPLOAD_MB, metavar="MB",
                    help=f"largest file a browser may upload (default {DEFAULT_MAX_UPLOAD_MB})")
+    p.add_argument("--max-connections", type=int, default=DEFAULT_MAX_CONNECTIONS, metavar="N",
+                   help=f"most browser connections open at once (default "
+                   f"{DEFAULT_MAX_CONNECTIONS}); more are refused")
     p.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
                    help="also accept connections from pages of this origin, e.g. "
                    "http://myhost:8080 (repeatable); pages of other origins are refused")
@@ -142,6 +155,8 @@ def _check_options(args: argparse.Namespace) -> Path:
         raise InputError(f"--max-points must be positive, got {args.max_points}")
     if not 0 <= args.port < 65536:
         raise InputError(f"--port must be 0-65535, got {args.port}")
+    if args.max_connections < 1:
+        raise InputError(f"--max-connections must be positive, got {args.max_connections}")
     if not args.max_upload_mb > 0:
         raise InputError(f"--max-upload-mb must be positive, got {args.max_upload_mb:g}")
     for origin in args.allow_origin:
@@ -159,6 +174,17 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rough_viewer.app import files
+    from rough_viewer.io import isolate
+    from rough_viewer.io.estimates import points_limit
+
+    isolate.warm(keep=True)  # a reader process ready for every file a browser loads
+    files.configure(max_points=args.max_points)
+    with points_limit(args.max_points):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from rough_viewer.app.state import MapSettings, check_settings, grid_presets
     from rough_viewer.vocabulary import UNIT_METRES
 
@@ -203,7 +229,8 @@ def run(args: argparse.Namespace) -> int:
     with contextlib.redirect_stdout(io.StringIO()):  # viser's banner shows a URL without the token
         server, gate = open_server(args.host, args.port,
                                    token=None if args.no_token else new_token(),
-                                   allow_origins=args.allow_origin)
+                                   allow_origins=args.allow_origin,
+                                   max_connections=args.max_connections)
     app = None
     previous = _stop_on_terminate()
     try:

@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.costs import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
-#: Bytes per point at the peak of a read: pye57's per-scan buffers (x, y, z float64,
-#: intensity float32, 3 colour bytes, invalid state) and the merged columns.
-E57_BYTES_PER_POINT = 24 + 4 + 3 + 1 + 24 + 4 + 3 + 4 + 24
+#: Bytes per point at the peak of a read (measured: :data:`rough_viewer.io.estimates.COSTS`).
+E57_BYTES_PER_POINT = COSTS["e57"].per_point
 
 _XYZ = ("cartesianX", "cartesianY", "cartesianZ")
 _RGB = ("colorRed", "colorGreen", "colorBlue")
@@ -44,21 +44,31 @@ def quaternion_matrix(wxyz: np.ndarray) -> np.ndarray:
     ])
 
 
-def read_e57(p: Path, *, progress: ProgressFn | None = None) -> PointCloud:
+def read_e57(p: Path, *, progress: ProgressFn | None = None,
+             max_points: int | None = None) -> PointCloud:
     """Read every scan of an E57 file into one cloud in the file's frame (metres).
+
+    ``max_points``: the decompression-bomb guard's limit
+    (:func:`rough_viewer.io.estimates.check_plausible`).
 
     Raises
     ------
     InputError
-        pye57 not installed, an unreadable file, no scans, a scan without Cartesian
-        coordinates (spherical only), or more points than fit in memory.
+        pye57 not installed, an unreadable or damaged file (libE57Format's error, in
+        one line), no scans, a scan without Cartesian coordinates (spherical only),
+        more points than the file can hold, or more than fit in memory.
     """
     try:
         import pye57
     except ImportError:
         raise InputError(f"reading {p} needs pye57 (pip install pye57)") from None
     with foreign_errors(f"cannot read {p} as E57"):  # libE57Format raises its own types
-        e57 = pye57.E57(str(p))
+        return _read_e57(pye57.E57(str(p)), p, progress, max_points)
+
+
+def _read_e57(e57, p: Path, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    from rough_viewer.io.estimates import check_plausible
+
     try:
         n_scans = int(e57.scan_count)
         if n_scans == 0:
@@ -72,6 +82,8 @@ def read_e57(p: Path, *, progress: ProgressFn | None = None) -> PointCloud:
                 )
         counts = [int(h.point_count) for h in headers]
         total = sum(counts)
+        check_plausible(p, total, size=p.stat().st_size, kind="e57", max_points=max_points,
+                        label="E57")
         require(total * E57_BYTES_PER_POINT, f"reading {total:,} points from {p}",
                 hint="use a smaller file or a machine with more memory")
         has_int = all("intensity" in h.point_fields for h in headers)

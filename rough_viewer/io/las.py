@@ -6,13 +6,15 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from rough_viewer.io.cache import cache_read, cache_write
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.costs import COSTS
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, foreign_errors
 
@@ -36,7 +38,23 @@ VLR_HEADER_BYTES = 54
 EVLR_HEADER_BYTES = 60
 
 
-def check_las_layout(path: str | os.PathLike[str]) -> None:
+@dataclass(frozen=True)
+class LasLayout:
+    """What a LAS/LAZ header says about the file's size, read from its raw bytes."""
+
+    size: int
+    """Bytes of the file."""
+    point_count: int
+    """Points the header declares (LAS 1.4's 64-bit count where it has one)."""
+    record_length: int
+    """Bytes of one point record (uncompressed)."""
+    compressed: bool
+    """True for LAZ (the point format's compression bit)."""
+    data_offset: int
+    """Byte where the point data start."""
+
+
+def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
     """Refuse a LAS/LAZ file whose header cannot describe the file, from its raw
     bytes, before laspy reads it: laspy walks the declared records, so a 34 KB file
     declaring 4e9 VLRs grew the reader past several GB (and a file that only starts
@@ -46,6 +64,11 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
     the VLRs fitting between the header and the point data, coordinate scales and
     offsets that can place points (a finite, non-zero scale; a finite offset), and
     (LAS 1.4) the EVLRs fitting after the point data.
+
+    Returns
+    -------
+    LasLayout
+        The point count, record length and compression the header declares.
 
     Raises
     ------
@@ -92,6 +115,12 @@ def check_las_layout(path: str | os.PathLike[str]) -> None:
             raise InputError(f"{bad} declares {n_evlrs:,} extended records from byte "
                              f"{evlr_start:,}, outside the file ({size:,} bytes): a damaged "
                              "or lying header")
+    point_format, record_length, legacy_count = struct.unpack_from("<BHI", head, 104)
+    count = legacy_count
+    if minor >= 4 and len(head) >= 255:
+        count = struct.unpack_from("<Q", head, 247)[0] or legacy_count
+    return LasLayout(size=size, point_count=int(count), record_length=int(record_length),
+                     compressed=bool(point_format & 0xC0), data_offset=int(data_offset))
 
 
 def open_las(path: str | os.PathLike[str], **kwargs):
@@ -102,9 +131,8 @@ def open_las(path: str | os.PathLike[str], **kwargs):
     return laspy.open(path, **kwargs)
 
 
-#: Bytes held per point while reading: x, y, z (float64), intensity (uint16), RGB
-#: (3 x uint16), and the finite-row filter's copies of the coordinates at its peak.
-READ_BYTES_PER_POINT = 3 * 8 + 2 + 6 + 3 * 8 + 1
+#: Bytes held per point while reading (measured: :data:`rough_viewer.io.estimates.COSTS`).
+READ_BYTES_PER_POINT = COSTS["laz"].per_point
 
 
 def _selection(point_format):
@@ -306,7 +334,7 @@ def write_las(
 
 
 def load_las_with_extra(
-    path: str | os.PathLike[str], names: tuple[str, ...]
+    path: str | os.PathLike[str], names: tuple[str, ...], *, trusted: bool = False
 ) -> tuple[PointCloud, dict[str, np.ndarray]]:
     """Read a LAS/LAZ file's points and some of its extra dimensions in one decode.
 
@@ -316,14 +344,51 @@ def load_las_with_extra(
         A ``.las`` or ``.laz`` file.
     names : tuple of str
         Extra dimensions to return (e.g. ``("truth",)``).
+    trusted : bool
+        Decode in this process (files the package made itself, the bundled demos);
+        else in a child process (:mod:`rough_viewer.io.isolate`).
 
     Returns
     -------
     PointCloud, dict
         The points (metres, with intensity) and name -> (N,) array, row-aligned.
     """
+    from rough_viewer.io import isolate
 
     p = Path(path)
+    if trusted or not isolate.available():
+        return _load_las_with_extra(p, names)
+    layout = check_las_layout(p)
+    need = layout.point_count * (READ_BYTES_PER_POINT + 2.0 * layout.record_length)
+    limits = isolate.limits_for(need, layout.size)
+    items = isolate.stream_isolated(
+        f"{__name__}:_extra_items", p, label="LAS/LAZ", limits=limits,
+        names=frozenset({"x", "y", "z", "intensity", "dropped", *(f"extra.{n}" for n in names)}),
+        options={"names": list(names)})
+    try:
+        item = next(items)
+    finally:
+        items.close()
+    cloud = PointCloud(x=item["x"], y=item["y"], z=item["z"], intensity=item.get("intensity"),
+                       source=str(p), dropped_nonfinite=int(item["dropped"][0]))
+    return cloud, {n: item[f"extra.{n}"] for n in names}
+
+
+def _extra_items(p: Path, *, progress: ProgressFn | None = None,
+                 names: tuple[str, ...] = ()) -> Iterator[dict[str, np.ndarray]]:
+    """:func:`_load_las_with_extra` as one item of a stream (the child process's part)."""
+    cloud, extra = _load_las_with_extra(p, tuple(names))
+    item: dict[str, np.ndarray] = {
+        "x": cloud.x, "y": cloud.y, "z": cloud.z,
+        "dropped": np.array([cloud.dropped_nonfinite], dtype=np.int64)}
+    if cloud.intensity is not None:
+        item["intensity"] = np.asarray(cloud.intensity)
+    item.update({f"extra.{n}": v for n, v in extra.items()})
+    yield item
+
+
+def _load_las_with_extra(p: Path, names: tuple[str, ...]
+                         ) -> tuple[PointCloud, dict[str, np.ndarray]]:
     with foreign_errors(f"cannot read {p}"), \
             open_las(p, laz_backend=laz_backend()) as reader:
         # the whole record is decoded too

@@ -28,13 +28,26 @@ z is never taken to be in the horizontal unit (:func:`axis_units`).
 Rows with NaN or infinite coordinates are dropped and counted
 (:attr:`PointCloud.dropped_nonfinite`). Every problem raises
 :class:`rough_viewer.vocabulary.InputError` with the file's name.
+
+Each format is one :class:`Reader` in :data:`READERS`. Before a file is read its
+header is checked and its peak memory estimated (:mod:`rough_viewer.io.estimates`:
+measured figures, the decompression-bomb guard); an ``untrusted`` reader then runs in
+a child process with memory and time limits (:mod:`rough_viewer.io.isolate`), so a
+file that crashes its decoder is one error line, never the end of this process.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from rough_viewer.io import estimates, isolate
+from rough_viewer.io.cache import cache_lookup, cache_write
 from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
 from rough_viewer.io.crs import read_crs
 from rough_viewer.io.dem import DEM_SUFFIXES, read_dem
@@ -43,17 +56,96 @@ from rough_viewer.io.las import read_las
 from rough_viewer.io.ply import read_ply
 from rough_viewer.io.stl import read_stl
 from rough_viewer.io.text import read_npy, read_text
+from rough_viewer.memory import require
 from rough_viewer.vocabulary import (
     UNIT_LABELS,
     UNIT_METRES,
     InputError,
     ProgressFn,
     Unit,
+    error_line,
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
-SUPPORTED_SUFFIXES = (".las", ".laz", ".e57", *TEXT_SUFFIXES, ".npy", ".ply", ".stl",
-                      *DEM_SUFFIXES)
+
+#: Largest coordinate magnitude a cloud may have, metres: far beyond any survey
+#: (geocentric coordinates reach 6.4e6 m) and still resolving a micrometre; larger
+#: ones (a damaged file, or the wrong unit) overflow the planes' sums of squares.
+MAX_COORDINATE_M = 1e9
+
+
+@dataclass(frozen=True)
+class Reader:
+    """One file format's reader, as the dispatch of :func:`load_points` knows it.
+
+    A new format is one entry in :data:`READERS`. An ``untrusted`` reader (its
+    decoder runs native code on bytes anyone can craft) runs in a child process with
+    memory and time limits (:mod:`rough_viewer.io.isolate`).
+    """
+
+    label: str
+    """The format as messages name it (``"LAZ"``, ``"E57"``)."""
+    suffixes: tuple[str, ...]
+    """File name extensions, lower case, with the dot."""
+    read: str
+    """``"module:function"``: ``function(path, *, progress, max_points) -> PointCloud``
+    (importable by name, so the child process can run it)."""
+    estimate: Callable[[Path, int | None], estimates.Estimate]
+    """Points and peak memory expected, from the header (checks it; in this process:
+    pure Python on bounded bytes)."""
+    untrusted: bool = True
+    """Run in a child process."""
+    cached: bool = False
+    """Decoded coordinates kept in the decode cache (:mod:`rough_viewer.io.cache`)."""
+
+
+def _las_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_las(p, progress=progress, cache=False)
+
+
+def _e57_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_e57(p, progress=progress, max_points=max_points)
+
+
+def _text_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_text(p)
+
+
+def _npy_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_npy(p)
+
+
+def _ply_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_ply(p)
+
+
+def _stl_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_stl(p)
+
+
+def _dem_file(p: Path, *, progress: ProgressFn | None, max_points: int | None) -> PointCloud:
+    return read_dem(p)
+
+
+READERS: tuple[Reader, ...] = (
+    Reader("LAS", (".las",), f"{__name__}:_las_file", estimates.estimate_las),
+    Reader("LAZ", (".laz",), f"{__name__}:_las_file", estimates.estimate_las, cached=True),
+    Reader("E57", (".e57",), f"{__name__}:_e57_file", estimates.estimate_e57),
+    Reader("text", TEXT_SUFFIXES, f"{__name__}:_text_file", estimates.estimate_text),
+    # numpy's own format, its header checked first (estimates.npy_rows): read here
+    Reader("NPY", (".npy",), f"{__name__}:_npy_file", estimates.estimate_npy, untrusted=False),
+    Reader("PLY", (".ply",), f"{__name__}:_ply_file", estimates.estimate_ply),
+    Reader("STL", (".stl",), f"{__name__}:_stl_file", estimates.estimate_stl),
+    Reader("DEM", DEM_SUFFIXES, f"{__name__}:_dem_file", estimates.estimate_dem),
+)
+
+SUPPORTED_SUFFIXES = tuple(s for r in READERS for s in r.suffixes)
+
+
+def reader_for(path: str | os.PathLike[str]) -> Reader | None:
+    """The reader of ``path``'s extension, or None."""
+    suffix = Path(path).suffix.lower()
+    return next((r for r in READERS if suffix in r.suffixes), None)
 
 
 def load_points(
@@ -62,6 +154,7 @@ def load_points(
     progress: ProgressFn | None = None,
     cache: bool = True,
     units: Unit | None = None,
+    max_points: int | None = None,
 ) -> PointCloud:
     """Read a point cloud file into metres.
 
@@ -70,24 +163,33 @@ def load_points(
     path : path-like
         A ``.las .laz .e57 .xyz .txt .csv .pts .npy .ply .stl .asc .tif .tiff`` file.
     progress : callable, optional
-        ``progress(done, total)`` in points, for LAS/LAZ and E57 files.
+        ``progress(done, total)`` in points; an exception it raises stops the read
+        (and its child process).
     cache : bool
         Use (and fill) the decoded-coordinate cache for LAZ files.
     units : {"m", "mm", "ft", "us-ft"}, optional
         Unit of the file's coordinates; default: its CRS's linear unit where it
         declares one (LAS/LAZ), else metres.
+    max_points : int, optional
+        A compressed file (LAZ, E57) may declare up to this many points however
+        small it is (default :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`);
+        beyond, it must be of a size that can hold them (the decompression-bomb
+        guard, ``--max-points``).
 
     Returns
     -------
     PointCloud
         Coordinates in metres; ``source_unit`` the unit the file was read in;
-        ``warnings`` what the user should know (header counts, units vs CRS).
+        ``warnings`` what the user should know (header counts, units vs CRS, a
+        damaged cache entry decoded again).
 
     Raises
     ------
     InputError
         Missing or unreadable file, unknown extension, malformed content, fewer than
-        3 finite points.
+        3 finite points, a file whose reading cannot fit in memory, a decompression
+        bomb, coordinates beyond :data:`MAX_COORDINATE_M`, a reader that crashed or
+        went past its memory or time limit (one line naming the file).
 
     Examples
     --------
@@ -99,10 +201,10 @@ def load_points(
     (3, 1)
     """
     p = Path(path)
-    suffix = p.suffix.lower()
     if p.is_dir():  # before the suffix: "." or "scans" is a folder, not an unknown type
         check_input_file(p)
-    if suffix not in SUPPORTED_SUFFIXES:
+    reader = reader_for(p)
+    if reader is None:
         raise InputError(
             f"unknown file type {p.suffix or '(none)'!r} for {p}; "
             f"supported: {' '.join(SUPPORTED_SUFFIXES)}"
@@ -112,27 +214,74 @@ def load_points(
         raise InputError(f"cannot read {p}: permission denied")
     if units is not None and units not in UNIT_METRES:
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
+    if max_points is not None and max_points < 1:
+        raise InputError(f"--max-points must be positive, got {max_points}")
     with read_errors(p):
-        cloud = _read(p, suffix, progress=progress, cache=cache)
+        cloud = _read(p, reader, progress=progress, cache=cache, max_points=max_points)
         unit, z_unit, notes = axis_units(p, units)
+        check_coordinates((cloud.x, cloud.y, cloud.z), p,
+                          factor=max(UNIT_METRES[unit], UNIT_METRES[z_unit]))
     return cloud.scaled(UNIT_METRES[unit], unit,
                         z_metres_per_unit=UNIT_METRES[z_unit]).with_warnings(*notes)
 
 
-def _read(p: Path, suffix: str, *, progress: ProgressFn | None, cache: bool) -> PointCloud:
-    if suffix in (".las", ".laz"):
-        return read_las(p, progress=progress, cache=cache and suffix == ".laz")
-    if suffix == ".e57":
-        return read_e57(p, progress=progress)
-    if suffix in TEXT_SUFFIXES:
-        return read_text(p)
-    if suffix == ".npy":
-        return read_npy(p)
-    if suffix == ".ply":
-        return read_ply(p)
-    if suffix in DEM_SUFFIXES:
-        return read_dem(p)
-    return read_stl(p)
+def _read(p: Path, reader: Reader, *, progress: ProgressFn | None, cache: bool,
+          max_points: int | None) -> PointCloud:
+    notice = None
+    if cache and reader.cached:
+        found = cache_lookup(p)
+        if found.cloud is not None:
+            if progress:
+                progress(found.cloud.n, found.cloud.n)
+            return found.cloud
+        notice = found.notice
+    est = reader.estimate(p, max_points)
+    require(est.typical, est.what(p), hint="use a smaller file or a machine with more memory")
+    module, _, name = reader.read.partition(":")
+    function = getattr(importlib.import_module(module), name)
+    cloud = isolate.run_reader(
+        reader.read, lambda: _in_process(function, p, progress, max_points), p,
+        isolate=reader.untrusted, label=reader.label,
+        limits=est.limits(p.stat().st_size), progress=progress,
+        options={"max_points": max_points}, expected=est.points)
+    if cache and reader.cached:
+        cache_write(p, cloud)
+    return cloud if notice is None else cloud.with_warnings(notice)
+
+
+def _in_process(function: Callable[..., PointCloud], p: Path, progress: ProgressFn | None,
+                max_points: int | None) -> PointCloud:
+    """A reader in this process (trusted, or where isolation is unavailable): library
+    errors become one line, as the child process does."""
+    try:
+        return function(p, progress=progress, max_points=max_points)
+    except (InputError, MemoryError, OSError, ValueError, EOFError, KeyError, IndexError):
+        raise
+    except Exception as exc:  # laspy, lazrs, pye57 raise their own types
+        raise InputError(f"cannot read {p}: {error_line(exc)}") from None
+    except BaseException as exc:
+        if type(exc).__name__ == "PanicException":  # lazrs (pyo3) panics are BaseExceptions
+            raise InputError(f"cannot read {p}: the decoder failed ({error_line(exc)})") from None
+        raise
+
+
+def check_coordinates(columns: tuple[np.ndarray, ...], p: Path | str, *,
+                      factor: float = 1.0) -> None:
+    """Refuse coordinate columns (x, y, z, in a unit of ``factor`` metres) that reach
+    beyond :data:`MAX_COORDINATE_M`.
+
+    >>> check_coordinates((np.zeros(3), np.zeros(3), np.array([0, 1, 1e290])), "a.xyz")
+    Traceback (most recent call last):
+    rough_viewer.vocabulary.InputError: coordinates of a.xyz reach 1e+290 m in z; a scan lies within 1e+09 m of its origin: the file is damaged, or its coordinates are not in the unit given
+    """
+    for axis, col in zip("xyz", columns, strict=True):
+        if col.size:
+            top = max(abs(float(np.min(col))), abs(float(np.max(col)))) * factor
+            if top > MAX_COORDINATE_M:
+                raise InputError(
+                    f"coordinates of {p} reach {top:.3g} m in {axis}; a scan lies within "
+                    f"{MAX_COORDINATE_M:.0e} m of its origin: the file is damaged, or its "
+                    "coordinates are not in the unit given")
 
 
 def resolve_units(path: str | os.PathLike[str], units: Unit | None) -> tuple[Unit, tuple[str, ...]]:

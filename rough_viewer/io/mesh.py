@@ -22,11 +22,13 @@ is triangulated there, in its best-fit plane.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from rough_viewer.io import isolate
 from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
@@ -113,7 +115,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
     # the file's bytes, a few copies of its corners and the faces
     require(8.0 * p.stat().st_size, f"reading the mesh of {p.name}")
     with read_errors(p):
-        read = read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
+        read = _read_isolated(p) if isolate.available() else \
+            read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
     if read is None:
         return None
     vertices, faces = read
@@ -121,3 +124,26 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
     mesh = check_mesh(vertices * UNIT_METRES[unit], faces, str(p))
     return TriangleMesh(vertices=mesh.vertices, faces=mesh.faces, source=str(p),
                         source_unit=unit)
+
+
+def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """The mesh read in a child process (:mod:`rough_viewer.io.isolate`): plyfile and the
+    STL parser run on bytes anyone can craft."""
+    size = p.stat().st_size
+    items = isolate.stream_isolated(
+        f"{__name__}:_mesh_items", p, label="PLY" if p.suffix.lower() == ".ply" else "STL",
+        limits=isolate.limits_for(8.0 * size, size), names=frozenset({"vertices", "faces"}))
+    try:
+        item = next(items)
+    finally:
+        items.close()
+    return (item["vertices"], item["faces"]) if item else None
+
+
+def _mesh_items(p: Path, *, progress: object = None) -> Iterator[dict[str, np.ndarray]]:
+    """The mesh as one item of a stream (empty: no faces), what the child runs."""
+    from rough_viewer.io.ply import read_ply_mesh
+    from rough_viewer.io.stl import read_stl_mesh
+
+    read = read_stl_mesh(p) if p.suffix.lower() == ".stl" else read_ply_mesh(p)
+    yield {} if read is None else {"vertices": read[0], "faces": read[1]}

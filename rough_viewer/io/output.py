@@ -8,10 +8,13 @@ Rules (issue 15, "Safety"):
   symlink, a device, a pipe or a folder, or that is the input itself (same path, a
   hard link, a symlink to it), is refused; two outputs of one run never share a path;
   a name chosen inside a folder stays in it (:func:`path_in_folder`);
-- write through a temporary file in the same folder and rename it
-  (:func:`write_path_atomic`, :func:`write_atomic`), so an error, a full disk or an
-  interrupt never leaves a half-written or temporary file, and the old file, if any,
-  stays as it was;
+- write through a temporary file in the same folder, fsync it, and rename it
+  (:func:`write_path_atomic`, :func:`write_atomic`), so an error, a full disk, an
+  interrupt or a power loss never leaves a half-written, empty or temporary file,
+  and the old file, if any, stays as it was;
+- an output checked without ``force`` is created exclusively: it is published by a
+  hard link, which fails if the name exists, so of two runs that both passed the
+  "exists" check the second refuses instead of silently replacing the first's file;
 - a run with several outputs writes them inside :func:`all_or_nothing`: each file
   is made under a temporary name and all are renamed into place only when the run
   ends without error, so a failed run leaves none of its outputs (not the first of
@@ -27,6 +30,7 @@ import errno
 import os
 import stat
 import tempfile
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -50,6 +54,62 @@ class _Pending:
 #: The files written so far inside the innermost :func:`all_or_nothing`, or None.
 _BATCH: ContextVar[list[_Pending] | None] = ContextVar("rough_viewer_output_batch",
                                                          default=None)
+
+#: Outputs checked without ``force`` (absolute paths): published only if they still do
+#: not exist (:func:`_publish`), so a second run that passed the same check never
+#: replaces the first one's file.
+_EXCLUSIVE: set[str] = set()
+_EXCLUSIVE_LOCK = threading.Lock()
+
+
+def _claim(p: Path, exclusive: bool) -> None:
+    key = os.path.abspath(p)
+    with _EXCLUSIVE_LOCK:
+        if exclusive:
+            _EXCLUSIVE.add(key)
+        else:
+            _EXCLUSIVE.discard(key)
+
+
+def _fsync(path: Path, *, folder: bool = False) -> None:
+    """Flush a file (or a folder's entries) to the disk."""
+    fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if folder else 0))
+    try:
+        os.fsync(fd)
+    except OSError as exc:
+        if not folder or exc.errno not in (errno.EINVAL, errno.EBADF, errno.ENOTSUP):
+            raise
+    finally:
+        os.close(fd)
+
+
+def _publish(tmp: Path, p: Path) -> None:
+    """Rename the finished temporary file ``tmp`` onto ``p``: replacing it when the
+    output was checked with ``force`` (or not checked), else only if ``p`` does not
+    exist, atomically (a hard link fails when the name is taken; then ``tmp`` goes).
+
+    Raises InputError naming ``p`` when another run made it meanwhile."""
+    with _EXCLUSIVE_LOCK:
+        exclusive = os.path.abspath(p) in _EXCLUSIVE
+    if not exclusive:
+        os.replace(tmp, p)
+    else:
+        try:
+            os.link(tmp, p)
+        except FileExistsError:
+            tmp.unlink(missing_ok=True)
+            raise InputError(f"output file exists: {p} (another run wrote it meanwhile; use "
+                             "--force to overwrite)") from None
+        except OSError as exc:
+            if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK):
+                raise
+            # a file system without hard links: the exclusive create is the next best
+            fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            os.close(fd)
+            os.replace(tmp, p)
+        else:
+            tmp.unlink(missing_ok=True)
+    _fsync(_parent(p), folder=True)
 
 
 def _parent(p: Path) -> Path:
@@ -125,6 +185,7 @@ def check_output_path(
             raise InputError(f"output file exists: {p} (use --force to overwrite)")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"output folder is not writable: {parent} (for {p})")
+    _claim(p, not force)
     return p
 
 
@@ -211,14 +272,21 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        write_to(tmp)
+        try:
+            write_to(tmp)
+        except Exception as exc:  # a writer that wraps the disk's error in its own type
+            cause = _os_error(exc)
+            if cause is None:
+                raise
+            raise cause from None
         # mkstemp makes the file private (0600); give it the usual umask permissions
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
+        _fsync(tmp)  # the data on the disk before the name: no empty file after a power loss
         batch = _BATCH.get()
         if batch is None:
-            os.replace(tmp, p)
+            _publish(tmp, p)
         else:  # renamed when the batch ends without error
             batch.append(_Pending(tmp, p))
     except OSError as exc:
@@ -227,6 +295,25 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _os_error(exc: BaseException) -> OSError | None:
+    """The OSError behind a library's own error (laspy and lazrs wrap a full disk in
+    theirs: ``LazrsError: IoError: No space left on device``), else None."""
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, OSError):
+            return cur
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    text = str(exc)
+    for code, phrase in ((errno.ENOSPC, "No space left on device"),
+                         (errno.EDQUOT, "Disk quota exceeded"),
+                         (errno.EROFS, "Read-only file system")):
+        if phrase in text:
+            return OSError(code, phrase)
+    return None
 
 
 def write_atomic(path: PathLike, write: Callable[[IO[Any]], object], *, mode: str = "w") -> None:
@@ -281,12 +368,14 @@ def _commit(pending: list[_Pending]) -> None:
     for i, item in enumerate(pending):
         existed = item.path.exists()
         try:
-            os.replace(item.tmp, item.path)
-        except OSError as exc:
+            _publish(item.tmp, item.path)
+        except (OSError, InputError) as exc:
             for rest in pending[i:]:
                 rest.tmp.unlink(missing_ok=True)
             for path in made:
                 path.unlink(missing_ok=True)
+            if isinstance(exc, InputError):
+                raise
             raise InputError(f"cannot write {item.path}: {_reason(exc)}") from None
         if not existed:
             made.append(item.path)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -24,23 +26,73 @@ _PLY_TYPES = {
 }
 
 
-def read_ply(p: Path) -> PointCloud:
-    with open(p, "rb") as fh:
-        if fh.readline().strip() != b"ply":
-            raise InputError(f"not a PLY file (no 'ply' magic line): {p}")
-        fmt = None
-        elements: list[tuple[str, int, list[tuple[str, str | None, str]]]] = []
-        while True:
-            raw = fh.readline()
-            if not raw:
-                raise InputError(f"PLY header has no end_header: {p}")
-            parts = raw.decode("ascii", errors="replace").split()
-            if not parts or parts[0] in ("comment", "obj_info"):
-                continue
+#: Longest line a PLY header may hold, bytes (a comment of 600 MB was read whole
+#: and split into words: 26 times the file's size in memory).
+MAX_HEADER_LINE = 64 << 10
+#: Largest PLY header, bytes.
+MAX_HEADER_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class HeaderElement:
+    """One element of a PLY header: its name, count and properties."""
+
+    name: str
+    count: int
+    properties: tuple[tuple[str, str | None, str], ...]
+    """``(name, list count type or None, value type)`` of each property."""
+
+
+@dataclass(frozen=True)
+class PlyHeader:
+    """What a PLY header declares."""
+
+    format: str
+    """``ascii``, ``binary_little_endian`` or ``binary_big_endian``."""
+    elements: tuple[HeaderElement, ...]
+    data_offset: int
+    """Byte where the data start (after ``end_header``)."""
+
+    @property
+    def vertex(self) -> HeaderElement:
+        """The vertex element."""
+        return next(e for e in self.elements if e.name == "vertex")
+
+
+def read_ply_header(fh: BinaryIO, p: Path) -> PlyHeader:
+    """Parse a PLY header from ``fh`` (at the file's start), leaving ``fh`` at the data.
+
+    Raises
+    ------
+    InputError
+        No ``ply`` magic line, no ``end_header``, a line or header too long, an element
+        count that is not a whole number >= 0, a property before any element, an
+        unsupported format, no vertex element or one without x, y, z.
+    """
+    if fh.readline(8).strip() != b"ply":
+        raise InputError(f"not a PLY file (no 'ply' magic line): {p}")
+    fmt = None
+    elements: list[tuple[str, int, list[tuple[str, str | None, str]]]] = []
+    while True:
+        raw = fh.readline(MAX_HEADER_LINE + 1)
+        if not raw:
+            raise InputError(f"PLY header has no end_header: {p}")
+        if len(raw) > MAX_HEADER_LINE or fh.tell() > MAX_HEADER_BYTES:
+            raise InputError(f"PLY header of {p} has a line longer than {MAX_HEADER_LINE:,} "
+                             f"bytes or is longer than {MAX_HEADER_BYTES:,}: not a PLY file, "
+                             "or a damaged one")
+        parts = raw.decode("ascii", errors="replace").split()
+        if not parts or parts[0] in ("comment", "obj_info"):
+            continue
+        try:
             if parts[0] == "format":
                 fmt = parts[1]
             elif parts[0] == "element":
-                elements.append((parts[1], int(parts[2]), []))
+                count = int(parts[2])
+                if count < 0:
+                    raise InputError(f"PLY element {parts[1]!r} of {p} declares {count:,} "
+                                     "records: a damaged header")
+                elements.append((parts[1], count, []))
             elif parts[0] == "property":
                 if not elements:
                     raise InputError(f"PLY property before any element: {p}")
@@ -50,22 +102,45 @@ def read_ply(p: Path) -> PointCloud:
                     elements[-1][2].append((parts[2], None, parts[1]))
             elif parts[0] == "end_header":
                 break
-        if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-            raise InputError(f"unsupported PLY format {fmt!r} in {p}")
-        names = [e[0] for e in elements]
-        if "vertex" not in names:
-            raise InputError(f"PLY file has no vertex element: {p}")
-        vi = names.index("vertex")
+        except InputError:
+            raise
+        except (IndexError, ValueError):
+            raise InputError(f"malformed PLY header line {' '.join(parts)[:80]!r} in {p}") from None
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise InputError(f"unsupported PLY format {fmt!r} in {p}")
+    if "vertex" not in [e[0] for e in elements]:
+        raise InputError(f"PLY file has no vertex element: {p}")
+    header = PlyHeader(fmt, tuple(HeaderElement(n, c, tuple(q)) for n, c, q in elements), fh.tell())
+    if not all(k in [q[0] for q in header.vertex.properties] for k in "xyz"):
+        raise InputError(f"PLY vertex element lacks x, y, z properties: {p}")
+    return header
+
+
+def record_size(element: HeaderElement) -> int:
+    """Bytes of one binary record of ``element`` (which has no list properties).
+
+    Raises InputError for an unknown property type."""
+    try:
+        return sum(np.dtype(_PLY_TYPES[q[2]]).itemsize for q in element.properties)
+    except KeyError as exc:
+        raise InputError(f"unknown PLY property type {exc}") from None
+
+
+def read_ply(p: Path) -> PointCloud:
+    with open(p, "rb") as fh:
+        header = read_ply_header(fh, p)
+        fmt = header.format
+        elements = [(e.name, e.count, list(e.properties)) for e in header.elements]
+        vi = [e[0] for e in elements].index("vertex")
         _, n_vert, props = elements[vi]
         pnames = [q[0] for q in props]
-        if not all(k in pnames for k in "xyz"):
-            raise InputError(f"PLY vertex element lacks x, y, z properties: {p}")
         if fmt == "ascii":
             skip = sum(e[1] for e in elements[:vi])
             if any(q[1] is not None for q in props):
                 raise InputError(f"PLY vertex element with list properties is not supported: {p}")
             for _ in range(skip):
-                fh.readline()
+                if not fh.readline():
+                    raise InputError(f"PLY file is truncated: it ends before its vertices: {p}")
             cols = tuple(pnames.index(k) for k in "xyz")
             data = np.loadtxt(fh, usecols=cols, max_rows=n_vert, ndmin=2, dtype=np.float64)
             if data.shape[0] != n_vert:
@@ -85,6 +160,10 @@ def read_ply(p: Path) -> PointCloud:
                 dt = np.dtype([(q[0], end + _PLY_TYPES[q[2]]) for q in props])
             except KeyError as exc:
                 raise InputError(f"unknown PLY property type {exc} in {p}") from None
+            room = max(0, p.stat().st_size - fh.tell())
+            if n_vert * dt.itemsize > room:
+                raise InputError(f"PLY file is truncated: its header declares {n_vert:,} vertices "
+                                 f"but the file holds at most {room // dt.itemsize:,}: {p}")
             require(dt.itemsize * n_vert + 24.0 * n_vert, f"reading {p.name}")
             rec = np.fromfile(fh, dtype=dt, count=n_vert)
             if rec.shape[0] < n_vert:

@@ -30,6 +30,7 @@ import math
 import os
 import re
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -229,7 +230,7 @@ def point_source_ids(path: str | os.PathLike[str]) -> np.ndarray:
     suffix = p.suffix.lower()
     if suffix in (".las", ".laz"):
         with foreign_errors(f"cannot read the point source ids of {p}"):
-            return _las_ids(p)
+            return _isolated_ids(p)
     if suffix in (".xyz", ".txt", ".csv", ".pts"):
         ids = _text_ids(p)
         if ids is not None:
@@ -238,6 +239,31 @@ def point_source_ids(path: str | os.PathLike[str]) -> np.ndarray:
                          "for --scanners; give --scanner X,Y,Z for one scanner")
     raise InputError(f"{p} carries no point_source_id for --scanners (LAS/LAZ files and text "
                      "with a point_source_id column do); give --scanner X,Y,Z for one scanner")
+
+
+def _isolated_ids(p: Path) -> np.ndarray:
+    """:func:`_las_ids` in a child process where reads are isolated
+    (:mod:`rough_viewer.io.isolate`): lazrs decodes the file again, another layer."""
+    from rough_viewer.io import isolate
+    from rough_viewer.io.las import LAS_CHUNK, check_las_layout
+
+    if not isolate.available():
+        return _las_ids(p)
+    layout = check_las_layout(p)
+    n = layout.point_count
+    need = n * IDS_BYTES_PER_POINT + min(n, LAS_CHUNK) * 90.0
+    limits = isolate.limits_for(need, layout.size)
+    items = isolate.stream_isolated(f"{__name__}:_las_id_items", p, label="LAS/LAZ",
+                                    limits=limits, names=frozenset({"ids"}))
+    try:
+        return next(items)["ids"]
+    finally:
+        items.close()
+
+
+def _las_id_items(p: Path, *, progress: object = None) -> Iterator[dict[str, np.ndarray]]:
+    """The ids as one item of a stream (what the child process runs)."""
+    yield {"ids": _las_ids(p)}
 
 
 def _las_ids(p: Path) -> np.ndarray:

@@ -27,7 +27,7 @@ def _significant_lines(p: Path, n: int) -> list[tuple[int, str]]:
     """The first ``n`` lines that are neither blank nor ``#`` comments, with their
     0-based line numbers."""
     out: list[tuple[int, str]] = []
-    with open(p, encoding="utf-8", errors="replace") as fh:
+    with open(p, encoding="utf-8-sig", errors="replace") as fh:  # a BOM is no header
         for i, line in enumerate(fh):
             text = line.strip()
             if text and not text.startswith("#"):
@@ -72,7 +72,7 @@ def read_text(p: Path) -> PointCloud:
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
             data = np.loadtxt(
                 p, delimiter=delim, usecols=(0, 1, 2), skiprows=skip,
-                dtype=np.float64, comments="#", ndmin=2,
+                dtype=np.float64, comments="#", ndmin=2, encoding="utf-8-sig",
             )
     except ValueError as exc:
         raise InputError(f"cannot parse {p} as x y z columns: {error_line(exc)}") from None

@@ -636,6 +636,19 @@ def _no_constants(name: str) -> Any:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
+#: Digits of the longest integer a view holds (a byte count, a seed): 400 digits
+#: overflowed the float conversions with a traceback.
+MAX_INT_DIGITS = 20
+
+
+def _bounded_int(text: str) -> int:
+    digits = len(text.lstrip("-"))
+    if digits > MAX_INT_DIGITS:
+        raise ValueError(f"an integer of {digits} digits; no field of a view has more than "
+                         f"{MAX_INT_DIGITS}")
+    return int(text)
+
+
 def load_view(path: str | os.PathLike[str], *, check: bool = True,
               progress: ProgressFn | None = None) -> LoadedView:
     """Read and validate a view file, and check its input.
@@ -671,7 +684,8 @@ def load_view(path: str | os.PathLike[str], *, check: bool = True,
     except OSError as exc:
         raise InputError(f"cannot read view file {p}: {exc.strerror or exc}") from None
     try:
-        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants,
+                          parse_int=_bounded_int)
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"view file {p} is not valid JSON: {error_line(exc)}") from None
     except RecursionError:

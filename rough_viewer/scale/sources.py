@@ -16,13 +16,14 @@ chunk, read whole (it must fit in the memory budget by itself).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, check_input_file
+from rough_viewer.io.load import check_coordinates
 from rough_viewer.vocabulary import (
     UNIT_METRES,
     InputError,
@@ -88,9 +89,11 @@ class Chunk:
 def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None = None
                 ) -> Source:
 
+    from rough_viewer.io.estimates import estimate_las
     from rough_viewer.io.las import laz_backend, open_las
 
-    with open_las(p, laz_backend=laz_backend()) as reader:
+    estimate_las(p, None)  # the raw header's checks and the decompression-bomb guard
+    with open_las(p, laz_backend=laz_backend()) as reader:  # header only: no decoding
         hdr = reader.header
         n = int(hdr.point_count)
         lo = np.asarray(hdr.mins, dtype=np.float64)
@@ -98,6 +101,8 @@ def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None =
     if n < 1:
         raise InputError(f"no points in {p}")
     f = np.array([UNIT_METRES[unit]] * 2 + [UNIT_METRES[z_unit or unit]])
+    check_coordinates(tuple(np.array([lo[k], hi[k]]) for k in range(3)), p,
+                      factor=float(f.max()))
     lo, hi = lo * f, hi * f
     return Source(path=str(p), n_points=n, bounds_min=lo, bounds_max=hi, unit=unit,
                   streamed=True, warnings=notes, z_unit=None if z_unit == unit else z_unit)
@@ -219,13 +224,83 @@ def _open_las(path: str, *, parallel: bool = True):
     return reader
 
 
+#: Arrays a decoded chunk may hold.
+_CHUNK_ARRAYS = frozenset({"x", "y", "z", "intensity", "rgb"})
+
+
+def decode_las_chunks(p: Path, *, progress: ProgressFn | None = None,
+                      plan: Sequence[Sequence[int]] = (), parallel: bool = True,
+                      extras: bool = False, total: int = 0) -> Iterator[dict[str, np.ndarray]]:
+    """Decode the points ``[start, stop)`` of each entry of ``plan`` from one open
+    reader (seeking only where a range does not follow the last): x, y, z as stored
+    (the file's unit), and intensity and RGB with ``extras`` (where the point format
+    has them). The generator :func:`read_chunk` and :func:`iter_chunks` run in a
+    child process (:func:`rough_viewer.io.isolate.stream_isolated`).
+
+    Raises InputError naming the file when it ends before a range (``total``: the
+    points its header declares)."""
+    with foreign_errors(f"cannot read {p}"), _open_las(str(p), parallel=parallel) as reader:
+        dims = tuple(reader.header.point_format.dimension_names)
+        at = 0
+        for start, stop in plan:
+            if start != at:
+                reader.seek(start)
+            points = reader.read_points(stop - start)
+            if len(points) != stop - start:
+                raise InputError(f"{p} ended after {start + len(points):,} of "
+                                 f"the {total:,} points its header declares")
+            x, y, z = _file_columns(points, reader.header)
+            item = {"x": x, "y": y, "z": z}
+            if extras and "intensity" in dims:
+                item["intensity"] = np.asarray(points.intensity, dtype=np.uint16)
+            if extras and "red" in dims:
+                item["rgb"] = np.column_stack([points.red, points.green, points.blue]
+                                              ).astype(np.uint16)
+            del points
+            yield item
+            at = stop
+
+
+def _decoded(source: Source, plan: list[Chunk], *, parallel: bool = True,
+             extras: bool = False) -> Generator[dict[str, np.ndarray], None, None]:
+    """:func:`decode_las_chunks` of ``plan``, in a child process where reads are
+    isolated (memory for the largest chunk, time per chunk)."""
+    from rough_viewer.io import isolate
+    from rough_viewer.io.costs import COSTS
+    from rough_viewer.io.load import reader_for
+
+    ranges = [[c.start, c.stop] for c in plan]
+    options = {"plan": ranges, "parallel": parallel, "extras": extras,
+               "total": source.n_points}
+    reader = reader_for(source.path)
+    if not isolate.available() or reader is None or not reader.untrusted:
+        yield from decode_las_chunks(Path(source.path), **options)  # type: ignore[arg-type]
+        return
+    biggest = max((c.n for c in plan), default=0)
+    kind = "laz" if source.path.lower().endswith(".laz") else "las"
+    need = COSTS[kind].per_point * biggest
+    limits = isolate.limits_for(need, biggest * 8)
+    yield from isolate.stream_isolated(
+        f"{__name__}:decode_las_chunks", source.path, label=reader.label, limits=limits,
+        names=_CHUNK_ARRAYS, options=options)
+
+
+def _checked(source: Source, item: dict[str, np.ndarray]) -> Columns:
+    """A decoded chunk's coordinates in metres, after the magnitude check."""
+    from rough_viewer.io.load import check_coordinates
+
+    cols = (item["x"], item["y"], item["z"])
+    check_coordinates(cols, source.path, factor=max(source.factor, source.z_factor))
+    return _metres(cols, source.factor, source.z_factor)
+
+
 def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Columns:
     """The points of one chunk as three float64 columns, metres.
 
     Reads the decode cache's columns where the LAZ file has a complete entry; else
-    opens the file, seeks to the chunk's first point and decodes its points only
-    (on all cores unless ``parallel`` is False); a file of another format is read
-    whole (it is one chunk).
+    decodes the chunk's points only (in a child process: a damaged file cannot take
+    this one down; on all cores unless ``parallel`` is False); a file of another
+    format is read whole (it is one chunk).
     """
     if not source.streamed:
         from rough_viewer.io.load import load_points
@@ -237,15 +312,11 @@ def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Column
     cached = _from_cache(source, chunk)
     if cached is not None:
         return cached
-    with foreign_errors(f"cannot read {source.path}"), \
-            _open_las(source.path, parallel=parallel) as reader:
-        if chunk.start:
-            reader.seek(chunk.start)
-        points = reader.read_points(chunk.n)
-        if len(points) != chunk.n:
-            raise InputError(f"{source.path} ended after {chunk.start + len(points):,} of "
-                             f"the {source.n_points:,} points its header declares")
-        return _metres(_file_columns(points, reader.header), source.factor, source.z_factor)
+    decoded = _decoded(source, [chunk], parallel=parallel)
+    try:
+        return _checked(source, next(decoded))
+    finally:
+        decoded.close()
 
 
 def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bool = False
@@ -272,32 +343,29 @@ def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bo
         for c in plan[1:]:
             cols = _from_cache(source, c)
             if cols is None:
-                raise InputError(f"the decode cache of {source.path} changed while reading it")
+                raise InputError(f"the decode cache of {source.path} changed or was damaged "
+                                 "while reading it; run again to decode the file")
             yield c, cols
         return
     writer = None
+    decoded: Generator[dict[str, np.ndarray], None, None] | None = None
     try:
-        with _open_las(source.path) as reader:
-            if fill_cache and _uses_cache(source):
-                from rough_viewer.io.cache import cache_writer
+        if fill_cache and _uses_cache(source):
+            from rough_viewer.io.cache import cache_writer
 
-                dims = reader.header.point_format.dimension_names
-                writer = cache_writer(Path(source.path), source.n_points,
-                                      intensity="intensity" in dims, rgb="red" in dims)
-            for c in plan:
-                points = reader.read_points(c.n)
-                if len(points) != c.n:
-                    raise InputError(f"{source.path} ended after {c.start + len(points):,} of "
-                                     f"the {source.n_points:,} points its header declares")
-                cols = _file_columns(points, reader.header)
-                if writer is not None:
-                    rgb = (np.column_stack([points.red, points.green, points.blue])
-                           if "rgb" in writer.columns else None)
-                    inten = (np.asarray(points.intensity) if "intensity" in writer.columns
-                             else None)
-                    writer.append(*cols, intensity=inten, rgb=rgb)
-                del points
-                yield c, _metres(cols, source.factor, source.z_factor)
+            with _open_las(source.path) as reader:  # the header only: no decoding here
+                dims = tuple(reader.header.point_format.dimension_names)
+            writer = cache_writer(Path(source.path), source.n_points,
+                                  intensity="intensity" in dims, rgb="red" in dims)
+        decoded = _decoded(source, plan, extras=writer is not None)
+        for c in plan:
+            item = next(decoded)
+            cols = _checked(source, item)
+            if writer is not None:
+                writer.append(item["x"], item["y"], item["z"],
+                              intensity=item.get("intensity"), rgb=item.get("rgb"))
+            del item
+            yield c, cols
         if writer is not None:
             writer.commit()
             writer = None
@@ -306,6 +374,8 @@ def iter_chunks(source: Source, index: int, chunk_points: int, *, fill_cache: bo
     except Exception as exc:  # laspy and lazrs raise their own types
         raise InputError(f"cannot read {source.path}: {error_line(exc)}") from None
     finally:
+        if decoded is not None:
+            decoded.close()
         if writer is not None:  # abandoned or failed: no half entry
             writer.abort()
 

@@ -7,6 +7,8 @@ import pytest
 
 import rough_viewer.memory as memory
 from rough_viewer.app.files import DataFolder, read_cloud, read_estimate
+from rough_viewer.io.estimates import COSTS
+from rough_viewer.memory import format_bytes
 from rough_viewer.vocabulary import InputError
 
 
@@ -46,9 +48,12 @@ def test_reading_checks_memory_and_hides_paths_and_content(folder, monkeypatch):
     assert "bad.xyz" in text and "password123" not in text and str(folder.root) not in text
     big = folder.root / "big.xyz"
     big.write_text("0 0 0\n" * 10_000)
-    assert read_estimate(big) == 12 * big.stat().st_size
+    size = big.stat().st_size
+    cost = COSTS["text"]
+    assert read_estimate(big) == cost.per_byte * size + cost.per_point * (size // 6)
     monkeypatch.setattr(memory, "available_bytes", lambda: 100_000.0)
-    with pytest.raises(InputError, match="reading big.xyz needs about 703.1 KiB"):
+    with pytest.raises(InputError, match="reading big.xyz needs about "
+                       f"{format_bytes(read_estimate(big))}"):
         read_cloud(big, "big.xyz")
     monkeypatch.undo()
     assert read_cloud(big, "big.xyz").n == 10_000
