@@ -22,7 +22,7 @@ from rough_viewer.lod.camera import ViewCamera, camera_moved
 from rough_viewer.lod.encode import encode_node, node_scale
 from rough_viewer.lod.octree import Octree
 from rough_viewer.lod.residency import Residency
-from rough_viewer.lod.select import DEFAULT_BUDGET, select_nodes
+from rough_viewer.lod.select import DEFAULT_BUDGET, node_points_for, select_nodes
 from rough_viewer.visual.app import CONTROL_WIDTH
 from rough_viewer.vocabulary import InputError
 
@@ -253,14 +253,15 @@ class Scene:
     # ------------------------------------------------------------------ the cloud
     def show_cloud(self, loaded: LoadedCloud, point_size: float) -> None:
         """Show ``loaded`` (grey until it is coloured) in every tab, replacing the cloud
-        before: its octree is built here (once per cloud, memory checked)."""
+        before: its octree is built here (once per cloud, memory checked), with nodes
+        sized for the point budget (:func:`rough_viewer.lod.select.node_points_for`)."""
         self._check("show_cloud")
         self.point_size = float(point_size)
-        tree = loaded.octree()
+        tree = loaded.octree(node_points_for(self.budget))
+        self._loaded, self._tree = loaded, tree
         for tab in self.tabs.values():
             self._drop_nodes(tab)
-            tab.residency = Residency(tree.counts, self.budget)
-        self._loaded, self._tree = loaded, tree
+            tab.residency = Residency(tree.counts, self._tab_budget())
         grey = np.array([GREY, GREY, GREY], dtype=np.uint8)
         self._colouring = lambda idx: np.broadcast_to(grey, (len(idx), 3))
         for client_id in list(self.tabs):
@@ -305,9 +306,15 @@ class Scene:
         self._check("set_budget")
         self.budget = int(budget)
         for client_id, tab in self.tabs.items():
-            tab.residency.set_budget(self.budget)
+            tab.residency.set_budget(self._tab_budget())
             tab.camera = None
             self.refine(client_id)
+
+    def _tab_budget(self) -> int:
+        """A tab's budget: the point budget, but at least the octree's root (so that
+        a budget below the root's points shows the root, not nothing)."""
+        root = int(self._tree.counts[0]) if self._tree is not None and self._tree.n_nodes else 0
+        return max(self.budget, root)
 
     def refine(self, client_id: int, *, force: bool = False) -> bool:
         """Choose the nodes tab ``client_id`` should show for its camera now and send,
@@ -320,7 +327,7 @@ class Scene:
             return False
         tab = self.tabs.get(client_id)
         if tab is None:
-            tab = self.tabs[client_id] = Tab(Residency(self._tree.counts, self.budget))
+            tab = self.tabs[client_id] = Tab(Residency(self._tree.counts, self._tab_budget()))
         try:
             camera = ViewCamera.from_viser(client.camera, self._loaded.origin)
         except (AssertionError, AttributeError, InputError, ValueError, ZeroDivisionError):

@@ -36,7 +36,7 @@ from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.grid.summary import normalise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.io import PointCloud
-from rough_viewer.lod.octree import Octree, build_octree
+from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
 from rough_viewer.report.build import SPARSE_SHARE
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.layers import (
@@ -410,11 +410,12 @@ class LoadedCloud:
             self._cache.put(key, made)
         return made
 
-    def octree(self) -> Octree:
+    def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
         """The level-of-detail octree of every point (built once, memory checked:
-        :func:`rough_viewer.lod.octree.build_octree`); browser tabs get its nodes."""
+        :func:`rough_viewer.lod.octree.build_octree`), nodes of at most
+        ``max_node_points`` points at its first call; browser tabs get its nodes."""
         if self._octree is None:
-            self._octree = build_octree(self.cloud)
+            self._octree = build_octree(self.cloud, max_node_points=max_node_points)
         return self._octree
 
     def layer_colouring(self, name: ColourLayerName, result: GridRoughness) -> Colouring:

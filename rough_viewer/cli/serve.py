@@ -4,7 +4,7 @@ Contract::
 
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
-        [--min-points K] [--max-points N] [--units m|mm|ft|us-ft]
+        [--min-points K] [--point-budget N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
@@ -25,8 +25,10 @@ open at once, and one whose browser stops reading is closed. Ctrl-C stops it.
 
 Files opened from the browser ("Load file", uploads) are decoded in a child process
 (:mod:`rough_viewer.io.isolate`): a file that crashes its reader is a notice, and the
-server keeps serving. ``--max-points`` also bounds the points a compressed file may
-declare when its size cannot hold them (a decompression bomb is refused).
+server keeps serving. ``--point-budget`` (alias ``--max-points``) is the most points a
+browser tab draws at once (level of detail: every point where its camera looks, up
+to that many), and also bounds the points a compressed file may declare when its
+size cannot hold them (a decompression bomb is refused).
 
 The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
 opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
@@ -81,11 +83,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_axis(p, help="initial dependent axis of OLS and hybrid (default auto)")
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
                    help="initial minimum points per cell (default 4)")
-    p.add_argument("--max-points", type=int, default=2_000_000, metavar="N",
-                   help="most points drawn in the browser (default 2000000; roughness "
-                   "always uses every point); also the most points a compressed file "
-                   "(LAZ, E57) may declare beyond what its size can hold (a decompression "
-                   "bomb is refused)")
+    p.add_argument("--point-budget", "--max-points", dest="point_budget", type=int,
+                   default=None, metavar="N",
+                   help="most points a browser tab draws at once, where its camera looks "
+                   "(default 3000000; roughness always uses every point); also the most "
+                   "points a compressed file (LAZ, E57) may declare beyond what its size "
+                   "can hold (a decompression bomb is refused). --max-points is an alias")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
                    "folder of the first INPUT, or the current folder); paths outside are "
@@ -151,8 +154,8 @@ def _check_options(args: argparse.Namespace) -> Path:
     """Validate the options that need no file; returns the data folder."""
     from rough_viewer.app.gate import normalise_origin
 
-    if args.max_points < 1:
-        raise InputError(f"--max-points must be positive, got {args.max_points}")
+    if args.point_budget is not None and args.point_budget < 1:
+        raise InputError(f"--point-budget must be positive, got {args.point_budget}")
     if not 0 <= args.port < 65536:
         raise InputError(f"--port must be 0-65535, got {args.port}")
     if args.max_connections < 1:
@@ -179,13 +182,22 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.io.estimates import points_limit
 
     isolate.warm(keep=True)  # a reader process ready for every file a browser loads
-    files.configure(max_points=args.max_points)
-    with points_limit(args.max_points):
+    from rough_viewer.lod.select import DEFAULT_BUDGET
+
+    if args.point_budget is None:
+        args.point_budget = DEFAULT_BUDGET
+    files.configure(max_points=args.point_budget)
+    with points_limit(args.point_budget):
         return _run(args)
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rough_viewer.app.state import MapSettings, check_settings, grid_presets
+    from rough_viewer.app.state import (
+        DEFAULT_MAX_DISPLAY,
+        MapSettings,
+        check_settings,
+        grid_presets,
+    )
     from rough_viewer.vocabulary import UNIT_METRES
 
     if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
@@ -241,7 +253,9 @@ def _run(args: argparse.Namespace) -> int:
             check_settings(settings)
         from rough_viewer.cli._scanner import trust_settings
 
-        app = build_app(server, cloud, settings=settings, max_display=args.max_points,
+        app = build_app(server, cloud, settings=settings,
+                        max_display=min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
+                        point_budget=args.point_budget,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
                         units=args.units, presets=presets, save_views=args.save_views,
                         trust=trust_settings(args, cloud.source_unit))

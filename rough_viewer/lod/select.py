@@ -10,9 +10,12 @@ the screen, taken until a point budget is reached (Potree's traversal; docs/lod.
   node's cube, seen from the camera: ``f r / sqrt(d^2 - r^2)`` for a sphere of
   radius ``r`` (half the cube's diagonal) at distance ``d`` from the camera
   (``f`` = focal length in pixels); infinite when the camera is inside the sphere.
-  The node's points are then about ``radius_px / (root_grid * sqrt(3) / 2)`` pixels
-  apart on the screen: nodes whose points would lie closer than ``min_spacing_px``
-  are not taken.
+  The node's points are then about ``radius_px / (g * sqrt(3) / 2)`` pixels apart on
+  the screen, ``g = min(root_grid, sqrt(count))`` points along its edge: its sample
+  grid, or fewer where the node holds fewer than a surface's ``root_grid**2`` (a
+  sparse node, or the child of a node that kept only a share of its cells: the
+  points of a surface then lie ``edge / sqrt(count)`` apart). Nodes whose points would
+  lie closer than ``min_spacing_px`` are not taken.
 - **Traversal**: from the root, always the largest node on the screen among the
   children of the nodes taken so far (a priority queue; ties to the lower row),
   stopping at the first node that would take the points past the budget. The
@@ -50,6 +53,25 @@ from rough_viewer.vocabulary import InputError
 DEFAULT_BUDGET = 3_000_000
 #: Default closest spacing on the screen, pixels, of the points of a node taken.
 DEFAULT_MIN_SPACING_PX = 1.0
+#: Nodes a budget should hold at least (so that it is spent in small steps).
+NODES_PER_BUDGET = 64
+#: Smallest node size :func:`node_points_for` chooses, points.
+MIN_NODE_POINTS = 1_000
+
+
+def node_points_for(budget: int) -> int:
+    """The octree node size a point budget is spent well with: the budget holds at
+    least :data:`NODES_PER_BUDGET` nodes, within 1 000 and 20 000 points (Potree's
+    node size; the default budget of 3 M gets 20 000-point nodes). With larger
+    nodes a small budget is spent on a few coarse nodes that cover the whole cloud,
+    and the points in front of the camera never come.
+
+    >>> node_points_for(3_000_000), node_points_for(200_000), node_points_for(10_000)
+    (20000, 3125, 1000)
+    """
+    from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS
+
+    return int(min(DEFAULT_MAX_NODE_POINTS, max(MIN_NODE_POINTS, int(budget) // NODES_PER_BUDGET)))
 
 
 @dataclass(frozen=True)
@@ -121,6 +143,13 @@ def projected_radius(camera: ViewCamera, centre: np.ndarray, radius: np.ndarray)
     return out
 
 
+def points_per_edge(tree: Octree) -> np.ndarray:
+    """(M,) about how many points of each node lie along its cube's edge (their
+    spacing is ``edge / g``): its sample grid ``root_grid``, or ``sqrt(count)`` where
+    that is less (the points of a surface spread over its cube)."""
+    return np.minimum(float(tree.root_grid), np.sqrt(np.maximum(tree.counts, 1).astype(np.float64)))
+
+
 def node_screen(tree: Octree, camera: ViewCamera, min_spacing_px: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Visibility (bool (M,)) and projected radius (pixels, (M,)) of the nodes the
@@ -131,14 +160,14 @@ def node_screen(tree: Octree, camera: ViewCamera, min_spacing_px: float = 0.0
     m = tree.n_nodes
     visible = np.zeros(m, dtype=bool)
     radius = np.zeros(m)
-    per_px = 1.0 / (tree.root_grid * 0.5 * math.sqrt(3.0))
+    per_px = points_per_edge(tree) ** -1.0 / (0.5 * math.sqrt(3.0))
     todo = np.zeros(1, dtype=np.int64)
     while todo.shape[0]:
         size = tree.side / np.exp2(tree.level[todo].astype(np.float64))
         centre = tree.cube_lo[todo] + 0.5 * size[:, None]
         radius[todo] = projected_radius(camera, centre, 0.5 * math.sqrt(3.0) * size)
         visible[todo] = boxes_in_view(camera, tree.box_lo[todo], tree.box_hi[todo])
-        ok = todo[visible[todo] & ((radius[todo] * per_px >= min_spacing_px) | (todo == 0))]
+        ok = todo[visible[todo] & ((radius[todo] * per_px[todo] >= min_spacing_px) | (todo == 0))]
         first, stop = tree.child_start[ok].astype(np.int64), tree.child_stop[ok].astype(np.int64)
         n_kids = stop - first
         todo = np.repeat(first - np.cumsum(n_kids) + n_kids, n_kids) + np.arange(int(n_kids.sum()))
@@ -171,7 +200,7 @@ def select_nodes(tree: Octree, camera: ViewCamera, budget: int = DEFAULT_BUDGET,
     if not (math.isfinite(min_spacing_px) and min_spacing_px >= 0):
         raise InputError(f"min spacing must be a number >= 0 pixels, got {min_spacing_px}")
     visible, radius = node_screen(tree, camera, min_spacing_px)
-    spacing_px = radius / (tree.root_grid * 0.5 * math.sqrt(3.0))
+    spacing_px = radius / (points_per_edge(tree) * 0.5 * math.sqrt(3.0))
     counts = tree.counts
     child_start, child_stop = tree.child_start, tree.child_stop
     taken: list[int] = []

@@ -56,7 +56,7 @@ def test_serve_survives_crashing_readers_and_answers_the_next_request(tmp_path):
         since = len(client.messages)
         client.set_value("File path", "good.xyz")
         client.press("Load file")
-        _said(client, "3,210 used", since)  # the next request is answered
+        _said(client, "3,210 points, each tab", since)  # the next request is answered
         other = ProtocolClient(proc.port, proc.path)  # and a new browser is served
         other.uuid("Load file")
         other.close()

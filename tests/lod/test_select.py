@@ -99,7 +99,8 @@ def reference_select(tree, cam, budget, min_spacing_px):
             vis, rad = entry(c)
             if vis is None:
                 return None
-            spacing = rad / (tree.root_grid * math.sqrt(3) / 2)
+            g = min(tree.root_grid, math.sqrt(max(int(tree.counts[c]), 1)))
+            spacing = rad / (g * math.sqrt(3) / 2)
             if math.isclose(spacing, min_spacing_px, rel_tol=1e-9):
                 return None
             if vis and spacing >= min_spacing_px:
