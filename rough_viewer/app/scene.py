@@ -250,6 +250,11 @@ class Scene:
         """Call ``callback`` (on viser's thread pool: submit a job) for each click."""
         self._server.scene.on_click()(callback)
 
+    def on_rect_select(self, callback: Callable[[viser.SceneRectSelectEvent], None]) -> None:
+        """Call ``callback`` (on viser's thread pool: submit a job) for each rectangle
+        a browser drags with Shift held (viser's rectangle selection)."""
+        self._server.scene.on_rect_select(modifier="shift")(callback)
+
     # ------------------------------------------------------------------ the cloud
     def show_cloud(self, loaded: LoadedCloud, point_size: float) -> None:
         """Show ``loaded`` (grey until it is coloured) in every tab, replacing the cloud

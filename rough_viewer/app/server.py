@@ -22,9 +22,11 @@ import viser
 from rough_viewer.app.features import (
     bias,
     board,
+    crop,
     directions,
     export,
     file,
+    measure,
     panels,
     profile,
     sets,
@@ -65,6 +67,8 @@ FEATURES: tuple[Mount, ...] = (
     bias.mount,
     zones.mount,
     sets.mount,
+    crop.mount,  # the Select tab (its saved-view part is restored first)
+    measure.mount,
     export.mount,  # the Export folder (below the tabs, lists every panel): keep it last
 )
 

@@ -11,6 +11,7 @@ point without touching the planes again.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
@@ -22,6 +23,7 @@ import numpy as np
 from rough_viewer.app.limits import CACHE_BYTES
 from rough_viewer.app.sampling import display_subset
 from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
+from rough_viewer.grid.orientation import dip_and_direction
 from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
@@ -36,6 +38,7 @@ from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.grid.summary import normalise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.io import PointCloud
+from rough_viewer.io.crop import CropBox, crop_cloud
 from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
 from rough_viewer.report.build import SPARSE_SHARE
 from rough_viewer.visual import colormaps
@@ -322,6 +325,16 @@ class LoadedCloud:
     default: its file's name."""
     trust_settings: TrustSettings | None = None
     """Calibration of the scanner figures (default: the bias paper's)."""
+    crop: CropBox | None = None
+    """The crop that made ``cloud`` from :attr:`uncropped`'s (None: not cropped)."""
+    crop_mask: np.ndarray | None = field(default=None, repr=False)
+    """(M,) bool over the uncropped cloud's points: the ones kept (LAS copies of the
+    file keep these rows)."""
+    uncropped: LoadedCloud | None = field(default=None, repr=False)
+    """The whole cloud this one was cropped from (with its cached grids)."""
+    frame_origin: tuple[float, float, float] | None = None
+    """The local origin of the display frame (None: the bounding-box centre, rounded;
+    a crop keeps its whole cloud's, so the scene does not move)."""
     origin: np.ndarray = field(init=False)
     display_index: np.ndarray = field(init=False)
     display_points: np.ndarray = field(init=False)
@@ -340,7 +353,8 @@ class LoadedCloud:
         lo, hi = xyz.min(axis=0), xyz.max(axis=0)
         # Local origin: the bounding-box centre rounded to whole metres, so the
         # float32 coordinates sent to the browser stay precise for UTM scans.
-        self.origin = np.round(0.5 * (lo + hi))
+        self.origin = (np.asarray(self.frame_origin, dtype=np.float64)
+                       if self.frame_origin is not None else np.round(0.5 * (lo + hi)))
         self.display_index = display_subset(xyz, self.max_display, seed=self.seed)
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
         self.plane = whole_cloud_plane(self.cloud)
@@ -358,6 +372,25 @@ class LoadedCloud:
         self._cache = ByteCache(self.cache_bytes,
                                 pinned=lambda k: k == fine_key or k == self._shown_key)
         self._layers = {}
+
+    def cropped(self, box: CropBox) -> LoadedCloud:
+        """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``
+        (metres, the file frame): one crop at a time, as a saved view and ``--crop``
+        hold one box. Its grid presets are the whole cloud's, so the grid sizes stay.
+
+        Raises InputError when the crop keeps fewer than 3 points."""
+        whole = self.uncropped or self
+        made = crop_cloud(whole.cloud, box)
+        if made.kept < 3:
+            raise InputError(f"{box.describe(whole.units.per, whole.units.label)} keeps "
+                             f"{made.kept} of {made.total:,} points; a map needs at least 3")
+        return LoadedCloud(made.cloud, max_display=whole.max_display,
+                           cache_bytes=whole.cache_bytes, seed=whole.seed,
+                           presets=whole.presets, label=whole.label,
+                           trust_settings=whole.trust_settings, crop=box,
+                           crop_mask=made.mask, uncropped=whole,
+                           frame_origin=(float(whole.origin[0]), float(whole.origin[1]),
+                                         float(whole.origin[2])))
 
     @property
     def fine_cell_size(self) -> float:
@@ -711,6 +744,11 @@ class CellInfo:
     """The clicked point, file frame."""
     axis: str
     """Dependent axis used for OLS/hybrid."""
+    dip_deg: float = math.nan
+    """Dip of the cell's ODR plane, degrees [0, 90] (docs/zones.md; NaN if none)."""
+    dip_direction_deg: float = math.nan
+    """Azimuth of its down-dip direction, degrees clockwise from +y, [0, 360); a
+    vertical plane takes the side of the whole-cloud normal."""
 
 
 def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellInfo:
@@ -721,6 +759,7 @@ def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellI
         return float(a[0]), float(a[1]), float(a[2])
 
     i, j, k = (int(v) for v in result.ijk[c])
+    dip, dd = dip_and_direction(result.normal[c:c + 1], result.whole_plane.normal)
     return CellInfo(
         cell=c,
         ijk=(i, j, k),
@@ -730,4 +769,6 @@ def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellI
         normal=three(result.normal[c]),
         point=three(np.asarray(point_xyz, dtype=np.float64)),
         axis=result.axis,
+        dip_deg=float(dip[0]),
+        dip_direction_deg=float(dd[0]),
     )

@@ -114,7 +114,8 @@ def apply_view(host: Host, view: View, *, source: str = "(in memory)", notice: s
 @dataclass(frozen=True)
 class RestoreViewJob(Job[Host]):
     """Ask every feature for the job that restores its part of ``view``, in mount
-    order, and queue them; a part that does not fit is named and left out."""
+    order (a part with a lower ``restore_order`` first: the crop, whose points the
+    others run on), and queue them; a part that does not fit is named and left out."""
 
     view: View = field(compare=False)
     notice: str = ""
@@ -129,7 +130,8 @@ class RestoreViewJob(Job[Host]):
         if self.notice:
             ctx.pin(self.notice)
         failed = []
-        for part in parts(ctx):
+        # a part may come first (the crop: the others run on the points it keeps)
+        for part in sorted(parts(ctx), key=lambda p: getattr(p, "restore_order", 0)):
             try:
                 job = part.restore(self.view)
             except InputError as exc:

@@ -12,7 +12,6 @@ that record warnings (SUMMARY.json, the report).
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -36,20 +35,6 @@ def add_crop_options(parser: argparse.ArgumentParser) -> None:
         help="use the crop saved in a view file (rough-viewer serve's Export folder)")
 
 
-def parse_box(text: str, *, option: str = "--crop") -> tuple[tuple[float, float, float],
-                                                             tuple[float, float, float]]:
-    """``"xmin,ymin,zmin,xmax,ymax,zmax"`` as two corners, or InputError naming the option."""
-    parts = [p.strip() for p in text.split(",")]
-    try:
-        v = [float(p) for p in parts]
-    except ValueError:
-        v = []
-    if len(v) != 6 or not all(math.isfinite(a) for a in v):
-        raise InputError(f"{option} expects six finite numbers xmin,ymin,zmin,xmax,ymax,zmax, "
-                         f"got {text!r}")
-    return (v[0], v[1], v[2]), (v[3], v[4], v[5])
-
-
 def crop_from_args(args: argparse.Namespace, unit: str) -> CropBox | None:
     """The crop the options ask for, in metres, or None; checked before any work."""
     from rough_viewer.io.crop import CropBox
@@ -61,6 +46,8 @@ def crop_from_args(args: argparse.Namespace, unit: str) -> CropBox | None:
     if mode and not text:
         raise InputError("--crop-mode goes with --crop (a view file's crop has its own mode)")
     if text:
+        from rough_viewer.io.crop import parse_box
+
         lo, hi = parse_box(text)
         try:
             box = CropBox(lo, hi, mode or "keep")

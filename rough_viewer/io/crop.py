@@ -82,10 +82,31 @@ class CropBox:
 
     def describe(self, metres_per_unit: float = 1.0, unit: str = "m") -> str:
         """One line for the user, lengths in ``unit``."""
-        lo = ", ".join(f"{v / metres_per_unit:g}" for v in self.lo)
-        hi = ", ".join(f"{v / metres_per_unit:g}" for v in self.hi)
+        def num(v: float) -> str:  # UTM-sized coordinates in full, to the millimetre
+            return f"{v / metres_per_unit:.3f}".rstrip("0").rstrip(".")
+
+        lo = ", ".join(num(v) for v in self.lo)
+        hi = ", ".join(num(v) for v in self.hi)
         what = "kept the points inside" if self.mode == "keep" else "removed the points inside"
         return f"crop: {what} the box ({lo}) to ({hi}) {unit}"
+
+
+def parse_box(text: str, *, option: str = "--crop") -> tuple[Vec3, Vec3]:
+    """``"xmin,ymin,zmin,xmax,ymax,zmax"`` (``--crop``'s form, also typed in the app)
+    as two corners, or InputError naming ``option``.
+
+    >>> parse_box("0, 1, 2, 3.5, 4, 5")
+    ((0.0, 1.0, 2.0), (3.5, 4.0, 5.0))
+    """
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        v = [float(p) for p in parts]
+    except ValueError:
+        v = []
+    if len(v) != 6 or not all(math.isfinite(a) for a in v):
+        raise InputError(f"{option} expects six finite numbers xmin,ymin,zmin,xmax,ymax,zmax, "
+                         f"got {text!r}"[:300])
+    return (v[0], v[1], v[2]), (v[3], v[4], v[5])
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,7 @@ class ProtocolClient:
                           additional_headers=headers, open_timeout=timeout,
                           max_size=None)
         self.messages: list[dict[str, Any]] = []
+        self.client_id: int | None = None
         self._lock = threading.Lock()
         self._zstd = zstandard.ZstdDecompressor()
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -172,11 +173,29 @@ class ProtocolClient:
                    "screen_pos": [[0.5, 0.5]], "modifier": None})
 
 
+    def rect_select(self, corner_a, corner_b, *, modifier: str | None = "shift") -> None:
+        """A rectangle dragged over the scene (viser's rectangle selection: corners
+        in normalised window coordinates, (0, 0) top left), Shift held."""
+        self.send({"type": "ScenePointerMessage", "event_type": "rect-select",
+                   "ray_origin": None, "ray_direction": None,
+                   "screen_pos": [[float(v) for v in corner_a], [float(v) for v in corner_b]],
+                   "modifier": modifier})
+
+
 def join(server, path: str = "/", *, origin: str | None = None) -> ProtocolClient:
     """A :class:`ProtocolClient` on the viser ``server``, once the server lists it
-    among its clients."""
+    among its clients (its id: ``client.client_id``; None when the server refused
+    it)."""
+    before = set(server.get_clients())
     client = ProtocolClient(server.get_port(), path, origin=origin)
-    wait_until(lambda: server.get_clients(), 10, "the server to list the client")
+    try:
+        new = wait_until(lambda: set(server.get_clients()) - before, 10,
+                         "the server to list the client")
+        client.client_id = max(new)
+    except TimeoutError:
+        if not server.get_clients():
+            raise
+        client.client_id = None
     return client
 
 

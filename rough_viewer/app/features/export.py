@@ -261,7 +261,9 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
                 f"grid {result.grid.cell_size:g} m, "
                 f"axis {result.axis}, roughness in metres"])
         elif source is not None and source.suffix.lower() in LAS_SUFFIXES:
-            copy_las_with_fields(source, path, cloud, pf, progress=progress)
+            # a crop: the file's rows it kept, every dimension of them
+            copy_las_with_fields(source, path, cloud, pf, progress=progress,
+                                 keep=shown.loaded.crop_mask)
         else:
             write_las_points(path, cloud, pf, progress=progress)
 

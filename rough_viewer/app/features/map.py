@@ -927,18 +927,21 @@ def load_stages(m: MapFeature, run: Run, read: Callable[[Run], PointCloud],
     yield from render_stages(m, run, settings)
 
 
-def show_cloud(m: MapFeature, loaded: LoadedCloud, settings: MapSettings) -> None:
+def show_cloud(m: MapFeature, loaded: LoadedCloud, settings: MapSettings, *,
+               frame: bool = True) -> None:
     """Replace the cloud in the scene (and forget the old cloud's pick and panels);
     the grid presets, unit labels and colour layers follow the new cloud, and the
-    controls show ``settings`` (worker)."""
+    controls show ``settings`` (worker). ``frame``: every browser's camera frames
+    it (False: the cameras and point size stay, as for a crop of the cloud shown)."""
     host = m.host
     host.session.new_cloud(loaded, settings)
-    size = scene_mod.default_point_size(loaded)
+    size = scene_mod.default_point_size(loaded) if frame else float(host.scene.point_size)
     m.binding.follow(loaded, size)
     m.binding.show(settings)
     host.scene.show_cloud(loaded, size)
     m.forget_pick(PICK_PROMPT)
-    host.scene.frame(loaded)
+    if frame:
+        host.scene.frame(loaded)
     host.cloud_shown()
 
 
@@ -1214,6 +1217,13 @@ def across_scales(loaded: LoadedCloud, settings: MapSettings, result: GridRoughn
                                       min_points=settings.min_points)
 
 
+def _orientation(dip: float, direction: float) -> str:
+    """"dip 26.6°, dip direction 180.0°" (docs/zones.md), or a dash."""
+    if not (math.isfinite(dip) and math.isfinite(direction)):
+        return "dip —"
+    return f"dip {dip:.1f}°, dip direction {direction:05.1f}°"
+
+
 def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = None, *,
                      trust: CellTrust | None = None) -> str:
     """Markdown of a picked cell (roughness in the roughness unit, mm for metric
@@ -1232,7 +1242,8 @@ def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = Non
         f"point ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) {u.label}  ",
         f"θ ODR {rough(info.theta['odr'])}, OLS ({info.axis}) {rough(info.theta['ols'])}  ",
         f"θ hybrid {rough(info.theta['hybrid'])}, e_ols {rough(info.theta['e_ols'])}  ",
-        f"normal {normal}",
+        f"normal {normal}  ",
+        f"plane {_orientation(info.dip_deg, info.dip_direction_deg)}",
         *(f"  \nscanner: {md(line)}" for line in
           (trust.lines(info.cell, u.unit) if trust is not None else ())),
     ])

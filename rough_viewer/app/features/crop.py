@@ -1,0 +1,351 @@
+"""The Select tab: select points on the rock, measure their plane, crop the cloud.
+
+- **Select**: Shift-drag a rectangle over the rock. Every point of the cloud (not
+  only those a tab draws) whose projection falls in the rectangle, through the whole
+  depth, is selected (:func:`rough_viewer.lod.camera.rect_select`, from the camera of
+  the tab that dragged it) and drawn in magenta over the map, with its bounding box.
+- **Plane of the selection**: its ODR plane, dip, dip direction and RMS residual
+  (:func:`rough_viewer.grid.measure.region_plane`; the conventions of docs/zones.md).
+- **Crop**: "Keep selection" keeps the points in the selection's bounding box,
+  "Remove selection" drops them; a box typed as ``compute --crop`` takes
+  (``xmin,ymin,zmin,xmax,ymax,zmax`` in the cloud's unit) does the same. Every
+  analysis (the map, panels, zones, sets, profiles, bias, exports) then runs on the
+  kept points, and saved views hold the crop, which ``compute``, ``report`` and
+  ``zones --crop-file`` read. One crop at a time: a new crop is applied to the whole
+  cloud and replaces the last (a saved view and ``--crop`` hold one box). "Undo crop"
+  shows every point again, with the whole cloud's grids still cached.
+
+The crop is a box, not the rectangle itself, so that ``--crop`` gives the same cells.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import viser
+
+from rough_viewer.app.binding import Binding
+from rough_viewer.app.features.map import MapFeature, render_stages, show_cloud
+from rough_viewer.app.host import Host
+from rough_viewer.app.markup import md
+from rough_viewer.app.state import Colouring, LoadedCloud, Units
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.measure import PlaneMeasure, region_plane
+from rough_viewer.io.crop import CROP_MODES, CropBox, CropMode, parse_box
+from rough_viewer.lod.camera import ViewCamera, rect_select
+from rough_viewer.memory import require
+from rough_viewer.report.view import View
+from rough_viewer.vocabulary import InputError
+
+L_KEEP = "Keep selection"
+L_REMOVE = "Remove selection"
+L_CLEAR = "Clear selection"
+L_BOX = "Crop box"
+L_MODE = "Crop mode"
+L_APPLY = "Apply crop box"
+L_UNDO = "Undo crop"
+PROMPT = ("**Shift-drag** a rectangle over the rock to select every point under it "
+          "(through the whole depth).")
+#: Colour of the selected points.
+HIGHLIGHT = np.array([255, 0, 255], dtype=np.uint8)
+#: Longest crop box text accepted from a browser, characters.
+MAX_BOX_TEXT = 300
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Points selected on the shown cloud."""
+
+    loaded: LoadedCloud
+    """The cloud they were selected on."""
+    mask: np.ndarray
+    """(N,) bool over its points."""
+    box: CropBox
+    """Their bounding box (metres, the file frame; mode ``keep``)."""
+    plane: PlaneMeasure | None
+    """Their ODR plane (None: fewer than 3 points, or on a line)."""
+    plane_error: str = ""
+
+    @property
+    def count(self) -> int:
+        return int(np.count_nonzero(self.mask))
+
+
+def box_text(box: CropBox, units: Units) -> str:
+    """A box as ``--crop`` takes it, in the cloud's unit."""
+    return ",".join(f"{v / units.per:.6f}".rstrip("0").rstrip(".")
+                    for v in (*box.lo, *box.hi))
+
+
+def plane_text(plane: PlaneMeasure, units: Units) -> str:
+    """One line: the plane's dip, dip direction, RMS residual (Markdown)."""
+    return (f"**Plane** (ODR, {plane.n_points:,} points): dip {plane.dip_deg:.1f}°, dip "
+            f"direction {plane.dip_direction_deg:05.1f}°, RMS residual "
+            f"{units.rough(plane.rms_m):.4g} {units.rough_label} (largest "
+            f"{units.rough(plane.max_abs_m):.4g} {units.rough_label})")
+
+
+def crop_text(loaded: LoadedCloud) -> str:
+    """What the crop of ``loaded`` kept (Markdown), or that there is none."""
+    if loaded.crop is None or loaded.uncropped is None:
+        return "No crop: every point is used."
+    u = loaded.units
+    return (f"**{md(loaded.crop.describe(u.per, u.label).capitalize())}**: "
+            f"{loaded.cloud.n:,} of {loaded.uncropped.cloud.n:,} points are used by every "
+            "analysis. A new crop replaces this one.")
+
+
+@dataclass(eq=False)
+class CropFeature:
+    """The Select tab's controls, the selection and its scene nodes."""
+
+    restore_order: ClassVar[int] = -1
+    """A saved view's crop is put back before the other parts (they run on it)."""
+
+    host: Host
+    map: MapFeature
+    note: viser.GuiMarkdownHandle
+    keep: viser.GuiButtonHandle
+    remove: viser.GuiButtonHandle
+    clear: viser.GuiButtonHandle
+    box: viser.GuiTextHandle
+    mode: viser.GuiDropdownHandle[str]
+    apply: viser.GuiButtonHandle
+    undo: viser.GuiButtonHandle
+    status: viser.GuiMarkdownHandle
+    binding: Binding = field(default_factory=Binding)
+    selection: Selection | None = None
+    nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
+    """The selection's bounding box."""
+
+    # ------------------------------------------------------------------ selection
+    def select(self, mask: np.ndarray) -> None:
+        """Select the shown cloud's points ``mask`` (worker)."""
+        loaded = self.host.session.shown.loaded
+        self.drop_selection()
+        if not mask.any():
+            self.note.content = "No point in the rectangle. " + PROMPT
+            return
+        box = CropBox.around(loaded.cloud, mask)
+        try:
+            plane, error = region_plane(loaded.cloud, mask, toward=loaded.plane.normal), ""
+        except InputError as exc:
+            plane, error = None, str(exc)
+        self.selection = Selection(loaded, mask, box, plane, error)
+        u = loaded.units
+        self.binding.set(self.box, box_text(box, u))
+        lines = [f"**{self.selection.count:,} points selected**, in the box "
+                 f"({md(box_text(box, u))}) {u.label}.",
+                 plane_text(plane, u) if plane is not None else f"No plane: {md(error)}.",
+                 "*Keep selection* or *Remove selection* crops the cloud to that box."]
+        self.note.content = "  \n".join(lines)
+        self.nodes = [self.host.scene.lines("/selection/box", _box_segments(loaded, box),
+                                            (255, 0, 255))]
+        self.map.take_overlay(self, self.let_go, self.colouring())
+
+    def colouring(self) -> Colouring:
+        """The map's colours with the selected points in magenta."""
+        assert self.selection is not None
+        mask, base = self.selection.mask, self.map.colouring
+
+        def colours(idx: np.ndarray) -> np.ndarray:
+            c = (np.array(base(idx), dtype=np.uint8) if base is not None
+                 else np.full((len(idx), 3), 200, dtype=np.uint8))
+            c[mask[idx]] = HIGHLIGHT
+            return c
+
+        return colours
+
+    def drop_selection(self) -> None:
+        """No selection: its colours and box go (worker)."""
+        self.host.scene.remove(self.nodes)
+        self.nodes = []
+        self.selection = None
+        self.map.give_back_overlay(self)
+        self.note.content = PROMPT
+
+    def let_go(self) -> None:
+        """Another feature colours the points now: the selection goes (worker)."""
+        self.host.scene.remove(self.nodes)
+        self.nodes = []
+        self.selection = None
+        self.note.content = PROMPT
+
+    def on_render(self) -> None:
+        """A new map: the selection is drawn over its colours (worker)."""
+        if self.selection is not None and self.map.overlay is self:
+            self.host.scene.colour_by(self.colouring())
+
+    def on_cloud(self) -> None:
+        """Another cloud (or a crop) is shown: the selection was of the old one."""
+        self.drop_selection()
+        self.status.content = crop_text(self.host.session.shown.loaded)
+
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        return {"crop": self.host.session.shown.loaded.crop}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        if view.crop == self.host.session.shown.loaded.crop:
+            return None
+        return CropJob(self, view.crop, render=False)
+
+
+def _box_rule(value: Any) -> str:
+    """A browser's crop box text: a string of at most :data:`MAX_BOX_TEXT` characters."""
+    if not isinstance(value, str) or len(value) > MAX_BOX_TEXT:
+        raise InputError(f"a crop box is at most {MAX_BOX_TEXT} characters of text")
+    return value
+
+
+def _box_segments(loaded: LoadedCloud, box: CropBox) -> np.ndarray:
+    """(12, 2, 3) edges of ``box`` in the display frame."""
+    lo, hi = np.asarray(box.lo), np.asarray(box.hi)
+    corners = np.array([[(hi if (k >> a) & 1 else lo)[a] for a in range(3)] for k in range(8)])
+    edges = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+    return np.stack([loaded.to_local(corners[[a, b]]) for a, b in edges])
+
+
+# ----------------------------------------------------------------------------- jobs
+
+
+@dataclass(frozen=True)
+class SelectJob(Job[Host]):
+    """Select the points under a screen rectangle seen by ``camera`` (the file frame)."""
+
+    f: CropFeature = field(compare=False)
+    camera: ViewCamera = field(compare=False)
+    corner_a: tuple[float, float]
+    corner_b: tuple[float, float]
+    lane: ClassVar[str] = "select"
+
+    @property
+    def title(self) -> str:
+        return "selecting points"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        cloud = ctx.session.shown.loaded.cloud
+        require(1.0 * cloud.n + 100.0 * min(cloud.n, 1 << 20), f"a selection of {cloud.n:,} points")
+        mask = rect_select(self.camera, cloud.x, cloud.y, cloud.z, self.corner_a, self.corner_b)
+        yield "select"
+        self.f.select(mask)
+        yield "show"
+
+
+@dataclass(frozen=True)
+class CropJob(Job[Host]):
+    """Crop the whole cloud by ``box`` (None: undo the crop) and show what it keeps,
+    with the map's settings (its grid stays); ``render`` False leaves the map to a
+    saved view's map job queued after it."""
+
+    f: CropFeature = field(compare=False)
+    box: CropBox | None
+    render: bool = True
+    lane: ClassVar[str] = "load"
+    cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick", "select"})
+
+    @property
+    def title(self) -> str:
+        return "cropping the cloud" if self.box is not None else "undoing the crop"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        m, shown = self.f.map, ctx.session.shown
+        loaded = shown.loaded
+        if self.box is None:
+            if loaded.uncropped is None:
+                return
+            target = loaded.uncropped
+        else:
+            try:
+                target = loaded.cropped(self.box)
+            except (InputError, MemoryError) as exc:
+                ctx.show_error(f"crop: {exc}" if isinstance(exc, InputError)
+                               else "crop: not enough memory for the kept points")
+                return
+        yield "crop"
+        show_cloud(m, target, shown.settings, frame=False)
+        yield "show"
+        if self.render:
+            yield from render_stages(m, run, shown.settings)
+
+
+# ----------------------------------------------------------------------------- mount
+
+
+def mount(host: Host) -> CropFeature:
+    """Add the Select tab: Shift-drag selects, buttons crop."""
+    gui = host.gui
+    with host.tab("Select"):
+        f = CropFeature(
+            host=host, map=host.feature(MapFeature),
+            note=gui.add_markdown(PROMPT),
+            keep=gui.add_button(L_KEEP, hint="Keep the points in the selection's bounding "
+                                "box; every analysis runs on them."),
+            remove=gui.add_button(L_REMOVE, hint="Drop the points in the selection's "
+                                  "bounding box (vegetation, talus, the tripod)."),
+            clear=gui.add_button(L_CLEAR),
+            box=gui.add_text(L_BOX, "", hint="xmin,ymin,zmin,xmax,ymax,zmax in the cloud's "
+                             "unit, as compute --crop takes it."),
+            mode=gui.add_dropdown(L_MODE, CROP_MODES, initial_value="keep"),
+            apply=gui.add_button(L_APPLY),
+            undo=gui.add_button(L_UNDO, hint="Use every point again."),
+            status=gui.add_markdown(crop_text(host.session.shown.loaded)),
+        )
+    host.allow(f.keep, f.remove, f.clear, f.box, f.mode, f.apply, f.undo)
+    host.rule(f.box, _box_rule)
+    b = f.binding
+
+    def crop_selection(mode: CropMode) -> None:
+        sel = f.selection
+        if sel is None:
+            host.notify("Crop", "Select points first: Shift-drag a rectangle over the rock.")
+            return
+        host.submit(CropJob(f, CropBox(sel.box.lo, sel.box.hi, mode)))
+
+    def typed(_h: object) -> None:
+        u = host.session.shown.loaded.units
+        try:
+            lo, hi = parse_box(f.box.value, option="the crop box")
+            box = CropBox(lo, hi, f.mode.value if f.mode.value in CROP_MODES else "keep")
+        except InputError as exc:
+            host.show_error(str(exc), kept="The cloud is not cropped again.")
+            return
+        host.submit(CropJob(f, box.scaled(u.per)))
+
+    b.on_change([f.keep], lambda _h: crop_selection("keep"))
+    b.on_change([f.remove], lambda _h: crop_selection("remove"))
+    b.on_change([f.clear], lambda _h: host.submit(ClearJob(f)))
+    b.on_change([f.apply], typed)
+    b.on_change([f.undo], lambda _h: host.submit(CropJob(f, None)))
+
+    def rect(event: viser.SceneRectSelectEvent) -> None:
+        try:
+            loaded = host.session.shown.loaded
+            camera = ViewCamera.from_viser(event.client.camera, loaded.origin)
+            a = (float(event.screen_min[0]), float(event.screen_min[1]))
+            c = (float(event.screen_max[0]), float(event.screen_max[1]))
+        except (AssertionError, AttributeError, InputError, TypeError, ValueError,
+                ZeroDivisionError, IndexError):
+            return  # no camera yet, or a malformed rectangle
+        if all(np.isfinite(v) for v in (*a, *c)):
+            host.submit(SelectJob(f, camera, a, c))
+
+    host.scene.on_rect_select(rect)
+    host.on_render(f.on_render)
+    host.on_cloud(f.on_cloud)
+    return f
+
+
+@dataclass(frozen=True)
+class ClearJob(Job[Host]):
+    """Drop the selection."""
+
+    f: CropFeature = field(compare=False)
+    lane: ClassVar[str] = "select"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        self.f.drop_selection()
+        yield "clear"

@@ -1,0 +1,139 @@
+"""The Measure tab: the distance between two clicked points of the rock.
+
+With *Measure mode* on, the first click marks a point and the second gives the
+straight-line distance between the two, its horizontal and vertical parts and the
+line's trend and plunge (:func:`rough_viewer.grid.measure.point_distance`; azimuths
+clockwise from +y, docs/zones.md), drawn as a line with a label. Points are picked at
+full resolution, on every point of the cloud. The last :data:`MAX_MEASURES` are
+listed and drawn; "Clear" drops them. The plane of a region is measured in the Select
+tab, a cell's dip and dip direction are in the Map tab's cell report.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+import viser
+
+from rough_viewer.app.binding import Binding
+from rough_viewer.app.host import Host, Pick
+from rough_viewer.app.state import Units
+from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.measure import Distance, point_distance
+
+L_ON = "Measure mode"
+L_CLEAR = "Clear measures"
+#: Measures kept (listed and drawn).
+MAX_MEASURES = 8
+#: Colour of a measure's line.
+LINE_COLOUR = (255, 140, 0)
+PROMPT = "Tick **Measure mode** and click two points on the rock."
+
+
+def distance_text(k: int, d: Distance, units: Units) -> str:
+    """One line of the list: distance, horizontal, vertical, trend/plunge (Markdown)."""
+    def length(v: float) -> str:
+        return f"{v / units.per:.4g} {units.label}"
+
+    line = (f"**D{k}**: {length(d.distance_m)} (horizontal {length(d.horizontal_m)}, "
+            f"vertical {length(d.vertical_m)}")
+    if np.isfinite(d.trend_deg):
+        line += f", trend {d.trend_deg:05.1f}°, plunge {d.plunge_deg:.1f}°"
+    return line + ")"
+
+
+@dataclass(eq=False)
+class MeasureFeature:
+    """The Measure tab's controls and its measures."""
+
+    host: Host
+    on: viser.GuiCheckboxHandle
+    clear: viser.GuiButtonHandle
+    note: viser.GuiMarkdownHandle
+    binding: Binding = field(default_factory=Binding)
+    start: Pick | None = None
+    """The first point of a measure being picked."""
+    items: list[tuple[int, Distance, list[viser.SceneNodeHandle]]] = field(default_factory=list)
+    """(number, distance, its scene nodes), oldest first."""
+    count: int = 0
+    """Measures made (numbers them)."""
+    pending: list[viser.SceneNodeHandle] = field(default_factory=list)
+
+    def on_pick(self, pick: Pick) -> bool:
+        """A click while measure mode is on: the first, then the second point (worker).
+        False when measure mode is off."""
+        if not self.on.value:
+            return False
+        scene = self.host.scene
+        if self.start is None:
+            self.start = pick
+            self.pending = [scene.marker("/measures/start", pick.local, "● start")]
+            self.note.content = "First point picked; click the second."
+            return True
+        a, self.start = self.start, None
+        scene.remove(self.pending)
+        self.pending = []
+        d = point_distance(a.xyz, pick.xyz)
+        self.count += 1
+        k = self.count
+        u = self.host.session.shown.loaded.units
+        seg = np.stack([a.local, pick.local])[None].astype(np.float64)
+        nodes: list[viser.SceneNodeHandle] = [
+            scene.lines(f"/measures/{k}/line", seg, LINE_COLOUR),
+            scene.add_label(f"/measures/{k}/label", f"D{k} {d.distance_m / u.per:.4g} {u.label}",
+                            0.5 * (a.local + pick.local)),
+        ]
+        self.items.append((k, d, nodes))
+        while len(self.items) > MAX_MEASURES:
+            scene.remove(self.items.pop(0)[2])
+        self.refresh()
+        return True
+
+    def refresh(self) -> None:
+        u = self.host.session.shown.loaded.units
+        lines = [distance_text(k, d, u) for k, d, _n in reversed(self.items)]
+        self.note.content = "  \n".join(lines) if lines else PROMPT
+
+    def drop(self) -> None:
+        """No measures (worker)."""
+        scene = self.host.scene
+        scene.remove(self.pending)
+        self.pending, self.start = [], None
+        for _k, _d, nodes in self.items:
+            scene.remove(nodes)
+        self.items = []
+        self.note.content = PROMPT
+
+
+@dataclass(frozen=True)
+class ClearMeasuresJob(Job[Host]):
+    """Drop every measure."""
+
+    f: MeasureFeature = field(compare=False)
+    lane: ClassVar[str] = "measure"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        self.f.drop()
+        yield "clear"
+
+
+def mount(host: Host) -> MeasureFeature:
+    """Add the Measure tab; clicks come here in measure mode."""
+    gui = host.gui
+    with host.tab("Measure"):
+        f = MeasureFeature(
+            host=host,
+            on=gui.add_checkbox(L_ON, False, hint="Clicks measure: two points give their "
+                                "distance (the Map tab's cell report waits)."),
+            clear=gui.add_button(L_CLEAR),
+            note=gui.add_markdown(PROMPT),
+        )
+    host.allow(f.on, f.clear)
+    f.binding.on_change([f.clear], lambda _h: host.submit(ClearMeasuresJob(f)))
+    host.on_click(f.on_pick)
+    # a measure's points are of the cloud shown: another cloud (or a crop) drops them
+    host.on_cloud(f.drop)
+    return f
