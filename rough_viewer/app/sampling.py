@@ -1,22 +1,54 @@
-"""Choose which points to draw when a cloud is too big to display (pure numpy).
+"""Choose an even overview sample of a cloud (pure numpy).
 
-Roughness is always computed on every point; only drawing is thinned. The kept
-points are spread evenly over the surface: the cloud is cut into small cubes
-(voxels) sized so about ``max_points`` of them are occupied, and one random point
-is kept per voxel; dense areas near the scanner are thinned most.
+Roughness is always computed on every point, and browser tabs draw the cloud by level
+of detail; this sample of at most ``max_points`` points serves what needs a look at
+the whole cloud (the camera's framing, the point size). The kept points are spread
+evenly over the surface: the cloud is cut into small cubes (voxels) sized so about
+``max_points`` of them are occupied, and one point of each voxel is kept (the one
+with the smallest fixed pseudo-random priority); dense areas near the scanner are
+thinned most.
+
+Linear in the points, without a sort: the voxels are hashed into a table about
+:data:`TABLE_PER_POINT` times the sample's size and each bucket keeps its smallest
+priority (``np.minimum.at``), a few million points at a time; two voxels that share a
+bucket (a few per cent) give one point, and the sample is topped up at random to its
+size. About 1.5 s for 20 M points on 2 cores (a sort-based voxel pass took 20 s).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rough_viewer.memory import require
 
-def _occupied_voxels(xyz: np.ndarray, lo: np.ndarray, size: float) -> tuple[np.ndarray, int]:
+#: Hash-table buckets per point of the sample (collisions merge ~1 / (2 x this)).
+TABLE_PER_POINT = 8
+#: Points handled at a time (bounds the temporaries: about 40 bytes per point of a
+#: chunk, besides 9 bytes per point of the cloud).
+CHUNK = 1 << 22
+#: Points the voxel size is estimated on.
+ESTIMATE_POINTS = 1 << 20
+
+
+def priority(index: np.ndarray, seed: int) -> np.ndarray:
+    """(n,) float32 in [0, 1): a fixed pseudo-random number per point index
+    (splitmix64 of the index and the seed), the same in every pass.
+
+    >>> p = priority(np.arange(5), 0)
+    >>> bool(np.all((p >= 0) & (p < 1))), bool(np.array_equal(p, priority(np.arange(5), 0)))
+    (True, True)
+    """
+    z = index.astype(np.uint64) + np.uint64((int(seed) * 0x9E3779B97F4A7C15) % 2**64)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return (z >> np.uint64(40)).astype(np.float32) / np.float32(2**24)
+
+
+def _keys(xyz: np.ndarray, lo: np.ndarray, size: float, dims: np.ndarray) -> np.ndarray:
     ijk = np.floor((xyz - lo) / size).astype(np.int64)
-    dims = ijk.max(axis=0) + 1
-    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    uniq, inverse = np.unique(key, return_inverse=True)
-    return inverse, len(uniq)
+    np.clip(ijk, 0, dims - 1, out=ijk)
+    return (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
 
 
 def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.ndarray:
@@ -27,7 +59,7 @@ def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.nda
     xyz
         ``(N, 3)`` point positions in metres.
     max_points
-        Display budget; if ``N <= max_points`` every index is returned.
+        Sample size; if ``N <= max_points`` every index is returned.
     seed
         Random seed (the same cloud and seed give the same subset).
 
@@ -42,24 +74,37 @@ def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.nda
     if max_points <= 0:
         return np.zeros(0, dtype=np.int64)
     rng = np.random.default_rng(seed)
-    lo = xyz.min(axis=0)
-    extent = float(np.max(xyz.max(axis=0) - lo)) or 1.0
-    # Estimate the surface area from a coarse voxel count, then size the fine
-    # voxels so about max_points of them are occupied (a surface: count ~ 1/size^2).
+    # per column: a reduction over axis 0 of an (N, 3) array is several times slower
+    lo = np.array([xyz[:, a].min() for a in range(3)], dtype=np.float64)
+    hi = np.array([xyz[:, a].max() for a in range(3)], dtype=np.float64)
+    extent = float(np.max(hi - lo)) or 1.0
+    # Estimate the surface area from the coarse voxels a random subset occupies, then
+    # size the fine voxels so about max_points of them are occupied (a surface:
+    # count ~ 1/size^2).
     coarse = extent / 256.0
-    _, n_coarse = _occupied_voxels(xyz, lo, coarse)
-    size = coarse * np.sqrt(n_coarse / max_points)
-    inverse, _ = _occupied_voxels(xyz, lo, size)
-    # One random representative per voxel: the first point of each voxel in a
-    # random order of the points.
-    perm = rng.permutation(n)
-    _, first = np.unique(inverse[perm], return_index=True)
-    chosen = perm[first]
+    few = np.sort(rng.choice(n, size=min(n, ESTIMATE_POINTS), replace=False))
+    cdims = np.floor((hi - lo) / coarse).astype(np.int64) + 1
+    n_coarse = len(np.unique(_keys(xyz[few], lo, coarse, cdims)))
+    size = coarse * float(np.sqrt(n_coarse / max_points))
+    dims = np.floor((hi - lo) / size).astype(np.int64) + 1
+    table_size = int(TABLE_PER_POINT * max_points) | 1
+    require(4.0 * table_size + 9.0 * n + 40.0 * min(n, CHUNK),
+            f"an overview sample of {n:,} points")
+    best = np.full(table_size, np.inf, dtype=np.float32)
+    buckets = np.empty(n, dtype=np.int32 if table_size < 2**31 else np.int64)
+    prio = np.empty(n, dtype=np.float32)
+    for start in range(0, n, CHUNK):
+        stop = min(n, start + CHUNK)
+        buckets[start:stop] = _keys(xyz[start:stop], lo, size, dims) % table_size
+        prio[start:stop] = priority(np.arange(start, stop), seed)
+        np.minimum.at(best, buckets[start:stop], prio[start:stop])
+    taken = prio == best[buckets]
+    del buckets, prio
+    chosen = np.flatnonzero(taken)
     if len(chosen) > max_points:
         chosen = rng.choice(chosen, size=max_points, replace=False)
     elif len(chosen) < max_points:
-        taken = np.zeros(n, dtype=bool)
-        taken[chosen] = True
-        rest = perm[~taken[perm]][: max_points - len(chosen)]
-        chosen = np.concatenate([chosen, rest])
+        rest = np.flatnonzero(~taken)
+        chosen = np.concatenate([chosen, rng.choice(rest, size=max_points - len(chosen),
+                                                    replace=False)])
     return np.sort(chosen).astype(np.int64)

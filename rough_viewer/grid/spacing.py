@@ -107,8 +107,20 @@ def median_cell_count(cloud: PointCloud | np.ndarray, cell_size: float) -> float
     (metres, origin at the bounding-box minimum); counted on at most
     :data:`COUNT_POINTS` points, scaled to the whole cloud."""
     pts, fraction = _subset(cloud, COUNT_POINTS)
+    return _median_count(pts, _lowest(pts), fraction, cell_size)
+
+
+def _lowest(pts: np.ndarray) -> np.ndarray:
+    """The (3,) minimum of (n, 3) points, column by column (the same numbers as
+    ``pts.min(axis=0)``, several times faster)."""
+    return np.array([pts[:, a].min() for a in range(pts.shape[1])], dtype=pts.dtype)
+
+
+def _median_count(pts: np.ndarray, lo: np.ndarray, fraction: float, cell_size: float) -> float:
+    """:func:`median_cell_count` on a subset already drawn (``pts``, their minimum
+    ``lo``, the share of the cloud they are)."""
     require(pts.shape[0] * 64.0, f"counting {pts.shape[0]:,} points per cell")
-    keys = np.floor((pts - pts.min(axis=0)) / cell_size).astype(np.int64)
+    keys = np.floor((pts - lo) / cell_size).astype(np.int64)
     dims = keys.max(axis=0) + 1
     if float(np.prod(dims.astype(np.float64))) < 2.0**62:  # one int64 key per cell
         flat = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
@@ -149,13 +161,15 @@ def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_PO
     if target < 3:
         raise InputError(f"target points per cell must be at least 3, got {target}")
     g = point_spacing(cloud) * math.sqrt(target)
+    pts, fraction = _subset(cloud, COUNT_POINTS)  # drawn once for every count below
+    lo = _lowest(pts)
     for _ in range(REFINE_STEPS):
-        count = median_cell_count(cloud, g)
+        count = _median_count(pts, lo, fraction, g)
         if target <= count <= 1.5 * target:
             break
         g *= float(np.clip(math.sqrt(target / max(count, 1.0)), 0.5, 2.0))
     g = nice_ceil(g)
-    while median_cell_count(cloud, g) < target:  # rounding and the median's steps
+    while _median_count(pts, lo, fraction, g) < target:  # rounding and the median's steps
         g = nice_ceil(g * 1.01)
     return g
 

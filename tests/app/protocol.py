@@ -72,8 +72,14 @@ class ProtocolClient:
                 n_zip = int.from_bytes(frame[8:16], "little")
                 inner = self._zstd.decompress(frame[16:16 + n_zip], max_output_size=n_raw)
                 payload = msgspec.msgpack.decode(inner)
+                buffers, offset = [], 16 + n_zip
+                for length in payload.get("binaryBufferLengths", ()):
+                    offset += (8 - offset % 8) % 8  # each buffer 8-byte aligned
+                    buffers.append(frame[offset:offset + length])
+                    offset += length
+                messages = [_arrays(m, buffers) for m in payload["messages"]]
                 with self._lock:
-                    self.messages.extend(payload["messages"])
+                    self.messages.extend(messages)
         except Exception:  # noqa: BLE001 - the connection ended
             pass
 
@@ -180,6 +186,20 @@ class ProtocolClient:
                    "ray_origin": None, "ray_direction": None,
                    "screen_pos": [[float(v) for v in corner_a], [float(v) for v in corner_b]],
                    "modifier": modifier})
+
+
+def _arrays(obj: Any, buffers: list[bytes]) -> Any:
+    """``obj`` with viser's binary placeholders (``{"__binary_index": i, "dtype":
+    "<f2"}``) replaced by the flat numpy arrays they stand for."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        if "__binary_index" in obj and "dtype" in obj:
+            return np.frombuffer(buffers[obj["__binary_index"]], dtype=np.dtype(obj["dtype"]))
+        return {k: _arrays(v, buffers) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_arrays(v, buffers) for v in obj]
+    return obj
 
 
 def join(server, path: str = "/", *, origin: str | None = None) -> ProtocolClient:
