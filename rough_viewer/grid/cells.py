@@ -171,6 +171,13 @@ def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex)
         yield pc, [col[s] - c[pc] for col, c in zip((x, y, z), centre_cols, strict=True)]
 
 
+def dense_bookkeeping(total: int, n_points: int, dense_limit: int = DENSE_LIMIT) -> bool:
+    """Whether cells are found with one int64 per cell of the bounding grid (``total``
+    cells) rather than by sorting the keys: up to ``dense_limit`` or ``4 n_points``
+    cells, whichever is larger."""
+    return total <= max(int(dense_limit), 4 * int(n_points))
+
+
 def index_points(
     x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *, engine: Engine = "numpy",
     dense_limit: int = DENSE_LIMIT,
@@ -201,7 +208,7 @@ def index_points(
     compiled = fast.resolve_engine(engine) == "numba"
     n = int(x.shape[0])
     total = grid.n_cells
-    dense = total <= max(int(dense_limit), 4 * n)
+    dense = dense_bookkeeping(total, n, dense_limit)
     if compiled:
         key = fast.cell_keys(x, y, z, grid.origin, grid.cell_size, grid.index_min, grid.shape)
     else:
