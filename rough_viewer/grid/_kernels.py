@@ -125,6 +125,18 @@ def relabel(key, lookup):
         key[i] = lookup[key[i]]
 
 
+@njit(inline="always", **OPTS)
+def _row9(acc, c):
+    return (acc[c, 0], acc[c, 1], acc[c, 2], acc[c, 3], acc[c, 4], acc[c, 5], acc[c, 6],
+            acc[c, 7], acc[c, 8])
+
+
+@njit(inline="always", **OPTS)
+def _put9(acc, c, s):
+    for j in range(9):
+        acc[c, j] = s[j]
+
+
 @njit(**OPTS)
 def _moments_block(x, y, z, pc, lookup, cx, cy, cz, start, stop, acc):
     acc[:, :] = 0.0
@@ -142,25 +154,9 @@ def _moments_block(x, y, z, pc, lookup, cx, cy, cz, start, stop, acc):
             c = lookup[c]
             pc[i] = c
         if c != cur:
-            acc[cur, 0] = s0
-            acc[cur, 1] = s1
-            acc[cur, 2] = s2
-            acc[cur, 3] = s3
-            acc[cur, 4] = s4
-            acc[cur, 5] = s5
-            acc[cur, 6] = s6
-            acc[cur, 7] = s7
-            acc[cur, 8] = s8
+            _put9(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8))
             cur = c
-            s0 = acc[c, 0]
-            s1 = acc[c, 1]
-            s2 = acc[c, 2]
-            s3 = acc[c, 3]
-            s4 = acc[c, 4]
-            s5 = acc[c, 5]
-            s6 = acc[c, 6]
-            s7 = acc[c, 7]
-            s8 = acc[c, 8]
+            s0, s1, s2, s3, s4, s5, s6, s7, s8 = _row9(acc, c)
             ccx = cx[c]
             ccy = cy[c]
             ccz = cz[c]
@@ -176,15 +172,7 @@ def _moments_block(x, y, z, pc, lookup, cx, cy, cz, start, stop, acc):
         s6 += ly * ly
         s7 += ly * lz
         s8 += lz * lz
-    acc[cur, 0] = s0
-    acc[cur, 1] = s1
-    acc[cur, 2] = s2
-    acc[cur, 3] = s3
-    acc[cur, 4] = s4
-    acc[cur, 5] = s5
-    acc[cur, 6] = s6
-    acc[cur, 7] = s7
-    acc[cur, 8] = s8
+    _put9(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8))
 
 
 @njit(f"void({F1}, {F1}, {F1}, {I1}, {I1}, {F1}, {F1}, {F1}, int64, {F2}, {F3})",
@@ -206,6 +194,16 @@ def moments(x, y, z, pc, lookup, cx, cy, cz, chunk, total, partial):
         for t in range(width):  # partial sums added in block order
             if base + t < n_chunks:
                 total += partial[t]
+
+
+@njit(inline="always", **OPTS)
+def _distance(lx, ly, lz, vx, vy, vz, offset):
+    """``v . local - offset`` in the reference's order (``((lx vx + ly vy) + lz vz) -
+    offset``)."""
+    d = lx * vx
+    d += ly * vy
+    d += lz * vz
+    return d - offset
 
 
 @njit(**OPTS)
@@ -236,17 +234,11 @@ def _distances_block(x, y, z, pc, cx, cy, cz, v, two, start, stop, acc):
         lx = x[i] - ccx
         ly = y[i] - ccy
         lz = z[i] - ccz
-        d = lx * v0
-        d += ly * v1
-        d += lz * v2
-        d -= v3
+        d = _distance(lx, ly, lz, v0, v1, v2, v3)
         q0 += d * d
         a0 += abs(d)
         if two:
-            e = lx * v4
-            e += ly * v5
-            e += lz * v6
-            e -= v7
+            e = _distance(lx, ly, lz, v4, v5, v6, v7)
             q1 += e * e
             a1 += abs(e)
     acc[cur, 0] = a0

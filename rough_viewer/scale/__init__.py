@@ -14,8 +14,9 @@ Names are loaded on first use (a run in memory imports none of the chunked drive
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rough_viewer.lazy import lazy_names
 
 #: Public name -> module that defines it (loaded on first use, PEP 562).
 _API: dict[str, str] = {
@@ -43,19 +44,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """Load a public name from its module on first use (PEP 562)."""
-    try:
-        module = _API[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_API))
+__getattr__, __dir__ = lazy_names(__name__, _API)
 
 
 if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
