@@ -226,10 +226,9 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
     degenerate): its outputs would be empty. The message says how many points the
     cells hold and, when the points are in memory, the smallest grid at which the
     typical occupied cell has enough of them."""
-    from rough_viewer.grid.spacing import default_cell_size
-
     if any(np.isfinite(result.values(m)).any() for m in result.models):
         return
+    from rough_viewer.grid.spacing import default_cell_size  # SciPy's KD-tree: only here
     per, u = per_unit(unit), UNIT_LABELS[unit]
     most = int(result.n_points.max()) if result.n_cells else 0
     text = (f"no cell has a value: the {result.n_points_total:,} points fall into "

@@ -8,7 +8,7 @@ full-length temporaries of the bincount pipeline:
 - cell keys ``floor((p - o) / g) - index_min`` per axis, combined x fastest, with the
   same floating-point operations, so every point lands in the same cell;
 - moment sums and distance sums are accumulated block by block with the reference's
-  chunk length (:func:`rough_viewer.grid.cells._chunk_size`), each cell's sum within
+  chunk length (:func:`rough_viewer.grid.keys.chunk_size`), each cell's sum within
   a block taken in the points' order from 0.0 and each block's partial sums added to
   the totals in block order, exactly as ``np.bincount`` per chunk does. As many
   blocks as there are threads run at once (each into its own partial arrays), and
@@ -42,14 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.grid.cells import (
-    CellIndex,
-    CellMoments,
-    GridSpec,
-    _chunk_size,
-    _decode_keys,
-    dense_bookkeeping,
-)
+from rough_viewer.grid.keys import chunk_size as _chunk_size
+from rough_viewer.grid.keys import decode_keys as _decode_keys
+from rough_viewer.grid.keys import dense_bookkeeping
 from rough_viewer.vocabulary import Engine, InputError
 
 #: Environment variable that overrides ``engine="auto"`` (``numpy`` or ``numba``).
@@ -386,19 +381,22 @@ def distance_sums(x: np.ndarray, y: np.ndarray, z: np.ndarray, point_cell: np.nd
     return out
 
 
-def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *,
-                      dense_limit: int) -> tuple[CellIndex, CellMoments]:
+def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Any, *,
+                      dense_limit: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~rough_viewer.grid.cells.index_points` and
     :func:`~rough_viewer.grid.cells.cell_moments` in two passes over the points: keys
     and their counts together (per thread), then the moments, which turn each
     point's key into its cell's row on the way. The same cells, rows and sums as the
-    reference, bit for bit.
+    reference, bit for bit: ``(ijk, counts, point_cell, s1, s2)``, the fields of
+    :class:`~rough_viewer.grid.cells.CellIndex` and :class:`~rough_viewer.grid.cells.
+    CellMoments` (:func:`rough_viewer.grid.cells.index_and_moments` makes them).
 
     Parameters
     ----------
     x, y, z : (N,) float64
         Coordinates, metres.
-    grid : GridSpec
+    grid : rough_viewer.grid.cells.GridSpec
         The grid over these points' bounds.
     dense_limit : int
         As :func:`~rough_viewer.grid.cells.index_points`.
@@ -443,8 +441,7 @@ def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpe
     for col, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)), start=3):
         s2[:, a, b] = total_sums[:, col]
         s2[:, b, a] = total_sums[:, col]
-    index = CellIndex(grid=grid, ijk=ijk, counts=counts, point_cell=key)
-    return index, CellMoments(counts=counts, s1=np.ascontiguousarray(total_sums[:, :3]), s2=s2)
+    return ijk, counts, key, np.ascontiguousarray(total_sums[:, :3]), s2
 
 
 def pair_sums(pos: np.ndarray, z: np.ndarray, scale: float, n_bins: int, rows: int,

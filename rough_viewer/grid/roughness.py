@@ -42,6 +42,9 @@ from rough_viewer.grid.cells import (
     index_points,
     make_grid,
 )
+from rough_viewer.grid.cells import (
+    index_and_moments as cells_index_and_moments,
+)
 from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.planes import (
     PlaneFit,
@@ -161,7 +164,7 @@ def prepare_grid(
         hi = np.array([x.max(), y.max(), z.max()])
     grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
     if engine == "numba":
-        index, moments = fast.index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
+        index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
         return PreparedGrid(index=index, moments=moments)
     index = index_points(x, y, z, grid, engine=engine)
     return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine))

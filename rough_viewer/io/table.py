@@ -55,9 +55,9 @@ def format_column(values: np.ndarray) -> list[str]:
     ['2', '', '1']
     """
     if isinstance(values, np.ma.MaskedArray):
-        text = np.array(format_column(np.ma.getdata(values)), dtype=object)
-        text[np.ma.getmaskarray(values)] = ""
-        return text.tolist()
+        masked = np.array(format_column(np.ma.getdata(values)), dtype=object)
+        masked[np.ma.getmaskarray(values)] = ""
+        return masked.tolist()
     if np.issubdtype(values.dtype, np.integer) or values.dtype == np.bool_:
         return values.astype(np.int64).astype(str).tolist()
     # Python's repr is the shortest round-trip text, as numpy's str, at twice its speed

@@ -137,7 +137,7 @@ def test_sparse_bookkeeping_and_bounds():
     np.testing.assert_array_equal(hi, xyz.max(axis=0))
     grid = cells.make_grid(lo, hi, 0.5)
     assert not cells.dense_bookkeeping(grid.n_cells, 5_000, 0)
-    index, mom = fast.index_and_moments(x, y, z, grid, dense_limit=0)
+    index, mom = cells.index_and_moments(x, y, z, grid, dense_limit=0)
     ref_index = cells.index_points(x, y, z, grid, engine="numpy", dense_limit=0)
     ref_mom = cells.cell_moments(x, y, z, ref_index, engine="numpy")
     np.testing.assert_array_equal(index.ijk, ref_index.ijk)
