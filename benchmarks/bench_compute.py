@@ -175,17 +175,67 @@ def bench_whole_process(n: int, g: float, repeat: int) -> None:
         rv = [sys.executable, "-m", "rough_viewer", "compute", path, "--grid", str(g),
               "--out", out, "--force", "--quiet"]
         plain = [sys.executable, __file__, "--plain-pipeline", path, str(g), out]
-        rows = [("rough-viewer compute, numba", rv, {"ROUGH_VIEWER_ENGINE": "numba"}),
+        rows = [("rough-viewer compute (default)", rv, {}),
+                ("rough-viewer compute, numba", rv, {"ROUGH_VIEWER_ENGINE": "numba"}),
                 ("rough-viewer compute, numpy", rv, {"ROUGH_VIEWER_ENGINE": "numpy"}),
                 ("plain NumPy bincount pipeline", plain, {})]
-        medians = {}
-        for label, argv, extra in rows:
-            env = dict(os.environ, **extra)
-            _wall(argv, env)  # warm the page cache and numba's disk cache
-            medians[label] = statistics.median(_wall(argv, env) for _ in range(repeat))
+        walls: dict[str, list[float]] = {label: [] for label, _, _ in rows}
+        clean = {k: v for k, v in os.environ.items() if k != "ROUGH_VIEWER_ENGINE"}
+        for _label, argv, extra in rows:
+            _wall(argv, dict(clean, **extra))  # warm the page cache and numba's disk cache
+        for _ in range(repeat):  # alternating, so a busy spell falls on every row alike
+            for label, argv, extra in rows:
+                walls[label].append(_wall(argv, dict(clean, **extra)))
+        medians = {label: statistics.median(w) for label, w in walls.items()}
         base = medians["plain NumPy bincount pipeline"]
         for label, t in medians.items():
             print(f"{label:<32} {t:7.2f} s   ratio {t / base:.2f}")
+
+
+#: One fresh process: import, read the .npy, then the first grid_roughness call and
+#: the warm ones (``preload`` starts loading the kernels before the read, as the
+#: command line does). Prints JSON.
+_FIRST_CALL = """
+import json, sys, time
+t0 = time.perf_counter()
+import rough_viewer
+from rough_viewer.grid import fast
+if {preload}:
+    fast.preload()
+cloud = rough_viewer.load_points(sys.argv[1])
+t1 = time.perf_counter()
+rough_viewer.grid_roughness(cloud, float(sys.argv[2]))
+t2 = time.perf_counter()
+warm = []
+for _ in range(5):
+    t = time.perf_counter()
+    rough_viewer.grid_roughness(cloud, float(sys.argv[2]))
+    warm.append(time.perf_counter() - t)
+print(json.dumps({{"load": t1 - t0, "first": t2 - t1, "warm": sorted(warm)[2]}}))
+"""
+
+
+def bench_first_call(n: int, g: float, repeat: int) -> None:
+    """In-process grid_roughness, first call of a process and warm, and
+    ``import rough_viewer; load_points(npy)``, each in fresh processes."""
+    import json
+
+    print(f"\n{n:,} points (.npy), grid {g:g} m, all models, default engine; median of "
+          f"{repeat} fresh processes")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "cloud.npy")
+        np.save(path, synthetic_outcrop(n).xyz())
+        for preload in (False, True):
+            code = _FIRST_CALL.format(preload=preload)
+            argv = [sys.executable, "-c", code, path, str(g)]
+            subprocess.run(argv, check=True, capture_output=True)  # page cache, numba cache
+            runs = [json.loads(subprocess.run(argv, check=True, capture_output=True,
+                                              text=True).stdout) for _ in range(repeat)]
+            med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+            how = "kernels preloaded during the read" if preload else "no preload"
+            print(f"  {how:<34} import + load_points {med['load']:.3f} s   grid_roughness "
+                  f"first {med['first']:.3f} s, warm {med['warm']:.3f} s "
+                  f"(first / warm {med['first'] / med['warm']:.2f})")
 
 
 def bench_io(n: int, repeat: int) -> None:
@@ -227,6 +277,8 @@ def main() -> None:
     ap.add_argument("--whole-points", type=float, default=2e7)
     ap.add_argument("--whole-grid", type=float, default=0.25)
     ap.add_argument("--no-whole", action="store_true")
+    ap.add_argument("--no-first", action="store_true",
+                    help="skip the first-call and load_points timings")
     ap.add_argument("--plain-pipeline", nargs=3, metavar=("NPY", "G", "OUT"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -236,6 +288,8 @@ def main() -> None:
         return
     print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     bench_grid([int(s) for s in args.sizes], args.grids, args.repeat, args.order, args.engines)
+    if not args.no_first:
+        bench_first_call(int(args.whole_points), args.whole_grid, args.repeat)
     if not args.no_whole:
         bench_whole_process(int(args.whole_points), args.whole_grid, args.repeat)
     print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")

@@ -31,10 +31,10 @@ Names are loaded on first use, so ``import rough_viewer`` stays cheap.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from rough_viewer._version import __version__
+from rough_viewer.lazy import lazy_names
 
 #: Public name -> module that defines it.
 _API: dict[str, str] = {
@@ -145,19 +145,7 @@ _API: dict[str, str] = {
 __all__ = ["__version__", *sorted(_API)]
 
 
-def __getattr__(name: str) -> Any:
-    """Load a public name from its module on first use (PEP 562)."""
-    try:
-        module = _API[name]
-    except KeyError:
-        raise AttributeError(f"module 'rough_viewer' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_API))
+__getattr__, __dir__ = lazy_names(__name__, _API)
 
 
 if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from rough_viewer.grid.planes import fit_plane
 from rough_viewer.vocabulary import BIAS_RESIDUAL, InputError, Residual
@@ -537,6 +536,8 @@ def fit_piecewise_linear(
         right = grid[min(i + 1, grid.size - 1)]
         xb = float(grid[i])
         if right > left:
+            from scipy.optimize import minimize_scalar  # here: not on every import of bias
+
             opt = minimize_scalar(lambda b: float(_hinge_sse(x, y, np.array([b]))[0][0]),
                                   bounds=(float(left), float(right)), method="bounded",
                                   options={"xatol": 1e-6 * max(1.0, hi - lo)})

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from rough_viewer.bias.measurement import normalise_population, target_roughness
 from rough_viewer.memory import require
@@ -284,6 +283,8 @@ def smooth_heights(z: np.ndarray, *, effective_radius_m: float, spacing_m: float
     ny, nx = np.shape(z)
     _require_smoothing((ny, nx), effective_radius_m, spacing_m)
     k = disc_kernel(effective_radius_m, spacing_m)
+    from scipy.signal import fftconvolve  # here: 0.4 s of import, needed by simulations only
+
     return fftconvolve(np.asarray(z, dtype=np.float64), k, mode="same")
 
 

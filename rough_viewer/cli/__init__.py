@@ -32,19 +32,24 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full parser, with every command module found in this package."""
+def command_names() -> list[str]:
+    """The commands: one module (or package) of this package each, found without
+    importing them."""
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser with every command module found in this package, or with command
+    ``only`` alone (a run imports the modules of its own command only)."""
     parser = _Parser(
         prog="rough-viewer",
         description="Surface roughness of scanned rock faces.",
     )
     parser.add_argument("--version", action="version", version=f"rough-viewer {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        module.register(sub)
+    for name in command_names():
+        if only is None or name == only:
+            importlib.import_module(f"{__name__}.{name}").register(sub)
     return parser
 
 
@@ -67,7 +72,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     import signal
     import threading
 
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # the command is the first word that is not an option (the top level has only
+    # --help and --version, which take no value); an unknown one gets the full list
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(command if command in command_names() else None)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

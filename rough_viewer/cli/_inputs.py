@@ -131,6 +131,29 @@ def input_paths(args: argparse.Namespace) -> list[Path]:
     return paths
 
 
+#: Bytes a point takes on disk, roughly, by format (compressed ones fewer); others 24.
+BYTES_PER_POINT = {".laz": 4.0, ".e57": 8.0, ".las": 28.0, ".xyz": 30.0, ".txt": 30.0,
+                   ".csv": 30.0, ".pts": 30.0, ".stl": 40.0}
+
+
+def preload_kernels_for(paths: list[Path]) -> None:
+    """Start loading the compiled kernels on a thread while the inputs are read
+    (:func:`rough_viewer.grid.fast.preload`) when the files look big enough for the
+    compiled engine (their sizes over :data:`BYTES_PER_POINT`, against
+    :data:`~rough_viewer.grid.fast.AUTO_MIN_POINTS`): a run of millions of points
+    then finds them loaded, and a small one loads nothing."""
+    from rough_viewer.grid import fast
+
+    total = 0.0
+    for p in paths:
+        try:
+            total += p.stat().st_size / BYTES_PER_POINT.get(p.suffix.lower(), 24.0)
+        except OSError:
+            continue  # reading it says what is wrong
+    if total >= fast.AUTO_MIN_POINTS:
+        fast.preload()
+
+
 def describe(paths: list[Path], *, shown: int = 4) -> str:
     """The inputs in one phrase (for tables and summaries): the file, or ``"N files: a,
     b, ..., z"`` naming at most ``shown`` of them."""

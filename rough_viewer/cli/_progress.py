@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
-from typing import TextIO
-
-from tqdm import tqdm
+from typing import Any, TextIO
 
 
 def _is_terminal(stream: TextIO) -> bool:
@@ -40,7 +38,7 @@ class ProgressBar:
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = _is_terminal(self.stream)
-        self._bar: tqdm | None = None
+        self._bar: Any = None  # a tqdm bar once drawn (tqdm is imported then)
         self._unit = unit
         self._position = position
         self._leave = leave
@@ -49,6 +47,8 @@ class ProgressBar:
         if not self.enabled:
             return
         if self._bar is None:
+            from tqdm import tqdm
+
             self._bar = tqdm(total=total, desc=self.label, file=self.stream, unit=self._unit,
                              unit_scale=self._unit == "pt", position=self._position,
                              leave=self._leave, dynamic_ncols=True, mininterval=0.1)

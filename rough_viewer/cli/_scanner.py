@@ -97,10 +97,11 @@ def apply_scanner_options(cloud: PointCloud, paths: Sequence[Path], args: argpar
 
 def _length(value: float | None, option: str, unit: str, *, allow_zero: bool = True
             ) -> float | None:
-    from rough_viewer.cli.bias._shared import check_length
+    if value is None:
+        return None
+    from rough_viewer.cli.bias._shared import check_length  # the bias commands' parsers
 
-    return None if value is None else check_length(value, option, unit=unit,
-                                                   allow_zero=allow_zero)
+    return check_length(value, option, unit=unit, allow_zero=allow_zero)
 
 
 def trust_settings(args: argparse.Namespace, unit: str) -> TrustSettings:

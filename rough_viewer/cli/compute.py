@@ -146,7 +146,7 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
 
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._crop import apply_crop, crop_from_args, refuse_with_chunks
-    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
+    from rough_viewer.cli._inputs import describe, input_paths, load_inputs, preload_kernels_for
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
@@ -159,6 +159,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
     origin = np.array(parse_xyz(args.origin, option="--origin")) if args.origin else None
     paths = input_paths(args)
+    if not wants_chunks(args):
+        preload_kernels_for(paths)  # on a thread, while the inputs are read
     # every length given and shown is in the inputs' unit (--units, else the CRS's)
     unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
     grids = grid_sizes(args.grid, unit)
@@ -224,10 +226,9 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
     degenerate): its outputs would be empty. The message says how many points the
     cells hold and, when the points are in memory, the smallest grid at which the
     typical occupied cell has enough of them."""
-    from rough_viewer.grid.spacing import default_cell_size
-
     if any(np.isfinite(result.values(m)).any() for m in result.models):
         return
+    from rough_viewer.grid.spacing import default_cell_size  # SciPy's KD-tree: only here
     per, u = per_unit(unit), UNIT_LABELS[unit]
     most = int(result.n_points.max()) if result.n_cells else 0
     text = (f"no cell has a value: the {result.n_points_total:,} points fall into "

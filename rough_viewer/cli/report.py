@@ -112,6 +112,9 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.visual.export import image_session, write_figure
 
     paths = input_paths(args)
+    from rough_viewer.grid import fast
+
+    fast.preload()  # a report is seconds of work: the kernels load while the input is read
     unit_in = resolve_units(paths[0], args.units)[0]
     # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
     given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None

@@ -198,7 +198,10 @@ def _run(args: argparse.Namespace) -> int:
         check_settings,
         grid_presets,
     )
+    from rough_viewer.grid import fast
     from rough_viewer.vocabulary import UNIT_METRES
+
+    fast.preload()  # the app computes grids for as long as it runs: load them while it starts
 
     if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
         raise InputError(f"--grid must be a positive length, got {args.grid:g}")

@@ -1,6 +1,18 @@
-"""The numba kernels of :mod:`rough_viewer.grid.fast` (imported only when numba is
-installed and the compiled engine is used). Defined at module level so numba's
-on-disk cache (``cache=True``) finds them again in the next process."""
+"""The numba kernels of :mod:`rough_viewer.grid.fast` (imported only when the compiled
+engine is used). Defined at module level so numba's on-disk cache (``cache=True``)
+finds them again in the next process, and compiled eagerly for the one signature
+each is called with (float64 coordinates, int64 keys and rows, C order), so that
+importing this module loads them all from the cache and the first call of a
+process runs as fast as the next.
+
+Bit for bit the reference's arithmetic (:mod:`rough_viewer.grid.cells`): every
+per-cell sum is taken point by point in the points' order within a block of the
+reference's chunk length, starting from 0.0, and the blocks' partial sums are added
+to the totals in block order, as ``np.bincount`` per chunk does. Inside a block, the
+running sums of the cell the last point fell in stay in registers until a point of
+another cell comes (points of a terrestrial scan come cell by cell), which changes
+no operation and no order: each cell's sum is still ``((0 + w1) + w2) + ...``.
+"""
 
 # mypy: ignore-errors
 from __future__ import annotations
@@ -8,9 +20,52 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+F1 = "float64[::1]"
+I1 = "int64[::1]"
+F2 = "float64[:, ::1]"
+F3 = "float64[:, :, ::1]"
+OPTS = {"cache": True, "nogil": True}
 
-@njit(cache=True, parallel=True, nogil=True)
+
+@njit(f"void({F1}, {F1}, {F1}, {F2})", parallel=True, **OPTS)
+def bounds(x, y, z, out):
+    """``out[t] = (min x, min y, min z, max x, max y, max z, NaN count)`` of task
+    ``t``'s share of the points (one pass over the coordinates)."""
+    n = x.shape[0]
+    tasks = out.shape[0]
+    step = (n + tasks - 1) // tasks
+    for t in prange(tasks):
+        lx = np.inf
+        ly = np.inf
+        lz = np.inf
+        hx = -np.inf
+        hy = -np.inf
+        hz = -np.inf
+        nans = 0
+        for i in range(t * step, min(n, (t + 1) * step)):
+            a = x[i]
+            b = y[i]
+            c = z[i]
+            lx = min(lx, a)
+            hx = max(hx, a)
+            ly = min(ly, b)
+            hy = max(hy, b)
+            lz = min(lz, c)
+            hz = max(hz, c)
+            nans += np.int64(a != a) + np.int64(b != b) + np.int64(c != c)  # no branch
+        out[t, 0] = lx
+        out[t, 1] = ly
+        out[t, 2] = lz
+        out[t, 3] = hx
+        out[t, 4] = hy
+        out[t, 5] = hz
+        out[t, 6] = nans
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, {F1}, int64, int64, {I1})", parallel=True, **OPTS)
 def keys(x, y, z, origin, g, index_min, nx, ny, out):
+    """Linear cell key ``i + nx (j + ny k)`` of every point: the reference's
+    operations, ``floor((p - o) / g) - index_min`` per axis."""
     n = x.shape[0]
     for i in prange(n):
         tz = np.floor((z[i] - origin[2]) / g) - index_min[2]
@@ -19,41 +74,114 @@ def keys(x, y, z, origin, g, index_min, nx, ny, out):
         out[i] = np.int64(tz) * (nx * ny) + np.int64(ty * nx) + np.int64(tx)
 
 
-@njit(cache=True, nogil=True)
+#: Points whose keys :func:`keys_count` computes before counting them (the key loop
+#: vectorises; the counting loop then reads them from the first-level cache).
+KEY_BLOCK = 1024
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, {F1}, int64, int64, {I1}, int64[:, ::1])",
+      parallel=True, **OPTS)
+def keys_count(x, y, z, origin, g, index_min, nx, ny, out, counts):
+    """:func:`keys` and, per task ``t`` (a contiguous share of the points),
+    ``counts[t, k]`` the number of its points of key ``k``, in one pass."""
+    n = x.shape[0]
+    tasks = counts.shape[0]
+    step = (n + tasks - 1) // tasks
+    for t in prange(tasks):
+        own = counts[t]
+        stop = min(n, (t + 1) * step)
+        for a in range(t * step, stop, KEY_BLOCK):
+            b = min(stop, a + KEY_BLOCK)
+            for i in range(a, b):
+                tz = np.floor((z[i] - origin[2]) / g) - index_min[2]
+                ty = np.floor((y[i] - origin[1]) / g) - index_min[1]
+                tx = np.floor((x[i] - origin[0]) / g) - index_min[0]
+                out[i] = np.int64(tz) * (nx * ny) + np.int64(ty * nx) + np.int64(tx)
+            cur = out[a]
+            run = 0
+            for i in range(a, b):  # a run of one key adds once (no chain through memory)
+                k = out[i]
+                if k != cur:
+                    own[cur] += run
+                    cur = k
+                    run = 0
+                run += 1
+            own[cur] += run
+
+
+@njit(f"{I1}({I1}, int64)", **OPTS)
 def count(key, total):
+    """Number of points of every key (``np.bincount(key, minlength=total)``)."""
     counts = np.zeros(total, dtype=np.int64)
     for i in range(key.shape[0]):
         counts[key[i]] += 1
     return counts
 
 
-@njit(cache=True, parallel=True, nogil=True)
+@njit(f"void({I1}, {I1})", parallel=True, **OPTS)
 def relabel(key, lookup):
+    """``key[:] = lookup[key]`` in place."""
     for i in prange(key.shape[0]):
         key[i] = lookup[key[i]]
 
 
-@njit(cache=True, nogil=True)
-def moments_chunk(x, y, z, pc, cx, cy, cz, start, stop, acc):
-    acc[:] = 0.0
+@njit(inline="always", **OPTS)
+def _row9(acc, c):
+    return (acc[c, 0], acc[c, 1], acc[c, 2], acc[c, 3], acc[c, 4], acc[c, 5], acc[c, 6],
+            acc[c, 7], acc[c, 8])
+
+
+@njit(inline="always", **OPTS)
+def _put9(acc, c, s):
+    for j in range(9):
+        acc[c, j] = s[j]
+
+
+@njit(**OPTS)
+def _moments_block(x, y, z, pc, lookup, cx, cy, cz, start, stop, acc):
+    acc[:, :] = 0.0
+    if start >= stop:
+        return
+    relabel = lookup.shape[0] > 0
+    cur = lookup[pc[start]] if relabel else pc[start]
+    ccx = cx[cur]
+    ccy = cy[cur]
+    ccz = cz[cur]
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = 0.0
     for i in range(start, stop):
         c = pc[i]
-        lx = x[i] - cx[c]
-        ly = y[i] - cy[c]
-        lz = z[i] - cz[c]
-        acc[c, 0] += lx
-        acc[c, 1] += ly
-        acc[c, 2] += lz
-        acc[c, 3] += lx * lx
-        acc[c, 4] += lx * ly
-        acc[c, 5] += lx * lz
-        acc[c, 6] += ly * ly
-        acc[c, 7] += ly * lz
-        acc[c, 8] += lz * lz
+        if relabel:
+            c = lookup[c]
+            pc[i] = c
+        if c != cur:
+            _put9(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8))
+            cur = c
+            s0, s1, s2, s3, s4, s5, s6, s7, s8 = _row9(acc, c)
+            ccx = cx[c]
+            ccy = cy[c]
+            ccz = cz[c]
+        lx = x[i] - ccx
+        ly = y[i] - ccy
+        lz = z[i] - ccz
+        s0 += lx
+        s1 += ly
+        s2 += lz
+        s3 += lx * lx
+        s4 += lx * ly
+        s5 += lx * lz
+        s6 += ly * ly
+        s7 += ly * lz
+        s8 += lz * lz
+    _put9(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8))
 
 
-@njit(cache=True, parallel=True, nogil=True)
-def moments(x, y, z, pc, cx, cy, cz, chunk, total, partial):
+@njit(f"void({F1}, {F1}, {F1}, {I1}, {I1}, {F1}, {F1}, {F1}, int64, {F2}, {F3})",
+      parallel=True, **OPTS)
+def moments(x, y, z, pc, lookup, cx, cy, cz, chunk, total, partial):
+    """``total[c] += (sum lx, ly, lz, lx lx, lx ly, lx lz, ly ly, ly lz, lz lz)`` of the
+    cell-local coordinates of cell ``c``'s points, block by block (``chunk`` points),
+    ``partial.shape[0]`` blocks at a time. With a non-empty ``lookup``, ``pc`` holds
+    keys and is relabelled in place (``pc[i] = lookup[pc[i]]``) on the way."""
     n = x.shape[0]
     n_chunks = (n + chunk - 1) // chunk
     width = partial.shape[0]
@@ -61,33 +189,70 @@ def moments(x, y, z, pc, cx, cy, cz, chunk, total, partial):
         for t in prange(width):
             k = base + t
             if k < n_chunks:
-                moments_chunk(x, y, z, pc, cx, cy, cz, k * chunk,
-                              min(n, (k + 1) * chunk), partial[t])
-        for t in range(width):  # partial sums added in chunk order
+                _moments_block(x, y, z, pc, lookup, cx, cy, cz, k * chunk,
+                               min(n, (k + 1) * chunk), partial[t])
+        for t in range(width):  # partial sums added in block order
             if base + t < n_chunks:
                 total += partial[t]
 
 
-@njit(cache=True, nogil=True)
-def distances_chunk(x, y, z, pc, cx, cy, cz, v, off, start, stop, acc):
-    acc[:] = 0.0
-    n_vec = v.shape[0]
+@njit(inline="always", **OPTS)
+def _distance(lx, ly, lz, vx, vy, vz, offset):
+    """``v . local - offset`` in the reference's order (``((lx vx + ly vy) + lz vz) -
+    offset``)."""
+    d = lx * vx
+    d += ly * vy
+    d += lz * vz
+    return d - offset
+
+
+@njit(**OPTS)
+def _distances_block(x, y, z, pc, cx, cy, cz, v, two, start, stop, acc):
+    acc[:, :] = 0.0
+    if start >= stop:
+        return
+    cur = pc[start]
+    a0 = q0 = a1 = q1 = 0.0
+    ccx, ccy, ccz = cx[cur], cy[cur], cz[cur]
+    v0, v1, v2, v3, v4, v5, v6, v7 = (v[cur, 0], v[cur, 1], v[cur, 2], v[cur, 3],
+                                      v[cur, 4], v[cur, 5], v[cur, 6], v[cur, 7])
     for i in range(start, stop):
         c = pc[i]
-        lx = x[i] - cx[c]
-        ly = y[i] - cy[c]
-        lz = z[i] - cz[c]
-        for q in range(n_vec):
-            d = lx * v[q, c, 0]
-            d += ly * v[q, c, 1]
-            d += lz * v[q, c, 2]
-            d -= off[q, c]
-            acc[q, 1, c] += d * d
-            acc[q, 0, c] += abs(d)
+        if c != cur:
+            acc[cur, 0] = a0
+            acc[cur, 1] = q0
+            acc[cur, 2] = a1
+            acc[cur, 3] = q1
+            cur = c
+            a0 = acc[c, 0]
+            q0 = acc[c, 1]
+            a1 = acc[c, 2]
+            q1 = acc[c, 3]
+            ccx, ccy, ccz = cx[c], cy[c], cz[c]
+            v0, v1, v2, v3, v4, v5, v6, v7 = (v[c, 0], v[c, 1], v[c, 2], v[c, 3],
+                                              v[c, 4], v[c, 5], v[c, 6], v[c, 7])
+        lx = x[i] - ccx
+        ly = y[i] - ccy
+        lz = z[i] - ccz
+        d = _distance(lx, ly, lz, v0, v1, v2, v3)
+        q0 += d * d
+        a0 += abs(d)
+        if two:
+            e = _distance(lx, ly, lz, v4, v5, v6, v7)
+            q1 += e * e
+            a1 += abs(e)
+    acc[cur, 0] = a0
+    acc[cur, 1] = q0
+    acc[cur, 2] = a1
+    acc[cur, 3] = q1
 
 
-@njit(cache=True, parallel=True, nogil=True)
-def distances(x, y, z, pc, cx, cy, cz, v, off, chunk, total, partial):
+@njit(f"void({F1}, {F1}, {F1}, {I1}, {F1}, {F1}, {F1}, {F2}, boolean, int64, {F2}, {F3})",
+      parallel=True, **OPTS)
+def distances(x, y, z, pc, cx, cy, cz, v, two, chunk, total, partial):
+    """Per-cell sums of ``|D|`` and ``D^2`` of one or two (``two``) distance kinds,
+    ``D = v[c, 4q:4q+3] . local - v[c, 4q+3]``, into ``total[c] = (|D0|, D0^2, |D1|,
+    D1^2)``, block by block as :func:`moments`."""
     n = x.shape[0]
     n_chunks = (n + chunk - 1) // chunk
     width = partial.shape[0]
@@ -95,9 +260,64 @@ def distances(x, y, z, pc, cx, cy, cz, v, off, chunk, total, partial):
         for t in prange(width):
             k = base + t
             if k < n_chunks:
-                distances_chunk(x, y, z, pc, cx, cy, cz, v, off, k * chunk,
-                                min(n, (k + 1) * chunk), partial[t])
+                _distances_block(x, y, z, pc, cx, cy, cz, v, two, k * chunk,
+                                 min(n, (k + 1) * chunk), partial[t])
         for t in range(width):
             if base + t < n_chunks:
                 total += partial[t]
 
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, int64, int64, int64, int64, {F2}, {F2})",
+      parallel=True, **OPTS)
+def pair_sums(px, py, pz, z, scale, n_bins, rows, first, last, ordered, sums):
+    """Per lag bin, the ordered pairs of cells and their sums of squared differences,
+    for the row chunks ``first .. last - 1`` (``rows`` rows each) of the direct count
+    of :func:`rough_viewer.grid.variogram._pair_sums`, chunk ``first + c`` into
+    ``ordered[c]`` and ``sums[c]`` (index = bin ``k``, 0 unused). Cells at ``(px, py,
+    pz)`` (index units; ``pz`` 0 on a 2-D map, which adds +0.0); bin of a pair
+    ``floor(sqrt(d2) * scale + 0.5)``, ``d2`` the squared distance summed axis by
+    axis; each chunk's sums are taken pair by pair in row-major order from 0.0, as
+    ``np.bincount`` of the chunk's pairs does."""
+    m = px.shape[0]
+    for c in prange(last - first):
+        start = (first + c) * rows
+        stop = min(m, start + rows)
+        own_n = ordered[c]
+        own_s = sums[c]
+        own_n[:] = 0.0
+        own_s[:] = 0.0
+        kb = np.empty(m, dtype=np.int64)
+        vb = np.empty(m)
+        for i in range(start, stop):
+            xi = px[i]
+            yi = py[i]
+            wi = pz[i]
+            zi = z[i]
+            for j in range(m):  # the bins and squared differences of row i (vectorises)
+                tx = xi - px[j]
+                ty = yi - py[j]
+                tz = wi - pz[j]
+                d2 = tx * tx
+                d2 += ty * ty
+                d2 += tz * tz
+                kb[j] = np.int64(np.floor(np.sqrt(d2) * scale + 0.5))
+                e = zi - z[j]
+                vb[j] = e * e
+            cur = 0
+            cn = 0.0
+            cs = 0.0
+            for j in range(m):  # then added in order; a run of one bin stays in registers
+                k = kb[j]
+                if k >= 1 and k <= n_bins:
+                    if k != cur:
+                        if cur != 0:
+                            own_n[cur] = cn
+                            own_s[cur] = cs
+                        cur = k
+                        cn = own_n[k]
+                        cs = own_s[k]
+                    cn += 1.0
+                    cs += vb[j]
+            if cur != 0:
+                own_n[cur] = cn
+                own_s[cur] = cs

@@ -15,14 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rough_viewer.grid.keys import DENSE_LIMIT, dense_bookkeeping
+from rough_viewer.grid.keys import chunk_size as _chunk_size
+from rough_viewer.grid.keys import decode_keys as _decode_keys
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import Engine, InputError
 
 #: Largest total number of grid cells (occupied or not) we can key with int64.
 MAX_GRID_CELLS = 2**62
-#: Dense bookkeeping (one int64 per grid cell) is used up to this many grid cells
-#: or ``4 * n_points``, whichever is larger; beyond, a sort-based path is used.
-DENSE_LIMIT = 1 << 25
 #: Bytes per occupied cell of the result arrays (moments, planes, maps), an estimate
 #: used to refuse grids that cannot fit in memory.
 BYTES_PER_CELL = 400
@@ -145,21 +145,6 @@ def _chunks(n: int, size: int):
         yield slice(start, min(n, start + size))
 
 
-def _chunk_size(n_cells: int) -> int:
-    # Per-chunk bincounts allocate n_cells-long arrays; keep chunks at least as long.
-    return max(1 << 21, int(n_cells))
-
-
-def _decode_keys(keys: np.ndarray, shape: tuple[int, int, int], index_min: np.ndarray) -> np.ndarray:
-    """(M, 3) cell indices from linear keys ``i + nx (j + ny k)`` (x fastest)."""
-    nx, ny, _ = shape
-    k = keys // (nx * ny)
-    rem = keys - k * (nx * ny)
-    j = rem // nx
-    i = rem - j * nx
-    return np.stack([i, j, k], axis=1) + index_min
-
-
 def _local_chunks(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex):
     """Yield ``(point_cell, [lx, ly, lz])`` chunk by chunk: the points' coordinates
     relative to their cell centre, metres. Every pass over the points takes its
@@ -201,7 +186,7 @@ def index_points(
     compiled = fast.resolve_engine(engine) == "numba"
     n = int(x.shape[0])
     total = grid.n_cells
-    dense = total <= max(int(dense_limit), 4 * n)
+    dense = dense_bookkeeping(total, n, dense_limit)
     if compiled:
         key = fast.cell_keys(x, y, z, grid.origin, grid.cell_size, grid.index_min, grid.shape)
     else:
@@ -432,3 +417,16 @@ def coarsen(
         CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
         CellMoments(counts=counts, s1=s1, s2=s2),
     )
+
+
+def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *,
+                      dense_limit: int = DENSE_LIMIT) -> tuple[CellIndex, CellMoments]:
+    """:func:`index_points` and :func:`cell_moments` in two passes of the compiled
+    kernels (:func:`rough_viewer.grid.fast.index_and_moments`): the same cells, rows
+    and sums as the reference, bit for bit."""
+    from rough_viewer.grid import fast
+
+    ijk, counts, point_cell, s1, s2 = fast.index_and_moments(x, y, z, grid,
+                                                             dense_limit=dense_limit)
+    return (CellIndex(grid=grid, ijk=ijk, counts=counts, point_cell=point_cell),
+            CellMoments(counts=counts, s1=s1, s2=s2))

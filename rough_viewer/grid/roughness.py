@@ -30,7 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from rough_viewer.grid import fast
 from rough_viewer.grid.cells import (
+    DENSE_LIMIT,
     CellIndex,
     CellMoments,
     GridSpec,
@@ -39,6 +41,9 @@ from rough_viewer.grid.cells import (
     distance_sums,
     index_points,
     make_grid,
+)
+from rough_viewer.grid.cells import (
+    index_and_moments as cells_index_and_moments,
 )
 from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.planes import (
@@ -152,9 +157,15 @@ def prepare_grid(
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
     engine = resolve_engine(engine, n_points=int(x.shape[0]))
-    lo = np.array([x.min(), y.min(), z.min()])
-    hi = np.array([x.max(), y.max(), z.max()])
+    if engine == "numba":
+        lo, hi = fast.bounds(x, y, z)
+    else:
+        lo = np.array([x.min(), y.min(), z.min()])
+        hi = np.array([x.max(), y.max(), z.max()])
     grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
+    if engine == "numba":
+        index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
+        return PreparedGrid(index=index, moments=moments)
     index = index_points(x, y, z, grid, engine=engine)
     return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine))
 

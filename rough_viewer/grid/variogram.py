@@ -128,6 +128,9 @@ PAIR_SECONDS = 1.2e-8
 TIME_BUDGET = 10.0
 #: Memory of one chunk of the direct pair count, bytes.
 PAIR_CHUNK_BYTES = 32 * 2**20
+#: Pairs the compiled direct count takes between two progress calls (a fraction of
+#: a second: a cancelled job stops soon).
+PAIR_BATCH = 20_000_000
 
 
 @dataclass(frozen=True)
@@ -432,6 +435,8 @@ def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
     """Stage 3 for few, scattered cells: every ordered pair counted directly, a
     chunk of rows at a time (memory :data:`PAIR_CHUNK_BYTES`); ``progress(rows
     done, rows)`` before the first chunk and after each."""
+    from rough_viewer.grid import fast
+
     n_bins = plan.n_bins
     m = int(cells.z.size)
     pos = cells.idx.astype(np.float64)
@@ -441,6 +446,21 @@ def _pair_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
     sums = np.zeros(n_bins + 1)
     if progress is not None:
         progress(0, m)
+    if fast.resolve_engine("auto", n_points=m * m) == "numba":
+        # the same chunks, pairs and additions in the same order (bit for bit), a
+        # batch of about PAIR_BATCH pairs at a time on all threads; the batch's
+        # chunks are reported done (and a raising callback stops) after each batch
+        n_chunks = -(-m // rows)
+        batch = max(1, PAIR_BATCH // (rows * m))
+        for first in range(0, n_chunks, batch):
+            last = min(n_chunks, first + batch)
+            counts, parts = fast.pair_sums(pos, z, g / w, n_bins, rows, first, last)
+            for c in range(last - first):
+                ordered += counts[c]
+                sums += parts[c]
+                if progress is not None:
+                    progress(min(m, (first + c + 1) * rows), m)
+        return ordered[1:], sums[1:]
     for start in range(0, m, rows):
         sl = slice(start, min(start + rows, m))
         d2 = np.zeros((sl.stop - sl.start, m))

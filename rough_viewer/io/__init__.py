@@ -5,18 +5,38 @@ crop and the one JSON conversion.
 The science of this package knows nothing of the terminal: progress is a callback
 and every problem with a file is an :class:`rough_viewer.vocabulary.InputError`
 that names it.
+
+Names are loaded on first use, so reading one format imports no other's library.
 """
 
-from rough_viewer.io.cache import cache_dir
-from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.crop import CropBox, crop_cloud, crop_mask
-from rough_viewer.io.crs import CrsInfo, read_crs
-from rough_viewer.io.las import load_las_with_extra, read_las_extra, write_las
-from rough_viewer.io.las_out import write_las_fields
-from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points, resolve_units
-from rough_viewer.io.ply import write_ply_fields
-from rough_viewer.io.point_fields import CellField, PointFields
-from rough_viewer.io.table import write_table
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rough_viewer.lazy import lazy_names
+
+#: Public name -> module that defines it (loaded on first use, PEP 562).
+_API: dict[str, str] = {
+    "cache_dir": "rough_viewer.io.cache",
+    "PointCloud": "rough_viewer.io.cloud",
+    "CropBox": "rough_viewer.io.crop",
+    "crop_cloud": "rough_viewer.io.crop",
+    "crop_mask": "rough_viewer.io.crop",
+    "CrsInfo": "rough_viewer.io.crs",
+    "read_crs": "rough_viewer.io.crs",
+    "load_las_with_extra": "rough_viewer.io.las",
+    "read_las_extra": "rough_viewer.io.las",
+    "write_las": "rough_viewer.io.las",
+    "write_las_fields": "rough_viewer.io.las_out",
+    "SUPPORTED_SUFFIXES": "rough_viewer.io.load",
+    "TEXT_SUFFIXES": "rough_viewer.io.load",
+    "load_points": "rough_viewer.io.load",
+    "resolve_units": "rough_viewer.io.load",
+    "write_ply_fields": "rough_viewer.io.ply",
+    "CellField": "rough_viewer.io.point_fields",
+    "PointFields": "rough_viewer.io.point_fields",
+    "write_table": "rough_viewer.io.table",
+}
 
 __all__ = [
     "SUPPORTED_SUFFIXES",
@@ -39,3 +59,19 @@ __all__ = [
     "write_ply_fields",
     "write_table",
 ]
+
+
+__getattr__, __dir__ = lazy_names(__name__, _API)
+
+
+if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
+    from rough_viewer.io.cache import cache_dir
+    from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.crop import CropBox, crop_cloud, crop_mask
+    from rough_viewer.io.crs import CrsInfo, read_crs
+    from rough_viewer.io.las import load_las_with_extra, read_las_extra, write_las
+    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.load import SUPPORTED_SUFFIXES, TEXT_SUFFIXES, load_points, resolve_units
+    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.point_fields import CellField, PointFields
+    from rough_viewer.io.table import write_table

@@ -38,11 +38,15 @@ def report_figures(report: Report, section: GridSection) -> dict[str, Any]:
     return figures_and_errors(report, section)[0]
 
 
-def figures_and_errors(report: Report, section: GridSection
+def figures_and_errors(report: Report, section: GridSection, *,
+                       timings: dict[str, float] | None = None,
                        ) -> tuple[dict[str, Any], dict[str, str]]:
     """The figures of :func:`report_figures` and, for each one that could not be
     drawn, why (an InputError from a memory check, or MemoryError): one figure never
-    takes the others with it."""
+    takes the others with it. ``timings``, when given, receives the seconds each
+    figure took (``benchmarks/bench_report.py``)."""
+    import time
+
     from rough_viewer.visual.grid import (
         face_map_figure,
         histogram_figure,
@@ -62,12 +66,15 @@ def figures_and_errors(report: Report, section: GridSection
     errors: dict[str, str] = {}
 
     def draw(key: str, make: Any) -> None:
+        start = time.perf_counter()
         try:
             figures[key] = make()
         except InputError as exc:
             errors[key] = str(exc)
         except MemoryError:
             errors[key] = f"not enough memory to draw the {key} figure"
+        if timings is not None:
+            timings[key] = time.perf_counter() - start
 
     kw: dict[str, Any] = {"grid_size": section.grid_size, "axis": report.axis,
                           "n_points": report.n_points, "unit": report.unit}

@@ -82,3 +82,17 @@ def test_ragged_columns_refused(tmp_path):
     with pytest.raises(InputError, match="shape"):
         write_table(tmp_path / "t.csv", {"a": np.arange(3), "b": np.arange(4)})
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_csv_floats_are_the_shortest_text_that_reads_back():
+    """Full precision in the fewest digits (numpy's own float text), NaN and inf empty."""
+    from rough_viewer.io.table import format_column
+
+    rng = np.random.default_rng(3)
+    values = np.concatenate([rng.normal(size=5_000) * 10.0 ** rng.integers(-30, 30, 5_000),
+                             [0.0, -0.0, 1e16, 1e-5, 5e-324, 0.1, 512_000.125, np.nan, -np.inf]])
+    text = format_column(values)
+    ok = np.isfinite(values)
+    assert [t for t, f in zip(text, ok, strict=True) if not f] == ["", ""]
+    np.testing.assert_array_equal(np.array([float(t) for t in np.array(text)[ok]]), values[ok])
+    assert [t for t, f in zip(text, ok, strict=True) if f] == values[ok].astype(str).tolist()

@@ -75,3 +75,34 @@ def test_header_only_and_pickled_npy_are_one_line(tmp_path, capfd):
     with pytest.raises(InputError) as info:
         load_points(fake)
     assert "not a NumPy .npy array" in str(info.value) and "unsafely" not in str(info.value)
+
+
+@pytest.mark.parametrize("layout", ["c", "fortran", "float32", "big-endian", "int16", "wide"])
+def test_npy_columns_are_read_straight_from_the_file(tmp_path, monkeypatch, layout):
+    """Every plain numeric layout reads into the same float64 columns as np.load gives,
+    block by block (blocks made small here), non-finite rows dropped across blocks."""
+    import rough_viewer.io.text as text
+
+    monkeypatch.setattr(text, "NPY_BLOCK_ROWS", 1000)
+    rng = np.random.default_rng(1)
+    arr = rng.normal(size=(4_321, 3 if layout != "wide" else 6)) * 100 + 5e5
+    if layout != "int16":
+        arr[[5, 2_500], [1, 2]] = [np.nan, np.inf]
+    make = {"fortran": np.asfortranarray, "float32": lambda a: a.astype(np.float32),
+            "big-endian": lambda a: a.astype(">f8"), "int16": lambda a: (a - 5e5).astype(np.int16)}
+    arr = make.get(layout, lambda a: a)(arr)
+    np.save(tmp_path / "c.npy", arr)
+    cloud = load_points(tmp_path / "c.npy")
+    ref = np.load(tmp_path / "c.npy").astype(np.float64)[:, :3]
+    ref = ref[np.isfinite(ref).all(axis=1)]
+    np.testing.assert_array_equal(np.column_stack([cloud.x, cloud.y, cloud.z]), ref)
+    assert cloud.dropped_nonfinite == (0 if layout == "int16" else 2)
+    assert all(c.flags.c_contiguous and c.dtype == np.float64 for c in (cloud.x, cloud.y, cloud.z))
+
+
+def test_truncated_npy_is_one_line(tmp_path):
+    np.save(tmp_path / "t.npy", np.ones((1_000, 3)))
+    data = (tmp_path / "t.npy").read_bytes()
+    (tmp_path / "t.npy").write_bytes(data[:-50])
+    with pytest.raises(InputError, match="t.npy"):
+        load_points(tmp_path / "t.npy")
