@@ -269,7 +269,9 @@ class Scene:
             tab.residency = Residency(tree.counts, self._tab_budget())
         grey = np.array([GREY, GREY, GREY], dtype=np.uint8)
         self._colouring = lambda idx: np.broadcast_to(grey, (len(idx), 3))
-        for client_id in list(self.tabs):
+        # every connected tab, not only those that chose nodes before: a tab whose
+        # camera came while the file loaded (no octree yet) has no Tab so far
+        for client_id in set(self.tabs) | set(self._server.get_clients()):
             self.refine(client_id)
 
     def colour_by(self, colouring: Colouring) -> None:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.gate import open_server
+from rough_viewer.app.features.map import CAMERA_REST_S
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
 from tests.app.browser import wait_until
@@ -206,3 +207,39 @@ def test_a_real_serve_sends_a_tab_every_point_of_the_patch_it_looks_at(tmp_path)
         assert proc.alive()
     finally:
         proc.stop()
+
+
+def test_a_tab_open_while_the_file_loads_gets_its_nodes_without_moving(monkeypatch):
+    """A tab that connected (and sent its camera) before the app had a cloud, as with
+    ``serve`` while the file loads, gets its nodes when the cloud is shown, with no
+    camera message after it: its refinements before the octree existed (here made
+    certain by a slow hand-over of the first cloud, as a 20 M-point cloud's was) did
+    nothing, and the show must not wait for another camera message."""
+    import time
+
+    import rough_viewer.app.server as server_mod
+
+    real = server_mod.ShowJob
+
+    def slow_show(*args, **kwargs):
+        time.sleep(4 * CAMERA_REST_S)  # the tab's debounced refinements run first
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(server_mod, "ShowJob", slow_show)
+    server, _ = open_server("127.0.0.1", 0, token=None, log=False)
+    client = join(server)
+    try:
+        cid = client.client_id
+        app = build_app(server, face_cloud(50_000, seed=3), prefetch=False, variogram=False,
+                        point_budget=BUDGET, settings=MapSettings(cell_size=0.16),
+                        presets=(0.32, 0.16))
+        try:
+            assert app.wait_idle(120)
+            tab = app.host.scene.tabs.get(cid)
+            assert tab is not None and tab.handles, "the early tab got no nodes"
+            assert _nodes_received(client)
+        finally:
+            app.stop()
+    finally:
+        client.close()
+        server.stop()
