@@ -270,13 +270,16 @@ class ByteCache(Generic[K, V]):
 
     def put(self, key: K, value: V) -> bool:
         """Keep ``value`` (evicting least recently used values to make room);
-        returns False when it does not fit at all."""
+        returns False, evicting nothing, when it cannot fit beside the pinned values."""
         size = nbytes(value)
         with self._lock:
             old = self._items.pop(key, None)
             if old is not None:
                 self._bytes -= old[1]
-            for k in [k for k in self._items if not self._pinned(k)]:
+            movable = [k for k in self._items if not self._pinned(k)]
+            if self._bytes - sum(self._items[k][1] for k in movable) + size > self.budget:
+                return False  # it cannot fit: keep what is there rather than flush it
+            for k in movable:
                 if self._bytes + size <= self.budget:
                     break
                 self._bytes -= self._items.pop(k)[1]
@@ -568,6 +571,23 @@ class LoadedCloud:
         )
         self._cache.put(key, res)
         return res
+
+    def cell_result(self, settings: MapSettings, *,
+                    progress: ProgressFn | None = None) -> GridRoughness:
+        """:meth:`result` without its point-to-cell map (``point_cell`` of shape (0,)):
+        every per-cell figure, for whole-face statistics across grids (the Panels
+        tab's trend against grid size). Cached apart: at 20 M points a grid's
+        point-to-cell map is 160 MB and its cells a few MB to tens of MB, so a
+        threshold change need not compute the presets again after the full results
+        left the cache."""
+        key = ("cells", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
+        full = self.result(settings, progress=progress)
+        light = replace(full, point_cell=np.empty(0, dtype=full.point_cell.dtype))
+        self._cache.put(key, light)
+        return light
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached.

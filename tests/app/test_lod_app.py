@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.app.gate import open_server
 from rough_viewer.app.features.map import CAMERA_REST_S
+from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
 from tests.app.browser import wait_until

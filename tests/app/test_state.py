@@ -55,6 +55,41 @@ def test_results_cached_per_grid_key(loaded, monkeypatch):
     assert loaded.is_cached(s.with_(min_points=10))
 
 
+
+def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
+    """The Panels tab's trend across the presets uses cell-only results: the same
+    per-cell numbers as the full ones, and small enough to stay cached where the
+    full results (with the point-to-cell map) are evicted, so a threshold change
+    computes no grid again."""
+    calls = []
+    real = state_mod.grid_roughness
+
+    def counting(*a, **k):
+        calls.append(a[1])
+        return real(*a, **k)
+
+    small = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5))
+    full = {g: grid_roughness(cloud, g, models=("odr", "ols", "hybrid")) for g in (1.0, 0.5)}
+    per_point = nbytes(full[0.5].point_cell)
+    # room for the fine grid's prepared cells (pinned) and the cell-only results,
+    # not for one more point-to-cell map
+    budget = nbytes(small.prepared(0.5)) + sum(nbytes(r) - nbytes(r.point_cell)
+                                               for r in full.values()) + per_point // 2
+    small = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5), cache_bytes=budget)
+    monkeypatch.setattr(state_mod, "grid_roughness", counting)
+    s = MapSettings(cell_size=0.5)
+    first = [small.cell_result(s.with_(cell_size=g)) for g in (1.0, 0.5)]
+    assert calls == [1.0, 0.5]
+    for g, light in zip((1.0, 0.5), first, strict=True):
+        assert light.point_cell.shape == (0,) and light.n_points_total == cloud.n
+        for name in ("odr", "ols", "hybrid", "e_ols"):
+            # the coarser preset is coarsened from the fine grid's moments: round-off
+            np.testing.assert_allclose(light.values(name), full[g].values(name), rtol=1e-9, atol=1e-15)
+        np.testing.assert_array_equal(light.n_points, full[g].n_points)
+    assert not small.is_cached(s.with_(cell_size=1.0))  # the full result was evicted
+    again = [small.cell_result(s.with_(cell_size=g, threshold=0.3)) for g in (1.0, 0.5)]
+    assert calls == [1.0, 0.5] and all(a is b for a, b in zip(again, first, strict=True))
+
 def _log_stretch_colours(values, lo, hi, cmap):
     """Independent reference: log positions between lo and hi, clipped, on the LUT."""
     lut = colormaps.lut(cmap)
@@ -201,6 +236,11 @@ def test_the_grid_cache_is_bounded_by_bytes(cloud):
     assert one > 8 * cloud.n  # the per-point cell index alone is 8 bytes a point
     cache: ByteCache[str, np.ndarray] = ByteCache(100)
     assert cache.put("a", np.zeros(10)) and not cache.put("big", np.zeros(20))
+    assert "a" in cache and cache.bytes == 80  # a value that cannot fit flushes nothing
+    pinned: ByteCache[str, np.ndarray] = ByteCache(200, pinned=lambda k: k == "p")
+    assert pinned.put("p", np.zeros(15)) and pinned.put("a", np.zeros(5))
+    assert not pinned.put("b", np.zeros(11)) and "a" in pinned  # 120 + 88 > 200
+    assert pinned.put("c", np.zeros(10)) and "a" not in pinned and pinned.bytes == 200
     a = np.zeros(5)
     assert nbytes((a, a[1:], {"x": a})) == a.nbytes  # views count once
 

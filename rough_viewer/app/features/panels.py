@@ -218,7 +218,7 @@ class PanelsJob(Job[Host]):
         if face_key(s) != session.face_key and loaded.presets:
             results = []
             for g in loaded.presets:  # cached after prefetching; each stops if cancelled
-                results.append(loaded.result(s.with_(cell_size=g), progress=run.progress()))
+                results.append(loaded.cell_result(s.with_(cell_size=g), progress=run.progress()))
                 yield f"grid {g:g}"
             trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit,
                                           keep_outliers=s.keep_outliers)
