@@ -373,8 +373,21 @@ class LoadedCloud:
         # grid on screen (the panels' preset grids must not push it out)
         self._shown_key = None
         self._cache = ByteCache(self.cache_bytes,
-                                pinned=lambda k: k == fine_key or k == self._shown_key)
+                                pinned=lambda k: k == fine_key or self._pinned(k))
         self._layers = {}
+
+    def _pinned(self, key: tuple[str, tuple[float, str, int] | float]) -> bool:
+        """The grid on screen, and the cells of every grid with its axis and minimum
+        points (the panels' trend across the presets: small, and computed again
+        for every threshold if a big cloud's full grids pushed them out)."""
+        shown = self._shown_key
+        if shown is None:
+            return False
+        if key == shown:
+            return True
+        grid, mine = key[1], shown[1]
+        return (key[0] == "cells" and isinstance(grid, tuple)
+                and grid[1:] == mine[1:])
 
     def cropped(self, box: CropBox) -> LoadedCloud:
         """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``
@@ -576,17 +589,17 @@ class LoadedCloud:
                     progress: ProgressFn | None = None) -> GridRoughness:
         """:meth:`result` without its point-to-cell map (``point_cell`` of shape (0,)):
         every per-cell figure, for whole-face statistics across grids (the Panels
-        tab's trend against grid size). Cached apart: at 20 M points a grid's
-        point-to-cell map is 160 MB and its cells a few MB to tens of MB, so a
-        threshold change need not compute the presets again after the full results
-        left the cache."""
+        tab's trend against grid size). Cached apart and pinned while the shown grid
+        has its axis and minimum points: at 20 M points a grid's point-to-cell map is
+        160 MB and its cells a few MB to tens of MB, so a threshold change need not
+        compute the presets again after their full results left the cache."""
         key = ("cells", settings.grid_key)
         hit = self._cache.get(key)
         if isinstance(hit, GridRoughness):
             return hit
         full = self.result(settings, progress=progress)
         light = replace(full, point_cell=np.empty(0, dtype=full.point_cell.dtype))
-        self._cache.put(key, light)
+        self._cache.put(key, light)  # pinned while its axis and minimum points are shown
         return light
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:

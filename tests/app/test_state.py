@@ -78,6 +78,7 @@ def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
     small = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5), cache_bytes=budget)
     monkeypatch.setattr(state_mod, "grid_roughness", counting)
     s = MapSettings(cell_size=0.5)
+    small.mark_shown(s)
     first = [small.cell_result(s.with_(cell_size=g)) for g in (1.0, 0.5)]
     assert calls == [1.0, 0.5]
     for g, light in zip((1.0, 0.5), first, strict=True):
@@ -89,6 +90,15 @@ def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
     assert not small.is_cached(s.with_(cell_size=1.0))  # the full result was evicted
     again = [small.cell_result(s.with_(cell_size=g, threshold=0.3)) for g in (1.0, 0.5)]
     assert calls == [1.0, 0.5] and all(a is b for a, b in zip(again, first, strict=True))
+    # only the cells of the shown grid's axis and minimum are held (others may go)
+    cells = ("cells", s.with_(cell_size=1.0).grid_key)
+    assert small._pinned(cells)
+    small.mark_shown(s.with_(axis="z"))
+    assert not small._pinned(cells)
+    assert small._pinned(("cells", s.with_(axis="z", cell_size=2.0).grid_key))
+    roomy = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5))  # 1 GiB cache
+    roomy.cell_result(s.with_(cell_size=1.0))
+    assert roomy.is_cached(s.with_(cell_size=1.0))  # small: kept whole (a preset recolours)
 
 def _log_stretch_colours(values, lo, hi, cmap):
     """Independent reference: log positions between lo and hi, clipped, on the LUT."""
