@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import argparse
 import resource
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +17,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rough_viewer.demo_data import __file__ as _demo  # noqa: E402
+from timing import median_seconds  # noqa: E402
 
 from rough_viewer.grid.planes import whole_cloud_plane  # noqa: E402
 from rough_viewer.io import PointCloud, load_points  # noqa: E402
@@ -32,12 +31,7 @@ from rough_viewer.tin import (  # noqa: E402
 
 
 def timed(fn, repeat: int):
-    times, out = [], None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times), out
+    return median_seconds(fn, repeat)
 
 
 def main() -> None:

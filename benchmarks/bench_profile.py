@@ -8,14 +8,14 @@ and the accuracy of D on exact fBm.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from timing import median_seconds  # noqa: E402
 
 from rough_viewer.profiles.comparison import compare_denoising  # noqa: E402
 from rough_viewer.profiles.extraction import extract_profile  # noqa: E402
@@ -24,12 +24,7 @@ from rough_viewer.synthetic.fbm import fbm_profile  # noqa: E402
 
 
 def timed(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return median_seconds(fn, repeat)[0]
 
 
 def face(n: int, seed: int = 0) -> np.ndarray:

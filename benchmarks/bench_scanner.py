@@ -22,7 +22,6 @@ and the noise flag with the cells whose true noise share is above 30 %.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 import tracemalloc
@@ -31,6 +30,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from timing import median_seconds  # noqa: E402
 
 from rough_viewer.bias.trust import TrustSettings, bias_model, cell_trust  # noqa: E402
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
@@ -41,12 +42,7 @@ from rough_viewer.synthetic.demos import demo_angular_step, load_demo_with_truth
 
 
 def _median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return median_seconds(fn, repeat)[0]
 
 
 def _peak(fn) -> float:

@@ -11,11 +11,10 @@ Run: PYTHONPATH=. python benchmarks/bench_variogram.py [--runs 7] [--cells 50000
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 from types import SimpleNamespace
 
 import numpy as np
+from timing import median_seconds
 
 from rough_viewer.grid.variogram import face_semivariogram, semivariogram
 
@@ -37,13 +36,7 @@ def face_cells(n_cells: int, g: float, seed: int = 0) -> tuple[np.ndarray, np.nd
 
 
 def median_time(fn, runs: int) -> float:
-    fn()  # warm-up (plans, caches)
-    times = []
-    for _ in range(runs):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return median_seconds(fn, runs, warm_up=True)[0]  # warm-up: plans, caches
 
 
 def main() -> None:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import functools
 import os
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -31,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_compute import synthetic_outcrop  # noqa: E402
+from timing import median_seconds  # noqa: E402
 
 from rough_viewer.grid.orientation import stereonet  # noqa: E402
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
@@ -38,12 +38,7 @@ from rough_viewer.grid.zones import ZoneLabeller  # noqa: E402
 
 
 def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return median_seconds(fn, repeat)[0]
 
 
 def main() -> None:
