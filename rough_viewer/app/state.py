@@ -368,18 +368,18 @@ class LoadedCloud:
         if not self.presets or self.presets[-1] < MIN_CELL_SIZE:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
-        fine_key = ("prepared", round(self.fine_cell_size, 9))
-        # the fine grid stays (every preset is coarsened from it), and so does the
-        # grid on screen (the panels' preset grids must not push it out)
         self._shown_key = None
-        self._cache = ByteCache(self.cache_bytes,
-                                pinned=lambda k: k == fine_key or self._pinned(k))
+        self._cache = ByteCache(self.cache_bytes, pinned=self._pinned)
         self._layers = {}
 
     def _pinned(self, key: tuple[str, tuple[float, str, int] | float]) -> bool:
-        """The grid on screen, and the cells of every grid with its axis and minimum
-        points (the panels' trend across the presets: small, and computed again
-        for every threshold if a big cloud's full grids pushed them out)."""
+        """What the grid cache never evicts: the fine grid's cells (every preset is
+        coarsened from them), the grid on screen (the panels' preset grids must not
+        push it out), and the cells of every grid with its axis and minimum points
+        (the panels' trend across the presets: small, and computed again for every
+        threshold if a big cloud's full grids pushed them out)."""
+        if key == ("prepared", round(self.fine_cell_size, 9)):
+            return True
         shown = self._shown_key
         if shown is None:
             return False
