@@ -12,12 +12,11 @@ x, y, z, and ASCII x, y, z (a tenth of the points).
 from __future__ import annotations
 
 import argparse
-import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import median_seconds
 
 
 def make_files(folder: Path, n: int) -> dict[str, Path]:
@@ -66,12 +65,7 @@ def read_ours(path: Path):
 
 
 def median_time(fn, path: Path, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn(path)
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return median_seconds(lambda: fn(path), repeat)[0]
 
 
 def main() -> None:
