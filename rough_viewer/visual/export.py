@@ -92,6 +92,12 @@ def check_figure_export(fmt: FigureFormat) -> None:
                          "(pip install 'rough_viewer[images]'); HTML export does not")
 
 
+#: Renders tried before an image export fails: kaleido starts a browser for each, and
+#: on a loaded machine its page has answered before its script was defined
+#: ("ReferenceError: kaleido_scopes is not defined"), once in a run of the suite.
+RENDER_TRIES = 2
+
+
 def figure_bytes(
     fig: Any,
     fmt: FigureFormat,
@@ -125,12 +131,15 @@ def figure_bytes(
                            config={"displaylogo": False, "responsive": True})
         return str(text).encode("utf-8")
     size = {k: v for k, v in (("width", width), ("height", height)) if v is not None}
-    try:
-        data = fig.to_image(format=fmt, scale=scale if fmt == "png" else 1.0, **size)
-    except Exception as exc:  # kaleido and its browser raise many types
-        msg = error_line(exc)
-        raise InputError(f"{fmt.upper()} export failed: {msg}") from None
-    return bytes(data)
+    msg = ""
+    for _ in range(RENDER_TRIES):
+        try:
+            data = fig.to_image(format=fmt, scale=scale if fmt == "png" else 1.0, **size)
+        except Exception as exc:  # kaleido and its browser raise many types
+            msg = error_line(exc)
+            continue
+        return bytes(data)
+    raise InputError(f"{fmt.upper()} export failed: {msg}")
 
 
 def write_figure(

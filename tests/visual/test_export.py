@@ -66,6 +66,25 @@ def test_render_failure_leaves_no_file(monkeypatch, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_render_that_fails_once_is_tried_again(monkeypatch, tmp_path):
+    """kaleido's browser page can answer before its script is defined on a loaded
+    machine: a second render is tried, and only two failures end the export."""
+    import rough_viewer.visual.export as export_module
+
+    calls = []
+
+    def flaky(fig, **kwargs):
+        calls.append(kwargs["format"])
+        if len(calls) == 1:
+            raise RuntimeError("ReferenceError: kaleido_scopes is not defined")
+        return b"<svg/>"
+
+    monkeypatch.setattr(export_module, "check_figure_export", lambda fmt: None)
+    monkeypatch.setattr(go.Figure, "to_image", flaky)
+    path = write_figure(_figure(), tmp_path / "x.svg")
+    assert calls == ["svg", "svg"] and path.read_bytes() == b"<svg/>"
+
+
 @pytest.mark.skipif(not HAVE_KALEIDO, reason="kaleido not installed (rough_viewer[images])")
 @pytest.mark.slow
 def test_png_and_svg_with_kaleido(tmp_path):
