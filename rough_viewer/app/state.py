@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -300,7 +301,20 @@ class ByteCache(Generic[K, V]):
             return len(self._items)
 
 
-@dataclass
+def _weak_pin(cloud: LoadedCloud) -> Callable[[tuple[str, tuple[float, str, int] | float]], bool]:
+    """The cloud's pin rule through a weak reference: the cache it gives it to must
+    not hold the cloud (a cycle cloud -> cache -> bound method -> cloud kept every
+    loaded cloud, and its arrays, until a full garbage collection)."""
+    ref = weakref.ref(cloud)
+
+    def pinned(key: tuple[str, tuple[float, str, int] | float]) -> bool:
+        owner = ref()
+        return owner is not None and owner._pinned(key)
+
+    return pinned
+
+
+@dataclass(eq=False)
 class LoadedCloud:
     """A cloud prepared for display, with its grid results cached.
 
@@ -369,7 +383,7 @@ class LoadedCloud:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
         self._shown_key = None
-        self._cache = ByteCache(self.cache_bytes, pinned=self._pinned)
+        self._cache = ByteCache(self.cache_bytes, pinned=_weak_pin(self))
         self._layers = {}
 
     def _pinned(self, key: tuple[str, tuple[float, str, int] | float]) -> bool:

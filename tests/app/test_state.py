@@ -265,3 +265,32 @@ def test_the_grid_on_screen_stays_cached_while_others_come_and_go(cloud):
     assert loaded.cached_bytes <= 2_000_000
     assert loaded.is_cached(shown) and loaded.result(shown) is first
     assert not loaded.is_cached(MapSettings(cell_size=0.35))  # the others were evicted
+
+
+def test_a_dropped_cloud_is_freed_without_a_garbage_collection(cloud):
+    """Issue 36: the grid cache's pin rule held the cloud (cloud -> cache -> bound
+    method -> cloud), so every loaded cloud and its arrays stayed until a full
+    collection. With the collector off, dropping the last reference frees it."""
+    import gc
+    import weakref
+
+    gc.collect()
+    gc.disable()
+    try:
+        loaded = LoadedCloud(cloud, max_display=2_000)
+        settings = MapSettings(cell_size=0.5)
+        loaded.mark_shown(settings)
+        loaded.result(settings)
+        loaded.result(settings.with_(cell_size=1.0))  # the pin rule runs on every put
+        assert loaded._cache._pinned(("result", settings.grid_key))
+        ref = weakref.ref(loaded)
+        del loaded
+        assert ref() is None
+    finally:
+        gc.enable()
+
+
+def test_clouds_compare_by_identity(cloud):
+    a = LoadedCloud(cloud, max_display=2_000)
+    b = LoadedCloud(cloud, max_display=2_000)
+    assert a == a and a != b  # no element-wise array comparison (eq=False)
