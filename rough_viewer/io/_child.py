@@ -51,9 +51,30 @@ def _limit_memory(budget: int) -> None:
 
     from rough_viewer.io.isolate import CHILD_ALLOWANCE, CHILD_ALLOWANCE_PER_CPU
 
-    limit = _vm_size() + max(0, budget) + CHILD_ALLOWANCE \
-        + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1)
+    limit = child_memory_limit(
+        _vm_size() + max(0, budget) + CHILD_ALLOWANCE
+        + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1),
+        resource.getrlimit(resource.RLIMIT_AS))
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+
+def child_memory_limit(wanted: int, current: tuple[int, int]) -> int:
+    """The address-space limit the reader child sets, bytes: what it wants, never
+    above the limits it already runs under (``ulimit -v``: a process may lower its
+    hard limit but not raise it, so asking more failed every read).
+
+    >>> import resource
+    >>> child_memory_limit(10, (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
+    10
+    >>> child_memory_limit(10, (6, 8))
+    6
+    >>> child_memory_limit(10, (resource.RLIM_INFINITY, 8))
+    8
+    """
+    import resource
+
+    caps = [c for c in current if c != resource.RLIM_INFINITY and c >= 0]
+    return min([int(wanted), *caps])
 
 
 def _resolve(ref: str) -> Any:

@@ -149,3 +149,27 @@ def test_time_limit_grows_with_the_file_and_can_be_set(monkeypatch):
     monkeypatch.setenv("ROUGH_VIEWER_READ_SECONDS", "soon")
     with pytest.raises(InputError, match="ROUGH_VIEWER_READ_SECONDS"):
         isolate.time_limit(1)
+
+
+def test_a_child_under_ulimit_asks_no_more_than_the_hard_limit(tmp_path):
+    """Issue 36: under ``ulimit -v`` the child asked ``setrlimit`` for more than the
+    hard limit ("not allowed to raise maximum limit") and every read failed. It now
+    takes the lower of the two, and the read succeeds within the user's limit."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "scan.bin"
+    path.write_bytes(b"anything")
+    script = (
+        "import resource, sys\n"
+        "from rough_viewer.io import _child\n"
+        "from rough_viewer.io.isolate import Limits, read_isolated\n"
+        "cap = _child._vm_size() + (1536 << 20)\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (cap, cap))\n"
+        "c = read_isolated('tests.io.crashers:reads', sys.argv[1], label='LAZ',\n"
+        "                  limits=Limits(memory=8 << 30, seconds=60.0), options={'n': 500})\n"
+        "print(c.n)\n")
+    done = subprocess.run([sys.executable, "-c", script, str(path)], capture_output=True,
+                          text=True, timeout=120, cwd=os.getcwd())
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[-1] == "500"
