@@ -160,16 +160,21 @@ def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_PO
     """
     if target < 3:
         raise InputError(f"target points per cell must be at least 3, got {target}")
-    g = point_spacing(cloud) * math.sqrt(target)
     pts, fraction = _subset(cloud, COUNT_POINTS)  # drawn once for every count below
+    # A cloud of fewer points than the target can hold no more than all of them in
+    # one cell: ask for that (asking for more grew the cell without end, issue 36).
+    target = min(target, int(round(pts.shape[0] / fraction)))
+    g = point_spacing(cloud) * math.sqrt(target)
     lo = _lowest(pts)
+    extent = float(np.max(np.max(pts, axis=0) - lo))
     for _ in range(REFINE_STEPS):
         count = _median_count(pts, lo, fraction, g)
         if target <= count <= 1.5 * target:
             break
         g *= float(np.clip(math.sqrt(target / max(count, 1.0)), 0.5, 2.0))
     g = nice_ceil(g)
-    while _median_count(pts, lo, fraction, g) < target:  # rounding and the median's steps
+    # rounding and the median's steps; a cell wider than the cloud holds every point
+    while g <= extent and _median_count(pts, lo, fraction, g) < target:
         g = nice_ceil(g * 1.01)
     return g
 

@@ -56,3 +56,19 @@ def test_units_do_not_change_the_number_of_points_per_cell():
     g_mm = default_cell_size(xyz * 1000.0)
     assert g_mm == pytest.approx(1000.0 * g_m, rel=0.35)
     assert median_cell_count(xyz * 1000.0, g_mm) >= TARGET_POINTS
+
+
+@pytest.mark.parametrize("n", [5, 8, 15])
+def test_a_cloud_smaller_than_the_target_gets_one_cell_of_every_point(n):
+    """Issue 36: 5-15 points can never fill a median cell of 16; the cell grew until it
+    was infinite (OverflowError). The default now asks for all the points in one cell."""
+    import math
+
+    from rough_viewer.grid.spacing import default_cell_size
+
+    rng = np.random.default_rng(n)
+    pts = np.column_stack([rng.uniform(0, 3, (n, 2)), 0.01 * rng.standard_normal(n)])
+    g = default_cell_size(pts)
+    assert math.isfinite(g) and g < 20.0  # the cloud spans 3 m
+    keys = np.floor((pts - pts.min(axis=0)) / g)
+    assert np.all(keys == 0)  # brute force: every point in the first cell
