@@ -49,7 +49,8 @@ class ResidencyPlan:
     hide: tuple[int, ...]
     """Nodes shown but no longer selected: make invisible (kept for later)."""
     evict: tuple[int, ...]
-    """Hidden nodes to remove from the tab (least recently selected first)."""
+    """Hidden nodes to remove from the tab (least recently selected first); never
+    also in ``hide`` (a node hidden by this plan and evicted by it is only removed)."""
     recolour: tuple[int, ...]
     """Nodes in ``show`` whose colours changed while they were hidden: send their
     colours too."""
@@ -152,6 +153,8 @@ class Residency:
         for k in order:
             self._used[k] = self._clock
         evict = self._evict()
+        gone = set(evict)  # a node hidden and evicted in one plan is only removed
+        hide = [k for k in hide if k not in gone]
         return ResidencyPlan(send=tuple(send), show=tuple(show), hide=tuple(hide),
                              evict=tuple(evict), recolour=tuple(recolour))
 

@@ -120,3 +120,34 @@ def test_clear_discard_budget_and_bad_input():
         Residency([1], budget=0)
     with pytest.raises(InputError, match="keep factor"):
         Residency([1], budget=5, keep_factor=0.5)
+
+
+def test_a_lowered_budget_evicts_nodes_it_does_not_also_hide():
+    """Issue 36: lowering the budget below half of what a tab holds made one plan hide
+    and evict the same nodes; the app removed them and then hid them (KeyError in the
+    budget job). Every node is in at most one of a plan's lists, and applying the
+    plans in order to a plain set of handles never touches a removed node."""
+    counts = np.full(40, 1_000)
+    tab = Residency(counts, budget=30_000)
+    handles: dict[int, bool] = {}
+
+    def apply(p):
+        lists = [set(p.send), set(p.show), set(p.hide), set(p.evict)]
+        assert sum(len(x) for x in lists) == len(set().union(*lists))
+        for k in p.evict:
+            del handles[k]
+        for k in p.hide:
+            handles[k] = False  # a KeyError here is the app's bug
+            assert k in tab.held
+        for k in p.show:
+            assert k in handles
+            handles[k] = True
+        for k in p.send:
+            handles[k] = True
+
+    apply(tab.plan(range(30)))
+    tab.set_budget(3_000)  # the tab holds 30 k points, ten times the new budget
+    apply(tab.plan([35, 36, 37]))
+    assert tab.held_points <= 2 * 3_000
+    assert sorted(k for k, v in handles.items() if v) == [35, 36, 37]
+    assert set(handles) == set(tab.held)
