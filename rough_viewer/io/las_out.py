@@ -269,7 +269,10 @@ def copy_las_with_fields(
                 raise InputError(f"cannot copy {src} to {out}: {error_line(exc)}") from None
             raise
     n_vlrs = len(header_in.vlrs) - len(header_in.vlrs.get("LasZipVlr"))
-    return (f"LAS {header.version} point format {header.point_format.id}, {n_file:,} points, "
+    # a crop writes its kept rows only: say those, not the source file's count
+    written = (f"{n_file:,} points" if keep is None
+               else f"{cloud.n:,} points (the crop's, of {n_file:,})")
+    return (f"LAS {header.version} point format {header.point_format.id}, {written}, "
             f"{n_vlrs} VLRs and {len(evlrs or [])} EVLRs of {src.name} kept, "
             f"{len(fields.fields)} extra dimensions added")
 
