@@ -115,6 +115,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _length(value: float) -> str:
+    """A length for the sets table, 11 wide; "-" where there is none (a set of one
+    plane has no spacing), as the app shows it.
+
+    >>> _length(0.25), _length(float("nan"))
+    ('       0.25', '          -')
+    """
+    return f"{value:11.4g}" if np.isfinite(value) else f"{'-':>11}"
+
+
 def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     """Readable summary of the sets and their largest planes for the terminal,
     lengths in ``unit``."""
@@ -131,7 +141,7 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
         lines.append(sets.note)
         return "\n".join(lines)
     lines.append(f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}, "
-                 f"{sets.planes.n_planes:,} planes")
+                 f"{sets.planes.n_planes:,} plane{'s' if sets.planes.n_planes != 1 else ''}")
     if sets.curved_groups:
         lines.append(f"{sets.curved_groups:,} group{'s' if sets.curved_groups != 1 else ''} of "
                      f"touching cells curve (RMS about their best plane over "
@@ -143,8 +153,8 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
         lines.append(
             f"{k + 1:4d} {sets.dip_deg[k]:3.0f}/{sets.dip_direction_deg[k]:03.0f}   "
             f"{sets.kappa[k]:8.1f} {sets.alpha95_deg[k]:6.2f} {sets.cells[k]:7,} "
-            f"{sets.n_planes_per_set[k]:6,} {sets.spacing_mean[k] / per:11.4g} "
-            f"{sets.persistence_mean[k] / per:11.4g}")
+            f"{sets.n_planes_per_set[k]:6,} {_length(sets.spacing_mean[k] / per)} "
+            f"{_length(sets.persistence_mean[k] / per)}")
     pl = sets.planes
     if pl.n_planes:
         lines.append("")

@@ -183,3 +183,19 @@ def test_several_grids_name_outputs_as_compute(tmp_path, block):
                  "--quiet"]) == 0
     assert (tmp_path / "s_g0.5.csv").exists() and (tmp_path / "s_g0.4.csv").exists()
     assert not out.exists()
+
+
+def test_a_set_of_one_plane_shows_no_spacing_as_a_dash(tmp_path, capsys):
+    """Issue 31: a one-plane set's spacing printed "nan" where the app shows "-"."""
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(0, 4, (40_000, 2))
+    z = 0.3 * uv[:, 0] + 0.001 * rng.standard_normal(uv.shape[0])
+    src = tmp_path / "plane.xyz"
+    np.savetxt(src, np.column_stack([uv, z]))
+    assert main(["sets", str(src), "--grid", "0.25", "--out", str(tmp_path / "s.csv"),
+                 "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "1 set, 1 plane\n" in said and "nan" not in said
+    row = next(line for line in said.splitlines() if line.startswith("   1  17/270"))
+    assert row.split()[6] == "-"  # set, dip/dir, kappa, a95, cells, planes, spacing
+    assert float(row.split()[7]) == pytest.approx(4.18, abs=0.02)  # persistence: the 4 m plane, dipping 17 deg
