@@ -48,7 +48,7 @@ import numpy as np
 
 from rough_viewer.io import estimates, isolate
 from rough_viewer.io.cache import cache_lookup, cache_write
-from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
+from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file, read_errors
 from rough_viewer.io.crs import read_crs
 from rough_viewer.io.dem import DEM_SUFFIXES, read_dem
 from rough_viewer.io.e57 import read_e57
@@ -68,10 +68,6 @@ from rough_viewer.vocabulary import (
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
 
-#: Largest coordinate magnitude a cloud may have, metres: far beyond any survey
-#: (geocentric coordinates reach 6.4e6 m) and still resolving a micrometre; larger
-#: ones (a damaged file, or the wrong unit) overflow the planes' sums of squares.
-MAX_COORDINATE_M = 1e9
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io.cloud import PointCloud
+from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import UNIT_METRES, InputError, error_line, foreign_errors
 
@@ -112,6 +112,9 @@ def read_scanner_table(path: str | os.PathLike[str], *, unit: str = "m") -> Scan
                              f"to {MAX_POINT_SOURCE_ID}, got {fields[0]}")
         if not all(math.isfinite(v) for v in values[1:]):
             raise InputError(f"{p} line {no}: the position must be three finite numbers")
+        if max(abs(v) for v in values[1:]) * UNIT_METRES[unit] > MAX_COORDINATE_M:
+            raise InputError(f"{p} line {no}: the position reaches beyond "
+                             f"{MAX_COORDINATE_M:g} m (the limit of cloud coordinates)")
         rows.append((int(sid), values[1], values[2], values[3]))
     if not rows:
         raise InputError(f"no scanner positions in {p} (expected lines of point_source_id, "
@@ -133,6 +136,9 @@ def with_scanner(cloud: PointCloud, position_m: tuple[float, float, float] | np.
     pos = np.asarray(position_m, dtype=np.float64).reshape(-1)
     if pos.shape != (3,) or not np.all(np.isfinite(pos)):
         raise InputError(f"a scanner position needs three finite coordinates, got {position_m!r}")
+    if float(np.max(np.abs(pos))) > MAX_COORDINATE_M:
+        raise InputError(f"a scanner position reaches beyond {MAX_COORDINATE_M:g} m (the limit "
+                         f"of cloud coordinates), got {position_m!r}")
     return replace(cloud, scanner_positions=pos[None, :].copy(),
                    scan_index=np.zeros(cloud.n, dtype=np.int32))
 
@@ -194,6 +200,9 @@ def cloud_scanners(cloud: PointCloud) -> tuple[np.ndarray, np.ndarray] | None:
     pos = np.asarray(pos, dtype=np.float64).reshape(-1, 3)
     if not np.all(np.isfinite(pos)):
         raise InputError(f"scanner positions of {cloud.source or 'the cloud'} are not finite")
+    if pos.size and float(np.max(np.abs(pos))) > MAX_COORDINATE_M:
+        raise InputError(f"scanner positions of {cloud.source or 'the cloud'} reach beyond "
+                         f"{MAX_COORDINATE_M:g} m (the limit of cloud coordinates)")
     if cloud.scan_index is None:
         if pos.shape[0] != 1:
             raise InputError(f"{pos.shape[0]} scanner positions but no scan index per point")

@@ -142,6 +142,7 @@ def test_report_has_a_scanner_section(wall_las, tmp_path, capsys):
     (["--angular-step", "0"], "--angular-step must be above 0"),
     (["--calibration", "absent.json"], "calibration file not found"),
     (["--scanner", "1,2"], "--scanner expects three finite numbers"),
+    (["--scanner", "1e308,0,0"], "reaches beyond 1e+09 m"),  # issue 36: was accepted
     (["--scanners", "absent.csv"], "scanner table not found"),
     (["--scanner", "1,2,3", "--memory", "1GB"], "--memory and --scheduler do not keep"),
 ])
@@ -175,3 +176,14 @@ def test_serve_puts_the_positions_into_its_cloud(wall_las):
     with pytest.raises(Exception, match="--scanners needs INPUT files"):
         _load_cloud(bad)
     assert main(["serve", str(wall_las), "--noise", "-1", "--no-block"]) == 2
+
+
+def test_a_scanner_table_beyond_the_coordinate_limit_is_one_line(wall_las, tmp_path, capsys):
+    """Issue 36: a position of 1e308 m was accepted (incidence 90, bias 0 printed)."""
+    table = tmp_path / "s.csv"
+    table.write_text("point_source_id,x,y,z\n1,0,0,1e308\n")
+    assert main(["compute", str(wall_las), "--grid", "0.25", "--out", str(tmp_path / "c.csv"),
+                 "--quiet", "--scanners", str(table)]) == 2
+    err = capsys.readouterr().err
+    assert "s.csv line 2: the position reaches beyond 1e+09 m" in err and err.count("\n") == 1
+    assert not (tmp_path / "c.csv").exists()
