@@ -14,7 +14,6 @@ import numpy as np
 
 from rough_viewer.vocabulary import InputError, error_line
 
-
 #: Largest coordinate magnitude a cloud may have, metres: far beyond any survey
 #: (geocentric coordinates reach 6.4e6 m) and still resolving a micrometre; larger
 #: ones (a damaged file, or the wrong unit) overflow the planes' sums of squares.
