@@ -36,6 +36,12 @@ SCANNER_OPTIONS = ("scanner", "scanners", "noise", "beam_radius", "calibration",
                    "asperity_radius", "angular_step")
 
 
+#: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
+#: scanners' (about 0.001 deg); finer ones underflow the expected density's square
+#: (``--angular-step 1e-300`` ended in ZeroDivisionError).
+MIN_ANGULAR_STEP_DEG = 1e-6
+
+
 def add_scanner_options(p: argparse.ArgumentParser) -> None:
     """Add the scanner position and calibration options to a command."""
     g = p.add_argument_group(
@@ -114,8 +120,9 @@ def trust_settings(args: argparse.Namespace, unit: str) -> TrustSettings:
     asperity = _length(getattr(args, "asperity_radius", None), "--asperity-radius", unit,
                        allow_zero=False)
     step = getattr(args, "angular_step", None)
-    if step is not None and not (math.isfinite(step) and 0.0 < step < 10.0):
-        raise InputError(f"--angular-step must be above 0 and below 10 degrees, got {step:g}")
+    if step is not None and not (math.isfinite(step) and MIN_ANGULAR_STEP_DEG <= step < 10.0):
+        raise InputError(f"--angular-step must be above 0 and below 10 degrees (at least "
+                         f"{MIN_ANGULAR_STEP_DEG:g}: no scanner steps finer), got {step:g}")
     cal = calibration(noise_sigma_m=noise, effective_radius_m=radius,
                       files=getattr(args, "calibration", None) or ())
     settings = TrustSettings(

@@ -107,7 +107,7 @@ def read_scanner_table(path: str | os.PathLike[str], *, unit: str = "m") -> Scan
             raise InputError(f"{p} line {no}: expected 4 columns (point_source_id, x, y, z), "
                              f"found {len(values)}")
         sid = values[0]
-        if not (sid == math.floor(sid) and 0 <= sid <= MAX_POINT_SOURCE_ID):
+        if not (math.isfinite(sid) and sid == math.floor(sid) and 0 <= sid <= MAX_POINT_SOURCE_ID):
             raise InputError(f"{p} line {no}: point_source_id must be a whole number from 0 "
                              f"to {MAX_POINT_SOURCE_ID}, got {fields[0]}")
         if not all(math.isfinite(v) for v in values[1:]):

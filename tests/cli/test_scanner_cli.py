@@ -140,6 +140,7 @@ def test_report_has_a_scanner_section(wall_las, tmp_path, capsys):
     (["--beam-radius", "2"], "--beam-radius must be a length"),
     (["--asperity-radius", "0"], "--asperity-radius must be a length > 0"),
     (["--angular-step", "0"], "--angular-step must be above 0"),
+    (["--angular-step", "1e-300"], "at least 1e-06"),  # issue 36: ZeroDivisionError
     (["--calibration", "absent.json"], "calibration file not found"),
     (["--scanner", "1,2"], "--scanner expects three finite numbers"),
     (["--scanner", "1e308,0,0"], "reaches beyond 1e+09 m"),  # issue 36: was accepted
@@ -187,3 +188,16 @@ def test_a_scanner_table_beyond_the_coordinate_limit_is_one_line(wall_las, tmp_p
     err = capsys.readouterr().err
     assert "s.csv line 2: the position reaches beyond 1e+09 m" in err and err.count("\n") == 1
     assert not (tmp_path / "c.csv").exists()
+
+
+@pytest.mark.parametrize("sid", ["inf", "nan", "-inf"])
+def test_a_scanner_table_with_an_id_that_is_no_number_is_one_line(wall_las, tmp_path, capsys,
+                                                                 sid):
+    """Issue 36: ids inf and nan ended in OverflowError / ValueError tracebacks."""
+    table = tmp_path / "s.csv"
+    table.write_text(f"point_source_id,x,y,z\n{sid},0,0,1\n")
+    assert main(["compute", str(wall_las), "--grid", "0.25", "--out", str(tmp_path / "c.csv"),
+                 "--quiet", "--scanners", str(table)]) == 2
+    err = capsys.readouterr().err
+    assert "s.csv line 2: point_source_id must be a whole number from 0 to" in err
+    assert err.count("\n") == 1 and "Traceback" not in err
