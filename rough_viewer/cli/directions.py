@@ -103,8 +103,11 @@ def run(args: argparse.Namespace) -> int:
     if args.min_samples is not None and args.min_samples < shortest:
         raise InputError(f"--min-samples must be at least {shortest} (the de-noising's "
                          f"shortest run), got {args.min_samples}")
-    if not args.step <= 360:
-        raise InputError(f"--step must be at most 360 degrees, got {args.step:g}")
+    from rough_viewer.tin.directional import MIN_AZIMUTH_STEP_DEG
+
+    if not MIN_AZIMUTH_STEP_DEG <= args.step <= 360:
+        raise InputError(f"--step must be from {MIN_AZIMUTH_STEP_DEG:g} to at most 360 degrees "
+                         f"(each direction is a set of profiles), got {args.step:g}")
     path = Path(args.input)
     outs = [Path(args.out)] + ([Path(args.windows_out)] if args.windows_out else [])
     for out in outs:

@@ -130,8 +130,13 @@ def run(args: argparse.Namespace) -> int:
                              ("min points", "--min-points")):
             text = text.replace(word, option, 1) if text.startswith(word) else text
         raise InputError(text) from None
-    if args.directions is not None and args.directions > 360:
-        raise InputError(f"--directions must be at most 360 degrees, got {args.directions:g}")
+    if args.directions is not None:
+        from rough_viewer.tin.directional import MIN_AZIMUTH_STEP_DEG
+
+        if not MIN_AZIMUTH_STEP_DEG <= args.directions <= 360:
+            raise InputError(f"--directions must be from {MIN_AZIMUTH_STEP_DEG:g} to at most "
+                             f"360 degrees (each direction is a set of profiles), got "
+                             f"{args.directions:g}")
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()

@@ -160,6 +160,12 @@ class WindowRoughness:
 # ----------------------------------------------------------------------------- helpers
 
 
+#: Finest azimuth step, degrees (360 directions, the app's least step): finer ones
+#: asked for work without bound (``--step 1e-300`` tried to allocate 3.6e302 azimuths;
+#: ``--step 0.01``, 36,000 directions, ran about an hour).
+MIN_AZIMUTH_STEP_DEG = 1.0
+
+
 def azimuths(step_deg: float) -> np.ndarray:
     """Azimuths ``0, step, 2 step, ...`` below 360 degrees.
 
@@ -167,8 +173,9 @@ def azimuths(step_deg: float) -> np.ndarray:
     array([  0.,  90., 180., 270.])
     """
     step = float(step_deg)
-    if not (np.isfinite(step) and 0 < step <= 360):
-        raise InputError(f"the azimuth step must be in (0, 360] degrees, got {step_deg}")
+    if not (np.isfinite(step) and MIN_AZIMUTH_STEP_DEG <= step <= 360):
+        raise InputError(f"the azimuth step must be from {MIN_AZIMUTH_STEP_DEG:g} to 360 "
+                         f"degrees (each direction is a set of profiles), got {step_deg:g}")
     return np.arange(0.0, 360.0 - 1e-9, step)
 
 

@@ -138,6 +138,8 @@ def test_units_scale_every_length(sawtooth_stl, tmp_path, capsys):
     (["--window-radius", "1"], "--windows-out"),
     (["--windows", "2"], "--windows"),
     (["--step", "400"], "at most 360"),
+    (["--step", "1e-300"], "--step must be from 1 to"),  # issue 36: a traceback
+    (["--step", "0.01"], "--step must be from 1 to"),  # issue 36: about an hour of work
 ])
 def test_bad_options_are_one_line_errors(sawtooth_stl, tmp_path, capsys, extra, needle):
     out = tmp_path / "d.csv"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from rough_viewer.cli import main
 from rough_viewer.io import PointCloud
@@ -63,6 +64,10 @@ def test_report_without_directions_has_no_section(tmp_path, capsys):
     assert main(["report", str(a), "--grid", "0.02", "--directions", "500", "--out",
                  str(tmp_path / "x.html")]) == 2
     assert "at most 360" in capsys.readouterr().err
+    assert main(["report", str(a), "--grid", "0.02", "--directions", "1e-300", "--out",
+                 str(tmp_path / "x.html")]) == 2  # issue 36: a traceback
+    err = capsys.readouterr().err
+    assert "--directions must be from 1 to" in err and len(err.strip().splitlines()) == 1
 
 
 def test_table_columns_and_dict():
@@ -75,7 +80,7 @@ def test_table_columns_and_dict():
     np.testing.assert_allclose(t["rms_mean"], directions_table(r)["rms_mean"] * 1e3)
     d = directions_dict(r, unit="mm")
     assert d["surface"] == "triangulated" and d["triangles"] == r.tin.n_triangles
-    assert d["sample_spacing"] == r.sets[0].sample_spacing * 1e3
+    assert d["sample_spacing"] == pytest.approx(r.sets[0].sample_spacing * 1e3, rel=1e-12)
 
 
 def test_the_tin_parameters_can_be_left_out():
