@@ -37,6 +37,7 @@ lattice spacing is the point spacing.
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -104,12 +105,29 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
 # ----------------------------------------------------------------------------- ESRI ASCII
 
 
+#: Longest ESRI ASCII header line, bytes (a header line is a key and a number; one of
+#: 512 MB was read whole in the server's process), and most header lines.
+MAX_ESRI_HEADER_LINE = 64 << 10
+MAX_ESRI_HEADER_LINES = 64
+#: Most characters of an ESRI ASCII grid's values read at once.
+MAX_ESRI_PIECE = 1 << 20
+
+
 def _esri_header(p: Path) -> tuple[dict[str, float], int]:
     """The header values and the number of header lines."""
     head: dict[str, float] = {}
     lines = 0
     with open(p, encoding="ascii", errors="replace") as fh:
-        for line in fh:
+        while True:
+            line = fh.readline(MAX_ESRI_HEADER_LINE + 1)
+            if not line:
+                break
+            if not line.lstrip()[:1].isalpha() and line.strip():
+                break  # the values begin
+            if len(line) > MAX_ESRI_HEADER_LINE or lines >= MAX_ESRI_HEADER_LINES:
+                raise InputError(f"{p} is not an ESRI ASCII grid: a header line longer than "
+                                 f"{MAX_ESRI_HEADER_LINE:,} bytes, or more than "
+                                 f"{MAX_ESRI_HEADER_LINES} header lines")
             fields = line.split()
             if not fields:
                 lines += 1
@@ -127,7 +145,8 @@ def _esri_header(p: Path) -> tuple[dict[str, float], int]:
                                  "number") from None
             lines += 1
     for need in ("ncols", "nrows"):
-        if need not in head or head[need] < 1 or head[need] != int(head[need]):
+        if (need not in head or not math.isfinite(head[need]) or head[need] < 1
+                or head[need] != int(head[need])):
             raise InputError(f"{p} is not an ESRI ASCII grid: no whole {need} in its header")
     return head, lines
 
@@ -162,19 +181,37 @@ def read_esri_ascii(p: Path) -> PointCloud:
             f"grid {p}", hint="crop or resample the raster first")
     count = 0
 
-    def numbers(fh):
+    def values_of(text: str, line: int):
         nonlocal count
-        for number, line in enumerate(fh):
-            if number < skip:
+        for t in text.split():
+            try:
+                value = float(t)
+            except ValueError:
+                raise InputError(f"cannot read the values of {p}: {t[:20]!r} on line "
+                                 f"{line + 1} is not a number") from None
+            count += 1
+            yield value
+
+    def numbers(fh):
+        """The values in file order, read in pieces of at most MAX_ESRI_PIECE
+        characters (values may wrap over lines or all stand on one: a line of 512 MB
+        was read and split whole)."""
+        line, carry = 0, ""
+        while piece := fh.readline(MAX_ESRI_PIECE):
+            whole = piece.endswith("\n")
+            if line < skip:
+                line += whole
                 continue
-            for t in line.split():
-                try:
-                    value = float(t)
-                except ValueError:
-                    raise InputError(f"cannot read the values of {p}: {t[:20]!r} on line "
-                                     f"{number + 1} is not a number") from None
-                count += 1
-                yield value
+            text, carry = carry + piece, ""
+            if not whole and not piece[-1].isspace():  # its last value may go on
+                cut = max(text.rfind(c) for c in " \t\r")
+                text, carry = text[:cut + 1], text[cut + 1:]
+                if len(carry) > MAX_ESRI_PIECE:
+                    raise InputError(f"cannot read the values of {p}: line {line + 1} holds "
+                                     f"a value longer than {MAX_ESRI_PIECE:,} characters")
+            yield from values_of(text, line)
+            line += whole
+        yield from values_of(carry, line)
 
     with open(p, encoding="ascii", errors="replace") as fh:
         stream = numbers(fh)

@@ -68,6 +68,9 @@ def test_esri_ascii_prj_gives_the_crs_and_its_unit(tmp_path):
     ("ncols 2\nnrows 2\nxllcorner 0\ncellsize 1\n1 2\n3 4\n", "yllcorner or yllcenter"),
     ("ncols 2\nrows 2\n1 2\n", "unknown header line"),
     ("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 x\n3 4\n", "cannot read the values"),
+    ("ncols inf\nnrows 2\n1 2\n", "no whole ncols"),  # issue 36: OverflowError
+    ("ncols 2\nnrows inf\n1 2\n", "no whole nrows"),
+    ("ncols 2\nnrows nan\n1 2\n", "no whole nrows"),
 ])
 def test_esri_ascii_errors_are_one_line(tmp_path, text, message):
     path = tmp_path / "bad.asc"
@@ -179,3 +182,72 @@ def test_dem_through_compute(tmp_path, capsys):
                  str(tmp_path / "s.json"), "--quiet"]) == 0
     assert "4,800 points, grid 10 m" in capsys.readouterr().out
     assert struct.calcsize("<H") == 2  # GeoKeys are little-endian uint16 words
+
+
+def _peak_rss_reading(path) -> tuple[int, str]:
+    """(peak resident bytes of a fresh process that reads ``path``, its error line)."""
+    import subprocess
+    import sys
+
+    script = ("import resource, sys\n"
+              "from rough_viewer.io import load_points\n"
+              "from rough_viewer.vocabulary import InputError\n"
+              "try:\n    load_points(sys.argv[1])\n    said = 'read'\n"
+              "except InputError as e:\n    said = str(e)\n"
+              "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)\n"
+              "print(said)\n")
+    done = subprocess.run([sys.executable, "-c", script, str(path)], capture_output=True,
+                          text=True, timeout=120, env={**__import__("os").environ,
+                                                       "ROUGH_VIEWER_ISOLATE": "0"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    peak, said = done.stdout.splitlines()[-2:]
+    return int(peak), said
+
+
+def test_an_esri_header_line_bomb_is_refused_without_reading_it(tmp_path):
+    """Issue 36: a header line of letters was read whole (512 MB took the process to
+    1.1 GB). 48 MB of it now costs the reading process less than 16 MB more than a
+    valid grid, and says so in one line."""
+    good = tmp_path / "good.asc"
+    write_asc(good)
+    bomb = tmp_path / "bomb.asc"
+    with open(bomb, "w") as fh:
+        fh.write("ncols ")
+        fh.write("x" * (48 << 20))
+        fh.write("\nnrows 2\n")
+    base, said = _peak_rss_reading(good)
+    assert said == "read"
+    peak, said = _peak_rss_reading(bomb)
+    assert "header line longer than 65,536 bytes" in said and "bomb.asc" in said
+    assert peak - base < 16 << 20, (peak - base) / 2**20
+
+
+def test_an_esri_value_line_bomb_is_read_in_pieces(tmp_path):
+    """A data line of 48 MB without a break is one value too long: read in 1 MiB pieces,
+    never whole."""
+    good = tmp_path / "good.asc"
+    write_asc(good)
+    bomb = tmp_path / "bomb.asc"
+    with open(bomb, "w") as fh:
+        fh.write("ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n")
+        fh.write("1" * (48 << 20))
+    base, _ = _peak_rss_reading(good)
+    peak, said = _peak_rss_reading(bomb)
+    assert "holds a value longer than 1,048,576 characters" in said
+    assert peak - base < 16 << 20, (peak - base) / 2**20
+
+
+def test_an_esri_grid_on_one_long_line_reads_as_one_row_a_line(tmp_path):
+    """Values may all stand on one line longer than a piece (1.3 MB here): the values
+    cut at a piece's end are joined again, so both layouts give the same points."""
+    rows, cols = 400, 400
+    z = np.round(np.random.default_rng(3).uniform(100, 999, (rows, cols)), 3)
+    head = f"ncols {cols}\nnrows {rows}\nxllcorner 0\nyllcorner 0\ncellsize 1\n"
+    by_row, one_line = tmp_path / "rows.asc", tmp_path / "line.asc"
+    by_row.write_text(head + "\n".join(" ".join(f"{v:.3f}" for v in r) for r in z) + "\n")
+    one_line.write_text(head + " ".join(f"{v:.3f}" for v in z.ravel()))
+    assert one_line.stat().st_size > 1 << 20
+    a, b = load_points(by_row), load_points(one_line)
+    assert a.n == b.n == rows * cols
+    np.testing.assert_array_equal(a.z, b.z)
+    np.testing.assert_array_equal(np.sort(a.z), np.sort(z.ravel()))
