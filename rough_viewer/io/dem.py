@@ -70,6 +70,41 @@ _ESRI_KEYS = ("ncols", "nrows", "xllcorner", "xllcenter", "yllcorner", "yllcente
               "cellsize", "dx", "dy", "nodata_value")
 
 
+def nodata_mask(grid: np.ndarray, nodata: float) -> np.ndarray:
+    """Cells of ``grid`` holding ``nodata``, compared in the grid's own type, as GDAL
+    does: a float32 band's ``-9999.9`` is ``np.float32(-9999.9)`` (compared in float64
+    no cell matched), a value printed within 1e-5 of float32's largest (GDAL's
+    ``-3.40282e+38``) is that largest, and an integer band matches only a whole value in
+    its range.
+
+    >>> g = np.array([[-9999.9, 1.5], [-3.4028235e38, 2.0]], dtype=np.float32)
+    >>> nodata_mask(g, -9999.9).tolist(), nodata_mask(g, -3.40282e38).tolist()
+    ([[True, False], [False, False]], [[False, False], [True, False]])
+    >>> nodata_mask(np.array([0, 255], dtype=np.uint8), 255.0).tolist()
+    [False, True]
+    >>> nodata_mask(np.array([0, 255], dtype=np.uint8), 300.0).tolist()
+    [False, False]
+    """
+    dtype = grid.dtype
+    if dtype.kind == "f":
+        if np.isnan(nodata):
+            return np.isnan(grid)
+        top = float(np.finfo(dtype).max)
+        if np.isfinite(nodata) and abs(abs(nodata) - top) <= 1e-5 * top:
+            nodata = float(np.copysign(top, nodata))
+        with np.errstate(over="ignore"):
+            value = dtype.type(nodata)
+        return np.asarray(grid == value)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        if np.isfinite(nodata) and nodata == int(nodata) and info.min <= nodata <= info.max:
+            return np.asarray(grid == dtype.type(int(nodata)))
+        return np.zeros(grid.shape, dtype=bool)
+    if dtype.kind == "c":
+        raise ValueError("complex rasters are refused before their nodata is compared")
+    return np.asarray(grid == nodata)
+
+
 def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
                   nodata: float | None = None) -> PointCloud:
     """The points of a raster: one per cell with a value, at the cell's centre.
@@ -93,8 +128,8 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
     require(float(grid.size) * BYTES_PER_CELL, f"reading the {cols:,} x {rows:,} raster {path}",
             hint="crop or resample the raster first")
     heights = grid.astype(np.float64, copy=True).ravel()
-    if nodata is not None and np.isfinite(nodata):
-        heights[heights == nodata] = np.nan
+    if nodata is not None:
+        heights[nodata_mask(grid, nodata).ravel()] = np.nan
     r, c = np.divmod(np.arange(heights.size, dtype=np.int64), cols)
     a = np.asarray(affine, dtype=np.float64)
     x = a[0, 0] * c + a[0, 1] * r + a[0, 2]
@@ -311,6 +346,10 @@ def read_geotiff(p: Path) -> PointCloud:
     affine = geotiff_affine(tags, p)
     with tifffile.TiffFile(p) as tif:
         page = tif.pages[0]
+        if np.dtype(page.dtype).kind not in "fiu":
+            raise InputError(f"{p}: its band is {np.dtype(page.dtype).name}, not heights (a "
+                             "complex or other raster; only integer and float bands are "
+                             "elevations)")
         shape = tuple(int(s) for s in page.shape)
         cells = int(np.prod(shape[:2])) if len(shape) >= 2 else 0
         require(float(cells) * (BYTES_PER_CELL + page.dtype.itemsize * (

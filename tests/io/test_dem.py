@@ -251,3 +251,40 @@ def test_an_esri_grid_on_one_long_line_reads_as_one_row_a_line(tmp_path):
     assert a.n == b.n == rows * cols
     np.testing.assert_array_equal(a.z, b.z)
     np.testing.assert_array_equal(np.sort(a.z), np.sort(z.ravel()))
+
+
+@pytest.mark.parametrize("nodata, fill", [
+    ("-9999.9", np.float32(-9999.9)),
+    ("-3.40282e+38", np.float32(-3.4028234663852886e38)),  # GDAL's float32 lowest, printed
+    ("-3.4028234663852886e+38", np.float32(-3.4028234663852886e38)),
+])
+def test_geotiff_nodata_is_compared_in_the_bands_type(tmp_path, nodata, fill):
+    """Issue 36: a float32 band's GDAL_NODATA compared in float64 kept its nodata cells
+    as points at -9999.9 (or refused the file at -3.4e38 m). Compared as GDAL does, the
+    cells that hold it are dropped and the others kept exactly."""
+    tifffile = pytest.importorskip("tifffile")
+    band = np.arange(12, dtype=np.float32).reshape(3, 4) + 100.25
+    band[0, 1] = band[2, 3] = fill
+    tags = [(34735, "H", 8, geokeys((1024, 0, 1, 1)), True),
+            (33550, "d", 3, (1.0, 1.0, 0.0), True),
+            (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, 3.0, 0.0), True),
+            (42113, "s", 0, nodata, True)]
+    path = tmp_path / "band.tif"
+    tifffile.imwrite(path, band, extratags=tags)
+    cloud = load_points(path)
+    keep = band.ravel() != fill
+    assert cloud.n == 10 and cloud.dropped_nonfinite == 2
+    np.testing.assert_array_equal(cloud.z, band.ravel()[keep].astype(np.float64))
+
+
+def test_a_complex_geotiff_is_refused_in_one_line(tmp_path):
+    """Issue 36: a complex64 band was read as its real part without a word."""
+    tifffile = pytest.importorskip("tifffile")
+    path = tmp_path / "c.tif"
+    tifffile.imwrite(path, np.ones((3, 4), dtype=np.complex64), extratags=[
+        (34735, "H", 8, geokeys((1024, 0, 1, 1)), True),
+        (33550, "d", 3, (1.0, 1.0, 0.0), True),
+        (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, 3.0, 0.0), True)])
+    with pytest.raises(InputError, match="complex64, not heights") as info:
+        load_points(path)
+    assert "\n" not in str(info.value) and "c.tif" in str(info.value)
