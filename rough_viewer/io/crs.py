@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import os
 import re
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from rough_viewer.io.cloud import check_input_file
-from rough_viewer.vocabulary import CrsUnit, foreign_errors
+from rough_viewer.vocabulary import CrsUnit, InputError, foreign_errors
 
 #: EPSG unit-of-measure codes (GeoTIFF ProjLinearUnitsGeoKey) -> unit.
 EPSG_UNITS: dict[int, CrsUnit] = {9001: "m", 9002: "ft", 9003: "us-ft"}
@@ -121,18 +122,78 @@ def _prj_crs(p: Path) -> CrsInfo:
     return parse_wkt_crs(text) if text else NO_CRS
 
 
-def _las_crs(p: Path) -> CrsInfo:
-    from rough_viewer.io.las import open_las
+#: Most VLRs and EVLRs together a LAS header may declare for its CRS to be read (real
+#: files hold a handful; a file of a million empty VLRs took 272 MB and 7.7 s through
+#: laspy in the server's process).
+MAX_LAS_RECORDS = 10_000
+#: Longest CRS record read, bytes: an EPSG WKT2 is a few kB, and parsing costs about 240
+#: bytes of memory a byte of WKT (20 MiB of ``[`` took a process to 5 GB).
+MAX_CRS_RECORD_BYTES = 128 << 10
+#: The CRS records of a LAS file (user id ``LASF_Projection``).
+_CRS_RECORDS = (2112, 34735, 34736, 34737)
 
+
+def las_crs_records(p: Path) -> dict[int, bytes]:
+    """The CRS records of a LAS/LAZ file by record id, read from its own header with
+    stated bounds (no library: only the record headers and the CRS payloads, each at
+    most :data:`MAX_CRS_RECORD_BYTES`, of at most :data:`MAX_LAS_RECORDS` records).
+
+    Raises
+    ------
+    InputError
+        Not a LAS file, a truncated record table, or a table or CRS record over its
+        bound.
+    """
+    from rough_viewer.io.las import check_las_layout
+
+    check_las_layout(p)  # the signature, header size, offsets and table sizes fit the file
+    out: dict[int, bytes] = {}
+    with open(p, "rb") as fh:
+        head = fh.read(375)
+        version = (head[24], head[25])
+        header_size, = struct.unpack_from("<H", head, 94)
+        n_vlrs, = struct.unpack_from("<I", head, 100)
+        evlr_start, n_evlrs = 0, 0
+        if version >= (1, 4) and len(head) >= 247:
+            evlr_start, = struct.unpack_from("<Q", head, 235)
+            n_evlrs, = struct.unpack_from("<I", head, 243)
+        if n_vlrs + n_evlrs > MAX_LAS_RECORDS:
+            raise InputError(f"{p}: its header declares {n_vlrs:,} VLRs and {n_evlrs:,} "
+                             f"EVLRs, over the {MAX_LAS_RECORDS:,} read: a damaged file")
+        size = os.fstat(fh.fileno()).st_size
+
+        def table(pos: int, count: int, record_header: int, length_format: str, kind: str
+                  ) -> None:
+            for _ in range(count):
+                fh.seek(pos)
+                h = fh.read(record_header)
+                if len(h) < record_header:
+                    raise InputError(f"cannot read the header of {p}: its {kind} table ends "
+                                     "early (a truncated file)")
+                user = h[2:18].split(b"\0", 1)[0]
+                rid, = struct.unpack_from("<H", h, 18)
+                length, = struct.unpack_from(length_format, h, 20)
+                if user == b"LASF_Projection" and rid in _CRS_RECORDS:
+                    if length > MAX_CRS_RECORD_BYTES:
+                        raise InputError(f"{p}: its CRS record (LASF_Projection {rid}) is "
+                                         f"{length:,} bytes, over the {MAX_CRS_RECORD_BYTES:,} "
+                                         "a CRS may hold: a damaged file")
+                    out[rid] = fh.read(length)
+                pos += record_header + length
+                if pos > size:
+                    raise InputError(f"cannot read the header of {p}: a {kind} reaches past "
+                                     "the end of the file")
+
+        table(header_size, n_vlrs, 54, "<H", "VLR")
+        if n_evlrs:
+            table(evlr_start, n_evlrs, 60, "<Q", "EVLR")
+    return out
+
+
+def _las_crs(p: Path) -> CrsInfo:
     check_input_file(p)
-    with foreign_errors(f"cannot read the header of {p}"), open_las(p) as reader:
-        records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
-    raw: dict[int, bytes] = {}
-    for vlr in records:
-        if vlr.user_id.rstrip("\0") != "LASF_Projection":
-            continue
-        data = vlr.record_data_bytes() if hasattr(vlr, "record_data_bytes") else vlr.record_data
-        raw[int(vlr.record_id)] = bytes(data)
+    with foreign_errors(f"cannot read the header of {p}"):
+        raw = las_crs_records(p)
     if 2112 in raw:
         text = raw[2112].decode("utf-8", errors="replace").rstrip("\0").strip()
         if text:
