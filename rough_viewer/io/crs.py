@@ -118,6 +118,10 @@ def _prj_crs(p: Path) -> CrsInfo:
     if prj is None:
         return NO_CRS
     with foreign_errors(f"cannot read {prj}"):
+        size = prj.stat().st_size
+        if size > MAX_CRS_RECORD_BYTES:
+            raise InputError(f"{prj} is {size:,} bytes, over the {MAX_CRS_RECORD_BYTES:,} a "
+                             "CRS may hold: not a .prj file, or a damaged one")
         text = prj.read_text(encoding="utf-8", errors="replace").strip()
     return parse_wkt_crs(text) if text else NO_CRS
 

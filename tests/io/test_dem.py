@@ -288,3 +288,13 @@ def test_a_complex_geotiff_is_refused_in_one_line(tmp_path):
     with pytest.raises(InputError, match="complex64, not heights") as info:
         load_points(path)
     assert "\n" not in str(info.value) and "c.tif" in str(info.value)
+
+
+def test_a_prj_bomb_beside_a_grid_is_refused_before_it_is_read(tmp_path):
+    """Issue 36: a .prj's WKT was read and parsed whole (about 240 bytes of memory a
+    byte); over 128 KiB it is refused in one line naming it."""
+    path = tmp_path / "dem.asc"
+    write_asc(path)
+    (tmp_path / "dem.prj").write_text("[" * (1 << 20))
+    with pytest.raises(InputError, match=r"dem.prj is 1,048,576 bytes, over the 131,072"):
+        read_crs(path)
