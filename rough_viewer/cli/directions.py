@@ -28,6 +28,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from rough_viewer.cli._options import (
     add_units,
     add_windows,
@@ -84,6 +86,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def no_profile_reasons(sets) -> str:
+    """Why no profile was measured, over every direction, most common first.
+
+    >>> from types import SimpleNamespace as S
+    >>> no_profile_reasons([S(skipped=(("too few samples", 3),), n_profiles=3),
+    ...                     S(skipped=(("too few samples", 2), ("no points", 1)), n_profiles=3)])
+    '6 profile lines; too few samples: 5, no points: 1'
+    >>> no_profile_reasons([S(skipped=(), n_profiles=0)])
+    'no profile line crosses the face'
+    """
+    counts: dict[str, int] = {}
+    for ps in sets:
+        for reason, n in ps.skipped:
+            reason = reason.split(" (")[0]  # without the per-profile figures
+            counts[reason] = counts.get(reason, 0) + int(n)
+    lines = sum(int(ps.n_profiles) for ps in sets)
+    if not lines:
+        return "no profile line crosses the face"
+    why = ", ".join(f"{r}: {n:,}"
+                    for r, n in sorted(counts.items(), key=lambda kv: -kv[1])[:3])
+    return f"{lines:,} profile lines" + (f"; {why}" if why else "")
+
+
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import report_cloud
     from rough_viewer.cli._progress import ProgressBar
@@ -135,6 +160,10 @@ def run(args: argparse.Namespace) -> int:
     with naming(path):
         result = analyse_directions(cloud, settings, mesh=mesh, source=str(path),
                                     progress=None if args.quiet else ProgressBar("directions"))
+    if not any(bool(np.any(ps.used)) for ps in result.sets):
+        raise InputError(f"no profile of {path} could be measured in any direction: "
+                         f"{no_profile_reasons(result.sets)} (see --half-width, "
+                         "--sample-spacing, --min-samples and --windows)")
     if args.windows_out and result.windows is None:
         raise InputError(f"no window map for {path}: {result.window_error}")
     warn(result.warnings)

@@ -159,3 +159,23 @@ def test_existing_output_and_missing_input(sawtooth_stl, tmp_path, capsys):
     assert "not found" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["directions", str(sawtooth_stl), "--out", str(tmp_path / "y.csv")])  # no --step
+
+
+@pytest.mark.parametrize("extra", [
+    ["--sample-spacing", "1e300"], ["--min-samples", "1000000000000"], ["--windows", "1e-9,1e-8"],
+])
+def test_settings_that_measure_no_profile_are_an_error_not_an_empty_table(
+        sawtooth_stl, tmp_path, capsys, extra):
+    """Issue 36: each of these wrote a table whose every direction had 0 profiles, exit 0
+    (on the sawtooth's vertices as a point cloud: bands of points make the profiles)."""
+    from rough_viewer.io import load_points
+
+    cloud = load_points(sawtooth_stl, units="mm")
+    src = tmp_path / "saw.npy"
+    np.save(src, cloud.xyz() * 1e3)
+    out = tmp_path / "d.csv"
+    assert main(["directions", str(src), "--units", "mm", "--step", "45", "--out", str(out),
+                 "--quiet", *extra]) == 2
+    err = capsys.readouterr().err
+    assert "could be measured in any direction" in err and "profile lines;" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
