@@ -90,8 +90,11 @@ class Uploads:
         self._suffixes = tuple(s.lower() for s in suffixes)
         self._refuse = refuse
         self._own_folder = folder is None
-        self.folder = Path(folder) if folder is not None else Path(
-            tempfile.mkdtemp(prefix="rough-viewer-uploads-"))
+        if folder is None:
+            sweep_stale_uploads(Path(tempfile.gettempdir()))
+            self.folder = Path(tempfile.mkdtemp(prefix=owned_prefix()))
+        else:
+            self.folder = Path(folder)
         self._targets: dict[str, Callable[[UploadedFile], object]] = {}
         self._active: dict[str, _Transfer] = {}
         self._lock = threading.Lock()
@@ -233,6 +236,60 @@ class Uploads:
             t.fh.close()
         if self._own_folder:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+#: The private upload folders' name prefix; the owning server's pid and start follow.
+UPLOAD_FOLDER_PREFIX = "rough-viewer-uploads-"
+#: A folder whose name names no owner (an older server's) is swept after this long, s.
+UNOWNED_AGE_S = 24 * 3600.0
+
+
+def _process_start(pid: int) -> str | None:
+    """A running process's start (clock ticks after boot, from ``/proc``: a pid used
+    again by a later process has another), None when none runs or ``/proc`` cannot tell."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2:].split()  # after the command name, which may hold spaces
+    return fields[19] if len(fields) > 19 and fields[19].isdigit() else None
+
+
+def owned_prefix(pid: int | None = None) -> str:
+    """The name prefix of an upload folder owned by process ``pid`` (default this one):
+    ``rough-viewer-uploads-<pid>-<start>-``, so a later server can tell whether it runs."""
+    pid = os.getpid() if pid is None else pid
+    return f"{UPLOAD_FOLDER_PREFIX}{pid}-{_process_start(pid) or 0}-"
+
+
+def sweep_stale_uploads(parent: Path) -> int:
+    """Remove the upload folders under ``parent`` that no running server owns: partial
+    uploads left by a server that was killed (``kill -9`` runs no clean-up), named for
+    a process that no longer runs (or another process under its pid), and folders
+    naming no owner older than :data:`UNOWNED_AGE_S`. Returns how many went. Folders
+    of running servers, other users' and anything not named like ours are left alone."""
+    import time
+
+    gone = 0
+    try:
+        candidates = [d for d in parent.iterdir() if d.name.startswith(UPLOAD_FOLDER_PREFIX)]
+    except OSError:
+        return 0
+    for d in candidates:
+        try:
+            if d.is_symlink() or not d.is_dir() or d.stat().st_uid != os.getuid():
+                continue
+            parts = d.name[len(UPLOAD_FOLDER_PREFIX):].split("-")
+            if len(parts) >= 3 and parts[0].isdigit() and parts[1].isdigit() and parts[1] != "0":
+                if _process_start(int(parts[0])) == parts[1]:
+                    continue  # its server runs
+            elif time.time() - d.stat().st_mtime < UNOWNED_AGE_S:
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(d, ignore_errors=True)
+        gone += not d.exists()
+    return gone
 
 
 def clean_name(name: object) -> str:

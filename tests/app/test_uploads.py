@@ -157,3 +157,50 @@ def test_upload_messages_go_to_the_uploader_only(live):
         assert later.of_type("FileTransferPartAck") == []
     finally:
         later.close()
+
+
+def test_partial_uploads_of_a_killed_server_are_swept_by_the_next(tmp_path):
+    """Issue 36: after ``kill -9`` of serve its partial uploads stayed in the upload
+    folder. A real serve is killed while an upload folder holds a part; the next
+    server's uploads sweep it, and leave a running server's folder alone."""
+    import signal
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from rough_viewer.app import uploads
+
+    script = ("import tempfile, time\n"
+              "from pathlib import Path\n"
+              "from rough_viewer.app.uploads import owned_prefix\n"
+              "d = Path(tempfile.mkdtemp(prefix=owned_prefix()))\n"
+              "(d / 'part-1.laz').write_bytes(b'x' * 1000)\n"
+              "print(d, flush=True)\n"
+              "time.sleep(60)\n")
+    child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    left = Path(child.stdout.readline().strip())
+    mine = Path(tempfile.mkdtemp(prefix=uploads.owned_prefix()))
+    try:
+        assert uploads.sweep_stale_uploads(left.parent) == 0  # both owners run
+        assert left.exists() and mine.exists()
+        child.send_signal(signal.SIGKILL)
+        child.wait(10)
+        server, _gate = open_server("127.0.0.1", 0, token=None, log=False)
+        try:
+            made = uploads.Uploads(server, max_bytes=1 << 20, suffixes=(".laz",),
+                                   refuse=lambda _c, _m: None)
+            assert not left.exists()  # the killed server's partial upload went
+            assert mine.exists()  # a running server's stays
+            assert made.folder.name.startswith(uploads.owned_prefix())
+            made.close()
+            assert not made.folder.exists()
+        finally:
+            server.stop()
+    finally:
+        if child.poll() is None:
+            child.kill()
+        import shutil
+        shutil.rmtree(mine, ignore_errors=True)
+        shutil.rmtree(left, ignore_errors=True)
