@@ -320,6 +320,47 @@ def _child_env() -> dict[str, str]:
     return env
 
 
+class _Spawner:
+    """One long-lived thread that starts every child. Linux's ``PR_SET_PDEATHSIG``
+    (how a child dies with its parent) fires when the THREAD that forked it ends, not
+    the process: a spare started by a short-lived thread (the warm-up, a job) was
+    killed when that thread finished. Forked here, a child dies when the process does."""
+
+    def __init__(self) -> None:
+        import queue
+
+        self._queue: queue.SimpleQueue[tuple[Callable[[], Any], list[Any], threading.Event]] \
+            = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+
+    def __call__(self, args: list[str], **kwargs: Any) -> subprocess.Popen[bytes]:
+        with self._lock:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._run, daemon=True,
+                                                name="rough-viewer-spawner")
+                self._thread.start()
+        box: list[Any] = []
+        done = threading.Event()
+        self._queue.put((lambda: subprocess.Popen(args, **kwargs), box, done))
+        done.wait()
+        if isinstance(box[0], BaseException):
+            raise box[0]
+        return box[0]
+
+    def _run(self) -> None:
+        while True:
+            make, box, done = self._queue.get()
+            try:
+                box.append(make())
+            except BaseException as exc:  # handed to the caller
+                box.append(exc)
+            done.set()
+
+
+_spawn = _Spawner()
+
+
 class _Child:
     """One child process and the parent's end of its socket."""
 
@@ -328,7 +369,7 @@ class _Child:
         self.sock = parent
         self.stderr: IO[bytes] = tempfile.TemporaryFile(prefix="rough-viewer-reader-")
         try:
-            self.proc = subprocess.Popen(
+            self.proc = _spawn(
                 [sys.executable, "-m", CHILD_MODULE, str(child.fileno()), str(os.getpid())],
                 pass_fds=(child.fileno(),), stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL, stderr=self.stderr, env=_child_env(),

@@ -173,3 +173,46 @@ def test_a_child_under_ulimit_asks_no_more_than_the_hard_limit(tmp_path):
                           text=True, timeout=120, cwd=os.getcwd())
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split()[-1] == "500"
+
+
+def test_a_spare_started_by_a_thread_that_ends_lives_and_dies_with_the_process():
+    """Issue 36: PR_SET_PDEATHSIG fires when the forking THREAD ends: a spare started
+    by a short-lived thread was killed with it. Children are now forked by one
+    long-lived thread: the spare outlives its starting thread, and still dies when
+    the process is killed."""
+    import signal
+    import subprocess
+    import sys
+
+    script = (
+        "import os, threading, time\n"
+        "from rough_viewer.io import isolate\n"
+        "def start():\n"
+        "    isolate.warm()\n"
+        "    time.sleep(2.0)  # the child is ready (prctl done) before this thread ends\n"
+        "t = threading.Thread(target=start)\n"
+        "t.start(); t.join()\n"
+        "time.sleep(0.5)\n"
+        "spare = isolate._spare\n"
+        "print(spare.proc.pid, spare.alive(), flush=True)\n"
+        "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True,
+                              cwd=os.getcwd())
+    try:
+        assert parent.stdout is not None
+        pid, alive = parent.stdout.readline().split()
+        assert alive == "True"  # the thread that started it has ended
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(10)
+
+        def gone() -> bool:
+            try:
+                with open(f"/proc/{pid}/stat") as fh:
+                    return fh.read().split(")")[-1].split()[0] == "Z"
+            except OSError:
+                return True
+
+        wait_until(gone, 10)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
