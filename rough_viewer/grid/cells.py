@@ -58,6 +58,10 @@ class GridSpec:
 MAX_SIZE_OVER_EXTENT = 1000.0
 
 
+#: The finest fraction of a cell that a point's offset from a given grid origin must
+#: resolve (float64 keeps ~16 digits: an origin 1e15 m away resolves only 0.125 m).
+ORIGIN_RESOLUTION = 1e-6
+
 def make_grid(
     bounds_min: np.ndarray,
     bounds_max: np.ndarray,
@@ -95,6 +99,16 @@ def make_grid(
     first = (lo_b - o) / g
     if not (np.all(np.isfinite(span)) and np.all(np.isfinite(first))):
         raise InputError(f"grid size {g:g} m is too small for this cloud's extent")
+    if origin is not None:
+        # a point's cell is floor((x - o) / g): far from the cloud, x - o keeps too few
+        # digits to place points in their cells (at -1e15 m, 541 cells instead of 525)
+        far = float(np.max(np.maximum(np.abs(lo_b - o), np.abs(hi_b - o))))
+        resolved = float(np.spacing(far))
+        if resolved > ORIGIN_RESOLUTION * g:
+            raise InputError(
+                f"the grid origin is {far:.3g} m from the cloud: offsets there resolve only "
+                f"{resolved:.3g} m, more than {ORIGIN_RESOLUTION:g} of the {g:g} m grid, so "
+                "points would land in the wrong cells; choose an origin near the cloud")
     index_min = np.floor(first)
     index_max = np.floor(span)
     counts = index_max - index_min + 1
