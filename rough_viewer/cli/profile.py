@@ -306,8 +306,11 @@ def _check_options(args: argparse.Namespace) -> None:
         _positive_option(getattr(args, option), "--" + option.replace("_", "-"))
     if args.wavelet not in pywt.wavelist(kind="discrete"):
         raise InputError(f"--wavelet {args.wavelet!r} is not a discrete PyWavelets wavelet (e.g. db3, sym4, haar)")
-    if args.level < 1:
-        raise InputError(f"--level must be at least 1, got {args.level}")
+    from rough_viewer.profiles.wavelets import MAX_LEVEL
+
+    if not 1 <= args.level <= MAX_LEVEL:
+        raise InputError(f"--level must be from 1 to {MAX_LEVEL} (a level-L decomposition "
+                         f"needs profiles of 2**L samples or more), got {args.level}")
     if args.windows is not None:
         from rough_viewer.profiles.fractal import parse_windows
 

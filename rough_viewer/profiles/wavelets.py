@@ -115,10 +115,20 @@ def _as_profile(heights: np.ndarray) -> np.ndarray:
     return h
 
 
+#: Deepest decomposition: a level-30 one already needs a run of 2**30 samples or more
+#: (``--level 1e12`` computed 2**1e12, 3.1 GB, then MemoryError).
+MAX_LEVEL = 30
+
+
 def min_run_length(wavelet: str | pywt.Wavelet, level: int) -> int:
     """Fewest samples a run needs for a ``level``-deep decomposition with ``wavelet``:
-    ``(filter length - 1) * 2**level`` (PyWavelets' ``dwt_max_level`` limit)."""
-    return (_wavelet(wavelet).dec_len - 1) * 2**level
+    ``(filter length - 1) * 2**level`` (PyWavelets' ``dwt_max_level`` limit).
+
+    Raises InputError for a level outside 1 .. :data:`MAX_LEVEL`."""
+    if not 1 <= int(level) <= MAX_LEVEL:
+        raise InputError(f"the decomposition level must be from 1 to {MAX_LEVEL} (a level-L "
+                         f"decomposition needs runs of 2**L samples or more), got {level}")
+    return (_wavelet(wavelet).dec_len - 1) * 2**int(level)
 
 
 def _usable_runs(

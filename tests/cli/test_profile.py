@@ -121,6 +121,9 @@ def test_profile_file_in_millimetres(scene, capsys) -> None:
         (lambda s: ["profile", str(s["cloud"]), "--from", "1,2", "--to", "1,2,3"], "--from"),
         (lambda s: ["profile", str(s["cloud"])], "--from X,Y,Z"),
         (lambda s: ["profile", str(s["cloud"]), *line_args(s), "--wavelet", "db99x"], "--wavelet"),
+        # issue 36: 2**1e12 took 68 s and 3.1 GB, then MemoryError
+        (lambda s: ["profile", str(s["cloud"]), *line_args(s), "--level", "1000000000000"],
+         "--level must be from 1 to 30"),
         (lambda s: ["profile", str(s["cloud"]), *line_args(s), "--spacing", "-1"], "--spacing"),
         (lambda s: ["profile", str(s["cloud"]), "--from", "0,0,0", "--to", "1,1,1"], "points within"),
         (lambda s: ["profile", str(s["bad"])], "line 3"),

@@ -227,3 +227,13 @@ def test_threshold_ordering(seed: int) -> None:
         assert low < high
     assert W.threshold_value(h, decomposition="wp") > W.threshold_value(h, decomposition="dwt")
 
+
+
+def test_a_level_beyond_the_deepest_is_one_line_not_a_huge_power():
+    """Issue 36: level 1e12 computed 2**1e12 (3.1 GB, then MemoryError)."""
+    from rough_viewer.profiles.wavelets import MAX_LEVEL, min_run_length
+    from rough_viewer.vocabulary import InputError
+
+    assert min_run_length("db3", 3) == 40 and min_run_length("db3", MAX_LEVEL) == 5 * 2**30
+    with pytest.raises(InputError, match="level must be from 1 to 30"):
+        min_run_length("db3", 10**12)
