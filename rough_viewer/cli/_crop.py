@@ -35,6 +35,26 @@ def add_crop_options(parser: argparse.ArgumentParser) -> None:
         help="use the crop saved in a view file (rough-viewer serve's Export folder)")
 
 
+def adopt_view_units(args: argparse.Namespace) -> None:
+    """With ``--crop-file``, read the input in the unit the view was saved in: a view's
+    crop is in metres of the cloud as the app read it, so an STL in millimetres saved
+    with ``--units mm`` kept no point when read as metres. ``--units`` left out takes
+    the view's; one that contradicts it is refused. Checked before any read."""
+    view_file = getattr(args, "crop_file", None)
+    if not view_file or getattr(args, "crop", None):
+        return
+    from rough_viewer.report.view import load_view
+
+    saved = load_view(view_file, check=False).view.units
+    given = getattr(args, "units", None)
+    if given is None:
+        args.units = saved
+    elif given != saved:
+        raise InputError(f"view file {view_file} was saved with the input in {saved}, but "
+                         f"--units {given} was given: leave --units out or give --units "
+                         f"{saved}")
+
+
 def crop_from_args(args: argparse.Namespace, unit: str) -> CropBox | None:
     """The crop the options ask for, in metres, or None; checked before any work."""
     from rough_viewer.io.crop import CropBox

@@ -145,7 +145,12 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.cli._crop import apply_crop, crop_from_args, refuse_with_chunks
+    from rough_viewer.cli._crop import (
+        adopt_view_units,
+        apply_crop,
+        crop_from_args,
+        refuse_with_chunks,
+    )
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs, preload_kernels_for
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scale import chunked_results, wants_chunks
@@ -162,6 +167,7 @@ def run(args: argparse.Namespace) -> int:
     if not wants_chunks(args):
         preload_kernels_for(paths)  # on a thread, while the inputs are read
     # every length given and shown is in the inputs' unit (--units, else the CRS's)
+    adopt_view_units(args)
     unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
     grids = grid_sizes(args.grid, unit)
     several = len(grids) > 1

@@ -102,7 +102,7 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from rough_viewer.cli._crop import apply_crop, crop_from_args
+    from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
@@ -115,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.grid import fast
 
     fast.preload()  # a report is seconds of work: the kernels load while the input is read
+    adopt_view_units(args)
     unit_in = resolve_units(paths[0], args.units)[0]
     # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
     given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None

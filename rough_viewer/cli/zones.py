@@ -156,7 +156,7 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.cli._crop import apply_crop, crop_from_args
+    from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
@@ -173,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
     inputs = input_paths(args)
     source = describe(inputs)
     # every length given and shown is in the inputs' unit (--units, else the CRS's)
+    adopt_view_units(args)
     unit, _ = resolve_units(inputs[0], args.units)
     grids = grid_sizes(args.grid, unit)
     several = len(grids) > 1

@@ -163,3 +163,29 @@ def test_a_view_without_a_crop_is_refused_for_crop_file(tmp_path, face, capsys):
     assert main(["zones", str(path), "--grid", "0.25", "--crop-file", str(vfile), "--out",
                  str(tmp_path / "z.csv"), "--quiet"]) == 2
     assert f"view file {vfile} holds no crop" in capsys.readouterr().err
+
+
+def test_crop_file_reads_the_input_in_the_views_unit(tmp_path, face, capsys):
+    """Issue 31: a view saved from an input read with --units mm kept 0 points under
+    --crop-file without --units mm (its crop is in metres of the cloud as the app read
+    it). The view's unit is taken; a contradicting --units is one line."""
+    _, xyz = face
+    mm = tmp_path / "face_mm.npy"
+    np.save(mm, (xyz - UTM) * 1e3)  # the same face in millimetres, local coordinates
+    box_m = (tuple(BOX_M[0] - UTM), tuple(BOX_M[1] - UTM))
+    view = View(input=input_ref(mm), cell_size_m=0.25, min_points=4, units="mm",
+                crop=CropBox(*box_m))
+    vfile = save_view(tmp_path / "view.json", view)
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["compute", str(mm), "--grid", "250", "--crop-file", str(vfile),
+                 "--out", str(a), "--quiet"]) == 0
+    assert main(["compute", str(mm), "--units", "mm", "--grid", "250", "--crop",
+                 crop_text(*box_m, per=1e-3), "--out", str(b), "--quiet"]) == 0
+    kept = brute_force_crop(xyz - UTM, *box_m).shape[0]
+    assert kept > 1000 and f"{kept:,} of {len(xyz):,} points kept" in capsys.readouterr().err
+    assert rows_of(a) == rows_of(b)
+    assert main(["compute", str(mm), "--units", "m", "--grid", "0.25", "--crop-file", str(vfile),
+                 "--out", str(tmp_path / "c.csv"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "was saved with the input in mm, but --units m was given" in err
+    assert len(err.strip().splitlines()) == 1
