@@ -240,14 +240,18 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
     text = (f"no cell has a value: the {result.n_points_total:,} points fall into "
             f"{result.n_cells:,} occupied cells, at most {most:,} in one, and a cell needs "
             f"{result.min_points} points with a unique plane (--min-points)")
+    hint = "; use a larger --grid"
     if cloud is not None:
-        smallest = default_cell_size(cloud, target=result.min_points)
-        suggested = default_cell_size(cloud)
-        text += (f"; the smallest grid at which the typical cell holds {result.min_points} "
-                 f"points is about {smallest / per:g} {u} (the point spacing suggests "
-                 f"{suggested / per:g} {u}: 16 points per cell)")
-    else:
-        text += "; use a larger --grid"
+        try:  # the point spacing needs 5 points or more: a 4-point cloud gets no figure
+            smallest = default_cell_size(cloud, target=result.min_points)
+            suggested = default_cell_size(cloud)
+        except InputError:
+            pass
+        else:
+            hint = (f"; the smallest grid at which the typical cell holds {result.min_points} "
+                    f"points is about {smallest / per:g} {u} (the point spacing suggests "
+                    f"{suggested / per:g} {u}: 16 points per cell)")
+    text += hint
     raise InputError(text)
 
 

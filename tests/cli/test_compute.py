@@ -324,3 +324,21 @@ def test_a_grid_with_no_valued_cell_says_so_and_writes_nothing(tmp_path, capsys)
     assert not out.exists()
     assert main(["compute", str(path), "--grid", f"{smallest:g}", "--out", str(out),
                  "--quiet"]) == 0
+
+
+def test_a_four_point_e57_says_why_no_cell_has_a_value(tmp_path, capsys):
+    """Issue 31: a 4-point E57 with --grid 0.1 said "need more than 4 points to estimate
+    the point spacing" (the hint's figure), though the grid was given; --grid 5 computes."""
+    pye57 = pytest.importorskip("pye57")
+    path = tmp_path / "four.e57"
+    e57 = pye57.E57(str(path), mode="w")
+    e57.write_scan_raw({"cartesianX": np.array([0.0, 1.0, 0.0, 1.0]),
+                        "cartesianY": np.array([0.0, 0.0, 1.0, 1.0]),
+                        "cartesianZ": np.array([0.0, 0.01, 0.02, 0.0])})
+    e57.close()
+    out = tmp_path / "c.csv"
+    assert main(["compute", str(path), "--grid", "0.1", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "no cell has a value: the 4 points fall into 4 occupied cells" in err
+    assert "use a larger --grid" in err and "point spacing" not in err and not out.exists()
+    assert main(["compute", str(path), "--grid", "5", "--out", str(out), "--quiet"]) == 0
