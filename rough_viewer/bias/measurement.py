@@ -277,6 +277,7 @@ def range_noise(
             "a plane needs at least 3 (use fewer segments)"
         )
     residual = np.empty(pts.shape[0])
+    centred = np.empty(pts.shape[0])
     parts: list[BoardSegment] = []
     bounds = np.concatenate(([0], np.cumsum(counts)))
     # One plane per segment: a loop over the (few) segments, not over points.
@@ -287,6 +288,8 @@ def range_noise(
         n_k = fit.normal if np.dot(fit.normal, normal) >= 0 else -fit.normal
         r = (sp - fit.centroid) @ n_k
         residual[idx] = r
+        centred[idx] = r - np.median(r)  # for the MAD sigma: a board's flat part sits at
+        # one offset from a plane that objects on it pull away
         cosang = min(1.0, abs(float(np.dot(n_k, normal))))
         parts.append(BoardSegment(
             row=k // cols, col=k % cols, n_points=int(idx.size), sigma=float(r.std()),
@@ -301,7 +304,8 @@ def range_noise(
         segments=tuple(parts),
         normal=normal,
         warnings=flatness_warnings(float(residual.std()), whole.eigenvalues,
-                                   max(p.tilt_deg for p in parts)),
+                                   max(p.tilt_deg for p in parts),
+                                   robust_sigma=float(np.median(np.abs(centred))) / 0.6745),
     )
 
 
@@ -309,21 +313,38 @@ def range_noise(
 #: shorter in-plane extent (std), and no segment tilts more than FLAT_MAX_TILT_DEG.
 FLAT_MAX_THICKNESS = 0.02
 FLAT_MAX_TILT_DEG = 10.0
+#: Range noise is near normal (std / MAD sigma about 1); above this ratio the residuals
+#: are a spike and a tail, a board carrying objects.
+HEAVY_TAIL_RATIO = 2.0
 #: A wire is called thin when its second extent (std) stays under this share of its
 #: length (std).
 WIRE_MAX_WIDTH = 0.1
 
 
-def flatness_warnings(sigma: float, eigenvalues: np.ndarray, max_tilt_deg: float
-                      ) -> tuple[str, ...]:
+def flatness_warnings(sigma: float, eigenvalues: np.ndarray, max_tilt_deg: float, *,
+                      robust_sigma: float | None = None) -> tuple[str, ...]:
     """Why a range-noise scan may not be a flat board (empty when it looks like one).
 
     ``sigma`` is the segmented residual std (metres), ``eigenvalues`` the whole
     cloud's covariance eigenvalues (descending, m^2), ``max_tilt_deg`` the largest
-    segment tilt against the whole plane. The paper's board (0.61 x 1.24 m, 1.6 mm
-    noise) gives a thickness ratio of about 0.01 and tilts of a degree or two.
+    segment tilt against the whole plane, ``robust_sigma`` the residuals' MAD sigma
+    (``median |r - median_segment(r)| / 0.6745``, metres). The paper's board (0.61 x 1.24 m, 1.6 mm
+    noise) gives a thickness ratio of about 0.01 and tilts of a degree or two; range
+    noise is close to normal, so its std and MAD sigma agree (a ratio near 1), while
+    a board carrying objects has most residuals near 0 and a tail of large ones.
+
+    >>> flatness_warnings(0.0048, np.array([0.083, 0.083, 2e-5]), 0.5, robust_sigma=0.0001)[0][:40]
+    'the residuals (std 4.80 mm) are 48 times'
+    >>> flatness_warnings(0.0016, np.array([0.13, 0.031, 3e-6]), 1.5, robust_sigma=0.0016)
+    ()
     """
     out = []
+    if robust_sigma is not None and sigma > HEAVY_TAIL_RATIO * max(robust_sigma, 0.0):
+        times = sigma / robust_sigma if robust_sigma > 0 else math.inf
+        out.append(f"the residuals (std {sigma * 1e3:.2f} mm) are {times:.0f} times their "
+                   f"median spread (MAD sigma {robust_sigma * 1e3:.3g} mm): not the normal "
+                   "noise of a flat board but a surface carrying objects (asperities, "
+                   "hemispheres) or several surfaces; crop it to the bare board")
     short = math.sqrt(max(float(eigenvalues[1]), 0.0))
     ratio = sigma / short if short > 0 else math.inf
     if ratio > FLAT_MAX_THICKNESS:

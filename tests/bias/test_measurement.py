@@ -255,3 +255,17 @@ def test_range_noise_refuses_more_segments_than_points_before_allocating(segment
     with pytest.raises(ValueError, match="but there are 200"):
         range_noise(xyz, segments=100, max_points=200)
     assert range_noise(xyz, segments=8, max_points=300).n_points == 300
+
+
+def test_a_board_carrying_hemispheres_is_flagged_not_flat():
+    """Issue 31: bias noise on the bundled hemisphere board (most cells exactly on
+    their plane, hemispheres above) reported sigma 4.8 mm with no warning. Its
+    residuals are a spike and a tail: std far above their MAD sigma. A flat board with
+    normal range noise (std = MAD sigma) is not flagged."""
+    from rough_viewer.synthetic.demos import load_demo_with_truth
+
+    cloud, _ = load_demo_with_truth("board")
+    res = range_noise(cloud.xyz())
+    assert any("times their median spread" in w for w in res.warnings), res.warnings
+    xyz, scanner = board_points(n=20_000, noise=NOISE, sag=0.0, seed=2)
+    assert range_noise(xyz, scanner=scanner).warnings == ()
