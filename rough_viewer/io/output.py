@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import stat
 import tempfile
 import threading
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, error_line
 
 PathLike = str | os.PathLike[str]
 
@@ -275,7 +276,7 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
         try:
             write_to(tmp)
         except Exception as exc:  # a writer that wraps the disk's error in its own type
-            cause = _os_error(exc)
+            cause = _os_error(exc, folder=parent)
             if cause is None:
                 raise
             raise cause from None
@@ -297,9 +298,16 @@ def write_path_atomic(path: PathLike, write_to: Callable[[Path], None]) -> None:
         raise
 
 
-def _os_error(exc: BaseException) -> OSError | None:
+#: Free bytes under which a folder counts as full when a writer's own error does not
+#: say why it failed.
+FULL_DISK_BYTES = 1 << 20
+
+
+def _os_error(exc: BaseException, *, folder: Path | None = None) -> OSError | None:
     """The OSError behind a library's own error (laspy and lazrs wrap a full disk in
-    theirs: ``LazrsError: IoError: No space left on device``), else None."""
+    theirs: ``LazrsError: IoError: No space left on device``, or only ``IoError:
+    Failed to call write``, when the folder then has less than
+    :data:`FULL_DISK_BYTES` free), else None."""
     seen: set[int] = set()
     cur: BaseException | None = exc
     while cur is not None and id(cur) not in seen:
@@ -313,6 +321,14 @@ def _os_error(exc: BaseException) -> OSError | None:
                          (errno.EROFS, "Read-only file system")):
         if phrase in text:
             return OSError(code, phrase)
+    if "IoError" in text or "Failed to call write" in text:  # lazrs, without the cause
+        try:
+            full = folder is not None and shutil.disk_usage(folder).free < FULL_DISK_BYTES
+        except OSError:
+            full = False
+        if full:
+            return OSError(errno.ENOSPC, "No space left on device")
+        return OSError(errno.EIO, f"the writer failed ({error_line(exc)})")
     return None
 
 

@@ -15,6 +15,7 @@ from rough_viewer.io.output import (
     check_outputs,
     path_in_folder,
     write_atomic,
+    write_path_atomic,
 )
 from rough_viewer.vocabulary import InputError
 
@@ -204,3 +205,50 @@ def test_all_or_nothing_interrupt_removes_temporaries(tmp_path):
             write_atomic(tmp_path / "a.csv", lambda fh: fh.write("a"))
             raise KeyboardInterrupt
     assert _names(tmp_path) == []
+
+
+@pytest.fixture
+def full_folder(tmp_path):
+    """A real 256 KiB file system (tmpfs), where the machine lets this process mount one
+    (root on Linux); skipped elsewhere."""
+    import shutil
+    import subprocess
+
+    folder = tmp_path / "small"
+    folder.mkdir()
+    if not shutil.which("mount") or os.geteuid() != 0:
+        pytest.skip("mounting a small file system needs root")
+    made = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(folder)],
+                          capture_output=True)
+    if made.returncode != 0:
+        pytest.skip("this machine does not let tests mount a tmpfs")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+def test_a_laz_writer_on_a_full_disk_is_one_line_and_leaves_nothing(full_folder, capsys):
+    """Issue 31: `demo generate outcrop --out FULLDISK/d.laz` ended in a traceback
+    (``lazrs.LazrsError: IoError: Failed to call write``, which names no cause)."""
+    out = full_folder / "d.laz"
+    assert main(["demo", "generate", "outcrop", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f"rough-viewer: error: cannot write {out}: no space left on device"
+    assert list(full_folder.iterdir()) == []
+
+
+def test_a_writers_io_error_without_a_cause_is_one_line(tmp_path):
+    """A writer's own I/O error that names no cause, on a disk with room: one line."""
+
+    class LazrsError(Exception):
+        pass
+
+    def fails(tmp):
+        tmp.write_bytes(b"x")
+        raise LazrsError("IoError: Failed to call write")
+
+    with pytest.raises(InputError, match=r"cannot write .*d.laz: the writer failed "
+                                         r"\(IoError: Failed to call write\)"):
+        write_path_atomic(tmp_path / "d.laz", fails)
+    assert list(tmp_path.iterdir()) == []
