@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,7 +60,11 @@ from rough_viewer.vocabulary import (
     MAP_LABELS,
     UNIT_LABELS,
     InputError,
+    MapName,
 )
+
+if TYPE_CHECKING:
+    from rough_viewer.grid.roughness import GridRoughness
 
 #: Zones listed on the terminal (all of them go to ZONES.csv).
 SHOWN = 10
@@ -80,9 +85,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", choices=("odr", "ols", "hybrid"), default="odr",
                    help="roughness map whose normalised values are thresholded (default odr)")
     add_axis(p)
-    p.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
+    p.add_argument("--threshold", type=float, default=None, metavar="T",
                    help="cells with normalised roughness >= T are rough, T in [0, 1] "
-                   f"(default {DEFAULT_THRESHOLD:g}, the 2011 paper's)")
+                   f"(default {DEFAULT_THRESHOLD:g}, the 2011 paper's, unless it flags more "
+                   "than half of the cells: then the data's own threshold, Otsu's split; "
+                   f"give --threshold {DEFAULT_THRESHOLD:g} to keep the paper's)")
     p.add_argument("--min-cells", type=positive_int, default=DEFAULT_MIN_CELLS, metavar="K",
                    help=f"drop zones of fewer cells (default {DEFAULT_MIN_CELLS})")
     p.add_argument("--connectivity", choices=CONNECTIVITIES, default="vertex",
@@ -155,6 +162,27 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
     return "\n".join(lines)
 
 
+def zones_threshold(result: GridRoughness, method: MapName, given: float | None, *,
+                    keep_outliers: bool = False) -> tuple[float, str]:
+    """The threshold the zones use and, when it is not the one given, why: the
+    paper's :data:`DEFAULT_THRESHOLD` unless it flags more than half of the cells
+    (one zone over the whole face on every real scan), then the data's own (Otsu's
+    split, :func:`rough_viewer.grid.threshold.map_threshold_advice`). A threshold given
+    is used as it is."""
+    from rough_viewer.grid.threshold import map_threshold_advice
+
+    if given is not None:
+        return float(given), ""
+    advice = map_threshold_advice(result, method, DEFAULT_THRESHOLD, keep_outliers=keep_outliers)
+    if not advice.most or advice.suggested is None or advice.suggested_share is None:
+        return DEFAULT_THRESHOLD, ""
+    return float(f"{advice.suggested:.3g}"), (
+        f"threshold {advice.suggested:.3g}, the data's own (Otsu's split, flags "
+        f"{100 * advice.suggested_share:.0f} % of the cells): the paper's "
+        f"{DEFAULT_THRESHOLD:g} flags {100 * advice.share:.0f} %, most of the face; give "
+        f"--threshold {DEFAULT_THRESHOLD:g} to use it")
+
+
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
@@ -166,7 +194,8 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output, write_table
 
-    if not (math.isfinite(args.threshold) and 0.0 <= args.threshold <= 1.0):
+    if args.threshold is not None and not (math.isfinite(args.threshold)
+                                           and 0.0 <= args.threshold <= 1.0):
         raise InputError(f"--threshold must lie in [0, 1], got {args.threshold:g}")
     if args.min_points is not None and args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
@@ -197,9 +226,11 @@ def run(args: argparse.Namespace) -> int:
                     progress=None if quiet else ProgressBar(f"grid {g:g} {u}"), **options)
             labeller = ZoneLabeller.build(result, args.method,
                                           keep_outliers=args.keep_outliers)
+            threshold, chose = zones_threshold(result, args.method, args.threshold,
+                                               keep_outliers=args.keep_outliers)
             zones = labeller.zones(
-                args.threshold, connectivity=args.connectivity, min_cells=args.min_cells)
-            advice = map_threshold_advice(result, args.method, args.threshold,
+                threshold, connectivity=args.connectivity, min_cells=args.min_cells)
+            advice = map_threshold_advice(result, args.method, threshold,
                                           keep_outliers=args.keep_outliers)
             out = outputs["out"][g]
             write_table(out, zones.table())  # the ZONES.csv contract: metres
@@ -213,6 +244,8 @@ def run(args: argparse.Namespace) -> int:
                 names.append(str(cells_out))
             if i:
                 print()
+            if chose:  # said beside the summary, not as a warning on stderr
+                print(chose[0].upper() + chose[1:])
             print(format_zones(zones, result, source=source, unit=unit, advice=advice,
                                keep_outliers=args.keep_outliers))
             written.append("wrote " + " and ".join(names))

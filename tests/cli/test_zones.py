@@ -276,3 +276,31 @@ def test_second_output_too_large_leaves_neither(tmp_path, face):
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip().startswith(f"rough-viewer: error: cannot write {c}: ")
     assert os.listdir(tmp_path) == []
+
+
+def test_the_default_threshold_is_the_datas_when_the_papers_flags_most(tmp_path, face, capsys):
+    """Issue 31: at 0.05 every real scan was one zone over 92-98 % of its cells. Left
+    out, the threshold is the data's own (Otsu's split) when 0.05 flags more than half,
+    said beside the summary; --threshold 0.05 keeps the paper's."""
+    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.grid.threshold import map_threshold_advice
+    from rough_viewer.io import load_points
+
+    paper = map_threshold_advice(grid_roughness(load_points(face), 0.2), "odr", 0.05)
+    assert paper.most and paper.suggested is not None  # this face: 0.05 flags most of it
+    auto, given = tmp_path / "auto.csv", tmp_path / "given.csv"
+    assert main(["zones", str(face), "--grid", "0.2", "--out", str(auto), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    chosen = float(f"{paper.suggested:.3g}")
+    assert f"Threshold {chosen:g}, the data's own (Otsu's split" in said
+    assert "give --threshold 0.05 to use it" in said and f"threshold {chosen:g}," in said
+    assert main(["zones", str(face), "--grid", "0.2", "--threshold", "0.05", "--out", str(given),
+                 "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "the data's own" not in said and "threshold 0.05," in said
+
+    def flagged(path):
+        rows = [r for r in csv.DictReader(line for line in open(path) if not line.startswith("#"))]
+        return sum(int(r["cells"]) for r in rows)
+
+    assert flagged(auto) < flagged(given)
