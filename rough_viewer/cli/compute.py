@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -78,8 +79,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and write one CSV row per cell.",
     )
     add_inputs(p)
-    p.add_argument("--grid", type=float, action="append", required=True, metavar="G",
-                   help="grid cell size in --units (default metres; repeat for several sizes)")
+    p.add_argument("--grid", type=float, action="append", metavar="G",
+                   help="grid cell size in --units (repeat for several sizes; default: from "
+                   "the point spacing, the size at which the typical occupied cell holds 16 "
+                   "points, as report and serve choose)")
     p.add_argument("--method", choices=("odr", "ols", "hybrid", "all"), default="all",
                    help="roughness model (default: all)")
     add_axis(p)
@@ -169,7 +172,11 @@ def run(args: argparse.Namespace) -> int:
     # every length given and shown is in the inputs' unit (--units, else the CRS's)
     adopt_view_units(args)
     unit, _ = resolve_units(paths[0], args.units) if paths else ("m", ())
-    grids = grid_sizes(args.grid, unit)
+    chosen = not args.grid  # the grid comes from the point spacing, once the cloud is read
+    if chosen and wants_chunks(args):
+        raise InputError("give --grid with --memory or --scheduler: the default grid comes "
+                         "from the point spacing of the whole cloud in memory")
+    grids = [1.0] if chosen else grid_sizes(args.grid, unit)  # one placeholder size: one name
     several = len(grids) > 1
     outputs = _outputs(args, grids, several, paths)
     box = crop_from_args(args, unit)
@@ -202,6 +209,8 @@ def run(args: argparse.Namespace) -> int:
             unit), box, unit)
         keep = None if cropped is None else cropped.mask
         dropped = cloud.dropped_nonfinite
+        if chosen:
+            grids, outputs = _chosen_grid(cloud, per, unit, outputs, quiet)
         results = (grid_roughness(
             cloud, g * per, origin=origin, min_points=args.min_points, axis=args.axis,
             models=models, residual=residual,
@@ -225,6 +234,20 @@ def run(args: argparse.Namespace) -> int:
     for line in written:
         print(line)
     return 0
+
+
+def _chosen_grid(cloud: PointCloud, per: float, unit: str,
+                 outputs: dict[str, dict[float, Path]], quiet: bool
+                 ) -> tuple[list[float], dict[str, dict[float, Path]]]:
+    """The grid from the point spacing (``--grid`` left out), in the run's unit, and the
+    outputs keyed by it; said on stderr unless ``quiet``."""
+    from rough_viewer.grid.spacing import default_cell_size
+
+    g = float(f"{default_cell_size(cloud) / per:.6g}")
+    if not quiet:
+        print(f"rough-viewer: grid {g:g} {UNIT_LABELS[unit]} from the point spacing (the "
+              "typical occupied cell holds 16 points); give --grid to choose", file=sys.stderr)
+    return [g], {opt: {g: next(iter(by_grid.values()))} for opt, by_grid in outputs.items()}
 
 
 def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None) -> None:

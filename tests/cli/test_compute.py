@@ -342,3 +342,22 @@ def test_a_four_point_e57_says_why_no_cell_has_a_value(tmp_path, capsys):
     assert "no cell has a value: the 4 points fall into 4 occupied cells" in err
     assert "use a larger --grid" in err and "point spacing" not in err and not out.exists()
     assert main(["compute", str(path), "--grid", "5", "--out", str(out), "--quiet"]) == 0
+
+
+def test_compute_without_grid_takes_the_point_spacings_as_report_and_serve(tmp_path, capsys):
+    """Issue 31: compute needed --grid where report and serve choose one. Left out, the
+    grid is default_cell_size's (said on stderr): the same cells as --grid of that size."""
+    from rough_viewer.grid.spacing import default_cell_size
+    from tests.helpers import rough_surface
+
+    xyz = rough_surface(20_000, seed=3, size=4.0)
+    src = tmp_path / "face.npy"
+    np.save(src, xyz)
+    g = default_cell_size(xyz)
+    auto, given = tmp_path / "auto.csv", tmp_path / "given.csv"
+    assert main(["compute", str(src), "--out", str(auto)]) == 0
+    assert f"rough-viewer: grid {g:g} m from the point spacing" in capsys.readouterr().err
+    assert main(["compute", str(src), "--grid", f"{g:g}", "--out", str(given), "--quiet"]) == 0
+    assert auto.read_text() == given.read_text()
+    assert main(["compute", str(src), "--memory", "1GB", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "give --grid with --memory or --scheduler" in capsys.readouterr().err
