@@ -198,6 +198,17 @@ UNIT_METRES: dict[str, float] = {"m": 1.0, "mm": 1e-3, "ft": 0.3048, "us-ft": 12
 """Metres per unit (the US survey foot is exactly 1200/3937 m)."""
 UNIT_LABELS: dict[str, str] = {"m": "m", "mm": "mm", "ft": "ft", "us-ft": "US ft"}
 """How each unit is written after a number."""
+
+
+def grid_tag(size: float, unit: str = "m") -> str:
+    """``g<G>`` naming a grid size in every file name (the app's downloads, the
+    report's PNGs, the commands' per-grid outputs): ``size`` in ``unit``, the unit
+    written unless metres.
+
+    >>> grid_tag(0.25), grid_tag(2.5, "mm"), grid_tag(1.0, "us-ft")
+    ('g0.25', 'g2.5mm', 'g1us-ft')
+    """
+    return f"g{float(f'{size:.9g}'):g}{'' if unit == 'm' else unit}"
 ROUGHNESS_UNIT: dict[str, Unit] = {"m": "mm", "mm": "mm", "ft": "ft", "us-ft": "us-ft"}
 """Unit roughness (a few mm) is shown in, for each coordinate unit: millimetres for
 metric input (SCIENCE.md: the tools may show mm), the input's own unit otherwise."""

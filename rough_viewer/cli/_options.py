@@ -189,10 +189,13 @@ def at_grid(g: float, unit: str) -> Iterator[None]:
         raise InputError(f"--grid {shown}: {text}") from None
 
 
-def output_name(path: str | Path, grid: float, several: bool) -> Path:
+def output_name(path: str | Path, grid: float, several: bool, unit: str = "m") -> Path:
     """Output path for one grid size: ``name_g<G>.ext`` when there are several
-    (``cells.csv`` -> ``cells_g0.5.csv``; G as given, in the run's unit)."""
+    (``cells.csv`` -> ``cells_g0.5.csv``, ``cells_g2.5mm.csv``: G as given, in the run's
+    unit, named as everywhere: :func:`rough_viewer.vocabulary.grid_tag`)."""
+    from rough_viewer.vocabulary import grid_tag
+
     p = Path(path)
     if not several:
         return p
-    return p.with_name(f"{p.stem}_g{grid:g}{p.suffix}")
+    return p.with_name(f"{p.stem}_{grid_tag(grid, unit)}{p.suffix}")

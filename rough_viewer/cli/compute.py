@@ -178,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
                          "from the point spacing of the whole cloud in memory")
     grids = [1.0] if chosen else grid_sizes(args.grid, unit)  # one placeholder size: one name
     several = len(grids) > 1
-    outputs = _outputs(args, grids, several, paths)
+    outputs = _outputs(args, grids, several, paths, unit)
     box = crop_from_args(args, unit)
     quiet = args.quiet
     per = per_unit(unit)
@@ -279,7 +279,7 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
 
 
 def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
-             inputs: list[Path]) -> dict[str, dict[float, Path]]:
+             inputs: list[Path], unit: str = "m") -> dict[str, dict[float, Path]]:
     """Every output path of the run by option and grid size, all checked before any work."""
     from rough_viewer.io.las_out import check_las_output
     from rough_viewer.io.table import check_table_output
@@ -295,7 +295,7 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
         raise InputError(f"--ply-out must end in .ply, got {args.ply_out}")
     if args.out:
         check_table_output(args.out)
-    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in given.items()}
+    outputs = {opt: {g: output_name(path, g, several, unit) for g in grids} for opt, path in given.items()}
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
                   force=args.force, inputs=inputs)
     return outputs

@@ -80,7 +80,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Path, list[Path]]:
+def _png_targets(directory: str, grids: list[float], *, force: bool, unit: str = "m"
+                 ) -> tuple[Path, list[Path]]:
     from rough_viewer.report import FIGURE_NAMES, check_png_export, png_name
     from rough_viewer.report.html import SCANNER_FIGURE
 
@@ -90,7 +91,7 @@ def _png_targets(directory: str, grids: list[float], *, force: bool) -> tuple[Pa
         raise InputError(f"--png expects a folder, got a file: {d}")
     if not d.parent.is_dir():
         raise InputError(f"output folder does not exist: {d.parent} (for --png {d})")
-    targets = [d / png_name(g, f) for g in grids for f in (*FIGURE_NAMES, SCANNER_FIGURE)]
+    targets = [d / png_name(g, f, unit) for g in grids for f in (*FIGURE_NAMES, SCANNER_FIGURE)]
     if d.is_symlink():
         raise InputError(f"--png folder is a symbolic link, refused: {d}")
     if d.is_dir():
@@ -153,7 +154,8 @@ def run(args: argparse.Namespace) -> int:
         settings = replace(settings, grid_sizes=tuple(g * per for g in given))
     png_dir = None
     if args.png and given is not None:
-        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force)
+        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force,
+                                  unit=cloud.source_unit)
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     warn(report.warnings[len(cloud.warnings):])
     if args.directions is not None:

@@ -203,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
     for opt, path in wanted:
         if opt in ("out", "planes_out", "cells_out"):
             check_table_output(path)
-    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in wanted}
+    outputs = {opt: {g: output_name(path, g, several, unit) for g in grids} for opt, path in wanted}
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
                   force=args.force, inputs=inputs)
     quiet = args.quiet

@@ -207,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
     grids = grid_sizes(args.grid, unit)
     several = len(grids) > 1
     wanted = [("out", args.out), *([("cells_out", args.cells_out)] if args.cells_out else [])]
-    outputs = {opt: {g: output_name(path, g, several) for g in grids} for opt, path in wanted}
+    outputs = {opt: {g: output_name(path, g, several, unit) for g in grids} for opt, path in wanted}
     paths = [p for by_grid in outputs.values() for p in by_grid.values()]
     for path in paths:
         check_table_output(path)

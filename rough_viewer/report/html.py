@@ -115,9 +115,17 @@ def figures_and_errors(report: Report, section: GridSection, *,
     return figures, errors
 
 
-def png_name(grid_size: float, figure: str) -> str:
-    """File name of one exported figure: ``g<G>_<figure>.png``."""
-    return f"g{grid_size:g}_{figure}.png"
+def png_name(grid_size: float, figure: str, unit: str = "m") -> str:
+    """File name of one exported figure: ``g<G>_<figure>.png``, the grid size (metres)
+    in ``unit`` and named as everywhere (:func:`rough_viewer.vocabulary.grid_tag`:
+    ``g2.5mm_summary.png`` for a 2.5 mm grid).
+
+    >>> png_name(0.0025, "summary", "mm")
+    'g2.5mm_summary.png'
+    """
+    from rough_viewer.vocabulary import UNIT_METRES, grid_tag
+
+    return f"{grid_tag(grid_size / UNIT_METRES[unit], unit)}_{figure}.png"
 
 
 FIGURE_NAMES = ("summary", "maps_normalised", "maps_binary", "histogram", "variogram",
@@ -365,7 +373,7 @@ def png_figures(report: Report) -> list[tuple[str, Any]]:
     """``(file name, figure)`` for every figure of every grid section, for PNG export
     (``fig.to_image(format="png")`` needs kaleido: see :func:`check_png_export`)."""
     return [
-        (png_name(s.grid_size, key), fig)
+        (png_name(s.grid_size, key, report.unit), fig)
         for s in report.sections
         for key, fig in report_figures(report, s).items()
     ]

@@ -62,6 +62,7 @@ from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
 from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import grid_tag as vocabulary_grid_tag
 
 if TYPE_CHECKING:
     from viser._gui_handles import GuiProgressBarHandle
@@ -112,7 +113,7 @@ def grid_tag(loaded: LoadedCloud, cell_size: float) -> str:
     """``g<G>`` of a download's name: the grid size as the app shows it, in the
     cloud's unit, the unit named unless metres (``g0.25``, ``g2.5mm``, ``g1ft``)."""
     u = loaded.units
-    return f"g{u.length(cell_size):g}{'' if u.unit == 'm' else u.unit}"
+    return vocabulary_grid_tag(u.length(cell_size), u.unit)
 
 
 def safe_name(text: str, default: str = "cloud") -> str:
