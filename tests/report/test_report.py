@@ -503,3 +503,24 @@ def test_outliers_are_left_out_and_the_threshold_judged():
     page = report_html(rep)
     assert "hybrid outliers (larger than the cell), kept" in page
     assert "threshold 0.05 flags" in page
+
+
+def test_default_grids_of_a_small_cloud_leave_out_the_too_coarse():
+    """Issue 31: the default report grids gave "too few cells" on 2 of 4 grids of
+    laspy's small sample files. A 1,000-point 10 m face keeps the presets that make at
+    least MIN_CELLS cells: every section of its report has results."""
+    from rough_viewer.grid.spacing import preset_cell_sizes
+    from rough_viewer.report.build import MIN_CELLS, default_report_grids
+
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(0, 10, (1000, 2)), 0.01 * rng.standard_normal(1000)])
+    cloud = PointCloud.from_xyz(pts)
+    presets = preset_cell_sizes(cloud)
+    grids = default_report_grids(cloud)
+    assert grids == presets[2:]  # 12 m and 6 m cells: 1 and 4 cells on a 10 m face
+    for g in presets:  # brute force: occupied cells of each preset
+        cells = np.unique(np.floor((pts - pts.min(axis=0)) / g), axis=0).shape[0]
+        assert (cells >= MIN_CELLS) == (g in grids)
+    report = build_report(cloud)
+    assert [s.grid_size for s in report.sections] == list(grids)
+    assert all(s.error is None for s in report.sections)
