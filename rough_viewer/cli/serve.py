@@ -221,23 +221,8 @@ def _run(args: argparse.Namespace) -> int:
     data_dir = _check_options(args)
     if opened is not None and opened.data_dir is not None and args.data_dir is None:
         data_dir = opened.data_dir
-    if opened is not None:
-        from rough_viewer.cli._inputs import load_inputs
 
-        cloud = _with_scanners(
-            load_inputs([opened.input_path], units=opened.view.units, quiet=True),
-            [opened.input_path], args)
-    else:
-        cloud = _load_cloud(args)
-        if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
-            settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
-                                    model=args.model, axis=args.axis,
-                                    min_points=args.min_points)
-            check_settings(settings)
-    if not args.inputs and opened is None:  # files: load_inputs said them already, once
-        for warning in cloud.warnings:
-            print(f"rough-viewer: warning: {warning}", file=sys.stderr)
-
+    _check_source(args, opened)  # what can be refused at once is, before the server opens
     from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app
 
@@ -246,9 +231,33 @@ def _run(args: argparse.Namespace) -> int:
                                    token=None if args.no_token else new_token(),
                                    allow_origins=args.allow_origin,
                                    max_connections=args.max_connections)
+    url = gate.url(args.host, server.get_port())
+    what = _what_loads(args, opened)
+    # the address first: the page says what it is waiting for until the cloud is read
+    print(f"rough-viewer: listening at {url} ; reading {what}, the page fills in once it "
+          "is ready", file=sys.stderr, flush=True)
+    waiting = server.gui.add_markdown(f"**Reading {_markdown_text(what)}…** the map appears "
+                                      "when the cloud is read and its first grid computed.")
     app = None
     previous = _stop_on_terminate()
     try:
+        if opened is not None:
+            from rough_viewer.cli._inputs import load_inputs
+
+            cloud = _with_scanners(
+                load_inputs([opened.input_path], units=opened.view.units, quiet=True),
+                [opened.input_path], args)
+        else:
+            cloud = _load_cloud(args)
+            if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
+                settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+                                        model=args.model, axis=args.axis,
+                                        min_points=args.min_points)
+                check_settings(settings)
+        if not args.inputs and opened is None:  # files: load_inputs said them already, once
+            for warning in cloud.warnings:
+                print(f"rough-viewer: warning: {warning}", file=sys.stderr)
+        waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
         presets = grid_presets(cloud)
         if settings is None:  # the cloud's default grid (its finest preset)
             settings = MapSettings(cell_size=presets[-1], model=args.model,
@@ -256,6 +265,7 @@ def _run(args: argparse.Namespace) -> int:
             check_settings(settings)
         from rough_viewer.cli._scanner import trust_settings
 
+        waiting.remove()
         app = build_app(server, cloud, settings=settings,
                         max_display=min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
                         point_budget=args.point_budget,
@@ -275,8 +285,7 @@ def _run(args: argparse.Namespace) -> int:
             app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened.notice:
                 print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
-        print(f"rough-viewer: {cloud.n:,} points, open {gate.url(args.host, server.get_port())}",
-              flush=True)
+        print(f"rough-viewer: {cloud.n:,} points, open {url}", flush=True)
         if app.host.errors:
             print(f"rough-viewer: warning: {app.host.errors[-1]}", file=sys.stderr)
         while not args.no_block:
@@ -289,6 +298,44 @@ def _run(args: argparse.Namespace) -> int:
         server.stop()
         _restore_signals(previous)
     return 0
+
+
+def _check_source(args: argparse.Namespace, opened: object) -> None:
+    """Refuse at once what :func:`_load_cloud` would refuse without reading: INPUT with
+    --demo, a missing input file, an unknown demo."""
+    if opened is not None:
+        return
+    if args.inputs and args.demo:
+        raise InputError("give either INPUT or --demo, not both")
+    if args.inputs:
+        from rough_viewer.cli._inputs import input_paths
+
+        input_paths(args)
+        return
+    try:
+        from rough_viewer.synthetic import demos
+    except ImportError:
+        raise InputError("no demo data in this installation; give a point-cloud file") from None
+    name = args.demo or "outcrop"
+    if name not in {d.name for d in demos.list_demos()}:
+        raise InputError(f"unknown demo {name!r}")
+
+
+def _what_loads(args: argparse.Namespace, opened: object) -> str:
+    """What serve reads before its first map, as the terminal and the waiting page say
+    it (file names only: the page never shows the server's folders)."""
+    if opened is not None:
+        return Path(str(getattr(opened, "input_path", "the view's input"))).name
+    if args.inputs:
+        names = [Path(str(p)).name for p in args.inputs]
+        return names[0] if len(names) == 1 else f"{len(names)} files"
+    return f"the {args.demo or 'outcrop'} demo"
+
+
+def _markdown_text(text: str) -> str:
+    """``text`` with Markdown's and HTML's special characters escaped (a file name is
+    the user's, shown in every browser)."""
+    return "".join("\\" + c if c in "\\`*_{}[]()#+-.!|<>&" else c for c in text)
 
 
 def _stop_on_terminate() -> dict[int, object]:

@@ -159,3 +159,40 @@ def test_serve_says_a_files_warnings_once(tmp_path, capsys):
     las.write(str(path))
     assert main(["serve", str(path), "--port", "0", "--grid", "0.001", "--no-block"]) == 0
     assert capsys.readouterr().err.count("is geographic (degrees)") == 1
+
+
+def test_serve_says_its_address_first_and_answers_while_it_reads(tmp_path):
+    """Issue 31: a fresh serve printed its URL 30-60 s after start on a loaded machine
+    (after the cloud and its first map). The address comes first (stderr), the page
+    answers at once, and the usual "N points, open URL" line follows when ready."""
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    path = _cloud(tmp_path)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from rough_viewer.cli import main; raise SystemExit(main())",
+         "serve", str(path), "--port", "0", "--grid", "0.5"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+    try:
+        assert proc.stderr is not None and proc.stdout is not None
+        first = proc.stderr.readline()
+        m = re.search(r"^rough-viewer: listening at (http://127\.0\.0\.1:\d+/t/[A-Za-z0-9_-]{32}/)"
+                      r" ; reading pts\.npy, the page fills in once it is ready$", first.strip())
+        assert m, first
+        url = m.group(1)
+        end = time.time() + 30
+        while True:  # the page is served while the cloud is read and its first map made
+            try:
+                with urllib.request.urlopen(url, timeout=5) as page:
+                    assert page.status == 200
+                break
+            except OSError:
+                assert time.time() < end
+                time.sleep(0.1)
+        ready = proc.stdout.readline()
+        assert ready.strip() == f"rough-viewer: 5,000 points, open {url}"
+    finally:
+        proc.terminate()
+        proc.wait(30)
