@@ -21,7 +21,10 @@ module composes them and knows no feature's fields:
 The data-folder rule (as for ``serve INPUT``): the browser may only ever read files
 in the data folder, and a view names its input itself, so a view's input must lie in
 the data folder: ``--data-dir``, or by default the folder of the view file. The
-bundled demo scans are always allowed. An input given on the command line
+bundled demo scans are always allowed, and so is an input outside the data folder
+whose content (SHA-256) is the one the view was saved from (a downloaded view sits in
+the Downloads folder, never beside the data): it opens with a note, and the data
+folder, what a browser may read, stays as it was. An input given on the command line
 (``serve INPUT --view VIEW.json``) is the operator's choice and opens as usual; the
 view's hash then says whether it is the same file.
 """
@@ -222,9 +225,18 @@ def open_view(view_file: str | os.PathLike[str], *, inputs: Sequence[Path] = (),
     if not folder.is_dir():
         raise InputError(f"--data-dir is not a folder: {folder}")
     path = check.path.resolve()
-    if not path.is_relative_to(folder.resolve()) and not _is_bundled_demo(path):
-        raise InputError(f"view file {vf}: its input {path} lies outside the data folder "
-                         f"{folder}; pass --data-dir with a folder that holds it, or give "
-                         "the input file as INPUT")
     notice = "" if check.status == "unchanged" else check.message
+    if not path.is_relative_to(folder.resolve()) and not _is_bundled_demo(path):
+        if check.status not in ("unchanged", "moved"):  # its content is not the view's
+            raise InputError(f"view file {vf}: its input {path} lies outside the data folder "
+                             f"{folder} and is not the file the view was saved from; pass "
+                             "--data-dir with a folder that holds it, or give the input "
+                             "file as INPUT")
+        # a browser download never sits beside the data: the input the view names opens
+        # when its content is the view's (SHA-256), and the data folder stays the view's
+        # own, so browsers still read nothing else outside it
+        notice = "; ".join(t for t in (notice, (
+            f"the view's input {path} lies outside the data folder {folder}: opened because "
+            "its content is the view's; files a browser loads stay in the data folder "
+            "(--data-dir)")) if t)
     return OpenedView(loaded, path, folder, settings, notice)

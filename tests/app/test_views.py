@@ -230,18 +230,28 @@ def test_changed_input_is_said(scan, server):
         app.stop()
 
 
-def test_input_outside_the_data_folder_is_refused(scan, tmp_path):
+def test_input_outside_the_data_folder_opens_only_with_the_views_content(scan, tmp_path):
+    """Issue 31: a browser download never sits beside the data, so --view refused every
+    downloaded view. The input it names opens when its content is the view's (a note
+    says so, and the data folder, what browsers may read, stays the view's folder); an
+    input with another content outside the data folder is still refused."""
     elsewhere = tmp_path / "downloads"
     elsewhere.mkdir()
     view_file = save_view(elsewhere / "v.json", _view(scan))
-    with pytest.raises(InputError, match="lies outside the data folder"):
-        open_view(view_file)
+    opened = open_view(view_file)
+    assert opened.input_path == scan.resolve() and opened.data_dir == elsewhere.resolve()
+    assert "lies outside the data folder" in opened.notice and "its content is the view's" \
+        in opened.notice
     assert open_view(view_file, data_dir=scan.parent).input_path == scan.resolve()
+    assert open_view(view_file, data_dir=scan.parent).notice == ""
     # an input given on the command line is the operator's choice; the hash compares it
     other = tmp_path / "other.las"
     make_pf3(other, n=500, seed=3)
     assert "not the file the view was saved from" in open_view(view_file, inputs=[other]).notice
     assert open_view(view_file, inputs=[scan]).notice == ""
+    make_pf3(scan, n=8000, seed=9)  # same name, other content: not the view's input
+    with pytest.raises(InputError, match="lies outside the data folder .* and is not the file"):
+        open_view(view_file)
 
 
 def _hostile(scan: Path, tmp_path: Path, change) -> Path:
