@@ -24,7 +24,11 @@ PROGRESS_INTERVAL_S = 0.1
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    """Ask Linux to kill this process when its parent dies (``PR_SET_PDEATHSIG``)."""
+    """Ask Linux to kill this process when its parent dies (``PR_SET_PDEATHSIG``).
+
+    Linux sends that signal when the parent THREAD that started the child ends, not
+    the parent process; so the parent starts every child from one thread that lives
+    as long as it does (:func:`rough_viewer.io.isolate.spawn`)."""
     try:
         import ctypes
         import signal
@@ -53,7 +57,17 @@ def _limit_memory(budget: int) -> None:
 
     limit = _vm_size() + max(0, budget) + CHILD_ALLOWANCE \
         + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1)
-    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    resource.setrlimit(resource.RLIMIT_AS, (address_limit(limit), address_limit(limit)))
+
+
+def address_limit(wanted: int) -> int:
+    """``wanted`` bytes of address space, or less: the hard ``RLIMIT_AS`` this
+    process inherited (``ulimit -v``) when that is lower, since no process may raise
+    its hard limit."""
+    import resource
+
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    return wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
 
 
 def _resolve(ref: str) -> Any:

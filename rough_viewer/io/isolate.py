@@ -19,7 +19,8 @@ interpreter, safe however many threads the parent runs, no pickled functions):
 - **cancellation**: the parent calls the caller's ``progress(done, total)`` while
   it waits (the app's jobs pass one that raises when the job is cancelled) and
   kills the child when it raises; Ctrl-C and SIGTERM kill it too, and the child
-  dies with its parent (``PR_SET_PDEATHSIG``);
+  dies with its parent process (``PR_SET_PDEATHSIG``, every child started from one
+  thread that lives as long as the process: :func:`spawn`);
 - **results**: the points come back through shared memory (a ``memfd`` the child
   fills and passes over a Unix socket, mapped by the parent without a copy), never
   a pickle; the parent checks every array's type, shape and place before use;
@@ -41,6 +42,7 @@ import dataclasses
 import json
 import mmap
 import os
+import queue
 import selectors
 import signal
 import socket
@@ -371,6 +373,53 @@ class _Child:
             return ""
 
 
+class _Launcher:
+    """One thread that starts every child and lives as long as this process.
+
+    A child asks Linux to kill it when its parent dies (``PR_SET_PDEATHSIG``), and
+    Linux counts the death of the parent THREAD that started it: a spare started by a
+    short-lived thread (the one that replenishes the spare, a job's worker) was
+    killed as soon as that thread ended (issue 36). Children started here die with
+    the process only."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+        self.requests: queue.SimpleQueue[tuple[Callable[[], Any], queue.SimpleQueue[Any]]] = \
+            queue.SimpleQueue()
+        threading.Thread(target=self._run, daemon=True, name="rough-viewer-launcher").start()
+
+    def _run(self) -> None:
+        while True:
+            make, answer = self.requests.get()
+            try:
+                answer.put((True, make()))
+            except BaseException as exc:  # noqa: BLE001 - the caller re-raises it
+                answer.put((False, exc))
+
+    def call(self, make: Callable[[], Any]) -> Any:
+        answer: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.requests.put((make, answer))
+        ok, value = answer.get()
+        if not ok:
+            raise value
+        return value
+
+
+_launcher: _Launcher | None = None
+_launcher_lock = threading.Lock()
+
+
+def spawn() -> _Child:
+    """A new child, started from :class:`_Launcher`'s thread."""
+    global _launcher
+    with _launcher_lock:
+        if _launcher is None or _launcher.pid != os.getpid():  # none yet, or a fork
+            _launcher = _Launcher()
+        launcher = _launcher
+    child: _Child = launcher.call(_Child)
+    return child
+
+
 _lock = threading.Lock()
 _spare: _Child | None = None
 _keep_warm = False
@@ -390,7 +439,7 @@ def warm(*, keep: bool = False) -> None:
         old, _spare = _spare, None
     if old is not None:
         old.close()
-    child = _Child()
+    child = spawn()
     with _lock:
         if _spare is None:
             _spare = child
@@ -407,7 +456,7 @@ def _take() -> _Child:
         child.close()
         child = None
     if child is None:
-        child = _Child()
+        child = spawn()
     if keep:
         threading.Thread(target=_replenish, daemon=True, name="rough-viewer-warm").start()
     return child
