@@ -37,6 +37,7 @@ lattice spacing is the point spacing.
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -88,12 +89,15 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
     grid = np.asarray(z)
     if grid.ndim != 2 or grid.size == 0:
         raise InputError(f"{path} holds no 2-D elevation grid (shape {grid.shape})")
+    if grid.dtype.kind not in "biuf":
+        raise InputError(f"{path} holds {grid.dtype} values, not heights (an elevation "
+                         "raster holds real numbers): not read")
     rows, cols = grid.shape
     require(float(grid.size) * BYTES_PER_CELL, f"reading the {cols:,} x {rows:,} raster {path}",
             hint="crop or resample the raster first")
     heights = grid.astype(np.float64, copy=True).ravel()
-    if nodata is not None and np.isfinite(nodata):
-        heights[heights == nodata] = np.nan
+    if nodata is not None:
+        heights[nodata_cells(grid, nodata).ravel()] = np.nan
     r, c = np.divmod(np.arange(heights.size, dtype=np.int64), cols)
     a = np.asarray(affine, dtype=np.float64)
     x = a[0, 0] * c + a[0, 1] * r + a[0, 2]
@@ -101,34 +105,72 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
     return finite_cloud(x, y, heights, None, path)
 
 
+def nodata_cells(grid: np.ndarray, nodata: float) -> np.ndarray:
+    """Where ``grid`` holds its nodata value, compared in the grid's own type as GDAL
+    does: a float32 band's ``-9999.9`` is the float32 nearest it (in float64 no cell
+    equals it), within 1e-10 of float32's largest magnitude that magnitude (GDAL's
+    ``-3.4028234663852886e+38``); an integer band's nodata is a
+    whole number within its type's range, or no cell is nodata. NaN: no cell here
+    (NaN cells are dropped anyway).
+
+    >>> nodata_cells(np.array([1.0, -9999.9], dtype=np.float32), -9999.9).tolist()
+    [False, True]
+    """
+    if grid.dtype.kind == "f":
+        top = float(np.finfo(np.float32).max)
+        if grid.dtype == np.float32 and abs(abs(nodata) - top) < 1e-10 * top:
+            nodata = math.copysign(top, nodata)  # GDALAdjustNoDataCloseToFloatMax
+        with np.errstate(over="ignore", invalid="ignore"):
+            value = grid.dtype.type(nodata)
+        return np.asarray(grid == value)
+    if grid.dtype.kind in "iu" and math.isfinite(nodata) and nodata == int(nodata):
+        info = np.iinfo(grid.dtype)
+        if info.min <= int(nodata) <= info.max:
+            return np.asarray(grid == grid.dtype.type(int(nodata)))
+    return np.zeros(grid.shape, dtype=bool)
+
+
 # ----------------------------------------------------------------------------- ESRI ASCII
 
 
 def _esri_header(p: Path) -> tuple[dict[str, float], int]:
-    """The header values and the number of header lines."""
+    """The header values and the number of header lines.
+
+    Bounded before it is read (it runs in the server's own process, for the memory
+    estimate): a header line may be at most :data:`~rough_viewer.io.ply.MAX_HEADER_LINE`
+    bytes and the header :data:`~rough_viewer.io.ply.MAX_HEADER_BYTES`, as PLY's; a
+    line of data is recognised by its first bytes, never read whole here."""
+    from rough_viewer.io.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
+
     head: dict[str, float] = {}
     lines = 0
-    with open(p, encoding="ascii", errors="replace") as fh:
-        for line in fh:
-            fields = line.split()
+    with open(p, "rb") as fh:
+        while True:
+            raw = fh.readline(MAX_HEADER_LINE + 1)
+            fields = raw.decode("ascii", errors="replace").split()
+            if not raw or fields and not fields[0][:1].isalpha():
+                break  # the end, or the first row of values
+            if len(raw) > MAX_HEADER_LINE or fh.tell() > MAX_HEADER_BYTES:
+                raise InputError(f"{p} is not an ESRI ASCII grid: a header line longer than "
+                                 f"{MAX_HEADER_LINE:,} bytes or a header longer than "
+                                 f"{MAX_HEADER_BYTES:,}")
+            lines += 1
             if not fields:
-                lines += 1
                 continue
+            line = " ".join(fields)
             key = fields[0].lower()
-            if not key[:1].isalpha():
-                break
             if key not in _ESRI_KEYS or len(fields) != 2:
                 raise InputError(f"{p} is not an ESRI ASCII grid: unknown header line "
-                                 f"{line.strip()[:60]!r}")
+                                 f"{line[:60]!r}")
             try:
                 head[key] = float(fields[1])
             except ValueError:
-                raise InputError(f"{p}: header value {line.strip()[:60]!r} is not a "
-                                 "number") from None
-            lines += 1
+                raise InputError(f"{p}: header value {line[:60]!r} is not a number") from None
     for need in ("ncols", "nrows"):
-        if need not in head or head[need] < 1 or head[need] != int(head[need]):
-            raise InputError(f"{p} is not an ESRI ASCII grid: no whole {need} in its header")
+        value = head.get(need, 0.0)
+        if not (math.isfinite(value) and value >= 1 and value == int(value)):
+            raise InputError(f"{p} is not an ESRI ASCII grid: no whole {need} in its header"
+                             + (f" (it gives {value:g})" if need in head else ""))
     return head, lines
 
 

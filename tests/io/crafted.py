@@ -170,3 +170,45 @@ def e57_without_data(path: Path) -> Path:
     ErrorPathUndefined)."""
     path.write_bytes(e57_bytes((_E57_HEAD + "</e57Root>").encode()))
     return path
+
+
+#: What :func:`parent_peak` runs: ``load_points`` (or ``read_crs``) of a file in a fresh
+#: interpreter, then that interpreter's own peak resident memory (its reader child, where
+#: reads are isolated, is another process and not counted).
+_PEAK_SCRIPT = """
+import resource, sys
+from rough_viewer.io import load_points, read_crs
+from rough_viewer.vocabulary import InputError
+try:
+    {call}(sys.argv[1])
+    print("ok")
+except InputError as exc:
+    print("error", exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+def parent_peak(path: Path, call: str = "load_points") -> tuple[str, int]:
+    """(the outcome's first line: ``ok`` or ``error <message>``, the peak resident
+    memory in bytes) of ``call(path)`` in a fresh Python process."""
+    import os
+    import subprocess
+    import sys
+
+    root = str(Path(__file__).parents[2])
+    done = subprocess.run([sys.executable, "-c", _PEAK_SCRIPT.format(call=call), str(path)],
+                          capture_output=True, text=True, timeout=300, cwd=root,
+                          env=dict(os.environ, PYTHONPATH=root), check=True)
+    lines = done.stdout.strip().splitlines()
+    return lines[0], int(lines[-1])
+
+
+def asc_header_bomb(path: Path, n_bytes: int) -> Path:
+    """An ESRI grid whose first line is ``ncols`` and ``n_bytes`` of letters."""
+    with open(path, "wb") as fh:
+        fh.write(b"ncols ")
+        block = b"a" * (1 << 20)
+        for _ in range(n_bytes >> 20):
+            fh.write(block)
+        fh.write(b"\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n")
+    return path
