@@ -111,6 +111,9 @@ def _serve(sock: Any) -> None:
         reader = _resolve(str(request["reader"]))
         _limit_memory(int(request.get("memory", 0)))
         options = dict(request.get("options") or {})
+        if request.get("op") == "call":  # a small JSON answer (a header's facts)
+            isolate.send(sock, {"t": "value", "value": reader(Path(path), **options)})
+            return
         if request.get("op") == "stream":
             for item in reader(Path(path), progress=progress, **options):
                 fd, layout = isolate.pack(item)

@@ -16,6 +16,7 @@ carry no CRS.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from dataclasses import dataclass
@@ -24,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rough_viewer.io.cloud import check_input_file
-from rough_viewer.vocabulary import CrsUnit, foreign_errors
+from rough_viewer.vocabulary import CrsUnit, InputError, foreign_errors
 
 #: EPSG unit-of-measure codes (GeoTIFF ProjLinearUnitsGeoKey) -> unit.
 EPSG_UNITS: dict[int, CrsUnit] = {9001: "m", 9002: "ft", 9003: "us-ft"}
@@ -65,8 +66,23 @@ class CrsInfo:
 NO_CRS = CrsInfo()
 
 
+#: Address space a child may add to read a file's CRS, bytes: a WKT of at most
+#: :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
+#: than this allows are a crafted file.
+CRS_READ_BUDGET = 256 << 20
+#: The format of a CRS's file as messages name it, by suffix.
+_CRS_LABELS = {".las": "LAS", ".laz": "LAZ", ".tif": "GeoTIFF", ".tiff": "GeoTIFF",
+               ".asc": "ESRI grid"}
+
+
 def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     """The CRS a point file declares (header only; no points are decoded).
+
+    Whatever the file says is parsed in a reader child process where reads are
+    isolated (:func:`rough_viewer.io.isolate.call_isolated`: a WKT, GeoTIFF tags, a
+    ``.prj``), and bounded in bytes before it is read (:func:`crs_here`); this process
+    only walks a LAS header's record table (bounded, :func:`~rough_viewer.io.las.check_las_layout`)
+    and checks the child's answer.
 
     Parameters
     ----------
@@ -82,19 +98,79 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     Raises
     ------
     InputError
-        A LAS/LAZ file whose header cannot be read.
+        A LAS/LAZ file whose header cannot be read, a CRS record or ``.prj`` longer
+        than :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
     """
+    from rough_viewer.io import isolate
+
     p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".e57":
+        return CrsInfo(description=None, unit="m", source="e57")
+    if suffix not in _CRS_LABELS:
+        return NO_CRS
+    if suffix in (".las", ".laz"):
+        from rough_viewer.io.las import check_las_layout
+
+        check_input_file(p)
+        if not check_las_layout(p).crs_records:
+            return NO_CRS
+    elif suffix == ".asc":
+        from rough_viewer.io.dem import prj_beside
+
+        if prj_beside(p) is None:
+            return NO_CRS
+    else:
+        check_input_file(p)
+    if not isolate.available():
+        return crs_here(p)
+    value = isolate.call_isolated(
+        f"{__name__}:crs_fields", p, label=_CRS_LABELS[suffix],
+        limits=isolate.Limits(memory=CRS_READ_BUDGET, seconds=isolate.time_limit(0)))
+    return crs_from_fields(value, p)
+
+
+def crs_here(p: Path) -> CrsInfo:
+    """:func:`read_crs` in this process (the reader child's part)."""
     suffix = p.suffix.lower()
     if suffix in (".las", ".laz"):
         return _las_crs(p)
-    if suffix == ".e57":
-        return CrsInfo(description=None, unit="m", source="e57")
     if suffix in (".tif", ".tiff"):
         return _geotiff_crs(p)
     if suffix == ".asc":
         return _prj_crs(p)
     return NO_CRS
+
+
+def crs_fields(p: Path, **_: object) -> dict[str, object]:
+    """:func:`crs_here` as JSON fields (what the reader child sends back)."""
+    return dataclasses.asdict(crs_here(p))
+
+
+_UNITS_KNOWN = frozenset(EPSG_UNITS.values())
+_SOURCES = frozenset({"", "wkt", "geotiff", "e57"})
+
+
+def crs_from_fields(value: object, p: Path) -> CrsInfo:
+    """The :class:`CrsInfo` of a reader child's answer (:func:`crs_fields`), every
+    field checked: text, a known unit, a whole EPSG code, a flag, a known source.
+
+    Raises InputError naming ``p`` for anything else."""
+    fields = {f.name for f in dataclasses.fields(CrsInfo)}
+    ok = isinstance(value, dict) and set(value) <= fields
+    if ok:
+        assert isinstance(value, dict)
+        d, e = value.get("description"), value.get("epsg")
+        ok = ((d is None or isinstance(d, str))
+              and (e is None or isinstance(e, int) and not isinstance(e, bool))
+              and all(value.get(k) is None or value.get(k) in _UNITS_KNOWN
+                      for k in ("unit", "vertical_unit"))
+              and isinstance(value.get("geographic", False), bool)
+              and value.get("source", "") in _SOURCES)
+    if not ok:
+        raise InputError(f"the CRS reader gave a damaged answer for {p}")
+    assert isinstance(value, dict)
+    return CrsInfo(**value)
 
 
 def _geotiff_crs(p: Path) -> CrsInfo:
@@ -110,29 +186,31 @@ def _geotiff_crs(p: Path) -> CrsInfo:
 
 
 def _prj_crs(p: Path) -> CrsInfo:
-    """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any."""
+    """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any (at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`)."""
     from rough_viewer.io.dem import prj_beside
+    from rough_viewer.io.las import MAX_CRS_RECORD_BYTES
 
     prj = prj_beside(p)
     if prj is None:
         return NO_CRS
     with foreign_errors(f"cannot read {prj}"):
-        text = prj.read_text(encoding="utf-8", errors="replace").strip()
+        with open(prj, "rb") as fh:
+            data = fh.read(MAX_CRS_RECORD_BYTES + 1)
+    if len(data) > MAX_CRS_RECORD_BYTES:
+        raise InputError(f"{prj} is longer than the {MAX_CRS_RECORD_BYTES:,} bytes a CRS "
+                         "(WKT) takes: not a .prj file")
+    text = data.decode("utf-8", errors="replace").strip()
     return parse_wkt_crs(text) if text else NO_CRS
 
 
 def _las_crs(p: Path) -> CrsInfo:
-    from rough_viewer.io.las import open_las
+    """The CRS records of a LAS/LAZ file, read from their raw bytes (each at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`) without laspy."""
+    from rough_viewer.io.las import check_las_layout, las_crs_records
 
     check_input_file(p)
-    with foreign_errors(f"cannot read the header of {p}"), open_las(p) as reader:
-        records = list(reader.header.vlrs) + list(reader.header.evlrs or [])
-    raw: dict[int, bytes] = {}
-    for vlr in records:
-        if vlr.user_id.rstrip("\0") != "LASF_Projection":
-            continue
-        data = vlr.record_data_bytes() if hasattr(vlr, "record_data_bytes") else vlr.record_data
-        raw[int(vlr.record_id)] = bytes(data)
+    raw = las_crs_records(p, check_las_layout(p))
     if 2112 in raw:
         text = raw[2112].decode("utf-8", errors="replace").rstrip("\0").strip()
         if text:

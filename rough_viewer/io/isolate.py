@@ -706,6 +706,33 @@ def stream_isolated(reader: str, path: str | os.PathLike[str], *, label: str,
         session.close()
 
 
+def call_isolated(function: str, path: str | os.PathLike[str], *, label: str,
+                  limits: Limits, options: Mapping[str, Any] | None = None) -> object:
+    """Run ``function`` (``"module:function"``, called in the child as
+    ``function(path, **options)``) on ``path`` in a child process and return what it
+    returns: a JSON value of at most :data:`MAX_MESSAGE` bytes, which the caller
+    must check (what a file's header says, parsed where the file cannot hurt).
+
+    Raises
+    ------
+    InputError
+        As :func:`read_isolated`.
+    """
+    p = Path(path)
+    session = _Session({"op": "call", "reader": function, "path": os.fspath(p),
+                        "options": dict(options or {})},
+                       label=label, path=p, limits=limits, progress=None, expected=0)
+    try:
+        message, fds = session.wait()
+        for fd in fds:
+            os.close(fd)
+        if message.get("t") != "value" or fds:
+            raise session.fail(f"the {label} reader gave no answer for {p}")
+        return message.get("value")
+    finally:
+        session.close()
+
+
 def run_reader(reader: str, call: Callable[[], PointCloud], path: str | os.PathLike[str], *,
                isolate: bool, label: str, limits: Limits, progress: ProgressFn | None,
                options: Mapping[str, Any] | None = None, expected: int = 0) -> PointCloud:
