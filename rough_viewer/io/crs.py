@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,11 +79,14 @@ _CRS_LABELS = {".las": "LAS", ".laz": "LAZ", ".tif": "GeoTIFF", ".tiff": "GeoTIF
 def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     """The CRS a point file declares (header only; no points are decoded).
 
-    Whatever the file says is parsed in a reader child process where reads are
-    isolated (:func:`rough_viewer.io.isolate.call_isolated`: a WKT, GeoTIFF tags, a
-    ``.prj``), and bounded in bytes before it is read (:func:`crs_here`); this process
-    only walks a LAS header's record table (bounded, :func:`~rough_viewer.io.las.check_las_layout`)
-    and checks the child's answer.
+    A WKT (LAS record or ``.prj``) and GeoTIFF tags are parsed in a reader child
+    process where reads are isolated (:func:`rough_viewer.io.isolate.call_isolated`;
+    the answer kept for the file's identity, :data:`CRS_CACHE_ENTRIES`), and every
+    record is bounded in bytes before it is read (:func:`crs_here`). This process
+    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.las.check_las_layout`),
+    parses a LAS file's GeoKeys when it has no WKT (three records of at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
+    child's answer.
 
     Parameters
     ----------
@@ -109,25 +113,60 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
         return CrsInfo(description=None, unit="m", source="e57")
     if suffix not in _CRS_LABELS:
         return NO_CRS
+    described = p
     if suffix in (".las", ".laz"):
         from rough_viewer.io.las import check_las_layout
 
         check_input_file(p)
-        if not check_las_layout(p).crs_records:
+        records = {record_id for record_id, _, _ in check_las_layout(p).crs_records}
+        if not records:
             return NO_CRS
+        if WKT_RECORD not in records:  # GeoKeys only: 3 x 64 KiB at most, parsed in ~1 MB
+            return _las_crs(p)
     elif suffix == ".asc":
         from rough_viewer.io.dem import prj_beside
 
-        if prj_beside(p) is None:
+        prj = prj_beside(p)
+        if prj is None:
             return NO_CRS
+        described = prj
     else:
         check_input_file(p)
     if not isolate.available():
         return crs_here(p)
+    key = _identity(p, described)
+    with _cache_lock:
+        known = _cache.get(key)
+    if known is not None:
+        return known
     value = isolate.call_isolated(
         f"{__name__}:crs_fields", p, label=_CRS_LABELS[suffix],
         limits=isolate.Limits(memory=CRS_READ_BUDGET, seconds=isolate.time_limit(0)))
-    return crs_from_fields(value, p)
+    info = crs_from_fields(value, p)
+    with _cache_lock:
+        if len(_cache) >= CRS_CACHE_ENTRIES:
+            _cache.pop(next(iter(_cache)))
+        _cache[key] = info
+    return info
+
+
+#: The LAS record id of a CRS as OGC WKT.
+WKT_RECORD = 2112
+#: CRSs read in a child kept in this process (a command reads a file's CRS two or
+#: three times: units first, then with its points), by the file's identity.
+CRS_CACHE_ENTRIES = 64
+_cache: dict[tuple[object, ...], CrsInfo] = {}
+_cache_lock = threading.Lock()
+
+
+def _identity(*paths: Path) -> tuple[object, ...]:
+    """What changes when a file is replaced or written: its name, device, inode, size
+    and modification time (of each of ``paths``)."""
+    key: list[object] = []
+    for q in paths:
+        st = q.stat()
+        key += [os.path.realpath(q), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns]
+    return tuple(key)
 
 
 def crs_here(p: Path) -> CrsInfo:
@@ -211,8 +250,8 @@ def _las_crs(p: Path) -> CrsInfo:
 
     check_input_file(p)
     raw = las_crs_records(p, check_las_layout(p))
-    if 2112 in raw:
-        text = raw[2112].decode("utf-8", errors="replace").rstrip("\0").strip()
+    if WKT_RECORD in raw:
+        text = raw[WKT_RECORD].decode("utf-8", errors="replace").rstrip("\0").strip()
         if text:
             return parse_wkt_crs(text)
     if 34735 in raw:

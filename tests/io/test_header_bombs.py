@@ -92,3 +92,14 @@ def test_a_geotiff_tag_of_16_mb_is_parsed_in_the_child_only(tmp_path, tag):
     assert ok == outcome == "ok"
     assert read_crs(bomb).epsg == 32611
     assert peak - base < SLACK
+
+
+def test_a_replaced_file_has_its_crs_read_again(tmp_path):
+    """The child's answer is kept for the file's identity (name, inode, size, time)."""
+    from tests.io.test_crs import WKT2_M
+
+    path = crafted.with_evlr(crafted.las_14(tmp_path / "crs.las"), WKT_FT.encode())
+    assert read_crs(path).unit == "us-ft"
+    crafted.with_evlr(crafted.las_14(tmp_path / "crs.las"), WKT2_M.encode())
+    info = read_crs(path)
+    assert info.unit == "m" and info.epsg == 32610
