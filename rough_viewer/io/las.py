@@ -6,6 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
+import struct
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,7 +91,6 @@ def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
     InputError
         One line naming the file and what its header gets wrong.
     """
-    import struct
 
     p = Path(path)
     try:
@@ -147,54 +147,39 @@ def _walk_records(p: Path, header_size: int, data_offset: int, n_vlrs: int, evlr
     """Check the VLR and EVLR tables from their raw headers (at most :data:`MAX_VLRS`
     each, the VLRs within :data:`MAX_VLR_BYTES` and before the point data, each EVLR
     within the file) and find the CRS records; no record's data is read."""
-    import struct
-
     bad = f"the header of {p}"
-    for what, n in (("variable-length", n_vlrs), ("extended variable-length", n_evlrs)):
-        if n > MAX_VLRS:
-            raise InputError(f"{bad} declares {n:,} {what} records; a LAS file holds a few "
-                             f"(at most {MAX_VLRS:,} are read): a damaged or crafted header")
     crs: list[tuple[int, int, int]] = []
+    tables = (  # what, first byte, count, header bytes, length's format, end allowed
+        ("variable-length", header_size, n_vlrs, VLR_HEADER_BYTES, "<H",
+         min(data_offset, header_size + MAX_VLR_BYTES)),
+        ("extended variable-length", evlr_start, n_evlrs, EVLR_HEADER_BYTES, "<Q", size))
     try:
         with open(p, "rb") as fh:
-            at = header_size
-            for _ in range(n_vlrs):
-                fh.seek(at)
-                raw = fh.read(VLR_HEADER_BYTES)
-                if len(raw) < VLR_HEADER_BYTES:
-                    break
-                length = struct.unpack_from("<H", raw, 20)[0]
-                _note_crs(crs, raw[2:18], struct.unpack_from("<H", raw, 18)[0],
-                          at + VLR_HEADER_BYTES, length)
-                at += VLR_HEADER_BYTES + length
-                if at > data_offset or at - header_size > MAX_VLR_BYTES:
-                    raise InputError(
-                        f"{bad} declares variable-length records reaching byte {at:,}, past its "
-                        f"point data at {data_offset:,} or beyond the {MAX_VLR_BYTES:,} bytes "
-                        "read of them: a damaged or crafted header")
-            at = evlr_start
-            for _ in range(n_evlrs):
-                fh.seek(at)
-                raw = fh.read(EVLR_HEADER_BYTES)
-                if len(raw) < EVLR_HEADER_BYTES:
-                    break
-                length = struct.unpack_from("<Q", raw, 20)[0]
-                _note_crs(crs, raw[2:18], struct.unpack_from("<H", raw, 18)[0],
-                          at + EVLR_HEADER_BYTES, length)
-                at += EVLR_HEADER_BYTES + length
-                if at > size:
-                    raise InputError(f"{bad} declares an extended record reaching byte {at:,}, "
-                                     f"past the end of the file ({size:,} bytes): a damaged or "
-                                     "truncated file")
+            for what, at, n, head_bytes, length_format, end in tables:
+                if n > MAX_VLRS:
+                    raise InputError(f"{bad} declares {n:,} {what} records; a LAS file holds a "
+                                     f"few (at most {MAX_VLRS:,} are read): a damaged or "
+                                     "crafted header")
+                for _ in range(n):
+                    fh.seek(at)
+                    raw = fh.read(head_bytes)
+                    if len(raw) < head_bytes:
+                        break
+                    length = int(struct.unpack_from(length_format, raw, 20)[0])
+                    record_id = int(struct.unpack_from("<H", raw, 18)[0])
+                    if raw[2:18].rstrip(b"\0") == b"LASF_Projection" \
+                            and record_id in CRS_RECORD_IDS:
+                        crs.append((record_id, at + head_bytes, length))
+                    at += head_bytes + length
+                    if at > end:
+                        raise InputError(
+                            f"{bad} declares {what} records reaching byte {at:,}, past the "
+                            f"{end:,} where they must end (the point data, the "
+                            f"{MAX_VLR_BYTES:,} bytes of VLRs read, or the file's end): a "
+                            "damaged or crafted header")
     except OSError as exc:
         raise InputError(f"cannot read {p}: {exc.strerror or type(exc).__name__}") from None
     return tuple(crs)
-
-
-def _note_crs(crs: list[tuple[int, int, int]], user_id: bytes, record_id: int, start: int,
-              length: int) -> None:
-    if user_id.rstrip(b"\0") == b"LASF_Projection" and record_id in CRS_RECORD_IDS:
-        crs.append((int(record_id), int(start), int(length)))
 
 
 def las_crs_records(p: Path, layout: LasLayout) -> dict[int, bytes]:

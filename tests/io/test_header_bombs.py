@@ -103,3 +103,20 @@ def test_a_replaced_file_has_its_crs_read_again(tmp_path):
     crafted.with_evlr(crafted.las_14(tmp_path / "crs.las"), WKT2_M.encode())
     info = read_crs(path)
     assert info.unit == "m" and info.epsg == 32610
+
+
+def test_a_vlr_whose_length_runs_past_the_point_data_is_refused(tmp_path):
+    import struct
+
+    path = crafted.las_many_vlrs(tmp_path / "long.las", 1)
+    raw = bytearray(path.read_bytes())
+    header_size, offset = struct.unpack_from("<HI", raw, 94)
+    struct.pack_into("<H", raw, header_size + 20, 65535)
+    path.write_bytes(bytes(raw))
+    with pytest.raises(InputError) as info:
+        load_points(path)
+    assert str(info.value) == (
+        f"the header of {path} declares variable-length records reaching byte "
+        f"{header_size + 54 + 65535:,}, past the {offset:,} where they must end (the point "
+        "data, the 16,777,216 bytes of VLRs read, or the file's end): a damaged or crafted "
+        "header")
