@@ -161,9 +161,12 @@ def run(args: argparse.Namespace) -> int:
         result = analyse_directions(cloud, settings, mesh=mesh, source=str(path),
                                     progress=None if args.quiet else ProgressBar("directions"))
     if not any(bool(np.any(ps.used)) for ps in result.sets):
-        raise InputError(f"no profile of {path} could be measured in any direction: "
-                         f"{no_profile_reasons(result.sets)} (see --half-width, "
-                         "--sample-spacing, --min-samples and --windows)")
+        text = (f"no profile of {path} could be measured in any direction: "
+                f"{no_profile_reasons(result.sets)} (see --half-width, --sample-spacing, "
+                "--min-samples and --windows)")
+        if result.tin is None:  # nothing measured at all: no table of empty directions
+            raise InputError(text)
+        warn([text + "; the table holds the triangles' columns only"])
     if args.windows_out and result.windows is None:
         raise InputError(f"no window map for {path}: {result.window_error}")
     warn(result.warnings)

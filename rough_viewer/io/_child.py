@@ -24,7 +24,11 @@ PROGRESS_INTERVAL_S = 0.1
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    """Ask Linux to kill this process when its parent dies (``PR_SET_PDEATHSIG``)."""
+    """Ask Linux to kill this process when its parent dies (``PR_SET_PDEATHSIG``).
+
+    Linux sends that signal when the parent THREAD that started the child ends, not
+    the parent process; so the parent starts every child from one thread that lives
+    as long as it does (:func:`rough_viewer.io.isolate.spawn`)."""
     try:
         import ctypes
         import signal
@@ -51,30 +55,19 @@ def _limit_memory(budget: int) -> None:
 
     from rough_viewer.io.isolate import CHILD_ALLOWANCE, CHILD_ALLOWANCE_PER_CPU
 
-    limit = child_memory_limit(
-        _vm_size() + max(0, budget) + CHILD_ALLOWANCE
-        + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1),
-        resource.getrlimit(resource.RLIMIT_AS))
-    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    limit = _vm_size() + max(0, budget) + CHILD_ALLOWANCE \
+        + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1)
+    resource.setrlimit(resource.RLIMIT_AS, (address_limit(limit), address_limit(limit)))
 
 
-def child_memory_limit(wanted: int, current: tuple[int, int]) -> int:
-    """The address-space limit the reader child sets, bytes: what it wants, never
-    above the limits it already runs under (``ulimit -v``: a process may lower its
-    hard limit but not raise it, so asking more failed every read).
-
-    >>> import resource
-    >>> child_memory_limit(10, (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
-    10
-    >>> child_memory_limit(10, (6, 8))
-    6
-    >>> child_memory_limit(10, (resource.RLIM_INFINITY, 8))
-    8
-    """
+def address_limit(wanted: int) -> int:
+    """``wanted`` bytes of address space, or less: the hard ``RLIMIT_AS`` this
+    process inherited (``ulimit -v``) when that is lower, since no process may raise
+    its hard limit."""
     import resource
 
-    caps = [c for c in current if c != resource.RLIM_INFINITY and c >= 0]
-    return min([int(wanted), *caps])
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    return wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
 
 
 def _resolve(ref: str) -> Any:
@@ -118,6 +111,9 @@ def _serve(sock: Any) -> None:
         reader = _resolve(str(request["reader"]))
         _limit_memory(int(request.get("memory", 0)))
         options = dict(request.get("options") or {})
+        if request.get("op") == "call":  # a small JSON answer (a header's facts)
+            isolate.send(sock, {"t": "value", "value": reader(Path(path), **options)})
+            return
         if request.get("op") == "stream":
             for item in reader(Path(path), progress=progress, **options):
                 fd, layout = isolate.pack(item)

@@ -16,9 +16,10 @@ carry no CRS.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
-import struct
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,8 +67,26 @@ class CrsInfo:
 NO_CRS = CrsInfo()
 
 
+#: Address space a child may add to read a file's CRS, bytes: a WKT of at most
+#: :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
+#: than this allows are a crafted file.
+CRS_READ_BUDGET = 256 << 20
+#: The format of a CRS's file as messages name it, by suffix.
+_CRS_LABELS = {".las": "LAS", ".laz": "LAZ", ".tif": "GeoTIFF", ".tiff": "GeoTIFF",
+               ".asc": "ESRI grid"}
+
+
 def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     """The CRS a point file declares (header only; no points are decoded).
+
+    A WKT (LAS record or ``.prj``) and GeoTIFF tags are parsed in a reader child
+    process where reads are isolated (:func:`rough_viewer.io.isolate.call_isolated`;
+    the answer kept for the file's identity, :data:`CRS_CACHE_ENTRIES`), and every
+    record is bounded in bytes before it is read (:func:`crs_here`). This process
+    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.las.check_las_layout`),
+    parses a LAS file's GeoKeys when it has no WKT (three records of at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
+    child's answer.
 
     Parameters
     ----------
@@ -83,19 +102,114 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     Raises
     ------
     InputError
-        A LAS/LAZ file whose header cannot be read.
+        A LAS/LAZ file whose header cannot be read, a CRS record or ``.prj`` longer
+        than :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
     """
+    from rough_viewer.io import isolate
+
     p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".e57":
+        return CrsInfo(description=None, unit="m", source="e57")
+    if suffix not in _CRS_LABELS:
+        return NO_CRS
+    described = p
+    if suffix in (".las", ".laz"):
+        from rough_viewer.io.las import check_las_layout
+
+        check_input_file(p)
+        records = {record_id for record_id, _, _ in check_las_layout(p).crs_records}
+        if not records:
+            return NO_CRS
+        if WKT_RECORD not in records:  # GeoKeys only: 3 x 64 KiB at most, parsed in ~1 MB
+            return _las_crs(p)
+    elif suffix == ".asc":
+        from rough_viewer.io.dem import prj_beside
+
+        prj = prj_beside(p)
+        if prj is None:
+            return NO_CRS
+        described = prj
+    else:
+        check_input_file(p)
+    if not isolate.available():
+        return crs_here(p)
+    key = _identity(p, described)
+    with _cache_lock:
+        known = _cache.get(key)
+    if known is not None:
+        return known
+    value = isolate.call_isolated(
+        f"{__name__}:crs_fields", p, label=_CRS_LABELS[suffix],
+        limits=isolate.Limits(memory=CRS_READ_BUDGET, seconds=isolate.time_limit(0)))
+    info = crs_from_fields(value, p)
+    with _cache_lock:
+        if len(_cache) >= CRS_CACHE_ENTRIES:
+            _cache.pop(next(iter(_cache)))
+        _cache[key] = info
+    return info
+
+
+#: The LAS record id of a CRS as OGC WKT.
+WKT_RECORD = 2112
+#: CRSs read in a child kept in this process (a command reads a file's CRS two or
+#: three times: units first, then with its points), by the file's identity.
+CRS_CACHE_ENTRIES = 64
+_cache: dict[tuple[object, ...], CrsInfo] = {}
+_cache_lock = threading.Lock()
+
+
+def _identity(*paths: Path) -> tuple[object, ...]:
+    """What changes when a file is replaced or written: its name, device, inode, size
+    and modification time (of each of ``paths``)."""
+    key: list[object] = []
+    for q in paths:
+        st = q.stat()
+        key += [os.path.realpath(q), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns]
+    return tuple(key)
+
+
+def crs_here(p: Path) -> CrsInfo:
+    """:func:`read_crs` in this process (the reader child's part)."""
     suffix = p.suffix.lower()
     if suffix in (".las", ".laz"):
         return _las_crs(p)
-    if suffix == ".e57":
-        return CrsInfo(description=None, unit="m", source="e57")
     if suffix in (".tif", ".tiff"):
         return _geotiff_crs(p)
     if suffix == ".asc":
         return _prj_crs(p)
     return NO_CRS
+
+
+def crs_fields(p: Path, **_: object) -> dict[str, object]:
+    """:func:`crs_here` as JSON fields (what the reader child sends back)."""
+    return dataclasses.asdict(crs_here(p))
+
+
+_UNITS_KNOWN = frozenset(EPSG_UNITS.values())
+_SOURCES = frozenset({"", "wkt", "geotiff", "e57"})
+
+
+def crs_from_fields(value: object, p: Path) -> CrsInfo:
+    """The :class:`CrsInfo` of a reader child's answer (:func:`crs_fields`), every
+    field checked: text, a known unit, a whole EPSG code, a flag, a known source.
+
+    Raises InputError naming ``p`` for anything else."""
+    fields = {f.name for f in dataclasses.fields(CrsInfo)}
+    ok = isinstance(value, dict) and set(value) <= fields
+    if ok:
+        assert isinstance(value, dict)
+        d, e = value.get("description"), value.get("epsg")
+        ok = ((d is None or isinstance(d, str))
+              and (e is None or isinstance(e, int) and not isinstance(e, bool))
+              and all(value.get(k) is None or value.get(k) in _UNITS_KNOWN
+                      for k in ("unit", "vertical_unit"))
+              and isinstance(value.get("geographic", False), bool)
+              and value.get("source", "") in _SOURCES)
+    if not ok:
+        raise InputError(f"the CRS reader gave a damaged answer for {p}")
+    assert isinstance(value, dict)
+    return CrsInfo(**value)
 
 
 def _geotiff_crs(p: Path) -> CrsInfo:
@@ -111,95 +225,33 @@ def _geotiff_crs(p: Path) -> CrsInfo:
 
 
 def _prj_crs(p: Path) -> CrsInfo:
-    """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any."""
+    """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any (at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`)."""
     from rough_viewer.io.dem import prj_beside
+    from rough_viewer.io.las import MAX_CRS_RECORD_BYTES
 
     prj = prj_beside(p)
     if prj is None:
         return NO_CRS
     with foreign_errors(f"cannot read {prj}"):
-        size = prj.stat().st_size
-        if size > MAX_CRS_RECORD_BYTES:
-            raise InputError(f"{prj} is {size:,} bytes, over the {MAX_CRS_RECORD_BYTES:,} a "
-                             "CRS may hold: not a .prj file, or a damaged one")
-        text = prj.read_text(encoding="utf-8", errors="replace").strip()
+        with open(prj, "rb") as fh:
+            data = fh.read(MAX_CRS_RECORD_BYTES + 1)
+    if len(data) > MAX_CRS_RECORD_BYTES:
+        raise InputError(f"{prj} is longer than the {MAX_CRS_RECORD_BYTES:,} bytes a CRS "
+                         "(WKT) takes: not a .prj file")
+    text = data.decode("utf-8", errors="replace").strip()
     return parse_wkt_crs(text) if text else NO_CRS
 
 
-#: Most VLRs and EVLRs together a LAS header may declare for its CRS to be read (real
-#: files hold a handful; a file of a million empty VLRs took 272 MB and 7.7 s through
-#: laspy in the server's process).
-MAX_LAS_RECORDS = 10_000
-#: Longest CRS record read, bytes: an EPSG WKT2 is a few kB, and parsing costs about 240
-#: bytes of memory a byte of WKT (20 MiB of ``[`` took a process to 5 GB).
-MAX_CRS_RECORD_BYTES = 128 << 10
-#: The CRS records of a LAS file (user id ``LASF_Projection``).
-_CRS_RECORDS = (2112, 34735, 34736, 34737)
-
-
-def las_crs_records(p: Path) -> dict[int, bytes]:
-    """The CRS records of a LAS/LAZ file by record id, read from its own header with
-    stated bounds (no library: only the record headers and the CRS payloads, each at
-    most :data:`MAX_CRS_RECORD_BYTES`, of at most :data:`MAX_LAS_RECORDS` records).
-
-    Raises
-    ------
-    InputError
-        Not a LAS file, a truncated record table, or a table or CRS record over its
-        bound.
-    """
-    from rough_viewer.io.las import check_las_layout
-
-    check_las_layout(p)  # the signature, header size, offsets and table sizes fit the file
-    out: dict[int, bytes] = {}
-    with open(p, "rb") as fh:
-        head = fh.read(375)
-        version = (head[24], head[25])
-        header_size, = struct.unpack_from("<H", head, 94)
-        n_vlrs, = struct.unpack_from("<I", head, 100)
-        evlr_start, n_evlrs = 0, 0
-        if version >= (1, 4) and len(head) >= 247:
-            evlr_start, = struct.unpack_from("<Q", head, 235)
-            n_evlrs, = struct.unpack_from("<I", head, 243)
-        if n_vlrs + n_evlrs > MAX_LAS_RECORDS:
-            raise InputError(f"{p}: its header declares {n_vlrs:,} VLRs and {n_evlrs:,} "
-                             f"EVLRs, over the {MAX_LAS_RECORDS:,} read: a damaged file")
-        size = os.fstat(fh.fileno()).st_size
-
-        def table(pos: int, count: int, record_header: int, length_format: str, kind: str
-                  ) -> None:
-            for _ in range(count):
-                fh.seek(pos)
-                h = fh.read(record_header)
-                if len(h) < record_header:
-                    raise InputError(f"cannot read the header of {p}: its {kind} table ends "
-                                     "early (a truncated file)")
-                user = h[2:18].split(b"\0", 1)[0]
-                rid, = struct.unpack_from("<H", h, 18)
-                length, = struct.unpack_from(length_format, h, 20)
-                if user == b"LASF_Projection" and rid in _CRS_RECORDS:
-                    if length > MAX_CRS_RECORD_BYTES:
-                        raise InputError(f"{p}: its CRS record (LASF_Projection {rid}) is "
-                                         f"{length:,} bytes, over the {MAX_CRS_RECORD_BYTES:,} "
-                                         "a CRS may hold: a damaged file")
-                    out[rid] = fh.read(length)
-                pos += record_header + length
-                if pos > size:
-                    raise InputError(f"cannot read the header of {p}: a {kind} reaches past "
-                                     "the end of the file")
-
-        table(header_size, n_vlrs, 54, "<H", "VLR")
-        if n_evlrs:
-            table(evlr_start, n_evlrs, 60, "<Q", "EVLR")
-    return out
-
-
 def _las_crs(p: Path) -> CrsInfo:
+    """The CRS records of a LAS/LAZ file, read from their raw bytes (each at most
+    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`) without laspy."""
+    from rough_viewer.io.las import check_las_layout, las_crs_records
+
     check_input_file(p)
-    with foreign_errors(f"cannot read the header of {p}"):
-        raw = las_crs_records(p)
-    if 2112 in raw:
-        text = raw[2112].decode("utf-8", errors="replace").rstrip("\0").strip()
+    raw = las_crs_records(p, check_las_layout(p))
+    if WKT_RECORD in raw:
+        text = raw[WKT_RECORD].decode("utf-8", errors="replace").rstrip("\0").strip()
         if text:
             return parse_wkt_crs(text)
     if 34735 in raw:

@@ -70,41 +70,6 @@ _ESRI_KEYS = ("ncols", "nrows", "xllcorner", "xllcenter", "yllcorner", "yllcente
               "cellsize", "dx", "dy", "nodata_value")
 
 
-def nodata_mask(grid: np.ndarray, nodata: float) -> np.ndarray:
-    """Cells of ``grid`` holding ``nodata``, compared in the grid's own type, as GDAL
-    does: a float32 band's ``-9999.9`` is ``np.float32(-9999.9)`` (compared in float64
-    no cell matched), a value printed within 1e-5 of float32's largest (GDAL's
-    ``-3.40282e+38``) is that largest, and an integer band matches only a whole value in
-    its range.
-
-    >>> g = np.array([[-9999.9, 1.5], [-3.4028235e38, 2.0]], dtype=np.float32)
-    >>> nodata_mask(g, -9999.9).tolist(), nodata_mask(g, -3.40282e38).tolist()
-    ([[True, False], [False, False]], [[False, False], [True, False]])
-    >>> nodata_mask(np.array([0, 255], dtype=np.uint8), 255.0).tolist()
-    [False, True]
-    >>> nodata_mask(np.array([0, 255], dtype=np.uint8), 300.0).tolist()
-    [False, False]
-    """
-    dtype = grid.dtype
-    if dtype.kind == "f":
-        if np.isnan(nodata):
-            return np.isnan(grid)
-        top = float(np.finfo(dtype).max)
-        if np.isfinite(nodata) and abs(abs(nodata) - top) <= 1e-5 * top:
-            nodata = float(np.copysign(top, nodata))
-        with np.errstate(over="ignore"):
-            value = dtype.type(nodata)
-        return np.asarray(grid == value)
-    if dtype.kind in "iu":
-        info = np.iinfo(dtype)
-        if np.isfinite(nodata) and nodata == int(nodata) and info.min <= nodata <= info.max:
-            return np.asarray(grid == dtype.type(int(nodata)))
-        return np.zeros(grid.shape, dtype=bool)
-    if dtype.kind == "c":
-        raise ValueError("complex rasters are refused before their nodata is compared")
-    return np.asarray(grid == nodata)
-
-
 def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
                   nodata: float | None = None) -> PointCloud:
     """The points of a raster: one per cell with a value, at the cell's centre.
@@ -124,12 +89,15 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
     grid = np.asarray(z)
     if grid.ndim != 2 or grid.size == 0:
         raise InputError(f"{path} holds no 2-D elevation grid (shape {grid.shape})")
+    if grid.dtype.kind not in "biuf":
+        raise InputError(f"{path} holds {grid.dtype} values, not heights (an elevation "
+                         "raster holds real numbers): not read")
     rows, cols = grid.shape
     require(float(grid.size) * BYTES_PER_CELL, f"reading the {cols:,} x {rows:,} raster {path}",
             hint="crop or resample the raster first")
     heights = grid.astype(np.float64, copy=True).ravel()
     if nodata is not None:
-        heights[nodata_mask(grid, nodata).ravel()] = np.nan
+        heights[nodata_cells(grid, nodata).ravel()] = np.nan
     r, c = np.divmod(np.arange(heights.size, dtype=np.int64), cols)
     a = np.asarray(affine, dtype=np.float64)
     x = a[0, 0] * c + a[0, 1] * r + a[0, 2]
@@ -137,52 +105,77 @@ def raster_points(z: np.ndarray, affine: np.ndarray, path: Path, *,
     return finite_cloud(x, y, heights, None, path)
 
 
+def nodata_cells(grid: np.ndarray, nodata: float) -> np.ndarray:
+    """Where ``grid`` holds its nodata value, compared in the grid's own type as GDAL
+    does: a float32 band's ``-9999.9`` is the float32 nearest it (in float64 no cell
+    equals it), within 1e-5 of float32's largest magnitude that magnitude (GDAL's
+    ``-3.4028234663852886e+38``, often printed ``-3.40282e+38``: 1e-6 off); an integer band's nodata is a
+    whole number within its type's range, or no cell is nodata. NaN: no cell here
+    (NaN cells are dropped anyway).
+
+    >>> nodata_cells(np.array([1.0, -9999.9], dtype=np.float32), -9999.9).tolist()
+    [False, True]
+    """
+    if grid.dtype.kind == "f":
+        top = float(np.finfo(np.float32).max)
+        with np.errstate(over="ignore", invalid="ignore"):
+            cells = np.asarray(grid == grid.dtype.type(nodata))
+            if grid.dtype == np.float32 and abs(abs(nodata) - top) < 1e-5 * top:
+                # GDALAdjustNoDataCloseToFloatMax; a printed -3.40282e+38 is 1e-6 off
+                # the float32 lowest the cells of such a band hold
+                cells |= grid == grid.dtype.type(math.copysign(top, nodata))
+        return cells
+    if grid.dtype.kind in "iu" and math.isfinite(nodata) and nodata == int(nodata):
+        info = np.iinfo(grid.dtype)
+        if info.min <= int(nodata) <= info.max:
+            return np.asarray(grid == grid.dtype.type(int(nodata)))
+    return np.zeros(grid.shape, dtype=bool)
+
+
 # ----------------------------------------------------------------------------- ESRI ASCII
 
 
-#: Longest ESRI ASCII header line, bytes (a header line is a key and a number; one of
-#: 512 MB was read whole in the server's process), and most header lines.
-MAX_ESRI_HEADER_LINE = 64 << 10
-MAX_ESRI_HEADER_LINES = 64
 #: Most characters of an ESRI ASCII grid's values read at once.
 MAX_ESRI_PIECE = 1 << 20
 
-
 def _esri_header(p: Path) -> tuple[dict[str, float], int]:
-    """The header values and the number of header lines."""
+    """The header values and the number of header lines.
+
+    Bounded before it is read (it runs in the server's own process, for the memory
+    estimate): a header line may be at most :data:`~rough_viewer.io.ply.MAX_HEADER_LINE`
+    bytes and the header :data:`~rough_viewer.io.ply.MAX_HEADER_BYTES`, as PLY's; a
+    line of data is recognised by its first bytes, never read whole here."""
+    from rough_viewer.io.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
+
     head: dict[str, float] = {}
     lines = 0
-    with open(p, encoding="ascii", errors="replace") as fh:
+    with open(p, "rb") as fh:
         while True:
-            line = fh.readline(MAX_ESRI_HEADER_LINE + 1)
-            if not line:
-                break
-            if not line.lstrip()[:1].isalpha() and line.strip():
-                break  # the values begin
-            if len(line) > MAX_ESRI_HEADER_LINE or lines >= MAX_ESRI_HEADER_LINES:
+            raw = fh.readline(MAX_HEADER_LINE + 1)
+            fields = raw.decode("ascii", errors="replace").split()
+            if not raw or fields and not fields[0][:1].isalpha():
+                break  # the end, or the first row of values
+            if len(raw) > MAX_HEADER_LINE or fh.tell() > MAX_HEADER_BYTES:
                 raise InputError(f"{p} is not an ESRI ASCII grid: a header line longer than "
-                                 f"{MAX_ESRI_HEADER_LINE:,} bytes, or more than "
-                                 f"{MAX_ESRI_HEADER_LINES} header lines")
-            fields = line.split()
+                                 f"{MAX_HEADER_LINE:,} bytes or a header longer than "
+                                 f"{MAX_HEADER_BYTES:,}")
+            lines += 1
             if not fields:
-                lines += 1
                 continue
+            line = " ".join(fields)
             key = fields[0].lower()
-            if not key[:1].isalpha():
-                break
             if key not in _ESRI_KEYS or len(fields) != 2:
                 raise InputError(f"{p} is not an ESRI ASCII grid: unknown header line "
-                                 f"{line.strip()[:60]!r}")
+                                 f"{line[:60]!r}")
             try:
                 head[key] = float(fields[1])
             except ValueError:
-                raise InputError(f"{p}: header value {line.strip()[:60]!r} is not a "
-                                 "number") from None
-            lines += 1
+                raise InputError(f"{p}: header value {line[:60]!r} is not a number") from None
     for need in ("ncols", "nrows"):
-        if (need not in head or not math.isfinite(head[need]) or head[need] < 1
-                or head[need] != int(head[need])):
-            raise InputError(f"{p} is not an ESRI ASCII grid: no whole {need} in its header")
+        value = head.get(need, 0.0)
+        if not (math.isfinite(value) and value >= 1 and value == int(value)):
+            raise InputError(f"{p} is not an ESRI ASCII grid: no whole {need} in its header"
+                             + (f" (it gives {value:g})" if need in head else ""))
     return head, lines
 
 
@@ -346,10 +339,6 @@ def read_geotiff(p: Path) -> PointCloud:
     affine = geotiff_affine(tags, p)
     with tifffile.TiffFile(p) as tif:
         page = tif.pages[0]
-        if np.dtype(page.dtype).kind not in "fiu":
-            raise InputError(f"{p}: its band is {np.dtype(page.dtype).name}, not heights (a "
-                             "complex or other raster; only integer and float bands are "
-                             "elevations)")
         shape = tuple(int(s) for s in page.shape)
         cells = int(np.prod(shape[:2])) if len(shape) >= 2 else 0
         require(float(cells) * (BYTES_PER_CELL + page.dtype.itemsize * (

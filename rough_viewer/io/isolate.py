@@ -19,7 +19,8 @@ interpreter, safe however many threads the parent runs, no pickled functions):
 - **cancellation**: the parent calls the caller's ``progress(done, total)`` while
   it waits (the app's jobs pass one that raises when the job is cancelled) and
   kills the child when it raises; Ctrl-C and SIGTERM kill it too, and the child
-  dies with its parent (``PR_SET_PDEATHSIG``);
+  dies with its parent process (``PR_SET_PDEATHSIG``, every child started from one
+  thread that lives as long as the process: :func:`spawn`);
 - **results**: the points come back through shared memory (a ``memfd`` the child
   fills and passes over a Unix socket, mapped by the parent without a copy), never
   a pickle; the parent checks every array's type, shape and place before use;
@@ -41,6 +42,7 @@ import dataclasses
 import json
 import mmap
 import os
+import queue
 import selectors
 import signal
 import socket
@@ -320,47 +322,6 @@ def _child_env() -> dict[str, str]:
     return env
 
 
-class _Spawner:
-    """One long-lived thread that starts every child. Linux's ``PR_SET_PDEATHSIG``
-    (how a child dies with its parent) fires when the THREAD that forked it ends, not
-    the process: a spare started by a short-lived thread (the warm-up, a job) was
-    killed when that thread finished. Forked here, a child dies when the process does."""
-
-    def __init__(self) -> None:
-        import queue
-
-        self._queue: queue.SimpleQueue[tuple[Callable[[], Any], list[Any], threading.Event]] \
-            = queue.SimpleQueue()
-        self._thread: threading.Thread | None = None
-        self._lock = threading.Lock()
-
-    def __call__(self, args: list[str], **kwargs: Any) -> subprocess.Popen[bytes]:
-        with self._lock:
-            if self._thread is None or not self._thread.is_alive():
-                self._thread = threading.Thread(target=self._run, daemon=True,
-                                                name="rough-viewer-spawner")
-                self._thread.start()
-        box: list[Any] = []
-        done = threading.Event()
-        self._queue.put((lambda: subprocess.Popen(args, **kwargs), box, done))
-        done.wait()
-        if isinstance(box[0], BaseException):
-            raise box[0]
-        return box[0]
-
-    def _run(self) -> None:
-        while True:
-            make, box, done = self._queue.get()
-            try:
-                box.append(make())
-            except BaseException as exc:  # handed to the caller
-                box.append(exc)
-            done.set()
-
-
-_spawn = _Spawner()
-
-
 class _Child:
     """One child process and the parent's end of its socket."""
 
@@ -369,7 +330,7 @@ class _Child:
         self.sock = parent
         self.stderr: IO[bytes] = tempfile.TemporaryFile(prefix="rough-viewer-reader-")
         try:
-            self.proc = _spawn(
+            self.proc = subprocess.Popen(
                 [sys.executable, "-m", CHILD_MODULE, str(child.fileno()), str(os.getpid())],
                 pass_fds=(child.fileno(),), stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL, stderr=self.stderr, env=_child_env(),
@@ -412,6 +373,53 @@ class _Child:
             return ""
 
 
+class _Launcher:
+    """One thread that starts every child and lives as long as this process.
+
+    A child asks Linux to kill it when its parent dies (``PR_SET_PDEATHSIG``), and
+    Linux counts the death of the parent THREAD that started it: a spare started by a
+    short-lived thread (the one that replenishes the spare, a job's worker) was
+    killed as soon as that thread ended (issue 36). Children started here die with
+    the process only."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+        self.requests: queue.SimpleQueue[tuple[Callable[[], Any], queue.SimpleQueue[Any]]] = \
+            queue.SimpleQueue()
+        threading.Thread(target=self._run, daemon=True, name="rough-viewer-launcher").start()
+
+    def _run(self) -> None:
+        while True:
+            make, answer = self.requests.get()
+            try:
+                answer.put((True, make()))
+            except BaseException as exc:  # noqa: BLE001 - the caller re-raises it
+                answer.put((False, exc))
+
+    def call(self, make: Callable[[], Any]) -> Any:
+        answer: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.requests.put((make, answer))
+        ok, value = answer.get()
+        if not ok:
+            raise value
+        return value
+
+
+_launcher: _Launcher | None = None
+_launcher_lock = threading.Lock()
+
+
+def spawn() -> _Child:
+    """A new child, started from :class:`_Launcher`'s thread."""
+    global _launcher
+    with _launcher_lock:
+        if _launcher is None or _launcher.pid != os.getpid():  # none yet, or a fork
+            _launcher = _Launcher()
+        launcher = _launcher
+    child: _Child = launcher.call(_Child)
+    return child
+
+
 _lock = threading.Lock()
 _spare: _Child | None = None
 _keep_warm = False
@@ -431,7 +439,7 @@ def warm(*, keep: bool = False) -> None:
         old, _spare = _spare, None
     if old is not None:
         old.close()
-    child = _Child()
+    child = spawn()
     with _lock:
         if _spare is None:
             _spare = child
@@ -448,7 +456,7 @@ def _take() -> _Child:
         child.close()
         child = None
     if child is None:
-        child = _Child()
+        child = spawn()
     if keep:
         threading.Thread(target=_replenish, daemon=True, name="rough-viewer-warm").start()
     return child
@@ -694,6 +702,33 @@ def stream_isolated(reader: str, path: str | os.PathLike[str], *, label: str,
                 send(session.child.sock, {"t": "next"})
             except OSError:
                 pass  # it died: the next wait says how
+    finally:
+        session.close()
+
+
+def call_isolated(function: str, path: str | os.PathLike[str], *, label: str,
+                  limits: Limits, options: Mapping[str, Any] | None = None) -> object:
+    """Run ``function`` (``"module:function"``, called in the child as
+    ``function(path, **options)``) on ``path`` in a child process and return what it
+    returns: a JSON value of at most :data:`MAX_MESSAGE` bytes, which the caller
+    must check (what a file's header says, parsed where the file cannot hurt).
+
+    Raises
+    ------
+    InputError
+        As :func:`read_isolated`.
+    """
+    p = Path(path)
+    session = _Session({"op": "call", "reader": function, "path": os.fspath(p),
+                        "options": dict(options or {})},
+                       label=label, path=p, limits=limits, progress=None, expected=0)
+    try:
+        message, fds = session.wait()
+        for fd in fds:
+            os.close(fd)
+        if message.get("t") != "value" or fds:
+            raise session.fail(f"the {label} reader gave no answer for {p}")
+        return message.get("value")
     finally:
         session.close()
 

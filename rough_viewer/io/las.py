@@ -6,6 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
+import struct
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,18 @@ def laz_backend():
 LAS_MIN_HEADER = 227
 VLR_HEADER_BYTES = 54
 EVLR_HEADER_BYTES = 60
+#: Most VLRs, and most EVLRs, a LAS/LAZ file may declare (files carry a few: the LASzip
+#: record, the CRS, extra bytes); laspy holds each as an object (1 M empty VLRs: 272 MB
+#: and 7.7 s in the process that opened the file).
+MAX_VLRS = 10_000
+#: Most bytes the VLRs together may hold (laspy reads them all on opening the file).
+MAX_VLR_BYTES = 16 << 20
+#: Most bytes of one CRS record (WKT, GeoKey directory, double or ASCII parameters):
+#: a WKT is a few kilobytes; parsing costs ~240 bytes of memory a byte.
+MAX_CRS_RECORD_BYTES = 64 << 10
+#: Record ids of the CRS records (user id ``LASF_Projection``): the OGC WKT, then the
+#: GeoKey directory, double and ASCII parameters.
+CRS_RECORD_IDS = (2112, 34735, 34736, 34737)
 
 
 @dataclass(frozen=True)
@@ -52,6 +65,9 @@ class LasLayout:
     """True for LAZ (the point format's compression bit)."""
     data_offset: int
     """Byte where the point data start."""
+    crs_records: tuple[tuple[int, int, int], ...] = ()
+    """The CRS records (``LASF_Projection``, :data:`CRS_RECORD_IDS`) among the VLRs and
+    EVLRs: (record id, byte where its data start, bytes), in file order."""
 
 
 def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
@@ -75,7 +91,6 @@ def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
     InputError
         One line naming the file and what its header gets wrong.
     """
-    import struct
 
     p = Path(path)
     try:
@@ -119,15 +134,86 @@ def check_las_layout(path: str | os.PathLike[str]) -> LasLayout:
     count = legacy_count
     if minor >= 4 and len(head) >= 255:
         count = struct.unpack_from("<Q", head, 247)[0] or legacy_count
+    evlr_start, n_evlrs = (struct.unpack_from("<QI", head, 235) if minor >= 4 and len(head) >= 247
+                           else (0, 0))
+    crs = _walk_records(p, header_size, data_offset, n_vlrs, evlr_start, n_evlrs, size)
     return LasLayout(size=size, point_count=int(count), record_length=int(record_length),
-                     compressed=bool(point_format & 0xC0), data_offset=int(data_offset))
+                     compressed=bool(point_format & 0xC0), data_offset=int(data_offset),
+                     crs_records=crs)
+
+
+def _walk_records(p: Path, header_size: int, data_offset: int, n_vlrs: int, evlr_start: int,
+                  n_evlrs: int, size: int) -> tuple[tuple[int, int, int], ...]:
+    """Check the VLR and EVLR tables from their raw headers (at most :data:`MAX_VLRS`
+    each, the VLRs within :data:`MAX_VLR_BYTES` and before the point data, each EVLR
+    within the file) and find the CRS records; no record's data is read."""
+    bad = f"the header of {p}"
+    crs: list[tuple[int, int, int]] = []
+    tables = (  # what, first byte, count, header bytes, length's format, end allowed
+        ("variable-length", header_size, n_vlrs, VLR_HEADER_BYTES, "<H",
+         min(data_offset, header_size + MAX_VLR_BYTES)),
+        ("extended variable-length", evlr_start, n_evlrs, EVLR_HEADER_BYTES, "<Q", size))
+    try:
+        with open(p, "rb") as fh:
+            for what, at, n, head_bytes, length_format, end in tables:
+                if n > MAX_VLRS:
+                    raise InputError(f"{bad} declares {n:,} {what} records; a LAS file holds a "
+                                     f"few (at most {MAX_VLRS:,} are read): a damaged or "
+                                     "crafted header")
+                for _ in range(n):
+                    fh.seek(at)
+                    raw = fh.read(head_bytes)
+                    if len(raw) < head_bytes:
+                        break
+                    length = int(struct.unpack_from(length_format, raw, 20)[0])
+                    record_id = int(struct.unpack_from("<H", raw, 18)[0])
+                    if raw[2:18].rstrip(b"\0") == b"LASF_Projection" \
+                            and record_id in CRS_RECORD_IDS:
+                        crs.append((record_id, at + head_bytes, length))
+                    at += head_bytes + length
+                    if at > end:
+                        raise InputError(
+                            f"{bad} declares {what} records reaching byte {at:,}, past the "
+                            f"{end:,} where they must end (the point data, the "
+                            f"{MAX_VLR_BYTES:,} bytes of VLRs read, or the file's end): a "
+                            "damaged or crafted header")
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or type(exc).__name__}") from None
+    return tuple(crs)
+
+
+def las_crs_records(p: Path, layout: LasLayout) -> dict[int, bytes]:
+    """The data of a LAS/LAZ file's CRS records (record id -> bytes; the last of an id
+    wins, so an EVLR replaces a VLR), each at most :data:`MAX_CRS_RECORD_BYTES`.
+
+    Raises
+    ------
+    InputError
+        A CRS record longer than that (a WKT is a few kilobytes).
+    """
+    raw: dict[int, bytes] = {}
+    try:
+        with open(p, "rb") as fh:
+            for record_id, start, length in layout.crs_records:
+                if length > MAX_CRS_RECORD_BYTES:
+                    raise InputError(
+                        f"the CRS record {record_id} of {p} holds {length:,} bytes; a CRS takes "
+                        f"a few kilobytes (at most {MAX_CRS_RECORD_BYTES:,} are read): a damaged "
+                        "or crafted file")
+                fh.seek(start)
+                raw[record_id] = fh.read(length)
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or type(exc).__name__}") from None
+    return raw
 
 
 def open_las(path: str | os.PathLike[str], **kwargs):
-    """``laspy.open`` for reading, after :func:`check_las_layout`."""
+    """``laspy.open`` for reading, after :func:`check_las_layout`; the EVLRs are not
+    read (they may hold gigabytes of waveforms) unless ``read_evlrs=True``."""
     import laspy
 
     check_las_layout(path)
+    kwargs.setdefault("read_evlrs", False)
     return laspy.open(path, **kwargs)
 
 

@@ -192,7 +192,7 @@ def copy_las_with_fields(
         read_n = int(keep.shape[0])
     chunk_points = max(1, int(chunk_points))
     with foreign_errors(f"cannot read {src}"):
-        reader_cm = open_las(src, laz_backend=laz_backend())
+        reader_cm = open_las(src, laz_backend=laz_backend(), read_evlrs=True)
     with reader_cm as reader:
         header_in = reader.header
         n_file = int(header_in.point_count)

@@ -170,3 +170,105 @@ def e57_without_data(path: Path) -> Path:
     ErrorPathUndefined)."""
     path.write_bytes(e57_bytes((_E57_HEAD + "</e57Root>").encode()))
     return path
+
+
+#: What :func:`parent_peak` runs: ``load_points`` (or ``read_crs``) of a file in a fresh
+#: interpreter, then that interpreter's own peak resident memory (its reader child, where
+#: reads are isolated, is another process and not counted).
+_PEAK_SCRIPT = """
+import resource, sys
+from rough_viewer.io import load_points, read_crs
+from rough_viewer.vocabulary import InputError
+try:
+    {call}(sys.argv[1])
+    print("ok")
+except InputError as exc:
+    print("error", exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+def parent_peak(path: Path, call: str = "load_points") -> tuple[str, int]:
+    """(the outcome's first line: ``ok`` or ``error <message>``, the peak resident
+    memory in bytes) of ``call(path)`` in a fresh Python process."""
+    import os
+    import subprocess
+    import sys
+
+    root = str(Path(__file__).parents[2])
+    done = subprocess.run([sys.executable, "-c", _PEAK_SCRIPT.format(call=call), str(path)],
+                          capture_output=True, text=True, timeout=300, cwd=root,
+                          env=dict(os.environ, PYTHONPATH=root), check=True)
+    lines = done.stdout.strip().splitlines()
+    return lines[0], int(lines[-1])
+
+
+def asc_header_bomb(path: Path, n_bytes: int) -> Path:
+    """An ESRI grid whose first line is ``ncols`` and ``n_bytes`` of letters."""
+    with open(path, "wb") as fh:
+        fh.write(b"ncols ")
+        block = b"a" * (1 << 20)
+        for _ in range(n_bytes >> 20):
+            fh.write(block)
+        fh.write(b"\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2\n3 4\n")
+    return path
+
+
+def las_14(path: Path, *, n: int = 2000, compress: bool = False) -> Path:
+    """A valid LAS (or LAZ) 1.4 of ``n`` points on a plane, point format 6, no records."""
+    import laspy
+
+    hdr = laspy.LasHeader(point_format=6, version="1.4")
+    hdr.scales, hdr.offsets = [0.001] * 3, [0.0, 0.0, 0.0]
+    las = laspy.LasData(hdr)
+    rng = np.random.default_rng(1)
+    x, y = rng.uniform(0.0, 10.0, (2, n))
+    las.x, las.y, las.z = x, y, 0.1 * x
+    las.write(str(path), do_compress=compress,
+              laz_backend=laspy.LazBackend.Lazrs if compress else None)
+    return path
+
+
+def with_evlr(path: Path, data: bytes, *, user_id: bytes = b"LASF_Projection",
+              record_id: int = 2112) -> Path:
+    """Append one EVLR to the LAS 1.4 file ``path`` (and count it in its header)."""
+    raw = bytearray(path.read_bytes())
+    start, count = struct.unpack_from("<QI", raw, 235)
+    if count == 0:
+        start = len(raw)
+    struct.pack_into("<QI", raw, 235, start, count + 1)
+    evlr = struct.pack("<H16sHQ32s", 0, user_id, record_id, len(data), b"crafted") + data
+    path.write_bytes(bytes(raw) + evlr)
+    return path
+
+
+def las_many_vlrs(path: Path, n_vlrs: int) -> Path:
+    """A valid LAS 1.4 of 2,000 points with ``n_vlrs`` empty VLRs after its header."""
+    las_14(path)
+    raw = bytearray(path.read_bytes())
+    header_size = struct.unpack_from("<H", raw, 94)[0]
+    offset = _data_offset(raw)
+    vlr = struct.pack("<H16sHH32s", 0, b"crafted", 1, 0, b"")
+    body = bytes(raw[:offset]) + vlr * n_vlrs + bytes(raw[offset:])
+    out = bytearray(body)
+    struct.pack_into("<II", out, 96, offset + len(vlr) * n_vlrs,
+                     struct.unpack_from("<I", raw, 100)[0] + n_vlrs)
+    assert header_size <= offset
+    path.write_bytes(bytes(out))
+    return path
+
+
+def geotiff_with_tag(path: Path, tag: int, values: np.ndarray) -> Path:
+    """A 3 x 4 float32 GeoTIFF (1 m pixels) carrying ``values`` as tag ``tag`` (float64
+    values as 'd', uint16 as 'H')."""
+    import tifffile
+
+    code = "d" if values.dtype == np.float64 else "H"
+    directory = np.array([1, 1, 0, 1, 3072, 0, 1, 32611], dtype=np.uint16)
+    tags = [(33550, "d", 3, (1.0, 1.0, 0.0), True),
+            (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, 3.0, 0.0), True)]
+    if tag != 34735:
+        tags.append((34735, "H", directory.size, tuple(directory.tolist()), True))
+    tags.append((tag, code, int(values.size), values, True))
+    tifffile.imwrite(path, np.arange(12, dtype=np.float32).reshape(3, 4), extratags=tags)
+    return path

@@ -12,7 +12,9 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.io import load_points
 from rough_viewer.io.crs import read_crs
+from rough_viewer.io.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
 from rough_viewer.vocabulary import InputError
+from tests.io import crafted
 
 Z = np.array([[1.0, 2.0, 3.0, 4.0], [5.0, -9999.0, 7.0, 8.0], [9.0, 10.0, np.nan, 12.0]])
 
@@ -285,16 +287,106 @@ def test_a_complex_geotiff_is_refused_in_one_line(tmp_path):
         (34735, "H", 8, geokeys((1024, 0, 1, 1)), True),
         (33550, "d", 3, (1.0, 1.0, 0.0), True),
         (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, 3.0, 0.0), True)])
-    with pytest.raises(InputError, match="complex64, not heights") as info:
+    with pytest.raises(InputError, match="complex64 values, not heights") as info:
         load_points(path)
     assert "\n" not in str(info.value) and "c.tif" in str(info.value)
 
 
 def test_a_prj_bomb_beside_a_grid_is_refused_before_it_is_read(tmp_path):
     """Issue 36: a .prj's WKT was read and parsed whole (about 240 bytes of memory a
-    byte); over 128 KiB it is refused in one line naming it."""
+    byte); over 64 KiB it is refused in one line naming it."""
     path = tmp_path / "dem.asc"
     write_asc(path)
     (tmp_path / "dem.prj").write_text("[" * (1 << 20))
-    with pytest.raises(InputError, match=r"dem.prj is 1,048,576 bytes, over the 131,072"):
+    with pytest.raises(InputError, match=r"dem.prj is longer than the 65,536 bytes a CRS"):
         read_crs(path)
+# ----------------------------------------------------------------------------- hostile rasters
+
+
+def test_an_esri_header_line_of_48_mb_is_refused_without_being_read(tmp_path):
+    """The header is read in this process (for the memory estimate): a line is read
+    at most 64 KiB far, so a 48 MB line costs this process nothing (it cost 2.2 bytes
+    a byte of the line: about 105 MB here)."""
+    small = crafted.asc_header_bomb(tmp_path / "small.asc", 1 << 20)
+    bomb = crafted.asc_header_bomb(tmp_path / "bomb.asc", 48 << 20)
+    outcome_small, base = crafted.parent_peak(small)
+    outcome, peak = crafted.parent_peak(bomb)
+    assert outcome == (f"error {bomb} is not an ESRI ASCII grid: a header line longer than "
+                       f"{MAX_HEADER_LINE:,} bytes or a header longer than {MAX_HEADER_BYTES:,}")
+    assert outcome_small.startswith("error ")
+    assert peak - base < 8 << 20  # 48 MB of line: under 0.17 bytes a byte
+
+
+def test_a_data_line_of_any_length_is_not_read_by_the_header(tmp_path):
+    """A first row of 200,000 values (1.2 MB, longer than a header line may be) is data."""
+    path = tmp_path / "wide.asc"
+    cols = 200_000
+    row = " ".join(["1.5"] * cols)
+    path.write_text(f"ncols {cols}\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 1\n{row}\n{row}\n")
+    cloud = load_points(path)
+    assert cloud.n == 2 * cols and float(cloud.z.min()) == float(cloud.z.max()) == 1.5
+
+
+@pytest.mark.parametrize("value", ["inf", "-inf", "nan", "1e400", "2.5", "0"])
+def test_esri_ncols_or_nrows_not_a_whole_count_is_one_line(tmp_path, value):
+    for key in ("ncols", "nrows"):
+        path = tmp_path / f"{key}.asc"
+        head = {"ncols": "2", "nrows": "2", key: value}
+        path.write_text(f"ncols {head['ncols']}\nnrows {head['nrows']}\nxllcorner 0\n"
+                        "yllcorner 0\ncellsize 1\n1 2\n3 4\n")
+        with pytest.raises(InputError) as info:
+            load_points(path)
+        assert str(info.value).startswith(f"{path} is not an ESRI ASCII grid: no whole {key} "
+                                          "in its header (it gives ")
+
+
+def write_band(path, z: np.ndarray, nodata: str | None) -> None:
+    """A GeoTIFF of ``z`` in its own dtype, 1 m pixels from (0, 0)."""
+    tifffile = pytest.importorskip("tifffile")
+    tags = [(33550, "d", 3, (1.0, 1.0, 0.0), True),
+            (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, float(z.shape[0]), 0.0), True)]
+    if nodata is not None:
+        tags.append((42113, "s", 0, nodata, True))
+    tifffile.imwrite(path, z, extratags=tags)
+
+
+@pytest.mark.parametrize(("dtype", "nodata", "cell"), [
+    (np.float32, "-9999.9", np.float32(-9999.9)),
+    (np.float32, "-3.40282e+38", np.float32(-3.40282e38)),
+    (np.float32, "-3.4028234663852886e+38", np.finfo(np.float32).min),
+    (np.float32, "-3.40282346638529e+38", np.finfo(np.float32).min),  # GDAL's rounding rule
+    (np.float64, "-9999.9", -9999.9),
+    (np.int16, "-32768", np.int16(-32768)),
+    (np.uint8, "255", np.uint8(255)),
+])
+def test_geotiff_nodata_is_compared_in_the_bands_own_type(tmp_path, dtype, nodata, cell):
+    z = np.arange(12, dtype=dtype).reshape(3, 4) + dtype(1)
+    z[1, 2] = cell
+    z[2, 0] = cell
+    path = tmp_path / "band.tif"
+    write_band(path, z, nodata)
+    cloud = load_points(path)
+    assert cloud.n == 10 and cloud.dropped_nonfinite == 2
+    keep = np.ones(12, dtype=bool)
+    keep[[6, 8]] = False
+    np.testing.assert_array_equal(cloud.z, (np.arange(12) + 1.0)[keep])
+
+
+@pytest.mark.parametrize(("dtype", "nodata"), [(np.int16, "-40000"), (np.int16, "-1.5"),
+                                               (np.uint8, "-1"), (np.float32, "nan")])
+def test_geotiff_nodata_outside_the_bands_type_marks_no_cell(tmp_path, dtype, nodata):
+    z = np.arange(12, dtype=dtype).reshape(3, 4)
+    path = tmp_path / "band.tif"
+    write_band(path, z, nodata)
+    cloud = load_points(path)
+    assert cloud.n == 12 and cloud.dropped_nonfinite == 0
+
+
+def test_a_complex_geotiff_is_refused_not_read_as_its_real_part(tmp_path):
+    z = (np.arange(12) + 1j * np.arange(12)).astype(np.complex64).reshape(3, 4)
+    path = tmp_path / "complex.tif"
+    write_band(path, z, None)
+    with pytest.raises(InputError) as info:
+        load_points(path)
+    assert str(info.value) == (f"{path} holds complex64 values, not heights (an elevation "
+                               "raster holds real numbers): not read")
