@@ -63,6 +63,11 @@ from rough_viewer.vocabulary import InputError
 MAX_CANDIDATE_PAIRS = 200_000
 #: Rows of the pair matrix computed at once.
 _PAIR_CHUNK = 256
+#: A joint covers a bin where the cloud has a point within this many times the
+#: joint's RMS of its plane ...
+COVER_RMS_FACTOR = 3.0
+#: ... up to this many bins beyond the bins of its own points.
+COVER_REACH_BINS = 8
 #: RQD estimate from Jv (Palmstrom 2005): ``RQD = RQD_INTERCEPT - RQD_SLOPE * Jv``.
 RQD_INTERCEPT = 110.0
 RQD_SLOPE = 2.5
@@ -370,25 +375,55 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
 
     local = np.full(joints.n_joints, -1, dtype=np.int64)
     local[ids] = np.arange(ids.shape[0])
-    sel = np.flatnonzero(point_joint >= 0)
-    sel = sel[local[point_joint[sel]] >= 0]
-    require(sel.shape[0] * 64.0, f"the scanlines of a set of {sel.shape[0]:,} points")
-    q = local[point_joint[sel]]
-    rel = [xyz[a][sel] - origin[a] for a in range(3)]
+    n_all = int(xyz[0].shape[0])
+    # every point's bin and height in the set's frame: a joint covers the bins where
+    # the cloud has points on its plane, through the strips where other joints cross
+    # it (no planar cell there) and up to its edges
+    require(n_all * 72.0, f"the scanlines of a set over {n_all:,} points")
+    rel = [xyz[a] - origin[a] for a in range(3)]
     u = rel[0] * e1[0] + rel[1] * e1[1] + rel[2] * e1[2]
     v = rel[0] * e2[0] + rel[1] * e2[1] + rel[2] * e2[2]
+    hp = rel[0] * m[0] + rel[1] * m[1] + rel[2] * m[2]
     del rel
     bu = np.floor(u / bin_size).astype(np.int64)
     bv = np.floor(v / bin_size).astype(np.int64)
     u_lo, v_lo = int(bu.min()), int(bv.min())
     bu -= u_lo
     bv -= v_lo
-    del u, v
     width = int(bv.max()) + 1
     k_n = ids.shape[0]
     cell = bu * width + bv
-    pair = np.unique(cell * k_n + q)  # one row per (bin, joint) with points
+    del bu, bv
+    by_cell = np.argsort(cell, kind="stable")
+    sorted_cell = cell[by_cell]
+    sel = np.flatnonzero(point_joint >= 0)
+    sel = sel[local[point_joint[sel]] >= 0]
+    q = local[point_joint[sel]]
+    own = np.unique(cell[sel] * k_n + q)  # (bin, joint) with the joint's own points
+    own_cell, own_joint = own // k_n, own % k_n
+    band = np.maximum(COVER_RMS_FACTOR * joints.rms[ids], 1e-9)
+    found = [own]
+    for k in range(k_n):
+        mine = own_cell[own_joint == k]
+        iu, iv = mine // width, mine % width
+        lo_u, hi_u = int(iu.min()) - COVER_REACH_BINS, int(iu.max()) + COVER_REACH_BINS
+        lo_v = max(int(iv.min()) - COVER_REACH_BINS, 0)
+        hi_v = min(int(iv.max()) + COVER_REACH_BINS, width - 1)
+        rows = np.arange(max(lo_u, 0), hi_u + 1)
+        first = np.searchsorted(sorted_cell, rows * width + lo_v)
+        last = np.searchsorted(sorted_cell, rows * width + hi_v, side="right")
+        runs = last - first
+        if int(runs.sum()) == 0:
+            continue
+        pick = by_cell[np.repeat(first - np.cumsum(runs) + runs, runs)
+                       + np.arange(int(runs.sum()))]
+        kk = np.full(pick.shape[0], k)
+        near = np.abs(hp[pick] - height(kk, u[pick], v[pick])) <= band[k]
+        found.append(cell[pick[near]] * k_n + k)
+    pair = np.unique(np.concatenate(found))
     b_cell, b_joint = _fill(pair // k_n // width, pair // k_n % width, pair % k_n, width, k_n)
+    del u, v, hp
+    o_cell, o_joint = _fill(own_cell // width, own_cell % width, own_joint, width, k_n)
 
     def centre(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """In-plane coordinates of the centres of bins ``c``."""
@@ -405,9 +440,9 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
     # measured where they overlap (else between the centroids)
     offset = (joints.centroid[ids] - origin) @ m
     rank = np.argsort(offset, kind="stable")
-    by_joint = np.argsort(b_joint, kind="stable")
-    starts = np.searchsorted(b_joint[by_joint], np.arange(k_n + 1))
-    cells_of = [b_cell[by_joint[starts[k]:starts[k + 1]]] for k in range(k_n)]
+    by_joint = np.argsort(o_joint, kind="stable")
+    starts = np.searchsorted(o_joint[by_joint], np.arange(k_n + 1))
+    cells_of = [o_cell[by_joint[starts[k]:starts[k + 1]]] for k in range(k_n)]
     normal_gaps = []
     for a, b in zip(rank[:-1].tolist(), rank[1:].tolist(), strict=True):
         shared = np.intersect1d(cells_of[a], cells_of[b], assume_unique=True)
@@ -419,7 +454,6 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
             normal_gaps.append(float(offset[b] - offset[a]))
     g = np.abs(np.array(normal_gaps))
     return SetSpacing(normal=g[g > tolerance], scanline=scan)
-
 
 
 def _fill(bu: np.ndarray, bv: np.ndarray, joint: np.ndarray, width: int, k_n: int

@@ -403,6 +403,9 @@ class RockMassSpec:
     """Spacing of the jittered sample raster on every joint (m)."""
     noise_m: float = 0.002
     """Standard deviation of the Gaussian noise of every coordinate (m)."""
+    min_gap_share: float = 0.4
+    """A joint ends where it would come closer to the set's previous joint than this
+    share of the set's spacing (tilted joints of one set would cross in the block)."""
     seed: int = 30
 
 
@@ -440,8 +443,9 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     normal, ``o_j`` its offset: consecutive offsets ``spacing * (1 + u)``, ``u``
     uniform in ``+-spacing_jitter`` scaled so the mean is exact, centred on the
     block) with a normal drawn by :func:`exact_fisher_normals`; it is sampled on a
-    jittered raster of ``point_spacing_m`` over the part of its plane inside the cube,
-    plus isotropic Gaussian noise.
+    jittered raster of ``point_spacing_m`` over the part of its plane inside the cube
+    (and ending against the set's previous joint where it would come closer than
+    ``min_gap_share`` of the spacing to it), plus isotropic Gaussian noise.
 
     >>> rm = generate_rock_mass(RockMassSpec(size_m=2.0, point_spacing_m=0.1, sets=(
     ...     RockMassSetSpec(30.0, 90.0, joints=3, spacing_m=0.5),)))
@@ -489,6 +493,17 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
         on = centre + joff[j] * sn[jset[j] - 1]
         p = on + a[:, None] * dip[j] + b[:, None] * strike[j]
         inside = np.all((p >= 0) & (p <= spec.size_m), axis=1)
+        prev = j - 1
+        if prev >= 0 and jset[prev] == jset[j]:
+            # a joint ends where it would come closer than min_gap_share of the
+            # spacing to the set's previous one (it abuts it: joints of one set cross
+            # nowhere)
+            m = sn[jset[j] - 1]
+            s_m = spec.sets[int(jset[j]) - 1].spacing_m
+            d = p - centre
+            flat = d - (d @ m)[:, None] * m  # the in-plane position along m's line
+            h_prev = ((centre + joff[prev] * m - centre - flat) @ jn[prev]) / (m @ jn[prev])
+            inside &= (d @ m) - h_prev >= spec.min_gap_share * s_m
         pts.append(p[inside])
         lab.append(np.full(int(inside.sum()), j, dtype=np.int32))
     xyz = np.concatenate(pts)

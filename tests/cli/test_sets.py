@@ -202,7 +202,8 @@ def test_a_set_of_one_plane_shows_no_spacing_as_a_dash(tmp_path, capsys):
     assert main(["sets", str(src), "--grid", "0.25", "--out", str(tmp_path / "s.csv"),
                  "--quiet"]) == 0
     said = capsys.readouterr().out
-    assert "1 set, 1 plane\n" in said and "nan" not in said
+    assert "1 set, 1 joint of 1 plane (patches)\n" in said and "nan" not in said
     row = next(line for line in said.splitlines() if line.startswith("   1  17/270"))
-    assert row.split()[6] == "-"  # set, dip/dir, kappa, a95, cells, planes, spacing
-    assert float(row.split()[7]) == pytest.approx(4.18, abs=0.02)  # persistence: the 4 m plane, dipping 17 deg
+    # set, dip/dir, kappa, a95, cells, planes, joints, spacing, scanline spacing
+    assert row.split()[7] == "-" and row.split()[8] == "-"
+    assert float(row.split()[9]) == pytest.approx(4.18, abs=0.02)  # persistence: the 4 m plane, dipping 17 deg
