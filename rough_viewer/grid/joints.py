@@ -102,6 +102,10 @@ class Joints:
     """(J,) span of its points along its plane's strike, metres (gaps included)."""
     trace_length: np.ndarray
     """(J,) span of its points along its longest in-plane principal axis, metres."""
+    width: np.ndarray
+    """(J,) standard deviation of its points across its longest in-plane axis (the
+    square root of the middle eigenvalue of its plane's fit), metres: a joint narrower
+    than a cell has a poorly known dip across its length."""
 
     @property
     def n_joints(self) -> int:
@@ -274,7 +278,7 @@ def joint_table(patch_joint: np.ndarray, patch_set: np.ndarray, points: np.ndarr
     weight = points / patch_var
     c, jcov = _pooled(patch_joint, weight, centroid, cov, j_n)
     raw_c, raw_cov = _pooled(patch_joint, points.astype(np.float64), centroid, cov, j_n)
-    _, v = np.linalg.eigh(jcov)
+    w, v = np.linalg.eigh(jcov)
     normal = orient_normals(v[:, :, 0], toward)
     off = np.einsum("ij,ij->i", raw_c - c, normal)
     rms = np.sqrt(np.maximum(np.einsum("ij,ijk,ik->i", normal, raw_cov, normal) + off**2, 0.0))
@@ -299,7 +303,8 @@ def joint_table(patch_joint: np.ndarray, patch_set: np.ndarray, points: np.ndarr
                   dip_direction_deg=dd, centroid=c,
                   rms=rms,
                   area=np.bincount(patch_joint, weights=area, minlength=j_n),
-                  persistence_dip=spans[0], persistence_strike=spans[1], trace_length=spans[2])
+                  persistence_dip=spans[0], persistence_strike=spans[1], trace_length=spans[2],
+                  width=np.sqrt(np.maximum(w[:, 1], 0.0)))
 
 
 def _pooled(group: np.ndarray, weight: np.ndarray, centroid: np.ndarray, cov: np.ndarray,
@@ -318,7 +323,7 @@ def _no_joints() -> Joints:
     e, e3, ei = np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     return Joints(set_id=ei, patches=ei, points=ei, normal=e3, dip_deg=e, dip_direction_deg=e,
                   centroid=e3, rms=e, area=e,
-                  persistence_dip=e, persistence_strike=e, trace_length=e)
+                  persistence_dip=e, persistence_strike=e, trace_length=e, width=e)
 
 
 @dataclass(frozen=True)
@@ -363,7 +368,9 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
     m = np.asarray(set_normal, dtype=np.float64)
     m = m / np.linalg.norm(m)
     e1, e2 = (a[0] for a in dip_strike_axes(m[None]))
-    nj = joints.normal[ids]
+    # a joint narrower than a bin (a strip) has a poorly known tilt across it: its
+    # plane is taken at the set's mean orientation through its centroid
+    nj = np.where((joints.width[ids] >= bin_size)[:, None], joints.normal[ids], m[None])
     nm = nj @ m
     nm = np.where(np.abs(nm) < 1e-9, 1e-9, nm)
     base = np.einsum("ij,ij->i", nj, joints.centroid[ids] - origin)
@@ -417,6 +424,7 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
             continue
         pick = by_cell[np.repeat(first - np.cumsum(runs) + runs, runs)
                        + np.arange(int(runs.sum()))]
+        pick = pick[point_joint[pick] < 0]  # points of no joint: never another's
         kk = np.full(pick.shape[0], k)
         near = np.abs(hp[pick] - height(kk, u[pick], v[pick])) <= band[k]
         found.append(cell[pick[near]] * k_n + k)
