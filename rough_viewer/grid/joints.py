@@ -132,7 +132,7 @@ def rock_mass_figures(spacing_mean: np.ndarray) -> RockMassFigures:
 
     >>> f = rock_mass_figures(np.array([0.5, 0.8, 0.6, np.nan]))
     >>> round(f.jv, 4), round(f.block_size_index, 4), round(f.rqd_estimate, 2), f.sets_counted
-    (5.9167, 0.6333, 95.21, 3)
+    (4.9167, 0.6333, 97.71, 3)
     """
     s = np.asarray(spacing_mean, dtype=np.float64)
     s = s[np.isfinite(s) & (s > 0)]

@@ -49,12 +49,16 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    that direction, the points binned in strips a quarter of a cell wide across it
    and a chord broken where two consecutive points lie more than one cell apart;
    the area: the summed length of the chords along dip times the strip width.
-9. **Per set**: the normal spacing (Riquelme et al. 2015, persistent case): the
-   planes' centroids projected on the set's mean normal, sorted, consecutive
-   differences (differences of at most ``plane_tolerance`` are one plane exposed
-   twice, not a spacing); mean, median and population standard deviation; and the
-   mean persistence: the mean over the set's planes of the longer of their two
-   chords.
+9. **Joints** (:mod:`rough_viewer.grid.joints`): the planes above are patches; the
+   patches of one set that lie on one discontinuity, touching or not, are one joint
+   (a plane fitted to both within ``max_plane_rms``, each centroid within
+   ``plane_tolerance`` of the other's plane).
+10. **Per set**: the normal spacing between consecutive joints along the set's mean
+   normal, measured where they overlap, and the scanline spacing on virtual
+   scanlines along that normal (ISRM 1978); mean, median and population standard
+   deviation of the normal spacing; the mean persistence: the mean over the set's
+   planes of the longer of their two chords; and, over the sets, ``Jv``, the block
+   size index and the RQD estimate (:attr:`JointSets.figures`).
 
 Everything is vectorised over cells and points; loops run over sets (at most
 ``max_sets``) and density peaks only.

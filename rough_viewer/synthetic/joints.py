@@ -448,7 +448,7 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     ``min_gap_share`` of the spacing to it), plus isotropic Gaussian noise.
 
     >>> rm = generate_rock_mass(RockMassSpec(size_m=2.0, point_spacing_m=0.1, sets=(
-    ...     RockMassSetSpec(30.0, 90.0, joints=3, spacing_m=0.5),)))
+    ...     RockMassSetSpec(30.0, 90.0, joints=3, spacing_m=0.5, spacing_jitter=0.0),)))
     >>> rm.joint_set.tolist(), np.round(rm.spacings(1), 6).tolist()
     ([1, 1, 1], [0.5, 0.5])
     """

@@ -13,15 +13,9 @@ from rough_viewer.grid.joints import RQD_INTERCEPT, RQD_SLOPE, rock_mass_figures
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.sets import JOINT_COLUMNS, joint_sets
 from rough_viewer.synthetic.joints import ROCK_MASS_SETS, RockMassSpec, generate_rock_mass
-from tests.helpers import face_axes
+from tests.helpers import axis_angle, face_axes
 
 G = 0.25
-
-
-def axis_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Degrees between two axes (either sense)."""
-    c = abs(float(np.dot(a, b))) / (np.linalg.norm(a) * np.linalg.norm(b))
-    return math.degrees(math.acos(min(1.0, c)))
 
 
 @pytest.fixture(scope="module")
