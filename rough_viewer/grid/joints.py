@@ -412,6 +412,8 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
     found = [own]
     for k in range(k_n):
         mine = own_cell[own_joint == k]
+        if mine.size == 0:
+            continue
         iu, iv = mine // width, mine % width
         lo_u, hi_u = int(iu.min()) - COVER_REACH_BINS, int(iu.max()) + COVER_REACH_BINS
         lo_v = max(int(iv.min()) - COVER_REACH_BINS, 0)
