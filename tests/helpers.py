@@ -215,3 +215,9 @@ def scan_plane(scanner, point, normal, rays, *, extent, noise=0.0, seed=0):
     keep = (t > 0) & (np.abs(hit - point).max(axis=1) < extent)
     t = t[keep] + np.random.default_rng(seed).normal(0.0, noise, int(keep.sum()))
     return scanner + t[:, None] * rays[keep]
+
+
+def axis_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Degrees between two axes (either sense)."""
+    c = abs(float(np.dot(a, b))) / (np.linalg.norm(a) * np.linalg.norm(b))
+    return math.degrees(math.acos(min(1.0, c)))

@@ -7,12 +7,16 @@ Contract (other tools script against it)::
         [--min-planar-points K] [--cone 20] [--min-angle 30] [--max-sets 6]
         [--smoothing 6] [--min-density 3] [--min-set-cells 10] [--plane-tolerance D]
         [--min-plane-cells 3] [--max-plane-rms D] [--min-points K] [--units m|mm|ft|us-ft]
-        --out SETS.csv [--planes-out PLANES.csv] [--cells-out CELLS.csv]
+        --out SETS.csv [--planes-out PLANES.csv] [--joints-out JOINTS.csv]
+        [--summary-json SUMMARY.json] [--cells-out CELLS.csv]
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--force] [--quiet]
 
 SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`), PLANES.csv one
-row per plane (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`), lengths in the output
+row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with the
+``joint_id`` it is part of), JOINTS.csv one row per joint
+(:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
+(:func:`summary_dict`: ``sets``, ``jv``, ...), lengths in the output
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
 angles in degrees. DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
@@ -100,7 +104,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="cells with fewer points get no roughness (default: as compute)")
     p.add_argument("--out", required=True, metavar="SETS.csv",
                    help="per-set table (lengths in --units)")
-    p.add_argument("--planes-out", metavar="PLANES.csv", help="per-plane table")
+    p.add_argument("--planes-out", metavar="PLANES.csv",
+                   help="per-plane (patch) table, with the joint_id of every patch")
+    p.add_argument("--joints-out", metavar="JOINTS.csv",
+                   help="per-joint table (the patches of one discontinuity)")
+    p.add_argument("--summary-json", metavar="SUMMARY.json",
+                   help="the sets and the rock-mass figures (Jv, block size index, RQD "
+                   "estimate) as JSON")
     p.add_argument("--cells-out", metavar="CELLS.csv",
                    help="per-cell table: compute's columns (ODR) plus set_id and plane_id")
     p.add_argument("--dips-out", metavar="DIPS.csv",
@@ -140,21 +150,36 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     if not sets.n_sets:
         lines.append(sets.note)
         return "\n".join(lines)
+    n_j = sets.joints.n_joints
     lines.append(f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}, "
-                 f"{sets.planes.n_planes:,} plane{'s' if sets.planes.n_planes != 1 else ''}")
+                 f"{n_j:,} joint{'s' if n_j != 1 else ''} of "
+                 f"{sets.planes.n_planes:,} plane{'s' if sets.planes.n_planes != 1 else ''} "
+                 "(patches)")
     if sets.curved_groups:
         lines.append(f"{sets.curved_groups:,} group{'s' if sets.curved_groups != 1 else ''} of "
                      f"touching cells curve (RMS about their best plane over "
                      f"{sets.max_plane_rms / per:.3g} {u}): no planes")
     lines.append("")
     lines.append(f"{'set':>4} {'dip/dir':>9} {'kappa':>8} {'a95':>6} {'cells':>7} {'planes':>6} "
-                 f"{'spacing ' + u:>11} {'persist. ' + u:>11}")
+                 f"{'joints':>6} {'spacing ' + u:>11} {'scanline ' + u:>11} "
+                 f"{'persist. ' + u:>11}")
     for k in range(sets.n_sets):
         lines.append(
             f"{k + 1:4d} {sets.dip_deg[k]:3.0f}/{sets.dip_direction_deg[k]:03.0f}   "
             f"{sets.kappa[k]:8.1f} {sets.alpha95_deg[k]:6.2f} {sets.cells[k]:7,} "
-            f"{sets.n_planes_per_set[k]:6,} {_length(sets.spacing_mean[k] / per)} "
+            f"{sets.n_planes_per_set[k]:6,} {sets.n_joints_per_set[k]:6,} "
+            f"{_length(sets.spacing_mean[k] / per)} "
+            f"{_length(sets.spacing_scanline_mean[k] / per)} "
             f"{_length(sets.persistence_mean[k] / per)}")
+    f = sets.figures
+    if f.sets_counted:
+        lines.append(
+            f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
+            f"set{'s' if f.sets_counted != 1 else ''} with a spacing), block size index Ib "
+            f"{f.block_size_index / per:.4g} {u}, RQD estimate {f.rqd_estimate:.0f} % "
+            "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
+    else:
+        lines.append("no set has two joints apart: no Jv, block size index or RQD estimate")
     pl = sets.planes
     if pl.n_planes:
         lines.append("")
@@ -175,6 +200,29 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     return "\n".join(lines)
 
 
+def summary_dict(sets, source: str, unit: str = "m") -> dict:
+    """The sets and their rock-mass figures for ``--summary-json``: lengths in
+    ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
+    of the RQD estimate's formula)."""
+    from rough_viewer.io.jsonable import to_jsonable
+
+    per = per_unit(unit)
+    f = sets.figures
+    table = sets.set_table(per)
+    return {
+        "source": source, "unit": unit, "grid": sets.cell_size / per,
+        "sets": [{name: to_jsonable(table[name][k]) for name in table}
+                 for k in range(sets.n_sets)],
+        "joints": int(sets.joints.n_joints), "planes": int(sets.planes.n_planes),
+        "jv": to_jsonable(f.jv * per), "jv_per_m3": to_jsonable(f.jv),
+        "block_size_index": to_jsonable(f.block_size_index / per),
+        "rqd_estimate": to_jsonable(f.rqd_estimate),
+        "rqd_estimate_formula": "RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; "
+                                "Palmstrom 2005; valid for Jv 4..44",
+        "sets_counted_in_jv": f.sets_counted,
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
@@ -192,7 +240,8 @@ def run(args: argparse.Namespace) -> int:
     grids = grid_sizes(args.grid, unit)
     several = len(grids) > 1
     wanted = [(opt, getattr(args, opt)) for opt in
-              ("out", "planes_out", "cells_out", "dips_out", "las_out", "ply_out")
+              ("out", "planes_out", "joints_out", "summary_json", "cells_out", "dips_out",
+               "las_out", "ply_out")
               if getattr(args, opt)]
     if args.las_out:
         from rough_viewer.io.las_out import check_las_output
@@ -201,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
     if args.ply_out and Path(args.ply_out).suffix.lower() != ".ply":
         raise InputError(f"--ply-out must end in .ply, got {args.ply_out}")
     for opt, path in wanted:
-        if opt in ("out", "planes_out", "cells_out"):
+        if opt in ("out", "planes_out", "joints_out", "cells_out"):
             check_table_output(path)
     outputs = {opt: {g: output_name(path, g, several, unit) for g in grids} for opt, path in wanted}
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
@@ -260,6 +309,21 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
     if "planes_out" in outputs:
         write_table(outputs["planes_out"][g], sets.plane_table(per))
         tables.append(str(outputs["planes_out"][g]))
+    if "joints_out" in outputs:
+        write_table(outputs["joints_out"][g], sets.joint_table(per))
+        tables.append(str(outputs["joints_out"][g]))
+    if "summary_json" in outputs:
+        import json
+
+        from rough_viewer.io.output import write_atomic
+
+        data = summary_dict(sets, source, unit)
+
+        def dump(fh, d: dict = data) -> None:
+            json.dump(d, fh, indent=2)
+
+        write_atomic(outputs["summary_json"][g], dump)
+        tables.append(str(outputs["summary_json"][g]))
     if "dips_out" in outputs:
         write_table(outputs["dips_out"][g], sets.dips_table(per))
         tables.append(str(outputs["dips_out"][g]))

@@ -49,12 +49,16 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    that direction, the points binned in strips a quarter of a cell wide across it
    and a chord broken where two consecutive points lie more than one cell apart;
    the area: the summed length of the chords along dip times the strip width.
-9. **Per set**: the normal spacing (Riquelme et al. 2015, persistent case): the
-   planes' centroids projected on the set's mean normal, sorted, consecutive
-   differences (differences of at most ``plane_tolerance`` are one plane exposed
-   twice, not a spacing); mean, median and population standard deviation; and the
-   mean persistence: the mean over the set's planes of the longer of their two
-   chords.
+9. **Joints** (:mod:`rough_viewer.grid.joints`): the planes above are patches; the
+   patches of one set that lie on one discontinuity, touching or not, are one joint
+   (a plane fitted to both within ``max_plane_rms``, each centroid within
+   ``plane_tolerance`` of the other's plane).
+10. **Per set**: the normal spacing between consecutive joints along the set's mean
+   normal, measured where they overlap, and the scanline spacing on virtual
+   scanlines along that normal (ISRM 1978); mean, median and population standard
+   deviation of the normal spacing; the mean persistence: the mean over the set's
+   planes of the longer of their two chords; and, over the sets, ``Jv``, the block
+   size index and the RQD estimate (:attr:`JointSets.figures`).
 
 Everything is vectorised over cells and points; loops run over sets (at most
 ``max_sets``) and density peaks only.
@@ -76,6 +80,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from rough_viewer.grid.joints import (
+    Joints,
+    RockMassFigures,
+    joint_table,
+    merge_patches,
+    rock_mass_figures,
+    set_spacing,
+)
 from rough_viewer.grid.orientation import (
     DEFAULT_SMOOTHING_DEG,
     Stereonet,
@@ -127,17 +139,23 @@ _SHIFT_REACH_SIGMAS = 5.0
 #: Columns of SETS.csv, in order (the ``rough-viewer sets`` contract).
 SET_COLUMNS: tuple[str, ...] = (
     "set_id", "dip_deg", "dip_direction_deg", "fisher_kappa", "alpha95_deg", "cells",
-    "planes", "spacing_mean", "spacing_median", "spacing_std", "persistence_mean",
+    "planes", "joints", "spacing_mean", "spacing_median", "spacing_std",
+    "spacing_scanline_mean", "persistence_mean",
 )
 #: Columns of PLANES.csv, in order.
 PLANE_COLUMNS: tuple[str, ...] = (
-    "plane_id", "set_id", "dip_deg", "dip_direction_deg", "cx", "cy", "cz", "area",
+    "plane_id", "set_id", "joint_id", "dip_deg", "dip_direction_deg", "cx", "cy", "cz", "area",
     "persistence_dip", "persistence_strike", "rms", "cells",
 )
-#: Length columns of the two tables (divided by the output unit; ``area`` by its square).
+#: Columns of JOINTS.csv, in order.
+JOINT_COLUMNS: tuple[str, ...] = (
+    "joint_id", "set_id", "dip_deg", "dip_direction_deg", "cx", "cy", "cz", "patches", "area",
+    "trace_length", "persistence_dip", "persistence_strike", "rms",
+)
+#: Length columns of the tables (divided by the output unit; ``area`` by its square).
 LENGTH_COLUMNS = frozenset({"spacing_mean", "spacing_median", "spacing_std",
-                            "persistence_mean", "cx", "cy", "cz", "persistence_dip",
-                            "persistence_strike", "rms"})
+                            "spacing_scanline_mean", "persistence_mean", "cx", "cy", "cz",
+                            "persistence_dip", "persistence_strike", "rms", "trace_length"})
 
 
 @dataclass(frozen=True)
@@ -230,6 +248,10 @@ class JointPlanes:
     """(P,) longest chord of its points along strike, metres."""
     offset: np.ndarray
     """(P,) centroid's position along its set's mean normal, metres (from the grid origin)."""
+    scatter: np.ndarray
+    """(P, 3, 3) population covariance of the plane's points, square metres."""
+    joint_id: np.ndarray
+    """(P,) int64 joint the plane (patch) is part of, 1..J."""
 
     @property
     def n_planes(self) -> int:
@@ -278,17 +300,26 @@ class JointSets:
     points: np.ndarray
     """(S,) int64 points per set."""
     n_planes_per_set: np.ndarray
-    """(S,) int64 planes per set."""
+    """(S,) int64 planes (patches) per set."""
+    n_joints_per_set: np.ndarray
+    """(S,) int64 joints per set."""
     spacing_mean: np.ndarray
-    """(S,) mean normal spacing, metres (NaN with fewer than two planes)."""
+    """(S,) mean normal spacing of consecutive joints, metres (NaN with fewer than two
+    joints; :mod:`rough_viewer.grid.joints`)."""
     spacing_median: np.ndarray
     """(S,) median normal spacing, metres."""
     spacing_std: np.ndarray
     """(S,) population standard deviation of the normal spacing, metres."""
+    spacing_scanline_mean: np.ndarray
+    """(S,) mean spacing on scanlines along the set's normal (ISRM), metres."""
     persistence_mean: np.ndarray
     """(S,) mean over the set's planes of the longer chord, metres."""
     planes: JointPlanes
-    """The planes."""
+    """The planes (patches)."""
+    joints: Joints
+    """The joints (patches of one discontinuity)."""
+    cell_joint: np.ndarray
+    """(M,) int32 joint of every cell, 0 = in no joint."""
     cell_size: float
     """Grid cell edge, metres."""
     options: SetOptions
@@ -312,6 +343,11 @@ class JointSets:
         return int(self.cells.shape[0])
 
     @property
+    def figures(self) -> RockMassFigures:
+        """Jv, block size index and RQD estimate of the sets' normal spacings."""
+        return rock_mass_figures(self.spacing_mean)
+
+    @property
     def cone_deg(self) -> float:
         """A cell joins the nearest peak within this angle, degrees."""
         return self.options.cone_deg
@@ -324,8 +360,10 @@ class JointSets:
             "dip_deg": self.dip_deg, "dip_direction_deg": self.dip_direction_deg,
             "fisher_kappa": self.kappa, "alpha95_deg": self.alpha95_deg,
             "cells": self.cells, "planes": self.n_planes_per_set,
+            "joints": self.n_joints_per_set,
             "spacing_mean": self.spacing_mean, "spacing_median": self.spacing_median,
-            "spacing_std": self.spacing_std, "persistence_mean": self.persistence_mean,
+            "spacing_std": self.spacing_std, "spacing_scanline_mean": self.spacing_scanline_mean,
+            "persistence_mean": self.persistence_mean,
         }
         return _in_unit(cols, unit_m)
 
@@ -335,12 +373,26 @@ class JointSets:
         pl = self.planes
         cols: dict[str, np.ndarray] = {
             "plane_id": np.arange(1, pl.n_planes + 1, dtype=np.int64),
-            "set_id": pl.set_id, "dip_deg": pl.dip_deg,
+            "set_id": pl.set_id, "joint_id": pl.joint_id, "dip_deg": pl.dip_deg,
             "dip_direction_deg": pl.dip_direction_deg,
             "cx": pl.centroid[:, 0], "cy": pl.centroid[:, 1], "cz": pl.centroid[:, 2],
             "area": pl.area / unit_m**2,
             "persistence_dip": pl.persistence_dip, "persistence_strike": pl.persistence_strike,
             "rms": pl.rms, "cells": pl.cells,
+        }
+        return _in_unit(cols, unit_m)
+
+    def joint_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """Column -> (J,) values in :data:`JOINT_COLUMNS` order, lengths divided by
+        ``unit_m`` and the area by its square."""
+        jt = self.joints
+        cols: dict[str, np.ndarray] = {
+            "joint_id": np.arange(1, jt.n_joints + 1, dtype=np.int64), "set_id": jt.set_id,
+            "dip_deg": jt.dip_deg, "dip_direction_deg": jt.dip_direction_deg,
+            "cx": jt.centroid[:, 0], "cy": jt.centroid[:, 1], "cz": jt.centroid[:, 2],
+            "patches": jt.patches, "area": jt.area / unit_m**2,
+            "trace_length": jt.trace_length, "persistence_dip": jt.persistence_dip,
+            "persistence_strike": jt.persistence_strike, "rms": jt.rms,
         }
         return _in_unit(cols, unit_m)
 
@@ -634,25 +686,39 @@ def joint_sets(
                                                    int(min_plane_cells), t,
                                                    int(min_planar_points), max_rms)
     tick(3, 4)
-    spacing = np.full((n_sets, 3), np.nan)
+    # joints: the patches of one discontinuity (grid/joints.py)
+    patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
+                                planes.normal, tolerance=tol, max_rms=max_rms)
+    planes = replace(planes, joint_id=patch_joint + 1)
+    cell_joint = np.zeros(m_cells, dtype=np.int32)
+    on_plane = cell_plane > 0
+    cell_joint[on_plane] = (patch_joint[cell_plane[on_plane] - 1] + 1).astype(np.int32)
+    point_joint = cell_joint[result.point_cell].astype(np.int64) - 1
+    joints = joint_table(patch_joint, planes.set_id, planes.points, planes.centroid,
+                         planes.scatter, planes.area, point_joint, (x, y, z), toward)
+    spacing = np.full((n_sets, 4), np.nan)
     persistence_mean = np.full(n_sets, np.nan)
     n_planes = np.bincount(planes.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
+    n_joints = np.bincount(joints.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
     for s in range(n_sets):
         mine = planes.set_id == s + 1
         if mine.any():
             persistence_mean[s] = float(planes.persistence[mine].mean())
-        gaps = np.diff(np.sort(planes.offset[mine]))
-        gaps = gaps[gaps > tol]
-        if gaps.size:
-            spacing[s] = (gaps.mean(), np.median(gaps), gaps.std())
+        sp = set_spacing(joints, s + 1, normal[s], point_joint, (x, y, z), result.grid.origin,
+                         g, tol)
+        if sp.normal.size:
+            spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
+        if sp.scanline.size:
+            spacing[s, 3] = sp.scanline.mean()
     tick(4, 4)
     return JointSets(
         cell_set=cell_set, cell_plane=cell_plane, planar=planar, net=net, peak=peaks,
         peak_density=peak_density, mean_pole=mean_pole, normal=normal, dip_deg=dip,
         dip_direction_deg=dd, kappa=kappa, alpha95_deg=alpha, cells=set_cells,
-        points=set_points, n_planes_per_set=n_planes, spacing_mean=spacing[:, 0],
-        spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
-        persistence_mean=persistence_mean, planes=planes, cell_size=g, options=o,
+        points=set_points, n_planes_per_set=n_planes, n_joints_per_set=n_joints,
+        spacing_mean=spacing[:, 0], spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
+        spacing_scanline_mean=spacing[:, 3], persistence_mean=persistence_mean, planes=planes,
+        joints=joints, cell_joint=cell_joint, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
         note=note)
 
@@ -743,7 +809,8 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
         if n_p == 0:
             return cell_plane, cell_set, _no_planes(), curved
         first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
-                         rms=first_fit.rms[flat], points=first_fit.points[flat])
+                         rms=first_fit.rms[flat], points=first_fit.points[flat],
+                         cov=first_fit.cov[flat])
     _take_edge_cells(result, cell_plane, cell_set, plane_set, first_fit, max_roughness,
                      min_planar_points)
     fit = _fit_planes(result, xyz, cell_plane, n_p, measure=True)  # with the edge cells
@@ -757,7 +824,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
         set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
         dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
         persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
-        offset=offset_p), curved
+        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64)), curved
 
 
 #: An edge cell joins a plane when its centroid lies within this many times the
@@ -809,7 +876,8 @@ def _no_planes() -> JointPlanes:
     ei = np.zeros(0, dtype=np.int64)
     return JointPlanes(set_id=ei, cells=ei, points=ei, normal=e3, dip_deg=e,
                        dip_direction_deg=e, centroid=e3, rms=e, area=e, persistence_dip=e,
-                       persistence_strike=e, offset=e)
+                       persistence_strike=e, offset=e, scatter=np.zeros((0, 3, 3)),
+                       joint_id=ei)
 
 
 @dataclass(frozen=True)
@@ -820,6 +888,7 @@ class _Fit:
     centroid: np.ndarray
     rms: np.ndarray
     points: np.ndarray
+    cov: np.ndarray
     chord_dip: np.ndarray | None = None
     chord_strike: np.ndarray | None = None
     area: np.ndarray | None = None
@@ -856,7 +925,8 @@ def _fit_planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.nda
             cov[:, i, j] = cov[:, j, i] = v - mean[:, i] * mean[:, j]
     evals, evecs = np.linalg.eigh(cov)
     fit = _Fit(normal=evecs[:, :, 0], centroid=ref + mean,
-               rms=np.sqrt(np.maximum(evals[:, 0], 0.0)), points=count.astype(np.int64))
+               rms=np.sqrt(np.maximum(evals[:, 0], 0.0)), points=count.astype(np.int64),
+               cov=cov)
     if not measure:
         return fit
     dip_axis, strike_axis = dip_strike_axes(fit.normal)

@@ -356,3 +356,159 @@ def generate_joint_block(spec: JointBlockSpec = JOINT_BLOCK) -> JointBlockScan:
     set_id = np.where(label >= 0, planes.set_id[np.maximum(label, 0)], 0).astype(np.uint8)
     return JointBlockScan(cloud=PointCloud.from_xyz(xyz), plane=label, set_id=set_id,
                           planes=planes, set_normal=set_n, spec=spec)
+
+
+# --- a rock mass cut by persistent joints -------------------------------------------
+
+
+@dataclass(frozen=True)
+class RockMassSetSpec:
+    """One planted set of persistent joints through a rock mass (metres, degrees)."""
+
+    dip_deg: float
+    """Dip of the set's mean plane, degrees below horizontal."""
+    dip_direction_deg: float
+    """Dip direction of the set's mean plane, degrees clockwise from +y."""
+    joints: int
+    """Number of joints."""
+    spacing_m: float
+    """Mean normal spacing of consecutive joints, along the set's mean normal through
+    the block's centre (m)."""
+    kappa: float = 400.0
+    """Fisher concentration of the joints' normals (exact, as
+    :func:`exact_fisher_normals` plants it)."""
+    spacing_jitter: float = 0.1
+    """Consecutive spacings vary by up to this share of ``spacing_m``."""
+
+
+#: The rock mass of issue 30: three sets cutting each other in a 6 m block.
+ROCK_MASS_SETS: tuple[RockMassSetSpec, ...] = (
+    RockMassSetSpec(dip_deg=60.0, dip_direction_deg=30.0, joints=15, spacing_m=0.5),
+    RockMassSetSpec(dip_deg=45.0, dip_direction_deg=150.0, joints=9, spacing_m=0.8),
+    RockMassSetSpec(dip_deg=80.0, dip_direction_deg=270.0, joints=11, spacing_m=0.6),
+)
+
+
+@dataclass(frozen=True)
+class RockMassSpec:
+    """A cube of rock cut by persistent planar joints, every joint sampled where it
+    lies inside the cube (a see-through rock mass: each joint is crossed by the
+    joints of the other sets, which break it into patches on a grid)."""
+
+    sets: tuple[RockMassSetSpec, ...] = ROCK_MASS_SETS
+    """The planted sets."""
+    size_m: float = 6.0
+    """Edge of the cube (m), from the origin."""
+    point_spacing_m: float = 0.05
+    """Spacing of the jittered sample raster on every joint (m)."""
+    noise_m: float = 0.002
+    """Standard deviation of the Gaussian noise of every coordinate (m)."""
+    min_gap_share: float = 0.4
+    """A joint ends where it would come closer to the set's previous joint than this
+    share of the set's spacing (tilted joints of one set would cross in the block)."""
+    seed: int = 30
+
+
+@dataclass(frozen=True, eq=False)
+class RockMassScan:
+    """Points of a planted rock mass with the truth of every point and joint."""
+
+    cloud: PointCloud
+    """Points (m)."""
+    joint: np.ndarray
+    """(N,) int32 planted joint of every point (row of the joint arrays)."""
+    set_id: np.ndarray
+    """(N,) uint8 set of every point, 1..S."""
+    joint_set: np.ndarray
+    """(J,) int64 set of every joint, 1..S."""
+    joint_normal: np.ndarray
+    """(J, 3) unit normal of every joint, upward."""
+    joint_offset: np.ndarray
+    """(J,) where the joint crosses the line through the block's centre along its
+    set's mean normal, from the centre (m): the joint passes through
+    ``centre + offset * set_normal``."""
+    set_normal: np.ndarray
+    """(S, 3) planted mean normal of every set, upward."""
+    spec: RockMassSpec = field(repr=False)
+
+    def spacings(self, set_id: int) -> np.ndarray:
+        """The planted normal spacings of set ``set_id`` (1..S), consecutive joints (m)."""
+        return np.diff(np.sort(self.joint_offset[self.joint_set == set_id]))
+
+
+def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
+    """Sample the persistent joints of ``spec`` inside its cube.
+
+    Joint ``j`` of a set passes through ``centre + o_j m`` (``m`` the set's mean
+    normal, ``o_j`` its offset: consecutive offsets ``spacing * (1 + u)``, ``u``
+    uniform in ``+-spacing_jitter`` scaled so the mean is exact, centred on the
+    block) with a normal drawn by :func:`exact_fisher_normals`; it is sampled on a
+    jittered raster of ``point_spacing_m`` over the part of its plane inside the cube
+    (and ending against the set's previous joint where it would come closer than
+    ``min_gap_share`` of the spacing to it), plus isotropic Gaussian noise.
+
+    >>> rm = generate_rock_mass(RockMassSpec(size_m=2.0, point_spacing_m=0.1, sets=(
+    ...     RockMassSetSpec(30.0, 90.0, joints=3, spacing_m=0.5, spacing_jitter=0.0),)))
+    >>> rm.joint_set.tolist(), np.round(rm.spacings(1), 6).tolist()
+    ([1, 1, 1], [0.5, 0.5])
+    """
+    if not spec.sets:
+        raise InputError("a rock mass needs at least one set")
+    if not (spec.size_m > 0 and spec.point_spacing_m > 0 and spec.noise_m >= 0):
+        raise InputError("a rock mass needs a positive size and point spacing")
+    half = 0.5 * spec.size_m
+    reach = half * np.sqrt(3.0)
+    n_side = int(np.ceil(2 * reach / spec.point_spacing_m))
+    if n_side * n_side * sum(s.joints for s in spec.sets) > 5e7:
+        raise InputError("the rock mass would need over 5e7 samples; choose a coarser spacing")
+    rng = np.random.default_rng([spec.seed, 30])
+    centre = np.full(3, half)
+    set_n, joint_set, normals, offsets = [], [], [], []
+    for k, s in enumerate(spec.sets, start=1):
+        if s.joints < 1 or not s.spacing_m > 0 or not s.kappa > 1 \
+                or not 0 <= s.spacing_jitter < 1:
+            raise InputError(f"rock mass set {k}: joints >= 1, a spacing > 0, kappa > 1 and "
+                             "a jitter in [0, 1) are needed")
+        m = plane_normals(np.array([s.dip_deg]), np.array([s.dip_direction_deg]))[0]
+        steps = s.spacing_m * (1.0 + rng.uniform(-s.spacing_jitter, s.spacing_jitter,
+                                                 s.joints - 1))
+        if steps.size:
+            steps *= s.spacing_m / steps.mean()
+        off = np.concatenate([[0.0], np.cumsum(steps)])
+        set_n.append(m)
+        joint_set.append(np.full(s.joints, k, dtype=np.int64))
+        normals.append(exact_fisher_normals(rng, m, s.kappa, s.joints))
+        offsets.append(off - 0.5 * off[-1])
+    jset = np.concatenate(joint_set)
+    jn = np.concatenate(normals)
+    joff = np.concatenate(offsets)
+    sn = np.array(set_n)
+    dip, strike = dip_strike_axes(jn)
+    srng = np.random.default_rng([spec.seed, 2])
+    ia, ib = np.meshgrid(np.arange(n_side), np.arange(n_side), indexing="ij")
+    pts, lab = [], []
+    for j in range(jn.shape[0]):
+        a = -reach + (ia.ravel() + srng.uniform(0, 1, ia.size)) * spec.point_spacing_m
+        b = -reach + (ib.ravel() + srng.uniform(0, 1, ib.size)) * spec.point_spacing_m
+        on = centre + joff[j] * sn[jset[j] - 1]
+        p = on + a[:, None] * dip[j] + b[:, None] * strike[j]
+        inside = np.all((p >= 0) & (p <= spec.size_m), axis=1)
+        prev = j - 1
+        if prev >= 0 and jset[prev] == jset[j]:
+            # a joint ends where it would come closer than min_gap_share of the
+            # spacing to the set's previous one (it abuts it: joints of one set cross
+            # nowhere)
+            m = sn[jset[j] - 1]
+            s_m = spec.sets[int(jset[j]) - 1].spacing_m
+            d = p - centre
+            flat = d - (d @ m)[:, None] * m  # the in-plane position along m's line
+            h_prev = ((centre + joff[prev] * m - centre - flat) @ jn[prev]) / (m @ jn[prev])
+            inside &= (d @ m) - h_prev >= spec.min_gap_share * s_m
+        pts.append(p[inside])
+        lab.append(np.full(int(inside.sum()), j, dtype=np.int32))
+    xyz = np.concatenate(pts)
+    joint = np.concatenate(lab)
+    xyz += np.random.default_rng([spec.seed, 3]).normal(0.0, spec.noise_m, xyz.shape)
+    return RockMassScan(cloud=PointCloud.from_xyz(xyz), joint=joint,
+                        set_id=jset[joint].astype(np.uint8), joint_set=jset, joint_normal=jn,
+                        joint_offset=joff, set_normal=sn, spec=spec)

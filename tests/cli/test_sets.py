@@ -4,6 +4,7 @@ LAS/PLY ids), units, the options and the bad-input errors."""
 from __future__ import annotations
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -15,9 +16,9 @@ from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
-SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,"
-               "spacing_mean,spacing_median,spacing_std,persistence_mean")
-PLANES_HEADER = ("plane_id,set_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
+SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
                  "persistence_strike,rms,cells")
 G = 0.5
 
@@ -54,7 +55,10 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     table = ref.set_table()
     for k, row in enumerate(rows):
         for name, text in zip(header, row, strict=True):
-            assert float(text) == table[name][k]  # exact round trip
+            if text == "":  # no value (joints that no scanline crosses twice)
+                assert np.isnan(table[name][k])
+            else:
+                assert float(text) == table[name][k]  # exact round trip
     header, rows = read_csv(out["planes"])
     assert ",".join(header) == PLANES_HEADER and len(rows) == ref.planes.n_planes
     assert [int(r[0]) for r in rows] == list(range(1, ref.planes.n_planes + 1))
@@ -86,10 +90,14 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     h, rows_m = read_csv(m_out)
     _, rows_mm = read_csv(mm_out)
     assert len(rows_m) == len(rows_mm) == 3
-    lengths = {"spacing_mean", "spacing_median", "spacing_std", "persistence_mean"}
+    lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
+               "persistence_mean"}
     for a, b in zip(rows_m, rows_mm, strict=True):
         for name, x, y in zip(h, a, b, strict=True):
             scale = 1000.0 if name in lengths else 1.0
+            if x == "" or y == "":
+                assert x == y
+                continue
             assert float(y) == pytest.approx(float(x) * scale, rel=1e-6, abs=1e-9)
     h, rows_m = read_csv(pm)
     _, rows_mm = read_csv(pmm)
@@ -195,7 +203,44 @@ def test_a_set_of_one_plane_shows_no_spacing_as_a_dash(tmp_path, capsys):
     assert main(["sets", str(src), "--grid", "0.25", "--out", str(tmp_path / "s.csv"),
                  "--quiet"]) == 0
     said = capsys.readouterr().out
-    assert "1 set, 1 plane\n" in said and "nan" not in said
+    assert "1 set, 1 joint of 1 plane (patches)\n" in said and "nan" not in said
     row = next(line for line in said.splitlines() if line.startswith("   1  17/270"))
-    assert row.split()[6] == "-"  # set, dip/dir, kappa, a95, cells, planes, spacing
-    assert float(row.split()[7]) == pytest.approx(4.18, abs=0.02)  # persistence: the 4 m plane, dipping 17 deg
+    # set, dip/dir, kappa, a95, cells, planes, joints, spacing, scanline spacing
+    assert row.split()[7] == "-" and row.split()[8] == "-"
+    assert float(row.split()[9]) == pytest.approx(4.18, abs=0.02)  # persistence: the 4 m plane, dipping 17 deg
+
+
+def test_joints_out_and_summary_json(tmp_path, block):
+    """Issue 30: JOINTS.csv has one row per joint in the contract's columns, the
+    patches of PLANES.csv name their joint, and SUMMARY.json carries the sets and
+    Jv = sum of 1 / spacing_mean, in m and in mm."""
+    path, mm = block
+    out = {k: tmp_path / f"{k}.csv" for k in ("sets", "planes", "joints")}
+    summary = tmp_path / "summary.json"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out["sets"]),
+                 "--planes-out", str(out["planes"]), "--joints-out", str(out["joints"]),
+                 "--summary-json", str(summary), "--quiet"]) == 0
+    cloud = load_points(path)
+    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud)
+    header, rows = read_csv(out["joints"])
+    assert ",".join(header) == ("joint_id,set_id,dip_deg,dip_direction_deg,cx,cy,cz,patches,"
+                                "area,trace_length,persistence_dip,persistence_strike,rms")
+    assert len(rows) == ref.joints.n_joints > 0
+    assert sum(int(r[header.index("patches")]) for r in rows) == ref.planes.n_planes
+    ph, prow = read_csv(out["planes"])
+    assert [int(r[ph.index("joint_id")]) for r in prow] == list(ref.planes.joint_id)
+    data = json.loads(summary.read_text())
+    sh, srows = read_csv(out["sets"])
+    spacing = [float(r[sh.index("spacing_mean")]) for r in srows if r[sh.index("spacing_mean")]]
+    assert len(data["sets"]) == ref.n_sets
+    assert data["sets"][0]["joints"] == int(srows[0][sh.index("joints")])
+    assert data["jv"] == pytest.approx(sum(1.0 / s for s in spacing), rel=1e-12)
+    assert data["rqd_estimate"] == pytest.approx(min(100.0, max(0.0, 110 - 2.5 * data["jv"])))
+    assert data["block_size_index"] == pytest.approx(np.mean(spacing))
+    mm_summary = tmp_path / "mm.json"
+    assert main(["sets", str(mm), "--units", "mm", "--grid", str(G * 1000), "--out",
+                 str(tmp_path / "mm.csv"), "--summary-json", str(mm_summary), "--quiet"]) == 0
+    data_mm = json.loads(mm_summary.read_text())
+    assert data_mm["jv"] == pytest.approx(data["jv"] / 1000.0, rel=1e-6)  # per mm
+    assert data_mm["jv_per_m3"] == pytest.approx(data["jv"], rel=1e-6)
+    assert data_mm["rqd_estimate"] == pytest.approx(data["rqd_estimate"], rel=1e-6)

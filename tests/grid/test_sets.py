@@ -26,15 +26,9 @@ from rough_viewer.grid.sets import (
 )
 from rough_viewer.synthetic.joints import JOINT_BLOCK, generate_joint_block
 from rough_viewer.vocabulary import InputError
-from tests.helpers import face_axes
+from tests.helpers import axis_angle, face_axes
 
 G = 0.25
-
-
-def axis_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Degrees between two axes (either sense)."""
-    c = abs(float(np.dot(a, b))) / (np.linalg.norm(a) * np.linalg.norm(b))
-    return math.degrees(math.acos(min(1.0, c)))
 
 
 @pytest.fixture(scope="module")
