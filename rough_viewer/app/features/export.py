@@ -188,22 +188,28 @@ class ExportFeature:
     initial: PointCloud
     """The cloud the app was started on (its file may be named relative to the
     server's folder)."""
+    initial_path: Path | None = None
+    """:attr:`initial`'s file, resolved in the folder the server started in (None:
+    no file)."""
     sent: deque[Sent] = field(default_factory=lambda: deque(maxlen=MAX_SENT_RECORDS))
     _hashes: dict[tuple[str, int, int], InputRef] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ input
-    def input_file(self, cloud: PointCloud) -> Path | None:
-        """The file ``cloud`` was read from on the server, or None (an upload, which
-        is deleted once read; several merged files; a cloud made in memory)."""
+    def input_file(self, loaded: LoadedCloud) -> Path | None:
+        """The file ``loaded``'s cloud was read from on the server (a crop's: its whole
+        cloud's), or None (an upload, which is deleted once read; several merged files;
+        a cloud made in memory)."""
+        cloud = (loaded.uncropped or loaded).cloud
         if not cloud.source:
             return None
         p = Path(cloud.source)
         if not p.is_absolute():
             # only the cloud given to serve may name a file relative to the server's
-            # folder; an upload's name is a bare name and no file here
-            if cloud is not self.initial:
+            # folder (resolved when the app started); an upload's name is a bare name
+            # and no file here
+            if cloud is not self.initial or self.initial_path is None:
                 return None
-            p = p.resolve()
+            p = self.initial_path
         return p if p.is_file() else None
 
     def input_ref(self, path: Path, progress: Callable[[int, int], None] | None = None
@@ -249,7 +255,7 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
 
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result
-    source = e.input_file(cloud)
+    source = e.input_file(shown.loaded)
     name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_points.{fmt}"
     n_rows = cloud.n + cloud.dropped_nonfinite
 
@@ -337,7 +343,7 @@ def _report_plan(shown: Shown) -> Plan:
 
 
 def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
-    source = e.input_file(shown.loaded.cloud)
+    source = e.input_file(shown.loaded)
     if source is None:
         raise InputError("a view records the input file on the server; this cloud was "
                          "uploaded, merged from several files or made in memory: put its "
@@ -421,7 +427,7 @@ class ExportJob(Job[Host]):
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         m, t0 = self.e, time.perf_counter()
         paths: dict[str, str] = {}
-        source = self.e.input_file(self.shown.loaded.cloud)
+        source = self.e.input_file(self.shown.loaded)
         if source is not None:
             paths[str(source)] = source.name
         try:
@@ -482,7 +488,7 @@ class SaveViewJob(Job[Host]):
         m = self.e
         shown = ctx.session.shown
         data = ctx.options.data
-        source = m.input_file(shown.loaded.cloud)
+        source = m.input_file(shown.loaded)
         try:
             if not ctx.options.save_views:
                 raise InputError("this server does not save views (start it with "
@@ -549,9 +555,11 @@ def mount(host: Host) -> ExportFeature:
                                    hint="Write the view next to the input on the server.")
         status = gui.add_markdown("")
         progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+    whole = host.session.shown.loaded.uncropped or host.session.shown.loaded
+    first = whole.cloud.source
     m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
                       figure_button, report, view, save_view, status, progress,
-                      initial=host.session.shown.loaded.cloud)
+                      initial=whole.cloud, initial_path=Path(first).resolve() if first else None)
     host.allow(points_format, points, table_format, table, figure, figure_format,
                figure_button, report, view, save_view)
     _wire(host, m)
