@@ -23,7 +23,7 @@ from rough_viewer.app.features.crop import (
     CropFeature,
     CropJob,
 )
-from rough_viewer.app.features.measure import MeasureFeature
+from rough_viewer.app.features.measure import LINE_DOTS, MeasureFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
@@ -281,7 +281,7 @@ def test_two_clicks_in_measure_mode_give_the_distance(app_of):
     np.testing.assert_allclose(d.b, b, atol=0.01)
     assert d.distance_m == pytest.approx(float(np.linalg.norm(d.b - d.a)))
     assert d.distance_m == pytest.approx(float(np.linalg.norm(b - a)), abs=0.02)
-    assert f"D1**: {d.distance_m:.4g} m" in m.note.content and len(nodes) == 2
+    assert f"D1**: {d.distance_m:.4g} m" in m.note.content and len(nodes) == 2 + LINE_DOTS
     assert app.session.last_pick is None  # the cell report waited
     m.clear.value = True
     wait_until(lambda: not m.items and not app.worker.busy, 30, "the measures cleared")
