@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
+import numpy as np
 import viser
 
 from rough_viewer.app.binding import assign
@@ -95,6 +96,9 @@ DISK_MARGIN = 256 << 20
 #: compressed, the check after writing is the exact one) and per cell (CSV, Parquet).
 BYTES_PER_POINT = {"las": 64.0, "laz": 16.0, "ply": 60.0}
 BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
+#: More of them when the cloud has scanner positions (the nine scanner fields).
+TRUST_BYTES_PER_POINT = {"las": 32.0, "laz": 8.0, "ply": 32.0}
+TRUST_BYTES_PER_CELL = {"csv": 110.0, "parquet": 50.0}
 #: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes;
 #: in a ZIP of figures each page loads the one plotly.js beside it.
 FIGURE_BYTES = 5 << 20
@@ -260,7 +264,7 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     n_rows = cloud.n + cloud.dropped_nonfinite
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        pf = point_fields(result)
+        pf = point_fields(result, _trust_columns(shown, progress))
         if fmt == "ply":
             write_ply_fields(path, cloud, pf, comments=[
                 f"rough_viewer: {Path(cloud.source).name or 'cloud'}, "
@@ -273,7 +277,23 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
         else:
             write_las_points(path, cloud, pf, progress=progress)
 
-    return Plan(name, n_rows * BYTES_PER_POINT[fmt], write)
+    per_point = BYTES_PER_POINT[fmt] + (TRUST_BYTES_PER_POINT[fmt]
+                                        if _has_scanners(cloud) else 0.0)
+    return Plan(name, n_rows * per_point, write)
+
+
+def _has_scanners(cloud: PointCloud) -> bool:
+    return cloud.scanner_positions is not None and cloud.scan_index is not None
+
+
+def _trust_columns(shown: Shown, progress: Callable[[int, int], None]
+                   ) -> dict[str, np.ndarray] | None:
+    """The scanner columns of the shown grid, as the app shows them and ``compute``
+    writes them (:meth:`rough_viewer.app.state.LoadedCloud.trust`, cached per grid;
+    None without scanner positions)."""
+    assert shown.result is not None
+    trust = shown.loaded.trust(shown.result, progress=progress)
+    return None if trust is None else trust.columns()
 
 
 def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
@@ -287,10 +307,13 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     unit = cloud.source_unit
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        write_table(path, cell_columns(result, unit=unit),
+        write_table(path, cell_columns(result, unit=unit,
+                                       trust=_trust_columns(shown, progress)),
                     metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
 
-    return Plan(name, len(result.n_points) * BYTES_PER_CELL[fmt], write)
+    per_cell = BYTES_PER_CELL[fmt] + (TRUST_BYTES_PER_CELL[fmt] if _has_scanners(cloud)
+                                      else 0.0)
+    return Plan(name, len(result.n_points) * per_cell, write)
 
 
 def _figure_plan(shown: Shown, fmt: str, panel: str,
