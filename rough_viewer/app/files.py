@@ -25,6 +25,7 @@ from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
+from rough_viewer.io.mesh import TriangleMesh, load_mesh
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
 #: The decompression-bomb guard's limit for files the browser loads or uploads
@@ -133,6 +134,21 @@ def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None
                                         quoted=False)) from None
     except MemoryError:
         raise InputError(f"not enough memory to read {shown}") from None
+    except OSError:
+        raise InputError(f"cannot read {shown}") from None
+
+
+def read_mesh(path: Path, shown: str, *, units: Unit | None = None) -> TriangleMesh | None:
+    """The triangles of ``path`` (an STL, or a PLY with faces; None for any other
+    file, :func:`rough_viewer.io.mesh.load_mesh`); errors mention ``shown``, never
+    the server path. Raises InputError."""
+    try:
+        return load_mesh(path, units=units)
+    except InputError as exc:
+        raise InputError(public_message(str(exc), paths=_variants(path, shown),
+                                        quoted=False)) from None
+    except MemoryError:
+        raise InputError(f"not enough memory to read the triangles of {shown}") from None
     except OSError:
         raise InputError(f"cannot read {shown}") from None
 
