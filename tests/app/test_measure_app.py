@@ -117,7 +117,7 @@ def test_a_long_measure_over_a_ridge_is_drawn_where_it_is_labelled(measuring):
     # so it is also dotted on top of the rock, evenly along the same segment
     assert len(dots) == LINE_DOTS
     pos = np.array([d.position for d in dots])
-    t = np.arange(1, LINE_DOTS + 1) / (LINE_DOTS + 1)
+    t = np.arange(LINE_DOTS) / (LINE_DOTS - 1)  # from one point to the other
     np.testing.assert_allclose(pos, la + t[:, None] * (lb - la), atol=1e-6)
     assert all(not d._impl.props.depth_test for d in dots)
     np.testing.assert_allclose(label.position, 0.5 * (la + lb), atol=1e-6)

@@ -35,16 +35,16 @@ MAX_MEASURES = 8
 #: Colour of a measure's line.
 LINE_COLOUR = (255, 140, 0)
 PROMPT = "Tick **Measure mode** and click two points on the rock."
-#: Dots along a measure's line, drawn on top of the rock (its ends excluded).
-LINE_DOTS = 9
+#: Dots along a measure's line, drawn on top of the rock (its two ends included).
+LINE_DOTS = 11
 #: Text of one dot.
 DOT = "•"
 
 
 def dot_positions(a: np.ndarray, b: np.ndarray, n: int = LINE_DOTS) -> np.ndarray:
-    """``(n, 3)`` points evenly spaced strictly inside the segment from ``a`` to ``b``
-    (display frame, metres): where a measure's line is dotted."""
-    t = (np.arange(1, n + 1, dtype=np.float64) / (n + 1))[:, None]
+    """``(n, 3)`` points evenly spaced along the segment from ``a`` to ``b``, both ends
+    included (display frame, metres; ``n >= 2``): where a measure's line is dotted."""
+    t = (np.arange(n, dtype=np.float64) / (n - 1))[:, None]
     return np.asarray(a, dtype=np.float64) + t * (np.asarray(b, dtype=np.float64)
                                                    - np.asarray(a, dtype=np.float64))
 
