@@ -45,7 +45,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
 import numpy as np
 import viser
@@ -57,6 +57,7 @@ from rough_viewer.app.session import Shown
 from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.views import camera_of, view_of
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io import PointCloud
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
 from rough_viewer.memory import format_bytes, require
@@ -296,6 +297,27 @@ def _trust_columns(shown: Shown, progress: Callable[[int, int], None]
     return None if trust is None else trust.columns()
 
 
+@runtime_checkable
+class CellTablePart(Protocol):
+    """A feature that adds columns to the exported cell table (the Zones tab's
+    ``zone``, as ``zones --cells-out`` writes it)."""
+
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """Column name -> an (M,) array over every cell of ``result`` (the table keeps
+        the rows of :func:`rough_viewer.grid.table.cell_columns`); empty when the
+        feature shows nothing of ``result``."""
+        ...
+
+
+def _extra_columns(host: Host, result: GridRoughness) -> dict[str, np.ndarray]:
+    keep = result.n_points >= result.min_points  # the rows of cell_columns
+    out: dict[str, np.ndarray] = {}
+    for f in host.features():
+        if isinstance(f, CellTablePart):
+            out.update({k: np.asarray(v)[keep] for k, v in f.table_columns(result).items()})
+    return out
+
+
 def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.io.table import check_table_output, write_table
@@ -306,9 +328,11 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     check_table_output(name)
     unit = cloud.source_unit
 
+    extra = _extra_columns(e.host, result)
+
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        write_table(path, cell_columns(result, unit=unit,
-                                       trust=_trust_columns(shown, progress)),
+        write_table(path, {**cell_columns(result, unit=unit,
+                                          trust=_trust_columns(shown, progress)), **extra},
                     metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
 
     per_cell = BYTES_PER_CELL[fmt] + (TRUST_BYTES_PER_CELL[fmt] if _has_scanners(cloud)

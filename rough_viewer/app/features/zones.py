@@ -398,6 +398,14 @@ class ZonesFeature:
         """Zones are shown ("Show zones" ticked)."""
         return bool(self.on.value)
 
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """The exported cell table's ``zone`` column (every cell's zone id, 0 for
+        none, as ``zones --cells-out``) while the zones of ``result`` are shown."""
+        lab = self.labelling
+        if not self.active or lab is None or lab.result is not result:
+            return {}
+        return {"zone": lab.labels}
+
     def params(self) -> ZoneParams:
         """The zones the controls and the shown map ask for."""
         return self.binding.read()
