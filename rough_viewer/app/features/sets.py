@@ -159,6 +159,13 @@ class SetsFeature:
     def active(self) -> bool:
         return bool(self.on.value)
 
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """The exported cell table's ``set_id`` and ``plane_id`` columns (0 = none, as
+        ``sets --cells-out``) while the sets of ``result`` are shown."""
+        if not self.active or self.sets is None or self.result is not result:
+            return {}
+        return {"set_id": self.sets.cell_set, "plane_id": self.sets.cell_plane}
+
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"sets_stereonet": self.stereonet, "sets_table": self.table,
                 "planes_table": self.planes}
