@@ -357,9 +357,12 @@ def test_labellers_are_cached_within_a_byte_budget(server, banded):
 def test_the_cell_table_download_carries_the_zones_shown(server, banded, tmp_path):
     """Issue 31 item 3: while zones are shown, Download cell table has a ``zone``
     column, each row its cell's zone, as ``zones --cells-out`` writes it for the same
-    file, grid and zone settings; without zones it has none."""
+    file, grid and zone settings, and Download points (LAZ) each point's; without
+    zones neither has it."""
     import csv
     import io
+
+    import laspy
 
     from rough_viewer.app.features import export as em
     from rough_viewer.cli import main
@@ -384,11 +387,21 @@ def test_the_cell_table_download_carries_the_zones_shown(server, banded, tmp_pat
         client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
                         and m["props"].get("label") == em.L_TABLE, what="the Export folder")
         assert "zone" not in table()[0]
+        mark = len(client.messages)
+        client.press(em.L_POINTS)
+        plain = laspy.read(io.BytesIO(client.wait_download("_points.laz", since=mark)[1]))
+        assert app.wait_idle(60) and "zone" not in plain.point_format.extra_dimension_names
         app.map.threshold.value = 0.2
         z = app.feature(ZonesFeature)
         z.on.value = True
         assert app.wait_idle(60) and z.labelling is not None and z.labelling.n_zones >= 3
         mine = table()
+        mark = len(client.messages)
+        client.press(em.L_POINTS)
+        laz = laspy.read(io.BytesIO(client.wait_download("_points.laz", since=mark)[1]))
+        res = app.session.shown.result
+        np.testing.assert_array_equal(np.asarray(laz["zone"]), z.labelling.labels[res.point_cell])
+        np.testing.assert_array_equal(z.labelling.labels, core_labels(app, 0.2))
     finally:
         client.close()
         app.stop()

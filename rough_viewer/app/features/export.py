@@ -60,6 +60,7 @@ from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io import PointCloud
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
+from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
@@ -264,8 +265,11 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_points.{fmt}"
     n_rows = cloud.n + cloud.dropped_nonfinite
 
+    extra = _extra_fields(e.host, result)
+
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         pf = point_fields(result, _trust_columns(shown, progress))
+        pf = PointFields(fields=pf.fields + extra, point_cell=pf.point_cell)
         if fmt == "ply":
             write_ply_fields(path, cloud, pf, comments=[
                 f"rough_viewer: {Path(cloud.source).name or 'cloud'}, "
@@ -298,9 +302,10 @@ def _trust_columns(shown: Shown, progress: Callable[[int, int], None]
 
 
 @runtime_checkable
-class CellTablePart(Protocol):
-    """A feature that adds columns to the exported cell table (the Zones tab's
-    ``zone``, as ``zones --cells-out`` writes it)."""
+class ExportPart(Protocol):
+    """A feature whose results the cell table and the points downloads carry (the
+    Zones tab's ``zone``, the Sets tab's ``set_id`` and ``plane_id``, as ``zones`` and
+    ``sets`` write them)."""
 
     def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
         """Column name -> an (M,) array over every cell of ``result`` (the table keeps
@@ -308,14 +313,24 @@ class CellTablePart(Protocol):
         feature shows nothing of ``result``."""
         ...
 
+    def point_fields_of(self, result: GridRoughness) -> tuple[CellField, ...]:
+        """The per-point fields of the points downloads (each point its cell's);
+        empty when the feature shows nothing of ``result``."""
+        ...
+
 
 def _extra_columns(host: Host, result: GridRoughness) -> dict[str, np.ndarray]:
     keep = result.n_points >= result.min_points  # the rows of cell_columns
     out: dict[str, np.ndarray] = {}
     for f in host.features():
-        if isinstance(f, CellTablePart):
+        if isinstance(f, ExportPart):
             out.update({k: np.asarray(v)[keep] for k, v in f.table_columns(result).items()})
     return out
+
+
+def _extra_fields(host: Host, result: GridRoughness) -> tuple[CellField, ...]:
+    return tuple(c for f in host.features() if isinstance(f, ExportPart)
+                 for c in f.point_fields_of(result))
 
 
 def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
