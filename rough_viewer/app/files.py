@@ -18,6 +18,8 @@ never carry server paths or text read from the file
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -25,6 +27,7 @@ from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
+from rough_viewer.io.mesh import TriangleMesh, load_mesh
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
 #: The decompression-bomb guard's limit for files the browser loads or uploads
@@ -120,19 +123,35 @@ def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None
 
     Raises InputError.
     """
-    try:
+    with _shown_errors(path, shown, shown):
         cloud = load_points(path, units=units, cache=cache, progress=progress,
                             max_points=_limits["max_points"])
-        if cloud.warnings:
-            paths = _variants(path, shown)
-            cloud = replace(cloud, warnings=tuple(public_message(w, paths=paths, quoted=False)
-                                                  for w in cloud.warnings))
-        return cloud
+    if cloud.warnings:
+        paths = _variants(path, shown)
+        cloud = replace(cloud, warnings=tuple(public_message(w, paths=paths, quoted=False)
+                                              for w in cloud.warnings))
+    return cloud
+
+
+def read_mesh(path: Path, shown: str, *, units: Unit | None = None) -> TriangleMesh | None:
+    """The triangles of ``path`` (an STL, or a PLY with faces; None for any other
+    file, :func:`rough_viewer.io.mesh.load_mesh`); errors mention ``shown``, never
+    the server path. Raises InputError."""
+    with _shown_errors(path, shown, f"the triangles of {shown}"):
+        return load_mesh(path, units=units)
+
+
+@contextmanager
+def _shown_errors(path: Path, shown: str, what: str) -> Iterator[None]:
+    """A reader's errors as one InputError naming ``shown`` (never the server path);
+    ``what``: what "not enough memory to read ..." names."""
+    try:
+        yield
     except InputError as exc:
         raise InputError(public_message(str(exc), paths=_variants(path, shown),
                                         quoted=False)) from None
     except MemoryError:
-        raise InputError(f"not enough memory to read {shown}") from None
+        raise InputError(f"not enough memory to read {what}") from None
     except OSError:
         raise InputError(f"cannot read {shown}") from None
 

@@ -60,6 +60,21 @@ class TriangleMesh:
         """Number of triangles."""
         return int(self.faces.shape[0])
 
+    def kept(self, mask: np.ndarray) -> TriangleMesh | None:
+        """The mesh of the vertices ``mask`` keeps ((V,) bool; a crop of the cloud of
+        its vertices): the triangles whose three corners are kept, indexing the kept
+        vertices in their order. None when no triangle is left."""
+        keep = np.asarray(mask, dtype=bool)
+        if keep.shape != (self.n_vertices,):
+            raise InputError(f"a mask over {keep.shape[0]:,} points cannot crop a mesh of "
+                             f"{self.n_vertices:,} vertices")
+        faces = self.faces[keep[self.faces].all(axis=1)]
+        if faces.shape[0] == 0:
+            return None
+        new_index = np.cumsum(keep, dtype=np.int64) - 1
+        return TriangleMesh(vertices=self.vertices[keep], faces=new_index[faces],
+                            source=self.source, source_unit=self.source_unit)
+
     def cloud(self) -> PointCloud:
         """The vertices as a point cloud (metres, the mesh's unit kept)."""
         from dataclasses import replace

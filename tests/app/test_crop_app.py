@@ -23,7 +23,7 @@ from rough_viewer.app.features.crop import (
     CropFeature,
     CropJob,
 )
-from rough_viewer.app.features.measure import MeasureFeature
+from rough_viewer.app.features.measure import LINE_DOTS, MeasureFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
@@ -281,7 +281,48 @@ def test_two_clicks_in_measure_mode_give_the_distance(app_of):
     np.testing.assert_allclose(d.b, b, atol=0.01)
     assert d.distance_m == pytest.approx(float(np.linalg.norm(d.b - d.a)))
     assert d.distance_m == pytest.approx(float(np.linalg.norm(b - a)), abs=0.02)
-    assert f"D1**: {d.distance_m:.4g} m" in m.note.content and len(nodes) == 2
+    assert f"D1**: {d.distance_m:.4g} m" in m.note.content and len(nodes) == 2 + LINE_DOTS
     assert app.session.last_pick is None  # the cell report waited
     m.clear.value = True
     wait_until(lambda: not m.items and not app.worker.busy, 30, "the measures cleared")
+
+
+def test_a_crop_of_a_cloud_served_by_a_relative_path_saves_its_view(face_file, tmp_path,
+                                                                     monkeypatch):
+    """Issue 31 item 1: ``cd data && serve face.las``, crop, download the view: the view
+    names the file (resolved), through the crop, its undo and a second crop."""
+    monkeypatch.chdir(face_file.parent)
+    cloud = load_points(face_file.name)
+    assert cloud.source == "face.las"  # as typed
+    server, _ = open_server("127.0.0.1", 0, token=None, log=False)
+    app = build_app(server, cloud, prefetch=False, variogram=False,
+                    settings=MapSettings(cell_size=GRID), presets=(0.5, GRID),
+                    data_dir=face_file.parent)
+    try:
+        assert app.wait_idle(120)
+        f = app.host.feature(CropFeature)
+        boxes = [CropBox((512000.5, 4169999.0, 100.5), (512002.0, 4170001.0, 101.5), "keep"),
+                 None, CropBox((512001.0, 4169999.0, 100.0), (512003.0, 4170001.0, 102.0),
+                               "remove")]
+        client = join(server)
+        try:
+            for box in boxes:
+                app.host.submit(CropJob(f, box))
+                assert app.wait_idle(120)
+                assert app.session.shown.loaded.crop == box
+                mark = len(client.messages)
+                client.press(em.L_VIEW)
+                _name, view_bytes = client.wait_download(".json", since=mark)
+                data = json.loads(view_bytes)
+                assert data["input"]["path"] == str(face_file.resolve())
+                want = None if box is None else {"min": list(box.lo), "max": list(box.hi),
+                                                 "mode": box.mode}
+                assert data.get("crop") == want
+                # the LAS copy of a crop is the file's kept rows (it needs the file too)
+                assert app.host.feature(em.ExportFeature).input_file(
+                    app.session.shown.loaded) == face_file.resolve()
+        finally:
+            client.close()
+    finally:
+        app.stop()
+        server.stop()

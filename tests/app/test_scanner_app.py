@@ -77,3 +77,61 @@ def test_a_cloud_without_positions_has_no_scanner_layers(app):
     labels = tuple(app.map.layer.options)
     assert not any(label.startswith("scanner: ") for label in labels)
     assert "scanner" not in app.map.pick.content
+
+
+def test_the_exports_carry_the_scanner_columns_compute_writes(server, tmp_path):
+    """Issue 31 item 3: Download cell table fills ``scans ... trusted`` as ``compute
+    --scanner`` does for the same cloud and grid, and Download points (LAZ) carries
+    the nine scanner fields, each point its cell's."""
+    import csv
+    import io
+
+    import laspy
+
+    from rough_viewer.app.features import export as em
+    from rough_viewer.cli import main
+    from rough_viewer.io import load_points
+    from rough_viewer.io.scanners import with_scanner
+    from tests.app.protocol import ProtocolClient
+
+    rays = ray_grid(SCANNER, np.array([0.0, 0.0, 1.0]), 0.2, step=2e-3)
+    xyz = scan_plane(SCANNER, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]), rays,
+                     extent=1.2, noise=0.002, seed=3)
+    path = tmp_path / "wall.npy"
+    np.save(path, xyz)
+    cloud = with_scanner(load_points(path), tuple(float(v) for v in SCANNER))
+    app = build_app(server, cloud, prefetch=False, presets=(0.4,), data_dir=tmp_path,
+                    settings=MapSettings(cell_size=0.4), trust=TrustSettings())
+    client = ProtocolClient(server.get_port())
+    try:
+        assert app.wait_idle(120)
+        client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
+                        and m["props"].get("label") == em.L_TABLE, what="the Export folder")
+        got = {}
+        for label, part in ((em.L_TABLE, "_cells.csv"), (em.L_POINTS, "_points.laz")):
+            mark = len(client.messages)
+            client.press(label)
+            got[part] = client.wait_download(part, since=mark)[1]
+            assert app.wait_idle(120)
+    finally:
+        client.close()
+        app.stop()
+    cli_csv, cli_laz = tmp_path / "cli.csv", tmp_path / "cli.laz"
+    assert main(["compute", str(path), "--grid", "0.4", "--scanner", ",".join(map(str, SCANNER)),
+                 "--out", str(cli_csv), "--las-out", str(cli_laz), "--quiet"]) == 0
+    mine = list(csv.DictReader(io.StringIO(got["_cells.csv"].decode())))
+    theirs = list(csv.DictReader(r for r in cli_csv.read_text().splitlines()
+                                 if not r.startswith("#")))
+    assert len(mine) == len(theirs) > 10
+    for name in TRUST_FIELDS:
+        assert [r[name] for r in mine] == [r[name] for r in theirs], name
+    assert any(r["trusted"] in ("0", "1") for r in mine)  # judged, not empty
+    assert all(r["scans"] == "1" for r in mine if r["n_points"] and int(r["n_points"]) >= 3)
+    # the LAZ: the same nine fields as compute --las-out writes, point for point
+    a, b = laspy.read(io.BytesIO(got["_points.laz"])), laspy.read(cli_laz)
+    for name in TRUST_FIELDS:
+        np.testing.assert_array_equal(np.asarray(a[name]), np.asarray(b[name]), err_msg=name)
+    ref = grid_roughness(cloud, 0.4)
+    inc = cell_trust(cloud, ref, TrustSettings()).layer("incidence_deg")[ref.point_cell]
+    np.testing.assert_allclose(np.asarray(a["incidence_deg"], dtype=np.float64), inc,
+                               rtol=1e-6, equal_nan=True)

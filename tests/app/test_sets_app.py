@@ -98,3 +98,41 @@ def test_the_tab_settings_reach_the_sets(sapp, block):
     ref = joint_sets(res, block.cloud, SetOptions(max_roughness=0.01 * G, cone_deg=8.0))
     np.testing.assert_array_equal(f.sets.cell_set, ref.cell_set)
     assert int(f.sets.cells.sum()) < before
+
+
+def test_the_cell_table_download_carries_the_sets_shown(sapp, block):
+    """Issue 31 item 3: while sets are shown, Download cell table has ``set_id`` and
+    ``plane_id`` (0 = none), each row its cell's, as ``sets --cells-out`` writes them,
+    and Download points (LAZ) each point's, as ``sets --las-out``."""
+    import csv
+    import io
+
+    import laspy
+
+    from rough_viewer.app.features import export as em
+    from tests.app.protocol import ProtocolClient
+
+    app, f = sapp
+    res = app.session.shown.result
+    ref = joint_sets(res, block.cloud, SetOptions(max_roughness=0.02 * G))
+    keep = res.n_points >= res.min_points
+    client = ProtocolClient(app.server.get_port())
+    try:
+        client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
+                        and m["props"].get("label") == em.L_TABLE, what="the Export folder")
+        mark = len(client.messages)
+        client.press(em.L_TABLE)
+        data = client.wait_download("_cells.csv", since=mark)[1]
+        assert app.wait_idle(60)
+        mark = len(client.messages)
+        client.press(em.L_POINTS)
+        laz = laspy.read(io.BytesIO(client.wait_download("_points.laz", since=mark)[1]))
+    finally:
+        client.close()
+    np.testing.assert_array_equal(np.asarray(laz["set_id"]), ref.cell_set[res.point_cell])
+    np.testing.assert_array_equal(np.asarray(laz["plane_id"]), ref.cell_plane[res.point_cell])
+    rows = list(csv.DictReader(r for r in io.StringIO(data.decode()) if not r.startswith("#")))
+    assert len(rows) == int(keep.sum())
+    np.testing.assert_array_equal([int(r["set_id"]) for r in rows], ref.cell_set[keep])
+    np.testing.assert_array_equal([int(r["plane_id"]) for r in rows], ref.cell_plane[keep])
+    assert {int(r["set_id"]) for r in rows} == {0, 1, 2, 3}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
 from rough_viewer.app.gate import open_server
@@ -204,3 +205,52 @@ def test_partial_uploads_of_a_killed_server_are_swept_by_the_next(tmp_path):
         import shutil
         shutil.rmtree(mine, ignore_errors=True)
         shutil.rmtree(left, ignore_errors=True)
+
+
+def test_an_uploaded_stl_keeps_its_mesh_through_a_crop(live, tmp_path):
+    """Issue 31 item 5: Directions' TIN parameters of an uploaded STL use its own
+    triangles, as ``serve FILE.stl`` does (the upload is deleted once read), and a
+    crop uses the triangles of the vertices it keeps."""
+    from rough_viewer.app.features.crop import CropFeature, CropJob
+    from rough_viewer.app.features.directions import DirectionsFeature
+    from rough_viewer.io import load_points
+    from rough_viewer.io.crop import CropBox, crop_mask
+    from rough_viewer.io.mesh import load_mesh
+    from rough_viewer.report.directions import DirectionSettings, analyse_directions
+    from tests.io.test_mesh import write_binary_stl
+
+    app, client, _ = live
+    n, step = 60, 0.03
+    y, x = np.meshgrid(np.arange(n) * step, np.arange(n) * step, indexing="ij")
+    z = 0.01 * np.sin(7.0 * x) * np.cos(3.0 * y) + 0.002 * np.random.default_rng(2).normal(size=x.shape)
+    vertices = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    i = np.arange(n * n).reshape(n, n)[:-1, :-1].ravel()
+    # each square cut along its other diagonal from the one a Delaunay of the grid picks
+    faces = np.concatenate([np.column_stack([i, i + 1, i + n + 1]),
+                            np.column_stack([i, i + n + 1, i + n])])
+    path = tmp_path / "joint.stl"
+    write_binary_stl(path, vertices, faces)
+    client.upload("Upload file", "joint.stl", path.read_bytes(), chunk=128 * 1024)
+    settle(app, lambda: app.session.shown.loaded.cloud.source == "joint.stl", "the upload")
+    assert list(app.host.uploads.folder.iterdir()) == []
+    f = app.feature(DirectionsFeature)
+    f.step.value = 45.0
+    f.tin.value = True
+    cloud, mesh = load_points(path), load_mesh(path)
+    for box in (None, CropBox((-1.0, -1.0, -1.0), (0.9, 1.2, 1.0), "keep")):
+        if box is not None:
+            app.host.submit(CropJob(app.host.feature(CropFeature), box))
+            assert app.wait_idle(60) and app.session.shown.loaded.crop == box
+        f.measure.value = True
+        settle(app, lambda: f.result is not None, "the directions")
+        shown = app.session.shown.loaded.cloud
+        keep = np.ones(cloud.n, dtype=bool) if box is None else crop_mask(cloud, box)
+        want_mesh = mesh if box is None else mesh.kept(keep)
+        assert want_mesh is not None
+        assert f.result.surface == "mesh" and f.result.n_triangles == want_mesh.n_faces
+        assert f.result.n_triangles == (len(faces) if box is None else
+                                        int(keep[faces].all(axis=1).sum()))
+        np.testing.assert_array_equal(shown.xyz(), cloud.xyz()[keep])
+        ref = analyse_directions(shown, DirectionSettings(step_deg=45.0), mesh=want_mesh)
+        np.testing.assert_allclose(f.result.tin.theta_max_c1, ref.tin.theta_max_c1)
+        f.result = None

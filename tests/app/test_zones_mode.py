@@ -352,3 +352,66 @@ def test_labellers_are_cached_within_a_byte_budget(server, banded):
         assert np.array_equal(m.labelling.labels, core_labels(app, 0.3))
     finally:
         app.stop()
+
+
+def test_the_cell_table_download_carries_the_zones_shown(server, banded, tmp_path):
+    """Issue 31 item 3: while zones are shown, Download cell table has a ``zone``
+    column, each row its cell's zone, as ``zones --cells-out`` writes it for the same
+    file, grid and zone settings, and Download points (LAZ) each point's; without
+    zones neither has it."""
+    import csv
+    import io
+
+    import laspy
+
+    from rough_viewer.app.features import export as em
+    from rough_viewer.cli import main
+    from rough_viewer.io import load_points
+    from tests.app.protocol import ProtocolClient
+
+    path = tmp_path / "banded.npy"
+    np.save(path, banded[0].xyz())
+    app = build_app(server, load_points(path), prefetch=False, presets=PAPER_PRESETS,
+                    settings=MapSettings(cell_size=0.25), data_dir=tmp_path)
+    client = ProtocolClient(server.get_port())
+
+    def table() -> list[dict[str, str]]:
+        mark = len(client.messages)
+        client.press(em.L_TABLE)
+        data = client.wait_download("_cells.csv", since=mark)[1]
+        assert app.wait_idle(60)
+        return list(csv.DictReader(r for r in io.StringIO(data.decode()) if not r.startswith("#")))
+
+    try:
+        assert app.wait_idle(60)
+        client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
+                        and m["props"].get("label") == em.L_TABLE, what="the Export folder")
+        assert "zone" not in table()[0]
+        mark = len(client.messages)
+        client.press(em.L_POINTS)
+        plain = laspy.read(io.BytesIO(client.wait_download("_points.laz", since=mark)[1]))
+        assert app.wait_idle(60) and "zone" not in plain.point_format.extra_dimension_names
+        app.map.threshold.value = 0.2
+        z = app.feature(ZonesFeature)
+        z.on.value = True
+        assert app.wait_idle(60) and z.labelling is not None and z.labelling.n_zones >= 3
+        mine = table()
+        mark = len(client.messages)
+        client.press(em.L_POINTS)
+        laz = laspy.read(io.BytesIO(client.wait_download("_points.laz", since=mark)[1]))
+        res = app.session.shown.result
+        np.testing.assert_array_equal(np.asarray(laz["zone"]), z.labelling.labels[res.point_cell])
+        np.testing.assert_array_equal(z.labelling.labels, core_labels(app, 0.2))
+    finally:
+        client.close()
+        app.stop()
+    cells = tmp_path / "cells.csv"
+    assert main(["zones", str(path), "--grid", "0.25", "--threshold", "0.2",
+                 "--connectivity", "vertex", "--min-cells", "3", "--out",
+                 str(tmp_path / "zones.csv"), "--cells-out", str(cells)]) == 0
+    theirs = list(csv.DictReader(r for r in cells.read_text().splitlines()
+                                 if not r.startswith("#")))
+    assert len(mine) == len(theirs) > 100
+    assert [(r["ix"], r["iy"], r["iz"], r["zone"]) for r in mine] == \
+        [(r["ix"], r["iy"], r["iz"], r["zone"]) for r in theirs]
+    assert len({r["zone"] for r in mine}) >= 4  # three zones and none

@@ -125,3 +125,18 @@ def test_directions_command_reads_the_stl_faces(tmp_path, capsys):
     assert main(["directions", str(path), "--step", "90", "--out", str(out),
                  "--spacing", "0.5", "--half-width", "0.5"]) == 0
     assert "8 triangles of the file's mesh" in capsys.readouterr().out
+
+
+def test_a_crop_of_the_vertices_keeps_the_triangles_of_kept_corners():
+    """``kept`` against brute force on the 3 x 3 grid: the triangles all of whose
+    corners are kept, as corner sets, over the kept vertices in their order."""
+    mesh = check_mesh(GRID, TRIS)
+    keep = GRID[:, 0] <= 1.0  # the left two columns: 6 vertices, 4 triangles
+    got = mesh.kept(keep)
+    want = [f for f in TRIS if all(keep[i] for i in f)]
+    assert got is not None and got.n_faces == len(want) == 4
+    np.testing.assert_array_equal(got.vertices, GRID[keep])
+    assert triangles_as_sets(got.vertices, got.faces) == triangles_as_sets(GRID, np.array(want))
+    assert mesh.kept(GRID[:, 0] == 0.0) is None  # a line of vertices: no triangle
+    with pytest.raises(InputError, match="cannot crop a mesh of 9 vertices"):
+        mesh.kept(np.ones(4, dtype=bool))

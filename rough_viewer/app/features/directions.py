@@ -4,7 +4,8 @@
 profiles across the face at every azimuth step (each extracted, de-noised and fitted
 as the Profile tab does, with its fit windows), and, when asked, the TIN parameters
 θ*max/(C+1) and ΔT of the surface (its own triangles for an STL or PLY mesh in the
-data folder, else the cloud triangulated in its best-fit plane: the slow part). The
+data folder or uploaded, those of a crop's kept vertices for a crop, else the cloud
+triangulated in its best-fit plane: the slow part). The
 folder then shows the rose, the per-direction table, and the profile lines on the
 rock, coloured by direction (:mod:`rough_viewer.visual.directions`).
 """
@@ -26,7 +27,8 @@ from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder, set_figure
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.io.mesh import TriangleMesh, load_mesh
+from rough_viewer.io import PointCloud
+from rough_viewer.io.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
 from rough_viewer.report.directions import (
     DirectionSettings,
     DirectionsResult,
@@ -48,8 +50,6 @@ L_MEASURE = "Measure directions"
 L_LINES = "Show direction lines"
 #: Scene node of the profile lines.
 NODE_LINES = "/directions/lines"
-#: Mesh files whose own triangles the TIN parameters use.
-MESH_SUFFIXES = (".stl", ".ply")
 
 
 def spacing_label(unit_label: str) -> str:
@@ -75,6 +75,14 @@ class DirectionsFeature:
     """The last measurement, of :attr:`cloud`."""
     cloud: LoadedCloud | None = None
     nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
+    uploaded: tuple[PointCloud, TriangleMesh] | None = None
+    """An uploaded mesh file's cloud and its triangles, read before the upload was
+    deleted (:meth:`keep_upload_mesh`)."""
+
+    def keep_upload_mesh(self, cloud: PointCloud, mesh: TriangleMesh | None) -> None:
+        """Remember the triangles of an uploaded file read as ``cloud`` (None: it has
+        none; a mesh kept before is dropped)."""
+        self.uploaded = None if mesh is None else (cloud, mesh)
 
     def settings(self) -> DirectionSettings:
         """The settings the controls ask for (the fit windows are the Profile tab's)."""
@@ -89,8 +97,20 @@ class DirectionsFeature:
 
     def mesh(self, loaded: LoadedCloud) -> TriangleMesh | None:
         """The triangles of the shown cloud's file (an STL or a PLY with faces in the
-        data folder), or None."""
-        source = Path(loaded.cloud.source) if loaded.cloud.source else None
+        data folder, or uploaded), for a crop those of its kept vertices, or None."""
+        whole = loaded.uncropped or loaded
+        if self.uploaded is not None and self.uploaded[0] is whole.cloud:
+            mesh: TriangleMesh | None = self.uploaded[1]
+        else:
+            mesh = self._file_mesh(whole.cloud)
+        if mesh is None or loaded.crop_mask is None:
+            return mesh
+        if mesh.n_vertices != whole.cloud.n:  # its vertices are not the points
+            return None
+        return mesh.kept(loaded.crop_mask)
+
+    def _file_mesh(self, cloud: PointCloud) -> TriangleMesh | None:
+        source = Path(cloud.source) if cloud.source else None
         if source is None or source.suffix.lower() not in MESH_SUFFIXES or not source.is_file():
             return None
         try:
@@ -99,7 +119,7 @@ class DirectionsFeature:
             return None
         if not inside:
             return None
-        unit: Unit | None = next((u for u in UNITS if u == loaded.cloud.source_unit), None)
+        unit: Unit | None = next((u for u in UNITS if u == cloud.source_unit), None)
         return load_mesh(source, units=unit)
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
@@ -110,6 +130,11 @@ class DirectionsFeature:
         self.host.scene.remove(self.nodes)
         self.nodes = []
         self.result, self.cloud = None, self.host.session.shown.loaded
+        session = self.host.session
+        if self.uploaded is not None and not any(
+                s is not None and (s.loaded.uncropped or s.loaded).cloud is self.uploaded[0]
+                for s in (session.shown, session.stashed)):
+            self.uploaded = None  # its cloud is gone
         self.spacing.label = spacing_label(self.host.session.shown.loaded.units.label)
         self.status.content = "Press **Measure directions** for this cloud."
 

@@ -45,8 +45,9 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
+import numpy as np
 import viser
 
 from rough_viewer.app.binding import assign
@@ -56,8 +57,10 @@ from rough_viewer.app.session import Shown
 from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.views import camera_of, view_of
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io import PointCloud
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
+from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
@@ -96,6 +99,9 @@ DISK_MARGIN = 256 << 20
 #: compressed, the check after writing is the exact one) and per cell (CSV, Parquet).
 BYTES_PER_POINT = {"las": 64.0, "laz": 16.0, "ply": 60.0}
 BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
+#: More of them when the cloud has scanner positions (the nine scanner fields).
+TRUST_BYTES_PER_POINT = {"las": 32.0, "laz": 8.0, "ply": 32.0}
+TRUST_BYTES_PER_CELL = {"csv": 110.0, "parquet": 50.0}
 #: Estimated size of one figure as HTML (plotly.js inlined) and of the report, bytes;
 #: in a ZIP of figures each page loads the one plotly.js beside it.
 FIGURE_BYTES = 5 << 20
@@ -189,22 +195,28 @@ class ExportFeature:
     initial: PointCloud
     """The cloud the app was started on (its file may be named relative to the
     server's folder)."""
+    initial_path: Path | None = None
+    """:attr:`initial`'s file, resolved in the folder the server started in (None:
+    no file)."""
     sent: deque[Sent] = field(default_factory=lambda: deque(maxlen=MAX_SENT_RECORDS))
     _hashes: dict[tuple[str, int, int], InputRef] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ input
-    def input_file(self, cloud: PointCloud) -> Path | None:
-        """The file ``cloud`` was read from on the server, or None (an upload, which
-        is deleted once read; several merged files; a cloud made in memory)."""
+    def input_file(self, loaded: LoadedCloud) -> Path | None:
+        """The file ``loaded``'s cloud was read from on the server (a crop's: its whole
+        cloud's), or None (an upload, which is deleted once read; several merged files;
+        a cloud made in memory)."""
+        cloud = (loaded.uncropped or loaded).cloud
         if not cloud.source:
             return None
         p = Path(cloud.source)
         if not p.is_absolute():
             # only the cloud given to serve may name a file relative to the server's
-            # folder; an upload's name is a bare name and no file here
-            if cloud is not self.initial:
+            # folder (resolved when the app started); an upload's name is a bare name
+            # and no file here
+            if cloud is not self.initial or self.initial_path is None:
                 return None
-            p = p.resolve()
+            p = self.initial_path
         return p if p.is_file() else None
 
     def input_ref(self, path: Path, progress: Callable[[int, int], None] | None = None
@@ -250,12 +262,15 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
 
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result
-    source = e.input_file(cloud)
+    source = e.input_file(shown.loaded)
     name = f"{_stem(cloud)}_{grid_tag(shown.loaded, result.grid.cell_size)}_points.{fmt}"
     n_rows = cloud.n + cloud.dropped_nonfinite
 
+    extra = _extra_fields(e.host, result)
+
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        pf = point_fields(result)
+        pf = point_fields(result, _trust_columns(shown, progress))
+        pf = PointFields(fields=pf.fields + extra, point_cell=pf.point_cell)
         if fmt == "ply":
             write_ply_fields(path, cloud, pf, comments=[
                 f"rough_viewer: {Path(cloud.source).name or 'cloud'}, "
@@ -268,7 +283,55 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
         else:
             write_las_points(path, cloud, pf, progress=progress)
 
-    return Plan(name, n_rows * BYTES_PER_POINT[fmt], write)
+    per_point = BYTES_PER_POINT[fmt] + (TRUST_BYTES_PER_POINT[fmt]
+                                        if _has_scanners(cloud) else 0.0)
+    return Plan(name, n_rows * per_point, write)
+
+
+def _has_scanners(cloud: PointCloud) -> bool:
+    return cloud.scanner_positions is not None and cloud.scan_index is not None
+
+
+def _trust_columns(shown: Shown, progress: Callable[[int, int], None]
+                   ) -> dict[str, np.ndarray] | None:
+    """The scanner columns of the shown grid, as the app shows them and ``compute``
+    writes them (:meth:`rough_viewer.app.state.LoadedCloud.trust`, cached per grid;
+    None without scanner positions)."""
+    assert shown.result is not None
+    trust = shown.loaded.trust(shown.result, progress=progress)
+    return None if trust is None else trust.columns()
+
+
+@runtime_checkable
+class ExportPart(Protocol):
+    """A feature whose results the cell table and the points downloads carry (the
+    Zones tab's ``zone``, the Sets tab's ``set_id`` and ``plane_id``, as ``zones`` and
+    ``sets`` write them)."""
+
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """Column name -> an (M,) array over every cell of ``result`` (the table keeps
+        the rows of :func:`rough_viewer.grid.table.cell_columns`); empty when the
+        feature shows nothing of ``result``."""
+        ...
+
+    def point_fields_of(self, result: GridRoughness) -> tuple[CellField, ...]:
+        """The per-point fields of the points downloads (each point its cell's);
+        empty when the feature shows nothing of ``result``."""
+        ...
+
+
+def _extra_columns(host: Host, result: GridRoughness) -> dict[str, np.ndarray]:
+    keep = result.n_points >= result.min_points  # the rows of cell_columns
+    out: dict[str, np.ndarray] = {}
+    for f in host.features():
+        if isinstance(f, ExportPart):
+            out.update({k: np.asarray(v)[keep] for k, v in f.table_columns(result).items()})
+    return out
+
+
+def _extra_fields(host: Host, result: GridRoughness) -> tuple[CellField, ...]:
+    return tuple(c for f in host.features() if isinstance(f, ExportPart)
+                 for c in f.point_fields_of(result))
 
 
 def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
@@ -281,11 +344,16 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     check_table_output(name)
     unit = cloud.source_unit
 
+    extra = _extra_columns(e.host, result)
+
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        write_table(path, cell_columns(result, unit=unit),
+        write_table(path, {**cell_columns(result, unit=unit,
+                                          trust=_trust_columns(shown, progress)), **extra},
                     metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
 
-    return Plan(name, len(result.n_points) * BYTES_PER_CELL[fmt], write)
+    per_cell = BYTES_PER_CELL[fmt] + (TRUST_BYTES_PER_CELL[fmt] if _has_scanners(cloud)
+                                      else 0.0)
+    return Plan(name, len(result.n_points) * per_cell, write)
 
 
 def _figure_plan(shown: Shown, fmt: str, panel: str,
@@ -338,7 +406,7 @@ def _report_plan(shown: Shown) -> Plan:
 
 
 def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
-    source = e.input_file(shown.loaded.cloud)
+    source = e.input_file(shown.loaded)
     if source is None:
         raise InputError("a view records the input file on the server; this cloud was "
                          "uploaded, merged from several files or made in memory: put its "
@@ -422,7 +490,7 @@ class ExportJob(Job[Host]):
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         m, t0 = self.e, time.perf_counter()
         paths: dict[str, str] = {}
-        source = self.e.input_file(self.shown.loaded.cloud)
+        source = self.e.input_file(self.shown.loaded)
         if source is not None:
             paths[str(source)] = source.name
         try:
@@ -483,7 +551,7 @@ class SaveViewJob(Job[Host]):
         m = self.e
         shown = ctx.session.shown
         data = ctx.options.data
-        source = m.input_file(shown.loaded.cloud)
+        source = m.input_file(shown.loaded)
         try:
             if not ctx.options.save_views:
                 raise InputError("this server does not save views (start it with "
@@ -550,9 +618,11 @@ def mount(host: Host) -> ExportFeature:
                                    hint="Write the view next to the input on the server.")
         status = gui.add_markdown("")
         progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+    whole = host.session.shown.loaded.uncropped or host.session.shown.loaded
+    first = whole.cloud.source
     m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
                       figure_button, report, view, save_view, status, progress,
-                      initial=host.session.shown.loaded.cloud)
+                      initial=whole.cloud, initial_path=Path(first).resolve() if first else None)
     host.allow(points_format, points, table_format, table, figure, figure_format,
                figure_button, report, view, save_view)
     _wire(host, m)

@@ -14,8 +14,9 @@ from dataclasses import dataclass, replace
 import viser
 
 from rough_viewer.app.binding import Binding
+from rough_viewer.app.features.directions import DirectionsFeature
 from rough_viewer.app.features.map import LoadJob, MapFeature
-from rough_viewer.app.files import UploadedFile, read_cloud
+from rough_viewer.app.files import UploadedFile, read_cloud, read_mesh
 from rough_viewer.app.host import Host
 from rough_viewer.app.worker import Run
 from rough_viewer.io import PointCloud
@@ -68,8 +69,14 @@ class Upload:
     def read(self, host: Host, run: Run) -> PointCloud:
         cloud = read_cloud(self.upload.path, self.upload.name, cache=False, units=self.units,
                            progress=run.progress())
+        # an STL or PLY mesh keeps its own triangles, as serve FILE.stl does (the
+        # file is deleted once read)
+        unit = next((u for u in UNITS if u == cloud.source_unit), None)
+        mesh = read_mesh(self.upload.path, self.upload.name, units=unit)
         self.upload.delete()
-        return replace(cloud, source=self.upload.name)
+        cloud = replace(cloud, source=self.upload.name)
+        host.feature(DirectionsFeature).keep_upload_mesh(cloud, mesh)
+        return cloud
 
     def release(self) -> None:
         self.upload.delete()

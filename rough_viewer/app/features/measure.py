@@ -3,9 +3,13 @@
 With *Measure mode* on, the first click marks a point and the second gives the
 straight-line distance between the two, its horizontal and vertical parts and the
 line's trend and plunge (:func:`rough_viewer.grid.measure.point_distance`; azimuths
-clockwise from +y, docs/zones.md), drawn as a line with a label. Points are picked at
-full resolution, on every point of the cloud. The last :data:`MAX_MEASURES` are
-listed and drawn; "Clear" drops them. The plane of a region is measured in the Select
+clockwise from +y, docs/zones.md), drawn as a line with a label. The straight line
+between two points of a hillside often runs under the ground (or among the points'
+splats), so it is also drawn as dots that show through the rock, like its label.
+Points are picked at full resolution, on every point of the cloud; the same point
+twice is no measure, and leaving measure mode forgets a first point. The last
+:data:`MAX_MEASURES` are listed and drawn; "Clear" drops them and numbering starts
+again at D1. The plane of a region is measured in the Select
 tab, a cell's dip and dip direction are in the Map tab's cell report.
 """
 
@@ -31,6 +35,18 @@ MAX_MEASURES = 8
 #: Colour of a measure's line.
 LINE_COLOUR = (255, 140, 0)
 PROMPT = "Tick **Measure mode** and click two points on the rock."
+#: Dots along a measure's line, drawn on top of the rock (its two ends included).
+LINE_DOTS = 11
+#: Text of one dot.
+DOT = "•"
+
+
+def dot_positions(a: np.ndarray, b: np.ndarray, n: int = LINE_DOTS) -> np.ndarray:
+    """``(n, 3)`` points evenly spaced along the segment from ``a`` to ``b``, both ends
+    included (display frame, metres; ``n >= 2``): where a measure's line is dotted."""
+    t = (np.arange(n, dtype=np.float64) / (n - 1))[:, None]
+    return np.asarray(a, dtype=np.float64) + t * (np.asarray(b, dtype=np.float64)
+                                                   - np.asarray(a, dtype=np.float64))
 
 
 def distance_text(k: int, d: Distance, units: Units) -> str:
@@ -73,16 +89,22 @@ class MeasureFeature:
             self.pending = [scene.marker("/measures/start", pick.local, "● start")]
             self.note.content = "First point picked; click the second."
             return True
+        d = point_distance(self.start.xyz, pick.xyz)
+        if pick.point == self.start.point or not d.distance_m > 0.0:
+            self.note.content = ("That is the first point again; click a second, "
+                                 "different point.")
+            return True
         a, self.start = self.start, None
         scene.remove(self.pending)
         self.pending = []
-        d = point_distance(a.xyz, pick.xyz)
         self.count += 1
         k = self.count
         u = self.host.session.shown.loaded.units
         seg = np.stack([a.local, pick.local])[None].astype(np.float64)
         nodes: list[viser.SceneNodeHandle] = [
             scene.lines(f"/measures/{k}/line", seg, LINE_COLOUR),
+            *(scene.marker(f"/measures/{k}/dot{i}", p, DOT)
+              for i, p in enumerate(dot_positions(a.local, pick.local))),
             scene.add_label(f"/measures/{k}/label", f"D{k} {d.distance_m / u.per:.4g} {u.label}",
                             0.5 * (a.local + pick.local)),
         ]
@@ -97,14 +119,17 @@ class MeasureFeature:
         lines = [distance_text(k, d, u) for k, d, _n in reversed(self.items)]
         self.note.content = "  \n".join(lines) if lines else PROMPT
 
-    def drop(self) -> None:
-        """No measures (worker)."""
-        scene = self.host.scene
-        scene.remove(self.pending)
+    def forget_start(self) -> None:
+        """Drop a first point still waiting for its second (worker)."""
+        self.host.scene.remove(self.pending)
         self.pending, self.start = [], None
+
+    def drop(self) -> None:
+        """No measures; the next is D1 again (worker)."""
+        self.forget_start()
         for _k, _d, nodes in self.items:
-            scene.remove(nodes)
-        self.items = []
+            self.host.scene.remove(nodes)
+        self.items, self.count = [], 0
         self.note.content = PROMPT
 
 
@@ -120,6 +145,20 @@ class ClearMeasuresJob(Job[Host]):
         yield "clear"
 
 
+@dataclass(frozen=True)
+class LeaveMeasureJob(Job[Host]):
+    """Measure mode was turned off: a first point waiting for its second is dropped."""
+
+    f: MeasureFeature = field(compare=False)
+    lane: ClassVar[str] = "measure-mode"  # a pending Clear still runs
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        if not self.f.on.value and self.f.start is not None:
+            self.f.forget_start()
+            self.f.refresh()
+        yield "leave"
+
+
 def mount(host: Host) -> MeasureFeature:
     """Add the Measure tab; clicks come here in measure mode."""
     gui = host.gui
@@ -133,6 +172,7 @@ def mount(host: Host) -> MeasureFeature:
         )
     host.allow(f.on, f.clear)
     f.binding.on_change([f.clear], lambda _h: host.submit(ClearMeasuresJob(f)))
+    f.binding.on_change([f.on], lambda _h: None if f.on.value else host.submit(LeaveMeasureJob(f)))
     host.on_click(f.on_pick)
     # a measure's points are of the cloud shown: another cloud (or a crop) drops them
     host.on_cloud(f.drop)

@@ -45,7 +45,9 @@ from rough_viewer.grid.sets import (
     JointSets,
     SetOptions,
     joint_sets,
+    set_point_fields,
 )
+from rough_viewer.io.point_fields import CellField
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.sets import (
     planes_table_figure,
@@ -158,6 +160,20 @@ class SetsFeature:
     @property
     def active(self) -> bool:
         return bool(self.on.value)
+
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """The exported cell table's ``set_id`` and ``plane_id`` columns (0 = none, as
+        ``sets --cells-out``) while the sets of ``result`` are shown."""
+        if not self.active or self.sets is None or self.result is not result:
+            return {}
+        return {"set_id": self.sets.cell_set, "plane_id": self.sets.cell_plane}
+
+    def point_fields_of(self, result: GridRoughness) -> tuple[CellField, ...]:
+        """The points downloads' ``set_id`` and ``plane_id`` (as ``sets --las-out``)
+        while the sets of ``result`` are shown."""
+        if not self.active or self.sets is None or self.result is not result:
+            return ()
+        return set_point_fields(self.sets, result).fields
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"sets_stereonet": self.stereonet, "sets_table": self.table,

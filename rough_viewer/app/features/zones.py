@@ -64,6 +64,7 @@ from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.threshold import map_threshold_advice
 from rough_viewer.grid.zones import ZoneLabeller, Zones
+from rough_viewer.io.point_fields import CellField
 from rough_viewer.memory import require
 from rough_viewer.report.view import View, ZoneSettings
 from rough_viewer.visual import colormaps
@@ -99,6 +100,8 @@ NO_ZONE = "none"
 #: Zones listed in the table and the dropdown (the largest; a zone picked in the
 #: scene beyond them is added to the dropdown).
 MAX_ZONE_ROWS = 50
+#: The points downloads' description of ``zone`` (LAS extra bytes: 32 characters).
+ZONE_DESCRIPTION = "roughness zone id (0 = none)"
 #: Largest "Min zone cells" value.
 MAX_MIN_CELLS = 1_000_000
 #: Colour of a displayed point in a cell with a value but in no zone (as the zone
@@ -397,6 +400,20 @@ class ZonesFeature:
     def active(self) -> bool:
         """Zones are shown ("Show zones" ticked)."""
         return bool(self.on.value)
+
+    def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
+        """The exported cell table's ``zone`` column (every cell's zone id, 0 for
+        none, as ``zones --cells-out``) while the zones of ``result`` are shown."""
+        lab = self.labelling
+        if not self.active or lab is None or lab.result is not result:
+            return {}
+        return {"zone": lab.labels}
+
+    def point_fields_of(self, result: GridRoughness) -> tuple[CellField, ...]:
+        """The points downloads' ``zone`` (int32 zone id of each point's cell, 0 =
+        none) while the zones of ``result`` are shown."""
+        return tuple(CellField("zone", np.asarray(v, dtype=np.int32), ZONE_DESCRIPTION,
+                               np.int32(0)) for v in self.table_columns(result).values())
 
     def params(self) -> ZoneParams:
         """The zones the controls and the shown map ask for."""
