@@ -520,6 +520,12 @@ def density_peaks(
     return found[keep].reshape(-1, 3), exact[keep]
 
 
+#: Finest density kernel, degrees: the stereonet's nodes (61 a side) lie 2.7-3.8
+#: degrees apart, and a kernel much finer than that is sampled by no node
+#: (``--smoothing 0.01`` found 0 sets, silently).
+MIN_SMOOTHING_DEG = 1.0
+
+
 @dataclass(frozen=True)
 class SetOptions:
     """The settings of :func:`joint_sets` (lengths in metres, angles in degrees),
@@ -568,8 +574,11 @@ class SetOptions:
         if int(self.max_sets) != self.max_sets or not 1 <= self.max_sets <= 255:
             raise InputError(f"the largest number of sets must be a whole number in 1..255, "
                              f"got {self.max_sets}")
-        if not (np.isfinite(self.smoothing_deg) and 0 < self.smoothing_deg <= 90):
-            raise InputError(f"smoothing must be in (0, 90] degrees, got {self.smoothing_deg:g}")
+        if not (np.isfinite(self.smoothing_deg) and MIN_SMOOTHING_DEG <= self.smoothing_deg <= 90):
+            raise InputError(f"smoothing must be from {MIN_SMOOTHING_DEG:g} to 90 degrees (the "
+                             "density net's nodes lie about 3 degrees apart: a finer kernel "
+                             "falls between them and finds no set), got "
+                             f"{self.smoothing_deg:g}")
         if not (np.isfinite(self.min_density) and self.min_density >= 0):
             raise InputError(f"the least peak density must be >= 0 MUD, got "
                              f"{self.min_density:g}")

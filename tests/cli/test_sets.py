@@ -161,6 +161,8 @@ def test_a_cloud_without_planes_writes_headers_and_says_so(tmp_path, capsys):
     (["--ply-out", "x.las"], "--ply-out"),
     (["--las-out", "x.ply"], "--las-out"),
     (["--min-points", "2"], "--min-points"),
+    # issue 36: a kernel finer than the net's nodes found 0 sets, exit 0
+    (["--smoothing", "0.01"], "smoothing must be from 1 to 90 degrees"),
 ])
 def test_bad_input_one_line_exit_2_no_output(tmp_path, block, capsys, extra, message):
     path, _ = block
