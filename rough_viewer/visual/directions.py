@@ -91,6 +91,7 @@ def rose_figure(
     title = title_block("Roughness by direction", caption or "azimuth from the face's u axis "
                         "towards v; bands: ± one standard deviation over the profiles")
     fig.update_layout(title=title, margin={"t": 90, "l": 40, "r": 40, "b": 40},
+                      height=ROSE_HEIGHT,  # a polar plot wants its width: no strip
                       polar={"angularaxis": {"rotation": 0, "direction": "counterclockwise",
                                              "dtick": 30},
                              "radialaxis": {"rangemode": "tozero"}},
@@ -99,12 +100,19 @@ def rose_figure(
 
 
 #: Columns of :func:`directions_table_figure` and their headers.
+#: Headers break at ``<br>`` so that no line is wider than its column: eleven columns
+#: share the 480 px panel (the app showed "zimuth", "rofiles", "RC stimate").
 TABLE_FIGURE_COLUMNS = (
-    ("azimuth_deg", "azimuth °"), ("profiles", "profiles"), ("h_mean", "H"), ("h_std", "± H"),
-    ("d_mean", "D"), ("h_denoised_mean", "H de-noised"), ("rms_mean", "RMS"),
-    ("z2_mean", "Z2"), ("jrc_mean", "JRC estimate"), ("theta_max_c1", "θ*max/(C+1) °"),
-    ("delta_t", "ΔT °"),
+    ("azimuth_deg", "azi-<br>muth °"), ("profiles", "pro-<br>files"), ("h_mean", "H"),
+    ("h_std", "± H"), ("d_mean", "D"), ("h_denoised_mean", "H de-<br>noised"),
+    ("rms_mean", "RMS"), ("z2_mean", "Z2"), ("jrc_mean", "JRC<br>est."),
+    ("theta_max_c1", "θ*max<br>/(C+1) °"), ("delta_t", "ΔT °"),
 )
+#: Height of the rose, px (at the app's 480 px panel: title, polar axes, legend).
+ROSE_HEIGHT = 520
+#: Font size and height of the table's header, px (two lines of header text).
+TABLE_HEADER_FONT = 11
+TABLE_HEADER_HEIGHT = 40
 
 
 def directions_table_figure(table: Mapping[str, np.ndarray], *, unit: str = "m",
@@ -119,17 +127,20 @@ def directions_table_figure(table: Mapping[str, np.ndarray], *, unit: str = "m",
         v = np.asarray(table[key], dtype=np.float64)
         if key == "rms_mean":
             v = v * uf / rf
-            head = f"RMS {ru}"
+            head = f"RMS<br>{ru}"
         heads.append(f"<b>{head}</b>")
         cells.append([f"{x:g}" if key in ("azimuth_deg", "profiles") else format_number(x)
                       for x in v])
-    fig = go.Figure(go.Table(header={"values": heads, "align": "right"},
-                             cells={"values": cells, "align": "right"}))
+    fig = go.Figure(go.Table(header={"values": heads, "align": "right",
+                                     "height": TABLE_HEADER_HEIGHT,
+                                     "font": {"size": TABLE_HEADER_FONT}},
+                             cells={"values": cells, "align": "right",
+                                    "font": {"size": TABLE_HEADER_FONT}}))
     n = len(cells[0]) if cells else 0
     fig.update_layout(title=title_block("Roughness by direction: table", caption or
                                         "JRC estimates from each profile's Z2 (Tse and "
                                         "Cruden 1979); θ*max/(C+1), ΔT facing the direction"),
-                      margin={"t": 80, "l": 10, "r": 10, "b": 10}, height=140 + 26 * n)
+                      margin={"t": 80, "l": 10, "r": 10, "b": 10}, height=154 + 26 * n)
     return fig
 
 
