@@ -40,6 +40,10 @@ def test_measure_directions_gives_the_library_numbers_and_lines(sheet_app):
         np.testing.assert_allclose(a.values["hurst"], b.values["hurst"], equal_nan=True)
     np.testing.assert_allclose(got.tin.theta_max_c1, ref.tin.theta_max_c1)
     assert "**8 directions**" in f.status.content
+    # every warning of the library's result whole, one a line (issue 31: cut with "…")
+    assert ref.warnings and all(" ".join(w.split()[-3:]) in f.status.content  # their ends
+                                for w in ref.warnings[:4])
+    assert "…" not in f.status.content
     names = [t.name for t in f.rose.figure.data]
     assert any("θ" in (n or "") or "theta" in (n or "").lower() for n in names)
     assert len(f.table.figure.data[0].cells.values[0]) == 8

@@ -44,6 +44,10 @@ from rough_viewer.visual.directions import (
 from rough_viewer.vocabulary import UNITS, Unit
 
 L_STEP = "Azimuth step (°)"
+#: Warnings shown under the directions' status, and the most characters of each (a
+#: bound on what a hostile cloud's text can make the page hold).
+MAX_WARNINGS = 4
+WARNING_CHARS = 2000
 L_SPACING = "Line spacing"
 L_TIN = "Triangle parameters (slow)"
 L_MEASURE = "Measure directions"
@@ -177,11 +181,13 @@ class DirectionsJob(Job[Host]):
         set_figure(f.rose, rose_figure(table, values=values, unit=unit))
         set_figure(f.table, directions_table_figure(table, unit=unit))
         profiles = int(sum(int(np.count_nonzero(s.used)) for s in result.sets))
-        note = "; ".join(result.warnings[:2])
         tin = (f", TIN of {result.n_triangles:,} triangles ({result.surface})"
                if result.tin is not None else "")
+        # every warning whole, one a line (one cut at 400 characters ended in "…")
+        notes = "".join(f"  \n⚠ {md(w, max_chars=WARNING_CHARS)}"
+                        for w in result.warnings[:MAX_WARNINGS])
         f.status.content = (f"**{len(result.azimuth_deg)} directions**, {profiles:,} profiles"
-                            f"{md(tin)}" + (f"  \n⚠ {md(note, max_chars=400)}" if note else ""))
+                            f"{md(tin)}" + notes)
         yield "figures"
         ctx.scene.remove(f.nodes)
         segs, az = profile_segments(result.sets)
