@@ -17,7 +17,9 @@ from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
-               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,"
+               "odr_mean,odr_median,odr_std,theta_max_c1_dip,theta_max_c1_strike,delta_t_dip,"
+               "delta_t_strike,jrc_estimate_dip,jrc_estimate_strike")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
                  "persistence_strike,rms,cells")
 G = 0.5
@@ -91,7 +93,7 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     _, rows_mm = read_csv(mm_out)
     assert len(rows_m) == len(rows_mm) == 3
     lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
-               "persistence_mean"}
+               "persistence_mean", "odr_mean", "odr_median", "odr_std"}
     for a, b in zip(rows_m, rows_mm, strict=True):
         for name, x, y in zip(h, a, b, strict=True):
             scale = 1000.0 if name in lengths else 1.0
