@@ -459,9 +459,10 @@ def facet_roughness(
     if g.size and (g.min() < 0 or g.max() >= n_groups):
         raise InputError(f"facet groups must lie in 0..{n_groups - 1}")
     require(m.shape[0] * PAIR_BYTES, f"the apparent dips of {m.shape[0]:,} triangles")
+    k = int(n_groups)
     eye = np.eye(3)
-    frame = [np.broadcast_to(eye[i], (int(n_groups), 3)) for i in (2, 0, 1)]
-    return _grouped(g, int(n_groups), m, a, *frame, az, step)
+    return _grouped(g, k, m, a, np.tile(eye[2], (k, 1)), np.tile(eye[0], (k, 1)),
+                    np.tile(eye[1], (k, 1)), az, step)
 
 
 def _window_planes(
