@@ -246,6 +246,7 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
     """The sets and their rock-mass figures for ``--summary-json``: lengths in
     ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
     of the RQD estimate's formula)."""
+    from rough_viewer.grid.joints import RQD_FORMULA
     from rough_viewer.io.jsonable import to_jsonable
 
     per = per_unit(unit)
@@ -265,8 +266,7 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
         "jv": to_jsonable(f.jv * per), "jv_per_m3": to_jsonable(f.jv),
         "block_size_index": to_jsonable(f.block_size_index / per),
         "rqd_estimate": to_jsonable(f.rqd_estimate),
-        "rqd_estimate_formula": "RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; "
-                                "Palmstrom 2005; valid for Jv 4..44",
+        "rqd_estimate_formula": RQD_FORMULA,
         "sets_counted_in_jv": f.sets_counted,
         "jrc_estimate_formula": "JRC = 32.2 + 32.47 log10(Z2) (Tse and Cruden 1979), mean "
                                 "over the profiles of the set's joints; an estimate, for "
