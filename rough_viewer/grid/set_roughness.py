@@ -270,6 +270,7 @@ def set_roughness(
             except InputError:
                 _count(skipped, "its points coincide", 1)
                 continue
+            steps[s].append(spacing)
             took = False
             try:
                 sets = profile_sets(loc, AZIMUTHS_DEG, plane=local_plane,
@@ -285,7 +286,6 @@ def set_roughness(
                     values[f"jrc{d}"][s].append(ps.values["jrc"][used])
                     values[f"z2{d}"][s].append(ps.values["z2"][used])
                     values[f"rms{d}"][s].append(ps.values["rms"][used])
-                    steps[s].append(spacing)
             try:
                 mesh = triangulate_cloud(loc, plane=local_plane,
                                          max_edge=MAX_EDGE_SPACINGS * spacing)
@@ -325,8 +325,13 @@ def set_roughness(
                         dtype=np.int64)
 
     step = np.array([float(np.median(v)) if v else np.nan for v in steps])
-    if np.isfinite(step).any():
-        warnings += list(jrc_warnings(float(np.nanmedian(step))))
+    profiles = count("jrc0") + count("jrc1")
+    if profiles.any():
+        warnings += list(jrc_warnings(float(np.nanmedian(step[profiles > 0]))))
+    for s in np.flatnonzero((profiles == 0) & np.isfinite(step)).tolist():
+        warnings.append(f"set {s + 1}: no JRC estimate: no profile on its joints has the "
+                        f"{PROFILE_MIN_SAMPLES} samples with data a profile needs (sampled "
+                        f"every {step[s] * 1e3:.3g} mm, the point spacing)")
     for why, k in skipped.items():
         if why.startswith("measured"):
             warnings.append(f"set roughness: {k:,} joint{'s' if k != 1 else ''} {why}")
