@@ -44,9 +44,11 @@ Two scales, two kinds of number (``docs/sets.md``, "Roughness of each set"):
   the strike profiles smooth: the set would shear more easily along its strike.
 
 Work is bounded: per set the :data:`MAX_JOINTS_PER_SET` largest joints (by points)
-within :data:`MAX_SET_POINTS` points in all; a joint with more points than its share
-is measured on the disc of its points nearest its centroid in its plane (its point
-spacing kept: thinning would change the roughness). A loop over measured joints (at
+within :data:`MAX_SET_POINTS` points in all, shared out equally among them (a joint
+smaller than its share leaves the rest to the others, :func:`point_shares`); a
+joint with more points than its share is measured on the disc of its points nearest
+its centroid in its plane (its point spacing kept: thinning would change the
+roughness). A loop over measured joints (at
 most ``MAX_JOINTS_PER_SET`` per set), vectorised over points and facets; a joint
 that cannot be measured (too few points, a line of points) is counted, not fatal.
 """
@@ -167,6 +169,25 @@ def cell_odr_statistics(cell_set: np.ndarray, theta_odr: np.ndarray, n_sets: int
     return mean, median, std, n
 
 
+def point_shares(points: np.ndarray, budget: int) -> np.ndarray:
+    """Points each joint is measured on: ``budget`` shared out equally, a joint
+    smaller than its share taking only its own points and leaving the rest to the
+    others (water filling); never more than ``budget`` in all.
+
+    >>> point_shares(np.array([50_000, 1_000, 300_000, 200_000]), 100_000).tolist()
+    [33000, 1000, 33000, 33000]
+    >>> point_shares(np.array([10, 20]), 100).tolist()
+    [10, 20]
+    """
+    p = np.asarray(points, dtype=np.int64)
+    out = np.zeros_like(p)
+    left = int(budget)
+    for i, j in enumerate(np.argsort(p, kind="stable").tolist()):  # smallest first
+        out[j] = min(int(p[j]), left // (p.size - i))
+        left -= int(out[j])
+    return out
+
+
 def _count(counts: dict[str, int], why: str, k: int) -> None:
     if k > 0:
         counts[why] = counts.get(why, 0) + int(k)
@@ -246,21 +267,23 @@ def set_roughness(
         big = ids[joints.points[ids] >= MIN_JOINT_POINTS]
         _count(skipped, f"fewer than {MIN_JOINT_POINTS} points", ids.size - big.size)
         _count(skipped, f"beyond the {max_joints} largest of a set", big.size - max_joints)
-        budget = int(max_points)
-        for j in big[:max_joints].tolist():
-            if budget < MIN_JOINT_POINTS:
-                _count(skipped, f"beyond the {max_points:,} points measured per set", 1)
+        big = big[:max_joints]
+        caps = point_shares(joints.points[big], int(max_points))
+        _count(skipped, f"its share of the {max_points:,} points measured per set under "
+               f"{MIN_JOINT_POINTS}", int(np.count_nonzero(caps < MIN_JOINT_POINTS)))
+        for j, cap in zip(big.tolist(), caps.tolist(), strict=True):
+            if cap < MIN_JOINT_POINTS:
                 continue
             rows = order[starts[j]:starts[j + 1]]
             rot = np.stack([dip_axis[j], strike_axis[j], joints.normal[j]])
             c = joints.centroid[j]
             require(rows.shape[0] * 32.0, f"the points of a joint of {rows.shape[0]:,} points")
             loc = np.column_stack([xyz[a][rows] - c[a] for a in range(3)]) @ rot.T
-            if loc.shape[0] > budget:  # the disc about its centroid: its spacing kept
+            if loc.shape[0] > cap:  # the disc about its centroid: its spacing kept
                 _count(skipped, "measured on the disc of its points nearest its centroid, "
                        "partly", 1)
                 r2 = loc[:, 0] ** 2 + loc[:, 1] ** 2
-                loc = loc[np.argpartition(r2, budget - 1)[:budget]]
+                loc = loc[np.argpartition(r2, cap - 1)[:cap]]
             n = loc.shape[0]
             require(n * BYTES_PER_POINT, f"the roughness of a joint of {n:,} points",
                     hint="choose a larger grid size")
@@ -301,7 +324,6 @@ def set_roughness(
             if took:
                 measured[s] += 1
                 points[s] += n
-                budget -= n
     tin = {k: np.full((n_sets, 2), np.nan) for k in ("theta_max_c1", "delta_t")}
     tri = np.zeros(n_sets, dtype=np.int64)
     if normals:
