@@ -67,7 +67,7 @@ from rough_viewer.vocabulary import InputError
 #: Joints measured per set at most (the largest by points).
 MAX_JOINTS_PER_SET = 30
 #: Points measured per set at most (profiles and triangles), over its joints.
-MAX_SET_POINTS = 400_000
+MAX_SET_POINTS = 150_000
 #: Profile lines per joint and direction at most.
 MAX_PROFILES_PER_JOINT = 20
 #: Fewest samples with data a profile needs (the wavelet de-noising's shortest run
