@@ -209,6 +209,7 @@ def set_roughness(
     max_joints: int = MAX_JOINTS_PER_SET,
     max_points: int = MAX_SET_POINTS,
     max_profiles: int = MAX_PROFILES_PER_JOINT,
+    directional: bool = True,
 ) -> SetRoughness:
     """The roughness of every set (module docstring).
 
@@ -228,6 +229,9 @@ def set_roughness(
         The points, metres.
     max_joints, max_points, max_profiles : int
         The bounds of the work (module docstring).
+    directional : bool
+        Measure the joints along dip and strike (default); False gives the cell
+        statistics only (the directional values NaN, in a fraction of the time).
 
     Returns
     -------
@@ -262,7 +266,7 @@ def set_roughness(
     points = np.zeros(n_sets, dtype=np.int64)
     warnings: list[str] = []
     skipped: dict[str, int] = {}
-    for s in range(n_sets):
+    for s in range(n_sets if directional else 0):
         ids = np.flatnonzero(joints.set_id == s + 1)  # largest first (joint ids' order)
         big = ids[joints.points[ids] >= MIN_JOINT_POINTS]
         _count(skipped, f"fewer than {MIN_JOINT_POINTS} points", ids.size - big.size)

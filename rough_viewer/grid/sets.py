@@ -628,6 +628,7 @@ def joint_sets(
     options: SetOptions | None = None,
     *,
     progress: ProgressFn | None = None,
+    roughness: bool = True,
 ) -> JointSets:
     """Discontinuity sets, their planes, spacing and persistence (see the module).
 
@@ -645,6 +646,10 @@ def joint_sets(
         within half a cell of offset).
     progress : callable, optional
         ``progress(done, total)`` over 4 stages.
+    roughness : bool
+        Measure every set's joints along dip and strike (step 11; default); False
+        leaves those values NaN (the cells' ODR statistics stay), for a quicker
+        answer.
 
     Returns
     -------
@@ -741,8 +746,8 @@ def joint_sets(
             spacing[s, 3] = sp.scanline.mean()
     # the cell statistics are of the cells whose poles made the set (not the edge
     # cells of fewer points its planes took in)
-    roughness = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
-                              joints, point_joint, (x, y, z))
+    set_rough = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
+                              joints, point_joint, (x, y, z), directional=roughness)
     tick(4, 4)
     return JointSets(
         cell_set=cell_set, cell_plane=cell_plane, planar=planar, net=net, peak=peaks,
@@ -751,7 +756,7 @@ def joint_sets(
         points=set_points, n_planes_per_set=n_planes, n_joints_per_set=n_joints,
         spacing_mean=spacing[:, 0], spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
         spacing_scanline_mean=spacing[:, 3], persistence_mean=persistence_mean, planes=planes,
-        joints=joints, cell_joint=cell_joint, roughness=roughness, cell_size=g, options=o,
+        joints=joints, cell_joint=cell_joint, roughness=set_rough, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
         note=note)
 

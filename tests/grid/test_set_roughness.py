@@ -122,6 +122,9 @@ def test_work_is_bounded(corrugated):
     # the disc keeps the point spacing: the corrugations still read the same
     assert few.z2_dip[rough] == pytest.approx(sets.roughness.z2_dip[rough], rel=0.15)
     assert np.array_equal(one.odr_mean, sets.roughness.odr_mean, equal_nan=True)
+    cells_only = set_roughness(*args, directional=False)
+    assert np.array_equal(cells_only.odr_median, sets.roughness.odr_median)
+    assert np.isnan(cells_only.delta_t_dip).all() and not cells_only.joints_measured.any()
 
 
 def test_pooled_facets_are_the_whole_surfaces_parameters():
