@@ -12,7 +12,11 @@ Contract (other tools script against it)::
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--force] [--quiet]
 
-SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`), PLANES.csv one
+SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`; its last
+columns are the set's roughness, :mod:`rough_viewer.grid.set_roughness`: ``odr_mean,
+odr_median, odr_std`` of its cells in the output unit, ``theta_max_c1_dip,
+theta_max_c1_strike, delta_t_dip, delta_t_strike`` of its joints in degrees and the
+dimensionless ``jrc_estimate_dip, jrc_estimate_strike``), PLANES.csv one
 row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with the
 ``joint_id`` it is part of), JOINTS.csv one row per joint
 (:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
@@ -180,6 +184,7 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
             "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
     else:
         lines.append("no set has two joints apart: no Jv, block size index or RQD estimate")
+    lines += _roughness_lines(sets, unit)
     pl = sets.planes
     if pl.n_planes:
         lines.append("")
@@ -200,26 +205,73 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     return "\n".join(lines)
 
 
+def _angle(value: float, width: int = 7) -> str:
+    """An angle or a JRC estimate, ``width`` wide, one decimal; "-" where none.
+
+    >>> _angle(11.37), _angle(float("nan"))
+    ('   11.4', '      -')
+    """
+    return f"{value:{width}.1f}" if np.isfinite(value) else f"{'-':>{width}}"
+
+
+def _roughness_lines(sets, unit: str) -> list[str]:
+    """The terminal's table of every set's roughness (docs/sets.md, "Roughness of
+    each set"): its cells' ODR roughness in ``unit`` and its joints' along dip and
+    strike, and the warnings that go with them."""
+    from rough_viewer.vocabulary import roughness_scale
+
+    r = sets.roughness
+    rper, ru = roughness_scale(unit)
+    lines = ["", f"roughness per set: ODR of its cells in {ru} (mean, median, std); its "
+             "joints along dip / strike: JRC estimate (Z2 of profiles, Tse and Cruden "
+             "1979), theta*max/(C+1) and Delta-T in degrees (shear down dip / along "
+             "strike)",
+             f"{'set':>4} {'ODR mean':>9} {'median':>8} {'std':>8}  {'JRC est. dip':>12} "
+             f"{'strike':>7}  {'th*/(C+1) dip':>13} {'strike':>7}  {'dT dip':>7} "
+             f"{'strike':>7}  {'joints':>6} {'profiles':>8}"]
+    for k in range(sets.n_sets):
+        odr = [(f"{v / rper:8.3g}" if np.isfinite(v) else f"{'-':>8}")
+               for v in (r.odr_mean[k], r.odr_median[k], r.odr_std[k])]
+        lines.append(
+            f"{k + 1:4d} {odr[0]:>9} {odr[1]} {odr[2]}  {_angle(r.jrc_estimate_dip[k], 12)} "
+            f"{_angle(r.jrc_estimate_strike[k])}  {_angle(r.theta_max_c1_dip[k], 13)} "
+            f"{_angle(r.theta_max_c1_strike[k])}  {_angle(r.delta_t_dip[k])} "
+            f"{_angle(r.delta_t_strike[k])}  {r.joints_measured[k]:6d} "
+            f"{r.profiles_dip[k] + r.profiles_strike[k]:8d}")
+    lines += [f"warning: {w}" for w in r.warnings]
+    return lines
+
+
 def summary_dict(sets, source: str, unit: str = "m") -> dict:
     """The sets and their rock-mass figures for ``--summary-json``: lengths in
     ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
     of the RQD estimate's formula)."""
+    from rough_viewer.grid.joints import RQD_FORMULA
     from rough_viewer.io.jsonable import to_jsonable
 
     per = per_unit(unit)
     f = sets.figures
     table = sets.set_table(per)
+    r = sets.roughness
+    extra = {"profiles_dip": r.profiles_dip, "profiles_strike": r.profiles_strike,
+             "roughness_joints": r.joints_measured, "roughness_points": r.points_measured,
+             "roughness_triangles": r.triangles,
+             "profile_sample_spacing": r.sample_spacing / per}
     return {
         "source": source, "unit": unit, "grid": sets.cell_size / per,
-        "sets": [{name: to_jsonable(table[name][k]) for name in table}
+        "sets": [{**{name: to_jsonable(table[name][k]) for name in table},
+                  **{name: to_jsonable(v[k]) for name, v in extra.items()}}
                  for k in range(sets.n_sets)],
         "joints": int(sets.joints.n_joints), "planes": int(sets.planes.n_planes),
         "jv": to_jsonable(f.jv * per), "jv_per_m3": to_jsonable(f.jv),
         "block_size_index": to_jsonable(f.block_size_index / per),
         "rqd_estimate": to_jsonable(f.rqd_estimate),
-        "rqd_estimate_formula": "RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; "
-                                "Palmstrom 2005; valid for Jv 4..44",
+        "rqd_estimate_formula": RQD_FORMULA,
         "sets_counted_in_jv": f.sets_counted,
+        "jrc_estimate_formula": "JRC = 32.2 + 32.47 log10(Z2) (Tse and Cruden 1979), mean "
+                                "over the profiles of the set's joints; an estimate, for "
+                                "profiles sampled at 0.5-1 mm",
+        "roughness_warnings": list(r.warnings),
     }
 
 

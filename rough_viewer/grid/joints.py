@@ -71,6 +71,11 @@ COVER_REACH_BINS = 8
 #: RQD estimate from Jv (Palmstrom 2005): ``RQD = RQD_INTERCEPT - RQD_SLOPE * Jv``.
 RQD_INTERCEPT = 110.0
 RQD_SLOPE = 2.5
+#: Jv for which the RQD estimate holds (Palmstrom 2005): 100 below, 0 above.
+RQD_JV_RANGE = (4.0, 44.0)
+#: The RQD estimate's formula and limits, as the outputs state it.
+RQD_FORMULA = (f"RQD = {RQD_INTERCEPT:g} - {RQD_SLOPE:g} Jv (Jv per m3), clipped to 0..100; "
+               f"Palmstrom 2005; valid for Jv {RQD_JV_RANGE[0]:g}..{RQD_JV_RANGE[1]:g}")
 
 
 @dataclass(frozen=True, eq=False)

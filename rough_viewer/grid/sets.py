@@ -59,6 +59,11 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    deviation of the normal spacing; the mean persistence: the mean over the set's
    planes of the longer of their two chords; and, over the sets, ``Jv``, the block
    size index and the RQD estimate (:attr:`JointSets.figures`).
+11. **Roughness per set** (:mod:`rough_viewer.grid.set_roughness`): the mean, median
+   and standard deviation of its cells' ODR roughness, and the directional
+   roughness of its largest joints along their dip and strike (profiles' JRC
+   estimate, ``theta*max/(C+1)`` and ``Delta-T`` of their triangles, each joint in
+   its own plane's frame).
 
 Everything is vectorised over cells and points; loops run over sets (at most
 ``max_sets``) and density peaks only.
@@ -100,6 +105,7 @@ from rough_viewer.grid.orientation import (
     stereonet,
 )
 from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.set_roughness import SetRoughness, set_roughness
 from rough_viewer.grid.zones import _neighbour_pairs
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.io.point_fields import CellField, PointFields
@@ -141,6 +147,8 @@ SET_COLUMNS: tuple[str, ...] = (
     "set_id", "dip_deg", "dip_direction_deg", "fisher_kappa", "alpha95_deg", "cells",
     "planes", "joints", "spacing_mean", "spacing_median", "spacing_std",
     "spacing_scanline_mean", "persistence_mean",
+    "odr_mean", "odr_median", "odr_std", "theta_max_c1_dip", "theta_max_c1_strike",
+    "delta_t_dip", "delta_t_strike", "jrc_estimate_dip", "jrc_estimate_strike",
 )
 #: Columns of PLANES.csv, in order.
 PLANE_COLUMNS: tuple[str, ...] = (
@@ -155,7 +163,8 @@ JOINT_COLUMNS: tuple[str, ...] = (
 #: Length columns of the tables (divided by the output unit; ``area`` by its square).
 LENGTH_COLUMNS = frozenset({"spacing_mean", "spacing_median", "spacing_std",
                             "spacing_scanline_mean", "persistence_mean", "cx", "cy", "cz",
-                            "persistence_dip", "persistence_strike", "rms", "trace_length"})
+                            "persistence_dip", "persistence_strike", "rms", "trace_length",
+                            "odr_mean", "odr_median", "odr_std"})
 
 
 @dataclass(frozen=True)
@@ -320,6 +329,9 @@ class JointSets:
     """The joints (patches of one discontinuity)."""
     cell_joint: np.ndarray
     """(M,) int32 joint of every cell, 0 = in no joint."""
+    roughness: SetRoughness
+    """Roughness of every set: its cells' ODR roughness, its joints' along dip and
+    strike (:mod:`rough_viewer.grid.set_roughness`)."""
     cell_size: float
     """Grid cell edge, metres."""
     options: SetOptions
@@ -365,6 +377,14 @@ class JointSets:
             "spacing_std": self.spacing_std, "spacing_scanline_mean": self.spacing_scanline_mean,
             "persistence_mean": self.persistence_mean,
         }
+        r = self.roughness
+        cols.update({
+            "odr_mean": r.odr_mean, "odr_median": r.odr_median, "odr_std": r.odr_std,
+            "theta_max_c1_dip": r.theta_max_c1_dip,
+            "theta_max_c1_strike": r.theta_max_c1_strike,
+            "delta_t_dip": r.delta_t_dip, "delta_t_strike": r.delta_t_strike,
+            "jrc_estimate_dip": r.jrc_estimate_dip, "jrc_estimate_strike": r.jrc_estimate_strike,
+        })
         return _in_unit(cols, unit_m)
 
     def plane_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
@@ -608,6 +628,7 @@ def joint_sets(
     options: SetOptions | None = None,
     *,
     progress: ProgressFn | None = None,
+    roughness: bool = True,
 ) -> JointSets:
     """Discontinuity sets, their planes, spacing and persistence (see the module).
 
@@ -625,6 +646,10 @@ def joint_sets(
         within half a cell of offset).
     progress : callable, optional
         ``progress(done, total)`` over 4 stages.
+    roughness : bool
+        Measure every set's joints along dip and strike (step 11; default); False
+        leaves those values NaN (the cells' ODR statistics stay), for a quicker
+        answer.
 
     Returns
     -------
@@ -719,6 +744,10 @@ def joint_sets(
             spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
         if sp.scanline.size:
             spacing[s, 3] = sp.scanline.mean()
+    # the cell statistics are of the cells whose poles made the set (not the edge
+    # cells of fewer points its planes took in)
+    set_rough = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
+                              joints, point_joint, (x, y, z), directional=roughness)
     tick(4, 4)
     return JointSets(
         cell_set=cell_set, cell_plane=cell_plane, planar=planar, net=net, peak=peaks,
@@ -727,7 +756,7 @@ def joint_sets(
         points=set_points, n_planes_per_set=n_planes, n_joints_per_set=n_joints,
         spacing_mean=spacing[:, 0], spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
         spacing_scanline_mean=spacing[:, 3], persistence_mean=persistence_mean, planes=planes,
-        joints=joints, cell_joint=cell_joint, cell_size=g, options=o,
+        joints=joints, cell_joint=cell_joint, roughness=set_rough, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
         note=note)
 

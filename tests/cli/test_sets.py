@@ -17,7 +17,9 @@ from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
-               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,"
+               "odr_mean,odr_median,odr_std,theta_max_c1_dip,theta_max_c1_strike,delta_t_dip,"
+               "delta_t_strike,jrc_estimate_dip,jrc_estimate_strike")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
                  "persistence_strike,rms,cells")
 G = 0.5
@@ -91,7 +93,7 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     _, rows_mm = read_csv(mm_out)
     assert len(rows_m) == len(rows_mm) == 3
     lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
-               "persistence_mean"}
+               "persistence_mean", "odr_mean", "odr_median", "odr_std"}
     for a, b in zip(rows_m, rows_mm, strict=True):
         for name, x, y in zip(h, a, b, strict=True):
             scale = 1000.0 if name in lengths else 1.0
@@ -246,3 +248,57 @@ def test_joints_out_and_summary_json(tmp_path, block):
     assert data_mm["jv"] == pytest.approx(data["jv"] / 1000.0, rel=1e-6)  # per mm
     assert data_mm["jv_per_m3"] == pytest.approx(data["jv"], rel=1e-6)
     assert data_mm["rqd_estimate"] == pytest.approx(data["rqd_estimate"], rel=1e-6)
+
+
+def test_set_roughness_in_sets_csv_summary_json_and_terminal(tmp_path, block, capsys):
+    """Issue 30 item 4: SETS.csv ends with every set's roughness (ODR of its cells in
+    the output unit, the joints' theta*max/(C+1), Delta-T and JRC estimate along dip
+    and strike), SUMMARY.json carries the same per set with the profiles behind them,
+    and the terminal shows them with the JRC estimate's sampling warning."""
+    path, mm = block
+    out, summary = tmp_path / "sets.csv", tmp_path / "summary.json"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out), "--summary-json",
+                 str(summary), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    cloud = load_points(path)
+    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud)
+    r = ref.roughness
+    header, rows = read_csv(out)
+    tail = ("odr_mean", "odr_median", "odr_std", "theta_max_c1_dip", "theta_max_c1_strike",
+            "delta_t_dip", "delta_t_strike", "jrc_estimate_dip", "jrc_estimate_strike")
+    assert tuple(header[-len(tail):]) == tail
+    col = {name: np.array([float(row[header.index(name)] or "nan") for row in rows])
+           for name in tail}
+    for name in tail:  # exact round trip, empty where there is no value
+        assert np.array_equal(col[name], ref.set_table()[name], equal_nan=True)
+    # the joint block's faces are planes with 2 mm of range noise: their cells' ODR is
+    # that of the noise about a plane, sigma sqrt(1 - 2/pi) = 1.2 mm, at most
+    assert all(0.0 < v < 0.0015 for v in col["odr_median"])
+    assert all(np.isfinite(col["delta_t_dip"])) and r.joints_measured.min() >= 1
+    # the block's joint faces are 2 m across at a 9 cm point spacing: no profile has
+    # the 40 samples a profile needs, so no JRC estimate, and the run says why
+    assert np.isnan(col["jrc_estimate_dip"]).all() and r.profiles_dip.sum() == 0
+    assert "warning: set 1: no JRC estimate: no profile on its joints has the 40 samples" in said
+    data = json.loads(summary.read_text())
+    for k, entry in enumerate(data["sets"]):
+        for name in tail:
+            if np.isnan(col[name][k]):
+                assert entry[name] is None
+            else:
+                assert entry[name] == pytest.approx(col[name][k], rel=1e-12)
+        assert entry["profiles_dip"] == r.profiles_dip[k]
+        assert entry["roughness_joints"] == r.joints_measured[k]
+    assert "estimate" in data["jrc_estimate_formula"]
+    assert data["roughness_warnings"] == list(r.warnings)
+    assert "JRC est. dip" in said and "th*/(C+1) dip" in said
+    row = next(line for line in said.splitlines()
+               if line.split()[:1] == ["1"] and "." in line and len(line.split()) == 12)
+    assert float(row.split()[1]) == pytest.approx(r.odr_mean[0] * 1e3, rel=1e-2)  # in mm
+    assert row.split()[4] == "-"
+    assert float(row.split()[6]) == pytest.approx(r.theta_max_c1_dip[0], abs=0.05)
+    mm_out = tmp_path / "mm.csv"
+    assert main(["sets", str(mm), "--units", "mm", "--grid", str(G * 1000), "--out",
+                 str(mm_out), "--quiet"]) == 0
+    h, rows_mm = read_csv(mm_out)
+    assert [float(r_[h.index("odr_mean")]) for r_ in rows_mm] == pytest.approx(
+        col["odr_mean"] * 1000.0, rel=1e-6)
