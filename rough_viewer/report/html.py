@@ -358,8 +358,9 @@ def _sets_line(sets) -> str:
     """One sentence on a section's joint sets."""
     if not sets.n_sets:
         return sets.note
-    return (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
+    line = (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
             f"{int(sets.cells.sum()):,} planar cells, {sets.planes.n_planes:,} planes.")
+    return f"{line} ⚠ {sets.face_note}" if sets.face_note else line
 
 
 def check_png_export() -> None:

@@ -17,7 +17,8 @@ from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
-               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,"
+               "face_parallel,face_angle_deg")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
                  "persistence_strike,rms,cells")
 G = 0.5
