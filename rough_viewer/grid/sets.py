@@ -28,7 +28,9 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    ``kappa = (N - 1) / (N - R)`` and
    ``alpha95 = arccos(1 - (N - R) / R ((1 / 0.05)^(1 / (N - 1)) - 1))``, with ``N``
    the cells and ``R = N |sum w p| / sum w`` (``w`` the points; equal weights give
-   the textbook resultant length).
+   the textbook resultant length). A cell outside the cone of its set's final
+   mean leaves the set and the statistics are taken again, until every cell of a
+   set lies within ``cone_deg`` of its mean.
 7. **Planes** (single discontinuities): within a set, cells that touch (faces,
    edges or corners) and whose offsets along the set's mean normal differ by at
    most ``plane_tolerance`` (default half a cell) form one plane; planes of fewer
@@ -42,7 +44,10 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    whose poles made it). A group whose points lie farther than ``max_plane_rms``
    (RMS, default a quarter of a cell) from their best plane is a curved surface
    chained cell by cell (a hillslope, a vault, an undulating face), not a plane: it
-   is dropped and counted (:attr:`JointSets.curved_groups`).
+   is dropped and counted (:attr:`JointSets.curved_groups`); so is a group whose
+   points' plane lies outside the cone of its set's mean (a strip about a cell wide
+   whose points do not fix its tilt about its length;
+   :attr:`JointSets.sliver_planes`): every plane lies within the cone.
 8. **Per plane**, from its points: the ODR fit (dip, dip direction, centroid, RMS
    of the orthogonal distances = square root of the smallest covariance
    eigenvalue); the persistence along dip and along strike: the longest chord in
@@ -59,6 +64,10 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    deviation of the normal spacing; the mean persistence: the mean over the set's
    planes of the longer of their two chords; and, over the sets, ``Jv``, the block
    size index and the RQD estimate (:attr:`JointSets.figures`).
+11. **The exposure face** (:mod:`rough_viewer.grid.face`): a set within
+   ``face_tolerance_deg`` of the whole-cloud plane or of its cells' local face is
+   :attr:`JointSets.face_parallel`: the exposure, not a joint set; its spacing is
+   no joint spacing and it adds nothing to the rock-mass figures.
 
 Everything is vectorised over cells and points; loops run over sets (at most
 ``max_sets``) and density peaks only.

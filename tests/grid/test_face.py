@@ -37,11 +37,13 @@ def _down_dip(x: np.ndarray, y: np.ndarray, dd: float) -> np.ndarray:
 SCARP_M = 2.0
 
 
-def hillside(dip: float = 22.0, dd: float = 187.0) -> np.ndarray:
-    """An 80 m hillside dipping ``dip`` towards ``dd``, undulating 0.4 m over 20-25 m
-    (an egg-box: its mean plane is about the planted one), cut by a scarp across
-    it: the slope below lies :data:`SCARP_M` lower; 2 mm noise."""
-    x, y = _raster(80.0, 0.25, 0)
+def hillside(dip: float = 22.0, dd: float = 187.0, size: float = 80.0,
+             step: float = 0.25) -> np.ndarray:
+    """A ``size`` m hillside dipping ``dip`` towards ``dd`` sampled every ``step`` m,
+    undulating 0.4 m over 20-25 m (an egg-box: its mean plane is about the planted
+    one), cut by a scarp across it: the slope below lies :data:`SCARP_M` lower; 2 mm
+    noise."""
+    x, y = _raster(size, step, 0)
     u = _down_dip(x, y, dd)
     v = _down_dip(x, y, dd - 90.0)
     rng = np.random.default_rng(1)
