@@ -19,7 +19,11 @@ row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with t
 (:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
 (:func:`summary_dict`: ``sets``, ``jv``, ...), lengths in the output
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
-angles in degrees. DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
+angles in degrees. A set within ``--face-tolerance`` of the exposure face (the whole
+cloud's plane or its cells' local face; :mod:`rough_viewer.grid.face`) has
+``face_parallel`` 1 in SETS.csv and ``FACE_PARALLEL`` 1 on its planes in DIPS.csv, is
+marked on the terminal and left out of Jv, Ib and the RQD estimate (its spacing is no
+joint spacing). DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
 ``compute``'s columns (ODR only) plus ``set_id`` and ``plane_id``. ``--las-out`` /
 ``--ply-out``: every point with ``set_id`` and ``plane_id`` of its cell. With several

@@ -185,14 +185,13 @@ def sets_table_figure(
              _num(sets.persistence_mean, f),
              [v + (" ⚠ face" if w else "") for v, w in
               zip(_num(sets.face_angle_deg, fmt=".1f"), warn, strict=True)]]
-    table = _coloured_table(ids, header, cells, [40, 90, 45, 50, 55, 50, 80, 65, 60, 80, 70],
+    table = _coloured_table(ids, header, cells, [40, 90, 45, 50, 55, 55, 80, 65, 60, 95, 60],
                             ids, ids == selected)
     fig = go.Figure(table)
     what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
     if face.any():
         listed = ", ".join(str(i) for i in ids[face])
-        what += (f" — ⚠ set{'s' if face.sum() > 1 else ''} {listed}: the exposure face, "
-                 "no joint spacing")
+        what += f" (⚠ {listed}: exposure face)"
     fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
                       height=int(min(600, 210 + 31 * max(n, 1))),

@@ -161,5 +161,6 @@ def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_tab():
     cells = fig.data[0].cells.values
     assert cells[0] == ["<b>1</b> ⚠"] and cells[6][0].endswith(" ⚠")  # spacing, marked
     assert cells[-1] == [f"{sets.face_angle_deg[0]:.1f} ⚠ face"]
+    assert fig.layout.title.text.startswith("1 joint set (⚠ 1: exposure face)<br>")
     real = joint_sets(res, pts, SetOptions(face_tolerance_deg=0.0))
     assert "\n" not in status_markdown(real, "2 m") and "⚠" not in set_option(real, 1)

@@ -547,4 +547,4 @@ def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_report():
     table = report_figures(rep, rep.sections[0])["sets_table"]
     cells = table.data[0].cells.values
     assert cells[0] == ["<b>1</b> ⚠"] and cells[-1][0].endswith("⚠ face")
-    assert "the exposure face, no joint spacing" in table.layout.title.text
+    assert table.layout.title.text.startswith("1 joint set (⚠ 1: exposure face)<br>")
