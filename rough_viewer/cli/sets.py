@@ -6,7 +6,8 @@ Contract (other tools script against it)::
     rough-viewer sets INPUT [INPUT ...] --grid G [--grid G2 ...] [--max-roughness T]
         [--min-planar-points K] [--cone 20] [--min-angle 30] [--max-sets 6]
         [--smoothing 6] [--min-density 3] [--min-set-cells 10] [--plane-tolerance D]
-        [--min-plane-cells 3] [--max-plane-rms D] [--min-points K] [--units m|mm|ft|us-ft]
+        [--min-plane-cells 3] [--max-plane-rms D] [--face-tolerance 10] [--face-radius D]
+        [--min-points K] [--units m|mm|ft|us-ft]
         --out SETS.csv [--planes-out PLANES.csv] [--joints-out JOINTS.csv]
         [--summary-json SUMMARY.json] [--cells-out CELLS.csv]
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
@@ -22,7 +23,11 @@ row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with t
 (:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
 (:func:`summary_dict`: ``sets``, ``jv``, ...), lengths in the output
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
-angles in degrees. DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
+angles in degrees. A set within ``--face-tolerance`` of the exposure face (the whole
+cloud's plane or its cells' local face; :mod:`rough_viewer.grid.face`) has
+``face_parallel`` 1 in SETS.csv and ``FACE_PARALLEL`` 1 on its planes in DIPS.csv, is
+marked on the terminal and left out of Jv, Ib and the RQD estimate (its spacing is no
+joint spacing). DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
 ``compute``'s columns (ODR only) plus ``set_id`` and ``plane_id``. ``--las-out`` /
 ``--ply-out``: every point with ``set_id`` and ``plane_id`` of its cell. With several
@@ -59,6 +64,7 @@ SHOWN_PLANES = 3
 
 def register(sub: argparse._SubParsersAction) -> None:
     from rough_viewer.grid import sets as js
+    from rough_viewer.grid.face import DEFAULT_FACE_RADIUS_CELLS, DEFAULT_FACE_TOLERANCE_DEG
 
     p = sub.add_parser(
         "sets",
@@ -104,6 +110,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-plane-rms", type=positive, default=None, metavar="D",
                    help="largest RMS of a plane's points about it, in --units: touching cells "
                    "that curve more are no plane (default a quarter of the grid size)")
+    p.add_argument("--face-tolerance", type=non_negative, default=DEFAULT_FACE_TOLERANCE_DEG,
+                   metavar="DEG", help="a set within this angle of the exposure face (the "
+                   "whole cloud's plane, or the local face around its cells) is flagged "
+                   "face_parallel: the exposure, not a joint set; its spacing is left out of "
+                   f"Jv, Ib and RQD (default {DEFAULT_FACE_TOLERANCE_DEG:g} degrees)")
+    p.add_argument("--face-radius", type=positive, default=None, metavar="D",
+                   help="radius of the neighbourhood whose plane is a cell's local face, in "
+                   f"--units (default {DEFAULT_FACE_RADIUS_CELLS:g} x the grid size; larger "
+                   "than the joint faces)")
     p.add_argument("--min-points", type=int, default=None, metavar="K",
                    help="cells with fewer points get no roughness (default: as compute)")
     p.add_argument("--out", required=True, metavar="SETS.csv",
@@ -163,25 +178,44 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
         lines.append(f"{sets.curved_groups:,} group{'s' if sets.curved_groups != 1 else ''} of "
                      f"touching cells curve (RMS about their best plane over "
                      f"{sets.max_plane_rms / per:.3g} {u}): no planes")
+    if sets.sliver_planes:
+        n = sets.sliver_planes
+        lines.append(f"{n:,} strip{'s' if n != 1 else ''} of touching cells about a cell wide "
+                     f"fit{'s' if n == 1 else ''} outside {'its' if n == 1 else 'their'} set's "
+                     f"cone (the points do not fix the tilt): no planes")
     lines.append("")
+    face = sets.face_parallel
     lines.append(f"{'set':>4} {'dip/dir':>9} {'kappa':>8} {'a95':>6} {'cells':>7} {'planes':>6} "
                  f"{'joints':>6} {'spacing ' + u:>11} {'scanline ' + u:>11} "
-                 f"{'persist. ' + u:>11}")
+                 f"{'persist. ' + u:>11} {'face deg':>9}")
     for k in range(sets.n_sets):
+        angle = sets.face_angle_deg[k]
+
+        def marked(v: float, face_k: bool = bool(face[k])) -> str:
+            # * by a value of a set parallel to the exposure face (no joint spacing)
+            return "*" if face_k and np.isfinite(v) else " "
+
+        sp, sc = sets.spacing_mean[k], sets.spacing_scanline_mean[k]
         lines.append(
             f"{k + 1:4d} {sets.dip_deg[k]:3.0f}/{sets.dip_direction_deg[k]:03.0f}   "
             f"{sets.kappa[k]:8.1f} {sets.alpha95_deg[k]:6.2f} {sets.cells[k]:7,} "
             f"{sets.n_planes_per_set[k]:6,} {sets.n_joints_per_set[k]:6,} "
-            f"{_length(sets.spacing_mean[k] / per)} "
-            f"{_length(sets.spacing_scanline_mean[k] / per)} "
-            f"{_length(sets.persistence_mean[k] / per)}")
+            f"{_length(sp / per)}{marked(sp)}{_length(sc / per)}{marked(sc)}"
+            f"{_length(sets.persistence_mean[k] / per)} "
+            + (f"{angle:8.1f}{marked(angle)}" if np.isfinite(angle) else f"{'-':>8} "))
+    lines += face_lines(sets, unit)
     f = sets.figures
     if f.sets_counted:
         lines.append(
             f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
-            f"set{'s' if f.sets_counted != 1 else ''} with a spacing), block size index Ib "
-            f"{f.block_size_index / per:.4g} {u}, RQD estimate {f.rqd_estimate:.0f} % "
-            "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
+            f"set{'s' if f.sets_counted != 1 else ''} with a spacing"
+            + (", the sets parallel to the exposure face left out" if face.any() else "")
+            + f"), block size index Ib {f.block_size_index / per:.4g} {u}, RQD estimate "
+            f"{f.rqd_estimate:.0f} % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a "
+            "measured RQD)")
+    elif np.any(face & np.isfinite(sets.spacing_mean)):
+        lines.append("no set off the exposure face has two joints apart: no Jv, block size "
+                     "index or RQD estimate")
     else:
         lines.append("no set has two joints apart: no Jv, block size index or RQD estimate")
     lines += _roughness_lines(sets, unit)
@@ -240,6 +274,24 @@ def _roughness_lines(sets, unit: str) -> list[str]:
             f"{r.profiles_dip[k] + r.profiles_strike[k]:8d}")
     lines += [f"warning: {w}" for w in r.warnings]
     return lines
+def face_lines(sets, unit: str = "m") -> list[str]:
+    """One line per set parallel to the exposure face (issue 31 item 2): which face,
+    the angle, and that its spacing is no joint spacing."""
+    per, u = per_unit(unit), UNIT_LABELS[unit]
+    fa = sets.face
+    out = []
+    for k in np.flatnonzero(sets.face_parallel):
+        where = []
+        if np.isfinite(fa.whole_deg[k]) and fa.whole_deg[k] <= fa.tolerance_deg:
+            where.append(f"{fa.whole_deg[k]:.1f} deg from the whole cloud's plane")
+        if fa.by_local(k):
+            where.append(f"{fa.local_deg[k]:.1f} deg from its cells' local face within "
+                         f"{fa.radius / per:.3g} {u}")
+        out.append(f"* set {k + 1} ({sets.dip_deg[k]:.0f}/{sets.dip_direction_deg[k]:03.0f}) "
+                   f"is parallel to the exposure face: its spacing is not a joint spacing "
+                   f"({', '.join(where)}); its planes are the exposure, left out of Jv, Ib "
+                   "and RQD (docs/sets.md, 'Joint set or exposure face?')")
+    return out
 
 
 def summary_dict(sets, source: str, unit: str = "m") -> dict:
@@ -272,6 +324,9 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
                                 "over the profiles of the set's joints; an estimate, for "
                                 "profiles sampled at 0.5-1 mm",
         "roughness_warnings": list(r.warnings),
+        "face_parallel_sets": [int(k) + 1 for k in np.flatnonzero(sets.face_parallel)],
+        "face_tolerance_deg": sets.face.tolerance_deg,
+        "face_radius": sets.face.radius / per,
     }
 
 
@@ -341,7 +396,9 @@ def _set_options(args: argparse.Namespace, per: float):
         min_density=args.min_density, min_set_cells=args.min_set_cells,
         plane_tolerance=None if args.plane_tolerance is None else args.plane_tolerance * per,
         min_plane_cells=args.min_plane_cells,
-        max_plane_rms=None if args.max_plane_rms is None else args.max_plane_rms * per)
+        max_plane_rms=None if args.max_plane_rms is None else args.max_plane_rms * per,
+        face_tolerance_deg=args.face_tolerance,
+        face_radius=None if args.face_radius is None else args.face_radius * per)
 
 
 def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud, source: str,

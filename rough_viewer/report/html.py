@@ -432,9 +432,10 @@ def _sets_line(sets) -> str:
     if not sets.n_sets:
         return sets.note
     p, j = sets.planes.n_planes, sets.joints.n_joints
-    return (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
+    line = (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
             f"{int(sets.cells.sum()):,} planar cells, {p:,} plane{'s' if p != 1 else ''}, "
             f"{j:,} joint{'s' if j != 1 else ''}.")
+    return f"{line} ⚠ {sets.face_note}" if sets.face_note else line
 
 
 def check_png_export() -> None:

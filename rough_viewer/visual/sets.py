@@ -170,16 +170,28 @@ def sets_table_figure(
     n = sets.n_sets
     ids = np.arange(1, n + 1)
     header = ["set", "dip / direction (°)", "κ", "α95 (°)", "cells", "planes",
-              f"spacing mean ({u})", f"median ({u})", f"std ({u})", f"persistence ({u})"]
-    cells = [[f"<b>{i}</b>" for i in ids], _dip(sets.dip_deg, sets.dip_direction_deg),
+              f"spacing mean ({u})", f"median ({u})", f"std ({u})", f"persistence ({u})",
+              "face (°)"]
+    face = sets.face_parallel
+    # a set parallel to the exposure face: ⚠ by its id, its angle and its spacings
+    # (no joint spacing; issue 31 item 2)
+    warn = np.where(face, " ⚠", "")
+    cells = [[f"<b>{i}</b>{w}" for i, w in zip(ids, warn, strict=True)],
+             _dip(sets.dip_deg, sets.dip_direction_deg),
              _num(sets.kappa, fmt=".0f"), _num(sets.alpha95_deg, fmt=".2f"),
              [f"{c:,}" for c in sets.cells], [f"{c:,}" for c in sets.n_planes_per_set],
-             _num(sets.spacing_mean, f), _num(sets.spacing_median, f), _num(sets.spacing_std, f),
-             _num(sets.persistence_mean, f)]
-    table = _coloured_table(ids, header, cells, [32, 90, 45, 50, 55, 50, 80, 65, 60, 80],
+             *([v + w for v, w in zip(_num(col, f), warn, strict=True)]
+               for col in (sets.spacing_mean, sets.spacing_median, sets.spacing_std)),
+             _num(sets.persistence_mean, f),
+             [v + (" ⚠ face" if w else "") for v, w in
+              zip(_num(sets.face_angle_deg, fmt=".1f"), warn, strict=True)]]
+    table = _coloured_table(ids, header, cells, [40, 90, 45, 50, 55, 55, 80, 65, 60, 95, 60],
                             ids, ids == selected)
     fig = go.Figure(table)
     what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
+    if face.any():
+        listed = ", ".join(str(i) for i in ids[face])
+        what += f" (⚠ {listed}: exposure face)"
     fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
                       height=int(min(600, 210 + 31 * max(n, 1))),

@@ -78,9 +78,11 @@ class SetsParams:
 
 
 def set_option(sets: JointSets, k: int) -> str:
-    """The dropdown entry of set ``k`` (1..S)."""
+    """The dropdown entry of set ``k`` (1..S); "exposure face" marks a set parallel to
+    the face the scanner saw (issue 31 item 2)."""
+    face = " ⚠ exposure face" if sets.face_parallel[k - 1] else ""
     return (f"Set {k} — {sets.dip_deg[k - 1]:02.0f}/{sets.dip_direction_deg[k - 1]:03.0f}, "
-            f"{int(sets.cells[k - 1]):,} cells")
+            f"{int(sets.cells[k - 1]):,} cells{face}")
 
 
 def set_of_option(value: str) -> int | None:
@@ -98,9 +100,12 @@ def status_markdown(sets: JointSets, cell_size_text: str) -> str:
     planar = int(np.count_nonzero(sets.planar))
     n = sets.curved_groups
     curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
-    return (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
+    line = (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
             f"{md(cell_size_text)}: {int(sets.cells.sum()):,} of {planar:,} planar cells in "
             f"sets, {sets.planes.n_planes:,} planes{md(curved)}")
+    if sets.face_note:  # a set parallel to the exposure face (issue 31 item 2)
+        line += f"\n\n**⚠ {md(sets.face_note)}**"
+    return line
 
 
 class SetsBinding(Binding):
