@@ -182,3 +182,23 @@ def test_settings_that_measure_no_profile_are_said_not_silent(
     assert "could be measured in any direction" in err and "profile lines;" in err
     assert "the table holds the triangles' columns only" in err
     assert len(err.strip().splitlines()) == 1 and out.exists()
+
+
+def test_a_profile_too_long_for_memory_is_refused_with_the_figure(
+        sawtooth_stl, tmp_path, capsys, monkeypatch):
+    """Issue 36 item 6: directions --sample-spacing had no check per profile (1e-7 on
+    the demo: 5.4 GB in 19 s, then a traceback). A 41.6 mm face sampled every
+    1e-8 mm makes profiles of about 4e9 samples: refused in one line with the
+    figure, no output; the vertices' spacing still runs with 64 MiB available."""
+    from rough_viewer import memory
+
+    out = tmp_path / "d.csv"
+    args = ["directions", str(sawtooth_stl), "--step", "90", "--units", "mm",
+            "--out", str(out), "--quiet"]
+    assert main([*args, "--sample-spacing", "1e-8"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and not out.exists()
+    assert "a profile of 4,1" in err and "samples at 1e-11 m" in err and "needs about" in err
+    monkeypatch.setattr(memory, "available_bytes", lambda: 64.0 * 2**20)
+    step = str(1 / math.tan(math.radians(30.0)) / 4)
+    assert main([*args, "--sample-spacing", step]) == 0 and out.exists()
