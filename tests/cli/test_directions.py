@@ -202,3 +202,29 @@ def test_a_profile_too_long_for_memory_is_refused_with_the_figure(
     monkeypatch.setattr(memory, "available_bytes", lambda: 64.0 * 2**20)
     step = str(1 / math.tan(math.radians(30.0)) / 4)
     assert main([*args, "--sample-spacing", step]) == 0 and out.exists()
+
+
+@pytest.mark.parametrize("extra, windows", [
+    (["--window-radius", "0.01"], "12,4"),  # the step defaults to the radius
+    (["--window-radius", "5", "--window-step", "0.01"], "12,4"),
+])
+def test_window_map_work_is_estimated_and_refused_with_the_figure(
+        sawtooth_stl, tmp_path, capsys, extra, windows):
+    """Issue 36 item 10: --window-radius 0.001 ran 66 s to 3.1 GB and then failed,
+    --window-step 0.001 was days of work. On the 41.6 x 30 mm sawtooth a step of
+    0.01 mm lays about 4,160 x 3,000 window centres: at 24 azimuths and 91 dip
+    thresholds (about 0.55 ms each window and azimuth) that is far beyond the
+    limit, refused at once in one line naming windows, azimuths and minutes."""
+    from rough_viewer.tin.directional import window_map_seconds
+
+    out, win = tmp_path / "d.csv", tmp_path / "w.csv"
+    code = main(["directions", str(sawtooth_stl), "--step", "15", "--units", "mm",
+                 "--out", str(out), "--windows-out", str(win), "--quiet", *extra])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() and not win.exists()
+    assert f"a window map of {windows}" in err and "at 24 azimuths" in err
+    n = float(err.split("a window map of ")[1].split()[0].replace(",", ""))
+    assert 4150 * 2990 < n <= 4161 * 3001
+    assert window_map_seconds(n, 1.0, 24, 1.0) > 30 * 60
+    assert "minutes of work, more than the 30 allowed" in err
