@@ -442,7 +442,8 @@ def profile_sets(
     denoise : DenoiseSettings, optional
         De-noising of each profile (default DWT, fixed threshold, hard).
     progress : callable, optional
-        ``progress(done, total)`` in directions measured.
+        ``progress(done, total)`` in directions measured, called at each profile too
+        (it may raise to stop the work).
 
     Returns
     -------
@@ -476,8 +477,11 @@ def profile_sets(
     distinct = list(dict.fromkeys(np.round(lines, 9).tolist()))
     done: dict[float, ProfileSet] = {}
     for i, line in enumerate(distinct):
+        # called at each profile too, so a progress that raises stops the work soon
+        each = None if progress is None else (
+            lambda _j, _p, i=i: progress(i, len(distinct)))
         done[line] = _one_direction(prep, line, windows=wins, min_samples=int(min_samples),
-                                    denoise=den)
+                                    denoise=den, progress=each)
         if progress is not None:
             progress(i + 1, len(distinct))
     out = []

@@ -282,11 +282,13 @@ def _grouped(
     v_axis: np.ndarray,
     azimuth_deg: np.ndarray,
     dip_step: float,
+    progress: ProgressFn | None = None,
 ) -> dict[str, np.ndarray]:
     """The parameters of every group (the whole surface, or each window) at every
     azimuth. ``group`` (P,) names the group of each facet entry, ``normals`` (P, 3)
     and ``areas`` (P,) its facet; ``plane_normal``, ``u_axis``, ``v_axis`` (G, 3)
-    each group's reference frame. Returns (G, A) arrays."""
+    each group's reference frame; ``progress(done, total)`` after each azimuth.
+    Returns (G, A) arrays."""
     n_th = int(np.floor(90.0 / dip_step + 1e-9)) + 1  # thresholds 0, step, ... <= 90
     mn = np.einsum("ij,ij->i", normals, plane_normal[group])
     sign = np.where(mn < 0, -1.0, 1.0)
@@ -325,6 +327,8 @@ def _grouped(
         c = np.where(top <= FLAT_DEG, 0.0, c)  # facets flat along t: theta*max/(C+1) = 0
         out["c"][:, j] = c
         out["theta_max_c1"][:, j] = top / (c + 1.0)
+        if progress is not None:
+            progress(j + 1, azimuth_deg.size)
     return out
 
 
@@ -347,6 +351,7 @@ def directional_roughness(
     *,
     dip_step_deg: float = DEFAULT_DIP_STEP_DEG,
     plane: Plane | None = None,
+    progress: ProgressFn | None = None,
 ) -> DirectionalRoughness:
     """``theta*max/(C+1)`` and ``Delta-T`` of a whole surface at each azimuth.
 
@@ -362,6 +367,8 @@ def directional_roughness(
         Step of the apparent-dip thresholds of the C fit, degrees (default 1).
     plane : Plane, optional
         Reference plane (default: the ODR plane of the vertices).
+    progress : callable, optional
+        ``progress(done, total)`` in azimuths (it may raise to stop the work).
 
     Returns
     -------
@@ -394,7 +401,7 @@ def directional_roughness(
     require(n * PAIR_BYTES, f"the apparent dips of {n:,} triangles")
     one = np.zeros(n, dtype=np.int64)
     res = _grouped(one, 1, f.normals, f.areas, frame.normal[None], frame.u_axis[None],
-                   frame.v_axis[None], az, step)
+                   frame.v_axis[None], az, step, progress=progress)
     return DirectionalRoughness(
         azimuth_deg=az,
         theta_max_c1=res["theta_max_c1"][0],
