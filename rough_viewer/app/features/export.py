@@ -41,6 +41,7 @@ import re
 import shutil
 import tempfile
 import time
+import weakref
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
@@ -194,9 +195,10 @@ class ExportFeature:
     save_view: viser.GuiButtonHandle
     status: viser.GuiMarkdownHandle
     progress: GuiProgressBarHandle
-    initial: PointCloud
+    initial: weakref.ref[PointCloud]
     """The cloud the app was started on (its file may be named relative to the
-    server's folder)."""
+    server's folder), weakly: it is freed once no tab shows it (a strong reference
+    kept it for the server's life; issue 36 item 2)."""
     initial_path: Path | None = None
     """:attr:`initial`'s file, resolved in the folder the server started in (None:
     no file)."""
@@ -216,7 +218,7 @@ class ExportFeature:
             # only the cloud given to serve may name a file relative to the server's
             # folder (resolved when the app started); an upload's name is a bare name
             # and no file here
-            if cloud is not self.initial or self.initial_path is None:
+            if cloud is not self.initial() or self.initial_path is None:
                 return None
             p = self.initial_path
         return p if p.is_file() else None
@@ -644,7 +646,7 @@ def mount(host: Host) -> ExportFeature:
     first = whole.cloud.source
     m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
                       figure_button, report, view, save_view, status, progress,
-                      initial=whole.cloud, initial_path=Path(first).resolve() if first else None)
+                      initial=weakref.ref(whole.cloud), initial_path=Path(first).resolve() if first else None)
     host.allow(points_format, points, table_format, table, figure, figure_format,
                figure_button, report, view, save_view)
     _wire(host, m)
