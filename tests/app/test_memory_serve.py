@@ -90,3 +90,35 @@ def test_ten_reloads_give_their_memory_back(tmp_path):
         proc.stop()
     growth = (max(rss[1:]) - rss[0]) / MB
     assert growth < 150, [round(r / MB) for r in rss]
+
+
+@pytest.mark.slow
+def test_tabs_that_connect_and_leave_leave_no_memory_behind(tmp_path):
+    """Issue 36 item 19: memory crept ~1.8 MB a tab connect/disconnect cycle (100
+    cycles: 504 -> 683 MB). No Python object was left behind (tracemalloc: ~50 KiB
+    over 30 cycles, the bounded job records); the heap kept the freed pieces of
+    each tab's scene messages, and one malloc_trim gave them back (in process, 60
+    cycles: 353 -> 292 MB). The server trims its heap when a tab leaves: a hundred
+    tabs that connect, receive the scene of a 200,000-point cloud and leave add at
+    most 40 MB to what ten did (measured: 283 -> 297 MB; without the trim 303 ->
+    370 MB, and this test fails)."""
+    import time
+
+    data = tmp_path / "data"
+    data.mkdir()
+    np.save(data / "face.npy", face_cloud(200_000, seed=1).xyz())
+    proc = ServeProcess(str(data / "face.npy"), "--no-token")
+    try:
+        rss = {}
+        for k in range(1, 101):
+            client = ProtocolClient(proc.port, proc.path)
+            client.uuid("Load file")
+            client.wait_for(lambda m: m.get("type") == "PointCloudMessage", 30, "the nodes")
+            client.close()
+            if k in (10, 100):
+                time.sleep(4.0)  # the tab dropped and the heap trimmed
+                rss[k] = proc.memory()["VmRSS"]
+        assert proc.alive()
+    finally:
+        proc.stop()
+    assert (rss[100] - rss[10]) / MB < 40, {k: round(v / MB) for k, v in rss.items()}
