@@ -12,6 +12,8 @@ setting (grid size, spacing, lag, upload) is estimated first and checked here.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 
 from rough_viewer.vocabulary import InputError
@@ -88,3 +90,30 @@ def require(n_bytes: float, what: str, *, hint: str = "") -> None:
             f"{what} needs about {format_bytes(n_bytes)}, more than the "
             f"{format_bytes(avail)} of memory available{tail}"
         )
+
+
+_LIBC: ctypes.CDLL | None | bool = False  # False: not looked up yet
+
+
+def give_back() -> bool:
+    """Return the heap's free memory to the system (glibc's ``malloc_trim(0)``);
+    False where there is no glibc.
+
+    Freed memory stays in the process's heap until the allocator trims it: a browser
+    tab that connects and leaves frees its scene messages (megabytes) in pieces that
+    glibc keeps, so a server's RSS crept ~0.8 MB a tab (100 tabs: +70 MB) with no
+    Python object left behind; one trim gave it all back. Call it after freeing much
+    (a tab gone, a cloud replaced); it takes milliseconds.
+    """
+    global _LIBC
+    if _LIBC is False:
+        name = ctypes.util.find_library("c")
+        try:
+            libc = ctypes.CDLL(name) if name else None
+            _LIBC = libc if libc is not None and hasattr(libc, "malloc_trim") else None
+        except OSError:
+            _LIBC = None
+    if not isinstance(_LIBC, ctypes.CDLL):
+        return False
+    _LIBC.malloc_trim(0)
+    return True

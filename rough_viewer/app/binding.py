@@ -31,6 +31,13 @@ def assign(handle: Any, value: T) -> None:
     setattr(handle, "value", value)  # noqa: B010 - see the docstring
 
 
+def asking() -> int | None:
+    """The browser (viser client id) whose control change this thread is handling,
+    or None outside such a callback: the worker counts its jobs (at most
+    ``max_per_owner`` wait for one browser)."""
+    return getattr(_quiet, "client", None)
+
+
 def quiet() -> bool:
     """True while this thread shows values quietly (callbacks queue nothing)."""
     return bool(getattr(_quiet, "on", False))
@@ -59,9 +66,15 @@ class Binding:
     def on_change(self, handles: Iterable[Any], callback: Callable[[Any], object]) -> None:
         """Call ``callback(handle)`` when one of ``handles`` is changed (not quietly)."""
         for handle in handles:
-            def changed(_event: object, handle: Any = handle) -> None:
+            def changed(event: object, handle: Any = handle) -> None:
                 if not quiet():
-                    callback(handle)
+                    before = asking()
+                    client = getattr(event, "client_id", None)
+                    _quiet.client = client if isinstance(client, int) else None
+                    try:
+                        callback(handle)
+                    finally:
+                        _quiet.client = before
 
             if hasattr(handle, "on_click"):
                 handle.on_click(changed)

@@ -132,8 +132,10 @@ class Shell:
 
     # ------------------------------------------------------------------ Host: work
     def submit(self, job: Job[Any]) -> int:
+        from rough_viewer.app.binding import asking
+
         try:
-            return self.worker.submit(job)
+            return self.worker.submit(job, owner=asking())
         except QueueFull:
             self.notify("Busy", "Too many requests are waiting; try again in a moment.",
                         color="yellow")

@@ -205,7 +205,8 @@ def open_view(view_file: str | os.PathLike[str], *, inputs: Sequence[Path] = (),
     vf = Path(view_file)
     if len(inputs) > 1:
         raise InputError("--view opens one input file; give at most one INPUT with it")
-    loaded = load_view(vf, check=not inputs)
+    folder = Path(data_dir) if data_dir is not None else vf.resolve().parent
+    loaded = load_view(vf, check=not inputs, data_folder=folder)
     view = loaded.view
     settings = check_view_for_app(view, str(vf))
     if inputs:
@@ -221,7 +222,6 @@ def open_view(view_file: str | os.PathLike[str], *, inputs: Sequence[Path] = (),
     check = loaded.input_check
     if check.path is None or check.status == "missing":
         raise InputError(f"view file {vf}: {check.message}")
-    folder = Path(data_dir) if data_dir is not None else vf.resolve().parent
     if not folder.is_dir():
         raise InputError(f"--data-dir is not a folder: {folder}")
     path = check.path.resolve()

@@ -21,9 +21,13 @@ How jobs meet in the queue (see :meth:`Worker.submit`):
 - **Cancellation.** The worker checks between stages; long stages check
   :meth:`Run.check` (e.g. from a progress callback) and stop with
   :class:`Cancelled`. A cancelled or failed job leaves the app as it was.
+- **Yielding.** A job names the lanes it ``yields_to``: a new job of one of them
+  drops it while it waits and cancels it while it runs (a Directions measurement
+  gives way to a load or a crop, which replace the cloud it measures).
 - **Bounds.** At most ``max_pending`` jobs wait (a flood of clicks is refused,
-  not queued without end); the last ``max_records`` finished jobs are kept in
-  :attr:`Worker.records` with their stage times.
+  not queued without end), and at most ``max_per_owner`` of one owner (a browser:
+  one tab cannot fill the queue the others share); the last ``max_records``
+  finished jobs are kept in :attr:`Worker.records` with their stage times.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator, Hashable, Iterator
 from dataclasses import dataclass, field
 from typing import ClassVar, Generic, Literal, TypeVar
 
@@ -98,6 +102,8 @@ class Job(Generic[C]):
     """Other lanes whose pending jobs this job drops and whose running job it cancels."""
     keep_all: ClassVar[bool] = False
     """Every job of this lane runs, in order (user actions such as profile picks)."""
+    yields_to: ClassVar[frozenset[str]] = frozenset()
+    """Lanes whose new jobs drop this job while it waits and cancel it while it runs."""
 
     def absorb(self, newer: Job[C]) -> Job[C] | None:
         """This pending job with ``newer`` merged into it, or None (no merge)."""
@@ -136,6 +142,8 @@ IdleHandler = Callable[[Run], bool]
 @dataclass
 class _State(Generic[C]):
     pending: list[tuple[int, Job[C]]] = field(default_factory=list)
+    owners: dict[int, Hashable] = field(default_factory=dict)
+    """The owner (a browser) of each waiting job that has one, by job number."""
     running: tuple[int, Job[C], Run] | None = None
     submitted: int = 0
     stop: bool = False
@@ -158,6 +166,8 @@ class Worker(Generic[C]):
         has more to do. A submitted job cancels it.
     max_pending
         Most jobs waiting at once; :meth:`submit` raises :class:`QueueFull` beyond.
+    max_per_owner
+        Most jobs of one owner waiting at once (:meth:`submit`'s ``owner``).
     max_records
         Finished jobs kept in :attr:`records`.
     """
@@ -169,6 +179,7 @@ class Worker(Generic[C]):
         on_error: ErrorHandler[C] | None = None,
         idle: IdleHandler | None = None,
         max_pending: int = 64,
+        max_per_owner: int = 16,
         max_records: int = 500,
         name: str = "rough-viewer-worker",
     ) -> None:
@@ -176,6 +187,7 @@ class Worker(Generic[C]):
         self._on_error = on_error
         self._idle = idle
         self._max_pending = max_pending
+        self._max_per_owner = max_per_owner
         self._cond = threading.Condition()
         self._state: _State[C] = _State()
         self._idle_run: Run | None = None
@@ -197,13 +209,14 @@ class Worker(Generic[C]):
                               f"{threading.current_thread().name!r}, not on the worker")
 
     # ------------------------------------------------------------------ queue
-    def submit(self, job: Job[C]) -> int:
-        """Queue ``job`` (merging and superseding as the module docstring says).
+    def submit(self, job: Job[C], *, owner: Hashable | None = None) -> int:
+        """Queue ``job`` (merging and superseding as the module docstring says) for
+        ``owner`` (a browser; None: the app itself).
 
         Returns the job's number (the number of the job it merged into, if any),
         or 0 once the worker is stopping. Raises :class:`QueueFull` when
-        ``max_pending`` jobs already wait (``job`` is then released; the waiting jobs
-        stay).
+        ``max_pending`` jobs already wait, or ``max_per_owner`` of ``owner``'s
+        (``job`` is then released; the waiting jobs stay).
         """
         dropped: list[Job[C]] = []
         try:
@@ -227,19 +240,28 @@ class Worker(Generic[C]):
                     lanes.add(job.lane)
                 keep = []
                 for number, waiting in st.pending:
-                    if waiting.lane in lanes:
+                    if waiting.lane in lanes or job.lane in waiting.yields_to:
                         dropped.append(waiting)
                     else:
                         keep.append((number, waiting))
-                if len(keep) >= self._max_pending:
+                mine = 0 if owner is None else sum(
+                    1 for number, _ in keep if st.owners.get(number) == owner)
+                if len(keep) >= self._max_pending or mine >= self._max_per_owner:
                     # refused: the waiting jobs stay as they were, the new one is let go
                     dropped = [job]
-                    raise QueueFull(f"{len(keep)} jobs are waiting already")
+                    raise QueueFull(f"{mine} jobs of this owner are waiting already"
+                                    if len(keep) < self._max_pending
+                                    else f"{len(keep)} jobs are waiting already")
                 st.pending = keep
-                if st.running is not None and st.running[1].lane in lanes:
+                kept = {number for number, _ in keep}
+                st.owners = {n: o for n, o in st.owners.items() if n in kept}
+                if st.running is not None and (st.running[1].lane in lanes
+                                               or job.lane in st.running[1].yields_to):
                     st.running[2].cancel()
                 st.submitted += 1
                 st.pending.append((st.submitted, job))
+                if owner is not None:
+                    st.owners[st.submitted] = owner
                 self._cond.notify_all()
                 return st.submitted
         finally:
@@ -252,6 +274,7 @@ class Worker(Generic[C]):
             st = self._state
             dropped = [waiting for _, waiting in st.pending]
             st.pending = []
+            st.owners = {}
             if st.running is not None:
                 st.running[2].cancel()
             self._cond.notify_all()
@@ -302,6 +325,7 @@ class Worker(Generic[C]):
                     return
                 if st.pending:
                     number, job = st.pending.pop(0)
+                    st.owners.pop(number, None)
                     run = Run()
                     st.running = (number, job, run)
                     idle = False

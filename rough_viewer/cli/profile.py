@@ -359,6 +359,13 @@ def _from_cloud(args: argparse.Namespace, path: Path) -> Samples:
         raise InputError(f"{path} is a point cloud: give the line with --from X,Y,Z --to X,Y,Z")
     g0 = parse_xyz(args.start, option="--from")
     g1 = parse_xyz(args.end, option="--to")
+    if args.spacing is not None:  # before the read: line and spacing are in one unit
+        from rough_viewer.profiles.comparison import require_comparison
+
+        length = math.dist(g0, g1)
+        if math.isfinite(length):
+            require_comparison(round(min(length / args.spacing, 1e18)) + 1,
+                               f"--spacing {args.spacing:g}")
     cloud = load_points(path, units=args.units)
     warn(cloud.warnings)
     per = per_unit(cloud.source_unit)

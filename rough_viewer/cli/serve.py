@@ -272,6 +272,8 @@ def _run(args: argparse.Namespace) -> int:
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
                         units=args.units, presets=presets, save_views=args.save_views,
                         trust=trust_settings(args, cloud.source_unit))
+        n_points = cloud.n
+        del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
         if opened is not None:
             from rough_viewer.app.views import apply_view
@@ -285,7 +287,7 @@ def _run(args: argparse.Namespace) -> int:
             app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened.notice:
                 print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
-        print(f"rough-viewer: {cloud.n:,} points, open {url}", flush=True)
+        print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
         if app.host.errors:
             print(f"rough-viewer: warning: {app.host.errors[-1]}", file=sys.stderr)
         while not args.no_block:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rough_viewer.memory import require
 from rough_viewer.profiles.fractal import RoughnessLength, Windows, roughness_length
 from rough_viewer.profiles.wavelets import (
     DECOMPOSITIONS,
@@ -24,6 +25,20 @@ from rough_viewer.profiles.wavelets import (
     denoise_result,
     noise_sigma,
 )
+
+#: Bytes per profile sample at the peak of comparing all 16 variants: the raw and
+#: de-noised heights kept, the wavelet coefficients and the roughness-length
+#: windows' temporaries (measured with tracemalloc: 479-503 on 200,000 samples).
+COMPARISON_BYTES_PER_SAMPLE = 64 * 8
+
+
+def require_comparison(n_samples: int, spacing: str) -> None:
+    """Raise InputError unless comparing a profile of ``n_samples`` samples fits in
+    memory (:data:`COMPARISON_BYTES_PER_SAMPLE`); ``spacing`` is the sample spacing
+    as text with its unit, for the message."""
+    require(n_samples * COMPARISON_BYTES_PER_SAMPLE,
+            f"de-noising a profile of {n_samples:,} samples at {spacing}",
+            hint="choose a larger spacing or a shorter line")
 
 
 @dataclass(frozen=True)
@@ -127,6 +142,7 @@ def compare_denoising(
     Comparison
     """
     h = np.asarray(heights, dtype=float)
+    require_comparison(h.size, f"{spacing:.4g} m")
     raw = roughness_length(h, spacing, windows=windows)
     variants = []
     for dec in decompositions:

@@ -57,8 +57,11 @@ _STRIP_POINTS = 50000
 DEFAULT_MAX_GAP_SPACINGS = 3.0
 
 #: Bytes per profile sample at the peak of resampling (positions, heights, counts,
-#: bin sums and the interpolation's temporaries).
-PROFILE_BYTES_PER_SAMPLE = 10 * 8
+#: bin sums and the interpolation's temporaries; measured with tracemalloc: 85-88).
+#: What is done with the profile afterwards costs more: see
+#: :data:`rough_viewer.profiles.comparison.COMPARISON_BYTES_PER_SAMPLE` and
+#: :data:`rough_viewer.profiles.profile_sets.DIRECTION_BYTES_PER_SAMPLE`.
+PROFILE_BYTES_PER_SAMPLE = 12 * 8
 
 
 @dataclass(frozen=True)

@@ -61,6 +61,9 @@ _PROFILE_COLUMNS = (
 )
 #: Window radius by default: this share of the face's shorter extent.
 DEFAULT_WINDOW_RADIUS_SHARE = 0.1
+#: Progress steps per stage of :func:`analyse_directions` (profiles, triangles,
+#: windows): ``progress(done, total)`` counts in these.
+STAGE_STEPS = 1000
 
 
 @dataclass(frozen=True)
@@ -151,11 +154,23 @@ def analyse_directions(
 
     def stage(k: int) -> None:
         if progress is not None:
-            progress(k, stages)
+            progress(k * STAGE_STEPS, stages * STAGE_STEPS)
+
+    def within(k: int) -> ProgressFn | None:
+        """Progress inside stage ``k`` (0-based), called between azimuths."""
+        if progress is None:
+            return None
+        report = progress
+
+        def step(done: int, total: int) -> None:
+            share = done / total if total > 0 else 0.0
+            report(k * STAGE_STEPS + int(share * (STAGE_STEPS - 1)), stages * STAGE_STEPS)
+
+        return step
 
     sets = profile_sets(cloud, az, spacing=settings.spacing, band_half_width=settings.half_width,
                         sample_spacing=settings.sample_spacing, windows=settings.windows,
-                        plane=plane, min_samples=settings.min_samples)
+                        plane=plane, min_samples=settings.min_samples, progress=within(0))
     stage(1)
     warnings = list(set_warnings(sets))
     surface, tin, tin_error, n_tri = "none", None, None, 0
@@ -168,7 +183,8 @@ def analyse_directions(
             surface = "triangulated"
         else:
             surface = "mesh"
-        tin = directional_roughness(surf, az, dip_step_deg=settings.dip_step_deg, plane=plane)
+        tin = directional_roughness(surf, az, dip_step_deg=settings.dip_step_deg, plane=plane,
+                                    progress=within(1))
         n_tri = tin.n_triangles
     except InputError as exc:
         tin_error, surface, surf = str(exc), "none", None
@@ -181,7 +197,8 @@ def analyse_directions(
         try:
             windows = window_roughness(surf, az, radius=radius, step=step,
                                        dip_step_deg=settings.dip_step_deg,
-                                       min_coverage=settings.min_coverage, plane=plane)
+                                       min_coverage=settings.min_coverage, plane=plane,
+                                       progress=within(2))
         except InputError as exc:
             window_error = str(exc)
             warnings.append(f"no window map: {exc}")

@@ -112,7 +112,10 @@ class InputRef:
     """The input a view was made from."""
 
     path: str
-    """Absolute path when the view was saved."""
+    """Absolute path when the view was saved on the machine of its input (the command
+    line, a view saved beside its input); a view downloaded from the app names its
+    input relative to the server's data folder instead (no absolute path of the
+    server leaves it), found again in the data folder it is opened with."""
     sha256: str
     """SHA-256 of the file's content, 64 lower-case hex digits."""
     size_bytes: int
@@ -287,15 +290,22 @@ def _same_content(p: Path, ref: InputRef, progress: ProgressFn | None) -> bool:
 
 
 def check_input(ref: InputRef, *, view_folder: str | os.PathLike[str] | None = None,
-                relative_path: str | None = None,
+                relative_path: str | None = None, data_folder: str | os.PathLike[str] | None = None,
                 progress: ProgressFn | None = None) -> InputCheck:
     """Whether the input of a view is where it was and unchanged.
 
-    Looks at the recorded path first; if no file is there, at ``relative_path`` and
-    at the file's name beside the view file (``view_folder``), for a folder that was
-    moved or copied whole.
+    Looks at the recorded path first (a relative one, a download's, in
+    ``data_folder``, else beside the view file; never above either); if no file is
+    there, at ``relative_path`` and at the file's name beside the view file
+    (``view_folder``), for a folder that was moved or copied whole.
     """
     recorded = Path(ref.path)
+    if not recorded.is_absolute():
+        base = data_folder if data_folder is not None else view_folder
+        if base is None or ".." in recorded.parts:
+            return InputCheck("missing", None, f"input {recorded} not found (a view names "
+                              "it relative to the data folder: pass --data-dir)")
+        recorded = Path(base) / recorded
     if recorded.is_file():
         if _same_content(recorded, ref, progress):
             return InputCheck("unchanged", recorded, f"input {recorded} unchanged")
@@ -326,6 +336,10 @@ def check_input(ref: InputRef, *, view_folder: str | os.PathLike[str] | None = N
         return InputCheck("changed", found_other,
                           f"input {recorded} is gone; {found_other} has its name but a "
                           "different content; the view's numbers may not match")
+    if not Path(ref.path).is_absolute():
+        return InputCheck("missing", None, f"input {recorded} not found (the view names "
+                          f"{ref.path} in the data folder: pass --data-dir with the folder "
+                          "that holds it)")
     return InputCheck("missing", None, f"input {recorded} not found (moved or deleted?)")
 
 
@@ -650,6 +664,7 @@ def _bounded_int(text: str) -> int:
 
 
 def load_view(path: str | os.PathLike[str], *, check: bool = True,
+              data_folder: str | os.PathLike[str] | None = None,
               progress: ProgressFn | None = None) -> LoadedView:
     """Read and validate a view file, and check its input.
 
@@ -661,6 +676,9 @@ def load_view(path: str | os.PathLike[str], *, check: bool = True,
     check : bool
         Check the input (its size, then its content hash, read in blocks); False gives
         ``status="not_checked"``.
+    data_folder : path-like, optional
+        Where an input named by a relative path (a view downloaded from the app) is
+        looked for; default the view file's folder.
     progress : callable, optional
         ``progress(done, total)`` in bytes while hashing the input.
 
@@ -694,7 +712,8 @@ def load_view(path: str | os.PathLike[str], *, check: bool = True,
     view: View = parsed["view"]
     if check:
         input_check = check_input(view.input, view_folder=p.parent,
-                                  relative_path=parsed["relative_path"], progress=progress)
+                                  relative_path=parsed["relative_path"],
+                                  data_folder=data_folder, progress=progress)
     else:
         input_check = InputCheck("not_checked", Path(view.input.path), "input not checked")
     return LoadedView(view=view, input_check=input_check, software=parsed["software"],

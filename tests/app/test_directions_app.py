@@ -55,3 +55,31 @@ def test_measure_directions_gives_the_library_numbers_and_lines(sheet_app):
     app.load(cloud=cloud.subset(np.arange(cloud.n // 2)))
     assert app.wait_idle(60)
     assert f.result is None and f.nodes == []
+
+
+def test_directions_yield_to_loads_and_crops_between_azimuths():
+    """Issue 36 item 17: a load or a crop (both in the load lane) cancels a running
+    Directions job, which checks its run between azimuths and profiles: a progress
+    that stops at its second call ends a 1-degree measurement (180 profile lines)
+    after at most two of them."""
+    from rough_viewer.app.features.crop import CropJob
+    from rough_viewer.app.features.directions import DirectionsJob
+    from rough_viewer.app.features.map import LoadJob
+    from rough_viewer.app.worker import Cancelled
+    from rough_viewer.synthetic.fbm import fbm_surface
+
+    assert {LoadJob.lane, CropJob.lane} <= DirectionsJob.yields_to
+    z = fbm_surface((150, 150), 0.7, spacing=0.01, rms=0.01, rng=2)
+    yy, xx = np.mgrid[0:150, 0:150] * 0.01
+    cloud = PointCloud.from_xyz(np.column_stack([xx.ravel(), yy.ravel(), z.ravel()]))
+    calls: list[tuple[int, int]] = []
+
+    def progress(done: int, total: int) -> None:
+        calls.append((done, total))
+        if len(calls) >= 2:
+            raise Cancelled
+
+    with pytest.raises(Cancelled):
+        analyse_directions(cloud, DirectionSettings(step_deg=1.0, tin=False),
+                           progress=progress)
+    assert len(calls) == 2 and calls[-1][0] < 0.02 * calls[-1][1]

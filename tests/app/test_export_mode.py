@@ -166,12 +166,28 @@ def test_figure_html_and_all_panels(exported):
     assert not any("profile" in n for n in names)
 
 
+def _server_paths(path: Path) -> list[bytes]:
+    """The server's absolute paths a download could give away: the input's, its
+    folder's (as given and resolved, also JSON-escaped) and the temporary folder's."""
+    out = set()
+    for p in (path, path.resolve(), path.parent, path.parent.resolve(),
+              Path(tempfile.gettempdir()).resolve()):
+        out.add(str(p).encode())
+        out.add(json.dumps(str(p))[1:-1].encode())
+    return sorted(out)
+
+
 def test_report_download(exported):
-    app, client, _ = exported
+    """The report names its input by its name in the data folder, not the server's
+    absolute path (issue 36 item 18: downloads revealed it while errors hid it)."""
+    app, client, path = exported
     _, data = _download(client, app, em.L_REPORT, "_report.html")
     html = data.decode()
     assert "<html" in html.lower() and "0.25" in html
     assert html.count("Plotly.newPlot") >= 3  # the report's figures, drawn offline
+    assert "<td>input</td><td>scan site.las</td>" in html
+    for secret in _server_paths(path):
+        assert secret not in data, secret
 
 
 def test_view_download_reopens(exported, tmp_path):
@@ -180,10 +196,15 @@ def test_view_download_reopens(exported, tmp_path):
     assert name == "scan_site.view.json"
     saved = tmp_path / name
     saved.write_bytes(data)
-    loaded = load_view(saved)
+    for secret in _server_paths(path):  # issue 36 item 18
+        assert secret not in data, secret
+    # the input is named in the data folder; a view opened without it does not find it
+    assert load_view(saved).input_check.status == "missing"
+    loaded = load_view(saved, data_folder=path.parent)
     view = loaded.view
-    assert view.input.sha256 == file_sha256(path) and view.input.path == str(path.resolve())
+    assert view.input.sha256 == file_sha256(path) and view.input.path == "scan site.las"
     assert loaded.input_check.status == "unchanged"
+    assert loaded.input_check.path == path.parent / "scan site.las"
     s = app.session.shown.settings
     assert (view.cell_size_m, view.model, view.axis, view.min_points, view.threshold) == \
         (s.cell_size, s.model, s.axis, s.min_points, s.threshold)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.app.features.map import CAMERA_REST_S
+from rough_viewer.app.features.map import CAMERA_REST_S, L_BUDGET
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
@@ -243,3 +243,54 @@ def test_a_tab_open_while_the_file_loads_gets_its_nodes_without_moving(monkeypat
     finally:
         client.close()
         server.stop()
+
+
+def test_a_budget_lowered_below_half_of_what_two_tabs_hold(lod):
+    """Issue 36 item 3: lowering the Point budget on two tabs holding more than twice
+    the new budget ended in "internal error: BudgetJob failed (KeyError)" (a node
+    evicted and then hidden); the first tab kept 376,302 points for a 300 k budget and
+    the second was never refined. Here two websocket tabs look at the face from two
+    cameras, each holding far more than twice the new budget; the budget is lowered
+    through the control by a tab: no error, both tabs refined within it, each
+    holding at most twice it, and each browser told to remove what it no longer
+    holds."""
+    app, server, _ = lod
+    loaded = app.session.shown.loaded
+    a, cid_a = _join(app, server)
+    b, cid_b = _join(app, server)
+    try:
+        centre = np.array([1.0, 0.0, 1.0]) + UTM - loaded.origin
+        b.look_from(centre + [0.0, -1.5, 0.0], centre, fov=0.8)
+        settle(app, lambda: app.host.scene.tabs[cid_b].camera is not None and np.allclose(
+            app.host.scene.tabs[cid_b].camera.position - loaded.origin,
+            centre + [0, -1.5, 0.0], atol=1e-6), "the second tab's camera")
+        scene = app.host.scene
+        low = 10_000
+        held_before = {}
+        for cid in (cid_a, cid_b):
+            res = scene.tabs[cid].residency
+            held_before[cid] = set(res.held)
+            assert res.held_points > 2 * max(low, int(scene._tree.counts[0]))
+            assert len(res.held) > 4
+        errors = len(app.host.errors)
+        mark = {id(c): len(c.messages) for c in (a, b)}
+        a.set_value(L_BUDGET, low)
+        wait_until(lambda: all(scene.tabs[c].residency.budget < BUDGET for c in (cid_a, cid_b)),
+                   30, "the new budget on both tabs")
+        assert app.wait_idle(60)
+        assert list(app.host.errors)[errors:] == []
+        want = max(low, int(scene._tree.counts[0]))
+        for client, cid in ((a, cid_a), (b, cid_b)):
+            res = scene.tabs[cid].residency
+            assert res.budget == want
+            assert 0 < len(scene.shown_points(cid)) <= want
+            assert res.held_points <= 2 * want
+            gone = held_before[cid] - set(res.held)
+            assert gone  # dropped nodes, each removed from the browser
+            wait_until(lambda client=client, gone=gone, mark=mark: {
+                f"/lod/{k}" for k in gone} <= {
+                m["name"] for m in client.messages[mark[id(client)]:]
+                if m.get("type") == "RemoveSceneNodeMessage"}, 20, "the removals")
+    finally:
+        a.close()
+        b.close()

@@ -254,6 +254,30 @@ def test_input_outside_the_data_folder_opens_only_with_the_views_content(scan, t
         open_view(view_file)
 
 
+def test_a_downloaded_view_names_its_input_in_the_data_folder(scan, tmp_path):
+    """Issue 36 item 18: a view downloaded from the app names its input relative to
+    the server's data folder (no absolute path of the server); serve --view with
+    --data-dir finds it there by name and SHA-256, as the same file, and without it
+    says to pass --data-dir (no guess in the working folder)."""
+    from dataclasses import replace
+
+    downloads = tmp_path / "downloads"
+    downloads.mkdir()
+    view = _view(scan)
+    view = replace(view, input=replace(view.input, path="site/scan.las"))
+    view_file = save_view(downloads / "scan.view.json", view)
+    assert str(tmp_path) not in view_file.read_text().replace(  # only the relative_path
+        json.loads(view_file.read_text())["input"]["relative_path"], "")
+    opened = open_view(view_file, data_dir=tmp_path)
+    assert opened.input_path == scan.resolve() and opened.notice == ""
+    assert opened.loaded.input_check.status == "unchanged"
+    with pytest.raises(InputError, match="names site/scan.las in the data folder: pass --data-dir"):
+        open_view(view_file)
+    make_pf3(scan, n=8000, seed=9)  # same name, another content: said, inside the data folder
+    opened = open_view(view_file, data_dir=tmp_path)
+    assert opened.loaded.input_check.status == "changed" and "has changed" in opened.notice
+
+
 def _hostile(scan: Path, tmp_path: Path, change) -> Path:
     doc = json.loads(save_view(scan.parent / "base.json", _view(scan,
                      profiles=(ProfilePick((1.0, 2.0, 3.0), (4.0, 5.0, 6.0)),),
@@ -273,6 +297,7 @@ HOSTILE = {
     "huge camera": lambda d: d["camera"].update(position=[1e308, 0, 0]),
     "threshold a list": lambda d: d.update(threshold=[0.1]),
     "path traversal": lambda d: d["input"].update(path="../../../../../../etc/passwd"),
+    "relative traversal": lambda d: d["input"].update(path="site/../../../../etc/hostname"),
     "absolute elsewhere": lambda d: d["input"].update(path="/etc/hostname"),
     "traversal beside": lambda d: d["input"].update(path="/nowhere/x.las",
                                                     relative_path="../../../../etc/hostname"),

@@ -269,3 +269,74 @@ def test_stop_drops_waiting_jobs_and_cancelled_is_an_exception():
     assert w.submit(View(1)) == 0
     log.gate.set()
     assert issubclass(Cancelled, Exception)
+
+
+@dataclass(frozen=True)
+class Measure(Job[Log]):
+    """A long measurement checking its run between azimuths; gives way to a load."""
+
+    lane: ClassVar[str] = "measure"
+    yields_to: ClassVar[frozenset[str]] = frozenset({"load"})
+
+    def stages(self, ctx: Log, run: Run) -> Iterator[str]:
+        ctx.entered.set()
+        for k in range(1000):
+            run.check()  # between azimuths
+            time.sleep(0.01)
+            ctx.done.append(f"azimuth {k}")
+        yield "measure"
+
+
+def test_a_load_cancels_a_running_measurement_and_drops_a_waiting_one(worker, log):
+    """Issue 36 item 17: a 1-degree Directions run held another tab's load 43 s. A job
+    that yields to the load lane is cancelled between its azimuths by a load (it
+    would take 10 s), and a waiting one is dropped."""
+    worker.submit(Measure())
+    assert log.entered.wait(5)
+    t0 = time.perf_counter()
+    worker.submit(Load("b"))
+    assert worker.wait_idle(5)
+    assert time.perf_counter() - t0 < 2.0
+    assert log.done[-1] == "load b with view 0"
+    assert sum(d.startswith("azimuth") for d in log.done) < 200
+    assert [r.outcome for r in worker.records] == ["cancelled", "done"]
+    log.entered.clear()
+    hold(worker, log)
+    worker.submit(Measure())
+    worker.submit(Load("c"))
+    assert worker.pending_kinds() == ["Load"]
+    log.gate.set()
+    assert worker.wait_idle(5) and log.done[-1] == "load c with view 0"
+    # a job of another lane neither drops nor cancels it
+    log.gate.clear()
+    log.entered.clear()
+    worker.submit(Measure())
+    assert log.entered.wait(5)
+    worker.submit(View(7))
+    time.sleep(0.1)
+    assert worker.records[-1].kind == "Load"  # the measurement still runs
+    worker.cancel()
+    assert worker.wait_idle(5)
+
+
+def test_one_owner_cannot_fill_the_queue(log):
+    """Issue 36 item 17: one tab could fill the shared queue (64) so every other tab
+    got 'Busy'. At most max_per_owner jobs of one owner wait; another owner, and the
+    app itself (no owner), are still served; a job that ran frees its place."""
+    w: Worker[Log] = Worker(log, max_pending=64, max_per_owner=16)
+    hold(w, log)
+    for i in range(16):
+        w.submit(Click(i), owner=1)
+    with pytest.raises(QueueFull, match="16 jobs of this owner"):
+        w.submit(Click(99), owner=1)
+    for i in range(16):
+        w.submit(Click(100 + i), owner=2)
+    w.submit(Click(200))
+    assert len(w.pending_kinds()) == 33
+    log.gate.set()
+    assert w.wait_idle(5)
+    assert log.done[1:] == [f"click {i}" for i in (*range(16), *range(100, 116), 200)]
+    for i in range(16):  # their jobs ran: owner 1 has its places back
+        w.submit(Click(300 + i), owner=1)
+    assert w.wait_idle(5)
+    w.stop()

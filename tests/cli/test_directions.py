@@ -182,3 +182,49 @@ def test_settings_that_measure_no_profile_are_said_not_silent(
     assert "could be measured in any direction" in err and "profile lines;" in err
     assert "the table holds the triangles' columns only" in err
     assert len(err.strip().splitlines()) == 1 and out.exists()
+
+
+def test_a_profile_too_long_for_memory_is_refused_with_the_figure(
+        sawtooth_stl, tmp_path, capsys, monkeypatch):
+    """Issue 36 item 6: directions --sample-spacing had no check per profile (1e-7 on
+    the demo: 5.4 GB in 19 s, then a traceback). A 41.6 mm face sampled every
+    1e-8 mm makes profiles of about 4e9 samples: refused in one line with the
+    figure, no output; the vertices' spacing still runs with 64 MiB available."""
+    from rough_viewer import memory
+
+    out = tmp_path / "d.csv"
+    args = ["directions", str(sawtooth_stl), "--step", "90", "--units", "mm",
+            "--out", str(out), "--quiet"]
+    assert main([*args, "--sample-spacing", "1e-8"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err and not out.exists()
+    assert "a profile of 4,1" in err and "samples at 1e-11 m" in err and "needs about" in err
+    monkeypatch.setattr(memory, "available_bytes", lambda: 64.0 * 2**20)
+    step = str(1 / math.tan(math.radians(30.0)) / 4)
+    assert main([*args, "--sample-spacing", step]) == 0 and out.exists()
+
+
+@pytest.mark.parametrize("extra, windows", [
+    (["--window-radius", "0.01"], "12,4"),  # the step defaults to the radius
+    (["--window-radius", "5", "--window-step", "0.01"], "12,4"),
+])
+def test_window_map_work_is_estimated_and_refused_with_the_figure(
+        sawtooth_stl, tmp_path, capsys, extra, windows):
+    """Issue 36 item 10: --window-radius 0.001 ran 66 s to 3.1 GB and then failed,
+    --window-step 0.001 was days of work. On the 41.6 x 30 mm sawtooth a step of
+    0.01 mm lays about 4,160 x 3,000 window centres: at 24 azimuths and 91 dip
+    thresholds (about 0.55 ms each window and azimuth) that is far beyond the
+    limit, refused at once in one line naming windows, azimuths and minutes."""
+    from rough_viewer.tin.directional import window_map_seconds
+
+    out, win = tmp_path / "d.csv", tmp_path / "w.csv"
+    code = main(["directions", str(sawtooth_stl), "--step", "15", "--units", "mm",
+                 "--out", str(out), "--windows-out", str(win), "--quiet", *extra])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() and not win.exists()
+    assert f"a window map of {windows}" in err and "at 24 azimuths" in err
+    n = float(err.split("a window map of ")[1].split()[0].replace(",", ""))
+    assert 4150 * 2990 < n <= 4161 * 3001
+    assert window_map_seconds(n, 1.0, 24, 1.0) > 30 * 60
+    assert "minutes of work, more than the 30 allowed" in err

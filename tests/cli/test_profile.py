@@ -282,3 +282,23 @@ def test_z2_and_jrc_estimate_beside_the_profile(scene, capsys) -> None:
     np.savetxt(quarter, np.column_stack([np.arange(N) * 0.25, g[:N] * 1e3]))
     main(["profile", str(quarter), "--profile-units", "mm"])
     assert "0.5-1 mm" in capsys.readouterr().err
+
+
+def test_fine_spacing_is_refused_with_the_figure_before_the_read(scene, capsys, monkeypatch):
+    """Issue 36 item 6: the check assumed 80 bytes a sample where comparing the
+    de-noising variants takes about 500, so --spacing 1e-7 was accepted and ended in
+    a MemoryError. A million samples with 512 MiB available is refused in one line
+    naming the samples and the memory; the default spacing still runs."""
+    from rough_viewer import memory
+
+    monkeypatch.setattr(memory, "available_bytes", lambda: 512.0 * 2**20)
+    length = float(np.linalg.norm(scene["end"] - scene["start"]))
+    code = main(["profile", str(scene["cloud"]), *line_args(scene), "--json",
+                 "--spacing", repr(length / 1e6)])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "1,000,001 samples" in err and "needs about 488.3 MiB" in err
+    assert main(["profile", str(scene["cloud"]), *line_args(scene), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["samples"] > 300

@@ -123,3 +123,27 @@ def test_region_and_bad_settings():
         profile_sets(pts, [0], windows=[0.01])
     with pytest.raises(InputError, match="spacing"):
         profile_sets(pts, [0], spacing=-1.0)
+
+
+def test_one_profile_memory_estimate_covers_the_measured_peak():
+    """Issue 36 item 6: a direction's profile (resampled heights, the line removed,
+    de-noised, both roughness-length fits) peaks near 167 bytes a sample
+    (tracemalloc); the per-profile check's figure covers it, within twice."""
+    import tracemalloc
+
+    from rough_viewer.profiles import profile_sets as ps
+    from rough_viewer.profiles.extraction import resample_band
+
+    n, step = 50_000, 1e-4
+    rng = np.random.default_rng(1)
+    along = np.sort(rng.uniform(0.0, (n - 1) * step, n // 20))
+    height = rng.normal(0.0, 1e-4, along.size)
+    tracemalloc.start()
+    try:
+        heights, _, _ = resample_band(along, height, n, step, 1.0)
+        resid, _, _ = ps._fit_line(heights)
+        ps._measure(resid, step, None, ps.DenoiseSettings())
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert 0.5 * ps.DIRECTION_BYTES_PER_SAMPLE * n < peak <= ps.DIRECTION_BYTES_PER_SAMPLE * n

@@ -149,6 +149,9 @@ class DirectionsJob(Job[Host]):
 
     f: DirectionsFeature = field(compare=False)
     lane: ClassVar[str] = "directions"
+    #: a load or a crop (lane "load") replaces the cloud being measured: this job
+    #: gives way (it held another tab's load 43 s at a 1-degree step; issue 36 item 17)
+    yields_to: ClassVar[frozenset[str]] = frozenset({"load"})
 
     @property
     def title(self) -> str:

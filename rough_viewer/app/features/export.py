@@ -41,9 +41,10 @@ import re
 import shutil
 import tempfile
 import time
+import weakref
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
@@ -69,6 +70,8 @@ from rough_viewer.vocabulary import grid_tag as vocabulary_grid_tag
 
 if TYPE_CHECKING:
     from viser._gui_handles import GuiProgressBarHandle
+
+    from rough_viewer.app.files import DataFolder
 
 ExportKind = Literal["points", "table", "figure", "report", "view"]
 
@@ -192,9 +195,10 @@ class ExportFeature:
     save_view: viser.GuiButtonHandle
     status: viser.GuiMarkdownHandle
     progress: GuiProgressBarHandle
-    initial: PointCloud
+    initial: weakref.ref[PointCloud]
     """The cloud the app was started on (its file may be named relative to the
-    server's folder)."""
+    server's folder), weakly: it is freed once no tab shows it (a strong reference
+    kept it for the server's life; issue 36 item 2)."""
     initial_path: Path | None = None
     """:attr:`initial`'s file, resolved in the folder the server started in (None:
     no file)."""
@@ -214,10 +218,20 @@ class ExportFeature:
             # only the cloud given to serve may name a file relative to the server's
             # folder (resolved when the app started); an upload's name is a bare name
             # and no file here
-            if cloud is not self.initial or self.initial_path is None:
+            if cloud is not self.initial() or self.initial_path is None:
                 return None
             p = self.initial_path
         return p if p.is_file() else None
+
+    def shown_name(self, loaded: LoadedCloud, data: DataFolder) -> str:
+        """How ``loaded``'s input is named in what leaves the server (a download): its
+        path relative to the data folder ``data``, else its file name; never the
+        server's absolute path (issue 36 item 18)."""
+        source = self.input_file(loaded)
+        if source is not None:
+            return data.shown(source.resolve())
+        cloud = (loaded.uncropped or loaded).cloud
+        return Path(cloud.source).name if cloud.source else "cloud"
 
     def input_ref(self, path: Path, progress: Callable[[int, int], None] | None = None
                   ) -> InputRef:
@@ -388,8 +402,9 @@ def _figure_plan(shown: Shown, fmt: str, panel: str,
                 write_all)
 
 
-def _report_plan(shown: Shown) -> Plan:
-    from rough_viewer.report.export import ReportSettings, report_page
+def _report_plan(host: Host, e: ExportFeature, shown: Shown) -> Plan:
+    from rough_viewer.report.export import ReportSettings, compute_report
+    from rough_viewer.report.html import report_html
 
     s = shown.settings
     cloud = shown.loaded.cloud
@@ -397,15 +412,22 @@ def _report_plan(shown: Shown) -> Plan:
                               axis=s.axis, threshold=float(s.threshold))
     settings.check()
 
+    name = e.shown_name(shown.loaded, host.options.data)
+
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
-        text = report_page(cloud, settings, progress=progress)
+        report = replace(compute_report(cloud, settings, progress=progress), source=name)
+        text = report_html(report)
         write_atomic(path, lambda fh: fh.write(text))
 
     return Plan(f"{_stem(cloud)}_{grid_tag(shown.loaded, s.cell_size)}_report.html",
                 REPORT_BYTES, write)
 
 
-def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None) -> Plan:
+def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None, *,
+               download: bool = True) -> Plan:
+    """The view file; a ``download``'s input is named relative to the data folder
+    (``serve --view VIEW --data-dir FOLDER`` finds it there by name and SHA-256), a
+    view saved beside its input on the server keeps the absolute path."""
     source = e.input_file(shown.loaded)
     if source is None:
         raise InputError("a view records the input file on the server; this cloud was "
@@ -414,6 +436,8 @@ def _view_plan(host: Host, e: ExportFeature, shown: Shown, camera: Camera | None
 
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         ref = e.input_ref(source, progress)
+        if download:
+            ref = replace(ref, path=host.options.data.shown(Path(ref.path)))
         text = view_text(view_of(host, ref, camera=camera))
         write_atomic(path, lambda fh: fh.write(text))
 
@@ -484,7 +508,7 @@ class ExportJob(Job[Host]):
         if self.kind == "figure":
             return _figure_plan(self.shown, self.fmt, self.panel, self.figures)
         if self.kind == "report":
-            return _report_plan(self.shown)
+            return _report_plan(host, self.e, self.shown)
         return _view_plan(host, self.e, self.shown, self.camera)
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
@@ -558,7 +582,7 @@ class SaveViewJob(Job[Host]):
                                  "--save-views); download the view instead")
             if shown.result is None:
                 raise InputError("nothing to save yet: the map is still being computed")
-            plan = _view_plan(ctx, m, shown, self.camera)
+            plan = _view_plan(ctx, m, shown, self.camera, download=False)
             assert source is not None
             relative = source.resolve().parent.relative_to(data.root) \
                 if source.resolve().is_relative_to(data.root) else None
@@ -622,7 +646,7 @@ def mount(host: Host) -> ExportFeature:
     first = whole.cloud.source
     m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
                       figure_button, report, view, save_view, status, progress,
-                      initial=whole.cloud, initial_path=Path(first).resolve() if first else None)
+                      initial=weakref.ref(whole.cloud), initial_path=Path(first).resolve() if first else None)
     host.allow(points_format, points, table_format, table, figure, figure_format,
                figure_button, report, view, save_view)
     _wire(host, m)

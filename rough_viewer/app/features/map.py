@@ -1068,6 +1068,11 @@ class RefineJob(Job[Host]):
         yield "refine"
 
 
+#: Seconds after a tab left when the heap is trimmed a second time (its connection's
+#: buffers are freed after the tab is dropped).
+GIVE_BACK_AFTER_S = 2.0
+
+
 @dataclass(frozen=True)
 class DropTabJob(Job[Host]):
     """A browser tab left: its nodes are forgotten."""
@@ -1077,8 +1082,17 @@ class DropTabJob(Job[Host]):
     keep_all: ClassVar[bool] = True
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        from rough_viewer.memory import give_back
+
         ctx.scene.drop_tab(self.client_id)
         yield "drop"
+        # its messages' memory, freed in pieces the heap keeps (issue 36 item 19): now,
+        # and once its connection's last buffers are gone too
+        give_back()
+        later = threading.Timer(GIVE_BACK_AFTER_S, give_back)
+        later.daemon = True
+        later.start()
+        yield "give back"
 
 
 @dataclass(frozen=True)
