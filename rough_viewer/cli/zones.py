@@ -164,23 +164,18 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
 
 def zones_threshold(result: GridRoughness, method: MapName, given: float | None, *,
                     keep_outliers: bool = False) -> tuple[float, str]:
-    """The threshold the zones use and, when it is not the one given, why: the
-    paper's :data:`DEFAULT_THRESHOLD` unless it flags more than half of the cells
-    (one zone over the whole face on every real scan), then the data's own (Otsu's
-    split, :func:`rough_viewer.grid.threshold.map_threshold_advice`). A threshold given
-    is used as it is."""
-    from rough_viewer.grid.threshold import map_threshold_advice
+    """The threshold the zones use and, when it is not the one given, why
+    (:func:`rough_viewer.grid.threshold.zone_threshold`, the app's rule too). A
+    threshold given is used as it is."""
+    from rough_viewer.grid.threshold import zone_threshold
 
     if given is not None:
         return float(given), ""
-    advice = map_threshold_advice(result, method, DEFAULT_THRESHOLD, keep_outliers=keep_outliers)
-    if not advice.most or advice.suggested is None or advice.suggested_share is None:
-        return DEFAULT_THRESHOLD, ""
-    return float(f"{advice.suggested:.3g}"), (
-        f"threshold {advice.suggested:.3g}, the data's own (Otsu's split, flags "
-        f"{100 * advice.suggested_share:.0f} % of the cells): the paper's "
-        f"{DEFAULT_THRESHOLD:g} flags {100 * advice.share:.0f} %, most of the face; give "
-        f"--threshold {DEFAULT_THRESHOLD:g} to use it")
+    chosen = zone_threshold(result, method, keep_outliers=keep_outliers)
+    reason = chosen.reason()
+    if reason:
+        reason += f"; give --threshold {DEFAULT_THRESHOLD:g} to use it"
+    return chosen.value, reason
 
 
 def run(args: argparse.Namespace) -> int:

@@ -30,7 +30,8 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "profiles": [{"start": [x, y, z], "end": [x, y, z], "band_half_width_m": null,
                    "wavelet": "db3", "level": 3, "decomposition": "dwt",
                    "threshold_rule": "fixed", "mode": "hard", "detrend": null}],
-     "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null},
+     "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null,
+               "threshold_rule": "auto"},
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
                 "fov_deg": 50.0},
      "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"}}
@@ -94,6 +95,8 @@ HASH_BLOCK = 1 << 20
 
 ColourMode = Literal["continuous", "binary"]
 COLOUR_MODES: tuple[ColourMode, ...] = ("continuous", "binary")
+ZoneThresholdRule = Literal["auto", "slider"]
+ZONE_THRESHOLD_RULES: tuple[ZoneThresholdRule, ...] = ("auto", "slider")
 Connectivity = Literal["face", "edge", "vertex"]
 CONNECTIVITIES: tuple[Connectivity, ...] = ("face", "edge", "vertex")
 InputStatus = Literal["unchanged", "moved", "changed", "missing", "not_checked"]
@@ -164,6 +167,11 @@ class ZoneSettings:
     min_cells: int = 3
     selected: int | None = None
     """Zone id (1 = the largest), or None."""
+    threshold_rule: ZoneThresholdRule = "auto"
+    """``auto``: with the view's threshold at the paper's 0.05, the data's own when
+    0.05 flags more than half of the cells (:func:`rough_viewer.grid.threshold.
+    zone_threshold`); ``slider``: the view's threshold as it is. A view saved before
+    the rule existed reads as ``slider`` (its zones were at its threshold)."""
 
 
 @dataclass(frozen=True)
@@ -556,7 +564,8 @@ def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
 
 
 def _zones(r: _Reader, value: Any) -> ZoneSettings:
-    z = r.obj(value, "zones", [], ["map", "connectivity", "min_cells", "selected"])
+    z = r.obj(value, "zones", [], ["map", "connectivity", "min_cells", "selected",
+                                   "threshold_rule"])
     default = ZoneSettings()
     return ZoneSettings(
         map=r.choice(z.get("map", default.map), "zones.map", MAPS),
@@ -565,6 +574,8 @@ def _zones(r: _Reader, value: Any) -> ZoneSettings:
         min_cells=r.integer(z.get("min_cells", default.min_cells), "zones.min_cells", 1, 10**9),
         selected=_optional(z.get("selected"),
                            lambda v: r.integer(v, "zones.selected", 1, 10**9)),
+        threshold_rule=r.choice(z.get("threshold_rule", "slider"), "zones.threshold_rule",
+                                ZONE_THRESHOLD_RULES),
     )
 
 

@@ -147,6 +147,8 @@ BAD = {
     "detrend text": (lambda d: d["profiles"][0].update(detrend="2"),
                      "profiles[0].detrend must be a whole"),
     "zone id": (lambda d: d["zones"].update(selected=0), "zones.selected must lie in"),
+    "zone rule": (lambda d: d["zones"].update(threshold_rule="otsu"),
+                  "zones.threshold_rule must be one of auto, slider"),
     "camera": (lambda d: d["camera"].update(fov_deg=0), "camera.fov_deg must lie in"),
     "newer": (lambda d: d.update(version=2), "made by a newer rough_viewer"),
     "format": (lambda d: d.update(format="other"), "format must be 'rough_viewer.view'"),
@@ -205,6 +207,21 @@ def test_a_crop_is_saved_and_reloaded(scan, tmp_path):
     assert doc["crop"] == {"min": [0.1, -2.0, 0.0], "max": [0.9, 2.0, 0.05], "mode": "remove"}
     assert load_view(path).view.crop == box
     assert load_view(path).view == view
+
+
+def test_zone_threshold_rule_is_kept_and_old_views_keep_their_threshold(scan, tmp_path):
+    """Issue 31 item 8: a view keeps the zones' threshold rule; a view saved before the
+    rule existed read its zones at its own threshold: it reads as "slider"."""
+    for rule in ("auto", "slider"):
+        view = full_view(scan).with_(zones=ZoneSettings(threshold_rule=rule))
+        assert load_view(save_view(tmp_path / f"{rule}.json", view)).view.zones.threshold_rule \
+            == rule
+    path = save_view(tmp_path / "old.json", full_view(scan))
+    doc = json.loads(path.read_text())
+    assert doc["zones"]["threshold_rule"] == "auto"
+    del doc["zones"]["threshold_rule"]
+    path.write_text(json.dumps(doc))
+    assert load_view(path).view.zones.threshold_rule == "slider"
 
 
 def test_views_without_a_crop_stay_as_before(scan, tmp_path):
