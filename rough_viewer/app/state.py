@@ -171,6 +171,21 @@ class Units:
         """A roughness in metres, in the roughness unit."""
         return float(metres) / self.rough_per
 
+    def rough_text(self, metres: float) -> str:
+        """A roughness as shown beside others: 3 significant digits in the roughness
+        unit, a metric one under 0.01 mm in µm (e_ols of a lab mesh is
+        ``"0.505 µm"``, not ``"0.0005048 mm"``); a dash when it is not finite.
+
+        >>> Units("mm").rough_text(5.048e-7), Units("m").rough_text(0.0012345)
+        ('0.505 µm', '1.23 mm')
+        """
+        if not math.isfinite(metres):
+            return "—"
+        v = self.rough(metres)
+        if self.rough_unit == "mm" and v != 0.0 and abs(v) < 0.01:
+            return f"{1000.0 * v:.3g} µm"
+        return f"{v:.3g} {self.rough_label}"
+
     def size_text(self, metres: float) -> str:
         """``"0.25 m"``, ``"12.5 mm"``: a grid size as shown."""
         return f"{self.length(metres):g} {self.label}"

@@ -1231,8 +1231,7 @@ def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = Non
     of the cell where the cloud has scanner positions (``trust``)."""
     u = units or Units("m")
 
-    def rough(v: float) -> str:
-        return "—" if not np.isfinite(v) else f"{u.rough(v):.4g} {u.rough_label}"
+    rough = u.rough_text  # every model and e_ols to the same 3 significant digits
 
     n = info.normal
     normal = "—" if not np.all(np.isfinite(n)) else f"({n[0]:.3f}, {n[1]:.3f}, {n[2]:.3f})"
