@@ -60,6 +60,7 @@ from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import all_or_nothing, check_outputs, write_atomic
+from rough_viewer.io.table import UNIT_COLUMN
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
@@ -67,8 +68,10 @@ if TYPE_CHECKING:
     from rough_viewer.grid.roughness import GridRoughness
     from rough_viewer.io.cloud import PointCloud
 
-#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
-CSV_COLUMNS = CELL_COLUMNS
+#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`),
+#: then the unit of its lengths (:data:`rough_viewer.io.table.UNIT_COLUMN`: metres per
+#: unit), as every table written states it.
+CSV_COLUMNS = (*CELL_COLUMNS, UNIT_COLUMN)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -338,7 +341,7 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
     if "out" in outputs:
         write_table(outputs["out"][g], cell_columns(
             result, unit=unit, trust=None if trust is None else trust.columns()),
-            metadata=table_metadata(result, source, unit=unit))
+            metadata=table_metadata(result, source, unit=unit), unit=unit)
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
         data = summary_dict(result, source, dropped, unit,

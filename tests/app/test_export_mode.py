@@ -96,7 +96,9 @@ def test_cell_table_parquet(exported):
         client.set_value(em.L_TABLE_FORMAT, "CSV")
     table = pq.read_table(io.BytesIO(data))
     want = cell_columns(app.session.shown.result)
-    assert table.column_names == list(want)
+    assert table.column_names == [*want, "unit_m"]  # the table says its unit: metres
+    assert set(table.column("unit_m").to_pylist()) == {1.0}
+    assert table.schema.metadata[b"rough_viewer.unit"] == b"m"
     for col, values in want.items():
         got = table.column(col).to_numpy(zero_copy_only=False).astype(np.float64)
         np.testing.assert_array_equal(np.nan_to_num(got, nan=-1.0),

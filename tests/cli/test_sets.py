@@ -17,9 +17,9 @@ from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
-               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,unit_m")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
-                 "persistence_strike,rms,cells")
+                 "persistence_strike,rms,cells,unit_m")
 G = 0.5
 
 
@@ -52,7 +52,7 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     ref = joint_sets(result, cloud)
     header, rows = read_csv(out["sets"])
     assert ",".join(header) == SETS_HEADER and len(rows) == ref.n_sets == 3
-    table = ref.set_table()
+    table = {**ref.set_table(), "unit_m": np.ones(ref.n_sets)}  # the file says: metres
     for k, row in enumerate(rows):
         for name, text in zip(header, row, strict=True):
             if text == "":  # no value (joints that no scanline crosses twice)
@@ -70,11 +70,12 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     assert [float(r[1]) for r in rows] == list(ref.planes.dip_direction_deg)
     assert {r[2] for r in rows} == {"1"}
     header, rows = read_csv(out["cells"])
-    assert tuple(header) == (*CSV_COLUMNS, "set_id", "plane_id")
+    assert tuple(header) == (*CSV_COLUMNS[:-1], "set_id", "plane_id", "unit_m")
     keep = result.n_points >= result.min_points
     assert len(rows) == int(keep.sum())
-    assert [int(r[-2]) for r in rows] == list(ref.cell_set[keep])
-    assert [int(r[-1]) for r in rows] == list(ref.cell_plane[keep])
+    assert [int(r[-3]) for r in rows] == list(ref.cell_set[keep])
+    assert [int(r[-2]) for r in rows] == list(ref.cell_plane[keep])
+    assert {r[-1] for r in rows} == {"1.0"}
     text = capsys.readouterr().out
     assert "3 sets" in text and "wrote" in text
 
@@ -92,8 +93,9 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     assert len(rows_m) == len(rows_mm) == 3
     lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
                "persistence_mean"}
+    assert {r[-1] for r in rows_m} == {"1.0"} and {r[-1] for r in rows_mm} == {"0.001"}
     for a, b in zip(rows_m, rows_mm, strict=True):
-        for name, x, y in zip(h, a, b, strict=True):
+        for name, x, y in zip(h[:-1], a[:-1], b[:-1], strict=True):
             scale = 1000.0 if name in lengths else 1.0
             if x == "" or y == "":
                 assert x == y
@@ -226,7 +228,8 @@ def test_joints_out_and_summary_json(tmp_path, block):
     ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud)
     header, rows = read_csv(out["joints"])
     assert ",".join(header) == ("joint_id,set_id,dip_deg,dip_direction_deg,cx,cy,cz,patches,"
-                                "area,trace_length,persistence_dip,persistence_strike,rms")
+                                "area,trace_length,persistence_dip,persistence_strike,rms,"
+                                "unit_m")
     assert len(rows) == ref.joints.n_joints > 0
     assert sum(int(r[header.index("patches")]) for r in rows) == ref.planes.n_planes
     ph, prow = read_csv(out["planes"])

@@ -349,7 +349,8 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         write_table(path, {**cell_columns(result, unit=unit,
                                           trust=_trust_columns(shown, progress)), **extra},
-                    metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
+                    metadata=table_metadata(result, Path(cloud.source).name, unit=unit),
+                    unit=unit)
 
     per_cell = BYTES_PER_CELL[fmt] + (TRUST_BYTES_PER_CELL[fmt] if _has_scanners(cloud)
                                       else 0.0)
