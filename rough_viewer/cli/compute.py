@@ -332,7 +332,12 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
     once the run's outputs are all in place). ``keep``: the crop's mask over the
     points read, for LAS copies of the kept points."""
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
+    from rough_viewer.grid.table import (
+        POINT_LENGTH_FIELDS,
+        cell_columns,
+        point_fields,
+        table_metadata,
+    )
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.ply import write_ply_fields
     from rough_viewer.io.table import write_table
@@ -367,6 +372,7 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         info = write_ply_fields(path, cloud, fields, comments=[
             f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
             f"grid {g:g} {UNIT_LABELS[unit]}, axis {result.axis}, "
-            "roughness in metres"])
+            f"coordinates and roughness in {UNIT_LABELS[unit]}"],
+            unit=unit, lengths=POINT_LENGTH_FIELDS)
         lines.append(f"wrote {path}: {info}")
     return lines

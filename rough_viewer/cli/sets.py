@@ -346,6 +346,7 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
             path = outputs["ply_out"][g]
             info = write_ply_fields(path, cloud, fields, comments=[
                 f"rough_viewer sets: {source}, grid {g:g} {UNIT_LABELS[unit]}, "
-                "set_id and plane_id (0 = none)"])
+                f"set_id and plane_id (0 = none), coordinates in {UNIT_LABELS[unit]}"],
+                unit=unit)
             lines.append(f"wrote {path}: {info}")
     return lines
