@@ -197,10 +197,8 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     a readable size in the cloud's own unit; at least :data:`MIN_CELL_SIZE`) times 8,
     4, 2, 1. Nested, so every
     coarser preset is the finest coarsened by a whole factor."""
-    per = UNIT_METRES[cloud.source_unit]
-    # a cloud in metres gives its columns as they are (no (N, 3) copy: 2.7 s at 20 M)
-    finest = default_cell_size(cloud if per == 1.0 else cloud.xyz() / per) * per
-    return cell_sizes_from(max(finest, MIN_CELL_SIZE))
+    # readable in the cloud's unit (default_cell_size's rule, as report and compute)
+    return cell_sizes_from(max(default_cell_size(cloud), MIN_CELL_SIZE))
 
 
 def check_settings(settings: MapSettings) -> None:
