@@ -362,6 +362,9 @@ class LoadedCloud:
     file keep these rows)."""
     uncropped: LoadedCloud | None = field(default=None, repr=False)
     """The whole cloud this one was cropped from (with its cached grids)."""
+    crop_exact: bool = False
+    """The crop kept exactly the points of a selection (:meth:`cropped_exact`), not
+    every point of :attr:`crop` (then their bounding box)."""
     frame_origin: tuple[float, float, float] | None = None
     """The local origin of the display frame (None: the bounding-box centre, rounded;
     a crop keeps its whole cloud's, so the scene does not move)."""
@@ -432,6 +435,34 @@ class LoadedCloud:
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings, crop=box,
                            crop_mask=made.mask, uncropped=whole,
+                           frame_origin=(float(whole.origin[0]), float(whole.origin[1]),
+                                         float(whole.origin[2])))
+
+    def cropped_exact(self, mask: np.ndarray) -> LoadedCloud:
+        """The whole cloud cropped to exactly the points ``mask`` selects of this
+        cloud (a selection of 226,861 points keeps those, not the 239,125 of their
+        bounding box); :attr:`crop` is their bounding box, :attr:`crop_exact` True.
+        One crop at a time, as :meth:`cropped`.
+
+        Raises InputError when the mask is not one per point or keeps fewer than 3."""
+        keep = np.asarray(mask)
+        if keep.dtype != np.bool_ or keep.shape != (self.cloud.n,):
+            raise InputError(f"a selection of this cloud has one flag per point "
+                             f"({self.cloud.n:,}), got {keep.shape}")
+        whole = self.uncropped or self
+        if self.uncropped is not None and self.crop_mask is not None:
+            rows = np.flatnonzero(self.crop_mask)[keep]
+            keep = np.zeros(whole.cloud.n, dtype=bool)
+            keep[rows] = True
+        kept = int(np.count_nonzero(keep))
+        if kept < 3:
+            raise InputError(f"the selection keeps {kept} points; a map needs at least 3")
+        return LoadedCloud(whole.cloud.subset(keep), max_display=whole.max_display,
+                           cache_bytes=whole.cache_bytes, seed=whole.seed,
+                           presets=whole.presets, label=whole.label,
+                           trust_settings=whole.trust_settings,
+                           crop=CropBox.around(whole.cloud, keep), crop_mask=keep,
+                           uncropped=whole, crop_exact=True,
                            frame_origin=(float(whole.origin[0]), float(whole.origin[1]),
                                          float(whole.origin[2])))
 
