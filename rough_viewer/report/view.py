@@ -34,7 +34,8 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
                "threshold_rule": "auto"},
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
                 "fov_deg": 50.0},
-     "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"}}
+     "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"},
+     "measures": [{"start": [x, y, z], "end": [x, y, z], "number": 1}]}
 
 ``zones``, ``camera`` and ``crop`` may be ``null``, and ``crop`` may be absent (views
 saved before crops existed read as uncropped); coordinates are metres in the file's
@@ -86,6 +87,7 @@ VIEW_VERSION = 1
 #: Largest view file read (bytes): a view is a few kilobytes.
 MAX_VIEW_BYTES = 1 << 20
 MAX_PROFILES = 100
+MAX_MEASURES = 100
 MAX_PANELS = 32
 MAX_PATH_CHARS = 4096
 #: Largest |coordinate| accepted, metres (beyond any projected coordinate system).
@@ -175,6 +177,18 @@ class ZoneSettings:
 
 
 @dataclass(frozen=True)
+class MeasurePick:
+    """A distance measured between two points of the rock (the Measure tab)."""
+
+    start: Vec3
+    """First point, metres, file frame."""
+    end: Vec3
+    """Second point, metres, file frame."""
+    number: int = 1
+    """Its number as listed (D1, D2, ...)."""
+
+
+@dataclass(frozen=True)
 class Camera:
     """Where the 3-D view looks from, metres, file frame."""
 
@@ -210,6 +224,8 @@ class View:
     camera: Camera | None = None
     crop: CropBox | None = None
     """The crop every analysis runs on, or None (all points)."""
+    measures: tuple[MeasurePick, ...] = ()
+    """The measured distances, oldest first (absent from views saved before them)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -352,6 +368,10 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
+    measures = d.pop("measures")
+    if measures:  # written only when there are some: older versions read the rest
+        d["measures"] = [{**m, "start": list(m["start"]), "end": list(m["end"])}
+                         for m in measures]
     if d["camera"] is not None:
         d["camera"] = {k: list(v) if isinstance(v, tuple) else v for k, v in d["camera"].items()}
     crop = d.pop("crop")
@@ -460,7 +480,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     r = _Reader(source)
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera", "crop"])
+                 "profiles", "zones", "camera", "crop", "measures"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -497,6 +517,8 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         threshold=r.number(top.get("threshold", 0.05), "threshold", 0.0, 1.0),
         colour=colour,
         panels=panels,
+        measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
+                       enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
         profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
                        enumerate(r.items(top.get("profiles", []), "profiles", MAX_PROFILES))),
         zones=_optional(top.get("zones"), lambda v: _zones(r, v)),
@@ -535,6 +557,15 @@ def _colour(r: _Reader, value: Any) -> ColourSettings:
         mode=r.choice(c.get("mode", default.mode), "colour.mode", COLOUR_MODES),
         stretch=stretch,
         layer=r.choice(c.get("layer", default.layer), "colour.layer", COLOUR_LAYERS))
+
+
+def _measure(r: _Reader, value: Any, where: str) -> MeasurePick:
+    m = r.obj(value, where, ["start", "end"], ["number"])
+    start, end = r.vec3(m["start"], f"{where}.start"), r.vec3(m["end"], f"{where}.end")
+    if start == end:
+        raise r.fail(where, "has the same start and end")
+    return MeasurePick(start=start, end=end,
+                       number=r.integer(m.get("number", 1), f"{where}.number", 1, 10**9))
 
 
 def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
