@@ -177,6 +177,22 @@ class ZoneSettings:
 
 
 @dataclass(frozen=True)
+class DirectionsView:
+    """The Directions folder's settings, and whether the directions were measured."""
+
+    step_deg: float = 15.0
+    """Azimuth step, degrees, (0, 90]."""
+    spacing_m: float | None = None
+    """Distance between parallel profile lines, metres; None = the default."""
+    tin: bool = False
+    """The triangle parameters too."""
+    lines: bool = True
+    """The profile lines shown on the rock."""
+    measured: bool = False
+    """Measured when saved: a restored view measures them again."""
+
+
+@dataclass(frozen=True)
 class MeasurePick:
     """A distance measured between two points of the rock (the Measure tab)."""
 
@@ -226,6 +242,8 @@ class View:
     """The crop every analysis runs on, or None (all points)."""
     measures: tuple[MeasurePick, ...] = ()
     """The measured distances, oldest first (absent from views saved before them)."""
+    directions: DirectionsView | None = None
+    """The Directions folder's settings (None: absent, the app's defaults)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -368,6 +386,8 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
+    if d["directions"] is None:  # written only when known: older versions read the rest
+        d.pop("directions")
     measures = d.pop("measures")
     if measures:  # written only when there are some: older versions read the rest
         d["measures"] = [{**m, "start": list(m["start"]), "end": list(m["end"])}
@@ -480,7 +500,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     r = _Reader(source)
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera", "crop", "measures"])
+                 "profiles", "zones", "camera", "crop", "measures", "directions"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -517,6 +537,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         threshold=r.number(top.get("threshold", 0.05), "threshold", 0.0, 1.0),
         colour=colour,
         panels=panels,
+        directions=_optional(top.get("directions"), lambda v: _directions(r, v)),
         measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
                        enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
         profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
@@ -557,6 +578,18 @@ def _colour(r: _Reader, value: Any) -> ColourSettings:
         mode=r.choice(c.get("mode", default.mode), "colour.mode", COLOUR_MODES),
         stretch=stretch,
         layer=r.choice(c.get("layer", default.layer), "colour.layer", COLOUR_LAYERS))
+
+
+def _directions(r: _Reader, value: Any) -> DirectionsView:
+    d = r.obj(value, "directions", [], ["step_deg", "spacing_m", "tin", "lines", "measured"])
+    default = DirectionsView()
+    return DirectionsView(
+        step_deg=r.number(d.get("step_deg", default.step_deg), "directions.step_deg", 1.0, 90.0),
+        spacing_m=_optional(d.get("spacing_m"), lambda v: r.number(
+            v, "directions.spacing_m", 0.0, 1e6, lo_open=True)),
+        tin=r.boolean(d.get("tin", default.tin), "directions.tin"),
+        lines=r.boolean(d.get("lines", default.lines), "directions.lines"),
+        measured=r.boolean(d.get("measured", default.measured), "directions.measured"))
 
 
 def _measure(r: _Reader, value: Any, where: str) -> MeasurePick:
