@@ -193,6 +193,27 @@ class DirectionsView:
 
 
 @dataclass(frozen=True)
+class SelectionView:
+    """A Select-tab selection: the points a screen rectangle held, through the whole
+    depth, seen by the camera of the tab that dragged it (metres, file frame)."""
+
+    position: Vec3
+    """Camera centre."""
+    wxyz: tuple[float, float, float, float]
+    """Camera-to-world rotation (OpenCV axes: x right, y down, z forward)."""
+    fov_rad: float
+    """Vertical field of view, radians."""
+    aspect: float
+    """Window width / height."""
+    height_px: int
+    """Window height, pixels."""
+    corner_a: tuple[float, float]
+    """One corner of the rectangle (normalised window coordinates)."""
+    corner_b: tuple[float, float]
+    """The opposite corner."""
+
+
+@dataclass(frozen=True)
 class MeasurePick:
     """A distance measured between two points of the rock (the Measure tab)."""
 
@@ -244,6 +265,8 @@ class View:
     """The measured distances, oldest first (absent from views saved before them)."""
     directions: DirectionsView | None = None
     """The Directions folder's settings (None: absent, the app's defaults)."""
+    selection: SelectionView | None = None
+    """The Select tab's selection (None: none)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -386,8 +409,12 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
-    if d["directions"] is None:  # written only when known: older versions read the rest
-        d.pop("directions")
+    for key in ("directions", "selection"):  # written only when known: older versions
+        if d[key] is None:                   # read the rest
+            d.pop(key)
+    if "selection" in d:
+        d["selection"] = {k: list(v) if isinstance(v, tuple) else v
+                          for k, v in d["selection"].items()}
     measures = d.pop("measures")
     if measures:  # written only when there are some: older versions read the rest
         d["measures"] = [{**m, "start": list(m["start"]), "end": list(m["end"])}
@@ -500,7 +527,8 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     r = _Reader(source)
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera", "crop", "measures", "directions"])
+                 "profiles", "zones", "camera", "crop", "measures", "directions",
+                 "selection"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -538,6 +566,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         colour=colour,
         panels=panels,
         directions=_optional(top.get("directions"), lambda v: _directions(r, v)),
+        selection=_optional(top.get("selection"), lambda v: _selection(r, v)),
         measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
                        enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
         profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
@@ -590,6 +619,31 @@ def _directions(r: _Reader, value: Any) -> DirectionsView:
         tin=r.boolean(d.get("tin", default.tin), "directions.tin"),
         lines=r.boolean(d.get("lines", default.lines), "directions.lines"),
         measured=r.boolean(d.get("measured", default.measured), "directions.measured"))
+
+
+def _selection(r: _Reader, value: Any) -> SelectionView:
+    s = r.obj(value, "selection", ["position", "wxyz", "fov_rad", "aspect", "height_px",
+                                   "corner_a", "corner_b"])
+    q = s["wxyz"]
+    if not isinstance(q, list) or len(q) != 4:
+        raise r.fail("selection.wxyz", "must be a list of four numbers")
+    w, x, y, z = (r.number(v, f"selection.wxyz[{i}]", -1.0, 1.0) for i, v in enumerate(q))
+    if not 0.5 < w * w + x * x + y * y + z * z < 1.5:
+        raise r.fail("selection.wxyz", "must be a unit quaternion")
+
+    def corner(key: str) -> tuple[float, float]:
+        c = s[key]
+        if not isinstance(c, list) or len(c) != 2:
+            raise r.fail(f"selection.{key}", "must be a list of two numbers")
+        return (r.number(c[0], f"selection.{key}[0]", -1.0, 2.0),
+                r.number(c[1], f"selection.{key}[1]", -1.0, 2.0))
+
+    return SelectionView(
+        position=r.vec3(s["position"], "selection.position"), wxyz=(w, x, y, z),
+        fov_rad=r.number(s["fov_rad"], "selection.fov_rad", 0.0, 3.1, lo_open=True),
+        aspect=r.number(s["aspect"], "selection.aspect", 0.0, 100.0, lo_open=True),
+        height_px=r.integer(s["height_px"], "selection.height_px", 1, 100_000),
+        corner_a=corner("corner_a"), corner_b=corner("corner_b"))
 
 
 def _measure(r: _Reader, value: Any, where: str) -> MeasurePick:

@@ -387,3 +387,41 @@ def test_a_crop_of_a_cloud_served_by_a_relative_path_saves_its_view(face_file, t
     finally:
         app.stop()
         server.stop()
+
+
+def test_a_saved_view_keeps_the_selection(app_of, tmp_path):
+    """Issue 31 item 11: views kept no selection; a saved view holds the camera and
+    the rectangle that made it, and a fresh app given the view selects exactly the
+    same points (against the brute-force pinhole projection)."""
+    from rough_viewer.app.views import view_of
+    from rough_viewer.report.view import InputRef, save_view
+
+    app, server = app_of()
+    f = app.host.feature(CropFeature)
+    loaded = app.session.shown.loaded
+    client = join(server)
+    try:
+        eye = UTM + [1.5, -2.5, 1.2] - loaded.origin
+        target = UTM + [1.8, 0.0, 0.9] - loaded.origin
+        client.look_from(eye, target, fov=0.9, width=1200, height=800)
+        settle(app, lambda: np.allclose(
+            server.get_clients()[client.client_id].camera.position, eye), "the camera")
+        rect = ((0.35, 0.3), (0.6, 0.75))
+        client.rect_select(*rect)
+        settle(app, lambda: f.selection is not None, "the selection")
+    finally:
+        client.close()
+    ref = brute_force_rect(loaded.cloud.xyz() - loaded.origin, eye, target, 0.9, 1200, 800,
+                           *rect)
+    assert ref.sum() > 2_000 and np.array_equal(f.selection.mask, ref)
+    inp = InputRef(path=str(tmp_path / "face.las"), sha256="0" * 64, size_bytes=1)
+    saved = load_view(save_view(tmp_path / "v.json", view_of(app.host, inp, camera=None)),
+                      check=False).view
+    assert saved.selection is not None and saved.selection.corner_a == rect[0]
+    other, _ = app_of()
+    apply_view(other.host, saved)
+    assert other.wait_idle(120) and list(other.host.errors) == []
+    g = other.host.feature(CropFeature)
+    assert g.selection is not None
+    np.testing.assert_array_equal(g.selection.mask, ref)
+    assert f"**{int(ref.sum()):,} points selected**" in g.note.content

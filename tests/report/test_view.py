@@ -155,6 +155,10 @@ BAD = {
                        "directions.step_deg must lie in [1, 90]"),
     "direction tin": (lambda d: d.update(directions={"tin": "yes"}),
                       "directions.tin must be true or false"),
+    "selection quaternion": (lambda d: d.update(selection={
+        "position": [0, 0, 0], "wxyz": [0, 0, 0, 0], "fov_rad": 0.9, "aspect": 1.5,
+        "height_px": 800, "corner_a": [0, 0], "corner_b": [1, 1]}),
+        "selection.wxyz must be a unit quaternion"),
     "zone rule": (lambda d: d["zones"].update(threshold_rule="otsu"),
                   "zones.threshold_rule must be one of auto, slider"),
     "camera": (lambda d: d["camera"].update(fov_deg=0), "camera.fov_deg must lie in"),
@@ -242,8 +246,13 @@ def test_measures_and_directions_are_saved_and_reloaded(scan, tmp_path):
         directions=DirectionsView(step_deg=30.0, spacing_m=0.004, tin=True, lines=False,
                                   measured=True))
     assert load_view(save_view(tmp_path / "v.json", view)).view == view
+    from rough_viewer.report.view import SelectionView
+
+    sel = view.with_(selection=SelectionView((1.0, -5.0, 2.0), (0.5, 0.5, 0.5, 0.5), 0.9, 1.5,
+                                             800, (0.25, 0.3), (0.6, 0.75)))
+    assert load_view(save_view(tmp_path / "s.json", sel)).view == sel
     doc = json.loads(save_view(tmp_path / "plain.json", full_view(scan)).read_text())
-    assert "measures" not in doc and "directions" not in doc
+    assert "measures" not in doc and "directions" not in doc and "selection" not in doc
 
 
 def test_views_without_a_crop_stay_as_before(scan, tmp_path):

@@ -41,7 +41,7 @@ from rough_viewer.grid.measure import PlaneMeasure, region_plane
 from rough_viewer.io.crop import CROP_MODES, CropBox, CropMode, parse_box
 from rough_viewer.lod.camera import ViewCamera, rect_select
 from rough_viewer.memory import require
-from rough_viewer.report.view import View
+from rough_viewer.report.view import SelectionView, View
 from rough_viewer.vocabulary import InputError
 
 L_KEEP = "Keep selection"
@@ -73,6 +73,8 @@ class Selection:
     plane: PlaneMeasure | None
     """Their ODR plane (None: fewer than 3 points, or on a line)."""
     plane_error: str = ""
+    made_by: SelectionView | None = None
+    """The camera and rectangle that selected them (what a saved view holds)."""
 
     @property
     def count(self) -> int:
@@ -133,8 +135,9 @@ class CropFeature:
     """The selection's bounding box."""
 
     # ------------------------------------------------------------------ selection
-    def select(self, mask: np.ndarray) -> None:
-        """Select the shown cloud's points ``mask`` (worker)."""
+    def select(self, mask: np.ndarray, made_by: SelectionView | None = None) -> None:
+        """Select the shown cloud's points ``mask`` (worker), made by ``made_by``'s
+        camera and rectangle."""
         loaded = self.host.session.shown.loaded
         self.drop_selection()
         if not mask.any():
@@ -145,7 +148,7 @@ class CropFeature:
             plane, error = region_plane(loaded.cloud, mask, toward=loaded.plane.normal), ""
         except InputError as exc:
             plane, error = None, str(exc)
-        self.selection = Selection(loaded, mask, box, plane, error)
+        self.selection = Selection(loaded, mask, box, plane, error, made_by)
         u = loaded.units
         self.binding.set(self.box, box_text(box, u))
         lines = [f"**{self.selection.count:,} points selected**, in the box "
@@ -198,12 +201,16 @@ class CropFeature:
 
     # ------------------------------------------------------------------ saved views
     def snapshot(self) -> dict[str, Any]:
-        return {"crop": self.host.session.shown.loaded.crop}
+        sel = self.selection
+        return {"crop": self.host.session.shown.loaded.crop,
+                "selection": sel.made_by if sel is not None else None}
 
     def restore(self, view: View) -> Job[Host] | None:
-        if view.crop == self.host.session.shown.loaded.crop:
-            return None
-        return CropJob(self, view.crop, render=False)
+        crop = None if view.crop == self.host.session.shown.loaded.crop else \
+            CropJob(self, view.crop, render=False)
+        if view.selection is None:
+            return crop
+        return RestoreSelectionJob(self, crop, view.selection)
 
 
 def _box_rule(value: Any) -> str:
@@ -243,8 +250,45 @@ class SelectJob(Job[Host]):
         require(1.0 * cloud.n + 100.0 * min(cloud.n, 1 << 20), f"a selection of {cloud.n:,} points")
         mask = rect_select(self.camera, cloud.x, cloud.y, cloud.z, self.corner_a, self.corner_b)
         yield "select"
-        self.f.select(mask)
+        self.f.select(mask, selection_view(self.camera, self.corner_a, self.corner_b))
         yield "show"
+
+
+def selection_view(camera: ViewCamera, a: tuple[float, float], b: tuple[float, float]
+                   ) -> SelectionView:
+    """What a saved view holds of a selection: the camera and the rectangle."""
+    p, q = camera.position, camera.wxyz
+    return SelectionView(position=(float(p[0]), float(p[1]), float(p[2])),
+                         wxyz=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+                         fov_rad=float(camera.fov_rad), aspect=float(camera.aspect),
+                         height_px=int(camera.height_px), corner_a=a, corner_b=b)
+
+
+@dataclass(frozen=True)
+class RestoreSelectionJob(Job[Host]):
+    """A saved view's crop (when it differs), then its selection: the points its
+    camera's rectangle holds, selected again."""
+
+    f: CropFeature = field(compare=False)
+    crop: CropJob | None = field(compare=False)
+    selection: SelectionView = field(compare=False)
+    lane: ClassVar[str] = "load"
+
+    @property
+    def title(self) -> str:
+        return "the saved view's selection"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        if self.crop is not None:
+            yield from self.crop.stages(ctx, run)
+        s = self.selection
+        try:
+            camera = ViewCamera(position=np.asarray(s.position), wxyz=np.asarray(s.wxyz),
+                                fov_rad=s.fov_rad, aspect=s.aspect, height_px=s.height_px)
+        except InputError as exc:
+            ctx.show_error(f"saved view: selection: {exc}", kept="No points are selected.")
+            return
+        yield from SelectJob(self.f, camera, s.corner_a, s.corner_b).stages(ctx, run)
 
 
 @dataclass(frozen=True)
