@@ -36,6 +36,29 @@ from rough_viewer.app.worker import Job, QueueFull, Run, Worker
 from rough_viewer.io.load import SUPPORTED_SUFFIXES
 from rough_viewer.vocabulary import InputError
 
+#: Label of the folder that holds the notes that stay.
+NOTICE_FOLDER = "Notice details"
+
+
+def notice_summary(notes: str) -> str:
+    r"""One line naming the notes (their bold labels: ``**Warning:**`` ...), for above
+    the tabs; the notes themselves go in the closed :data:`NOTICE_FOLDER`.
+
+    >>> notice_summary("**Warning:** a  \n**Warning:** b  \n**Outliers:** 3 cells")
+    '⚠ **3 notices**: 2 warnings, outliers — open *Notice details*'
+    """
+    if not notes:
+        return ""
+    labels: dict[str, int] = {}
+    lines = [line for line in notes.split("  \n") if line.strip()]
+    for line in lines:
+        label = line[2:line.index(":**")] if line.startswith("**") and ":**" in line \
+            else "note"
+        labels[label] = labels.get(label, 0) + 1
+    named = ", ".join(f"{n} {k.lower()}s" if n > 1 else k.lower() for k, n in labels.items())
+    count = "1 notice" if len(lines) == 1 else f"{len(lines)} notices"
+    return f"⚠ **{count}**: {named} — open *{NOTICE_FOLDER}*"
+
 T = TypeVar("T")
 
 
@@ -82,7 +105,14 @@ class Shell:
         self.error = gui.add_markdown("", visible=False)
         self.note = gui.add_markdown("", visible=False)
         """The pinned note (a saved view's input moved or changed)."""
-        self.notice = gui.add_markdown("", visible=False)
+        self.notice_line = gui.add_markdown("", visible=False)
+        """One line over the tabs naming the notes that stay (the airborne LAZ's eight
+        lines pushed the tabs down); the notes themselves in :attr:`notice_folder`."""
+        self.notice_folder = gui.add_folder(NOTICE_FOLDER, expand_by_default=False,
+                                            visible=False)
+        """A folder, closed at first, holding :attr:`notice`."""
+        with self.notice_folder:
+            self.notice = gui.add_markdown("", visible=False)
         """Notes that stay (reader warnings, a grid where most cells have no value)."""
         self.progress_bar = gui.add_progress_bar(0.0, visible=False, animated=True)
         self._tabs: viser.GuiTabGroupHandle | None = None
@@ -215,8 +245,13 @@ class Shell:
         self.status.content = status
 
     def warn(self, notes: str) -> None:
+        if notes == self.notice.content and self.notice.visible == bool(notes):
+            return  # the same notes: the folder stays as the user left it
         self.notice.content = notes
         self.notice.visible = bool(notes)
+        self.notice_line.content = notice_summary(notes)
+        self.notice_line.visible = bool(notes)
+        self.notice_folder.visible = bool(notes)
 
     def pin(self, text: str) -> None:
         self.pinned = text[:400]

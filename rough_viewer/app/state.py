@@ -171,6 +171,21 @@ class Units:
         """A roughness in metres, in the roughness unit."""
         return float(metres) / self.rough_per
 
+    def rough_text(self, metres: float) -> str:
+        """A roughness as shown beside others: 3 significant digits in the roughness
+        unit, a metric one under 0.01 mm in µm (e_ols of a lab mesh is
+        ``"0.505 µm"``, not ``"0.0005048 mm"``); a dash when it is not finite.
+
+        >>> Units("mm").rough_text(5.048e-7), Units("m").rough_text(0.0012345)
+        ('0.505 µm', '1.23 mm')
+        """
+        if not math.isfinite(metres):
+            return "—"
+        v = self.rough(metres)
+        if self.rough_unit == "mm" and v != 0.0 and abs(v) < 0.01:
+            return f"{1000.0 * v:.3g} µm"
+        return f"{v:.3g} {self.rough_label}"
+
     def size_text(self, metres: float) -> str:
         """``"0.25 m"``, ``"12.5 mm"``: a grid size as shown."""
         return f"{self.length(metres):g} {self.label}"
@@ -182,10 +197,8 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     a readable size in the cloud's own unit; at least :data:`MIN_CELL_SIZE`) times 8,
     4, 2, 1. Nested, so every
     coarser preset is the finest coarsened by a whole factor."""
-    per = UNIT_METRES[cloud.source_unit]
-    # a cloud in metres gives its columns as they are (no (N, 3) copy: 2.7 s at 20 M)
-    finest = default_cell_size(cloud if per == 1.0 else cloud.xyz() / per) * per
-    return cell_sizes_from(max(finest, MIN_CELL_SIZE))
+    # readable in the cloud's unit (default_cell_size's rule, as report and compute)
+    return cell_sizes_from(max(default_cell_size(cloud), MIN_CELL_SIZE))
 
 
 def check_settings(settings: MapSettings) -> None:
@@ -349,6 +362,9 @@ class LoadedCloud:
     file keep these rows)."""
     uncropped: LoadedCloud | None = field(default=None, repr=False)
     """The whole cloud this one was cropped from (with its cached grids)."""
+    crop_exact: bool = False
+    """The crop kept exactly the points of a selection (:meth:`cropped_exact`), not
+    every point of :attr:`crop` (then their bounding box)."""
     frame_origin: tuple[float, float, float] | None = None
     """The local origin of the display frame (None: the bounding-box centre, rounded;
     a crop keeps its whole cloud's, so the scene does not move)."""
@@ -419,6 +435,34 @@ class LoadedCloud:
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings, crop=box,
                            crop_mask=made.mask, uncropped=whole,
+                           frame_origin=(float(whole.origin[0]), float(whole.origin[1]),
+                                         float(whole.origin[2])))
+
+    def cropped_exact(self, mask: np.ndarray) -> LoadedCloud:
+        """The whole cloud cropped to exactly the points ``mask`` selects of this
+        cloud (a selection of 226,861 points keeps those, not the 239,125 of their
+        bounding box); :attr:`crop` is their bounding box, :attr:`crop_exact` True.
+        One crop at a time, as :meth:`cropped`.
+
+        Raises InputError when the mask is not one per point or keeps fewer than 3."""
+        keep = np.asarray(mask)
+        if keep.dtype != np.bool_ or keep.shape != (self.cloud.n,):
+            raise InputError(f"a selection of this cloud has one flag per point "
+                             f"({self.cloud.n:,}), got {keep.shape}")
+        whole = self.uncropped or self
+        if self.uncropped is not None and self.crop_mask is not None:
+            rows = np.flatnonzero(self.crop_mask)[keep]
+            keep = np.zeros(whole.cloud.n, dtype=bool)
+            keep[rows] = True
+        kept = int(np.count_nonzero(keep))
+        if kept < 3:
+            raise InputError(f"the selection keeps {kept} points; a map needs at least 3")
+        return LoadedCloud(whole.cloud.subset(keep), max_display=whole.max_display,
+                           cache_bytes=whole.cache_bytes, seed=whole.seed,
+                           presets=whole.presets, label=whole.label,
+                           trust_settings=whole.trust_settings,
+                           crop=CropBox.around(whole.cloud, keep), crop_mask=keep,
+                           uncropped=whole, crop_exact=True,
                            frame_origin=(float(whole.origin[0]), float(whole.origin[1]),
                                          float(whole.origin[2])))
 

@@ -60,6 +60,7 @@ from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.grid.table import CELL_COLUMNS
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.io.output import all_or_nothing, check_outputs, write_atomic
+from rough_viewer.io.table import UNIT_COLUMN
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
@@ -67,8 +68,10 @@ if TYPE_CHECKING:
     from rough_viewer.grid.roughness import GridRoughness
     from rough_viewer.io.cloud import PointCloud
 
-#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`).
-CSV_COLUMNS = CELL_COLUMNS
+#: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`),
+#: then the unit of its lengths (:data:`rough_viewer.io.table.UNIT_COLUMN`: metres per
+#: unit), as every table written states it.
+CSV_COLUMNS = (*CELL_COLUMNS, UNIT_COLUMN)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -329,7 +332,12 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
     once the run's outputs are all in place). ``keep``: the crop's mask over the
     points read, for LAS copies of the kept points."""
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.grid.table import cell_columns, point_fields, table_metadata
+    from rough_viewer.grid.table import (
+        POINT_LENGTH_FIELDS,
+        cell_columns,
+        point_fields,
+        table_metadata,
+    )
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.ply import write_ply_fields
     from rough_viewer.io.table import write_table
@@ -338,7 +346,7 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
     if "out" in outputs:
         write_table(outputs["out"][g], cell_columns(
             result, unit=unit, trust=None if trust is None else trust.columns()),
-            metadata=table_metadata(result, source, unit=unit))
+            metadata=table_metadata(result, source, unit=unit), unit=unit)
         written.append(str(outputs["out"][g]))
     if "summary_json" in outputs:
         data = summary_dict(result, source, dropped, unit,
@@ -364,6 +372,7 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         info = write_ply_fields(path, cloud, fields, comments=[
             f"rough_viewer: {Path(source).name if len(args.inputs) == 1 else source}, "
             f"grid {g:g} {UNIT_LABELS[unit]}, axis {result.axis}, "
-            "roughness in metres"])
+            f"coordinates and roughness in {UNIT_LABELS[unit]}"],
+            unit=unit, lengths=POINT_LENGTH_FIELDS)
         lines.append(f"wrote {path}: {info}")
     return lines

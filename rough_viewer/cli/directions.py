@@ -172,8 +172,8 @@ def run(args: argparse.Namespace) -> int:
     warn(result.warnings)
     print(format_directions(result, unit=unit))
     with all_or_nothing():
-        write_table(outs[0], directions_table(result, unit=unit))
+        write_table(outs[0], directions_table(result, unit=unit), unit=unit)
         if result.windows is not None and args.windows_out:
-            write_table(outs[1], result.windows.table(per))
+            write_table(outs[1], result.windows.table(per), unit=unit)
     print("wrote " + " and ".join(str(o) for o in outs))
     return 0

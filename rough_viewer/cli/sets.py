@@ -413,13 +413,13 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
 
     per = per_unit(unit)
     tables = []
-    write_table(outputs["out"][g], sets.set_table(per))
+    write_table(outputs["out"][g], sets.set_table(per), unit=unit)
     tables.append(str(outputs["out"][g]))
     if "planes_out" in outputs:
-        write_table(outputs["planes_out"][g], sets.plane_table(per))
+        write_table(outputs["planes_out"][g], sets.plane_table(per), unit=unit)
         tables.append(str(outputs["planes_out"][g]))
     if "joints_out" in outputs:
-        write_table(outputs["joints_out"][g], sets.joint_table(per))
+        write_table(outputs["joints_out"][g], sets.joint_table(per), unit=unit)
         tables.append(str(outputs["joints_out"][g]))
     if "summary_json" in outputs:
         import json
@@ -434,14 +434,14 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
         write_atomic(outputs["summary_json"][g], dump)
         tables.append(str(outputs["summary_json"][g]))
     if "dips_out" in outputs:
-        write_table(outputs["dips_out"][g], sets.dips_table(per))
+        write_table(outputs["dips_out"][g], sets.dips_table(per), unit=unit)
         tables.append(str(outputs["dips_out"][g]))
     if "cells_out" in outputs:
         keep = result.n_points >= result.min_points  # the rows of cell_columns
         write_table(outputs["cells_out"][g],
                     {**cell_columns(result, unit=unit), "set_id": sets.cell_set[keep],
                      "plane_id": sets.cell_plane[keep]},
-                    metadata=table_metadata(result, source, unit=unit))
+                    metadata=table_metadata(result, source, unit=unit), unit=unit)
         tables.append(str(outputs["cells_out"][g]))
     lines = ["wrote " + " and ".join(tables)]
     if "las_out" in outputs or "ply_out" in outputs:
@@ -455,6 +455,7 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
             path = outputs["ply_out"][g]
             info = write_ply_fields(path, cloud, fields, comments=[
                 f"rough_viewer sets: {source}, grid {g:g} {UNIT_LABELS[unit]}, "
-                "set_id and plane_id (0 = none)"])
+                f"set_id and plane_id (0 = none), coordinates in {UNIT_LABELS[unit]}"],
+                unit=unit)
             lines.append(f"wrote {path}: {info}")
     return lines

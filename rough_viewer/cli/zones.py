@@ -126,7 +126,7 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
         analysed_values(result, zones.map_name, keep_outliers=keep_outliers))))
     in_zones = int(zones.cells.sum())
     area_m2 = float(zones.area_m2.sum())
-    in_csv = "" if unit == "m" else f" (ZONES.csv: {area_m2:.4g} m2; it is always in metres)"
+    in_csv = ""
     lines = [
         f"{source}: {result.n_points_total:,} points, grid {zones.cell_size / per:g} {u}, "
         f"{MAP_LABELS[zones.map_name]} roughness, threshold {zones.threshold:g}, "
@@ -157,30 +157,25 @@ def format_zones(zones, result, *, source: str, unit: str = "m", advice=None,
         if zones.n_zones > SHOWN:
             lines.append(f"  ... {zones.n_zones - SHOWN:,} more in the CSV")
         if unit != "m":
-            lines.append(f"  (lengths in {u} here; ZONES.csv holds area_m2, length_m, width_m, "
-                         "mean_theta, max_theta and cx, cy, cz in metres)")
+            lines.append(f"  (ZONES.csv: lengths in {u}, its unit_m column; area_m2, length_m "
+                         f"and width_m in metres as named, area, length and width in {u})")
     return "\n".join(lines)
 
 
 def zones_threshold(result: GridRoughness, method: MapName, given: float | None, *,
                     keep_outliers: bool = False) -> tuple[float, str]:
-    """The threshold the zones use and, when it is not the one given, why: the
-    paper's :data:`DEFAULT_THRESHOLD` unless it flags more than half of the cells
-    (one zone over the whole face on every real scan), then the data's own (Otsu's
-    split, :func:`rough_viewer.grid.threshold.map_threshold_advice`). A threshold given
-    is used as it is."""
-    from rough_viewer.grid.threshold import map_threshold_advice
+    """The threshold the zones use and, when it is not the one given, why
+    (:func:`rough_viewer.grid.threshold.zone_threshold`, the app's rule too). A
+    threshold given is used as it is."""
+    from rough_viewer.grid.threshold import zone_threshold
 
     if given is not None:
         return float(given), ""
-    advice = map_threshold_advice(result, method, DEFAULT_THRESHOLD, keep_outliers=keep_outliers)
-    if not advice.most or advice.suggested is None or advice.suggested_share is None:
-        return DEFAULT_THRESHOLD, ""
-    return float(f"{advice.suggested:.3g}"), (
-        f"threshold {advice.suggested:.3g}, the data's own (Otsu's split, flags "
-        f"{100 * advice.suggested_share:.0f} % of the cells): the paper's "
-        f"{DEFAULT_THRESHOLD:g} flags {100 * advice.share:.0f} %, most of the face; give "
-        f"--threshold {DEFAULT_THRESHOLD:g} to use it")
+    chosen = zone_threshold(result, method, keep_outliers=keep_outliers)
+    reason = chosen.reason()
+    if reason:
+        reason += f"; give --threshold {DEFAULT_THRESHOLD:g} to use it"
+    return chosen.value, reason
 
 
 def run(args: argparse.Namespace) -> int:
@@ -233,14 +228,14 @@ def run(args: argparse.Namespace) -> int:
             advice = map_threshold_advice(result, args.method, threshold,
                                           keep_outliers=args.keep_outliers)
             out = outputs["out"][g]
-            write_table(out, zones.table())  # the ZONES.csv contract: metres
+            write_table(out, zones.file_table(per), unit=unit)  # in --units, said in it
             names = [str(out)]
             if "cells_out" in outputs:
                 cells_out = outputs["cells_out"][g]
                 keep = result.n_points >= result.min_points  # the rows of cell_columns
                 write_table(cells_out,
                             {**cell_columns(result, unit=unit), "zone": zones.labels[keep]},
-                            metadata=table_metadata(result, source, unit=unit))
+                            metadata=table_metadata(result, source, unit=unit), unit=unit)
                 names.append(str(cells_out))
             if i:
                 print()

@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree
 
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 #: Points the typical (median) occupied cell of the default grid holds at least.
 TARGET_POINTS = 16
@@ -147,9 +147,11 @@ def nice_ceil(value: float) -> float:
     return round(10.0 ** (exponent + 1), 12)
 
 
-def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_POINTS) -> float:
+def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_POINTS,
+                      unit: str | None = None) -> float:
     """Grid cell edge, metres, at which the median occupied cell holds at least
-    ``target`` points (module docstring: why 16 and how).
+    ``target`` points (module docstring: why 16 and how), a readable size
+    (:func:`nice_ceil`) in ``unit``.
 
     Parameters
     ----------
@@ -157,7 +159,17 @@ def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_PO
         Points, metres.
     target : int
         Points wanted in the typical occupied cell.
+    unit : str, optional
+        Unit the size is readable in (``m``, ``mm``, ``ft``, ``us-ft``); default a
+        cloud's own (``PointCloud.source_unit``: a scan in US survey feet gets 4, 8,
+        16, 32 US ft, not 16 and 32 m shown as 52.4933 and 104.987), else metres.
     """
+    per = UNIT_METRES[unit if unit is not None else
+                      cloud.source_unit if isinstance(cloud, PointCloud) else "m"]
+
+    def nice(size: float) -> float:
+        return nice_ceil(size) if per == 1.0 else round(nice_ceil(size / per) * per, 12)
+
     if target < 3:
         raise InputError(f"target points per cell must be at least 3, got {target}")
     pts, fraction = _subset(cloud, COUNT_POINTS)  # drawn once for every count below
@@ -172,10 +184,10 @@ def default_cell_size(cloud: PointCloud | np.ndarray, *, target: int = TARGET_PO
         if target <= count <= 1.5 * target:
             break
         g *= float(np.clip(math.sqrt(target / max(count, 1.0)), 0.5, 2.0))
-    g = nice_ceil(g)
+    g = nice(g)
     # rounding and the median's steps; a cell wider than the cloud holds every point
     while g <= extent and _median_count(pts, lo, fraction, g) < target:
-        g = nice_ceil(g * 1.01)
+        g = nice(g * 1.01)
     return g
 
 

@@ -38,6 +38,11 @@ POINT_FIELD_NAMES: tuple[str, ...] = (
     "cell_ix", "cell_iy", "cell_iz", "cell_points",
 )
 
+#: Per-point fields that are lengths (metres in the cells' arrays; written in the
+#: output's unit where a format takes one, e.g. PLY).
+POINT_LENGTH_FIELDS: frozenset[str] = frozenset(
+    {"theta_odr", "theta_ols", "theta_hybrid", "e_ols", *TRUST_LENGTHS})
+
 #: ``cell_ix``/``iy``/``iz`` of a point that is in no cell (an input row with a
 #: non-finite coordinate); ``cell_points`` is 0 there and the roughness NaN.
 NO_CELL = np.iinfo(np.int32).min

@@ -242,3 +242,42 @@ def threshold_advice(values: np.ndarray, threshold: float = DEFAULT_THRESHOLD, *
         threshold=float(threshold), cells=int(v.size), share=share, suggested=suggested,
         suggested_theta=float(theta), suggested_share=float(np.mean(norm >= suggested)),
         separability=split.separability)
+
+
+@dataclass(frozen=True)
+class ZoneThreshold:
+    """The threshold zones use when none is chosen, and why (:func:`zone_threshold`)."""
+
+    value: float
+    """Threshold on normalised roughness, in [0, 1]."""
+    paper: ThresholdAdvice
+    """What the paper's :data:`~rough_viewer.vocabulary.DEFAULT_THRESHOLD` does on
+    the map (its share, the data's own threshold)."""
+
+    @property
+    def own(self) -> bool:
+        """The data's own threshold is used: the paper's flags most of the face."""
+        return self.value != self.paper.threshold
+
+    def reason(self) -> str:
+        """Why the data's own threshold is used (empty when it is not)."""
+        p = self.paper
+        if not self.own or p.suggested_share is None:
+            return ""
+        return (f"threshold {self.value:.3g}, the data's own (Otsu's split, flags "
+                f"{100 * p.suggested_share:.0f} % of the cells): the paper's "
+                f"{p.threshold:g} flags {100 * p.share:.0f} %, most of the face")
+
+
+def zone_threshold(result: GridRoughness, name: MapName, *,
+                   keep_outliers: bool = False) -> ZoneThreshold:
+    """The threshold the zones of a map use when none is chosen: the paper's
+    :data:`~rough_viewer.vocabulary.DEFAULT_THRESHOLD` unless it flags more than
+    :data:`MOST_SHARE` of the cells (one zone over the whole face on every real scan),
+    then the data's own (:func:`map_threshold_advice`'s suggestion, 3 significant
+    digits). The one rule of ``rough-viewer zones`` and the app's Zones tab."""
+    advice = map_threshold_advice(result, name, DEFAULT_THRESHOLD, keep_outliers=keep_outliers)
+    if not advice.most or advice.suggested is None or advice.suggested_share is None:
+        return ZoneThreshold(DEFAULT_THRESHOLD, advice)
+    own = float(f"{advice.suggested:.3g}")
+    return ZoneThreshold(DEFAULT_THRESHOLD if own == DEFAULT_THRESHOLD else own, advice)

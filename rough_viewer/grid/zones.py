@@ -80,6 +80,12 @@ ZONE_COLUMNS: tuple[str, ...] = (
     "trace_azimuth_deg", "trace_plunge_deg", "dip_deg", "dip_direction_deg",
     "mean_theta", "max_theta", "cx", "cy", "cz",
 )
+#: Columns ZONES.csv adds after :data:`ZONE_COLUMNS`: the area, length and width in
+#: the table's own unit (``area_m2``, ``length_m`` and ``width_m`` stay in metres,
+#: as named, for the scripts that read them).
+ZONE_FILE_COLUMNS: tuple[str, ...] = ("area", "length", "width")
+#: Columns of :data:`ZONE_COLUMNS` in the table's unit (roughness and the centroid).
+ZONE_LENGTHS: frozenset[str] = frozenset({"mean_theta", "max_theta", "cx", "cy", "cz"})
 
 #: Below this ``|mean normal x long axis|`` (sin 30 degrees) the width is measured
 #: along the second principal axis of the cell centres instead.
@@ -159,14 +165,24 @@ class Zones:
         """(Z,) zone ids 1..Z."""
         return np.arange(1, self.n_zones + 1, dtype=np.int64)
 
-    def table(self) -> dict[str, np.ndarray]:
-        """Column name -> (Z,) values, in :data:`ZONE_COLUMNS` order."""
+    def table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """Column name -> (Z,) values, in :data:`ZONE_COLUMNS` order; the lengths
+        :data:`ZONE_LENGTHS` divided by ``unit_m`` (metres per output unit), the
+        columns named in metres (``area_m2``, ``length_m``, ``width_m``) in metres."""
         cols: dict[str, np.ndarray] = {"zone": self.ids}
         for name in ZONE_COLUMNS[1:12]:
             cols[name] = getattr(self, name)
         for a, name in enumerate(("cx", "cy", "cz")):
             cols[name] = self.centroid[:, a]
+        if unit_m != 1.0:
+            cols = {k: v / unit_m if k in ZONE_LENGTHS else v for k, v in cols.items()}
         return cols
+
+    def file_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
+        """ZONES.csv: :meth:`table` in the output unit, then :data:`ZONE_FILE_COLUMNS`
+        (area in its square, length and width) in it too."""
+        return {**self.table(unit_m), "area": self.area_m2 / unit_m**2,
+                "length": self.length_m / unit_m, "width": self.width_m / unit_m}
 
 @dataclass(frozen=True, eq=False)
 class ZoneLabeller:

@@ -5,7 +5,7 @@ writing binary little-endian PLY with per-point fields (through plyfile)."""
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -16,7 +16,7 @@ from rough_viewer.io.cloud import PointCloud, finite_cloud
 from rough_viewer.io.output import write_path_atomic
 from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 _PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -246,13 +246,17 @@ def write_ply_fields(
     fields: PointFields | None = None,
     *,
     comments: Sequence[str] = (),
+    unit: str = "m",
+    lengths: Collection[str] = (),
 ) -> str:
     """Write a cloud as binary little-endian PLY (plyfile), atomically.
 
     Vertex properties: ``x``, ``y``, ``z`` (float64, the cloud's coordinates in
-    metres), ``intensity`` (uint16) where the cloud has it, then each of ``fields``
-    (float32 roughness, int32 cell indices, uint32 counts). CloudCompare shows the
-    extra properties as scalar fields.
+    ``unit``), ``intensity`` (uint16) where the cloud has it, then each of ``fields``
+    (float32 roughness, int32 cell indices, uint32 counts); the fields named in
+    ``lengths`` (metres in the cells' arrays) in ``unit`` too. A last comment states
+    the unit (``rough_viewer.unit mm``, as the tables' ``unit_m`` column and Parquet
+    metadata do). CloudCompare shows the extra properties as scalar fields.
 
     Returns
     -------
@@ -276,14 +280,19 @@ def write_ply_fields(
     # the vertex array, plus plyfile's own copy while writing
     require(2.0 * n * dtype.itemsize, f"writing {out.name} ({n:,} points)")
     vertex = np.empty(n, dtype=dtype)
-    vertex["x"], vertex["y"], vertex["z"] = cloud.x, cloud.y, cloud.z
+    if unit not in UNIT_METRES:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+    per = float(UNIT_METRES[unit])
+    vertex["x"], vertex["y"], vertex["z"] = cloud.x / per, cloud.y / per, cloud.z / per
     if cloud.intensity is not None:
         vertex["intensity"] = np.clip(np.asarray(cloud.intensity), 0, 65535)
     if fields is not None:
         for f, v in zip(fields.fields, fields.gather(0, n), strict=True):
-            vertex[f.name] = v
+            vertex[f.name] = v / per if f.name in lengths and per != 1.0 else v
+    scaled = [f.name for f in (fields.fields if fields is not None else ()) if f.name in lengths]
+    said = f"rough_viewer.unit {unit} (x, y, z{''.join(', ' + n for n in scaled)})"
     ply = PlyData([PlyElement.describe(vertex, "vertex")], text=False, byte_order="<",
-                  comments=list(comments))
+                  comments=[*comments, said])
     write_path_atomic(out, lambda tmp: ply.write(str(tmp)))
     n_fields = 0 if fields is None else len(fields.fields)
     return f"binary little-endian PLY, {n:,} vertices, {n_fields} scalar properties added"

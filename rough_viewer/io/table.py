@@ -23,12 +23,17 @@ import numpy as np
 
 from rough_viewer.io.output import write_atomic, write_path_atomic
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 TableFormat = Literal["csv", "parquet"]
 
 #: Rows formatted at a time when writing CSV (bounds the memory of the text).
 CSV_BLOCK_ROWS = 100_000
+
+#: Last column of every written table: metres per unit of its lengths (1 for m, 0.001
+#: for mm, 0.3048 for ft, 1200/3937 for US ft), a number so that readers of an
+#: all-numeric table (``numpy.loadtxt``) still read it.
+UNIT_COLUMN = "unit_m"
 
 PARQUET_HINT = "pip install 'rough_viewer[parquet]' (or pip install pyarrow)"
 
@@ -86,8 +91,15 @@ def write_table(
     columns: Mapping[str, np.ndarray],
     *,
     metadata: Mapping[str, str] | None = None,
+    unit: str | None = None,
 ) -> None:
     """Write a table atomically, CSV or Parquet by the file's suffix.
+
+    Every table the commands and the app write states its unit: with ``unit`` (the
+    lengths' unit code, ``m``, ``mm``, ``ft``, ``us-ft``) a last column
+    :data:`UNIT_COLUMN` holds the metres per unit on every row (a CSV has nowhere
+    else to say it; columns read by name or position are unaffected) and a Parquet
+    file's schema has ``rough_viewer.unit`` (the code) too.
 
     Parameters
     ----------
@@ -98,6 +110,13 @@ def write_table(
     metadata : mapping, optional
         Key-value notes stored in a Parquet file's schema (e.g. units); CSV has none.
     """
+    if unit is not None:
+        first = next(iter(columns.values()), None)
+        rows = 0 if first is None else int(np.shape(first)[0])
+        if unit not in UNIT_METRES:
+            raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNIT_METRES)}")
+        columns = {**columns, UNIT_COLUMN: np.full(rows, float(UNIT_METRES[unit]))}
+        metadata = {**(metadata or {}), "rough_viewer.unit": str(unit)}
     names, arrays, n = _columns(columns)
     if table_format(path) == "parquet":
         check_table_output(path)

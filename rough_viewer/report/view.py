@@ -30,10 +30,12 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "profiles": [{"start": [x, y, z], "end": [x, y, z], "band_half_width_m": null,
                    "wavelet": "db3", "level": 3, "decomposition": "dwt",
                    "threshold_rule": "fixed", "mode": "hard", "detrend": null}],
-     "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null},
+     "zones": {"map": "odr", "connectivity": "vertex", "min_cells": 3, "selected": null,
+               "threshold_rule": "auto"},
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
                 "fov_deg": 50.0},
-     "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"}}
+     "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"},
+     "measures": [{"start": [x, y, z], "end": [x, y, z], "number": 1}]}
 
 ``zones``, ``camera`` and ``crop`` may be ``null``, and ``crop`` may be absent (views
 saved before crops existed read as uncropped); coordinates are metres in the file's
@@ -85,6 +87,7 @@ VIEW_VERSION = 1
 #: Largest view file read (bytes): a view is a few kilobytes.
 MAX_VIEW_BYTES = 1 << 20
 MAX_PROFILES = 100
+MAX_MEASURES = 100
 MAX_PANELS = 32
 MAX_PATH_CHARS = 4096
 #: Largest |coordinate| accepted, metres (beyond any projected coordinate system).
@@ -94,6 +97,8 @@ HASH_BLOCK = 1 << 20
 
 ColourMode = Literal["continuous", "binary"]
 COLOUR_MODES: tuple[ColourMode, ...] = ("continuous", "binary")
+ZoneThresholdRule = Literal["auto", "slider"]
+ZONE_THRESHOLD_RULES: tuple[ZoneThresholdRule, ...] = ("auto", "slider")
 Connectivity = Literal["face", "edge", "vertex"]
 CONNECTIVITIES: tuple[Connectivity, ...] = ("face", "edge", "vertex")
 InputStatus = Literal["unchanged", "moved", "changed", "missing", "not_checked"]
@@ -167,6 +172,60 @@ class ZoneSettings:
     min_cells: int = 3
     selected: int | None = None
     """Zone id (1 = the largest), or None."""
+    threshold_rule: ZoneThresholdRule = "auto"
+    """``auto``: with the view's threshold at the paper's 0.05, the data's own when
+    0.05 flags more than half of the cells (:func:`rough_viewer.grid.threshold.
+    zone_threshold`); ``slider``: the view's threshold as it is. A view saved before
+    the rule existed reads as ``slider`` (its zones were at its threshold)."""
+
+
+@dataclass(frozen=True)
+class DirectionsView:
+    """The Directions folder's settings, and whether the directions were measured."""
+
+    step_deg: float = 15.0
+    """Azimuth step, degrees, (0, 90]."""
+    spacing_m: float | None = None
+    """Distance between parallel profile lines, metres; None = the default."""
+    tin: bool = False
+    """The triangle parameters too."""
+    lines: bool = True
+    """The profile lines shown on the rock."""
+    measured: bool = False
+    """Measured when saved: a restored view measures them again."""
+
+
+@dataclass(frozen=True)
+class SelectionView:
+    """A Select-tab selection: the points a screen rectangle held, through the whole
+    depth, seen by the camera of the tab that dragged it (metres, file frame)."""
+
+    position: Vec3
+    """Camera centre."""
+    wxyz: tuple[float, float, float, float]
+    """Camera-to-world rotation (OpenCV axes: x right, y down, z forward)."""
+    fov_rad: float
+    """Vertical field of view, radians."""
+    aspect: float
+    """Window width / height."""
+    height_px: int
+    """Window height, pixels."""
+    corner_a: tuple[float, float]
+    """One corner of the rectangle (normalised window coordinates)."""
+    corner_b: tuple[float, float]
+    """The opposite corner."""
+
+
+@dataclass(frozen=True)
+class MeasurePick:
+    """A distance measured between two points of the rock (the Measure tab)."""
+
+    start: Vec3
+    """First point, metres, file frame."""
+    end: Vec3
+    """Second point, metres, file frame."""
+    number: int = 1
+    """Its number as listed (D1, D2, ...)."""
 
 
 @dataclass(frozen=True)
@@ -205,6 +264,12 @@ class View:
     camera: Camera | None = None
     crop: CropBox | None = None
     """The crop every analysis runs on, or None (all points)."""
+    measures: tuple[MeasurePick, ...] = ()
+    """The measured distances, oldest first (absent from views saved before them)."""
+    directions: DirectionsView | None = None
+    """The Directions folder's settings (None: absent, the app's defaults)."""
+    selection: SelectionView | None = None
+    """The Select tab's selection (None: none)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -358,6 +423,16 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
+    for key in ("directions", "selection"):  # written only when known: older versions
+        if d[key] is None:                   # read the rest
+            d.pop(key)
+    if "selection" in d:
+        d["selection"] = {k: list(v) if isinstance(v, tuple) else v
+                          for k, v in d["selection"].items()}
+    measures = d.pop("measures")
+    if measures:  # written only when there are some: older versions read the rest
+        d["measures"] = [{**m, "start": list(m["start"]), "end": list(m["end"])}
+                         for m in measures]
     if d["camera"] is not None:
         d["camera"] = {k: list(v) if isinstance(v, tuple) else v for k, v in d["camera"].items()}
     crop = d.pop("crop")
@@ -466,7 +541,8 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     r = _Reader(source)
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera", "crop"])
+                 "profiles", "zones", "camera", "crop", "measures", "directions",
+                 "selection"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -503,6 +579,10 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         threshold=r.number(top.get("threshold", 0.05), "threshold", 0.0, 1.0),
         colour=colour,
         panels=panels,
+        directions=_optional(top.get("directions"), lambda v: _directions(r, v)),
+        selection=_optional(top.get("selection"), lambda v: _selection(r, v)),
+        measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
+                       enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
         profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
                        enumerate(r.items(top.get("profiles", []), "profiles", MAX_PROFILES))),
         zones=_optional(top.get("zones"), lambda v: _zones(r, v)),
@@ -543,6 +623,52 @@ def _colour(r: _Reader, value: Any) -> ColourSettings:
         layer=r.choice(c.get("layer", default.layer), "colour.layer", COLOUR_LAYERS))
 
 
+def _directions(r: _Reader, value: Any) -> DirectionsView:
+    d = r.obj(value, "directions", [], ["step_deg", "spacing_m", "tin", "lines", "measured"])
+    default = DirectionsView()
+    return DirectionsView(
+        step_deg=r.number(d.get("step_deg", default.step_deg), "directions.step_deg", 1.0, 90.0),
+        spacing_m=_optional(d.get("spacing_m"), lambda v: r.number(
+            v, "directions.spacing_m", 0.0, 1e6, lo_open=True)),
+        tin=r.boolean(d.get("tin", default.tin), "directions.tin"),
+        lines=r.boolean(d.get("lines", default.lines), "directions.lines"),
+        measured=r.boolean(d.get("measured", default.measured), "directions.measured"))
+
+
+def _selection(r: _Reader, value: Any) -> SelectionView:
+    s = r.obj(value, "selection", ["position", "wxyz", "fov_rad", "aspect", "height_px",
+                                   "corner_a", "corner_b"])
+    q = s["wxyz"]
+    if not isinstance(q, list) or len(q) != 4:
+        raise r.fail("selection.wxyz", "must be a list of four numbers")
+    w, x, y, z = (r.number(v, f"selection.wxyz[{i}]", -1.0, 1.0) for i, v in enumerate(q))
+    if not 0.5 < w * w + x * x + y * y + z * z < 1.5:
+        raise r.fail("selection.wxyz", "must be a unit quaternion")
+
+    def corner(key: str) -> tuple[float, float]:
+        c = s[key]
+        if not isinstance(c, list) or len(c) != 2:
+            raise r.fail(f"selection.{key}", "must be a list of two numbers")
+        return (r.number(c[0], f"selection.{key}[0]", -1.0, 2.0),
+                r.number(c[1], f"selection.{key}[1]", -1.0, 2.0))
+
+    return SelectionView(
+        position=r.vec3(s["position"], "selection.position"), wxyz=(w, x, y, z),
+        fov_rad=r.number(s["fov_rad"], "selection.fov_rad", 0.0, 3.1, lo_open=True),
+        aspect=r.number(s["aspect"], "selection.aspect", 0.0, 100.0, lo_open=True),
+        height_px=r.integer(s["height_px"], "selection.height_px", 1, 100_000),
+        corner_a=corner("corner_a"), corner_b=corner("corner_b"))
+
+
+def _measure(r: _Reader, value: Any, where: str) -> MeasurePick:
+    m = r.obj(value, where, ["start", "end"], ["number"])
+    start, end = r.vec3(m["start"], f"{where}.start"), r.vec3(m["end"], f"{where}.end")
+    if start == end:
+        raise r.fail(where, "has the same start and end")
+    return MeasurePick(start=start, end=end,
+                       number=r.integer(m.get("number", 1), f"{where}.number", 1, 10**9))
+
+
 def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
     import pywt
 
@@ -570,7 +696,8 @@ def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
 
 
 def _zones(r: _Reader, value: Any) -> ZoneSettings:
-    z = r.obj(value, "zones", [], ["map", "connectivity", "min_cells", "selected"])
+    z = r.obj(value, "zones", [], ["map", "connectivity", "min_cells", "selected",
+                                   "threshold_rule"])
     default = ZoneSettings()
     return ZoneSettings(
         map=r.choice(z.get("map", default.map), "zones.map", MAPS),
@@ -579,6 +706,8 @@ def _zones(r: _Reader, value: Any) -> ZoneSettings:
         min_cells=r.integer(z.get("min_cells", default.min_cells), "zones.min_cells", 1, 10**9),
         selected=_optional(z.get("selected"),
                            lambda v: r.integer(v, "zones.selected", 1, 10**9)),
+        threshold_rule=r.choice(z.get("threshold_rule", "slider"), "zones.threshold_rule",
+                                ZONE_THRESHOLD_RULES),
     )
 
 

@@ -181,6 +181,56 @@ PANEL_WIDTH = 480
 CONTROL_WIDTH = PANEL_WIDTH + 80
 
 
+def category_legend_figure(
+    classes: tuple[tuple[float, str, str], ...],
+    *,
+    title: str = "",
+    counts: tuple[int, ...] | None = None,
+    no_value: int = 0,
+) -> go.Figure:
+    """Legend of a layer drawn by class (:data:`rough_viewer.visual.colormaps.
+    CATEGORIES`, e.g. the trusted flag): one swatch per class in its colour with its
+    name (and its count of cells), instead of a continuous colour bar.
+
+    Parameters
+    ----------
+    classes
+        Value, name and ``"#rrggbb"`` colour of each class.
+    title
+        Figure title.
+    counts
+        Cells of each class, shown with their share; None: names only.
+    no_value
+        Cells in the neutral grey (not judged), stated under the swatches.
+    """
+    names = [name for _v, name, _c in classes]
+    total = sum(counts) if counts else 0
+    if counts is not None:
+        names = [f"{n}: {c:,} cells ({100.0 * c / total:.0f} %)" if total else f"{n}: 0 cells"
+                 for n, c in zip(names, counts, strict=True)]
+    k = len(classes)
+    fig = go.Figure(go.Heatmap(
+        z=[list(range(k))], x=names, zmin=-0.5, zmax=k - 0.5, showscale=False,
+        colorscale=_steps(classes), xgap=6, hovertemplate="%{x}<extra></extra>"))
+    note = f"grey: not judged ({no_value:,} cells)" if no_value else ""
+    fig.update_layout(
+        title={"text": title, "font": {"size": 12}, "x": 0.01, "xanchor": "left"},
+        margin={"l": 12, "r": 12, "t": 30, "b": 52}, height=130,
+        xaxis={"type": "category", "showgrid": False, "tickfont": {"size": 11},
+               "title": {"text": f"<sup>{note}</sup>" if note else "", "standoff": 4}},
+        yaxis={"visible": False}, plot_bgcolor="white", meta={"categories": names})
+    return fig
+
+
+def _steps(classes: tuple[tuple[float, str, str], ...]) -> list[list[float | str]]:
+    """A plotly colour scale of one flat step per class (z = 0 .. k-1)."""
+    k = len(classes)
+    out: list[list[float | str]] = []
+    for i, (_v, _n, colour) in enumerate(classes):
+        out += [[i / k, colour], [(i + 1) / k, colour]]
+    return out
+
+
 def panel_aspect(fig: go.Figure, width: int = PANEL_WIDTH) -> float:
     """The ``aspect`` to give ``viser``'s ``add_plotly`` (which draws a figure
     ``aspect`` times as high as the panel is wide) so that ``fig`` gets the height

@@ -579,3 +579,28 @@ def zone_colours(labels: np.ndarray, *, none_rgb: tuple[int, int, int] = NEUTRAL
     out = table[(np.maximum(lab, 1) - 1) % len(ZONE_PALETTE)]
     out[lab <= 0] = np.asarray(none_rgb, dtype=np.uint8)
     return out
+
+
+#: Layers of a few classes drawn in one colour per class with a legend, not on a
+#: continuous ramp: value, name and colour of each class. ``trusted`` (the scanner's
+#: 0/1 flag, docs/scanner.md) takes the trust map's green for trusted
+#: (:data:`rough_viewer.visual.trust.TRUST_CLASSES`) and a red for not trusted.
+CATEGORIES: dict[str, tuple[tuple[float, str, str], ...]] = {
+    "trusted": ((0.0, "not trusted", "#d62728"), (1.0, "trusted", "#2ca02c")),
+}
+
+
+def category_colours(values: np.ndarray, classes: tuple[tuple[float, str, str], ...]
+                     ) -> np.ndarray:
+    """``(N, 3)`` uint8 colours of class values: each class's colour where a value
+    equals its value, the neutral grey elsewhere (NaN: not judged).
+
+    >>> category_colours(np.array([0.0, 1.0, np.nan]), CATEGORIES["trusted"]).tolist()
+    [[214, 39, 40], [44, 160, 44], [190, 190, 190]]
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    out = np.empty((v.shape[0], 3), dtype=np.uint8)
+    out[:] = np.asarray(NEUTRAL_RGB, dtype=np.uint8)
+    for value, _name, colour in classes:
+        out[v == value] = np.asarray(hex_to_rgb(colour), dtype=np.uint8)
+    return out

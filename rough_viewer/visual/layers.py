@@ -75,6 +75,10 @@ class ColourLayer:
     """Values at the ends of the map (None for RGB: no colour bar)."""
     colormap: str | None
     """Colour map name (None for RGB)."""
+    categories: tuple[tuple[float, str, str], ...] | None = None
+    """Value, name and colour of each class of a layer drawn by class
+    (:data:`rough_viewer.visual.colormaps.CATEGORIES`: the trusted flag), whose
+    legend lists the classes; None for a continuous layer."""
 
 
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
@@ -201,5 +205,9 @@ def trust_layer(name: str, values: np.ndarray, *,
     v = np.asarray(values, dtype=np.float64).ravel()
     rng = colour_range or colormaps.resolve(v, TRUST_STRETCHES[name])
     cmap = colormaps.default_colormap(name)
+    classes = colormaps.CATEGORIES.get(name)
+    if classes is not None:  # a flag: one colour per class, not a ramp
+        return ColourLayer(name, TRUST_LABELS[name], colormaps.category_colours(v, classes),
+                           rng, cmap, classes)
     return ColourLayer(name, TRUST_LABELS[name], colormaps.stretch_colours(v, rng, cmap), rng,
                        cmap)

@@ -155,7 +155,7 @@ def test_crop_in_the_app_and_compute_crop_give_the_same_cells(app_of, face_file,
     assert shown.loaded.crop.mode == mode
     mine = tmp_path / "app.csv"
     write_table(mine, cell_columns(shown.result, unit="m"),
-                metadata=table_metadata(shown.result, face_file.name, unit="m"))
+                metadata=table_metadata(shown.result, face_file.name, unit="m"), unit="m")
     cli = tmp_path / "cli.csv"
     assert main(["compute", str(face_file), "--grid", str(GRID), "--crop", box,
                  "--crop-mode", mode, "--out", str(cli), "--quiet"]) == 0
@@ -165,6 +165,67 @@ def test_crop_in_the_app_and_compute_crop_give_the_same_cells(app_of, face_file,
     inside = np.all((whole >= lo) & (whole <= hi), axis=1)
     assert shown.loaded.cloud.n == int(inside.sum() if mode == "keep" else (~inside).sum())
     assert "of 60,000 points are used" in f.status.content
+
+
+def test_crop_to_the_exact_selection_and_undo(app_of):
+    """Issue 31 item 16: a selection of 226,861 points cropped to the 239,125 of its
+    bounding box; 'Crop to selection (exact points)' keeps exactly the selected points
+    (against a brute-force pinhole projection), a second exact crop of the cropped
+    cloud keeps its selection's points of the whole cloud, and Undo gives every point
+    back."""
+    from rough_viewer.app.features.crop import L_EXACT, L_UNDO
+
+    app, server = app_of()
+    f = app.host.feature(CropFeature)
+    loaded = app.session.shown.loaded
+    whole = loaded.cloud.xyz()
+    client = join(server)
+    try:
+        eye = UTM + [1.5, -3.5, 1.8] - loaded.origin  # looking down on the face at a slant:
+        target = UTM + [1.8, 0.0, 0.9] - loaded.origin  # the selection is no box
+        client.look_from(eye, target, fov=0.9, width=1200, height=800)
+        settle(app, lambda: np.allclose(
+            server.get_clients()[client.client_id].camera.position, eye), "the camera")
+        rect = ((0.3, 0.25), (0.55, 0.7))
+        client.rect_select(*rect)
+        settle(app, lambda: f.selection is not None, "the selection")
+        ref = brute_force_rect(whole - loaded.origin, eye, target, 0.9, 1200, 800, *rect)
+        np.testing.assert_array_equal(f.selection.mask, ref)
+        lo, hi = whole[ref].min(axis=0), whole[ref].max(axis=0)
+        in_box = np.all((whole >= lo) & (whole <= hi), axis=1)
+        assert in_box.sum() > ref.sum() > 2_000  # the box holds more than the selection
+        client.press(L_EXACT)
+        settle(app, lambda: app.session.shown.loaded.crop_exact
+               and app.session.shown.result is not None
+               and app.session.shown.result.n_points_total == int(ref.sum()), "the exact crop")
+        kept = app.session.shown.loaded
+        assert kept.cloud.n == int(ref.sum())
+        np.testing.assert_array_equal(kept.cloud.xyz(), whole[ref])
+        np.testing.assert_array_equal(kept.crop_mask, ref)
+        assert kept.crop == CropBox(tuple(lo), tuple(hi), "keep")  # what a view holds
+        said = f.status.content.replace("\\", "")
+        assert f"Cropped to the selection's {int(ref.sum()):,} points" in said
+        assert "bounding box" in said
+        # a second exact crop, of a selection on the cropped cloud: its points of the whole
+        rect2 = ((0.35, 0.3), (0.45, 0.6))
+        client.rect_select(*rect2)
+        settle(app, lambda: f.selection is not None and f.selection.loaded is kept,
+               "the second selection")
+        ref2 = ref & brute_force_rect(whole - loaded.origin, eye, target, 0.9, 1200, 800, *rect2)
+        assert 100 < ref2.sum() < ref.sum()
+        client.press(L_EXACT)
+        settle(app, lambda: app.session.shown.loaded is not kept
+               and app.session.shown.loaded.cloud.n == int(ref2.sum())
+               and app.session.shown.result is not None
+               and app.session.shown.result.n_points_total == int(ref2.sum()), "the re-crop")
+        np.testing.assert_array_equal(app.session.shown.loaded.crop_mask, ref2)
+        client.press(L_UNDO)
+        settle(app, lambda: app.session.shown.loaded.crop is None
+               and app.session.shown.result is not None
+               and app.session.shown.result.n_points_total == 60_000, "the undo")
+        assert app.session.shown.loaded is loaded and list(app.host.errors) == []
+    finally:
+        client.close()
 
 
 def _corners(text):
@@ -327,3 +388,41 @@ def test_a_crop_of_a_cloud_served_by_a_relative_path_saves_its_view(face_file, t
     finally:
         app.stop()
         server.stop()
+
+
+def test_a_saved_view_keeps_the_selection(app_of, tmp_path):
+    """Issue 31 item 11: views kept no selection; a saved view holds the camera and
+    the rectangle that made it, and a fresh app given the view selects exactly the
+    same points (against the brute-force pinhole projection)."""
+    from rough_viewer.app.views import view_of
+    from rough_viewer.report.view import InputRef, save_view
+
+    app, server = app_of()
+    f = app.host.feature(CropFeature)
+    loaded = app.session.shown.loaded
+    client = join(server)
+    try:
+        eye = UTM + [1.5, -2.5, 1.2] - loaded.origin
+        target = UTM + [1.8, 0.0, 0.9] - loaded.origin
+        client.look_from(eye, target, fov=0.9, width=1200, height=800)
+        settle(app, lambda: np.allclose(
+            server.get_clients()[client.client_id].camera.position, eye), "the camera")
+        rect = ((0.35, 0.3), (0.6, 0.75))
+        client.rect_select(*rect)
+        settle(app, lambda: f.selection is not None, "the selection")
+    finally:
+        client.close()
+    ref = brute_force_rect(loaded.cloud.xyz() - loaded.origin, eye, target, 0.9, 1200, 800,
+                           *rect)
+    assert ref.sum() > 2_000 and np.array_equal(f.selection.mask, ref)
+    inp = InputRef(path=str(tmp_path / "face.las"), sha256="0" * 64, size_bytes=1)
+    saved = load_view(save_view(tmp_path / "v.json", view_of(app.host, inp, camera=None)),
+                      check=False).view
+    assert saved.selection is not None and saved.selection.corner_a == rect[0]
+    other, _ = app_of()
+    apply_view(other.host, saved)
+    assert other.wait_idle(120) and list(other.host.errors) == []
+    g = other.host.feature(CropFeature)
+    assert g.selection is not None
+    np.testing.assert_array_equal(g.selection.mask, ref)
+    assert f"**{int(ref.sum()):,} points selected**" in g.note.content

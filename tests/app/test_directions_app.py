@@ -83,3 +83,45 @@ def test_directions_yield_to_loads_and_crops_between_azimuths():
         analyse_directions(cloud, DirectionSettings(step_deg=1.0, tin=False),
                            progress=progress)
     assert len(calls) == 2 and calls[-1][0] < 0.02 * calls[-1][1]
+
+
+def test_a_saved_view_keeps_the_directions_settings_and_measures_them_again(sheet_app,
+                                                                          tmp_path):
+    """Issue 31 item 11: views kept no directions; a saved view holds the step, line
+    spacing, triangle parameters, lines shown and whether they were measured, and a
+    fresh app given the view shows those settings and the library's numbers."""
+    import viser
+
+    from rough_viewer.app.views import apply_view, view_of
+    from rough_viewer.report.view import DirectionsView, InputRef, load_view, save_view
+
+    app, cloud = sheet_app
+    f = app.feature(DirectionsFeature)
+    f.step.value = 30.0
+    f.spacing.value = 0.25
+    f.lines.value = False
+    f.measure.value = True
+    assert app.wait_idle(120) and f.result is not None
+    ref_in = InputRef(path=str(tmp_path / "sheet.npy"), sha256="0" * 64, size_bytes=1)
+    saved = load_view(save_view(tmp_path / "v.json", view_of(app.host, ref_in, camera=None)),
+                      check=False).view
+    assert saved.directions == DirectionsView(step_deg=30.0, spacing_m=0.25, tin=False,
+                                              lines=False, measured=True)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    other = build_app(server, cloud, prefetch=False, variogram=False)
+    try:
+        assert other.wait_idle(60)
+        g = other.feature(DirectionsFeature)
+        assert g.step.value == 15.0 and g.result is None
+        apply_view(other.host, saved)
+        assert other.wait_idle(120) and list(other.host.errors) == []
+        assert (g.step.value, g.spacing.value, g.tin.value, g.lines.value) == \
+            (30.0, 0.25, False, False)
+        ref = analyse_directions(cloud, DirectionSettings(step_deg=30.0, spacing=0.25))
+        assert g.result is not None and list(g.result.azimuth_deg) == list(ref.azimuth_deg)
+        for a, b in zip(g.result.sets, ref.sets, strict=True):
+            np.testing.assert_allclose(a.values["hurst"], b.values["hurst"], equal_nan=True)
+        assert g.nodes and all(not n.visible for n in g.nodes)  # the lines hidden, as saved
+    finally:
+        other.stop()
+        server.stop()

@@ -96,7 +96,9 @@ def test_cell_table_parquet(exported):
         client.set_value(em.L_TABLE_FORMAT, "CSV")
     table = pq.read_table(io.BytesIO(data))
     want = cell_columns(app.session.shown.result)
-    assert table.column_names == list(want)
+    assert table.column_names == [*want, "unit_m"]  # the table says its unit: metres
+    assert set(table.column("unit_m").to_pylist()) == {1.0}
+    assert table.schema.metadata[b"rough_viewer.unit"] == b"m"
     for col, values in want.items():
         got = table.column(col).to_numpy(zero_copy_only=False).astype(np.float64)
         np.testing.assert_array_equal(np.nan_to_num(got, nan=-1.0),
@@ -392,3 +394,47 @@ def test_the_sent_note_goes_with_its_cloud(server):
         assert mode.status.content == ""
     finally:
         app.stop()
+
+
+def test_a_millimetre_cloud_exports_ply_and_table_in_millimetres(tmp_path):
+    """Issue 31 item 9: the app's PLY of a mm scan was in metres while its cell table
+    was in mm; both are in mm now, and each says so (the PLY's comment, the table's
+    unit_m column)."""
+    import viser
+    from plyfile import PlyData
+
+    from rough_viewer.app.server import build_app
+
+    mm = face_cloud(4000, seed=3).xyz() - [500_000.0, 4_000_000.0, 0.0]
+    path = tmp_path / "joint.npy"
+    np.save(path, mm * 1000.0)  # a lab scan in millimetres
+    cloud = load_points(path, units="mm")
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = build_app(server, cloud, prefetch=False, data_dir=tmp_path,
+                    settings=MapSettings(cell_size=0.25))
+    client = ProtocolClient(server.get_port())
+    try:
+        assert app.wait_idle(60)
+        client.wait_for(lambda m: m.get("type") == "GuiButtonMessage"
+                        and m["props"].get("label") == em.L_VIEW, what="the Export folder")
+        client.set_value(em.L_POINTS_FORMAT, "PLY")
+        name, data = _download(client, app, em.L_POINTS, "_points.ply")
+        assert name == "joint_g250mm_points.ply"
+        ply = PlyData.read(io.BytesIO(data))
+        vertex = ply["vertex"]
+        shown = app.session.shown.loaded.cloud
+        np.testing.assert_allclose(vertex["x"], shown.x * 1000.0, rtol=1e-12)
+        np.testing.assert_allclose(vertex["z"], shown.z * 1000.0, rtol=1e-12)
+        theta = point_fields(app.session.shown.result).gather(0, shown.n)[0]
+        np.testing.assert_allclose(vertex["theta_odr"], theta * 1000.0, rtol=1e-6)
+        assert any(c.startswith("rough_viewer.unit mm (x, y, z, theta_odr") for c in ply.comments)
+        _, table = _download(client, app, em.L_TABLE, "_cells.csv")
+        rows = _csv_rows(table)
+        want = cell_columns(app.session.shown.result)
+        np.testing.assert_allclose([float(r["cx"]) for r in rows], want["cx"] * 1000.0,
+                                   rtol=1e-12)
+        assert {r["unit_m"] for r in rows} == {"0.001"}
+    finally:
+        client.close()
+        app.stop()
+        server.stop()

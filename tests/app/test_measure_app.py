@@ -122,3 +122,47 @@ def test_a_long_measure_over_a_ridge_is_drawn_where_it_is_labelled(measuring):
     assert all(not d._impl.props.depth_test for d in dots)
     np.testing.assert_allclose(label.position, 0.5 * (la + lb), atol=1e-6)
     assert not label._impl.props.depth_test
+
+
+def test_a_saved_view_keeps_the_measures_and_serve_view_restores_them(measuring, tmp_path):
+    """Issue 31 item 11: views kept no measures; a saved view holds each measure's two
+    points and number, and putting the view back on a fresh app lists and draws the
+    same distances (against the points' own distance), numbering on after them."""
+    import viser
+
+    from rough_viewer.app.views import apply_view, view_of
+    from rough_viewer.report.view import InputRef, load_view, save_view
+
+    app, m = measuring
+    pairs = [(point(app, 20, 30), point(app, 60, 30)), (point(app, 10, 5), point(app, 190, 50))]
+    for a, b in pairs:
+        click(app, a)
+        click(app, b)
+    assert [k for k, *_ in m.items] == [1, 2]
+    ref = InputRef(path=str(tmp_path / "ridge.npy"), sha256="0" * 64, size_bytes=1)
+    saved = load_view(save_view(tmp_path / "v.json", view_of(app.host, ref, camera=None)),
+                      check=False).view
+    assert [(mp.number, np.array(mp.start), np.array(mp.end)) for mp in saved.measures] \
+        and all(np.array_equal(mp.start, a) and np.array_equal(mp.end, b)
+                for mp, (a, b) in zip(saved.measures, pairs, strict=True))
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    other = build_app(server, ridge(), prefetch=False, variogram=False,
+                      settings=MapSettings(cell_size=10.0), presets=(20.0, 10.0))
+    try:
+        assert other.wait_idle(120)
+        apply_view(other.host, saved)
+        assert other.wait_idle(120) and list(other.host.errors) == []
+        n = other.host.feature(MeasureFeature)
+        assert [k for k, *_ in n.items] == [1, 2] and n.count == 2
+        for (_k, d, nodes), (a, b) in zip(n.items, pairs, strict=True):
+            assert d.distance_m == pytest.approx(float(np.linalg.norm(b - a)), rel=1e-12)
+            assert len(nodes) == 2 + LINE_DOTS
+        assert f"{np.linalg.norm(pairs[1][1] - pairs[1][0]):.4g} m" in n.note.content
+        # the next measure is D3
+        n.on.value = True
+        click(other, pairs[0][0])
+        click(other, pairs[0][1])
+        assert [k for k, *_ in n.items] == [1, 2, 3]
+    finally:
+        other.stop()
+        server.stop()

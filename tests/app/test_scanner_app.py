@@ -135,3 +135,29 @@ def test_the_exports_carry_the_scanner_columns_compute_writes(server, tmp_path):
     inc = cell_trust(cloud, ref, TrustSettings()).layer("incidence_deg")[ref.point_cell]
     np.testing.assert_allclose(np.asarray(a["incidence_deg"], dtype=np.float64), inc,
                                rtol=1e-6, equal_nan=True)
+
+
+def test_the_trusted_flag_is_drawn_in_two_colours_with_a_legend(scanned):
+    """Issue 31 item 16: the 0/1 'trusted' layer was drawn on a continuous ramp; it is
+    two colours (green trusted, red not, grey not judged) with a legend of the two
+    classes and their cells."""
+    from rough_viewer.vocabulary import hex_to_rgb
+
+    app, cloud, settings = scanned
+    loaded = app.session.shown.loaded
+    ref = grid_roughness(cloud, 0.4)
+    flag = cell_trust(cloud, ref, settings).layer("trusted")
+    app.map.layer.value = COLOUR_LAYER_LABELS["trusted"]
+    assert app.wait_idle(120) and list(app.host.errors) == []
+    per_point = flag[ref.point_cell[loaded.display_index]]
+    want = np.where((per_point == 1)[:, None], hex_to_rgb("#2ca02c"),
+                    np.where((per_point == 0)[:, None], hex_to_rgb("#d62728"), (190, 190, 190)))
+    np.testing.assert_array_equal(shown_colours(app), want)
+    assert len({tuple(c) for c in shown_colours(app).tolist()}) <= 3
+    fig = app.map.colour_bar.figure
+    assert fig.data[0].type == "heatmap" and len(fig.data[0].x) == 2
+    n1, n0 = int(np.sum(flag == 1)), int(np.sum(flag == 0))
+    assert n1 + n0 > 0
+    names = list(fig.data[0].x)
+    assert names[0].startswith(f"not trusted: {n0:,} cells")
+    assert names[1].startswith(f"trusted: {n1:,} cells")

@@ -198,7 +198,7 @@ def test_zones_kept_as_data_without_a_zones_mode(scan, server, monkeypatch):
         assert app.session.shown.settings.stretch == Stretch("percentile", 5.0, 95.0, log=False)
         again = _saved_again(app, server)
         assert again["zones"] == {"map": "hybrid", "connectivity": "face", "min_cells": 4,
-                                  "selected": 2}
+                                  "selected": 2, "threshold_rule": "auto"}
         assert again["colour"]["stretch"] == "percentile" and again["colour"]["range"] == [5, 95]
         assert again["grid"] == {"cell_size_m": 0.5, "min_points": 5, "axis": "z"}
     finally:

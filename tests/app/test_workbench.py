@@ -163,6 +163,35 @@ def test_a_cloud_in_millimetres_is_shown_in_millimetres(server, tmp_path):
     app.stop()
 
 
+def test_a_click_gives_every_roughness_to_three_significant_digits(server):
+    """Issue 31 item 16: on a millimetre face e_ols was "0.0005048 mm" beside the
+    others' 3 decimals; every roughness of a click's report now has 3 significant
+    digits, in µm under 0.01 mm."""
+    from dataclasses import replace as with_unit
+
+    from rough_viewer.io import PointCloud
+
+    rng = np.random.default_rng(4)  # a lab joint: 200 x 100 mm, 20 µm noise, tilted
+    x, z = rng.uniform(0, 200, 20_000), rng.uniform(0, 100, 20_000)
+    mm = np.c_[x, 0.2 * x + 0.02 * rng.standard_normal(x.size), z]
+    cloud = with_unit(PointCloud.from_xyz(mm / 1000.0, source="joint"), source_unit="mm")
+    app = build_app(server, cloud, prefetch=False)
+    try:
+        assert app.wait_idle(60)
+        loaded = app.session.shown.loaded
+        info = pick(app, loaded.display_points[10].astype(float) + [0, -5, 0], (0, 1, 0))
+        assert info is not None
+        said = app.map.pick.content
+        for name, label in (("odr", "θ ODR "), ("hybrid", "θ hybrid "), ("e_ols", "e_ols ")):
+            v_mm = info.theta[name] * 1000.0
+            assert np.isfinite(v_mm) and v_mm > 0
+            text = (f"{v_mm * 1000:.3g} µm" if v_mm < 0.01 else f"{v_mm:.3g} mm")
+            assert label + text in said, (name, said)
+        assert info.theta["e_ols"] * 1000.0 < 0.01  # this face's e_ols is in µm
+    finally:
+        app.stop()
+
+
 def test_a_cloud_in_feet_shows_roughness_in_feet(server):
     cloud = replace(face_cloud(8_000), source_unit="ft")
     app = build_app(server, cloud, prefetch=False)

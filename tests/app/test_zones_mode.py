@@ -415,3 +415,70 @@ def test_the_cell_table_download_carries_the_zones_shown(server, banded, tmp_pat
     assert [(r["ix"], r["iy"], r["iz"], r["zone"]) for r in mine] == \
         [(r["ix"], r["iy"], r["iz"], r["zone"]) for r in theirs]
     assert len({r["zone"] for r in mine}) >= 4  # three zones and none
+
+
+def graded_face(n=120_000, seed=5):
+    """A vertical face (facing -y) of three roughness levels side by side along x: 1 mm
+    noise on the first 30 %, 4 mm on the next 45 %, 12 mm on the rest. At the paper's
+    0.05 the 4 mm and 12 mm cells are all rough (about 70 % of the face)."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-4.0, 4.0, n)
+    z = rng.uniform(-3.0, 3.0, n)
+    sigma = np.select([x < -1.6, x < 2.0], [0.001, 0.004], 0.012)
+    y = rng.standard_normal(n) * sigma
+    return PointCloud.from_xyz(np.c_[x, y, z] + [500_000.0, 4_000_000.0, 100.0],
+                               source="graded-face")
+
+
+def test_zones_use_the_datas_threshold_when_the_papers_flags_most(server):
+    """Issue 31 item 8 (the app): with the slider at the paper's 0.05 and 0.05 flagging
+    more than half of the cells, the Zones tab labels at the data's own threshold (the
+    rule of ``rough-viewer zones``), says so, and shows it on its slider; "the
+    slider's" rule keeps the paper's 0.05; a threshold moved to is used as it is."""
+    from rough_viewer.app.features.zones import RULE_AUTO, RULE_SLIDER
+    from rough_viewer.cli.zones import zones_threshold
+    from rough_viewer.grid.outliers import analysed_values
+
+    app = build_app(server, graded_face(), prefetch=False, presets=PAPER_PRESETS,
+                    settings=MapSettings(cell_size=0.25))
+    try:
+        assert app.wait_idle(60) and app.map.threshold.value == 0.05
+        m = app.feature(ZonesFeature)
+        assert m.rule.value == RULE_AUTO
+        m.on.value = True
+        assert app.wait_idle(60)
+        res = app.session.shown.result
+        v = analysed_values(res, "odr")
+        v = v[np.isfinite(v)]
+        norm = (v - v.min()) / (v.max() - v.min())
+        assert 0.6 < np.mean(norm >= 0.05) < 0.8  # the paper's flags most of the face
+        want, _ = zones_threshold(res, "odr", None)  # the command line's choice
+        lab = m.labelling
+        assert want != 0.05 and lab.params.threshold == want
+        assert np.array_equal(lab.labels, core_labels(app, want))
+        said = m.status.content.replace("\\", "")  # markdown escapes
+        assert f"Threshold {want:.3g}, the data's own" in said and RULE_SLIDER in said
+        assert m.threshold.value == want and app.map.threshold.value == 0.05
+        assert m.settings().threshold_rule == "auto"
+        # the paper's value, as zones --threshold 0.05
+        m.rule.value = RULE_SLIDER
+        assert app.wait_idle(60)
+        assert m.labelling.params.threshold == 0.05 and m.threshold.value == 0.05
+        assert np.array_equal(m.labelling.labels, core_labels(app, 0.05))
+        assert "the data's own" not in m.status.content
+        assert m.settings().threshold_rule == "slider"
+        # under the data's rule a threshold moved to is the user's
+        m.rule.value = RULE_AUTO
+        assert app.wait_idle(60) and m.labelling.params.threshold == want
+        app.map.threshold.value = 0.3
+        assert app.wait_idle(60)
+        assert m.labelling.params.threshold == 0.3 and m.threshold.value == 0.3
+        assert np.array_equal(m.labelling.labels, core_labels(app, 0.3))
+        # a saved view keeps the rule
+        app.map.threshold.value = 0.05
+        m.apply(ZoneSettings(threshold_rule="slider"))
+        assert app.wait_idle(60)
+        assert m.rule.value == RULE_SLIDER and m.labelling.params.threshold == 0.05
+        assert list(app.host.errors) == []
+    finally:
+        app.stop()

@@ -86,7 +86,8 @@ def test_directions_csv_contract_on_a_sawtooth_mesh(sawtooth_stl, tmp_path, caps
     api = directions_table(analyse_directions(cloud, settings,
                                               mesh=load_mesh(sawtooth_stl, units="mm")),
                            unit="mm")
-    for name in head:
+    assert head[-1] == "unit_m" and np.all(cols["unit_m"] == 0.001)  # the file says: mm
+    for name in head[:-1]:
         np.testing.assert_allclose(cols[name], api[name], rtol=1e-12, equal_nan=True)
 
 
@@ -107,7 +108,8 @@ def test_cloud_is_triangulated_and_windows_written(tmp_path, capsys):
     assert head[:11] == CONTRACT + ["delta_t"] and cols["azimuth_deg"].size == 8
     assert np.all(np.isfinite(cols["delta_t"])) and np.all(cols["profiles"] > 0)
     whead, wcols = read_csv(win)
-    assert whead == ["cx", "cy", "cz", "area", "azimuth_deg", "delta_t", "theta_max_c1"]
+    assert whead == ["cx", "cy", "cz", "area", "azimuth_deg", "delta_t", "theta_max_c1",
+                     "unit_m"] and np.all(wcols["unit_m"] == 1.0)
     n_win = wcols["cx"].size // 8
     assert n_win >= 4 and wcols["cx"].size == 8 * n_win
     np.testing.assert_array_equal(wcols["azimuth_deg"][:8], np.arange(0, 360, 45.0))

@@ -20,9 +20,9 @@ SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,
                "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,"
                "face_parallel,face_angle_deg,odr_mean,odr_median,odr_std,theta_max_c1_dip,"
                "theta_max_c1_strike,delta_t_dip,delta_t_strike,jrc_estimate_dip,"
-               "jrc_estimate_strike")
+               "jrc_estimate_strike,unit_m")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
-                 "persistence_strike,rms,cells")
+                 "persistence_strike,rms,cells,unit_m")
 G = 0.5
 
 
@@ -55,7 +55,7 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     ref = joint_sets(result, cloud)
     header, rows = read_csv(out["sets"])
     assert ",".join(header) == SETS_HEADER and len(rows) == ref.n_sets == 3
-    table = ref.set_table()
+    table = {**ref.set_table(), "unit_m": np.ones(ref.n_sets)}  # the file says: metres
     for k, row in enumerate(rows):
         for name, text in zip(header, row, strict=True):
             if text == "":  # no value (joints that no scanline crosses twice)
@@ -73,11 +73,12 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     assert [float(r[1]) for r in rows] == list(ref.planes.dip_direction_deg)
     assert {r[2] for r in rows} == {"1"}
     header, rows = read_csv(out["cells"])
-    assert tuple(header) == (*CSV_COLUMNS, "set_id", "plane_id")
+    assert tuple(header) == (*CSV_COLUMNS[:-1], "set_id", "plane_id", "unit_m")
     keep = result.n_points >= result.min_points
     assert len(rows) == int(keep.sum())
-    assert [int(r[-2]) for r in rows] == list(ref.cell_set[keep])
-    assert [int(r[-1]) for r in rows] == list(ref.cell_plane[keep])
+    assert [int(r[-3]) for r in rows] == list(ref.cell_set[keep])
+    assert [int(r[-2]) for r in rows] == list(ref.cell_plane[keep])
+    assert {r[-1] for r in rows} == {"1.0"}
     text = capsys.readouterr().out
     assert "3 sets" in text and "wrote" in text
 
@@ -95,8 +96,9 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     assert len(rows_m) == len(rows_mm) == 3
     lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
                "persistence_mean", "odr_mean", "odr_median", "odr_std"}
+    assert {r[-1] for r in rows_m} == {"1.0"} and {r[-1] for r in rows_mm} == {"0.001"}
     for a, b in zip(rows_m, rows_mm, strict=True):
-        for name, x, y in zip(h, a, b, strict=True):
+        for name, x, y in zip(h[:-1], a[:-1], b[:-1], strict=True):
             scale = 1000.0 if name in lengths else 1.0
             if x == "" or y == "":
                 assert x == y
@@ -230,7 +232,8 @@ def test_joints_out_and_summary_json(tmp_path, block):
     ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud)
     header, rows = read_csv(out["joints"])
     assert ",".join(header) == ("joint_id,set_id,dip_deg,dip_direction_deg,cx,cy,cz,patches,"
-                                "area,trace_length,persistence_dip,persistence_strike,rms")
+                                "area,trace_length,persistence_dip,persistence_strike,rms,"
+                                "unit_m")
     assert len(rows) == ref.joints.n_joints > 0
     assert sum(int(r[header.index("patches")]) for r in rows) == ref.planes.n_planes
     ph, prow = read_csv(out["planes"])
@@ -268,7 +271,7 @@ def test_set_roughness_in_sets_csv_summary_json_and_terminal(tmp_path, block, ca
     header, rows = read_csv(out)
     tail = ("odr_mean", "odr_median", "odr_std", "theta_max_c1_dip", "theta_max_c1_strike",
             "delta_t_dip", "delta_t_strike", "jrc_estimate_dip", "jrc_estimate_strike")
-    assert tuple(header[-len(tail):]) == tail
+    assert tuple(header[-len(tail) - 1:-1]) == tail and header[-1] == "unit_m"
     col = {name: np.array([float(row[header.index(name)] or "nan") for row in rows])
            for name in tail}
     for name in tail:  # exact round trip, empty where there is no value
@@ -335,7 +338,7 @@ def test_the_hillside_is_flagged_in_every_output(tmp_path, capsys):
     assert fa == fp + 1 and header[fp - 1] == "persistence_mean"
     assert rows[0][fp] == "1" and float(rows[0][fa]) == ref.face_angle_deg[0]
     header, rows = read_csv(out["dips"])
-    assert header[-1] == "FACE_PARALLEL" and {r[-1] for r in rows} == {"1"}
+    assert header[-2:] == ["FACE_PARALLEL", "unit_m"] and {r[-2] for r in rows} == {"1"}
     data = json.loads(summary.read_text())
     assert data["face_parallel_sets"] == [1] and data["sets_counted_in_jv"] == 0
     assert data["jv"] is None and data["sets"][0]["face_parallel"] == 1

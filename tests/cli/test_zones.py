@@ -13,14 +13,14 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller
+from rough_viewer.grid.zones import ZONE_COLUMNS, ZONE_FILE_COLUMNS, ZoneLabeller
 from rough_viewer.io import PointCloud, write_las
 from tests.helpers import banded_face
 
 BANDS = [(-1.3, -1.6, 5.0, 0.6, 0.0), (2.3, 1.0, 3.4, 0.6, 60.0)]
 
 HEADER = ("zone,cells,points,area_m2,length_m,width_m,trace_azimuth_deg,trace_plunge_deg,"
-          "dip_deg,dip_direction_deg,mean_theta,max_theta,cx,cy,cz")
+          "dip_deg,dip_direction_deg,mean_theta,max_theta,cx,cy,cz,area,length,width,unit_m")
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_zones_csv_and_cells_csv_contract(tmp_path, face, capsys):
                  "--cells-out", str(cells), "--quiet"]) == 0
     header, rows = read_csv(out)
     assert ",".join(header) == HEADER
-    assert tuple(header) == ZONE_COLUMNS
+    assert tuple(header) == (*ZONE_COLUMNS, *ZONE_FILE_COLUMNS, "unit_m")
     # the same numbers as the library, at full precision (exact round trip)
     from rough_viewer.io import load_points
 
@@ -51,8 +51,9 @@ def test_zones_csv_and_cells_csv_contract(tmp_path, face, capsys):
     zones = ZoneLabeller.build(ref).zones(0.2)
     assert len(rows) == zones.n_zones == 2
     for k, row in enumerate(rows):
-        for name, text in zip(header, row, strict=True):
-            expected = zones.table()[name][k]
+        assert float(row[-1]) == 1.0  # the file says its unit: metres
+        for name, text in zip(header[:-1], row[:-1], strict=True):
+            expected = zones.file_table()[name][k]
             if name in ("zone", "cells", "points"):
                 assert int(text) == expected
             else:
@@ -61,16 +62,16 @@ def test_zones_csv_and_cells_csv_contract(tmp_path, face, capsys):
     assert int(rows[0][1]) >= int(rows[1][1])
     # cells: compute's columns plus zone, for cells with at least min_points points
     header, crow = read_csv(cells)
-    assert tuple(header) == (*CSV_COLUMNS, "zone")
+    assert tuple(header) == (*CSV_COLUMNS[:-1], "zone", "unit_m")
     keep = ref.n_points >= ref.min_points
     assert len(crow) == int(keep.sum())
     by_key = {tuple(int(v) for v in r[:3]): r for r in crow}
     for i in np.flatnonzero(keep):
         r = by_key[tuple(int(v) for v in ref.ijk[i])]
-        assert int(r[-1]) == zones.labels[i]
+        assert int(r[-2]) == zones.labels[i] and float(r[-1]) == 1.0
         assert float(r[CSV_COLUMNS.index("theta_odr")]) == ref.theta_odr[i]
         assert r[CSV_COLUMNS.index("theta_ols")] != ""  # all three models, as compute
-    assert sum(int(r[-1]) > 0 for r in crow) == zones.cells.sum()
+    assert sum(int(r[-2]) > 0 for r in crow) == zones.cells.sum()
     text = capsys.readouterr().out
     assert "2 zones" in text and "dip 40.0, dip direction 150.0" in text
 
@@ -153,7 +154,10 @@ def face_mm(tmp_path_factory):
     return path
 
 
-def test_units_mm_grid_and_summary_in_mm_zones_csv_in_metres(tmp_path, face, face_mm, capsys):
+def test_units_mm_grid_summary_and_zones_csv_in_mm(tmp_path, face, face_mm, capsys):
+    """Issue 31 item 9: ZONES.csv follows --units as sets --out does (it was always in
+    metres): the centroid, roughness, area, length and width in mm, its unit column
+    'mm'; area_m2, length_m and width_m stay in metres, as named."""
     m_out, mm_out = tmp_path / "m.csv", tmp_path / "mm.csv"
     assert main(["zones", str(face), "--grid", "0.2", "--threshold", "0.2", "--out", str(m_out),
                  "--quiet"]) == 0
@@ -169,19 +173,33 @@ def test_units_mm_grid_and_summary_in_mm_zones_csv_in_metres(tmp_path, face, fac
     from rough_viewer.io import load_points
 
     ref = ZoneLabeller.build(grid_roughness(load_points(face_mm, units="mm"), 0.2)).zones(0.2)
-    table = ref.table()
+    col = {name: i for i, name in enumerate(header_mm)}
     for k, row in enumerate(rows_mm):
-        assert [float(t) for t in row] == [float(table[name][k]) for name in header_mm]
-    # and the metres file's zones (the same points; *1000 rounding may move a point)
+        assert float(row[-1]) == 0.001 and float(rows_m[k][-1]) == 1.0
+        # in mm: the centroid, roughness and the unit-less area, length, width
+        for a in range(3):
+            assert float(row[col[("cx", "cy", "cz")[a]]]) == ref.centroid[k, a] / 1e-3
+        assert float(row[col["mean_theta"]]) == ref.mean_theta[k] / 1e-3
+        assert float(row[col["max_theta"]]) == ref.max_theta[k] / 1e-3
+        assert float(row[col["area"]]) == ref.area_m2[k] / 1e-6
+        assert float(row[col["length"]]) == ref.length_m[k] / 1e-3
+        assert float(row[col["width"]]) == ref.width_m[k] / 1e-3
+        # the columns named in metres stay in metres
+        assert float(row[col["area_m2"]]) == ref.area_m2[k]
+        assert float(row[col["length_m"]]) == ref.length_m[k]
+    # and the metres file's zones (the same points; *1000 rounding may move a point):
+    # the same in metres, times 1000 (or 10^6) where the mm file is in mm
+    factor = np.array([1e3 if n in ("mean_theta", "max_theta", "cx", "cy", "cz", "length",
+                                    "width") else 1e6 if n == "area" else 1.0
+                       for n in header_mm[:-1]])
     for a, b in zip(rows_m, rows_mm, strict=True):
-        np.testing.assert_allclose(np.array(b, dtype=float), np.array(a, dtype=float),
-                                   rtol=1e-3)
+        np.testing.assert_allclose(np.array(b[:-1], dtype=float),
+                                   np.array(a[:-1], dtype=float) * factor, rtol=1e-3)
     area_m2 = sum(float(r[3]) for r in rows_mm)
     assert "grid 200 mm" in text
-    assert f"{area_m2 * 1e6:.4g} mm2 of face (ZONES.csv: {area_m2:.4g} m2; it is always in " \
-        "metres)" in text
+    assert f"{area_m2 * 1e6:.4g} mm2 of face" in text and "always in metres" not in text
     assert "area mm2" in text and "mean theta mm" in text
-    assert "(lengths in mm here; ZONES.csv holds area_m2, length_m, width_m" in text
+    assert "(ZONES.csv: lengths in mm, its unit_m column" in text
 
 
 def test_the_threshold_is_judged_and_the_data_suggest_one(tmp_path, face, capsys):
@@ -215,8 +233,9 @@ def test_units_mm_cells_csv_is_computes_cell_table(tmp_path, face_mm):
                  str(computed), "--quiet"]) == 0
     header, rows = read_csv(cells)
     ref_header, ref_rows = read_csv(computed)
-    assert header == [*ref_header, "zone"]
-    assert [r[:-1] for r in rows] == ref_rows  # the same text: lengths in mm, as compute
+    assert header == [*ref_header[:-1], "zone", "unit_m"] and ref_header[-1] == "unit_m"
+    # the same text: lengths in mm, as compute
+    assert [r[:-2] + r[-1:] for r in rows] == ref_rows and float(rows[0][-1]) == 0.001
     assert float(ref_rows[0][ref_header.index("cx")]) > 100  # millimetres, not metres
 
 

@@ -72,3 +72,27 @@ def test_a_cloud_smaller_than_the_target_gets_one_cell_of_every_point(n):
     assert math.isfinite(g) and g < 20.0  # the cloud spans 3 m
     keys = np.floor((pts - pts.min(axis=0)) / g)
     assert np.all(keys == 0)  # brute force: every point in the first cell
+
+
+def test_a_cloud_in_us_feet_gets_round_sizes_in_us_feet():
+    """Issue 31 item 9: presets of a cloud in US survey feet were nice in metres (16
+    and 32 m read 52.4933 and 104.987 US ft); they are round in its own unit now,
+    with at least the target points per typical cell, in the app and the report."""
+    from dataclasses import replace
+
+    from rough_viewer.app.state import Units, grid_presets
+    from rough_viewer.io import PointCloud
+    from rough_viewer.report.build import default_report_grids
+    from rough_viewer.vocabulary import UNIT_METRES
+
+    per = UNIT_METRES["us-ft"]
+    xyz = lattice(0.9 * per, 150)  # a lattice of 0.9 US ft, given in metres
+    cloud = replace(PointCloud.from_xyz(xyz), source_unit="us-ft")
+    g = default_cell_size(cloud)
+    assert g / per == pytest.approx(4.0, rel=1e-9)  # 4 x 4 lattice points, 4 US ft
+    assert median_cell_count(xyz, g) >= TARGET_POINTS
+    assert default_cell_size(xyz) == pytest.approx(1.25)  # read in metres: 1.25 m
+    shown = [Units("us-ft").size_text(s) for s in grid_presets(cloud)]
+    assert shown == ["32 US ft", "16 US ft", "8 US ft", "4 US ft"]
+    assert [round(s / per, 9) for s in preset_cell_sizes(cloud)] == [32.0, 16.0, 8.0, 4.0]
+    assert all(float(f"{s / per:.9g}").is_integer() for s in default_report_grids(cloud))

@@ -28,7 +28,7 @@ def test_ply_round_trip(tmp_path):
     assert b"format binary_little_endian 1.0" in head and b"property double x" in head
     ply = PlyData.read(str(path))
     v = ply["vertex"].data
-    assert ply.comments == ["grid 0.5 m"]
+    assert ply.comments == ["grid 0.5 m", "rough_viewer.unit m (x, y, z)"]  # its unit
     # coordinates bit for bit, properties equal to the result's per-point values
     np.testing.assert_array_equal(np.column_stack([v["x"], v["y"], v["z"]]), xyz)
     np.testing.assert_array_equal(v["intensity"], cloud.intensity)
@@ -61,3 +61,25 @@ def test_compute_ply_out_several_grids(tmp_path):
         ref = grid_roughness(xyz, g)
         np.testing.assert_array_equal(v["theta_odr"],
                                       ref.theta_odr[ref.point_cell].astype(np.float32))
+
+
+def test_ply_in_millimetres_says_so(tmp_path):
+    """Issue 31 item 9: a PLY in the cloud's unit: coordinates and the length fields
+    divided by the unit's metres, the unit in a comment."""
+    from rough_viewer.grid.table import POINT_LENGTH_FIELDS
+
+    xyz = rough_surface(2000, seed=3, size=0.1)
+    cloud = PointCloud.from_xyz(xyz)
+    result = grid_roughness(cloud, 0.02)
+    path = tmp_path / "mm.ply"
+    write_ply_fields(path, cloud, point_fields(result), unit="mm", lengths=POINT_LENGTH_FIELDS)
+    ply = PlyData.read(str(path))
+    v = ply["vertex"].data
+    np.testing.assert_allclose(np.column_stack([v["x"], v["y"], v["z"]]), xyz * 1000.0,
+                               rtol=1e-15)
+    cell = result.point_cell
+    np.testing.assert_allclose(v["theta_odr"], (result.theta_odr[cell] / 1e-3)
+                               .astype(np.float32), rtol=1e-6)
+    np.testing.assert_array_equal(v["cell_ix"], result.ijk[cell, 0])  # not a length
+    assert ply.comments[-1] == "rough_viewer.unit mm (x, y, z, theta_odr, theta_ols, " \
+        "theta_hybrid, e_ols)"

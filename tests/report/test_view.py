@@ -147,6 +147,20 @@ BAD = {
     "detrend text": (lambda d: d["profiles"][0].update(detrend="2"),
                      "profiles[0].detrend must be a whole"),
     "zone id": (lambda d: d["zones"].update(selected=0), "zones.selected must lie in"),
+    "measure point": (lambda d: d.update(measures=[{"start": [0, 0], "end": [1, 1, 1]}]),
+                      "measures[0].start must be a list of three numbers"),
+    "measure key": (lambda d: d.update(measures=[{"start": [0, 0, 0], "end": [1, 1, 1],
+                                                  "colour": 1}]), "measures[0] has an unknown"),
+    "direction step": (lambda d: d.update(directions={"step_deg": 0}),
+                       "directions.step_deg must lie in [1, 90]"),
+    "direction tin": (lambda d: d.update(directions={"tin": "yes"}),
+                      "directions.tin must be true or false"),
+    "selection quaternion": (lambda d: d.update(selection={
+        "position": [0, 0, 0], "wxyz": [0, 0, 0, 0], "fov_rad": 0.9, "aspect": 1.5,
+        "height_px": 800, "corner_a": [0, 0], "corner_b": [1, 1]}),
+        "selection.wxyz must be a unit quaternion"),
+    "zone rule": (lambda d: d["zones"].update(threshold_rule="otsu"),
+                  "zones.threshold_rule must be one of auto, slider"),
     "camera": (lambda d: d["camera"].update(fov_deg=0), "camera.fov_deg must lie in"),
     "newer": (lambda d: d.update(version=2), "made by a newer rough_viewer"),
     "format": (lambda d: d.update(format="other"), "format must be 'rough_viewer.view'"),
@@ -205,6 +219,40 @@ def test_a_crop_is_saved_and_reloaded(scan, tmp_path):
     assert doc["crop"] == {"min": [0.1, -2.0, 0.0], "max": [0.9, 2.0, 0.05], "mode": "remove"}
     assert load_view(path).view.crop == box
     assert load_view(path).view == view
+
+
+def test_zone_threshold_rule_is_kept_and_old_views_keep_their_threshold(scan, tmp_path):
+    """Issue 31 item 8: a view keeps the zones' threshold rule; a view saved before the
+    rule existed read its zones at its own threshold: it reads as "slider"."""
+    for rule in ("auto", "slider"):
+        view = full_view(scan).with_(zones=ZoneSettings(threshold_rule=rule))
+        assert load_view(save_view(tmp_path / f"{rule}.json", view)).view.zones.threshold_rule \
+            == rule
+    path = save_view(tmp_path / "old.json", full_view(scan))
+    doc = json.loads(path.read_text())
+    assert doc["zones"]["threshold_rule"] == "auto"
+    del doc["zones"]["threshold_rule"]
+    path.write_text(json.dumps(doc))
+    assert load_view(path).view.zones.threshold_rule == "slider"
+
+
+def test_measures_and_directions_are_saved_and_reloaded(scan, tmp_path):
+    """Issue 31 item 11: a view keeps the measures and the directions settings; a view
+    without them is written without the keys (older versions read it)."""
+    from rough_viewer.report.view import DirectionsView, MeasurePick
+
+    view = full_view(scan).with_(
+        measures=(MeasurePick((1.0, 2.0, 3.0), (4.0, 6.0, 3.0), 3),),
+        directions=DirectionsView(step_deg=30.0, spacing_m=0.004, tin=True, lines=False,
+                                  measured=True))
+    assert load_view(save_view(tmp_path / "v.json", view)).view == view
+    from rough_viewer.report.view import SelectionView
+
+    sel = view.with_(selection=SelectionView((1.0, -5.0, 2.0), (0.5, 0.5, 0.5, 0.5), 0.9, 1.5,
+                                             800, (0.25, 0.3), (0.6, 0.75)))
+    assert load_view(save_view(tmp_path / "s.json", sel)).view == sel
+    doc = json.loads(save_view(tmp_path / "plain.json", full_view(scan)).read_text())
+    assert "measures" not in doc and "directions" not in doc and "selection" not in doc
 
 
 def test_views_without_a_crop_stay_as_before(scan, tmp_path):

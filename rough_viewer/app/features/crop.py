@@ -7,7 +7,9 @@
 - **Plane of the selection**: its ODR plane, dip, dip direction and RMS residual
   (:func:`rough_viewer.grid.measure.region_plane`; the conventions of docs/zones.md).
 - **Crop**: "Keep selection" keeps the points in the selection's bounding box,
-  "Remove selection" drops them; a box typed as ``compute --crop`` takes
+  "Crop to selection (exact points)" exactly the selected points (the box of a
+  selection holds more: 239,125 points for a selection of 226,861), "Remove
+  selection" drops the box's points; a box typed as ``compute --crop`` takes
   (``xmin,ymin,zmin,xmax,ymax,zmax`` in the cloud's unit) does the same. Every
   analysis (the map, panels, zones, sets, profiles, bias, exports) then runs on the
   kept points, and saved views hold the crop, which ``compute``, ``report`` and
@@ -15,7 +17,9 @@
   cloud and replaces the last (a saved view and ``--crop`` hold one box). "Undo crop"
   shows every point again, with the whole cloud's grids still cached.
 
-The crop is a box, not the rectangle itself, so that ``--crop`` gives the same cells.
+The crop is a box, not the rectangle itself, so that ``--crop`` gives the same cells;
+an exact crop is the selection's points, and a saved view (and ``--crop-file``)
+holds their bounding box, which the Select tab says.
 """
 
 from __future__ import annotations
@@ -37,10 +41,11 @@ from rough_viewer.grid.measure import PlaneMeasure, region_plane
 from rough_viewer.io.crop import CROP_MODES, CropBox, CropMode, parse_box
 from rough_viewer.lod.camera import ViewCamera, rect_select
 from rough_viewer.memory import require
-from rough_viewer.report.view import View
+from rough_viewer.report.view import SelectionView, View
 from rough_viewer.vocabulary import InputError
 
 L_KEEP = "Keep selection"
+L_EXACT = "Crop to selection (exact points)"
 L_REMOVE = "Remove selection"
 L_CLEAR = "Clear selection"
 L_BOX = "Crop box"
@@ -68,6 +73,8 @@ class Selection:
     plane: PlaneMeasure | None
     """Their ODR plane (None: fewer than 3 points, or on a line)."""
     plane_error: str = ""
+    made_by: SelectionView | None = None
+    """The camera and rectangle that selected them (what a saved view holds)."""
 
     @property
     def count(self) -> int:
@@ -93,6 +100,11 @@ def crop_text(loaded: LoadedCloud) -> str:
     if loaded.crop is None or loaded.uncropped is None:
         return "No crop: every point is used."
     u = loaded.units
+    if loaded.crop_exact:
+        return (f"**Cropped to the selection's {loaded.cloud.n:,} points** (exactly; of "
+                f"{loaded.uncropped.cloud.n:,}) used by every analysis. A saved view "
+                f"holds their bounding box ({md(box_text(loaded.crop, u))} {u.label}), "
+                "which keeps every point in it. A new crop replaces this one.")
     return (f"**{md(loaded.crop.describe(u.per, u.label).capitalize())}**: "
             f"{loaded.cloud.n:,} of {loaded.uncropped.cloud.n:,} points are used by every "
             "analysis. A new crop replaces this one.")
@@ -109,6 +121,7 @@ class CropFeature:
     map: MapFeature
     note: viser.GuiMarkdownHandle
     keep: viser.GuiButtonHandle
+    exact: viser.GuiButtonHandle
     remove: viser.GuiButtonHandle
     clear: viser.GuiButtonHandle
     box: viser.GuiTextHandle
@@ -122,8 +135,9 @@ class CropFeature:
     """The selection's bounding box."""
 
     # ------------------------------------------------------------------ selection
-    def select(self, mask: np.ndarray) -> None:
-        """Select the shown cloud's points ``mask`` (worker)."""
+    def select(self, mask: np.ndarray, made_by: SelectionView | None = None) -> None:
+        """Select the shown cloud's points ``mask`` (worker), made by ``made_by``'s
+        camera and rectangle."""
         loaded = self.host.session.shown.loaded
         self.drop_selection()
         if not mask.any():
@@ -134,13 +148,14 @@ class CropFeature:
             plane, error = region_plane(loaded.cloud, mask, toward=loaded.plane.normal), ""
         except InputError as exc:
             plane, error = None, str(exc)
-        self.selection = Selection(loaded, mask, box, plane, error)
+        self.selection = Selection(loaded, mask, box, plane, error, made_by)
         u = loaded.units
         self.binding.set(self.box, box_text(box, u))
         lines = [f"**{self.selection.count:,} points selected**, in the box "
                  f"({md(box_text(box, u))}) {u.label}.",
                  plane_text(plane, u) if plane is not None else f"No plane: {md(error)}.",
-                 "*Keep selection* or *Remove selection* crops the cloud to that box."]
+                 "*Keep selection* or *Remove selection* crops the cloud to that box, "
+                 f"*{L_EXACT}* to these {self.selection.count:,} points."]
         self.note.content = "  \n".join(lines)
         self.nodes = [self.host.scene.lines("/selection/box", _box_segments(loaded, box),
                                             (255, 0, 255))]
@@ -186,12 +201,16 @@ class CropFeature:
 
     # ------------------------------------------------------------------ saved views
     def snapshot(self) -> dict[str, Any]:
-        return {"crop": self.host.session.shown.loaded.crop}
+        sel = self.selection
+        return {"crop": self.host.session.shown.loaded.crop,
+                "selection": sel.made_by if sel is not None else None}
 
     def restore(self, view: View) -> Job[Host] | None:
-        if view.crop == self.host.session.shown.loaded.crop:
-            return None
-        return CropJob(self, view.crop, render=False)
+        crop = None if view.crop == self.host.session.shown.loaded.crop else \
+            CropJob(self, view.crop, render=False)
+        if view.selection is None:
+            return crop
+        return RestoreSelectionJob(self, crop, view.selection)
 
 
 def _box_rule(value: Any) -> str:
@@ -231,8 +250,45 @@ class SelectJob(Job[Host]):
         require(1.0 * cloud.n + 100.0 * min(cloud.n, 1 << 20), f"a selection of {cloud.n:,} points")
         mask = rect_select(self.camera, cloud.x, cloud.y, cloud.z, self.corner_a, self.corner_b)
         yield "select"
-        self.f.select(mask)
+        self.f.select(mask, selection_view(self.camera, self.corner_a, self.corner_b))
         yield "show"
+
+
+def selection_view(camera: ViewCamera, a: tuple[float, float], b: tuple[float, float]
+                   ) -> SelectionView:
+    """What a saved view holds of a selection: the camera and the rectangle."""
+    p, q = camera.position, camera.wxyz
+    return SelectionView(position=(float(p[0]), float(p[1]), float(p[2])),
+                         wxyz=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+                         fov_rad=float(camera.fov_rad), aspect=float(camera.aspect),
+                         height_px=int(camera.height_px), corner_a=a, corner_b=b)
+
+
+@dataclass(frozen=True)
+class RestoreSelectionJob(Job[Host]):
+    """A saved view's crop (when it differs), then its selection: the points its
+    camera's rectangle holds, selected again."""
+
+    f: CropFeature = field(compare=False)
+    crop: CropJob | None = field(compare=False)
+    selection: SelectionView = field(compare=False)
+    lane: ClassVar[str] = "load"
+
+    @property
+    def title(self) -> str:
+        return "the saved view's selection"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        if self.crop is not None:
+            yield from self.crop.stages(ctx, run)
+        s = self.selection
+        try:
+            camera = ViewCamera(position=np.asarray(s.position), wxyz=np.asarray(s.wxyz),
+                                fov_rad=s.fov_rad, aspect=s.aspect, height_px=s.height_px)
+        except InputError as exc:
+            ctx.show_error(f"saved view: selection: {exc}", kept="No points are selected.")
+            return
+        yield from SelectJob(self.f, camera, s.corner_a, s.corner_b).stages(ctx, run)
 
 
 @dataclass(frozen=True)
@@ -244,6 +300,8 @@ class CropJob(Job[Host]):
     f: CropFeature = field(compare=False)
     box: CropBox | None
     render: bool = True
+    exact: Selection | None = field(default=None, compare=False)
+    """Crop to exactly these selected points (``box`` is then their bounding box)."""
     lane: ClassVar[str] = "load"
     cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick", "select"})
 
@@ -260,7 +318,14 @@ class CropJob(Job[Host]):
             target = loaded.uncropped
         else:
             try:
-                target = loaded.cropped(self.box)
+                if self.exact is not None:
+                    if self.exact.loaded is not loaded:
+                        ctx.show_error("crop: the selection was made on another cloud",
+                                       kept="The cloud is not cropped again.")
+                        return
+                    target = loaded.cropped_exact(self.exact.mask)
+                else:
+                    target = loaded.cropped(self.box)
             except (InputError, MemoryError) as exc:
                 ctx.show_error(f"crop: {exc}" if isinstance(exc, InputError)
                                else "crop: not enough memory for the kept points")
@@ -284,6 +349,8 @@ def mount(host: Host) -> CropFeature:
             note=gui.add_markdown(PROMPT),
             keep=gui.add_button(L_KEEP, hint="Keep the points in the selection's bounding "
                                 "box; every analysis runs on them."),
+            exact=gui.add_button(L_EXACT, hint="Keep exactly the selected points (the box "
+                                 "holds every point inside it, more than the selection)."),
             remove=gui.add_button(L_REMOVE, hint="Drop the points in the selection's "
                                   "bounding box (vegetation, talus, the tripod)."),
             clear=gui.add_button(L_CLEAR),
@@ -294,16 +361,17 @@ def mount(host: Host) -> CropFeature:
             undo=gui.add_button(L_UNDO, hint="Use every point again."),
             status=gui.add_markdown(crop_text(host.session.shown.loaded)),
         )
-    host.allow(f.keep, f.remove, f.clear, f.box, f.mode, f.apply, f.undo)
+    host.allow(f.keep, f.exact, f.remove, f.clear, f.box, f.mode, f.apply, f.undo)
     host.rule(f.box, _box_rule)
     b = f.binding
 
-    def crop_selection(mode: CropMode) -> None:
+    def crop_selection(mode: CropMode, exact: bool = False) -> None:
         sel = f.selection
         if sel is None:
             host.notify("Crop", "Select points first: Shift-drag a rectangle over the rock.")
             return
-        host.submit(CropJob(f, CropBox(sel.box.lo, sel.box.hi, mode)))
+        host.submit(CropJob(f, CropBox(sel.box.lo, sel.box.hi, mode),
+                            exact=sel if exact else None))
 
     def typed(_h: object) -> None:
         u = host.session.shown.loaded.units
@@ -316,6 +384,7 @@ def mount(host: Host) -> CropFeature:
         host.submit(CropJob(f, box.scaled(u.per)))
 
     b.on_change([f.keep], lambda _h: crop_selection("keep"))
+    b.on_change([f.exact], lambda _h: crop_selection("keep", exact=True))
     b.on_change([f.remove], lambda _h: crop_selection("remove"))
     b.on_change([f.clear], lambda _h: host.submit(ClearJob(f)))
     b.on_change([f.apply], typed)

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import viser
@@ -35,6 +35,7 @@ from rough_viewer.report.directions import (
     analyse_directions,
     directions_table,
 )
+from rough_viewer.report.view import DirectionsView, View
 from rough_viewer.visual.directions import (
     directions_table_figure,
     profile_segments,
@@ -129,6 +130,20 @@ class DirectionsFeature:
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"directions_rose": self.rose, "directions_table": self.table}
 
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        """The folder's settings (the spacing in metres) and whether the shown cloud's
+        directions were measured."""
+        per = self.host.session.shown.loaded.units.per
+        spacing = float(self.spacing.value) * per
+        measured = self.result is not None and self.cloud is self.host.session.shown.loaded
+        return {"directions": DirectionsView(
+            step_deg=float(self.step.value), spacing_m=spacing if spacing > 0 else None,
+            tin=bool(self.tin.value), lines=bool(self.lines.value), measured=measured)}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        return None if view.directions is None else RestoreDirectionsJob(self, view.directions)
+
     def on_cloud(self) -> None:
         """Another cloud: the measurement and its lines belong to the one before."""
         self.host.scene.remove(self.nodes)
@@ -206,6 +221,27 @@ class DirectionsJob(Job[Host]):
                                           visible=visible)
                        for side, sign in (("front", 1.0), ("back", -1.0))]
         yield "lines"
+
+
+@dataclass(frozen=True)
+class RestoreDirectionsJob(Job[Host]):
+    """A saved view's Directions settings in the controls, and the directions measured
+    again when they were measured when it was saved."""
+
+    f: DirectionsFeature = field(compare=False)
+    directions: DirectionsView
+    lane: ClassVar[str] = "directions-restore"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        f, d = self.f, self.directions
+        per = ctx.session.shown.loaded.units.per
+        f.binding.set(f.step, float(d.step_deg))
+        f.binding.set(f.spacing, 0.0 if d.spacing_m is None else float(d.spacing_m) / per)
+        f.binding.set(f.tin, bool(d.tin))
+        f.binding.set(f.lines, bool(d.lines))
+        yield "settings"
+        if d.measured:
+            ctx.submit(DirectionsJob(f))
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,7 @@ from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import UNIT_LABELS, InputError
 from rough_viewer.vocabulary import grid_tag as vocabulary_grid_tag
 
 if TYPE_CHECKING:
@@ -270,7 +270,7 @@ def _stem(cloud: PointCloud) -> str:
 
 
 def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
-    from rough_viewer.grid.table import point_fields
+    from rough_viewer.grid.table import POINT_LENGTH_FIELDS, point_fields
     from rough_viewer.io.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
     from rough_viewer.io.ply import write_ply_fields
 
@@ -286,10 +286,13 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
         pf = point_fields(result, _trust_columns(shown, progress))
         pf = PointFields(fields=pf.fields + extra, point_cell=pf.point_cell)
         if fmt == "ply":
+            # in the cloud's unit, as its cell table (a mm STL: mm)
+            unit = cloud.source_unit
             write_ply_fields(path, cloud, pf, comments=[
                 f"rough_viewer: {Path(cloud.source).name or 'cloud'}, "
-                f"grid {result.grid.cell_size:g} m, "
-                f"axis {result.axis}, roughness in metres"])
+                f"grid {shown.loaded.units.size_text(result.grid.cell_size)}, "
+                f"axis {result.axis}, coordinates and roughness in {UNIT_LABELS[unit]}"],
+                unit=unit, lengths=POINT_LENGTH_FIELDS)
         elif source is not None and source.suffix.lower() in LAS_SUFFIXES:
             # a crop: the file's rows it kept, every dimension of them
             copy_las_with_fields(source, path, cloud, pf, progress=progress,
@@ -363,7 +366,8 @@ def _table_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     def write(path: Path, progress: Callable[[int, int], None]) -> None:
         write_table(path, {**cell_columns(result, unit=unit,
                                           trust=_trust_columns(shown, progress)), **extra},
-                    metadata=table_metadata(result, Path(cloud.source).name, unit=unit))
+                    metadata=table_metadata(result, Path(cloud.source).name, unit=unit),
+                    unit=unit)
 
     per_cell = BYTES_PER_CELL[fmt] + (TRUST_BYTES_PER_CELL[fmt] if _has_scanners(cloud)
                                       else 0.0)

@@ -76,7 +76,12 @@ from rough_viewer.io import PointCloud
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.report.view import Camera, ColourSettings, View
 from rough_viewer.visual import colormaps
-from rough_viewer.visual.app import colour_bar_figure, colour_scale_figure, panel_aspect
+from rough_viewer.visual.app import (
+    category_legend_figure,
+    colour_bar_figure,
+    colour_scale_figure,
+    panel_aspect,
+)
 from rough_viewer.visual.layers import ColourLayer
 from rough_viewer.visual.scales import point_scales_figure
 from rough_viewer.vocabulary import (
@@ -749,6 +754,14 @@ def colour_bar_of(loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
     if settings.layer in TRUST_FIELDS:
         assert layer.colour_range is not None and layer.colormap is not None
         what = f"{TRUST_LABELS[settings.layer]} · grid {u.size_text(settings.cell_size)} · {shown}"
+        if layer.categories is not None:  # the trusted flag: two colours and a legend
+            flag = loaded.trust(result)
+            cells = (np.asarray(flag.layer(settings.layer), dtype=np.float64)
+                     if flag is not None else np.zeros(0))
+            counts = tuple(int(np.count_nonzero(cells == v)) for v, _n, _c in layer.categories)
+            return category_legend_figure(
+                layer.categories, title=f"Scanner: {what}", counts=counts,
+                no_value=int(cells.size - sum(counts)))
         if settings.layer in TRUST_LENGTHS:  # ranges in the cloud's unit, bias in mm
             small = settings.layer != "range"
             return colour_scale_figure(
@@ -1245,8 +1258,7 @@ def format_cell_info(info: CellInfo, cell_size: float, units: Units | None = Non
     of the cell where the cloud has scanner positions (``trust``)."""
     u = units or Units("m")
 
-    def rough(v: float) -> str:
-        return "—" if not np.isfinite(v) else f"{u.rough(v):.4g} {u.rough_label}"
+    rough = u.rough_text  # every model and e_ols to the same 3 significant digits
 
     n = info.normal
     normal = "—" if not np.all(np.isfinite(n)) else f"({n[0]:.3f}, {n[1]:.3f}, {n[2]:.3f})"

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import viser
@@ -27,6 +27,7 @@ from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.state import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.measure import Distance, point_distance
+from rough_viewer.report.view import MeasurePick, View
 
 L_ON = "Measure mode"
 L_CLEAR = "Clear measures"
@@ -74,6 +75,8 @@ class MeasureFeature:
     """The first point of a measure being picked."""
     items: list[tuple[int, Distance, list[viser.SceneNodeHandle]]] = field(default_factory=list)
     """(number, distance, its scene nodes), oldest first."""
+    ends: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    """The two points (file frame, metres) of each listed measure, by number."""
     count: int = 0
     """Measures made (numbers them)."""
     pending: list[viser.SceneNodeHandle] = field(default_factory=list)
@@ -98,21 +101,42 @@ class MeasureFeature:
         scene.remove(self.pending)
         self.pending = []
         self.count += 1
-        k = self.count
-        u = self.host.session.shown.loaded.units
-        seg = np.stack([a.local, pick.local])[None].astype(np.float64)
+        self.add(self.count, a.xyz, pick.xyz)
+        self.refresh()
+        return True
+
+    def add(self, k: int, a_xyz: np.ndarray, b_xyz: np.ndarray) -> None:
+        """Draw and list measure ``k`` between two points (file frame, metres;
+        worker)."""
+        scene, loaded = self.host.scene, self.host.session.shown.loaded
+        a_xyz, b_xyz = np.asarray(a_xyz, dtype=np.float64), np.asarray(b_xyz, dtype=np.float64)
+        d = point_distance(a_xyz, b_xyz)
+        a, b = loaded.to_local(a_xyz[None])[0], loaded.to_local(b_xyz[None])[0]
+        u = loaded.units
+        seg = np.stack([a, b])[None].astype(np.float64)
         nodes: list[viser.SceneNodeHandle] = [
             scene.lines(f"/measures/{k}/line", seg, LINE_COLOUR),
             *(scene.marker(f"/measures/{k}/dot{i}", p, DOT)
-              for i, p in enumerate(dot_positions(a.local, pick.local))),
+              for i, p in enumerate(dot_positions(a, b))),
             scene.add_label(f"/measures/{k}/label", f"D{k} {d.distance_m / u.per:.4g} {u.label}",
-                            0.5 * (a.local + pick.local)),
+                            0.5 * (a + b)),
         ]
         self.items.append((k, d, nodes))
+        self.ends[k] = (a_xyz, b_xyz)
         while len(self.items) > MAX_MEASURES:
-            scene.remove(self.items.pop(0)[2])
-        self.refresh()
-        return True
+            old = self.items.pop(0)
+            scene.remove(old[2])
+            self.ends.pop(old[0], None)
+
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        """The measures listed, oldest first (points in the file frame, metres)."""
+        return {"measures": tuple(
+            MeasurePick(start=_vec(self.ends[k][0]), end=_vec(self.ends[k][1]), number=k)
+            for k, _d, _n in self.items)}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        return RestoreMeasuresJob(self, view.measures)
 
     def refresh(self) -> None:
         u = self.host.session.shown.loaded.units
@@ -129,7 +153,7 @@ class MeasureFeature:
         self.forget_start()
         for _k, _d, nodes in self.items:
             self.host.scene.remove(nodes)
-        self.items, self.count = [], 0
+        self.items, self.count, self.ends = [], 0, {}
         self.note.content = PROMPT
 
 
@@ -143,6 +167,29 @@ class ClearMeasuresJob(Job[Host]):
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         self.f.drop()
         yield "clear"
+
+
+@dataclass(frozen=True)
+class RestoreMeasuresJob(Job[Host]):
+    """A saved view's measures in place of the listed ones, with their numbers (the
+    next measure is numbered after the last)."""
+
+    f: MeasureFeature = field(compare=False)
+    measures: tuple[MeasurePick, ...]
+    lane: ClassVar[str] = "measure-restore"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        f = self.f
+        f.drop()
+        for m in self.measures[-MAX_MEASURES:]:
+            f.add(m.number, np.asarray(m.start), np.asarray(m.end))
+        f.count = max((m.number for m in self.measures), default=0)
+        f.refresh()
+        yield "measures"
+
+
+def _vec(v: np.ndarray) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
 
 
 @dataclass(frozen=True)

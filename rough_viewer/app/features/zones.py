@@ -62,7 +62,7 @@ from rough_viewer.app.state import MODEL_LABELS, ByteCache, Colouring, LoadedClo
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.threshold import map_threshold_advice
+from rough_viewer.grid.threshold import map_threshold_advice, zone_threshold
 from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.point_fields import CellField
 from rough_viewer.memory import require
@@ -77,6 +77,7 @@ from rough_viewer.visual.zones import (
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,
+    DEFAULT_THRESHOLD,
     MAP_LABELS,
     MAPS,
     Connectivity,
@@ -90,6 +91,15 @@ L_THRESHOLD = "Zone threshold"
 L_CONNECTIVITY = "Connectivity"
 L_MIN_CELLS = "Min zone cells"
 L_SELECTED = "Selected zone"
+L_RULE = "Zone threshold rule"
+
+#: "Zone threshold rule" entries: the data's own threshold when the paper's 0.05 (the
+#: slider left at it) flags more than half of the cells (``rough-viewer zones``
+#: without ``--threshold``: :func:`rough_viewer.grid.threshold.zone_threshold`), or
+#: the slider's value as it is (``--threshold``; 0.05 is the paper's).
+RULE_AUTO = f"data's own when {DEFAULT_THRESHOLD:g} flags over half"
+RULE_SLIDER = f"the slider's ({DEFAULT_THRESHOLD:g}: the paper's)"
+RULES: tuple[str, ...] = (RULE_AUTO, RULE_SLIDER)
 
 #: Connectivity dropdown entries.
 CONNECTIVITY_LABELS: dict[Connectivity, str] = {
@@ -134,6 +144,24 @@ class ZoneParams:
     min_cells: int
     keep_outliers: bool = False
     """Cells larger than the cell take part (the Map tab's *Keep outlier cells*)."""
+    reason: str = ""
+    """Why ``threshold`` is not the slider's (the data's own), or empty."""
+
+
+def effective_threshold(result: GridRoughness | None, map_name: MapName, slider: float,
+                        rule: str, *, keep_outliers: bool = False) -> tuple[float, str]:
+    """The threshold the zones use and why when it is not ``slider``: under
+    :data:`RULE_AUTO` with the slider at the paper's 0.05 (not moved), the rule of
+    ``rough-viewer zones`` (:func:`rough_viewer.grid.threshold.zone_threshold`);
+    otherwise the slider's value."""
+    if rule != RULE_AUTO or slider != DEFAULT_THRESHOLD or result is None:
+        return float(slider), ""
+    chosen = zone_threshold(result, map_name, keep_outliers=keep_outliers)
+    reason = chosen.reason()
+    if reason:
+        reason += (f"; choose “{RULE_SLIDER}” in {L_RULE} for the paper's "
+                   f"{DEFAULT_THRESHOLD:g}")
+    return chosen.value, reason
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,6 +286,8 @@ def status_markdown(lab: Labelling, seconds: float, cached: bool) -> str:
     advice = map_threshold_advice(lab.result, p.map_name, p.threshold,
                                   keep_outliers=p.keep_outliers)
     judged = f"  \n{'⚠ ' if advice.most else ''}{md(advice.text(lab.loaded.units.unit))}"
+    if p.reason:
+        judged = f"  \nℹ {md(p.reason[0].upper() + p.reason[1:])}" + judged
     return (f"**{zones}** at {describe_params(lab.params)}, grid "
             f"{lab.loaded.units.size_text(lab.result.grid.cell_size)}: "
             f"{in_zones:,} of {valid:,} cells with a value "
@@ -316,9 +346,16 @@ class ZonesBinding(Binding):
         if conn is None:
             raise InputError("the connectivity control holds a value that is not one of its "
                              "options")
-        return ZoneParams(map_name=shown.model, threshold=float(shown.threshold),
+        if z.rule.value not in RULES:
+            raise InputError("the zone threshold rule holds a value that is not one of its "
+                             "options")
+        keep = bool(shown.keep_outliers)
+        threshold, reason = effective_threshold(
+            z.host.session.shown.result, shown.model, float(shown.threshold), z.rule.value,
+            keep_outliers=keep)
+        return ZoneParams(map_name=shown.model, threshold=threshold,
                           connectivity=conn, min_cells=int(z.min_cells.value),
-                          keep_outliers=bool(shown.keep_outliers))
+                          keep_outliers=keep, reason=reason)
 
     def show(self, zones: ZoneSettings | None) -> None:
         """Saved zone settings in the controls (None: "Show zones" off)."""
@@ -327,12 +364,18 @@ class ZonesBinding(Binding):
             self.set(z.on, False)
             return
         self.set(z.connectivity, CONNECTIVITY_LABELS[zones.connectivity])
+        self.set(z.rule, RULE_AUTO if zones.threshold_rule == "auto" else RULE_SLIDER)
         self.set(z.min_cells, int(zones.min_cells))
         self.set(z.on, True)
 
     def follow_map(self) -> None:
         """The twin slider shows the Map tab's threshold."""
         self.set(self.z.threshold, float(self.z.host.session.shown.settings.threshold))
+
+    def show_threshold(self, threshold: float) -> None:
+        """The twin slider shows the threshold the zones use (the data's own under
+        :data:`RULE_AUTO`; moving it chooses a threshold)."""
+        self.set(self.z.threshold, float(threshold))
 
     def show_selection(self, zones: Zones, zone: int) -> None:
         """The dropdown lists the largest zones and shows ``zone``."""
@@ -368,6 +411,9 @@ class ZonesFeature:
     connectivity: viser.GuiDropdownHandle[str]
     min_cells: viser.GuiNumberHandle[int]
     status: viser.GuiMarkdownHandle
+    rule: viser.GuiDropdownHandle[str]
+    """:data:`RULE_AUTO` (the data's own threshold when 0.05 flags most) or
+    :data:`RULE_SLIDER`."""
     selected: viser.GuiDropdownHandle[str]
     numbers: viser.GuiMarkdownHandle
     table: viser.GuiPlotlyHandle
@@ -429,7 +475,8 @@ class ZonesFeature:
             selected = lab.zone_at(self.anchor) or None
         p = self.params()
         return ZoneSettings(map=p.map_name, connectivity=p.connectivity,
-                            min_cells=p.min_cells, selected=selected)
+                            min_cells=p.min_cells, selected=selected,
+                            threshold_rule="auto" if self.rule.value == RULE_AUTO else "slider")
 
     def snapshot(self) -> dict[str, Any]:
         return {"zones": self.settings() if self.active else None}
@@ -651,6 +698,7 @@ class ZonesJob(Job[Host]):
             z.anchor = lab.anchor_of(z.pending_selection)
             z.pending_selection = None
         z.draw_highlight()
+        z.binding.show_threshold(params.threshold)
         done = time.perf_counter()
         z.status.content = status_markdown(lab, done - t0, cached)
         record = {"basis_s": 0.0 if cached else t_basis, "label_s": t_label,
@@ -771,6 +819,11 @@ def mount(host: Host) -> ZonesFeature:
                                           initial_value=CONNECTIVITY_LABELS[CONNECTIVITIES[0]],
                                           hint="Rough cells touching by a corner, an edge or "
                                           "a face belong to one zone."),
+            rule=gui.add_dropdown(L_RULE, RULES, initial_value=RULE_AUTO,
+                                  hint=f"With the slider at the paper's {DEFAULT_THRESHOLD:g}: "
+                                  "use the data's own threshold (Otsu's split) when 0.05 "
+                                  "flags more than half of the cells (rough-viewer zones' "
+                                  "default), or the slider's value as it is."),
             min_cells=gui.add_number(L_MIN_CELLS, DEFAULT_MIN_CELLS, min=1, max=MAX_MIN_CELLS,
                                      step=1, hint="Smaller groups of rough cells are no zone."),
             status=gui.add_markdown("Tick **Show zones** to label the fracture and rubble "
@@ -782,9 +835,10 @@ def mount(host: Host) -> ZonesFeature:
             stereonet=gui.add_plotly(_empty("stereonet"), config=PLOTLY_CONFIG, aspect=0.95),
         )
     z.cache = ByteCache(host.options.cache_bytes // 2)
-    host.allow(z.on, z.threshold, z.connectivity, z.min_cells, z.selected)
+    host.allow(z.on, z.threshold, z.connectivity, z.min_cells, z.selected, z.rule)
     b = z.binding
-    b.on_change([z.on, z.connectivity, z.min_cells], lambda _h: host.submit(ZonesJob(z)))
+    b.on_change([z.on, z.connectivity, z.min_cells, z.rule],
+                lambda _h: host.submit(ZonesJob(z)))
     # the twin moves the Map tab's slider; the map's render moves the twin back
     b.on_change([z.threshold],
                 lambda _h: m.request(threshold=float(z.threshold.value)))
