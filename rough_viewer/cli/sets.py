@@ -20,8 +20,9 @@ row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with t
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
 angles in degrees. DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
-``compute``'s columns (ODR only) plus ``set_id`` and ``plane_id``. ``--las-out`` /
-``--ply-out``: every point with ``set_id`` and ``plane_id`` of its cell. With several
+``compute``'s columns (ODR only) plus ``set_id``, ``plane_id`` and ``joint_id``.
+``--las-out`` / ``--ply-out``: every point with ``set_id``, ``plane_id`` and
+``joint_id`` of its cell. With several
 ``--grid`` values every output name gets ``_g<G>`` before its extension, as in
 ``compute``. The outputs appear only when the whole run succeeds
 (:func:`rough_viewer.io.output.all_or_nothing`); a cloud without joint sets writes
@@ -112,13 +113,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the sets and the rock-mass figures (Jv, block size index, RQD "
                    "estimate) as JSON")
     p.add_argument("--cells-out", metavar="CELLS.csv",
-                   help="per-cell table: compute's columns (ODR) plus set_id and plane_id")
+                   help="per-cell table: compute's columns (ODR) plus set_id, plane_id and "
+                   "joint_id")
     p.add_argument("--dips-out", metavar="DIPS.csv",
                    help="the planes as a CSV for Rocscience Dips (Dip/Dip Direction)")
     p.add_argument("--las-out", metavar="OUT.las|OUT.laz",
-                   help="every point with set_id and plane_id as LAS extra dimensions")
+                   help="every point with set_id, plane_id and joint_id as LAS extra "
+                   "dimensions")
     p.add_argument("--ply-out", metavar="OUT.ply",
-                   help="every point with set_id and plane_id as PLY properties")
+                   help="every point with set_id, plane_id and joint_id as PLY properties")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -138,6 +141,8 @@ def _length(value: float) -> str:
 def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     """Readable summary of the sets and their largest planes for the terminal,
     lengths in ``unit``."""
+    from rough_viewer.grid.joints import rock_mass_text
+
     per, u = per_unit(unit), UNIT_LABELS[unit]
     planar = int(np.count_nonzero(sets.planar))
     o = sets.options
@@ -171,15 +176,7 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
             f"{_length(sets.spacing_mean[k] / per)} "
             f"{_length(sets.spacing_scanline_mean[k] / per)} "
             f"{_length(sets.persistence_mean[k] / per)}")
-    f = sets.figures
-    if f.sets_counted:
-        lines.append(
-            f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
-            f"set{'s' if f.sets_counted != 1 else ''} with a spacing), block size index Ib "
-            f"{f.block_size_index / per:.4g} {u}, RQD estimate {f.rqd_estimate:.0f} % "
-            "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
-    else:
-        lines.append("no set has two joints apart: no Jv, block size index or RQD estimate")
+    lines.append(rock_mass_text(sets.figures, unit))
     pl = sets.planes
     if pl.n_planes:
         lines.append("")
@@ -204,6 +201,7 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
     """The sets and their rock-mass figures for ``--summary-json``: lengths in
     ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
     of the RQD estimate's formula)."""
+    from rough_viewer.grid.joints import RQD_FORMULA
     from rough_viewer.io.jsonable import to_jsonable
 
     per = per_unit(unit)
@@ -217,8 +215,7 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
         "jv": to_jsonable(f.jv * per), "jv_per_m3": to_jsonable(f.jv),
         "block_size_index": to_jsonable(f.block_size_index / per),
         "rqd_estimate": to_jsonable(f.rqd_estimate),
-        "rqd_estimate_formula": "RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; "
-                                "Palmstrom 2005; valid for Jv 4..44",
+        "rqd_estimate_formula": RQD_FORMULA,
         "sets_counted_in_jv": f.sets_counted,
     }
 
@@ -331,7 +328,7 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
         keep = result.n_points >= result.min_points  # the rows of cell_columns
         write_table(outputs["cells_out"][g],
                     {**cell_columns(result, unit=unit), "set_id": sets.cell_set[keep],
-                     "plane_id": sets.cell_plane[keep]},
+                     "plane_id": sets.cell_plane[keep], "joint_id": sets.cell_joint[keep]},
                     metadata=table_metadata(result, source, unit=unit))
         tables.append(str(outputs["cells_out"][g]))
     lines = ["wrote " + " and ".join(tables)]
@@ -346,6 +343,6 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
             path = outputs["ply_out"][g]
             info = write_ply_fields(path, cloud, fields, comments=[
                 f"rough_viewer sets: {source}, grid {g:g} {UNIT_LABELS[unit]}, "
-                "set_id and plane_id (0 = none)"])
+                "set_id, plane_id and joint_id (0 = none)"])
             lines.append(f"wrote {path}: {info}")
     return lines

@@ -56,7 +56,7 @@ import numpy as np
 
 from rough_viewer.grid.orientation import dip_and_direction, dip_strike_axes, orient_normals
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, unit_scale
 
 #: Most candidate patch pairs merged per set (each takes a 3x3 eigen-decomposition
 #: in a Python loop); beyond it the closest pairs are kept.
@@ -71,6 +71,9 @@ COVER_REACH_BINS = 8
 #: RQD estimate from Jv (Palmstrom 2005): ``RQD = RQD_INTERCEPT - RQD_SLOPE * Jv``.
 RQD_INTERCEPT = 110.0
 RQD_SLOPE = 2.5
+#: The RQD estimate's formula and its limits, as every output names it.
+RQD_FORMULA = ("RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; Palmstrom 2005; "
+               "valid for Jv 4..44")
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,6 +144,26 @@ def rock_mass_figures(spacing_mean: np.ndarray) -> RockMassFigures:
     jv = float(np.sum(1.0 / s))
     rqd = float(np.clip(RQD_INTERCEPT - RQD_SLOPE * jv, 0.0, 100.0))
     return RockMassFigures(jv, float(s.mean()), rqd, int(s.size))
+
+
+def rock_mass_text(f: RockMassFigures, unit: str = "m") -> str:
+    """The rock-mass figures in one sentence, as the terminal and the app's Sets tab
+    show them: ``Jv`` in joints per ``unit`` cubed (and per cubic metre), ``Ib`` in
+    ``unit``, the RQD estimate with its formula, named an estimate.
+
+    >>> print(rock_mass_text(rock_mass_figures(np.array([0.5, 0.8, 0.6]))))
+    Jv 4.917 joints per m3 (4.92 per m3, 3 sets with a spacing), block size index Ib \
+0.6333 m, RQD estimate 98 % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)
+    >>> rock_mass_text(rock_mass_figures(np.array([np.nan])))
+    'no set has two joints apart: no Jv, block size index or RQD estimate'
+    """
+    per, u = unit_scale(unit)
+    if not f.sets_counted:
+        return "no set has two joints apart: no Jv, block size index or RQD estimate"
+    return (f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
+            f"set{'s' if f.sets_counted != 1 else ''} with a spacing), block size index Ib "
+            f"{f.block_size_index / per:.4g} {u}, RQD estimate {f.rqd_estimate:.0f} % "
+            "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
 
 
 def _moments_of_pairs(n: np.ndarray, c: np.ndarray, cov: np.ndarray, i: np.ndarray,
