@@ -70,6 +70,7 @@ def test_the_rock_is_coloured_by_joint_and_the_table_counts_the_planted_joints(j
     assert table.header.values[6] == "joints"
     counts = [int(c) for c in table.cells.values[6]]
     assert sum(counts) == ref.joints.n_joints == PLANTED_JOINTS
+    assert f"{PLANTED_JOINTS} joints of {ref.planes.n_planes} patches" in f.status.content
     for k, n in enumerate(ref.normal):
         planted = int(np.argmax(np.abs(rock.set_normal @ n)))
         assert counts[k] == SMALL_ROCK_MASS.sets[planted].joints

@@ -4,7 +4,7 @@ stereonet and as tables (:mod:`rough_viewer.grid.sets`, docs/sets.md).
 The tab follows the map: its sets are of the Map tab's grid (its ODR planes), with
 the tab's own settings (the largest roughness of a planar cell as a share of the
 cell, the cone, the least angle between sets, the most sets). "Show sets" colours the
-rock by set, by joint or by patch ("Colour by"; the map's colour bar hides; the
+rock by set, by joint or by patch ("Colour sets by"; the map's colour bar hides; the
 zones, if shown, go off: one feature colours the points at a time). A click on the
 rock selects the set and the joint under it: the stereonet marks both, the set table
 highlights the set, the joint line gives the joint's row (dip / dip direction,
@@ -71,7 +71,7 @@ from rough_viewer.vocabulary import InputError
 
 #: Labels (the browser tests find controls by these).
 L_ON = "Show sets"
-L_COLOUR = "Colour by"
+L_COLOUR = "Colour sets by"  # "Colour by" is the Map tab's layer
 L_POLES = "Stereonet poles"
 L_ROUGHNESS = "Planar cells: roughness ≤ % of cell"
 L_CONE = "Cone (°)"
@@ -80,7 +80,7 @@ L_MAX_SETS = "Most sets"
 L_SELECTED = "Selected set"
 #: The "Selected set" entry for no selection.
 NO_SET = "none"
-#: "Colour by" entries and the labels each colours by (patch: a plane of PLANES.csv).
+#: "Colour sets by" entries and the labels each colours by (patch: a plane of PLANES.csv).
 COLOUR_BY: tuple[str, ...] = ("set", "joint", "patch")
 COLOUR_LABELS = {"set": "set", "joint": "joint", "patch": "plane"}
 #: "Stereonet poles" entries: one pole per planar cell, per patch or per joint.
@@ -120,9 +120,11 @@ def status_markdown(sets: JointSets, cell_size_text: str) -> str:
     planar = int(np.count_nonzero(sets.planar))
     n = sets.curved_groups
     curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
+    n_j, n_p = sets.joints.n_joints, sets.planes.n_planes
     return (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
             f"{md(cell_size_text)}: {int(sets.cells.sum()):,} of {planar:,} planar cells in "
-            f"sets, {sets.planes.n_planes:,} planes{md(curved)}")
+            f"sets, {n_j:,} joint{'s' if n_j != 1 else ''} of {n_p:,} "
+            f"patch{'es' if n_p != 1 else ''} (planes){md(curved)}")
 
 
 def rock_mass_markdown(sets: JointSets, unit: str) -> str:
