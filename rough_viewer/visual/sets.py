@@ -26,6 +26,12 @@ from rough_viewer.vocabulary import InputError, unit_scale
 
 #: What one coloured pole of the Sets stereonet stands for.
 PolesOf = Literal["cell", "patch", "joint"]
+#: Font size, header height and row height of the tables, px: the headers break at
+#: ``<br>`` so that every line fits its column in the app's panel (about 540 px at a
+#: 1600 x 1000 window; issue 31 item 4).
+TABLE_FONT = 11
+TABLE_HEADER_HEIGHT = 40
+TABLE_ROW_HEIGHT = 24
 
 
 def set_colour(set_id: int) -> str:
@@ -201,9 +207,11 @@ def _coloured_table(ids: np.ndarray, header: Sequence[str], cells: Sequence[list
     fill = [[set_colour(int(c)) for c in id_colour]] + [row_fill] * (len(header) - 1)
     font = [["white"] * n] + [["#222"] * n] * (len(header) - 1)
     return go.Table(columnwidth=list(widths),
-                    header={"values": list(header), "align": "left", "fill_color": "#e8e8e8"},
+                    header={"values": list(header), "align": "left", "fill_color": "#e8e8e8",
+                            "height": TABLE_HEADER_HEIGHT, "font": {"size": TABLE_FONT}},
                     cells={"values": list(cells), "align": "left", "fill_color": fill,
-                           "font": {"color": font}})
+                           "height": TABLE_ROW_HEIGHT,
+                           "font": {"color": font, "size": TABLE_FONT}})
 
 
 def _dip(dip: np.ndarray, dd: np.ndarray) -> list[str]:
@@ -229,9 +237,9 @@ def sets_table_figure(
     f, u = unit_scale(unit)
     n = sets.n_sets
     ids = np.arange(1, n + 1)
-    header = ["set", "dip / direction (°)", "κ", "α95 (°)", "cells", "planes", "joints",
-              f"spacing mean ({u})", f"median ({u})", f"std ({u})", f"scanline ({u})",
-              f"persistence ({u})"]
+    header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "cells", "pat-<br>ches", "joints",
+              f"spacing<br>mean ({u})", f"median<br>({u})", f"std<br>({u})",
+              f"scan-<br>line ({u})", f"persist-<br>ence ({u})"]
     cells = [[f"<b>{i}</b>" for i in ids], _dip(sets.dip_deg, sets.dip_direction_deg),
              _num(sets.kappa, fmt=".0f"), _num(sets.alpha95_deg, fmt=".2f"),
              [f"{c:,}" for c in sets.cells], [f"{c:,}" for c in sets.n_planes_per_set],
@@ -239,13 +247,13 @@ def sets_table_figure(
              _num(sets.spacing_mean, f), _num(sets.spacing_median, f), _num(sets.spacing_std, f),
              _num(sets.spacing_scanline_mean, f), _num(sets.persistence_mean, f)]
     table = _coloured_table(ids, header, cells,
-                            [32, 90, 45, 50, 55, 50, 50, 80, 65, 60, 70, 80],
+                            [28, 58, 32, 36, 42, 40, 40, 56, 46, 42, 48, 54],
                             ids, ids == selected)
     fig = go.Figure(table)
     what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
     fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(600, 210 + 31 * max(n, 1))),
+                      height=int(min(600, 170 + TABLE_ROW_HEIGHT * max(n, 1))),
                       margin={"l": 10, "r": 10, "t": 100, "b": 10})
     return fig
 
@@ -273,8 +281,8 @@ def planes_table_figure(
     total = rows.shape[0]
     rows = rows[:max(int(max_rows), 0)]
     ids = rows + 1
-    header = ["plane", "set", "dip / direction (°)", f"centroid x, y, z ({u})", f"area ({u}²)",
-              f"dip × strike ({u})", f"rms ({u})", "cells"]
+    header = ["plane", "set", "dip / dir.<br>(°)", f"centroid x, y, z<br>({u})",
+              f"area<br>({u}²)", f"dip × strike<br>({u})", f"rms<br>({u})", "cells"]
     cells = [[f"<b>{i}</b>" for i in ids], [str(s) for s in pl.set_id[rows]],
              _dip(pl.dip_deg[rows], pl.dip_direction_deg[rows]),
              [", ".join(f"{c / f:.2f}" for c in row) for row in pl.centroid[rows]],
@@ -282,14 +290,14 @@ def planes_table_figure(
              [f"{a / f:.3g} × {b / f:.3g}" for a, b in
               zip(pl.persistence_dip[rows], pl.persistence_strike[rows], strict=True)],
              _num(pl.rms[rows], f), [f"{c:,}" for c in pl.cells[rows]]]
-    table = _coloured_table(ids, header, cells, [40, 32, 90, 160, 60, 90, 60, 50],
+    table = _coloured_table(ids, header, cells, [40, 30, 60, 150, 50, 84, 56, 42],
                             pl.set_id[rows], ids == selected)
     fig = go.Figure(table)
     scope = "" if set_id is None else f" of set {set_id}"
     more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
     fig.update_layout(title=_title(f"{total:,} plane{'s' if total != 1 else ''}{scope}{more}",
                                    sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 170 + 31 * max(rows.shape[0], 1))),
+                      height=int(min(1000, 140 + TABLE_ROW_HEIGHT * max(rows.shape[0], 1))),
                       margin={"l": 10, "r": 10, "t": 80, "b": 10})
     return fig
 
@@ -319,8 +327,8 @@ def joints_table_figure(
         rows = np.concatenate([[selected - 1], rows[rows != selected - 1]])
     rows = rows[:max(int(max_rows), 0)]
     ids = rows + 1
-    header = ["joint", "set", "dip / direction (°)", "patches", f"area ({u}²)",
-              f"trace length ({u})", f"persistence dip × strike ({u})", f"rms ({u})"]
+    header = ["joint", "set", "dip / dir.<br>(°)", "pat-<br>ches", f"area<br>({u}²)",
+              f"trace<br>length ({u})", f"persistence<br>dip × strike ({u})", f"rms<br>({u})"]
     cells = [[f"<b>{i}</b>" for i in ids], [str(s) for s in jt.set_id[rows]],
              _dip(jt.dip_deg[rows], jt.dip_direction_deg[rows]),
              [f"{c:,}" for c in jt.patches[rows]], _num(jt.area[rows], f * f),
@@ -328,13 +336,13 @@ def joints_table_figure(
              [f"{a / f:.3g} × {b / f:.3g}" for a, b in
               zip(jt.persistence_dip[rows], jt.persistence_strike[rows], strict=True)],
              _num(jt.rms[rows], f)]
-    table = _coloured_table(ids, header, cells, [40, 32, 90, 55, 60, 75, 110, 60],
+    table = _coloured_table(ids, header, cells, [40, 30, 60, 40, 50, 60, 100, 56],
                             jt.set_id[rows], ids == selected)
     fig = go.Figure(table)
     scope = "" if set_id is None else f" of set {set_id}"
     more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
     fig.update_layout(title=_title(f"{total:,} joint{'s' if total != 1 else ''}{scope}{more}",
                                    sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 170 + 31 * max(rows.shape[0], 1))),
+                      height=int(min(1000, 140 + TABLE_ROW_HEIGHT * max(rows.shape[0], 1))),
                       margin={"l": 10, "r": 10, "t": 80, "b": 10})
     return fig

@@ -1,7 +1,8 @@
 """The Sets tab in headless Chromium on a small planted rock mass (issue 30 items 3 and
-5): Show sets, Colour by joint (the rock takes the joints' colours, not only the
-sets'), the tab's set table counts the planted joints, and the Jv it shows is the
-one ``rough-viewer sets --summary-json`` writes for the same file."""
+5): Show sets, Colour sets by joint (the rock takes the joints' colours, not only the
+sets'), the tab's set table counts the planted joints, the Jv it shows is the one
+``rough-viewer sets --summary-json`` writes for the same file, and the set and joint
+tables are whole at 1600 x 1000 (issue 31 item 4)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import hex_to_rgb
 from tests.app import browser as b
 from tests.app.test_joints_app import PLANTED_JOINTS, SMALL_ROCK_MASS
+from tests.visual import figure_browser as fb
 
 pytestmark = pytest.mark.browser
 G = 0.25
@@ -98,5 +100,18 @@ def test_colour_by_joint_counts_the_planted_joints_and_shows_the_clis_jv(live):
     assert jv == float(f"{summary['jv']:.4g}")
     assert 4.0 < jv < 6.0  # planted: 1/0.5 + 1/0.8 + 1/0.6 = 4.92
     assert f"RQD estimate {summary['rqd_estimate']:.0f} %" in text and "an estimate" in text
+    # the set and joint tables legible at 1600 x 1000 (issue 31 item 4): every header
+    # and cell whole in its column, every row in view
+    plots = page.locator(".js-plotly-plot")
+    measured = {}
+    for i in range(plots.count()):
+        if plots.nth(i).is_visible():
+            m = fb.measure(page, index=i)
+            title = " ".join(t["text"] for t in m["texts"] if t["kind"] == "title")
+            measured[title[:40]] = fb.problems(m)
+    tables = {t: p for t, p in measured.items() if re.match(r"(3 joint sets\u200b|"
+                                                             r"12 joints)", t)}
+    assert len(tables) == 2, list(measured)
+    assert all(p == [] for p in tables.values()), tables
     os.makedirs("/tmp/rough-viewer-shots", exist_ok=True)
     page.screenshot(path="/tmp/rough-viewer-shots/sets-by-joint.png", timeout=60_000)

@@ -61,6 +61,7 @@ from rough_viewer.grid.sets import (
 )
 from rough_viewer.io.point_fields import CellField
 from rough_viewer.visual import colormaps
+from rough_viewer.visual.app import panel_aspect
 from rough_viewer.visual.sets import (
     joints_table_figure,
     planes_table_figure,
@@ -308,9 +309,14 @@ class SetsFeature:
         poles = POLES_OF.get(self.poles.value, "cell")
         self.stereonet.figure = _compact(sets_stereonet_figure(
             sets, selected=k, poles=poles, selected_joint=j, **own))  # type: ignore[arg-type]
-        self.table.figure = _compact(sets_table_figure(sets, selected=k, **own))
-        self.joints.figure = _compact(joints_table_figure(sets, set_id=k, selected=j, **own))
-        self.planes.figure = _compact(planes_table_figure(sets, set_id=k, **own))
+        for handle, fig in ((self.table, sets_table_figure(sets, selected=k, **own)),
+                            (self.joints, joints_table_figure(sets, set_id=k, selected=j,
+                                                              **own)),
+                            (self.planes, planes_table_figure(sets, set_id=k, **own))):
+            # a table gets the height it was laid out for: every row shown (long
+            # tables scroll within their most height)
+            handle.aspect = panel_aspect(fig, width=TABLE_PANEL_WIDTH)
+            handle.figure = _compact(fig)
         self.rock_mass.content = rock_mass_markdown(sets, unit)
         self.joint_info.content = joint_markdown(sets, self.selected_joint, self.selected_set,
                                                  unit)
@@ -335,6 +341,11 @@ class SetsFeature:
         """After every map: the sets of its grid, when shown (worker)."""
         if self.active:
             self.host.submit(SetsJob(self))
+
+
+#: Width the tables' heights are reckoned at, px: the narrowest panel (a 1280 x 800
+#: window; wider panels give a little room to spare).
+TABLE_PANEL_WIDTH = 460
 
 
 def _compact(fig: go.Figure) -> go.Figure:
