@@ -17,7 +17,6 @@ from rough_viewer.app.features import export as em
 from rough_viewer.app.features.sets import (
     DOWNLOAD_TABLES,
     L_COLOUR,
-    L_ON,
     L_POLES,
     SetsFeature,
 )
@@ -211,8 +210,8 @@ def test_the_new_controls_take_only_their_options(japp):
     try:
         client.set_value(L_COLOUR, "zone; drop table")
         client.set_value(L_POLES, "<script>")
-        client.set_value(L_ON, True)
-        settle(app, lambda: True, "the messages")
+        client.set_value(L_COLOUR, "patch")  # after the others: once it is in, they were seen
+        settle(app, lambda: f.colour_by.value == "patch", "the messages")
     finally:
         client.close()
-    assert f.colour_by.value == "set" and f.poles.value == "per cell"
+    assert f.poles.value == "per cell" and f.on.value
