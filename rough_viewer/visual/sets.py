@@ -32,6 +32,12 @@ PolesOf = Literal["cell", "patch", "joint"]
 TABLE_FONT = 11
 TABLE_HEADER_HEIGHT = 40
 TABLE_ROW_HEIGHT = 24
+#: What plotly draws of a row of ``height`` px: 4 px more (its borders).
+TABLE_ROW_EXTRA = 4
+#: Height of each further line of a cell's text, px.
+TABLE_LINE_HEIGHT = 16
+#: Longest centroid text (characters) that fits one line of its column.
+CENTROID_ONE_LINE = 24
 
 
 def set_colour(set_id: int) -> str:
@@ -199,8 +205,8 @@ def _one_pole_each(fig: go.Figure, sets: JointSets, poles: PolesOf,
 
 
 def _coloured_table(ids: np.ndarray, header: Sequence[str], cells: Sequence[list[str]],
-                    widths: Sequence[int], id_colour: np.ndarray, selected: np.ndarray
-                    ) -> go.Table:
+                    widths: Sequence[int], id_colour: np.ndarray, selected: np.ndarray,
+                    row_height: int = TABLE_ROW_HEIGHT) -> go.Table:
     """A table whose first column is the ids in their colours, selected rows yellow."""
     n = ids.shape[0]
     row_fill = ["#fff3b0" if s else "white" for s in selected]
@@ -210,12 +216,14 @@ def _coloured_table(ids: np.ndarray, header: Sequence[str], cells: Sequence[list
                     header={"values": list(header), "align": "left", "fill_color": "#e8e8e8",
                             "height": TABLE_HEADER_HEIGHT, "font": {"size": TABLE_FONT}},
                     cells={"values": list(cells), "align": "left", "fill_color": fill,
-                           "height": TABLE_ROW_HEIGHT,
+                           "height": row_height,
                            "font": {"color": font, "size": TABLE_FONT}})
 
 
 def _dip(dip: np.ndarray, dd: np.ndarray) -> list[str]:
-    return [f"{d:02.0f} / {azimuth_text(a)}" for d, a in zip(dip, dd, strict=True)]
+    """``60/030``: dip / dip direction as the terminal prints them (no space to break
+    the cell's line at in a narrow column)."""
+    return [f"{d:02.0f}/{azimuth_text(a)}" for d, a in zip(dip, dd, strict=True)]
 
 
 def _num(values: np.ndarray, scale: float = 1.0, fmt: str = ".3g") -> list[str]:
@@ -237,9 +245,9 @@ def sets_table_figure(
     f, u = unit_scale(unit)
     n = sets.n_sets
     ids = np.arange(1, n + 1)
-    header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "cells", "pat-<br>ches", "joints",
-              f"spacing<br>mean ({u})", f"median<br>({u})", f"std<br>({u})",
-              f"scan-<br>line ({u})", f"persist-<br>ence ({u})"]
+    # the lengths' unit once, in the title: twelve columns share a 460 px panel
+    header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "cells", "pat-<br>ches",
+              "joints", "spacing<br>mean", "me-<br>dian", "std", "scan-<br>line", "persist-<br>ence"]
     cells = [[f"<b>{i}</b>" for i in ids], _dip(sets.dip_deg, sets.dip_direction_deg),
              _num(sets.kappa, fmt=".0f"), _num(sets.alpha95_deg, fmt=".2f"),
              [f"{c:,}" for c in sets.cells], [f"{c:,}" for c in sets.n_planes_per_set],
@@ -247,13 +255,15 @@ def sets_table_figure(
              _num(sets.spacing_mean, f), _num(sets.spacing_median, f), _num(sets.spacing_std, f),
              _num(sets.spacing_scanline_mean, f), _num(sets.persistence_mean, f)]
     table = _coloured_table(ids, header, cells,
-                            [28, 58, 32, 36, 42, 40, 40, 56, 46, 42, 48, 54],
+                            [25, 49, 28, 31, 36, 34, 37, 50, 38, 44, 38, 48],
                             ids, ids == selected)
     fig = go.Figure(table)
-    what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
+    what = (f"{n} joint set{'s' if n != 1 else ''}: spacing and persistence in {u}" if n
+            else sets.note[:1].upper() + sets.note[1:])
     fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(600, 170 + TABLE_ROW_HEIGHT * max(n, 1))),
+                      height=int(min(600, 170 + (TABLE_ROW_HEIGHT + TABLE_ROW_EXTRA)
+                                     * max(n, 1))),
                       margin={"l": 10, "r": 10, "t": 100, "b": 10})
     return fig
 
@@ -283,21 +293,25 @@ def planes_table_figure(
     ids = rows + 1
     header = ["plane", "set", "dip / dir.<br>(°)", f"centroid x, y, z<br>({u})",
               f"area<br>({u}²)", f"dip × strike<br>({u})", f"rms<br>({u})", "cells"]
+    centroid = [", ".join(f"{c / f:.2f}" for c in row) for row in pl.centroid[rows]]
+    # a centroid of map coordinates (UTM: 239163.87, 3765268.97, ...) takes two lines
+    lines = 2 if max((len(t) for t in centroid), default=0) > CENTROID_ONE_LINE else 1
+    row_height = TABLE_ROW_HEIGHT + (lines - 1) * TABLE_LINE_HEIGHT
     cells = [[f"<b>{i}</b>" for i in ids], [str(s) for s in pl.set_id[rows]],
-             _dip(pl.dip_deg[rows], pl.dip_direction_deg[rows]),
-             [", ".join(f"{c / f:.2f}" for c in row) for row in pl.centroid[rows]],
+             _dip(pl.dip_deg[rows], pl.dip_direction_deg[rows]), centroid,
              _num(pl.area[rows], f * f),
-             [f"{a / f:.3g} × {b / f:.3g}" for a, b in
+             [f"{a / f:.3g}\u00a0×\u00a0{b / f:.3g}" for a, b in
               zip(pl.persistence_dip[rows], pl.persistence_strike[rows], strict=True)],
              _num(pl.rms[rows], f), [f"{c:,}" for c in pl.cells[rows]]]
-    table = _coloured_table(ids, header, cells, [40, 30, 60, 150, 50, 84, 56, 42],
-                            pl.set_id[rows], ids == selected)
+    table = _coloured_table(ids, header, cells, [38, 26, 48, 126, 44, 84, 50, 38],
+                            pl.set_id[rows], ids == selected, row_height)
     fig = go.Figure(table)
     scope = "" if set_id is None else f" of set {set_id}"
     more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
     fig.update_layout(title=_title(f"{total:,} plane{'s' if total != 1 else ''}{scope}{more}",
                                    sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 140 + TABLE_ROW_HEIGHT * max(rows.shape[0], 1))),
+                      height=int(min(1000, 140 + (row_height + TABLE_ROW_EXTRA)
+                                     * max(rows.shape[0], 1))),
                       margin={"l": 10, "r": 10, "t": 80, "b": 10})
     return fig
 
@@ -333,7 +347,7 @@ def joints_table_figure(
              _dip(jt.dip_deg[rows], jt.dip_direction_deg[rows]),
              [f"{c:,}" for c in jt.patches[rows]], _num(jt.area[rows], f * f),
              _num(jt.trace_length[rows], f),
-             [f"{a / f:.3g} × {b / f:.3g}" for a, b in
+             [f"{a / f:.3g}\u00a0×\u00a0{b / f:.3g}" for a, b in
               zip(jt.persistence_dip[rows], jt.persistence_strike[rows], strict=True)],
              _num(jt.rms[rows], f)]
     table = _coloured_table(ids, header, cells, [40, 30, 60, 40, 50, 60, 100, 56],
@@ -343,6 +357,7 @@ def joints_table_figure(
     more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
     fig.update_layout(title=_title(f"{total:,} joint{'s' if total != 1 else ''}{scope}{more}",
                                    sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 140 + TABLE_ROW_HEIGHT * max(rows.shape[0], 1))),
+                      height=int(min(1000, 140 + (TABLE_ROW_HEIGHT + TABLE_ROW_EXTRA)
+                                     * max(rows.shape[0], 1))),
                       margin={"l": 10, "r": 10, "t": 80, "b": 10})
     return fig

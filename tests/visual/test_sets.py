@@ -75,7 +75,7 @@ def test_tables_hold_the_numbers_in_the_display_unit(found):
     fig = sets_table_figure(sets, selected=1, unit="mm", **kw(res))
     cols = fig.data[0].cells.values
     assert list(cols[0]) == ["<b>1</b>", "<b>2</b>", "<b>3</b>"]
-    assert cols[1][0] == f"{sets.dip_deg[0]:02.0f} / {int(round(sets.dip_direction_deg[0])) % 360:03d}"
+    assert cols[1][0] == f"{sets.dip_deg[0]:02.0f}/{int(round(sets.dip_direction_deg[0])) % 360:03d}"
     assert list(cols[6]) == [f"{c:,}" for c in sets.n_joints_per_set]
     assert cols[7][1] == f"{sets.spacing_mean[1] * 1000:.3g}"
     assert cols[10][1] == f"{sets.spacing_scanline_mean[1] * 1000:.3g}"
@@ -132,7 +132,7 @@ def test_the_joint_table_lists_a_sets_joints_selected_first(found):
     assert list(c[0]) == [f"<b>{pick}</b>"] + [f"<b>{i + 1}</b>" for i in mine[:-1]]
     assert set(c[1]) == {"2"}
     k = pick - 1
-    assert c[2][0] == f"{jt.dip_deg[k]:02.0f} / {int(round(jt.dip_direction_deg[k])) % 360:03d}"
+    assert c[2][0] == f"{jt.dip_deg[k]:02.0f}/{int(round(jt.dip_direction_deg[k])) % 360:03d}"
     assert c[3][0] == f"{jt.patches[k]:,}"
     assert c[4][0] == f"{jt.area[k] * 1e6:.3g}"
     assert c[5][0] == f"{jt.trace_length[k] * 1000:.3g}"
