@@ -6,19 +6,28 @@ Contract (other tools script against it)::
     rough-viewer sets INPUT [INPUT ...] --grid G [--grid G2 ...] [--max-roughness T]
         [--min-planar-points K] [--cone 20] [--min-angle 30] [--max-sets 6]
         [--smoothing 6] [--min-density 3] [--min-set-cells 10] [--plane-tolerance D]
-        [--min-plane-cells 3] [--max-plane-rms D] [--min-points K] [--units m|mm|ft|us-ft]
+        [--min-plane-cells 3] [--max-plane-rms D] [--face-tolerance 10] [--face-radius D]
+        [--min-points K] [--units m|mm|ft|us-ft]
         --out SETS.csv [--planes-out PLANES.csv] [--joints-out JOINTS.csv]
         [--summary-json SUMMARY.json] [--cells-out CELLS.csv]
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--force] [--quiet]
 
-SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`), PLANES.csv one
+SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`; its last
+columns are the set's roughness, :mod:`rough_viewer.grid.set_roughness`: ``odr_mean,
+odr_median, odr_std`` of its cells in the output unit, ``theta_max_c1_dip,
+theta_max_c1_strike, delta_t_dip, delta_t_strike`` of its joints in degrees and the
+dimensionless ``jrc_estimate_dip, jrc_estimate_strike``), PLANES.csv one
 row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with the
 ``joint_id`` it is part of), JOINTS.csv one row per joint
 (:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
 (:func:`summary_dict`: ``sets``, ``jv``, ...), lengths in the output
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
-angles in degrees. DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
+angles in degrees. A set within ``--face-tolerance`` of the exposure face (the whole
+cloud's plane or its cells' local face; :mod:`rough_viewer.grid.face`) has
+``face_parallel`` 1 in SETS.csv and ``FACE_PARALLEL`` 1 on its planes in DIPS.csv, is
+marked on the terminal and left out of Jv, Ib and the RQD estimate (its spacing is no
+joint spacing). DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
 ``compute``'s columns (ODR only) plus ``set_id``, ``plane_id`` and ``joint_id``.
 ``--las-out`` / ``--ply-out``: every point with ``set_id``, ``plane_id`` and
@@ -56,6 +65,7 @@ SHOWN_PLANES = 3
 
 def register(sub: argparse._SubParsersAction) -> None:
     from rough_viewer.grid import sets as js
+    from rough_viewer.grid.face import DEFAULT_FACE_RADIUS_CELLS, DEFAULT_FACE_TOLERANCE_DEG
 
     p = sub.add_parser(
         "sets",
@@ -101,6 +111,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-plane-rms", type=positive, default=None, metavar="D",
                    help="largest RMS of a plane's points about it, in --units: touching cells "
                    "that curve more are no plane (default a quarter of the grid size)")
+    p.add_argument("--face-tolerance", type=non_negative, default=DEFAULT_FACE_TOLERANCE_DEG,
+                   metavar="DEG", help="a set within this angle of the exposure face (the "
+                   "whole cloud's plane, or the local face around its cells) is flagged "
+                   "face_parallel: the exposure, not a joint set; its spacing is left out of "
+                   f"Jv, Ib and RQD (default {DEFAULT_FACE_TOLERANCE_DEG:g} degrees)")
+    p.add_argument("--face-radius", type=positive, default=None, metavar="D",
+                   help="radius of the neighbourhood whose plane is a cell's local face, in "
+                   f"--units (default {DEFAULT_FACE_RADIUS_CELLS:g} x the grid size; larger "
+                   "than the joint faces)")
     p.add_argument("--min-points", type=int, default=None, metavar="K",
                    help="cells with fewer points get no roughness (default: as compute)")
     p.add_argument("--out", required=True, metavar="SETS.csv",
@@ -141,8 +160,6 @@ def _length(value: float) -> str:
 def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     """Readable summary of the sets and their largest planes for the terminal,
     lengths in ``unit``."""
-    from rough_viewer.grid.joints import rock_mass_text
-
     per, u = per_unit(unit), UNIT_LABELS[unit]
     planar = int(np.count_nonzero(sets.planar))
     o = sets.options
@@ -164,19 +181,34 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
         lines.append(f"{sets.curved_groups:,} group{'s' if sets.curved_groups != 1 else ''} of "
                      f"touching cells curve (RMS about their best plane over "
                      f"{sets.max_plane_rms / per:.3g} {u}): no planes")
+    if sets.sliver_planes:
+        n = sets.sliver_planes
+        lines.append(f"{n:,} strip{'s' if n != 1 else ''} of touching cells about a cell wide "
+                     f"fit{'s' if n == 1 else ''} outside {'its' if n == 1 else 'their'} set's "
+                     f"cone (the points do not fix the tilt): no planes")
     lines.append("")
+    face = sets.face_parallel
     lines.append(f"{'set':>4} {'dip/dir':>9} {'kappa':>8} {'a95':>6} {'cells':>7} {'planes':>6} "
                  f"{'joints':>6} {'spacing ' + u:>11} {'scanline ' + u:>11} "
-                 f"{'persist. ' + u:>11}")
+                 f"{'persist. ' + u:>11} {'face deg':>9}")
     for k in range(sets.n_sets):
+        angle = sets.face_angle_deg[k]
+
+        def marked(v: float, face_k: bool = bool(face[k])) -> str:
+            # * by a value of a set parallel to the exposure face (no joint spacing)
+            return "*" if face_k and np.isfinite(v) else " "
+
+        sp, sc = sets.spacing_mean[k], sets.spacing_scanline_mean[k]
         lines.append(
             f"{k + 1:4d} {sets.dip_deg[k]:3.0f}/{sets.dip_direction_deg[k]:03.0f}   "
             f"{sets.kappa[k]:8.1f} {sets.alpha95_deg[k]:6.2f} {sets.cells[k]:7,} "
             f"{sets.n_planes_per_set[k]:6,} {sets.n_joints_per_set[k]:6,} "
-            f"{_length(sets.spacing_mean[k] / per)} "
-            f"{_length(sets.spacing_scanline_mean[k] / per)} "
-            f"{_length(sets.persistence_mean[k] / per)}")
-    lines.append(rock_mass_text(sets.figures, unit))
+            f"{_length(sp / per)}{marked(sp)}{_length(sc / per)}{marked(sc)}"
+            f"{_length(sets.persistence_mean[k] / per)} "
+            + (f"{angle:8.1f}{marked(angle)}" if np.isfinite(angle) else f"{'-':>8} "))
+    lines += face_lines(sets, unit)
+    lines.append(sets.rock_mass_text(unit))
+    lines += _roughness_lines(sets, unit)
     pl = sets.planes
     if pl.n_planes:
         lines.append("")
@@ -197,6 +229,61 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
     return "\n".join(lines)
 
 
+def _angle(value: float, width: int = 7) -> str:
+    """An angle or a JRC estimate, ``width`` wide, one decimal; "-" where none.
+
+    >>> _angle(11.37), _angle(float("nan"))
+    ('   11.4', '      -')
+    """
+    return f"{value:{width}.1f}" if np.isfinite(value) else f"{'-':>{width}}"
+
+
+def _roughness_lines(sets, unit: str) -> list[str]:
+    """The terminal's table of every set's roughness (docs/sets.md, "Roughness of
+    each set"): its cells' ODR roughness in ``unit`` and its joints' along dip and
+    strike, and the warnings that go with them."""
+    from rough_viewer.vocabulary import roughness_scale
+
+    r = sets.roughness
+    rper, ru = roughness_scale(unit)
+    lines = ["", f"roughness per set: ODR of its cells in {ru} (mean, median, std); its "
+             "joints along dip / strike: JRC estimate (Z2 of profiles, Tse and Cruden "
+             "1979), theta*max/(C+1) and Delta-T in degrees (shear down dip / along "
+             "strike)",
+             f"{'set':>4} {'ODR mean':>9} {'median':>8} {'std':>8}  {'JRC est. dip':>12} "
+             f"{'strike':>7}  {'th*/(C+1) dip':>13} {'strike':>7}  {'dT dip':>7} "
+             f"{'strike':>7}  {'joints':>6} {'profiles':>8}"]
+    for k in range(sets.n_sets):
+        odr = [(f"{v / rper:8.3g}" if np.isfinite(v) else f"{'-':>8}")
+               for v in (r.odr_mean[k], r.odr_median[k], r.odr_std[k])]
+        lines.append(
+            f"{k + 1:4d} {odr[0]:>9} {odr[1]} {odr[2]}  {_angle(r.jrc_estimate_dip[k], 12)} "
+            f"{_angle(r.jrc_estimate_strike[k])}  {_angle(r.theta_max_c1_dip[k], 13)} "
+            f"{_angle(r.theta_max_c1_strike[k])}  {_angle(r.delta_t_dip[k])} "
+            f"{_angle(r.delta_t_strike[k])}  {r.joints_measured[k]:6d} "
+            f"{r.profiles_dip[k] + r.profiles_strike[k]:8d}")
+    lines += [f"warning: {w}" for w in r.warnings]
+    return lines
+def face_lines(sets, unit: str = "m") -> list[str]:
+    """One line per set parallel to the exposure face (issue 31 item 2): which face,
+    the angle, and that its spacing is no joint spacing."""
+    per, u = per_unit(unit), UNIT_LABELS[unit]
+    fa = sets.face
+    out = []
+    for k in np.flatnonzero(sets.face_parallel):
+        where = []
+        if np.isfinite(fa.whole_deg[k]) and fa.whole_deg[k] <= fa.tolerance_deg:
+            where.append(f"{fa.whole_deg[k]:.1f} deg from the whole cloud's plane")
+        if fa.by_local(k):
+            where.append(f"{fa.local_deg[k]:.1f} deg from its cells' local face within "
+                         f"{fa.radius / per:.3g} {u}")
+        out.append(f"* set {k + 1} ({sets.dip_deg[k]:.0f}/{sets.dip_direction_deg[k]:03.0f}) "
+                   f"is parallel to the exposure face: its spacing is not a joint spacing "
+                   f"({', '.join(where)}); its planes are the exposure, left out of Jv, Ib "
+                   "and RQD (docs/sets.md, 'Joint set or exposure face?')")
+    return out
+
+
 def summary_dict(sets, source: str, unit: str = "m") -> dict:
     """The sets and their rock-mass figures for ``--summary-json``: lengths in
     ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
@@ -207,9 +294,15 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
     per = per_unit(unit)
     f = sets.figures
     table = sets.set_table(per)
+    r = sets.roughness
+    extra = {"profiles_dip": r.profiles_dip, "profiles_strike": r.profiles_strike,
+             "roughness_joints": r.joints_measured, "roughness_points": r.points_measured,
+             "roughness_triangles": r.triangles,
+             "profile_sample_spacing": r.sample_spacing / per}
     return {
         "source": source, "unit": unit, "grid": sets.cell_size / per,
-        "sets": [{name: to_jsonable(table[name][k]) for name in table}
+        "sets": [{**{name: to_jsonable(table[name][k]) for name in table},
+                  **{name: to_jsonable(v[k]) for name, v in extra.items()}}
                  for k in range(sets.n_sets)],
         "joints": int(sets.joints.n_joints), "planes": int(sets.planes.n_planes),
         "jv": to_jsonable(f.jv * per), "jv_per_m3": to_jsonable(f.jv),
@@ -217,6 +310,13 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
         "rqd_estimate": to_jsonable(f.rqd_estimate),
         "rqd_estimate_formula": RQD_FORMULA,
         "sets_counted_in_jv": f.sets_counted,
+        "jrc_estimate_formula": "JRC = 32.2 + 32.47 log10(Z2) (Tse and Cruden 1979), mean "
+                                "over the profiles of the set's joints; an estimate, for "
+                                "profiles sampled at 0.5-1 mm",
+        "roughness_warnings": list(r.warnings),
+        "face_parallel_sets": [int(k) + 1 for k in np.flatnonzero(sets.face_parallel)],
+        "face_tolerance_deg": sets.face.tolerance_deg,
+        "face_radius": sets.face.radius / per,
     }
 
 
@@ -286,7 +386,9 @@ def _set_options(args: argparse.Namespace, per: float):
         min_density=args.min_density, min_set_cells=args.min_set_cells,
         plane_tolerance=None if args.plane_tolerance is None else args.plane_tolerance * per,
         min_plane_cells=args.min_plane_cells,
-        max_plane_rms=None if args.max_plane_rms is None else args.max_plane_rms * per)
+        max_plane_rms=None if args.max_plane_rms is None else args.max_plane_rms * per,
+        face_tolerance_deg=args.face_tolerance,
+        face_radius=None if args.face_radius is None else args.face_radius * per)
 
 
 def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud, source: str,

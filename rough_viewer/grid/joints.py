@@ -71,9 +71,11 @@ COVER_REACH_BINS = 8
 #: RQD estimate from Jv (Palmstrom 2005): ``RQD = RQD_INTERCEPT - RQD_SLOPE * Jv``.
 RQD_INTERCEPT = 110.0
 RQD_SLOPE = 2.5
-#: The RQD estimate's formula and its limits, as every output names it.
-RQD_FORMULA = ("RQD = 110 - 2.5 Jv (Jv per m3), clipped to 0..100; Palmstrom 2005; "
-               "valid for Jv 4..44")
+#: Jv for which the RQD estimate holds (Palmstrom 2005): 100 below, 0 above.
+RQD_JV_RANGE = (4.0, 44.0)
+#: The RQD estimate's formula and limits, as the outputs state it.
+RQD_FORMULA = (f"RQD = {RQD_INTERCEPT:g} - {RQD_SLOPE:g} Jv (Jv per m3), clipped to 0..100; "
+               f"Palmstrom 2005; valid for Jv {RQD_JV_RANGE[0]:g}..{RQD_JV_RANGE[1]:g}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,10 +148,13 @@ def rock_mass_figures(spacing_mean: np.ndarray) -> RockMassFigures:
     return RockMassFigures(jv, float(s.mean()), rqd, int(s.size))
 
 
-def rock_mass_text(f: RockMassFigures, unit: str = "m") -> str:
+def rock_mass_text(f: RockMassFigures, unit: str = "m", *, face_left_out: bool = False,
+                   only_face_spaced: bool = False) -> str:
     """The rock-mass figures in one sentence, as the terminal and the app's Sets tab
     show them: ``Jv`` in joints per ``unit`` cubed (and per cubic metre), ``Ib`` in
-    ``unit``, the RQD estimate with its formula, named an estimate.
+    ``unit``, the RQD estimate with its formula, named an estimate. ``face_left_out``:
+    some sets parallel to the exposure face were left out; ``only_face_spaced``: only
+    such sets had a spacing.
 
     >>> print(rock_mass_text(rock_mass_figures(np.array([0.5, 0.8, 0.6]))))
     Jv 4.917 joints per m3 (4.92 per m3, 3 sets with a spacing), block size index Ib \
@@ -159,11 +164,16 @@ def rock_mass_text(f: RockMassFigures, unit: str = "m") -> str:
     """
     per, u = unit_scale(unit)
     if not f.sets_counted:
+        if only_face_spaced:
+            return ("no set off the exposure face has two joints apart: no Jv, block size "
+                    "index or RQD estimate")
         return "no set has two joints apart: no Jv, block size index or RQD estimate"
     return (f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
-            f"set{'s' if f.sets_counted != 1 else ''} with a spacing), block size index Ib "
-            f"{f.block_size_index / per:.4g} {u}, RQD estimate {f.rqd_estimate:.0f} % "
-            "(110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)")
+            f"set{'s' if f.sets_counted != 1 else ''} with a spacing"
+            + (", the sets parallel to the exposure face left out" if face_left_out else "")
+            + f"), block size index Ib {f.block_size_index / per:.4g} {u}, RQD estimate "
+            f"{f.rqd_estimate:.0f} % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a "
+            "measured RQD)")
 
 
 def _moments_of_pairs(n: np.ndarray, c: np.ndarray, cov: np.ndarray, i: np.ndarray,

@@ -28,7 +28,9 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    ``kappa = (N - 1) / (N - R)`` and
    ``alpha95 = arccos(1 - (N - R) / R ((1 / 0.05)^(1 / (N - 1)) - 1))``, with ``N``
    the cells and ``R = N |sum w p| / sum w`` (``w`` the points; equal weights give
-   the textbook resultant length).
+   the textbook resultant length). A cell outside the cone of its set's final
+   mean leaves the set and the statistics are taken again, until every cell of a
+   set lies within ``cone_deg`` of its mean.
 7. **Planes** (single discontinuities): within a set, cells that touch (faces,
    edges or corners) and whose offsets along the set's mean normal differ by at
    most ``plane_tolerance`` (default half a cell) form one plane; planes of fewer
@@ -42,7 +44,10 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    whose poles made it). A group whose points lie farther than ``max_plane_rms``
    (RMS, default a quarter of a cell) from their best plane is a curved surface
    chained cell by cell (a hillslope, a vault, an undulating face), not a plane: it
-   is dropped and counted (:attr:`JointSets.curved_groups`).
+   is dropped and counted (:attr:`JointSets.curved_groups`); so is a group whose
+   points' plane lies outside the cone of its set's mean (a strip about a cell wide
+   whose points do not fix its tilt about its length;
+   :attr:`JointSets.sliver_planes`): every plane lies within the cone.
 8. **Per plane**, from its points: the ODR fit (dip, dip direction, centroid, RMS
    of the orthogonal distances = square root of the smallest covariance
    eigenvalue); the persistence along dip and along strike: the longest chord in
@@ -59,6 +64,15 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    deviation of the normal spacing; the mean persistence: the mean over the set's
    planes of the longer of their two chords; and, over the sets, ``Jv``, the block
    size index and the RQD estimate (:attr:`JointSets.figures`).
+12. **Roughness per set** (:mod:`rough_viewer.grid.set_roughness`): the mean, median
+   and standard deviation of its cells' ODR roughness, and the directional
+   roughness of its largest joints along their dip and strike (profiles' JRC
+   estimate, ``theta*max/(C+1)`` and ``Delta-T`` of their triangles, each joint in
+   its own plane's frame).
+11. **The exposure face** (:mod:`rough_viewer.grid.face`): a set within
+   ``face_tolerance_deg`` of the whole-cloud plane or of its cells' local face is
+   :attr:`JointSets.face_parallel`: the exposure, not a joint set; its spacing is
+   no joint spacing and it adds nothing to the rock-mass figures.
 
 Everything is vectorised over cells and points; loops run over sets (at most
 ``max_sets``) and density peaks only.
@@ -80,12 +94,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from rough_viewer.grid.face import (
+    DEFAULT_FACE_RADIUS_CELLS,
+    DEFAULT_FACE_TOLERANCE_DEG,
+    FaceAngles,
+    face_angles,
+)
 from rough_viewer.grid.joints import (
     Joints,
     RockMassFigures,
     joint_table,
     merge_patches,
     rock_mass_figures,
+    rock_mass_text,
     set_spacing,
 )
 from rough_viewer.grid.orientation import (
@@ -100,6 +121,7 @@ from rough_viewer.grid.orientation import (
     stereonet,
 )
 from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.set_roughness import SetRoughness, set_roughness
 from rough_viewer.grid.zones import _neighbour_pairs
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.io.point_fields import CellField, PointFields
@@ -140,7 +162,9 @@ _SHIFT_REACH_SIGMAS = 5.0
 SET_COLUMNS: tuple[str, ...] = (
     "set_id", "dip_deg", "dip_direction_deg", "fisher_kappa", "alpha95_deg", "cells",
     "planes", "joints", "spacing_mean", "spacing_median", "spacing_std",
-    "spacing_scanline_mean", "persistence_mean",
+    "spacing_scanline_mean", "persistence_mean", "face_parallel", "face_angle_deg",
+    "odr_mean", "odr_median", "odr_std", "theta_max_c1_dip", "theta_max_c1_strike",
+    "delta_t_dip", "delta_t_strike", "jrc_estimate_dip", "jrc_estimate_strike",
 )
 #: Columns of PLANES.csv, in order.
 PLANE_COLUMNS: tuple[str, ...] = (
@@ -155,7 +179,8 @@ JOINT_COLUMNS: tuple[str, ...] = (
 #: Length columns of the tables (divided by the output unit; ``area`` by its square).
 LENGTH_COLUMNS = frozenset({"spacing_mean", "spacing_median", "spacing_std",
                             "spacing_scanline_mean", "persistence_mean", "cx", "cy", "cz",
-                            "persistence_dip", "persistence_strike", "rms", "trace_length"})
+                            "persistence_dip", "persistence_strike", "rms", "trace_length",
+                            "odr_mean", "odr_median", "odr_std"})
 
 
 @dataclass(frozen=True)
@@ -320,6 +345,9 @@ class JointSets:
     """The joints (patches of one discontinuity)."""
     cell_joint: np.ndarray
     """(M,) int32 joint of every cell, 0 = in no joint."""
+    roughness: SetRoughness
+    """Roughness of every set: its cells' ODR roughness, its joints' along dip and
+    strike (:mod:`rough_viewer.grid.set_roughness`)."""
     cell_size: float
     """Grid cell edge, metres."""
     options: SetOptions
@@ -336,6 +364,45 @@ class JointSets:
     surface, chained cell by cell); their cells keep their set, plane 0."""
     note: str
     """Why there is no set (empty when there are sets)."""
+    face: FaceAngles
+    """Every set's angles to the exposure face (:mod:`rough_viewer.grid.face`)."""
+    sliver_planes: int
+    """Groups of touching cells (of ``min_plane_cells`` or more) whose points' plane
+    lies outside the cone of their set's mean (a strip one cell wide: its points do
+    not fix its tilt about its length): no planes; their cells keep their set."""
+
+    @property
+    def face_parallel(self) -> np.ndarray:
+        """(S,) bool: the set lies within the face tolerance of the exposure face (the
+        whole-cloud plane or its cells' local face): its planes are the exposure, its
+        spacing no joint spacing, and it adds nothing to :attr:`figures`."""
+        return self.face.parallel
+
+    @property
+    def face_angle_deg(self) -> np.ndarray:
+        """(S,) angle between the set's mean pole and the exposure face's normal,
+        degrees (the smaller of the whole-cloud and the local face's; NaN if neither)."""
+        return self.face.angle_deg
+
+    @property
+    def face_note(self) -> str:
+        """One sentence naming the sets parallel to the exposure face (empty when
+        none is): the report's, the app's and the set table's warning.
+
+        The sentence reads e.g. "Set 2 (89/033) lies parallel to the exposure face:
+        its spacing is not a joint spacing (left out of Jv, Ib and RQD)."
+        """
+        ids = np.flatnonzero(self.face_parallel)
+        if ids.shape[0] == 0:
+            return ""
+        named = [f"{k + 1} ({self.dip_deg[k]:.0f}/{self.dip_direction_deg[k]:03.0f})"
+                 for k in ids]
+        one = len(named) == 1
+        listed = named[0] if one else ", ".join(named[:-1]) + " and " + named[-1]
+        return (f"Set{'' if one else 's'} {listed} lie{'s' if one else ''} parallel to the "
+                f"exposure face (within {self.face.tolerance_deg:g}°): "
+                f"{'its' if one else 'their'} spacing is not a joint spacing (left out of "
+                "Jv, Ib and RQD).")
 
     @property
     def n_sets(self) -> int:
@@ -344,8 +411,17 @@ class JointSets:
 
     @property
     def figures(self) -> RockMassFigures:
-        """Jv, block size index and RQD estimate of the sets' normal spacings."""
-        return rock_mass_figures(self.spacing_mean)
+        """Jv, block size index and RQD estimate of the sets' normal spacings, the
+        sets parallel to the exposure face left out (:attr:`face_parallel`)."""
+        return rock_mass_figures(np.where(self.face_parallel, np.nan, self.spacing_mean))
+
+    def rock_mass_text(self, unit: str = "m") -> str:
+        """The rock-mass figures in the sentence the terminal and the app show
+        (:func:`rough_viewer.grid.joints.rock_mass_text`), lengths in ``unit``."""
+        face = np.asarray(self.face_parallel, dtype=bool)
+        return rock_mass_text(self.figures, unit, face_left_out=bool(face.any()),
+                              only_face_spaced=bool(np.any(face & np.isfinite(
+                                  self.spacing_mean))))
 
     @property
     def cone_deg(self) -> float:
@@ -364,7 +440,17 @@ class JointSets:
             "spacing_mean": self.spacing_mean, "spacing_median": self.spacing_median,
             "spacing_std": self.spacing_std, "spacing_scanline_mean": self.spacing_scanline_mean,
             "persistence_mean": self.persistence_mean,
+            "face_parallel": self.face_parallel.astype(np.int64),
+            "face_angle_deg": self.face_angle_deg,
         }
+        r = self.roughness
+        cols.update({
+            "odr_mean": r.odr_mean, "odr_median": r.odr_median, "odr_std": r.odr_std,
+            "theta_max_c1_dip": r.theta_max_c1_dip,
+            "theta_max_c1_strike": r.theta_max_c1_strike,
+            "delta_t_dip": r.delta_t_dip, "delta_t_strike": r.delta_t_strike,
+            "jrc_estimate_dip": r.jrc_estimate_dip, "jrc_estimate_strike": r.jrc_estimate_strike,
+        })
         return _in_unit(cols, unit_m)
 
     def plane_table(self, unit_m: float = 1.0) -> dict[str, np.ndarray]:
@@ -401,10 +487,13 @@ class JointSets:
         convention): ``Dip``, ``Dip Direction``, ``Quantity`` (1: each plane is one
         discontinuity), ``X (East)``, ``Y (North)``, ``Z (Elev.)``, ``Persistence``
         (the longer chord), then extra columns ``JOINT_SET``, ``PLANE``, ``JOINT`` (the
-        joint the plane, a patch, is part of), ``AREA``,
-        ``PERSISTENCE_DIP``, ``PERSISTENCE_STRIKE``, ``RMS``, ``CELLS``; lengths
-        divided by ``unit_m``."""
+        joint the plane, a patch, is part of), ``AREA``, ``PERSISTENCE_DIP``,
+        ``PERSISTENCE_STRIKE``, ``RMS``, ``CELLS`` and ``FACE_PARALLEL`` (1: the plane's
+        set lies parallel to the exposure face, it is the exposure, not a joint;
+        :attr:`face_parallel`); lengths divided by ``unit_m``."""
         pl = self.planes
+        face = (np.concatenate([[False], self.face_parallel])[pl.set_id]
+                if pl.n_planes else np.zeros(0, dtype=bool))
         return {
             "Dip": pl.dip_deg, "Dip Direction": pl.dip_direction_deg,
             "Quantity": np.ones(pl.n_planes, dtype=np.int64),
@@ -414,7 +503,7 @@ class JointSets:
             "JOINT": pl.joint_id,
             "AREA": pl.area / unit_m**2, "PERSISTENCE_DIP": pl.persistence_dip / unit_m,
             "PERSISTENCE_STRIKE": pl.persistence_strike / unit_m, "RMS": pl.rms / unit_m,
-            "CELLS": pl.cells,
+            "CELLS": pl.cells, "FACE_PARALLEL": face.astype(np.int64),
         }
 
     def cells_of(self, set_id: int) -> np.ndarray:
@@ -559,6 +648,12 @@ class SetOptions:
     max_plane_rms: float | None = None
     """Largest RMS (metres) of a plane's points about their best plane: a group of
     touching cells that curves more is no plane (None: a quarter of a cell)."""
+    face_tolerance_deg: float = DEFAULT_FACE_TOLERANCE_DEG
+    """A set whose mean pole lies within this angle of the exposure face's normal is
+    flagged parallel to the face (:mod:`rough_viewer.grid.face`)."""
+    face_radius: float | None = None
+    """Radius (metres) of the neighbourhood of a cell whose plane is its local face
+    (None: :data:`~rough_viewer.grid.face.DEFAULT_FACE_RADIUS_CELLS` cells)."""
 
     def __post_init__(self) -> None:
         t, tol = self.max_roughness, self.plane_tolerance
@@ -592,6 +687,18 @@ class SetOptions:
                                  f"got {v}")
         if tol is not None and not (np.isfinite(tol) and tol >= 0):
             raise InputError(f"the plane tolerance must be a length >= 0, got {tol:g}")
+        if not (np.isfinite(self.face_tolerance_deg) and 0 <= self.face_tolerance_deg <= 90):
+            raise InputError(f"the face tolerance must be in [0, 90] degrees, got "
+                             f"{self.face_tolerance_deg:g}")
+        r = self.face_radius
+        if r is not None and not (np.isfinite(r) and r > 0):
+            raise InputError(f"the face radius must be a positive length, got {r:g}")
+
+    def face_radius_m(self, cell_size: float) -> float:
+        """The local face's radius in metres on a grid of ``cell_size`` (the default
+        where None)."""
+        return float(DEFAULT_FACE_RADIUS_CELLS * cell_size if self.face_radius is None
+                     else self.face_radius)
 
     def lengths(self, cell_size: float) -> tuple[float, float, float]:
         """``(max_roughness, plane_tolerance, max_plane_rms)`` in metres on a grid of
@@ -610,6 +717,7 @@ def joint_sets(
     options: SetOptions | None = None,
     *,
     progress: ProgressFn | None = None,
+    roughness: bool = True,
 ) -> JointSets:
     """Discontinuity sets, their planes, spacing and persistence (see the module).
 
@@ -627,6 +735,10 @@ def joint_sets(
         within half a cell of offset).
     progress : callable, optional
         ``progress(done, total)`` over 4 stages.
+    roughness : bool
+        Measure every set's joints along dip and strike (step 11; default); False
+        leaves those values NaN (the cells' ODR statistics stay), for a quicker
+        answer.
 
     Returns
     -------
@@ -674,28 +786,22 @@ def joint_sets(
     if not peaks.shape[0]:
         labels[:] = 0
     n_sets = int(peaks.shape[0])
-    cell_set = np.zeros(m_cells, dtype=np.int32)
-    cell_set[rows] = labels
     note = _why_none(result, rows, has_plane, t, int(min_planar_points), min_density,
                      min_set_cells, cone_deg) if n_sets == 0 else ""
-    # per set: Fisher statistics of its cells' poles, turned to the peak's side
-    mean_pole = np.zeros((n_sets, 3))
-    kappa = np.zeros(n_sets)
-    alpha = np.zeros(n_sets)
-    for s in range(n_sets):
-        on = labels == s + 1
-        p = poles[on] * np.where(poles[on] @ peaks[s] < 0, -1.0, 1.0)[:, None]
-        st = fisher_statistics(p, weights[on])
-        mean_pole[s] = -st.mean if st.mean[2] > 0 else st.mean
-        kappa[s], alpha[s] = st.kappa, st.alpha95_deg
+    # per set: Fisher statistics of its cells' poles, turned to the peak's side; a
+    # cell the peak gathered that lies outside the cone of its set's final mean
+    # leaves the set (issue 31 item 15), until none does
+    labels, mean_pole, kappa, alpha = _set_statistics(poles, weights, labels, peaks, cone_deg)
+    cell_set = np.zeros(m_cells, dtype=np.int32)
+    cell_set[rows] = labels
     normal = orient_normals(mean_pole, toward) if n_sets else np.zeros((0, 3))
     dip, dd = dip_and_direction(normal, toward) if n_sets else (np.zeros(0), np.zeros(0))
     set_cells = np.bincount(labels, minlength=n_sets + 1)[1:].astype(np.int64)
     set_points = np.bincount(labels, weights=weights, minlength=n_sets + 1)[1:].astype(np.int64)
     tick(2, 4)
-    cell_plane, cell_set, planes, curved = _planes(result, (x, y, z), cell_set, normal, tol,
-                                                   int(min_plane_cells), t,
-                                                   int(min_planar_points), max_rms)
+    cell_plane, cell_set, planes, curved, slivers = _planes(
+        result, (x, y, z), cell_set, normal, tol, int(min_plane_cells), t,
+        int(min_planar_points), max_rms, cone_deg)
     tick(3, 4)
     # joints: the patches of one discontinuity (grid/joints.py)
     patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
@@ -721,6 +827,13 @@ def joint_sets(
             spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
         if sp.scanline.size:
             spacing[s, 3] = sp.scanline.mean()
+    # the cell statistics are of the cells whose poles made the set (not the edge
+    # cells of fewer points its planes took in)
+    set_rough = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
+                              joints, point_joint, (x, y, z), directional=roughness)
+    face = face_angles(mean_pole, cell_set, result.centroid, toward,
+                       result.whole_plane.eigenvalues, radius=o.face_radius_m(g),
+                       tolerance_deg=o.face_tolerance_deg)
     tick(4, 4)
     return JointSets(
         cell_set=cell_set, cell_plane=cell_plane, planar=planar, net=net, peak=peaks,
@@ -729,9 +842,55 @@ def joint_sets(
         points=set_points, n_planes_per_set=n_planes, n_joints_per_set=n_joints,
         spacing_mean=spacing[:, 0], spacing_median=spacing[:, 1], spacing_std=spacing[:, 2],
         spacing_scanline_mean=spacing[:, 3], persistence_mean=persistence_mean, planes=planes,
-        joints=joints, cell_joint=cell_joint, cell_size=g, options=o,
+        joints=joints, cell_joint=cell_joint, roughness=set_rough, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
-        note=note)
+        note=note, face=face, sliver_planes=slivers)
+
+
+#: Most passes of :func:`_set_statistics` (each drops the cells outside the cone of
+#: their set's mean; the first or second leaves none on every scan tried).
+_MEAN_PASSES = 10
+
+
+def _set_statistics(poles: np.ndarray, weights: np.ndarray, labels: np.ndarray,
+                    peaks: np.ndarray, cone_deg: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Fisher statistics of every set's cells (poles turned to the peak's side), the
+    cells outside the cone of their set's mean dropped (label 0) and the statistics
+    taken again until every cell of a set lies within the cone of its mean.
+
+    Returns
+    -------
+    labels, mean_pole, kappa, alpha95
+        The labels (set + 1, 0 = none) and per set: the downward unit mean pole,
+        ``kappa`` and ``alpha95`` (degrees).
+    """
+    n_sets = peaks.shape[0]
+    labels = labels.copy()
+    mean_pole = np.zeros((n_sets, 3))
+    kappa = np.zeros(n_sets)
+    alpha = np.zeros(n_sets)
+    for _ in range(_MEAN_PASSES):
+        for s in range(n_sets):
+            on = labels == s + 1
+            p = poles[on] * np.where(poles[on] @ peaks[s] < 0, -1.0, 1.0)[:, None]
+            st = fisher_statistics(p, weights[on])
+            mean_pole[s] = -st.mean if st.mean[2] > 0 else st.mean
+            kappa[s], alpha[s] = st.kappa, st.alpha95_deg
+        on = np.flatnonzero(labels > 0)
+        if not n_sets or on.shape[0] == 0:
+            break
+        off = _axial_angle_rows(poles[on], mean_pole[labels[on] - 1]) > cone_deg
+        if not off.any():
+            break
+        labels[on[off]] = 0
+    return labels, mean_pole, kappa, alpha
+
+
+def _axial_angle_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Degrees between the axes of the rows of ``a`` and ``b`` (both (K, 3)): (K,)."""
+    c = np.abs(np.einsum("ij,ij->i", a, b))
+    return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
 def _downward(normals: np.ndarray) -> np.ndarray:
@@ -771,10 +930,11 @@ def _why_none(result: GridRoughness, rows: np.ndarray, has_plane: np.ndarray, t:
 
 def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
             cell_set: np.ndarray, set_normal: np.ndarray, tol: float, min_cells: int,
-            max_roughness: float, min_planar_points: int, max_rms: float
-            ) -> tuple[np.ndarray, np.ndarray, JointPlanes, int]:
+            max_roughness: float, min_planar_points: int, max_rms: float, cone_deg: float
+            ) -> tuple[np.ndarray, np.ndarray, JointPlanes, int, int]:
     """Planes of every set: the plane and set of every cell (with the edge cells
-    the planes took in), the plane table and the number of curved groups dropped."""
+    the planes took in), the plane table and the numbers of curved groups and of
+    slivers (a plane outside the cone of its set's mean) dropped."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -783,7 +943,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     sid = cell_set[members].astype(np.int64)
     cell_plane = np.zeros(m, dtype=np.int32)
     if members.shape[0] == 0:
-        return cell_plane, cell_set, _no_planes(), 0
+        return cell_plane, cell_set, _no_planes(), 0, 0
     origin = result.grid.origin
     offset = np.einsum("ij,ij->i", result.centroid[members] - origin, set_normal[sid - 1])
     a, b, _ = _neighbour_pairs(result.ijk[members])
@@ -803,8 +963,9 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     cell_plane[members] = new_id[comp]
     n_p = int(big.shape[0])
     if n_p == 0:
-        return cell_plane, cell_set, _no_planes(), 0
+        return cell_plane, cell_set, _no_planes(), 0, 0
     plane_set = comp_set[big]
+    in_set = cell_set > 0  # before the planes take in their edge cells
     cell_set = cell_set.copy()
     first_fit = _fit_planes(result, xyz, cell_plane, n_p, measure=False)
     # a group whose points do not fit one plane (a curved surface chained cell by
@@ -818,13 +979,36 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
         plane_set = plane_set[flat]
         n_p = int(flat.sum())
         if n_p == 0:
-            return cell_plane, cell_set, _no_planes(), curved
+            return cell_plane, cell_set, _no_planes(), curved, 0
         first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
                          rms=first_fit.rms[flat], points=first_fit.points[flat],
                          cov=first_fit.cov[flat])
     _take_edge_cells(result, cell_plane, cell_set, plane_set, first_fit, max_roughness,
                      min_planar_points)
     fit = _fit_planes(result, xyz, cell_plane, n_p, measure=True)  # with the edge cells
+    assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
+    # a plane whose points' normal lies outside the cone of its set's mean is a strip
+    # about one cell wide whose points do not fix its tilt about its length (demo:
+    # 12 cells 1.65 x 0.09 m fitted 30 degrees off their set although every cell's
+    # pole lies within 17 degrees; issue 31 item 15): no plane, its cells keep their
+    # set (its edge cells go back to none)
+    tilt = _axial_angle_rows(fit.normal, set_normal[plane_set - 1])
+    sliver = tilt > cone_deg
+    slivers = int(np.count_nonzero(sliver))
+    if slivers:
+        gone = np.concatenate([[False], sliver])[cell_plane]
+        cell_set[gone & ~in_set] = 0
+        renumber = np.zeros(n_p + 1, dtype=np.int32)
+        renumber[1:][~sliver] = np.arange(1, int((~sliver).sum()) + 1, dtype=np.int32)
+        cell_plane[:] = renumber[cell_plane]
+        plane_set = plane_set[~sliver]
+        n_p = int((~sliver).sum())
+        if n_p == 0:
+            return cell_plane, cell_set, _no_planes(), curved, slivers
+        keep = ~sliver
+        fit = _Fit(normal=fit.normal[keep], centroid=fit.centroid[keep], rms=fit.rms[keep],
+                   points=fit.points[keep], cov=fit.cov[keep], chord_dip=fit.chord_dip[keep],
+                   chord_strike=fit.chord_strike[keep], area=fit.area[keep])
     assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
     plane_cells = np.bincount(cell_plane, minlength=n_p + 1)[1:].astype(np.int64)
     toward = result.whole_plane.normal
@@ -835,7 +1019,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
         set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
         dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
         persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
-        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64)), curved
+        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64)), curved, slivers
 
 
 #: An edge cell joins a plane when its centroid lies within this many times the

@@ -235,9 +235,13 @@ def _method_note(report: Report) -> str:
         "poles of the planar cells (ODR roughness at most 2 % of the cell, 10 points or "
         "more) weighted by their points, Fisher-kernel density peaks (at least 3 MUD, 30° "
         "apart), cells within 20° of the nearest peak; Fisher mean, kappa and alpha95 per "
-        "set; planes = touching cells of a set within half a cell of offset along its "
-        "normal; normal spacing between consecutive planes; persistence = longest chord "
-        "of a plane's points along dip and along strike (docs/sets.md).</p>"
+        "set; planes (patches) = touching cells of a set within half a cell of offset along "
+        "its normal; joints = the coplanar patches of one discontinuity, touching or not; "
+        "spacing between consecutive joints along the set's normal where they overlap, and "
+        "on scanlines along it; persistence = longest chord of a plane's points along dip "
+        "and along strike; Jv, block size index and RQD estimate from the joint spacings; "
+        "the roughness of each set from its cells and from profiles and triangles on its "
+        "joints' own planes (docs/sets.md).</p>"
     )
 
 
@@ -279,6 +283,7 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
         if key == "sets_stereonet" and s.sets is not None:
             parts.append("<h3>Joint sets</h3>")
             parts.append(f'<p class="note">{esc(_sets_line(s.sets))}</p>')
+            parts += rock_mass_html(s.sets, report.unit)
         if key == "zones_table":
             z = s.zones
             parts.append(f"<h3>Zones at threshold {report.threshold:g}</h3>")
@@ -354,12 +359,83 @@ def _scanner_html(report: Report, s: GridSection) -> list[str]:
             "(docs/scanner.md).</p>"]
 
 
+def rock_mass_html(sets, unit: str = "m") -> list[str]:
+    """The rock-mass figures of a section's sets (``Jv``, block size index, RQD
+    estimate with its formula and limits) and the table of every set's joints,
+    spacing and roughness (docs/sets.md), lengths in ``unit``, roughness in
+    :func:`~rough_viewer.vocabulary.roughness_scale`'s unit."""
+    if not sets.n_sets:
+        return []
+    from rough_viewer.grid.joints import RQD_INTERCEPT, RQD_JV_RANGE, RQD_SLOPE
+
+    esc = html.escape
+    per, u = UNIT_METRES[unit], UNIT_LABELS[unit]
+    rper, ru = roughness_scale(unit)
+    f = sets.figures
+    lo, hi = RQD_JV_RANGE
+    if f.sets_counted:
+        in_m = "" if unit == "m" else f"{f.jv:.3g} per m³; "
+        figures = (f"Rock mass: volumetric joint count Jv = {f.jv * per:.3g} joints per "
+                   f"{u}³ ({in_m}the sum over the {f.sets_counted} "
+                   f"set{'s' if f.sets_counted != 1 else ''} with a spacing of 1 / mean "
+                   f"spacing; ISRM 1978, Palmström 2005); block size index Ib = "
+                   f"{f.block_size_index / per:.3g} {u} (the mean of the sets' mean "
+                   f"spacings); RQD estimate {f.rqd_estimate:.0f} % from "
+                   f"RQD = {RQD_INTERCEPT:g} − {RQD_SLOPE:g} Jv (Jv per m³, Palmström "
+                   "2005), clipped to 0–100: a correlation with a wide scatter, for Jv "
+                   f"from {lo:g} to {hi:g} (100 below, 0 above), not a measured RQD.")
+    else:
+        figures = ("Rock mass: no set has two joints apart, so no Jv, block size index or "
+                   "RQD estimate.")
+    r = sets.roughness
+
+    def num(v: float, fmt: str = ".3g", scale: float = 1.0) -> str:
+        return format(v / scale, fmt) if np.isfinite(v) else "–"
+
+    head = ["set", "dip / direction (°)", "joints", f"spacing mean ({u})",
+            f"scanline spacing ({u})", f"ODR mean ({ru})", f"ODR median ({ru})",
+            f"ODR std ({ru})", "JRC estimate dip", "JRC estimate strike",
+            "θ*max/(C+1) dip (°)", "θ*max/(C+1) strike (°)", "ΔT dip (°)", "ΔT strike (°)",
+            "joints measured", "profiles dip / strike"]
+    rows = []
+    for k in range(sets.n_sets):
+        cells = [f"{k + 1}", f"{sets.dip_deg[k]:02.0f} / {sets.dip_direction_deg[k]:03.0f}",
+                 f"{sets.n_joints_per_set[k]:,}", num(sets.spacing_mean[k], scale=per),
+                 num(sets.spacing_scanline_mean[k], scale=per),
+                 num(r.odr_mean[k], scale=rper), num(r.odr_median[k], scale=rper),
+                 num(r.odr_std[k], scale=rper),
+                 num(r.jrc_estimate_dip[k], ".1f"), num(r.jrc_estimate_strike[k], ".1f"),
+                 num(r.theta_max_c1_dip[k], ".1f"), num(r.theta_max_c1_strike[k], ".1f"),
+                 num(r.delta_t_dip[k], ".1f"), num(r.delta_t_strike[k], ".1f"),
+                 f"{r.joints_measured[k]:,}",
+                 f"{r.profiles_dip[k]:,} / {r.profiles_strike[k]:,}"]
+        rows.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>")
+    out = [f'<p class="note" data-table="rock_mass">{esc(figures)}</p>',
+           '<table class="meta" data-table="set_roughness"><tr>'
+           + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>" + "".join(rows)
+           + "</table>",
+           '<p class="note">Roughness of each set: ODR = the roughness of the cells whose '
+           "poles made the set (planar cells, so at most the planar threshold); along dip "
+           "and strike: each of the set's largest joints turned into its own plane's frame, "
+           "profiles laid down its dip and along its strike (JRC estimate = 32.2 + 32.47 "
+           "log10 Z2, Tse and Cruden 1979, the mean over the profiles: an estimate, "
+           "calibrated for profiles sampled at 0.5–1 mm) and its points triangulated in "
+           "that plane (θ*max/(C+1), Grasselli; ΔT, the mean apparent dip of the facets "
+           "facing the shear; the facets of all the set's joints pooled), shear down the "
+           "dip and along the strike (docs/sets.md).</p>"]
+    out += [f'<p class="note">warning: {esc(w)}</p>' for w in r.warnings]
+    return out
+
+
 def _sets_line(sets) -> str:
     """One sentence on a section's joint sets."""
     if not sets.n_sets:
         return sets.note
-    return (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
-            f"{int(sets.cells.sum()):,} planar cells, {sets.planes.n_planes:,} planes.")
+    p, j = sets.planes.n_planes, sets.joints.n_joints
+    line = (f"{sets.n_sets} set{'s' if sets.n_sets != 1 else ''} of "
+            f"{int(sets.cells.sum()):,} planar cells, {p:,} plane{'s' if p != 1 else ''}, "
+            f"{j:,} joint{'s' if j != 1 else ''}.")
+    return f"{line} ⚠ {sets.face_note}" if sets.face_note else line
 
 
 def check_png_export() -> None:

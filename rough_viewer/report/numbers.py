@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from rough_viewer.grid.joints import RQD_FORMULA
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.grid.orientation import Stereonet
 from rough_viewer.grid.sets import PLANE_COLUMNS, SET_COLUMNS, JointSets
@@ -75,7 +76,9 @@ def sets_dict(sets: JointSets, per: float = 1.0) -> dict[str, Any]:
     """Plain numbers of one grid size's joint sets (the JSON contract): the settings,
     the set and plane tables as ``columns`` (SETS.csv's and PLANES.csv's) and
     ``rows``, lengths divided by ``per`` (metres per display unit, areas by its
-    square), and ``note`` (why there is no set, else empty)."""
+    square), ``note`` (why there is no set, else empty), the rock-mass figures
+    (``jv`` per display unit, ``jv_per_m3``, ``block_size_index``, ``rqd_estimate``)
+    and the warnings of the sets' roughness."""
     o = sets.options
     sets_t, planes_t = sets.set_table(per), sets.plane_table(per)
     return {
@@ -96,6 +99,14 @@ def sets_dict(sets: JointSets, per: float = 1.0) -> dict[str, Any]:
         "plane_rows": [[to_jsonable(planes_t[c][k]) for c in PLANE_COLUMNS]
                        for k in range(sets.planes.n_planes)],
         "peak_density_mud": to_jsonable(sets.peak_density),
+        "joints": sets.joints.n_joints,
+        # the rock-mass figures (Jv per cubic display unit, as sum 1 / spacing in it)
+        "jv": to_jsonable(sets.figures.jv * per),
+        "jv_per_m3": to_jsonable(sets.figures.jv),
+        "block_size_index": to_jsonable(sets.figures.block_size_index / per),
+        "rqd_estimate": to_jsonable(sets.figures.rqd_estimate),
+        "rqd_estimate_formula": RQD_FORMULA,
+        "roughness_warnings": list(sets.roughness.warnings),
     }
 
 

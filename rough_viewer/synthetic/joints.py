@@ -379,6 +379,13 @@ class RockMassSetSpec:
     :func:`exact_fisher_normals` plants it)."""
     spacing_jitter: float = 0.1
     """Consecutive spacings vary by up to this share of ``spacing_m``."""
+    corrugation_m: float = 0.0
+    """Amplitude of the corrugations of every joint of the set (m; 0: planar): each
+    joint is displaced along its own normal by ``corrugation_m * sin(2 pi a /
+    corrugation_wavelength_m + phase)``, ``a`` the distance along its own dip, the
+    phase random per joint; the crests run along the strike."""
+    corrugation_wavelength_m: float = 0.1
+    """Wavelength of the corrugations, along the joint's dip (m)."""
 
 
 #: The rock mass of issue 30: three sets cutting each other in a 6 m block.
@@ -445,7 +452,8 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     block) with a normal drawn by :func:`exact_fisher_normals`; it is sampled on a
     jittered raster of ``point_spacing_m`` over the part of its plane inside the cube
     (and ending against the set's previous joint where it would come closer than
-    ``min_gap_share`` of the spacing to it), plus isotropic Gaussian noise.
+    ``min_gap_share`` of the spacing to it), displaced along its normal by the set's
+    corrugations (if any), plus isotropic Gaussian noise.
 
     >>> rm = generate_rock_mass(RockMassSpec(size_m=2.0, point_spacing_m=0.1, sets=(
     ...     RockMassSetSpec(30.0, 90.0, joints=3, spacing_m=0.5, spacing_jitter=0.0),)))
@@ -466,9 +474,11 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     set_n, joint_set, normals, offsets = [], [], [], []
     for k, s in enumerate(spec.sets, start=1):
         if s.joints < 1 or not s.spacing_m > 0 or not s.kappa > 1 \
-                or not 0 <= s.spacing_jitter < 1:
-            raise InputError(f"rock mass set {k}: joints >= 1, a spacing > 0, kappa > 1 and "
-                             "a jitter in [0, 1) are needed")
+                or not 0 <= s.spacing_jitter < 1 or not s.corrugation_m >= 0 \
+                or not s.corrugation_wavelength_m > 0:
+            raise InputError(f"rock mass set {k}: joints >= 1, a spacing > 0, kappa > 1, "
+                             "a jitter in [0, 1), a corrugation >= 0 and a wavelength > 0 "
+                             "are needed")
         m = plane_normals(np.array([s.dip_deg]), np.array([s.dip_direction_deg]))[0]
         steps = s.spacing_m * (1.0 + rng.uniform(-s.spacing_jitter, s.spacing_jitter,
                                                  s.joints - 1))
@@ -504,6 +514,11 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
             flat = d - (d @ m)[:, None] * m  # the in-plane position along m's line
             h_prev = ((centre + joff[prev] * m - centre - flat) @ jn[prev]) / (m @ jn[prev])
             inside &= (d @ m) - h_prev >= spec.min_gap_share * s_m
+        amp = spec.sets[int(jset[j]) - 1].corrugation_m
+        if amp > 0:
+            wave = spec.sets[int(jset[j]) - 1].corrugation_wavelength_m
+            phase = np.random.default_rng([spec.seed, 4, j]).uniform(0.0, 2.0 * np.pi)
+            p = p + (amp * np.sin(2.0 * np.pi * a / wave + phase))[:, None] * jn[j]
         pts.append(p[inside])
         lab.append(np.full(int(inside.sum()), j, dtype=np.int32))
     xyz = np.concatenate(pts)

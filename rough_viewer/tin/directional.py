@@ -402,6 +402,69 @@ def directional_roughness(
     )
 
 
+def facet_roughness(
+    normals: np.ndarray,
+    areas: np.ndarray,
+    group: np.ndarray,
+    n_groups: int,
+    azimuth_deg: Sequence[float] | np.ndarray,
+    *,
+    dip_step_deg: float = DEFAULT_DIP_STEP_DEG,
+) -> dict[str, np.ndarray]:
+    """``theta*max/(C+1)``, ``Delta-T`` (and ``theta_max``, ``c``, ``a0``,
+    ``facing``) of groups of facets whose normals are given in their own reference
+    frame: the reference plane ``z = 0`` (normal ``+z``), ``u = +x``, ``v = +y``.
+
+    Facets of several surfaces, each turned into its own plane's frame first (the
+    joints of a set, :mod:`rough_viewer.grid.set_roughness`), are pooled into one
+    distribution of apparent dips per group, exactly as :func:`directional_roughness`
+    pools the facets of one surface.
+
+    Parameters
+    ----------
+    normals : (T, 3) array
+        Unit facet normals in the frame above (either sense: turned to ``+z``).
+    areas : (T,) array
+        Facet areas, square metres (only their ratios matter).
+    group : (T,) int array
+        Group 0..G-1 of every facet.
+    n_groups : int
+        ``G``.
+    azimuth_deg : sequence of float
+        Analysis directions, degrees from ``+x`` towards ``+y``.
+
+    Returns
+    -------
+    dict of (G, A) arrays
+        ``theta_max_c1``, ``delta_t``, ``theta_max`` (degrees), ``c``, ``a0`` and
+        ``facing`` (int); NaN for a group without facets facing a direction.
+
+    Examples
+    --------
+    A sawtooth of 30-degree facets along x, as in :func:`directional_roughness`:
+
+    >>> s, c = np.sin(np.radians(30.0)), np.cos(np.radians(30.0))
+    >>> n = np.array([[-s, 0.0, c], [s, 0.0, c]])
+    >>> r = facet_roughness(n, np.ones(2), np.zeros(2, dtype=int), 1, [0, 90])
+    >>> r["theta_max_c1"].round(6) + 0.0, r["delta_t"].round(6) + 0.0
+    (array([[30.,  0.]]), array([[30.,  0.]]))
+    """
+    az = _check_azimuths(azimuth_deg)
+    step = _check_step(dip_step_deg)
+    m = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    a = np.asarray(areas, dtype=np.float64).ravel()
+    g = np.asarray(group, dtype=np.int64).ravel()
+    if not (m.shape[0] == a.shape[0] == g.shape[0]):
+        raise InputError("facet normals, areas and groups must have one row per facet")
+    if g.size and (g.min() < 0 or g.max() >= n_groups):
+        raise InputError(f"facet groups must lie in 0..{n_groups - 1}")
+    require(m.shape[0] * PAIR_BYTES, f"the apparent dips of {m.shape[0]:,} triangles")
+    k = int(n_groups)
+    eye = np.eye(3)
+    return _grouped(g, k, m, a, np.tile(eye[2], (k, 1)), np.tile(eye[0], (k, 1)),
+                    np.tile(eye[1], (k, 1)), az, step)
+
+
 def _window_planes(
     vertices: np.ndarray, faces: np.ndarray, pair_w: np.ndarray, pair_t: np.ndarray,
     centres: np.ndarray, frame: FaceFrame,

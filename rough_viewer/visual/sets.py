@@ -239,31 +239,47 @@ def sets_table_figure(
     unit: str = "m",
 ) -> go.Figure:
     """The set table: one row per set in its colour: mean plane dip / dip direction,
-    Fisher kappa and alpha95, cells, planes (patches), joints, joint spacing (normal:
-    mean, median, std; scanline mean) and mean persistence in ``unit`` (the numbers in
-    ``sets`` stay metres)."""
+    Fisher kappa and alpha95, planes (patches), joints, joint spacing (normal mean and
+    median, scanline mean), mean persistence in ``unit`` (the numbers in ``sets`` stay
+    metres) and the angle to the exposure face (⚠ on a set parallel to it)."""
     f, u = unit_scale(unit)
     n = sets.n_sets
     ids = np.arange(1, n + 1)
-    # the lengths' unit once, in the title: twelve columns share a 460 px panel
-    header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "cells", "pat-<br>ches",
-              "joints", "spacing<br>mean", "me-<br>dian", "std", "scan-<br>line", "persist-<br>ence"]
-    cells = [[f"<b>{i}</b>" for i in ids], _dip(sets.dip_deg, sets.dip_direction_deg),
+    # the lengths' unit once, in the title: eleven columns share a 460 px panel (the
+    # cells and the spacing's std are in SETS.csv)
+    header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "pat-<br>ches", "joints",
+              "spacing<br>mean", "me-<br>dian", "scan-<br>line", "persist-<br>ence",
+              "face<br>(°)"]
+    face = sets.face_parallel
+    # a set parallel to the exposure face: ⚠ by its id, its angle and its spacings
+    # (no joint spacing; issue 31 item 2)
+    warn = np.where(face, " ⚠", "")
+    cells = [[f"<b>{i}</b>{w}" for i, w in zip(ids, warn, strict=True)],
+             _dip(sets.dip_deg, sets.dip_direction_deg),
              _num(sets.kappa, fmt=".0f"), _num(sets.alpha95_deg, fmt=".2f"),
-             [f"{c:,}" for c in sets.cells], [f"{c:,}" for c in sets.n_planes_per_set],
+             [f"{c:,}" for c in sets.n_planes_per_set],
              [f"{c:,}" for c in sets.n_joints_per_set],
-             _num(sets.spacing_mean, f), _num(sets.spacing_median, f), _num(sets.spacing_std, f),
-             _num(sets.spacing_scanline_mean, f), _num(sets.persistence_mean, f)]
+             *([v + w for v, w in zip(_num(col, f), warn, strict=True)]
+               for col in (sets.spacing_mean, sets.spacing_median,
+                           sets.spacing_scanline_mean)),
+             _num(sets.persistence_mean, f),
+             [v + (" ⚠ face" if w else "") for v, w in
+              zip(_num(sets.face_angle_deg, fmt=".1f"), warn, strict=True)]]
+    # "1.0 ⚠ face" takes two lines of its column
+    row_height = TABLE_ROW_HEIGHT + (TABLE_LINE_HEIGHT if face.any() else 0)
     table = _coloured_table(ids, header, cells,
-                            [25, 49, 28, 31, 36, 34, 37, 50, 38, 44, 38, 48],
-                            ids, ids == selected)
+                            [30, 49, 28, 31, 34, 37, 50, 46, 46, 48, 52],
+                            ids, ids == selected, row_height)
     fig = go.Figure(table)
-    what = (f"{n} joint set{'s' if n != 1 else ''}: spacing and persistence in {u}" if n
-            else sets.note[:1].upper() + sets.note[1:])
+    what = f"{n} joint set{'s' if n != 1 else ''}" if n else sets.note[:1].upper() + sets.note[1:]
+    if face.any():
+        listed = ", ".join(str(i) for i in ids[face])
+        what += f" (⚠ {listed}: exposure face)"
+    if n:
+        what += f": spacing and persistence in {u}"
     fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(600, 170 + (TABLE_ROW_HEIGHT + TABLE_ROW_EXTRA)
-                                     * max(n, 1))),
+                      height=int(min(600, 170 + (row_height + TABLE_ROW_EXTRA) * max(n, 1))),
                       margin={"l": 10, "r": 10, "t": 100, "b": 10})
     return fig
 

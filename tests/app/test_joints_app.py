@@ -66,8 +66,8 @@ def test_the_rock_is_coloured_by_joint_and_the_table_counts_the_planted_joints(j
         shown_colours(app), point_colours(ref, res.point_cell[loaded.display_index], by="joint"))
     # each set's joints in the table: the planted number, set by set (by orientation)
     table = f.table.figure.data[0]
-    assert table.header.values[6] == "joints"
-    counts = [int(c) for c in table.cells.values[6]]
+    assert table.header.values[5] == "joints"
+    counts = [int(c) for c in table.cells.values[5]]
     assert sum(counts) == ref.joints.n_joints == PLANTED_JOINTS
     assert f"{PLANTED_JOINTS} joints of {ref.planes.n_planes} patches" in f.status.content
     for k, n in enumerate(ref.normal):

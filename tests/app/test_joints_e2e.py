@@ -34,7 +34,7 @@ _SET_TABLE_JS = r"""
     const t = gd.data && gd.data[0];
     const title = gd.layout && gd.layout.title && gd.layout.title.text || '';
     if (t && t.type === 'table' && /joint sets/.test(title))
-      return {header: t.header.values, joints: t.cells.values[6]};
+      return {header: t.header.values, joints: t.cells.values[5]};
   }
   return null;
 }
@@ -86,7 +86,7 @@ def test_colour_by_joint_counts_the_planted_joints_and_shows_the_clis_jv(live):
                         60, "the joints' colours")
     # the set table the browser shows: its joints column holds the planted numbers
     table = page.wait_for_function(_SET_TABLE_JS, polling=200, timeout=30_000).json_value()
-    assert table["header"][6] == "joints"
+    assert table["header"][5] == "joints"
     joints = [int(v) for v in table["joints"]]
     assert sum(joints) == PLANTED_JOINTS
     assert sorted(joints) == sorted(s.joints for s in SMALL_ROCK_MASS.sets)

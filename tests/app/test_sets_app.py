@@ -136,3 +136,31 @@ def test_the_cell_table_download_carries_the_sets_shown(sapp, block):
     np.testing.assert_array_equal([int(r["set_id"]) for r in rows], ref.cell_set[keep])
     np.testing.assert_array_equal([int(r["plane_id"]) for r in rows], ref.cell_plane[keep])
     assert {int(r["set_id"]) for r in rows} == {0, 1, 2, 3}
+
+
+def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_tab():
+    """Issue 31 item 2: the status carries the warning line and the set's dropdown
+    entry and table row their marker; a real set gets neither."""
+    from rough_viewer.app.features.sets import set_of_option, status_markdown
+    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.visual.sets import sets_table_figure
+    from tests.grid.test_face import hillside
+
+    pts = hillside(size=40.0, step=0.5)
+    res = grid_roughness(pts, 2.0, models=("odr",))
+    sets = joint_sets(res, pts)
+    assert sets.face_parallel.tolist() == [True]
+    status = status_markdown(sets, "2 m")
+    assert status.startswith("**1 set** at grid 2 m")
+    warning = status.split("\n\n")[1]
+    assert warning.startswith("**⚠ Set 1 \\(22/187\\) lies parallel to the exposure face")
+    assert "its spacing is not a joint spacing" in warning
+    entry = set_option(sets, 1)
+    assert entry.endswith("cells ⚠ exposure face") and set_of_option(entry) == 1
+    fig = sets_table_figure(sets, axis="z", n_points=pts.shape[0])
+    cells = fig.data[0].cells.values
+    assert cells[0] == ["<b>1</b> ⚠"] and cells[6][0].endswith(" ⚠")  # spacing, marked
+    assert cells[-1] == [f"{sets.face_angle_deg[0]:.1f} ⚠ face"]
+    assert fig.layout.title.text.startswith("1 joint set (⚠ 1: exposure face)<br>")
+    real = joint_sets(res, pts, SetOptions(face_tolerance_deg=0.0))
+    assert "\n" not in status_markdown(real, "2 m") and "⚠" not in set_option(real, 1)

@@ -17,7 +17,10 @@ from rough_viewer.io import PointCloud, load_points, write_las
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
-               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean")
+               "spacing_mean,spacing_median,spacing_std,spacing_scanline_mean,persistence_mean,"
+               "face_parallel,face_angle_deg,odr_mean,odr_median,odr_std,theta_max_c1_dip,"
+               "theta_max_c1_strike,delta_t_dip,delta_t_strike,jrc_estimate_dip,"
+               "jrc_estimate_strike")
 PLANES_HEADER = ("plane_id,set_id,joint_id,dip_deg,dip_direction_deg,cx,cy,cz,area,persistence_dip,"
                  "persistence_strike,rms,cells")
 G = 0.5
@@ -95,7 +98,7 @@ def test_units_mm_give_the_same_sets_in_millimetres(tmp_path, block):
     _, rows_mm = read_csv(mm_out)
     assert len(rows_m) == len(rows_mm) == 3
     lengths = {"spacing_mean", "spacing_median", "spacing_std", "spacing_scanline_mean",
-               "persistence_mean"}
+               "persistence_mean", "odr_mean", "odr_median", "odr_std"}
     for a, b in zip(rows_m, rows_mm, strict=True):
         for name, x, y in zip(h, a, b, strict=True):
             scale = 1000.0 if name in lengths else 1.0
@@ -169,6 +172,7 @@ def test_a_cloud_without_planes_writes_headers_and_says_so(tmp_path, capsys):
     (["--min-points", "2"], "--min-points"),
     # issue 36: a kernel finer than the net's nodes found 0 sets, exit 0
     (["--smoothing", "0.01"], "smoothing must be from 1 to 90 degrees"),
+    (["--face-tolerance", "95"], "face tolerance"),
 ])
 def test_bad_input_one_line_exit_2_no_output(tmp_path, block, capsys, extra, message):
     path, _ = block
@@ -252,3 +256,99 @@ def test_joints_out_and_summary_json(tmp_path, block):
     assert data_mm["jv"] == pytest.approx(data["jv"] / 1000.0, rel=1e-6)  # per mm
     assert data_mm["jv_per_m3"] == pytest.approx(data["jv"], rel=1e-6)
     assert data_mm["rqd_estimate"] == pytest.approx(data["rqd_estimate"], rel=1e-6)
+
+
+def test_set_roughness_in_sets_csv_summary_json_and_terminal(tmp_path, block, capsys):
+    """Issue 30 item 4: SETS.csv ends with every set's roughness (ODR of its cells in
+    the output unit, the joints' theta*max/(C+1), Delta-T and JRC estimate along dip
+    and strike), SUMMARY.json carries the same per set with the profiles behind them,
+    and the terminal shows them with the JRC estimate's sampling warning."""
+    path, mm = block
+    out, summary = tmp_path / "sets.csv", tmp_path / "summary.json"
+    assert main(["sets", str(path), "--grid", str(G), "--out", str(out), "--summary-json",
+                 str(summary), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    cloud = load_points(path)
+    ref = joint_sets(grid_roughness(cloud, G, models=("odr",)), cloud)
+    r = ref.roughness
+    header, rows = read_csv(out)
+    tail = ("odr_mean", "odr_median", "odr_std", "theta_max_c1_dip", "theta_max_c1_strike",
+            "delta_t_dip", "delta_t_strike", "jrc_estimate_dip", "jrc_estimate_strike")
+    assert tuple(header[-len(tail):]) == tail
+    col = {name: np.array([float(row[header.index(name)] or "nan") for row in rows])
+           for name in tail}
+    for name in tail:  # exact round trip, empty where there is no value
+        assert np.array_equal(col[name], ref.set_table()[name], equal_nan=True)
+    # the joint block's faces are planes with 2 mm of range noise: their cells' ODR is
+    # that of the noise about a plane, sigma sqrt(1 - 2/pi) = 1.2 mm, at most
+    assert all(0.0 < v < 0.0015 for v in col["odr_median"])
+    assert all(np.isfinite(col["delta_t_dip"])) and r.joints_measured.min() >= 1
+    # the block's joint faces are 2 m across at a 9 cm point spacing: no profile has
+    # the 40 samples a profile needs, so no JRC estimate, and the run says why
+    assert np.isnan(col["jrc_estimate_dip"]).all() and r.profiles_dip.sum() == 0
+    assert "warning: set 1: no JRC estimate: no profile on its joints has the 40 samples" in said
+    data = json.loads(summary.read_text())
+    for k, entry in enumerate(data["sets"]):
+        for name in tail:
+            if np.isnan(col[name][k]):
+                assert entry[name] is None
+            else:
+                assert entry[name] == pytest.approx(col[name][k], rel=1e-12)
+        assert entry["profiles_dip"] == r.profiles_dip[k]
+        assert entry["roughness_joints"] == r.joints_measured[k]
+    assert "estimate" in data["jrc_estimate_formula"]
+    assert data["roughness_warnings"] == list(r.warnings)
+    assert "JRC est. dip" in said and "th*/(C+1) dip" in said
+    row = next(line for line in said.splitlines()
+               if line.split()[:1] == ["1"] and "." in line and len(line.split()) == 12)
+    assert float(row.split()[1]) == pytest.approx(r.odr_mean[0] * 1e3, rel=1e-2)  # in mm
+    assert row.split()[4] == "-"
+    assert float(row.split()[6]) == pytest.approx(r.theta_max_c1_dip[0], abs=0.05)
+    mm_out = tmp_path / "mm.csv"
+    assert main(["sets", str(mm), "--units", "mm", "--grid", str(G * 1000), "--out",
+                 str(mm_out), "--quiet"]) == 0
+    h, rows_mm = read_csv(mm_out)
+    assert [float(r_[h.index("odr_mean")]) for r_ in rows_mm] == pytest.approx(
+        col["odr_mean"] * 1000.0, rel=1e-6)
+def test_the_hillside_is_flagged_in_every_output(tmp_path, capsys):
+    """Issue 31 item 2: the Santa Cruz LAZ's only "set" was the hillside, silently, and
+    went to the Dips CSV; a synthetic hillside (dip 22 / 187, a 2 m scarp across it)
+    is flagged on the terminal, in SETS.csv, DIPS.csv and the summary."""
+    from tests.grid.test_face import SCARP_M, hillside
+
+    src = tmp_path / "hill.npy"
+    np.save(src, hillside())
+    out = {k: tmp_path / f"{k}.csv" for k in ("sets", "dips")}
+    summary = tmp_path / "summary.json"
+    assert main(["sets", str(src), "--grid", "2", "--out", str(out["sets"]), "--dips-out",
+                 str(out["dips"]), "--summary-json", str(summary), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    cloud = load_points(src)
+    ref = joint_sets(grid_roughness(cloud, 2.0, models=("odr",)), cloud)
+    assert ref.face_parallel.tolist() == [True]
+    line = next(x for x in said.splitlines() if x.startswith("* set 1 (22/187)"))
+    assert "is parallel to the exposure face: its spacing is not a joint spacing" in line
+    assert f"{ref.face.whole_deg[0]:.1f} deg from the whole cloud's plane" in line
+    assert "left out of Jv, Ib and RQD" in line
+    row = next(x for x in said.splitlines() if x.startswith("   1  22/187"))
+    spacing = SCARP_M * np.cos(np.radians(22.0))
+    assert row.split()[7].endswith("*")  # the spacing, marked
+    assert float(row.split()[7].rstrip("*")) == pytest.approx(spacing, rel=0.05)
+    assert row.split()[-1] == f"{ref.face_angle_deg[0]:.1f}*"
+    assert "no set off the exposure face has two joints apart: no Jv" in said
+    header, rows = read_csv(out["sets"])
+    fp, fa = header.index("face_parallel"), header.index("face_angle_deg")
+    assert fa == fp + 1 and header[fp - 1] == "persistence_mean"
+    assert rows[0][fp] == "1" and float(rows[0][fa]) == ref.face_angle_deg[0]
+    header, rows = read_csv(out["dips"])
+    assert header[-1] == "FACE_PARALLEL" and {r[-1] for r in rows} == {"1"}
+    data = json.loads(summary.read_text())
+    assert data["face_parallel_sets"] == [1] and data["sets_counted_in_jv"] == 0
+    assert data["jv"] is None and data["sets"][0]["face_parallel"] == 1
+    # --face-tolerance 0 flags nothing
+    again = tmp_path / "again.csv"
+    assert main(["sets", str(src), "--grid", "2", "--out", str(again), "--face-tolerance",
+                 "0", "--quiet"]) == 0
+    h_again, rows_again = read_csv(again)
+    assert rows_again[0][h_again.index("face_parallel")] == "0"
+    assert "parallel to the exposure face" not in capsys.readouterr().out

@@ -524,3 +524,27 @@ def test_default_grids_of_a_small_cloud_leave_out_the_too_coarse():
     report = build_report(cloud)
     assert [s.grid_size for s in report.sections] == list(grids)
     assert all(s.error is None for s in report.sections)
+
+
+def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_report():
+    """Issue 31 item 2: the hillside's slope "set" is flagged on the page, in the
+    set table figure and in the JSON (``face_parallel``, ``face_angle_deg``)."""
+    from rough_viewer.grid.sets import SET_COLUMNS, joint_sets
+    from rough_viewer.report import report_figures
+    from tests.grid.test_face import hillside
+
+    pts = hillside(size=40.0, step=0.5)
+    rep = build_report(PointCloud.from_xyz(pts), grid_sizes=[2.0])
+    ref = joint_sets(grid_roughness(pts, 2.0, models=("odr",)), pts)
+    assert ref.face_parallel.tolist() == [True]
+    page = report_html(rep)
+    assert ("⚠ Set 1 (22/187) lies parallel to the exposure face (within 10°): its spacing "
+            "is not a joint spacing (left out of Jv, Ib and RQD).") in page
+    sets = report_json(rep)["grids"][0]["sets"]
+    row = dict(zip(SET_COLUMNS, sets["rows"][0], strict=True))
+    assert row["face_parallel"] == 1
+    assert row["face_angle_deg"] == pytest.approx(ref.face_angle_deg[0])
+    table = report_figures(rep, rep.sections[0])["sets_table"]
+    cells = table.data[0].cells.values
+    assert cells[0] == ["<b>1</b> ⚠"] and cells[-1][0].endswith("⚠ face")
+    assert table.layout.title.text.startswith("1 joint set (⚠ 1: exposure face)<br>")

@@ -76,9 +76,9 @@ def test_tables_hold_the_numbers_in_the_display_unit(found):
     cols = fig.data[0].cells.values
     assert list(cols[0]) == ["<b>1</b>", "<b>2</b>", "<b>3</b>"]
     assert cols[1][0] == f"{sets.dip_deg[0]:02.0f}/{int(round(sets.dip_direction_deg[0])) % 360:03d}"
-    assert list(cols[6]) == [f"{c:,}" for c in sets.n_joints_per_set]
-    assert cols[7][1] == f"{sets.spacing_mean[1] * 1000:.3g}"
-    assert cols[10][1] == f"{sets.spacing_scanline_mean[1] * 1000:.3g}"
+    assert list(cols[5]) == [f"{c:,}" for c in sets.n_joints_per_set]
+    assert cols[6][1] == f"{sets.spacing_mean[1] * 1000:.3g}"
+    assert cols[8][1] == f"{sets.spacing_scanline_mean[1] * 1000:.3g}"
     assert list(fig.data[0].cells.fill.color[0]) == [set_colour(k) for k in (1, 2, 3)]
     assert fig.data[0].cells.fill.color[1][0] != fig.data[0].cells.fill.color[1][1]
     planes = planes_table_figure(sets, set_id=2, **kw(res))

@@ -47,7 +47,6 @@ from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import ByteCache, Colouring, LoadedCloud, by_cell
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.grid.joints import rock_mass_text
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.sets import (
     DEFAULT_CONE_DEG,
@@ -101,9 +100,11 @@ class SetsParams:
 
 
 def set_option(sets: JointSets, k: int) -> str:
-    """The dropdown entry of set ``k`` (1..S)."""
+    """The dropdown entry of set ``k`` (1..S); "exposure face" marks a set parallel to
+    the face the scanner saw (issue 31 item 2)."""
+    face = " ⚠ exposure face" if sets.face_parallel[k - 1] else ""
     return (f"Set {k} — {sets.dip_deg[k - 1]:02.0f}/{sets.dip_direction_deg[k - 1]:03.0f}, "
-            f"{int(sets.cells[k - 1]):,} cells")
+            f"{int(sets.cells[k - 1]):,} cells{face}")
 
 
 def set_of_option(value: str) -> int | None:
@@ -122,17 +123,20 @@ def status_markdown(sets: JointSets, cell_size_text: str) -> str:
     n = sets.curved_groups
     curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
     n_j, n_p = sets.joints.n_joints, sets.planes.n_planes
-    return (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
+    line = (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
             f"{md(cell_size_text)}: {int(sets.cells.sum()):,} of {planar:,} planar cells in "
             f"sets, {n_j:,} joint{'s' if n_j != 1 else ''} of {n_p:,} "
             f"patch{'es' if n_p != 1 else ''} (planes){md(curved)}")
+    if sets.face_note:  # a set parallel to the exposure face (issue 31 item 2)
+        line += f"\n\n**⚠ {md(sets.face_note)}**"
+    return line
 
 
 def rock_mass_markdown(sets: JointSets, unit: str) -> str:
     """The tab's rock-mass line (escaped): the sentence of ``rough-viewer sets``."""
     if not sets.n_sets:
         return ""
-    return f"**Rock mass** (from the joint spacing): {md(rock_mass_text(sets.figures, unit))}"
+    return f"**Rock mass** (from the joint spacing): {md(sets.rock_mass_text(unit))}"
 
 
 def joint_markdown(sets: JointSets, joint: int, set_id: int, unit: str) -> str:
