@@ -245,7 +245,7 @@ def sets_table_figure(
     f, u = unit_scale(unit)
     n = sets.n_sets
     ids = np.arange(1, n + 1)
-    # the lengths' unit once, in the title: eleven columns share a 460 px panel (the
+    # the lengths' unit once, under the title: eleven columns share a 460 px panel (the
     # cells and the spacing's std are in SETS.csv)
     header = ["set", "dip / dir.<br>(°)", "κ", "α95<br>(°)", "pat-<br>ches", "joints",
               "spacing<br>mean", "me-<br>dian", "scan-<br>line", "persist-<br>ence",
@@ -275,9 +275,8 @@ def sets_table_figure(
     if face.any():
         listed = ", ".join(str(i) for i in ids[face])
         what += f" (⚠ {listed}: exposure face)"
-    if n:
-        what += f": spacing and persistence in {u}"
-    fig.update_layout(title=_title(f"{what}<br><sup>{_settings(sets, unit)}</sup>", sets,
+    fig.update_layout(title=_title(f"{what}<br><sup>lengths in {u}; {_settings(sets, unit)}"
+                                   "</sup>", sets,
                                    axis=axis, n_points=n_points, unit=unit),
                       height=int(min(600, 170 + (row_height + TABLE_ROW_EXTRA) * max(n, 1))),
                       margin={"l": 10, "r": 10, "t": 100, "b": 10})

@@ -109,7 +109,7 @@ def test_colour_by_joint_counts_the_planted_joints_and_shows_the_clis_jv(live):
             m = fb.measure(page, index=i)
             title = " ".join(t["text"] for t in m["texts"] if t["kind"] == "title")
             measured[title[:40]] = fb.problems(m)
-    tables = {t: p for t, p in measured.items() if re.match(r"(3 joint sets: spacing|12 joints)", t)}
+    tables = {t: p for t, p in measured.items() if re.match("(3 joint sets\u200b|12 joints)", t)}
     assert len(tables) == 2, list(measured)
     assert all(p == [] for p in tables.values()), tables
     os.makedirs("/tmp/rough-viewer-shots", exist_ok=True)
