@@ -29,8 +29,9 @@ cloud's plane or its cells' local face; :mod:`rough_viewer.grid.face`) has
 marked on the terminal and left out of Jv, Ib and the RQD estimate (its spacing is no
 joint spacing). DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
 Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
-``compute``'s columns (ODR only) plus ``set_id`` and ``plane_id``. ``--las-out`` /
-``--ply-out``: every point with ``set_id`` and ``plane_id`` of its cell. With several
+``compute``'s columns (ODR only) plus ``set_id``, ``plane_id`` and ``joint_id``.
+``--las-out`` / ``--ply-out``: every point with ``set_id``, ``plane_id`` and
+``joint_id`` of its cell. With several
 ``--grid`` values every output name gets ``_g<G>`` before its extension, as in
 ``compute``. The outputs appear only when the whole run succeeds
 (:func:`rough_viewer.io.output.all_or_nothing`); a cloud without joint sets writes
@@ -131,13 +132,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the sets and the rock-mass figures (Jv, block size index, RQD "
                    "estimate) as JSON")
     p.add_argument("--cells-out", metavar="CELLS.csv",
-                   help="per-cell table: compute's columns (ODR) plus set_id and plane_id")
+                   help="per-cell table: compute's columns (ODR) plus set_id, plane_id and "
+                   "joint_id")
     p.add_argument("--dips-out", metavar="DIPS.csv",
                    help="the planes as a CSV for Rocscience Dips (Dip/Dip Direction)")
     p.add_argument("--las-out", metavar="OUT.las|OUT.laz",
-                   help="every point with set_id and plane_id as LAS extra dimensions")
+                   help="every point with set_id, plane_id and joint_id as LAS extra "
+                   "dimensions")
     p.add_argument("--ply-out", metavar="OUT.ply",
-                   help="every point with set_id and plane_id as PLY properties")
+                   help="every point with set_id, plane_id and joint_id as PLY properties")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -204,20 +207,7 @@ def format_sets(sets, result, *, source: str, unit: str = "m") -> str:
             f"{_length(sets.persistence_mean[k] / per)} "
             + (f"{angle:8.1f}{marked(angle)}" if np.isfinite(angle) else f"{'-':>8} "))
     lines += face_lines(sets, unit)
-    f = sets.figures
-    if f.sets_counted:
-        lines.append(
-            f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
-            f"set{'s' if f.sets_counted != 1 else ''} with a spacing"
-            + (", the sets parallel to the exposure face left out" if face.any() else "")
-            + f"), block size index Ib {f.block_size_index / per:.4g} {u}, RQD estimate "
-            f"{f.rqd_estimate:.0f} % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a "
-            "measured RQD)")
-    elif np.any(face & np.isfinite(sets.spacing_mean)):
-        lines.append("no set off the exposure face has two joints apart: no Jv, block size "
-                     "index or RQD estimate")
-    else:
-        lines.append("no set has two joints apart: no Jv, block size index or RQD estimate")
+    lines.append(sets.rock_mass_text(unit))
     lines += _roughness_lines(sets, unit)
     pl = sets.planes
     if pl.n_planes:
@@ -440,7 +430,7 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
         keep = result.n_points >= result.min_points  # the rows of cell_columns
         write_table(outputs["cells_out"][g],
                     {**cell_columns(result, unit=unit), "set_id": sets.cell_set[keep],
-                     "plane_id": sets.cell_plane[keep]},
+                     "plane_id": sets.cell_plane[keep], "joint_id": sets.cell_joint[keep]},
                     metadata=table_metadata(result, source, unit=unit), unit=unit)
         tables.append(str(outputs["cells_out"][g]))
     lines = ["wrote " + " and ".join(tables)]
@@ -455,7 +445,7 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
             path = outputs["ply_out"][g]
             info = write_ply_fields(path, cloud, fields, comments=[
                 f"rough_viewer sets: {source}, grid {g:g} {UNIT_LABELS[unit]}, "
-                f"set_id and plane_id (0 = none), coordinates in {UNIT_LABELS[unit]}"],
+                f"set_id, plane_id and joint_id (0 = none), coordinates in {UNIT_LABELS[unit]}"],
                 unit=unit)
             lines.append(f"wrote {path}: {info}")
     return lines

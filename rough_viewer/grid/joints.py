@@ -56,7 +56,7 @@ import numpy as np
 
 from rough_viewer.grid.orientation import dip_and_direction, dip_strike_axes, orient_normals
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import InputError
+from rough_viewer.vocabulary import InputError, unit_scale
 
 #: Most candidate patch pairs merged per set (each takes a 3x3 eigen-decomposition
 #: in a Python loop); beyond it the closest pairs are kept.
@@ -146,6 +146,34 @@ def rock_mass_figures(spacing_mean: np.ndarray) -> RockMassFigures:
     jv = float(np.sum(1.0 / s))
     rqd = float(np.clip(RQD_INTERCEPT - RQD_SLOPE * jv, 0.0, 100.0))
     return RockMassFigures(jv, float(s.mean()), rqd, int(s.size))
+
+
+def rock_mass_text(f: RockMassFigures, unit: str = "m", *, face_left_out: bool = False,
+                   only_face_spaced: bool = False) -> str:
+    """The rock-mass figures in one sentence, as the terminal and the app's Sets tab
+    show them: ``Jv`` in joints per ``unit`` cubed (and per cubic metre), ``Ib`` in
+    ``unit``, the RQD estimate with its formula, named an estimate. ``face_left_out``:
+    some sets parallel to the exposure face were left out; ``only_face_spaced``: only
+    such sets had a spacing.
+
+    >>> print(rock_mass_text(rock_mass_figures(np.array([0.5, 0.8, 0.6]))))
+    Jv 4.917 joints per m3 (4.92 per m3, 3 sets with a spacing), block size index Ib \
+0.6333 m, RQD estimate 98 % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a measured RQD)
+    >>> rock_mass_text(rock_mass_figures(np.array([np.nan])))
+    'no set has two joints apart: no Jv, block size index or RQD estimate'
+    """
+    per, u = unit_scale(unit)
+    if not f.sets_counted:
+        if only_face_spaced:
+            return ("no set off the exposure face has two joints apart: no Jv, block size "
+                    "index or RQD estimate")
+        return "no set has two joints apart: no Jv, block size index or RQD estimate"
+    return (f"Jv {f.jv * per:.4g} joints per {u}3 ({f.jv:.3g} per m3, {f.sets_counted} "
+            f"set{'s' if f.sets_counted != 1 else ''} with a spacing"
+            + (", the sets parallel to the exposure face left out" if face_left_out else "")
+            + f"), block size index Ib {f.block_size_index / per:.4g} {u}, RQD estimate "
+            f"{f.rqd_estimate:.0f} % (110 - 2.5 Jv, Palmstrom 2005; an estimate, not a "
+            "measured RQD)")
 
 
 def _moments_of_pairs(n: np.ndarray, c: np.ndarray, cov: np.ndarray, i: np.ndarray,

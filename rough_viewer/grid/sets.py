@@ -106,6 +106,7 @@ from rough_viewer.grid.joints import (
     joint_table,
     merge_patches,
     rock_mass_figures,
+    rock_mass_text,
     set_spacing,
 )
 from rough_viewer.grid.orientation import (
@@ -414,6 +415,14 @@ class JointSets:
         sets parallel to the exposure face left out (:attr:`face_parallel`)."""
         return rock_mass_figures(np.where(self.face_parallel, np.nan, self.spacing_mean))
 
+    def rock_mass_text(self, unit: str = "m") -> str:
+        """The rock-mass figures in the sentence the terminal and the app show
+        (:func:`rough_viewer.grid.joints.rock_mass_text`), lengths in ``unit``."""
+        face = np.asarray(self.face_parallel, dtype=bool)
+        return rock_mass_text(self.figures, unit, face_left_out=bool(face.any()),
+                              only_face_spaced=bool(np.any(face & np.isfinite(
+                                  self.spacing_mean))))
+
     @property
     def cone_deg(self) -> float:
         """A cell joins the nearest peak within this angle, degrees."""
@@ -477,11 +486,11 @@ class JointSets:
         """The planes as Rocscience Dips reads them (Import CSV, Dip/Dip Direction
         convention): ``Dip``, ``Dip Direction``, ``Quantity`` (1: each plane is one
         discontinuity), ``X (East)``, ``Y (North)``, ``Z (Elev.)``, ``Persistence``
-        (the longer chord), then extra columns ``JOINT_SET``, ``PLANE``, ``AREA``,
-        ``PERSISTENCE_DIP``, ``PERSISTENCE_STRIKE``, ``RMS``, ``CELLS`` and
-        ``FACE_PARALLEL`` (1: the plane's set lies parallel to the exposure face, it is
-        the exposure, not a joint; :attr:`face_parallel`); lengths divided by
-        ``unit_m``."""
+        (the longer chord), then extra columns ``JOINT_SET``, ``PLANE``, ``JOINT`` (the
+        joint the plane, a patch, is part of), ``AREA``, ``PERSISTENCE_DIP``,
+        ``PERSISTENCE_STRIKE``, ``RMS``, ``CELLS`` and ``FACE_PARALLEL`` (1: the plane's
+        set lies parallel to the exposure face, it is the exposure, not a joint;
+        :attr:`face_parallel`); lengths divided by ``unit_m``."""
         pl = self.planes
         face = (np.concatenate([[False], self.face_parallel])[pl.set_id]
                 if pl.n_planes else np.zeros(0, dtype=bool))
@@ -491,6 +500,7 @@ class JointSets:
             "X (East)": pl.centroid[:, 0] / unit_m, "Y (North)": pl.centroid[:, 1] / unit_m,
             "Z (Elev.)": pl.centroid[:, 2] / unit_m, "Persistence": pl.persistence / unit_m,
             "JOINT_SET": pl.set_id, "PLANE": np.arange(1, pl.n_planes + 1, dtype=np.int64),
+            "JOINT": pl.joint_id,
             "AREA": pl.area / unit_m**2, "PERSISTENCE_DIP": pl.persistence_dip / unit_m,
             "PERSISTENCE_STRIKE": pl.persistence_strike / unit_m, "RMS": pl.rms / unit_m,
             "CELLS": pl.cells, "FACE_PARALLEL": face.astype(np.int64),
@@ -1162,13 +1172,15 @@ def _chords(group: np.ndarray, across: np.ndarray, along: np.ndarray, n_groups: 
 
 def set_point_fields(sets: JointSets, result: GridRoughness) -> PointFields:
     """The per-point fields of LAS/LAZ and PLY exports of the sets: ``set_id``
-    (uint8, 0 = in no set) and ``plane_id`` (int32, 0 = in no plane) of every
-    point's cell (0 for a point in no cell)."""
+    (uint8, 0 = in no set), ``plane_id`` (int32, 0 = in no plane) and ``joint_id``
+    (int32, 0 = in no joint) of every point's cell (0 for a point in no cell)."""
     if sets.cell_set.shape[0] != result.n_cells:
         raise InputError("the joint sets are of another grid result")
     return PointFields(fields=(
         CellField("set_id", sets.cell_set.astype(np.uint8), "joint set id (0 = none)",
                   np.uint8(0)),
         CellField("plane_id", sets.cell_plane.astype(np.int32), "joint plane id (0 = none)",
+                  np.int32(0)),
+        CellField("joint_id", sets.cell_joint.astype(np.int32), "joint id (0 = none)",
                   np.int32(0)),
     ), point_cell=result.point_cell)

@@ -50,7 +50,7 @@ def test_the_planted_sets_are_found_and_the_rock_coloured_by_them(sapp, block):
     assert "**3 sets**" in f.status.content
     assert f.selected.options == (NO_SET, *(set_option(ref, k) for k in (1, 2, 3)))
     assert "3 joint sets" in f.table.figure.layout.title.text
-    f.colour_by.value = "plane"  # the same sets, coloured by plane
+    f.colour_by.value = "patch"  # the same sets, coloured by patch (plane)
     assert app.wait_idle(60)
     np.testing.assert_array_equal(
         shown_colours(app), point_colours(ref, res.point_cell[loaded.display_index], by="plane"))

@@ -72,12 +72,16 @@ def test_tables_follow_the_contract_at_full_precision(tmp_path, block, capsys):
     assert [float(r[0]) for r in rows] == list(ref.planes.dip_deg)
     assert [float(r[1]) for r in rows] == list(ref.planes.dip_direction_deg)
     assert {r[2] for r in rows} == {"1"}
+    # every plane's joint (issue 31 item 12), as PLANES.csv has it
+    assert [int(r[header.index("JOINT")]) for r in rows] == list(ref.planes.joint_id)
     header, rows = read_csv(out["cells"])
-    assert tuple(header) == (*CSV_COLUMNS[:-1], "set_id", "plane_id", "unit_m")
+    assert tuple(header) == (*CSV_COLUMNS[:-1], "set_id", "plane_id", "joint_id", "unit_m")
     keep = result.n_points >= result.min_points
     assert len(rows) == int(keep.sum())
-    assert [int(r[-3]) for r in rows] == list(ref.cell_set[keep])
-    assert [int(r[-2]) for r in rows] == list(ref.cell_plane[keep])
+    assert [int(r[-4]) for r in rows] == list(ref.cell_set[keep])
+    assert [int(r[-3]) for r in rows] == list(ref.cell_plane[keep])
+    assert [int(r[-2]) for r in rows] == list(ref.cell_joint[keep])
+    assert {int(r[-2]) for r in rows} >= {0, 1}
     assert {r[-1] for r in rows} == {"1.0"}
     text = capsys.readouterr().out
     assert "3 sets" in text and "wrote" in text
@@ -142,8 +146,10 @@ def test_las_and_ply_carry_the_ids(tmp_path, block):
     data = laspy.read(las)
     assert np.array_equal(np.asarray(data["set_id"]), ref.cell_set[result.point_cell])
     assert np.array_equal(np.asarray(data["plane_id"]), ref.cell_plane[result.point_cell])
+    assert np.array_equal(np.asarray(data["joint_id"]), ref.cell_joint[result.point_cell])
     vertex = PlyData.read(str(ply))["vertex"]
     assert np.array_equal(np.asarray(vertex["plane_id"]), ref.cell_plane[result.point_cell])
+    assert np.array_equal(np.asarray(vertex["joint_id"]), ref.cell_joint[result.point_cell])
 
 
 def test_a_cloud_without_planes_writes_headers_and_says_so(tmp_path, capsys):

@@ -125,10 +125,14 @@ def test_tables_follow_the_contract(block):
 def test_point_fields_carry_each_points_cell_ids(block):
     _, result, sets = block
     fields = set_point_fields(sets, result)
-    assert fields.names == ("set_id", "plane_id")
-    set_values, plane_values = fields.gather(0, fields.n_points)
+    assert fields.names == ("set_id", "plane_id", "joint_id")
+    set_values, plane_values, joint_values = fields.gather(0, fields.n_points)
     assert np.array_equal(set_values, sets.cell_set[result.point_cell])
     assert np.array_equal(plane_values, sets.cell_plane[result.point_cell])
+    # a point's joint is its plane's (patch's) joint
+    on = plane_values > 0
+    assert np.array_equal(joint_values[on], sets.planes.joint_id[plane_values[on] - 1])
+    assert np.all(joint_values[~on] == 0)
 
 
 # ----------------------------------------------------------------------------- conventions

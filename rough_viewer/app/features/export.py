@@ -10,6 +10,9 @@ machine; the browser saves it at once, no link to click):
   dimensions, VLRs (the CRS) and EVLRs, as ``compute --las-out`` does;
 - **cell table**: CSV, or Parquet when pyarrow is installed (the ``compute --out``
   table, lengths in the input's unit);
+- **tables of a tab** (:class:`TablePart`): a feature's own tables as CSV, e.g. the
+  Sets tab's Dips CSV, SETS.csv, PLANES.csv and JOINTS.csv, as the command line
+  writes them;
 - **figures**: any panel of the app (every feature lists its own,
   :class:`rough_viewer.app.host.FigureSource`), or all of them in one ZIP, as HTML, or
   PNG/SVG when kaleido is installed;
@@ -73,13 +76,15 @@ if TYPE_CHECKING:
 
     from rough_viewer.app.files import DataFolder
 
-ExportKind = Literal["points", "table", "figure", "report", "view"]
+ExportKind = Literal["points", "table", "tab-table", "figure", "report", "view"]
 
 #: Labels (tests and users find the controls by them).
 L_POINTS_FORMAT = "Points file"
 L_POINTS = "Download points"
 L_TABLE_FORMAT = "Cell table"
 L_TABLE = "Download cell table"
+L_TAB_TABLE_CHOICE = "Table of a tab"
+L_TAB_TABLE = "Download table (CSV)"
 L_FIGURE = "Figure"
 L_FIGURE_FORMAT = "Figure format"
 L_FIGURE_BUTTON = "Download figure"
@@ -102,6 +107,8 @@ DISK_MARGIN = 256 << 20
 #: compressed, the check after writing is the exact one) and per cell (CSV, Parquet).
 BYTES_PER_POINT = {"las": 64.0, "laz": 16.0, "ply": 60.0}
 BYTES_PER_CELL = {"csv": 260.0, "parquet": 120.0}
+#: Estimated CSV bytes per field of a tab's table.
+BYTES_PER_FIELD = 26.0
 #: More of them when the cloud has scanner positions (the nine scanner fields).
 TRUST_BYTES_PER_POINT = {"las": 32.0, "laz": 8.0, "ply": 32.0}
 TRUST_BYTES_PER_CELL = {"csv": 110.0, "parquet": 50.0}
@@ -187,6 +194,8 @@ class ExportFeature:
     points: viser.GuiButtonHandle
     table_format: viser.GuiDropdownHandle[str]
     table: viser.GuiButtonHandle
+    tab_table: viser.GuiDropdownHandle[str]
+    tab_table_button: viser.GuiButtonHandle
     figure: viser.GuiDropdownHandle[str]
     figure_format: viser.GuiDropdownHandle[str]
     figure_button: viser.GuiButtonHandle
@@ -335,6 +344,48 @@ class ExportPart(Protocol):
         """The per-point fields of the points downloads (each point its cell's);
         empty when the feature shows nothing of ``result``."""
         ...
+
+
+@runtime_checkable
+class TablePart(Protocol):
+    """A feature whose own tables the Export folder downloads as CSV (the Sets tab's
+    Dips CSV, SETS.csv, PLANES.csv, JOINTS.csv)."""
+
+    def download_tables(self) -> dict[str, str]:
+        """Title in the Export folder's list -> the table's name (a file-name part)."""
+        ...
+
+    def download_table(self, name: str, result: GridRoughness, unit: str
+                       ) -> dict[str, np.ndarray]:
+        """Column -> values of table ``name`` of ``result``, lengths in ``unit``;
+        InputError when the feature shows nothing of ``result``."""
+        ...
+
+
+def tab_tables(host: Host) -> dict[str, tuple[TablePart, str]]:
+    """Every feature's downloadable table: title -> (feature, name), in mount order."""
+    return {title: (f, name) for f in host.features() if isinstance(f, TablePart)
+            for title, name in f.download_tables().items()}
+
+
+def _tab_table_plan(e: ExportFeature, shown: Shown, title: str) -> Plan:
+    from rough_viewer.io.table import write_table
+
+    assert shown.result is not None
+    chosen = tab_tables(e.host).get(title)
+    if chosen is None:
+        raise InputError("no such table to download")  # a hostile title: not echoed
+    part, name = chosen
+    unit = shown.loaded.units.unit
+    columns = part.download_table(name, shown.result, unit)
+    rows = len(next(iter(columns.values()))) if columns else 0
+    file = (f"{_stem(shown.loaded.cloud)}_{grid_tag(shown.loaded, shown.result.grid.cell_size)}"
+            f"_{safe_name(name, 'table')}.csv")
+
+    def write(path: Path, progress: Callable[[int, int], None]) -> None:
+        write_table(path, columns)
+
+    return Plan(file, (rows + 1) * max(len(columns), 1) * BYTES_PER_FIELD, write)
 
 
 def _extra_columns(host: Host, result: GridRoughness) -> dict[str, np.ndarray]:
@@ -509,6 +560,8 @@ class ExportJob(Job[Host]):
             return _points_plan(self.e, self.shown, self.fmt)
         if self.kind == "table":
             return _table_plan(self.e, self.shown, self.fmt)
+        if self.kind == "tab-table":
+            return _tab_table_plan(self.e, self.shown, self.panel)
         if self.kind == "figure":
             return _figure_plan(self.shown, self.fmt, self.panel, self.figures)
         if self.kind == "report":
@@ -631,6 +684,11 @@ def mount(host: Host) -> ExportFeature:
                                         else ("CSV",), initial_value="CSV",
                                         hint="One row per cell (rough-viewer compute --out).")
         table = gui.add_button(L_TABLE)
+        tab_titles = tuple(tab_tables(host)) or ("none",)
+        tab_table = gui.add_dropdown(L_TAB_TABLE_CHOICE, tab_titles, initial_value=tab_titles[0],
+                                     hint="A tab's own table, as the command line writes "
+                                     "it (the joint sets: tick Show sets first).")
+        tab_table_button = gui.add_button(L_TAB_TABLE)
         figures = (*panel_titles(host), ALL_FIGURES)
         figure = gui.add_dropdown(L_FIGURE, figures, initial_value=ALL_FIGURES,
                                   hint="One panel of the app, or all of them in one ZIP.")
@@ -648,11 +706,12 @@ def mount(host: Host) -> ExportFeature:
         progress = gui.add_progress_bar(0.0, visible=False, animated=True)
     whole = host.session.shown.loaded.uncropped or host.session.shown.loaded
     first = whole.cloud.source
-    m = ExportFeature(host, points_format, points, table_format, table, figure, figure_format,
+    m = ExportFeature(host, points_format, points, table_format, table, tab_table,
+                      tab_table_button, figure, figure_format,
                       figure_button, report, view, save_view, status, progress,
                       initial=weakref.ref(whole.cloud), initial_path=Path(first).resolve() if first else None)
-    host.allow(points_format, points, table_format, table, figure, figure_format,
-               figure_button, report, view, save_view)
+    host.allow(points_format, points, table_format, table, tab_table, tab_table_button, figure,
+               figure_format, figure_button, report, view, save_view)
     _wire(host, m)
     return m
 
@@ -670,6 +729,8 @@ def _wire(host: Host, m: ExportFeature) -> None:
 
     m.points.on_click(export("points", lambda: m.points_format.value.lower()))
     m.table.on_click(export("table", lambda: m.table_format.value.lower()))
+    m.tab_table_button.on_click(export("tab-table", lambda: "csv",
+                                       panel=lambda: m.tab_table.value))
     m.figure_button.on_click(export("figure", lambda: m.figure_format.value.lower(),
                                     panel=lambda: panel_titles(host).get(m.figure.value,
                                                                          m.figure.value),

@@ -4,10 +4,21 @@ stereonet and as tables (:mod:`rough_viewer.grid.sets`, docs/sets.md).
 The tab follows the map: its sets are of the Map tab's grid (its ODR planes), with
 the tab's own settings (the largest roughness of a planar cell as a share of the
 cell, the cone, the least angle between sets, the most sets). "Show sets" colours the
-rock by set, or by plane (the map's colour bar hides;
-the zones, if shown, go off: one feature colours the points at a time). A click on
-the rock or the "Selected set" list selects a set: the stereonet marks it, the set
-table highlights it and the plane table lists its planes.
+rock by set, by joint or by patch ("Colour sets by"; the map's colour bar hides; the
+zones, if shown, go off: one feature colours the points at a time). A click on the
+rock selects the set and the joint under it: the stereonet marks both, the set table
+highlights the set, the joint line gives the joint's row (dip / dip direction,
+patches, area, trace length, persistence) and the joint and plane tables list the
+set's joints and patches; the "Selected set" list selects a set alone. The
+stereonet shows a pole per planar cell, per patch or per joint ("Stereonet poles").
+Under the status line: the rock-mass figures (Jv, block size index, RQD estimate)
+of the sets, the very sentence ``rough-viewer sets`` prints
+(:func:`rough_viewer.grid.joints.rock_mass_text`).
+
+The Export folder downloads the sets' tables (:meth:`SetsFeature.download_tables`):
+the Dips CSV, SETS.csv, PLANES.csv and JOINTS.csv of ``sets --dips-out``, ``--out``,
+``--planes-out`` and ``--joints-out``; the cell table and the points carry
+``set_id``, ``plane_id`` and ``joint_id`` while the sets are shown.
 
 Jobs (on the worker; callbacks only submit them):
 
@@ -49,7 +60,9 @@ from rough_viewer.grid.sets import (
 )
 from rough_viewer.io.point_fields import CellField
 from rough_viewer.visual import colormaps
+from rough_viewer.visual.app import panel_aspect
 from rough_viewer.visual.sets import (
+    joints_table_figure,
     planes_table_figure,
     sets_stereonet_figure,
     sets_table_figure,
@@ -58,7 +71,8 @@ from rough_viewer.vocabulary import InputError
 
 #: Labels (the browser tests find controls by these).
 L_ON = "Show sets"
-L_COLOUR = "Colour sets by"
+L_COLOUR = "Colour sets by"  # "Colour by" is the Map tab's layer
+L_POLES = "Stereonet poles"
 L_ROUGHNESS = "Planar cells: roughness ≤ % of cell"
 L_CONE = "Cone (°)"
 L_MIN_ANGLE = "Least angle between sets (°)"
@@ -66,7 +80,15 @@ L_MAX_SETS = "Most sets"
 L_SELECTED = "Selected set"
 #: The "Selected set" entry for no selection.
 NO_SET = "none"
-COLOUR_BY: tuple[str, ...] = ("set", "plane")
+#: "Colour sets by" entries and the labels each colours by (patch: a plane of PLANES.csv).
+COLOUR_BY: tuple[str, ...] = ("set", "joint", "patch")
+COLOUR_LABELS = {"set": "set", "joint": "joint", "patch": "plane"}
+#: "Stereonet poles" entries: one pole per planar cell, per patch or per joint.
+POLES: tuple[str, ...] = ("per cell", "per patch", "per joint")
+POLES_OF = {"per cell": "cell", "per patch": "patch", "per joint": "joint"}
+#: The tables the Export folder downloads: title -> (file-name part, table).
+DOWNLOAD_TABLES = {"Joint sets: Dips CSV (planes)": "dips", "Joint sets: SETS.csv": "sets",
+                   "Joint sets: PLANES.csv": "planes", "Joint sets: JOINTS.csv": "joints"}
 
 
 @dataclass(frozen=True)
@@ -100,12 +122,41 @@ def status_markdown(sets: JointSets, cell_size_text: str) -> str:
     planar = int(np.count_nonzero(sets.planar))
     n = sets.curved_groups
     curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
+    n_j, n_p = sets.joints.n_joints, sets.planes.n_planes
     line = (f"**{sets.n_sets} set{'s' if sets.n_sets != 1 else ''}** at grid "
             f"{md(cell_size_text)}: {int(sets.cells.sum()):,} of {planar:,} planar cells in "
-            f"sets, {sets.planes.n_planes:,} planes{md(curved)}")
+            f"sets, {n_j:,} joint{'s' if n_j != 1 else ''} of {n_p:,} "
+            f"patch{'es' if n_p != 1 else ''} (planes){md(curved)}")
     if sets.face_note:  # a set parallel to the exposure face (issue 31 item 2)
         line += f"\n\n**⚠ {md(sets.face_note)}**"
     return line
+
+
+def rock_mass_markdown(sets: JointSets, unit: str) -> str:
+    """The tab's rock-mass line (escaped): the sentence of ``rough-viewer sets``."""
+    if not sets.n_sets:
+        return ""
+    return f"**Rock mass** (from the joint spacing): {md(sets.rock_mass_text(unit))}"
+
+
+def joint_markdown(sets: JointSets, joint: int, set_id: int, unit: str) -> str:
+    """The selected joint's row (escaped): dip / dip direction, patches, area, trace
+    length, persistence along dip and strike, in ``unit``; or why there is none."""
+    from rough_viewer.vocabulary import unit_scale
+
+    per, u = unit_scale(unit)
+    jt = sets.joints
+    if not 1 <= joint <= jt.n_joints:
+        where = f" (set {set_id})" if set_id else ""
+        return f"_The clicked cell is in no joint{md(where)}._" if set_id else ""
+    k = joint - 1
+    return md(f"Joint {joint} (set {int(jt.set_id[k])}): {jt.dip_deg[k]:02.0f}/"
+              f"{jt.dip_direction_deg[k]:03.0f}, {int(jt.patches[k]):,} "
+              f"patch{'es' if jt.patches[k] != 1 else ''}, area {jt.area[k] / per**2:.3g} "
+              f"{u}2, trace length {jt.trace_length[k] / per:.3g} {u}, persistence "
+              f"{jt.persistence_dip[k] / per:.3g} {u} along dip x "
+              f"{jt.persistence_strike[k] / per:.3g} {u} along strike, RMS "
+              f"{jt.rms[k] / per:.3g} {u}")
 
 
 class SetsBinding(Binding):
@@ -141,14 +192,18 @@ class SetsFeature:
     map: MapFeature
     on: viser.GuiCheckboxHandle
     colour_by: viser.GuiDropdownHandle[str]
+    poles: viser.GuiDropdownHandle[str]
     roughness: viser.GuiNumberHandle[float]
     cone: viser.GuiNumberHandle[float]
     min_angle: viser.GuiNumberHandle[float]
     max_sets: viser.GuiNumberHandle[int]
     status: viser.GuiMarkdownHandle
+    rock_mass: viser.GuiMarkdownHandle
     selected: viser.GuiDropdownHandle[str]
+    joint_info: viser.GuiMarkdownHandle
     stereonet: viser.GuiPlotlyHandle
     table: viser.GuiPlotlyHandle
+    joints: viser.GuiPlotlyHandle
     planes: viser.GuiPlotlyHandle
     binding: SetsBinding = field(init=False)
     sets: JointSets | None = None
@@ -156,6 +211,8 @@ class SetsFeature:
     result: GridRoughness | None = None
     selected_set: int = 0
     """The selected set (0: none)."""
+    selected_joint: int = 0
+    """The selected joint (0: none; a click on the rock selects it)."""
     cache: ByteCache[tuple[object, ...], JointSets] = field(default_factory=lambda: ByteCache(0))
     cache_for: LoadedCloud | None = None
 
@@ -167,22 +224,45 @@ class SetsFeature:
         return bool(self.on.value)
 
     def table_columns(self, result: GridRoughness) -> dict[str, np.ndarray]:
-        """The exported cell table's ``set_id`` and ``plane_id`` columns (0 = none, as
-        ``sets --cells-out``) while the sets of ``result`` are shown."""
+        """The exported cell table's ``set_id``, ``plane_id`` and ``joint_id`` columns
+        (0 = none, as ``sets --cells-out``) while the sets of ``result`` are shown."""
         if not self.active or self.sets is None or self.result is not result:
             return {}
-        return {"set_id": self.sets.cell_set, "plane_id": self.sets.cell_plane}
+        return {"set_id": self.sets.cell_set, "plane_id": self.sets.cell_plane,
+                "joint_id": self.sets.cell_joint}
 
     def point_fields_of(self, result: GridRoughness) -> tuple[CellField, ...]:
-        """The points downloads' ``set_id`` and ``plane_id`` (as ``sets --las-out``)
-        while the sets of ``result`` are shown."""
+        """The points downloads' ``set_id``, ``plane_id`` and ``joint_id`` (as ``sets
+        --las-out``) while the sets of ``result`` are shown."""
         if not self.active or self.sets is None or self.result is not result:
             return ()
         return set_point_fields(self.sets, result).fields
 
+    def download_tables(self) -> dict[str, str]:
+        """The tables the Export folder offers: title -> file-name part."""
+        return dict(DOWNLOAD_TABLES)
+
+    def download_table(self, name: str, result: GridRoughness, unit: str
+                       ) -> dict[str, np.ndarray]:
+        """Table ``name`` (a value of :data:`DOWNLOAD_TABLES`) of the sets of
+        ``result`` shown, lengths in ``unit``: the very columns ``rough-viewer sets``
+        writes (InputError when no sets of ``result`` are shown)."""
+        from rough_viewer.vocabulary import unit_scale
+
+        sets = self.sets
+        if not self.active or sets is None or self.result is not result:
+            raise InputError("no joint sets are shown: tick Show sets in the Sets tab "
+                             "first")
+        per = unit_scale(unit)[0]
+        tables = {"dips": sets.dips_table, "sets": sets.set_table,
+                  "planes": sets.plane_table, "joints": sets.joint_table}
+        if name not in tables:
+            raise InputError(f"no such joint-set table: {name!r}")
+        return tables[name](per)
+
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"sets_stereonet": self.stereonet, "sets_table": self.table,
-                "planes_table": self.planes}
+                "joints_table": self.joints, "planes_table": self.planes}
 
     # ------------------------------------------------------------------ worker side
     def sets_of(self, loaded: LoadedCloud, result: GridRoughness, grid_key: tuple[object, ...],
@@ -200,13 +280,17 @@ class SetsFeature:
         return made
 
     def colouring(self) -> Colouring:
-        """The points' colours by set (or by plane) of their cell."""
+        """The points' colours by the set, joint or patch of their cell."""
+        from rough_viewer.visual.sets import cell_labels
+
         assert self.sets is not None and self.result is not None
-        labels = self.sets.cell_plane if self.colour_by.value == "plane" else self.sets.cell_set
+        by = COLOUR_LABELS.get(self.colour_by.value, "set")
+        labels = cell_labels(self.sets, by)  # type: ignore[arg-type]
         return by_cell(colormaps.zone_colours(labels), self.result.point_cell)
 
     def show_colours(self) -> None:
-        """Colour the points by set or plane (the map's colours and colour bar give way)."""
+        """Colour the points by set, joint or patch (the map's colours and colour bar
+        give way)."""
         self.map.take_overlay(self, self.let_go, self.colouring())
 
     def hide(self) -> None:
@@ -217,24 +301,43 @@ class SetsFeature:
         self.binding.set(self.on, False)
 
     def show_figures(self) -> None:
-        """The stereonet, the set table and the selected set's planes."""
+        """The stereonet, the set table, the selected joint's row and the selected
+        set's joints and planes."""
         sets, res = self.sets, self.result
         if sets is None or res is None:
             return
         unit = self.host.session.shown.loaded.units.unit
         own: dict[str, Any] = {"axis": res.axis, "n_points": res.n_points_total, "unit": unit}
         k = self.selected_set or None
-        self.stereonet.figure = _compact(sets_stereonet_figure(sets, selected=k, **own))
-        self.table.figure = _compact(sets_table_figure(sets, selected=k, **own))
-        self.planes.figure = _compact(planes_table_figure(sets, set_id=k, **own))
+        j = self.selected_joint or None
+        poles = POLES_OF.get(self.poles.value, "cell")
+        self.stereonet.figure = _compact(sets_stereonet_figure(
+            sets, selected=k, poles=poles, selected_joint=j, **own))  # type: ignore[arg-type]
+        for handle, fig in ((self.table, sets_table_figure(sets, selected=k, **own)),
+                            (self.joints, joints_table_figure(sets, set_id=k, selected=j,
+                                                              **own)),
+                            (self.planes, planes_table_figure(sets, set_id=k, **own))):
+            # a table gets the height it was laid out for: every row shown (long
+            # tables scroll within their most height)
+            handle.aspect = panel_aspect(fig, width=TABLE_PANEL_WIDTH)
+            handle.figure = _compact(fig)
+        self.rock_mass.content = rock_mass_markdown(sets, unit)
+        self.joint_info.content = joint_markdown(sets, self.selected_joint, self.selected_set,
+                                                 unit)
         self.binding.show_selection(sets, self.selected_set)
 
+    def select_cell(self, cell: int) -> None:
+        """Select the set and the joint of cell ``cell`` (0 for none)."""
+        assert self.sets is not None
+        self.selected_set = int(self.sets.cell_set[cell])
+        self.selected_joint = int(self.sets.cell_joint[cell])
+
     def on_pick(self, pick: Pick) -> bool:
-        """A click while sets are shown selects the set under it (worker)."""
+        """A click while sets are shown selects the set and the joint under it
+        (worker)."""
         if not self.active or self.sets is None or self.result is None:
             return False
-        cell = int(self.result.point_cell[pick.point])
-        self.selected_set = int(self.sets.cell_set[cell])
+        self.select_cell(int(self.result.point_cell[pick.point]))
         self.host.submit(SetFiguresJob(self))
         return True
 
@@ -242,6 +345,11 @@ class SetsFeature:
         """After every map: the sets of its grid, when shown (worker)."""
         if self.active:
             self.host.submit(SetsJob(self))
+
+
+#: Width the tables' heights are reckoned at, px: the narrowest panel (a 1280 x 800
+#: window; wider panels give a little room to spare).
+TABLE_PANEL_WIDTH = 460
 
 
 def _compact(fig: go.Figure) -> go.Figure:
@@ -274,6 +382,8 @@ class SetsJob(Job[Host]):
         f.status.content = "_finding the joint sets…_"
         sets = f.sets_of(shown.loaded, shown.result, shown.settings.grid_key, options)
         yield "sets"
+        if f.sets is not sets:  # other sets: the old joint ids mean nothing there
+            f.selected_joint = 0
         if f.selected_set > sets.n_sets:
             f.selected_set = 0
         f.sets, f.result = sets, shown.result
@@ -310,7 +420,12 @@ def mount(host: Host) -> SetsFeature:
                                 "cells (smooth ODR planes) grouped by the orientation of "
                                 "their poles (the Map tab's grid)."),
             colour_by=gui.add_dropdown(L_COLOUR, COLOUR_BY, initial_value="set",
-                                       hint="By set, or by discontinuity plane."),
+                                       hint="By set, by joint (a discontinuity: the "
+                                       "coplanar patches of one set, touching or not) or "
+                                       "by patch (touching coplanar cells)."),
+            poles=gui.add_dropdown(L_POLES, POLES, initial_value=POLES[0],
+                                   hint="One pole on the stereonet per planar cell, per "
+                                   "patch or per joint (the density is the cells')."),
             roughness=gui.add_number(L_ROUGHNESS, 100.0 * DEFAULT_PLANAR_SHARE, min=0.1,
                                      max=50.0, step=0.1,
                                      hint="A cell is planar when its ODR roughness is at "
@@ -323,17 +438,23 @@ def mount(host: Host) -> SetsFeature:
             max_sets=gui.add_number(L_MAX_SETS, DEFAULT_MAX_SETS, min=1, max=20, step=1),
             status=gui.add_markdown("Tick **Show sets** to find the joint sets of the map's "
                                     "grid."),
+            rock_mass=gui.add_markdown(""),
             selected=gui.add_dropdown(L_SELECTED, (NO_SET,), initial_value=NO_SET,
-                                      hint="Or click a set on the rock."),
+                                      hint="Or click a set on the rock (that selects its "
+                                      "joint too)."),
+            joint_info=gui.add_markdown(""),
             stereonet=gui.add_plotly(placeholder("Stereonet of the planar cells' poles",
                                                  "tick Show sets"),
                                      config=PLOTLY_CONFIG, aspect=0.95),
             table=gui.add_plotly(placeholder("Joint sets"), config=PLOTLY_CONFIG, aspect=0.5),
+            joints=gui.add_plotly(placeholder("Joints of the selected set"),
+                                  config=PLOTLY_CONFIG, aspect=0.6),
             planes=gui.add_plotly(placeholder("Planes of the selected set"),
                                   config=PLOTLY_CONFIG, aspect=0.6),
         )
     f.cache = ByteCache(host.options.cache_bytes // 4)
-    host.allow(f.on, f.colour_by, f.roughness, f.cone, f.min_angle, f.max_sets, f.selected)
+    host.allow(f.on, f.colour_by, f.poles, f.roughness, f.cone, f.min_angle, f.max_sets,
+               f.selected)
     b = f.binding
     b.on_change([f.on, f.colour_by, f.roughness, f.cone, f.min_angle, f.max_sets],
                 lambda _h: host.submit(SetsJob(f)))
@@ -344,6 +465,7 @@ def mount(host: Host) -> SetsFeature:
             host.submit(SelectSetJob(f, k))
 
     b.on_change([f.selected], select)
+    b.on_change([f.poles], lambda _h: host.submit(SetFiguresJob(f)))
     host.on_click(f.on_pick)
     host.on_render(f.on_render)
     return f
@@ -363,6 +485,8 @@ class SelectSetJob(Job[Host]):
             return
         if not 0 <= self.k <= f.sets.n_sets:
             raise InputError(f"there is no set {self.k}")
+        if self.k != f.selected_set:
+            f.selected_joint = 0  # a joint of the set before
         f.selected_set = self.k
         f.show_figures()
         yield "select"
