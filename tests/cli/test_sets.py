@@ -12,8 +12,8 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.io import PointCloud, load_points, write_las
+from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
