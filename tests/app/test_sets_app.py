@@ -144,7 +144,7 @@ def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_tab():
     from rough_viewer.app.features.sets import set_of_option, status_markdown
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.visual.sets import sets_table_figure
-    from tests.grid.test_face import hillside
+    from tests.structure.test_face import hillside
 
     pts = hillside(size=40.0, step=0.5)
     res = grid_roughness(pts, 2.0, models=("odr",))

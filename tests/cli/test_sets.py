@@ -317,7 +317,7 @@ def test_the_hillside_is_flagged_in_every_output(tmp_path, capsys):
     """Issue 31 item 2: the Santa Cruz LAZ's only "set" was the hillside, silently, and
     went to the Dips CSV; a synthetic hillside (dip 22 / 187, a 2 m scarp across it)
     is flagged on the terminal, in SETS.csv, DIPS.csv and the summary."""
-    from tests.grid.test_face import SCARP_M, hillside
+    from tests.structure.test_face import SCARP_M, hillside
 
     src = tmp_path / "hill.npy"
     np.save(src, hillside())

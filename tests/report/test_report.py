@@ -531,7 +531,7 @@ def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_report():
     set table figure and in the JSON (``face_parallel``, ``face_angle_deg``)."""
     from rough_viewer.report import report_figures
     from rough_viewer.structure.sets import SET_COLUMNS, joint_sets
-    from tests.grid.test_face import hillside
+    from tests.structure.test_face import hillside
 
     pts = hillside(size=40.0, step=0.5)
     rep = build_report(PointCloud.from_xyz(pts), grid_sizes=[2.0])
