@@ -73,8 +73,8 @@ def _time_grid(t: dict[str, float], cloud: Any, g: float, plane: Any, axis: str)
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.summary import histogram, normalise, summarise
     from rough_viewer.grid.variogram import semivariogram
-    from rough_viewer.grid.zones import ZoneLabeller
     from rough_viewer.report import build
+    from rough_viewer.structure.zones import ZoneLabeller
     from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS
 
     tag = f"grid {g:g}"

@@ -1,4 +1,4 @@
-"""Benchmark of joint sets: how long :func:`rough_viewer.grid.sets.joint_sets` takes
+"""Benchmark of joint sets: how long :func:`rough_viewer.structure.sets.joint_sets` takes
 after the grid, and what the figures cost.
 
 For the bundled demo outcrop (2 M points; ``--input`` for another cloud) and the
@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_zones import median_time  # noqa: E402
 
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
-from rough_viewer.grid.sets import joint_sets  # noqa: E402
 from rough_viewer.io import load_points  # noqa: E402
+from rough_viewer.structure.sets import joint_sets  # noqa: E402
 from rough_viewer.synthetic.demos import demo_path  # noqa: E402
 from rough_viewer.synthetic.joints import generate_joint_block  # noqa: E402
 from rough_viewer.visual.sets import (  # noqa: E402

@@ -34,7 +34,7 @@ from timing import median_seconds  # noqa: E402
 
 from rough_viewer.grid.orientation import stereonet  # noqa: E402
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
-from rough_viewer.grid.zones import ZoneLabeller  # noqa: E402
+from rough_viewer.structure.zones import ZoneLabeller  # noqa: E402
 
 
 def median_time(fn, repeat: int) -> float:

@@ -86,12 +86,12 @@ _API: dict[str, str] = {
     "face_semivariogram": "rough_viewer.grid.variogram",
     "face_maps": "rough_viewer.grid.maps",
     "face_raster": "rough_viewer.grid.maps",
-    "ZoneLabeller": "rough_viewer.grid.zones",
-    "Zones": "rough_viewer.grid.zones",
-    "find_zones": "rough_viewer.grid.zones",
-    "joint_sets": "rough_viewer.grid.sets",
-    "JointSets": "rough_viewer.grid.sets",
-    "SetOptions": "rough_viewer.grid.sets",
+    "ZoneLabeller": "rough_viewer.structure.zones",
+    "Zones": "rough_viewer.structure.zones",
+    "find_zones": "rough_viewer.structure.zones",
+    "joint_sets": "rough_viewer.structure.sets",
+    "JointSets": "rough_viewer.structure.sets",
+    "SetOptions": "rough_viewer.structure.sets",
     "dip_and_direction": "rough_viewer.grid.orientation",
     "trend_and_plunge": "rough_viewer.grid.orientation",
     "stereonet": "rough_viewer.grid.orientation",
@@ -176,7 +176,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
     from rough_viewer.grid.scanner import scan_geometry
-    from rough_viewer.grid.sets import JointSets, SetOptions, joint_sets
     from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
@@ -188,7 +187,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     )
     from rough_viewer.grid.table import cell_columns, point_fields
     from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
-    from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.crop import CropBox, crop_cloud
     from rough_viewer.io.crs import CrsInfo, read_crs
@@ -214,6 +212,8 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.report.view import View, load_view, save_view
     from rough_viewer.scale.chunked import chunked_roughness
     from rough_viewer.scale.sources import load_merged, open_sources
+    from rough_viewer.structure.sets import JointSets, SetOptions, joint_sets
+    from rough_viewer.structure.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.synthetic.board import board_scan
     from rough_viewer.synthetic.demos import list_demos, load_demo
     from rough_viewer.synthetic.fbm import fbm_profile

@@ -72,20 +72,20 @@ Axis = Literal["x", "y", "z"]
 AxisChoice = Literal["auto", "x", "y", "z"]
 """Dependent-axis option: ``auto`` = the axis closest to the whole cloud's ODR normal."""
 Model = Literal["odr", "ols", "hybrid"]
-"""A roughness model (SCIENCE.md section 1)."""
+"""A roughness model (docs/science.md section 1)."""
 MapName = Literal["odr", "ols", "hybrid", "e_ols"]
 """A per-cell map: the three models and the OLS error ``e_ols = |theta_ols - theta_odr|``."""
 Residual = Literal["absolute", "signed"]
 #: Engine of the grid's point passes: ``numba`` (compiled, optional), ``numpy`` (the
 #: reference), ``auto`` (numba when installed).
 Engine = Literal["auto", "numpy", "numba"]
-"""``absolute``: std of absolute distances (SCIENCE.md default); ``signed``: RMS of
+"""``absolute``: std of absolute distances (docs/science.md default); ``signed``: RMS of
 signed distances."""
 
 BIAS_RESIDUAL: Residual = "signed"
 """Default roughness of the bias toolkit: the bias paper's own definition, the
 standard deviation of the SIGNED orthogonal residuals (so its published numbers come
-out without a flag). Grid roughness keeps SCIENCE.md's absolute distances."""
+out without a flag). Grid roughness keeps docs/science.md's absolute distances."""
 RESIDUAL_NAMES: dict[str, str] = {
     "signed": "std of signed orthogonal distances (the bias paper's definition)",
     "absolute": "std of absolute orthogonal distances (the grid-roughness convention, "
@@ -211,7 +211,7 @@ def grid_tag(size: float, unit: str = "m") -> str:
     return f"g{float(f'{size:.9g}'):g}{'' if unit == 'm' else unit}"
 ROUGHNESS_UNIT: dict[str, Unit] = {"m": "mm", "mm": "mm", "ft": "ft", "us-ft": "us-ft"}
 """Unit roughness (a few mm) is shown in, for each coordinate unit: millimetres for
-metric input (SCIENCE.md: the tools may show mm), the input's own unit otherwise."""
+metric input (docs/science.md: the tools may show mm), the input's own unit otherwise."""
 
 
 def unit_scale(unit: str) -> tuple[float, str]:

@@ -20,7 +20,7 @@ import rough_viewer
 
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
-SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod")
+SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod", "structure")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -35,14 +35,15 @@ ALLOWED: dict[str, set[str]] = {
     "scale": {"lazy", "vocabulary", "memory", "io", "grid"},
     "tin": {"lazy", "vocabulary", "memory", "io", "grid"},
     "lod": {"lazy", "vocabulary", "memory", "io", "grid"},
+    "structure": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "tin"},
     "visual": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "tin", "lod"},
+               "tin", "lod", "structure"},
     "report": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "visual", "tin", "lod"},
+               "visual", "tin", "lod", "structure"},
     "app": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "tin", "lod"},
+            "visual", "report", "tin", "lod", "structure"},
     "cli": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "tin", "lod", "__init__"},
+            "visual", "report", "app", "tin", "lod", "structure", "__init__"},
     "__init__": {"_version", "lazy"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

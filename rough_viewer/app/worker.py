@@ -197,10 +197,6 @@ class Worker(Generic[C]):
         self._thread.start()
 
     # ------------------------------------------------------------------ thread
-    def on_worker(self) -> bool:
-        """True on the worker's own thread (inside a job or idle work)."""
-        return threading.current_thread() is self._thread
-
     def require_worker(self, what: str) -> None:
         """Raise :class:`NotOnWorker` unless called on the worker's thread: every
         write of the app's state and scene goes through here."""

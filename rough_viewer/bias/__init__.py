@@ -1,4 +1,4 @@
-"""Scanner bias on roughness (SCIENCE.md section 3, the TLS instrument-bias paper):
+"""Scanner bias on roughness (docs/science.md section 3, the TLS instrument-bias paper):
 measurement of range noise and beam radius from calibration scans, point-population
 normalisation, and simulation of rough targets to predict the bias.
 

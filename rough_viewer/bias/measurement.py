@@ -1,6 +1,6 @@
 """Scanner bias: range noise, beam effective radius, point-population normalisation.
 
-Measurements from scans of calibration objects (SCIENCE.md section 3, after the
+Measurements from scans of calibration objects (docs/science.md section 3, after the
 TLS instrument-bias paper in ``papers/tls-instrument-bias-roughness.txt``):
 
 - :func:`range_noise`: a flat board split into equal segments (default 8), a plane
@@ -102,7 +102,7 @@ def target_roughness(xyz: np.ndarray, *, residual: Residual = BIAS_RESIDUAL) -> 
         deviation of the signed distances (their RMS, as the mean is zero), the
         instrument-bias paper's own definition (5.07 mm for its target A).
         ``"absolute"``: standard deviation of the absolute distances
-        ``|n . (p - c)|``, the grid-roughness convention of SCIENCE.md section 1.
+        ``|n . (p - c)|``, the grid-roughness convention of docs/science.md section 1.
 
     Returns
     -------

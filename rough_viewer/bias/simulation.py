@@ -1,6 +1,6 @@
 """Simulated rough targets: hemispherical asperities, range noise and beam smoothing.
 
-After the instrument-bias paper (SCIENCE.md section 3): a flat board sampled on a
+After the instrument-bias paper (docs/science.md section 3): a flat board sampled on a
 regular raster (default 1 mm), hemispheres of radius ``r`` on chosen nodes (height
 ``sqrt(r^2 - d^2)`` inside, 0 outside), then
 

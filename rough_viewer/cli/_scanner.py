@@ -70,11 +70,6 @@ def add_scanner_options(p: argparse.ArgumentParser) -> None:
                    "(default: fitted to the cells)")
 
 
-def scanner_options_given(args: argparse.Namespace) -> bool:
-    """Whether any scanner option was given."""
-    return any(getattr(args, k, None) not in (None, []) for k in SCANNER_OPTIONS)
-
-
 def apply_scanner_options(cloud: PointCloud, paths: Sequence[Path], args: argparse.Namespace,
                           unit: str) -> PointCloud:
     """The cloud with the positions of ``--scanner`` or ``--scanners`` (in ``unit``),

@@ -13,22 +13,22 @@ Contract (other tools script against it)::
         [--dips-out DIPS.csv] [--las-out OUT.las|OUT.laz] [--ply-out OUT.ply]
         [--force] [--quiet]
 
-SETS.csv: one row per set (:data:`rough_viewer.grid.sets.SET_COLUMNS`; its last
-columns are the set's roughness, :mod:`rough_viewer.grid.set_roughness`: ``odr_mean,
+SETS.csv: one row per set (:data:`rough_viewer.structure.sets.SET_COLUMNS`; its last
+columns are the set's roughness, :mod:`rough_viewer.structure.set_roughness`: ``odr_mean,
 odr_median, odr_std`` of its cells in the output unit, ``theta_max_c1_dip,
 theta_max_c1_strike, delta_t_dip, delta_t_strike`` of its joints in degrees and the
 dimensionless ``jrc_estimate_dip, jrc_estimate_strike``), PLANES.csv one
-row per plane, i.e. patch (:data:`~rough_viewer.grid.sets.PLANE_COLUMNS`, with the
+row per plane, i.e. patch (:data:`~rough_viewer.structure.sets.PLANE_COLUMNS`, with the
 ``joint_id`` it is part of), JOINTS.csv one row per joint
-(:data:`~rough_viewer.grid.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
+(:data:`~rough_viewer.structure.sets.JOINT_COLUMNS`), SUMMARY.json the rock-mass figures
 (:func:`summary_dict`: ``sets``, ``jv``, ...), lengths in the output
 unit (``--units``, else the unit of a LAS file's CRS, else m), areas in its square,
 angles in degrees. A set within ``--face-tolerance`` of the exposure face (the whole
-cloud's plane or its cells' local face; :mod:`rough_viewer.grid.face`) has
+cloud's plane or its cells' local face; :mod:`rough_viewer.structure.face`) has
 ``face_parallel`` 1 in SETS.csv and ``FACE_PARALLEL`` 1 on its planes in DIPS.csv, is
 marked on the terminal and left out of Jv, Ib and the RQD estimate (its spacing is no
 joint spacing). DIPS.csv: the planes for Rocscience Dips (Import CSV, Dip/Dip
-Direction; :meth:`~rough_viewer.grid.sets.JointSets.dips_table`). CELLS.csv:
+Direction; :meth:`~rough_viewer.structure.sets.JointSets.dips_table`). CELLS.csv:
 ``compute``'s columns (ODR only) plus ``set_id``, ``plane_id`` and ``joint_id``.
 ``--las-out`` / ``--ply-out``: every point with ``set_id``, ``plane_id`` and
 ``joint_id`` of its cell. With several
@@ -64,8 +64,8 @@ SHOWN_PLANES = 3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from rough_viewer.grid import sets as js
-    from rough_viewer.grid.face import DEFAULT_FACE_RADIUS_CELLS, DEFAULT_FACE_TOLERANCE_DEG
+    from rough_viewer.structure import sets as js
+    from rough_viewer.structure.face import DEFAULT_FACE_RADIUS_CELLS, DEFAULT_FACE_TOLERANCE_DEG
 
     p = sub.add_parser(
         "sets",
@@ -288,8 +288,8 @@ def summary_dict(sets, source: str, unit: str = "m") -> dict:
     """The sets and their rock-mass figures for ``--summary-json``: lengths in
     ``unit``, ``jv`` in joints per cubic ``unit`` (``jv_per_m3`` in metres, the unit
     of the RQD estimate's formula)."""
-    from rough_viewer.grid.joints import RQD_FORMULA
     from rough_viewer.io.jsonable import to_jsonable
+    from rough_viewer.structure.joints import RQD_FORMULA
 
     per = per_unit(unit)
     f = sets.figures
@@ -324,9 +324,9 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.grid.sets import joint_sets
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output
+    from rough_viewer.structure.sets import joint_sets
 
     if args.min_points is not None and args.min_points < 3:
         raise InputError(f"--min-points must be at least 3, got {args.min_points}")
@@ -375,9 +375,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _set_options(args: argparse.Namespace, per: float):
-    """The :class:`~rough_viewer.grid.sets.SetOptions` of the command line, lengths in
+    """The :class:`~rough_viewer.structure.sets.SetOptions` of the command line, lengths in
     metres (``per`` metres per unit of the command line); InputError for a bad one."""
-    from rough_viewer.grid.sets import SetOptions
+    from rough_viewer.structure.sets import SetOptions
 
     return SetOptions(
         max_roughness=None if args.max_roughness is None else args.max_roughness * per,
@@ -395,11 +395,11 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
            unit: str, quiet: bool) -> list[str]:
     """Write every output of one grid size; the lines that say so."""
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.grid.sets import set_point_fields
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.ply import write_ply_fields
     from rough_viewer.io.table import write_table
+    from rough_viewer.structure.sets import set_point_fields
 
     per = per_unit(unit)
     tables = []

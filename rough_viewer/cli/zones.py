@@ -10,7 +10,7 @@ Contract (other tools script against it)::
         [--force] [--quiet]
 
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
-:data:`rough_viewer.grid.zones.ZONE_COLUMNS`, always in metres whatever ``--units``
+:data:`rough_viewer.structure.zones.ZONE_COLUMNS`, always in metres whatever ``--units``
 (``area_m2``, ``length_m``, ``width_m``, ``mean_theta``, ``max_theta``, ``cx, cy, cz``;
 angles in degrees; numbers at full precision as ``compute`` writes them). CELLS.csv:
 ``compute``'s columns (all three models; :func:`rough_viewer.grid.table.cell_columns`)
@@ -185,9 +185,9 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.grid.threshold import map_threshold_advice
-    from rough_viewer.grid.zones import ZoneLabeller
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output, write_table
+    from rough_viewer.structure.zones import ZoneLabeller
 
     if args.threshold is not None and not (math.isfinite(args.threshold)
                                            and 0.0 <= args.threshold <= 1.0):

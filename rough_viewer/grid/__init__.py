@@ -1,11 +1,12 @@
-"""Grid roughness (SCIENCE.md section 1): the one grid, plane fits, per-cell ODR, OLS
+"""Grid roughness (docs/science.md section 1): the one grid, plane fits, per-cell ODR, OLS
 and hybrid roughness, Table-1 statistics, face-plane maps and semivariograms.
 
 Data flow: points -> :mod:`.cells` (cell of every point, moment sums) ->
 :mod:`.planes` (batched fits) -> :mod:`.roughness` (per-cell maps) ->
-:mod:`.summary`, :mod:`.maps`, :mod:`.variogram`, :mod:`.zones` (connected rough
-cells; :mod:`.orientation` for dips, traces and the stereonet); :mod:`.spacing`
-chooses the default grid from the point spacing.
+:mod:`.summary`, :mod:`.maps`, :mod:`.variogram` (:mod:`.orientation` for dips,
+traces and the stereonet); :mod:`.spacing` chooses the default grid from the point
+spacing. Fracture zones, joint sets and joints are built on the grid in
+:mod:`rough_viewer.structure`.
 
 Names are loaded on first use, so importing one module of the package (the
 compute path needs :mod:`.roughness`) does not import the others (:mod:`.spacing`
@@ -51,9 +52,6 @@ _API: dict[str, str] = {
     "face_semivariogram": "rough_viewer.grid.variogram",
     "plan_semivariogram": "rough_viewer.grid.variogram",
     "semivariogram": "rough_viewer.grid.variogram",
-    "ZoneLabeller": "rough_viewer.grid.zones",
-    "Zones": "rough_viewer.grid.zones",
-    "find_zones": "rough_viewer.grid.zones",
 }
 
 __all__ = [
@@ -67,8 +65,6 @@ __all__ = [
     "Semivariogram",
     "Summary",
     "VariogramPlan",
-    "ZoneLabeller",
-    "Zones",
     "binary",
     "coarsen_prepared",
     "default_cell_size",
@@ -77,7 +73,6 @@ __all__ = [
     "face_maps",
     "face_raster",
     "face_semivariogram",
-    "find_zones",
     "fit_plane",
     "grid_roughness",
     "histogram",
@@ -126,4 +121,3 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         plan_semivariogram,
         semivariogram,
     )
-    from rough_viewer.grid.zones import ZoneLabeller, Zones, find_zones

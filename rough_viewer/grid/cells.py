@@ -1,6 +1,6 @@
 """The one grid: cubic cells of edge ``g``, point-to-cell indexing and per-cell sums.
 
-SCIENCE.md section 1: origin ``o`` = bounding-box minimum unless given; cell index of
+docs/science.md section 1: origin ``o`` = bounding-box minimum unless given; cell index of
 a point ``i = floor((p - o) / g)`` per axis; cell centre ``o + (i + 0.5) g``.
 
 Points are passed as three float64 columns (structure of arrays). Work is done in

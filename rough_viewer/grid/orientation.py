@@ -290,7 +290,7 @@ def kernel_density(
     ``density(d) = sum_i w_i exp(kappa (|p_i . d| - 1)) / (U sum_i w_i)`` with
     ``U = (1 - exp(-kappa)) / kappa``, the mean of the kernel over uniformly spread
     directions, so poles spread evenly give 1 everywhere. The stereonet's contours
-    and the joint sets' peaks (:mod:`rough_viewer.grid.sets`) both come from this
+    and the joint sets' peaks (:mod:`rough_viewer.structure.sets`) both come from this
     formula.
 
     Parameters

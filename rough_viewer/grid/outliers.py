@@ -20,7 +20,7 @@ is larger than the cell size is an **outlier** of that model; ``e_ols`` inherits
 OLS's (it is ``|theta_ols - theta_odr|``); ODR has none. By the bounds above only the
 hybrid model meets the rule in practice; OLS is checked all the same.
 
-SCIENCE.md keeps the value: the per-cell arrays, CELLS.csv and the per-point exports
+docs/science.md keeps the value: the per-cell arrays, CELLS.csv and the per-point exports
 hold it unchanged, and CELLS.csv marks the cell in its ``outlier`` column
 (:func:`outlier_flags`). Everything that summarises or compares cells leaves outliers
 out unless asked to keep them (``keep_outliers``; ``--keep-outliers`` on the command

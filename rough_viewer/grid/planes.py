@@ -8,7 +8,7 @@ Two flavours of the same two ideas:
   from their 3x3 covariance matrices (batched, no loop over cells).
 
 The ODR plane passes through the centroid with normal = eigenvector of the
-smallest eigenvalue of the population covariance (SCIENCE.md section 1; this is the
+smallest eigenvalue of the population covariance (docs/science.md section 1; this is the
 orthogonal regression of the 2011 paper's Eq. 2 without its inability to represent
 a vertical face). The OLS plane takes one coordinate axis ``a`` as the dependent
 variable: ``p_a = b0 + b1 p_u + b2 p_v``.

@@ -1,6 +1,6 @@
 """Per-cell surface roughness: ODR, OLS and hybrid models, e_ols, summaries.
 
-Definitions (SCIENCE.md section 1; 2011 paper Eqs. 3-5, 2012 paper Table 1):
+Definitions (docs/science.md section 1; 2011 paper Eqs. 3-5, 2012 paper Table 1):
 
 ==========  ==================================  ======================================
 model       reference plane                     distance ``D_i`` of a point
@@ -78,7 +78,7 @@ HYBRID_MIN_COMPONENT = 1e-9
 #: A cell "fits exactly" when its roughness is below this share of the cell size:
 #: its points lie on one plane to round-off (e.g. a cell of 6 points holding only 3
 #: distinct ones, as duplicate points in airborne scans give, or 4-6 points on two
-#: rows of a DEM lattice: 65 of 8,782 cells of the fault DEM at 0.03 m). SCIENCE.md gives such a
+#: rows of a DEM lattice: 65 of 8,782 cells of the fault DEM at 0.03 m). docs/science.md gives such a
 #: cell its value (0); the summaries count it, so a user learns why Table 1's
 #: minimum is 0 (see :meth:`GridRoughness.cell_report`).
 EXACT_FIT = 1e-9
@@ -205,7 +205,7 @@ class GridRoughness:
     min_points: int
     """Cells with fewer points get no value."""
     residual: Residual
-    """``"absolute"`` (SCIENCE.md default) or ``"signed"`` (RMS of signed distances)."""
+    """``"absolute"`` (docs/science.md default) or ``"signed"`` (RMS of signed distances)."""
     models: tuple[Model, ...]
     """Models computed."""
     ijk: np.ndarray
@@ -310,7 +310,7 @@ def grid_roughness(
     models : iterable of {"odr", "ols", "hybrid"}
         Models to compute (``e_ols`` is filled when both odr and ols are).
     residual : {"absolute", "signed"}
-        ``"absolute"``: std of absolute distances (SCIENCE.md); ``"signed"``: RMS of
+        ``"absolute"``: std of absolute distances (docs/science.md); ``"signed"``: RMS of
         signed distances.
     progress : callable, optional
         ``progress(done, total)`` over the five stages (cell keys, moments, plane
@@ -512,7 +512,7 @@ def cell_planes(
     models : tuple of str
         Models asked for (OLS planes only when ``"ols"`` is among them).
     cell_size : float, optional
-        Grid cell edge, metres: degeneracy is judged against its square (SCIENCE.md:
+        Grid cell edge, metres: degeneracy is judged against its square (docs/science.md:
         an absolute scale); default each cell's total variance.
     """
     mom = moments

@@ -1,6 +1,6 @@
 """Experimental semivariograms of per-cell maps, exact over all pairs of cells.
 
-Definition (2011 paper, Fig. 4; SCIENCE.md section 1)::
+Definition (2011 paper, Fig. 4; docs/science.md section 1)::
 
     gamma(k) = 1 / (2 N_k) * sum over unordered cell pairs (i, j) in bin k of (Z_i - Z_j)^2
 

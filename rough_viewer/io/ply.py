@@ -116,16 +116,6 @@ def read_ply_header(fh: BinaryIO, p: Path) -> PlyHeader:
     return header
 
 
-def record_size(element: HeaderElement) -> int:
-    """Bytes of one binary record of ``element`` (which has no list properties).
-
-    Raises InputError for an unknown property type."""
-    try:
-        return sum(np.dtype(_PLY_TYPES[q[2]]).itemsize for q in element.properties)
-    except KeyError as exc:
-        raise InputError(f"unknown PLY property type {exc}") from None
-
-
 def read_ply(p: Path) -> PointCloud:
     with open(p, "rb") as fh:
         header = read_ply_header(fh, p)

@@ -8,12 +8,12 @@ holds (docs/lod.md). Science side: no UI here; the app calls these.
   whether a new camera needs a new selection.
 - :func:`select_nodes` (:mod:`.select`): the nodes to show.
 - :class:`Residency` (:mod:`.residency`): per tab, what to send, show, hide, evict.
-- :func:`encode_node`, :func:`node_colours`, :func:`nodes_colours` (:mod:`.encode`):
+- :func:`encode_node`, :func:`node_colours` (:mod:`.encode`):
   what the scene gets of a node.
 """
 
 from rough_viewer.lod.camera import ViewCamera, camera_moved, in_view, screen_rect_mask
-from rough_viewer.lod.encode import EncodedNode, encode_node, node_colours, nodes_colours
+from rough_viewer.lod.encode import EncodedNode, encode_node, node_colours
 from rough_viewer.lod.octree import Node, Octree, build_bytes, build_octree
 from rough_viewer.lod.residency import Residency, ResidencyPlan
 from rough_viewer.lod.select import DEFAULT_BUDGET, Selection, select_nodes
@@ -33,7 +33,6 @@ __all__ = [
     "encode_node",
     "in_view",
     "node_colours",
-    "nodes_colours",
     "screen_rect_mask",
     "select_nodes",
 ]

@@ -25,13 +25,12 @@ True
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.lod.octree import Node, Octree, _columns
+from rough_viewer.lod.octree import Node, _columns
 from rough_viewer.vocabulary import InputError
 
 #: Cube edges (metres) sent in metres (``scale`` 1): float16 keeps its relative
@@ -119,18 +118,3 @@ def node_colours(point_colours: np.ndarray, node: Node) -> np.ndarray:
     return np.asarray(point_colours)[node.rows]
 
 
-def nodes_colours(point_colours: np.ndarray, tree: Octree, nodes: Sequence[int] | np.ndarray
-                  ) -> list[np.ndarray]:
-    """The colours of several nodes, one array per node in the order given: one
-    gather for all, then views into it (for recolouring every resident node after a
-    change of model, grid, threshold, stretch or layer)."""
-    ids = np.asarray(nodes, dtype=np.int64)
-    if ids.shape[0] == 0:
-        return []
-    starts = tree.start[ids]
-    stops = tree.start[ids + 1]
-    lengths = stops - starts
-    offsets = np.concatenate(([0], np.cumsum(lengths)))
-    positions = np.repeat(starts - offsets[:-1], lengths) + np.arange(int(offsets[-1]))
-    colours = np.asarray(point_colours)[tree.order[positions]]
-    return [colours[offsets[i]:offsets[i + 1]] for i in range(ids.shape[0])]

@@ -212,12 +212,6 @@ def build_bytes(n_points: int, workers: int = 2) -> float:
             + workers * min(n, SORT_CHUNK) * SORT_CHUNK_BYTES_PER_POINT)
 
 
-def octree_bytes(n_points: int, n_nodes: int) -> float:
-    """Bytes an octree of ``n_points`` points and ``n_nodes`` nodes keeps."""
-    index = 4 if n_points < 2**31 else 8
-    return float(n_points) * index + float(n_nodes) * NODE_BYTES
-
-
 def _columns(points: PointCloud | np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """x, y, z of a cloud, an (N, 3) array or three columns (views where possible)."""

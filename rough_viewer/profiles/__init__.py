@@ -1,4 +1,4 @@
-"""Profiles (SCIENCE.md section 2, Khoshelham and Altundag): extraction from a cloud,
+"""Profiles (docs/science.md section 2, Khoshelham and Altundag): extraction from a cloud,
 wavelet de-noising, roughness-length fractal dimension and the comparison of
 de-noising variants."""
 

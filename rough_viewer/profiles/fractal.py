@@ -1,6 +1,6 @@
 """Roughness-length method (Malinverno 1990) for profiles and patches.
 
-Definitions (``SCIENCE.md`` section 2, with the details the paper leaves open fixed
+Definitions (docs/science.md section 2, with the details the paper leaves open fixed
 here):
 
 - A window of ``m`` consecutive samples spans ``w = (m - 1) * spacing`` metres (the

@@ -1,6 +1,6 @@
 """Wavelet de-noising of roughness profiles (Khoshelham & Altundag).
 
-Conventions (``SCIENCE.md`` section 2), so results are reproducible to the last digit:
+Conventions (docs/science.md section 2), so results are reproducible to the last digit:
 
 - PyWavelets boundary mode ``symmetric``.
 - Noise sigma: median of the absolute level-1 DWT detail coefficients divided by

@@ -1,7 +1,7 @@
 """Every number of the report: roughness maps at each grid size, Table-1 summaries,
 histograms, semivariograms and face-plane maps (2011 paper, Table 1 and Figs. 2-4),
 the zones at the binary threshold with the stereonet of the cell poles, and the
-joint sets (:mod:`rough_viewer.grid.sets`, default settings)."""
+joint sets (:mod:`rough_viewer.structure.sets`, default settings)."""
 
 from __future__ import annotations
 
@@ -20,15 +20,15 @@ from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.outliers import analysed_values, outlier_text
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import EXACT_FIT, GridRoughness, exact_fit_text, grid_roughness
-from rough_viewer.grid.sets import JointSets, joint_sets
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
-from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
 from rough_viewer.report.directions import DirectionsResult
+from rough_viewer.structure.sets import JointSets, joint_sets
+from rough_viewer.structure.zones import ZoneLabeller, Zones
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
     DEFAULT_MIN_CELLS,

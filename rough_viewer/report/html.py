@@ -366,7 +366,7 @@ def rock_mass_html(sets, unit: str = "m") -> list[str]:
     :func:`~rough_viewer.vocabulary.roughness_scale`'s unit."""
     if not sets.n_sets:
         return []
-    from rough_viewer.grid.joints import RQD_INTERCEPT, RQD_JV_RANGE, RQD_SLOPE
+    from rough_viewer.structure.joints import RQD_INTERCEPT, RQD_JV_RANGE, RQD_SLOPE
 
     esc = html.escape
     per, u = UNIT_METRES[unit], UNIT_LABELS[unit]

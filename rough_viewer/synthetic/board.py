@@ -122,7 +122,7 @@ def hemisphere_roughness(
     - ``E (z - m)^2 = f r^2 / 2 - m^2`` (its square root is the ``signed`` roughness),
     - ``E |z - m| = (1 - f) m + f (2r/3 - m + 2 m^3 / (3 r^2))``,
 
-    and the ``absolute`` roughness (SCIENCE.md section 1: standard deviation of the
+    and the ``absolute`` roughness (docs/science.md section 1: standard deviation of the
     absolute distances) is ``sqrt(E (z - m)^2 - (E |z - m|)^2)``. For the paper's
     board (132 spheres, r = 0.019 m, 1 m^2) this is 3.6076e-3 m, the published
     Monte Carlo value 3.60756e-3 m.

@@ -431,7 +431,7 @@ def facet_roughness(
     frame: the reference plane ``z = 0`` (normal ``+z``), ``u = +x``, ``v = +y``.
 
     Facets of several surfaces, each turned into its own plane's frame first (the
-    joints of a set, :mod:`rough_viewer.grid.set_roughness`), are pooled into one
+    joints of a set, :mod:`rough_viewer.structure.set_roughness`), are pooled into one
     distribution of apparent dips per group, exactly as :func:`directional_roughness`
     pools the facets of one surface.
 

@@ -154,10 +154,3 @@ def facets(mesh: TriangleMesh, *, toward: np.ndarray | None = None) -> Facets:
                   centroids=((a + b + c) / 3.0)[keep], index=np.flatnonzero(keep))
 
 
-def plane_coordinates(xyz: np.ndarray, plane: Plane) -> np.ndarray:
-    """(N, 2) coordinates ``(u, v)`` of points (N, 3) in the frame of ``plane``
-    (:func:`rough_viewer.grid.maps.face_frame`), metres."""
-    frame = face_frame(plane)
-    rel = np.asarray(xyz, dtype=np.float64) - frame.origin
-    return np.column_stack([rel @ frame.u_axis, rel @ frame.v_axis])
-

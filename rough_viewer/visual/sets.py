@@ -2,7 +2,7 @@
 mean poles and cones, and the tables of the sets and of their planes; and the
 colours of the points by set or by plane for the scene.
 
-Pure functions: a :class:`rough_viewer.grid.sets.JointSets` in, a figure out; the
+Pure functions: a :class:`rough_viewer.structure.sets.JointSets` in, a figure out; the
 report uses them and the app's Sets view can. Set ``k`` is drawn in
 :func:`rough_viewer.visual.colormaps.zone_colour` ``(k)`` (the zone palette), in
 every figure and in the scene. The stereonet is
@@ -18,7 +18,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from rough_viewer.grid.orientation import schmidt, trend_and_plunge
-from rough_viewer.grid.sets import JointSets
+from rough_viewer.structure.sets import JointSets
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.grid import describe
 from rough_viewer.visual.zones import MAX_POLES_DRAWN, azimuth_text, stereonet_figure
@@ -115,7 +115,7 @@ def sets_stereonet_figure(
     Parameters
     ----------
     sets : JointSets
-        From :func:`rough_viewer.grid.sets.joint_sets`.
+        From :func:`rough_viewer.structure.sets.joint_sets`.
     axis, n_points : str, int
         The caption's dependent axis and point count.
     selected : int, optional

@@ -1,7 +1,7 @@
 """Plotly figures of fracture zones: the zone table, the zones on the face plane and
 the lower-hemisphere equal-area stereonet of cell poles.
 
-Pure functions: core results in (:class:`rough_viewer.grid.zones.Zones`,
+Pure functions: core results in (:class:`rough_viewer.structure.zones.Zones`,
 :class:`rough_viewer.grid.orientation.Stereonet`), a figure out; the report uses them
 and the app can. Zone colours come from
 :func:`rough_viewer.visual.colormaps.zone_colour`, the same in every figure and in
@@ -19,7 +19,7 @@ import plotly.graph_objects as go
 from rough_viewer.grid.maps import FaceRaster, Plane, face_image, face_raster
 from rough_viewer.grid.orientation import Stereonet, schmidt_inverse, trend_and_plunge
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.zones import Zones
+from rough_viewer.structure.zones import Zones
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.grid import describe
 from rough_viewer.vocabulary import MAP_LABELS, InputError, roughness_scale, unit_scale
@@ -102,7 +102,7 @@ def zones_table_figure(
     Parameters
     ----------
     zones : Zones
-        From :meth:`rough_viewer.grid.zones.ZoneLabeller.zones`.
+        From :meth:`rough_viewer.structure.zones.ZoneLabeller.zones`.
     selected : int, optional
         A zone id whose row is highlighted.
     max_rows : int

@@ -24,8 +24,8 @@ from rough_viewer.app.markup import md
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
 from rough_viewer.cli.sets import format_sets
-from rough_viewer.grid.joints import rock_mass_text
-from rough_viewer.grid.sets import joint_sets
+from rough_viewer.structure.joints import rock_mass_text
+from rough_viewer.structure.sets import joint_sets
 from rough_viewer.synthetic.joints import RockMassSetSpec, RockMassSpec, generate_rock_mass
 from rough_viewer.visual.sets import point_colours
 from tests.app.protocol import ProtocolClient, pick, settle, shown_colours

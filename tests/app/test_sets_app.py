@@ -11,7 +11,7 @@ from rough_viewer.app.features.sets import NO_SET, SetsFeature, set_option
 from rough_viewer.app.features.zones import ZonesFeature
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings
-from rough_viewer.grid.sets import SetOptions, joint_sets
+from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import JOINT_BLOCK, generate_joint_block
 from rough_viewer.visual.sets import point_colours
 from tests.app.protocol import pick, shown_colours
@@ -144,7 +144,7 @@ def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_tab():
     from rough_viewer.app.features.sets import set_of_option, status_markdown
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.visual.sets import sets_table_figure
-    from tests.grid.test_face import hillside
+    from tests.structure.test_face import hillside
 
     pts = hillside(size=40.0, step=0.5)
     res = grid_roughness(pts, 2.0, models=("odr",))

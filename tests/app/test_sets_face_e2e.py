@@ -10,7 +10,7 @@ from rough_viewer.app.features.sets import SetsFeature
 from rough_viewer.app.state import MapSettings
 from rough_viewer.io import PointCloud
 from tests.app import browser as b
-from tests.grid.test_face import hillside
+from tests.structure.test_face import hillside
 
 pytestmark = pytest.mark.browser
 

@@ -19,8 +19,8 @@ from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise
 from rough_viewer.grid.threshold import map_threshold_advice
-from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.io import PointCloud
+from rough_viewer.structure.zones import ZoneLabeller
 from rough_viewer.visual import colormaps
 from tests.app.protocol import pick, shown_colours
 from tests.grid.test_outliers import leaning_wall

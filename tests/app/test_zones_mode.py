@@ -18,9 +18,9 @@ from rough_viewer.app.features.zones import (
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings, point_colours
-from rough_viewer.grid.zones import ZoneLabeller
 from rough_viewer.io import PointCloud
 from rough_viewer.report.view import ZoneSettings
+from rough_viewer.structure.zones import ZoneLabeller
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import InputError, hex_to_rgb
 from tests.app.protocol import join, pick, settle, shown_colours

@@ -12,8 +12,8 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.io import PointCloud, load_points, write_las
+from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 
 SETS_HEADER = ("set_id,dip_deg,dip_direction_deg,fisher_kappa,alpha95_deg,cells,planes,joints,"
@@ -317,7 +317,7 @@ def test_the_hillside_is_flagged_in_every_output(tmp_path, capsys):
     """Issue 31 item 2: the Santa Cruz LAZ's only "set" was the hillside, silently, and
     went to the Dips CSV; a synthetic hillside (dip 22 / 187, a 2 m scarp across it)
     is flagged on the terminal, in SETS.csv, DIPS.csv and the summary."""
-    from tests.grid.test_face import SCARP_M, hillside
+    from tests.structure.test_face import SCARP_M, hillside
 
     src = tmp_path / "hill.npy"
     np.save(src, hillside())

@@ -13,8 +13,8 @@ import pytest
 from rough_viewer.cli import main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.zones import ZONE_COLUMNS, ZONE_FILE_COLUMNS, ZoneLabeller
 from rough_viewer.io import PointCloud, write_las
+from rough_viewer.structure.zones import ZONE_COLUMNS, ZONE_FILE_COLUMNS, ZoneLabeller
 from tests.helpers import banded_face
 
 BANDS = [(-1.3, -1.6, 5.0, 0.6, 0.0), (2.3, 1.0, 3.4, 0.6, 60.0)]

@@ -16,7 +16,7 @@ from rough_viewer.grid.outliers import (
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.scales import face_scales
 from rough_viewer.grid.summary import histogram, normalise, summarise
-from rough_viewer.grid.zones import ZoneLabeller
+from rough_viewer.structure.zones import ZoneLabeller
 
 
 def leaning_wall(n: int = 8000, seed: int = 4) -> np.ndarray:

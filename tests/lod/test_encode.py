@@ -10,7 +10,6 @@ from rough_viewer.lod.encode import (
     encode_node,
     node_colours,
     node_scale,
-    nodes_colours,
 )
 from rough_viewer.lod.octree import build_octree
 from tests.lod.helpers import outcrop
@@ -53,13 +52,15 @@ def test_node_colours_are_the_points_colours():
     tree = build_octree(xyz, root_grid=16, max_node_points=800)
     colours = np.random.default_rng(0).integers(0, 256, (xyz.shape[0], 3), dtype=np.uint8)
     ids = list(range(0, tree.n_nodes, 3))
-    many = nodes_colours(colours, tree, ids)
+    from rough_viewer.app.scene import nodes_colours_of
+
+    many = nodes_colours_of(tree, ids, lambda rows: colours[rows])
     for k, got in zip(ids, many, strict=True):
         node = tree.node(k)
         one = node_colours(colours, node)
         assert np.array_equal(one, colours[tree.order[tree.start[k]:tree.start[k + 1]]])
         assert np.array_equal(got, one)
-    assert nodes_colours(colours, tree, []) == []
+    assert nodes_colours_of(tree, [], lambda rows: colours[rows]) == []
 
 
 def test_a_node_of_another_cloud_is_refused():

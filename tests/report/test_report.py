@@ -369,7 +369,7 @@ def test_command_units_mm_scale_every_length(cloud_file, cloud, tmp_path):
 
 def test_zones_section_in_json_matches_the_labeller(cloud, report):
     from rough_viewer.grid.orientation import cell_stereonet
-    from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller
+    from rough_viewer.structure.zones import ZONE_COLUMNS, ZoneLabeller
 
     data = json.loads(json.dumps(report_json(report), allow_nan=False))
     assert data["min_cells"] == 3 and data["connectivity"] == "vertex"
@@ -441,7 +441,7 @@ def test_cells_of_repeated_points_are_a_report_warning():
 def test_each_grid_section_holds_its_joint_sets(report, cloud):
     """The JSON's sets are the library's on the same grid (the report's display
     unit), and the page says how many sets and planes each grid has."""
-    from rough_viewer.grid.sets import PLANE_COLUMNS, SET_COLUMNS, joint_sets
+    from rough_viewer.structure.sets import PLANE_COLUMNS, SET_COLUMNS, joint_sets
 
     data = report_json(report)
     page = report_html(report)
@@ -529,9 +529,9 @@ def test_default_grids_of_a_small_cloud_leave_out_the_too_coarse():
 def test_a_set_parallel_to_the_exposure_face_is_flagged_in_the_report():
     """Issue 31 item 2: the hillside's slope "set" is flagged on the page, in the
     set table figure and in the JSON (``face_parallel``, ``face_angle_deg``)."""
-    from rough_viewer.grid.sets import SET_COLUMNS, joint_sets
     from rough_viewer.report import report_figures
-    from tests.grid.test_face import hillside
+    from rough_viewer.structure.sets import SET_COLUMNS, joint_sets
+    from tests.structure.test_face import hillside
 
     pts = hillside(size=40.0, step=0.5)
     rep = build_report(PointCloud.from_xyz(pts), grid_sizes=[2.0])

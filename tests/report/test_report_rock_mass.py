@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import SET_COLUMNS, joint_sets
 from rough_viewer.report import build_report, report_html, report_json
+from rough_viewer.structure.sets import SET_COLUMNS, joint_sets
 from rough_viewer.synthetic.joints import RockMassSetSpec, RockMassSpec, generate_rock_mass
 
 G = 0.25

@@ -8,7 +8,7 @@ import pytest
 
 from rough_viewer.grid.orientation import schmidt_inverse
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import joint_sets
+from rough_viewer.structure.sets import joint_sets
 from rough_viewer.synthetic.joints import JointBlockSpec, generate_joint_block
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.sets import (

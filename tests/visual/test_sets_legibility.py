@@ -8,8 +8,8 @@ from __future__ import annotations
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import joint_sets
 from rough_viewer.io import PointCloud
+from rough_viewer.structure.sets import joint_sets
 from rough_viewer.synthetic.joints import generate_rock_mass
 from rough_viewer.visual.sets import joints_table_figure, planes_table_figure, sets_table_figure
 from tests.app.test_joints_app import SMALL_ROCK_MASS

@@ -8,7 +8,7 @@ import pytest
 
 from rough_viewer.grid.orientation import cell_stereonet
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.zones import ZoneLabeller
+from rough_viewer.structure.zones import ZoneLabeller
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.zones import (
     COMPACT_COLUMNS,

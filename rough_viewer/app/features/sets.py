@@ -1,5 +1,5 @@
 """The Sets tab: discontinuity (joint) sets of the shown grid, on the rock, on the
-stereonet and as tables (:mod:`rough_viewer.grid.sets`, docs/sets.md).
+stereonet and as tables (:mod:`rough_viewer.structure.sets`, docs/sets.md).
 
 The tab follows the map: its sets are of the Map tab's grid (its ODR planes), with
 the tab's own settings (the largest roughness of a planar cell as a share of the
@@ -13,7 +13,7 @@ set's joints and patches; the "Selected set" list selects a set alone. The
 stereonet shows a pole per planar cell, per patch or per joint ("Stereonet poles").
 Under the status line: the rock-mass figures (Jv, block size index, RQD estimate)
 of the sets, the very sentence ``rough-viewer sets`` prints
-(:func:`rough_viewer.grid.joints.rock_mass_text`).
+(:func:`rough_viewer.structure.joints.rock_mass_text`).
 
 The Export folder downloads the sets' tables (:meth:`SetsFeature.download_tables`):
 the Dips CSV, SETS.csv, PLANES.csv and JOINTS.csv of ``sets --dips-out``, ``--out``,
@@ -48,7 +48,8 @@ from rough_viewer.app.markup import md
 from rough_viewer.app.state import ByteCache, Colouring, LoadedCloud, by_cell
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.sets import (
+from rough_viewer.io.point_fields import CellField
+from rough_viewer.structure.sets import (
     DEFAULT_CONE_DEG,
     DEFAULT_MAX_SETS,
     DEFAULT_MIN_ANGLE_DEG,
@@ -58,7 +59,6 @@ from rough_viewer.grid.sets import (
     joint_sets,
     set_point_fields,
 )
-from rough_viewer.io.point_fields import CellField
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.app import panel_aspect
 from rough_viewer.visual.sets import (
@@ -89,14 +89,6 @@ POLES_OF = {"per cell": "cell", "per patch": "patch", "per joint": "joint"}
 #: The tables the Export folder downloads: title -> (file-name part, table).
 DOWNLOAD_TABLES = {"Joint sets: Dips CSV (planes)": "dips", "Joint sets: SETS.csv": "sets",
                    "Joint sets: PLANES.csv": "planes", "Joint sets: JOINTS.csv": "joints"}
-
-
-@dataclass(frozen=True)
-class SetsParams:
-    """How the sets on screen were found."""
-
-    grid_key: tuple[object, ...]
-    options: SetOptions
 
 
 def set_option(sets: JointSets, k: int) -> str:
@@ -160,7 +152,7 @@ def joint_markdown(sets: JointSets, joint: int, set_id: int, unit: str) -> str:
 
 
 class SetsBinding(Binding):
-    """The tab's controls and :class:`~rough_viewer.grid.sets.SetOptions`."""
+    """The tab's controls and :class:`~rough_viewer.structure.sets.SetOptions`."""
 
     def __init__(self, f: SetsFeature) -> None:
         self.f = f

@@ -1,6 +1,6 @@
 """Zones tab: fracture and rubble zones of the shown map, in the scene and as a table.
 
-A zone (:mod:`rough_viewer.grid.zones`, docs/zones.md) is a connected group of
+A zone (:mod:`rough_viewer.structure.zones`, docs/zones.md) is a connected group of
 cells whose normalised roughness is at or above a threshold. The tab follows the
 view: zones are always of the **Map tab's** map (model), grid and binary
 threshold, so moving the threshold slider (on the Map tab, or its twin here)
@@ -31,7 +31,7 @@ ZoneTableJob    measure, table, stereonet                    zones-table
 SelectZoneJob   select                                       zones-select
 ==============  ===========================================  =======================
 
-Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.grid.zones.
+Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.structure.zones.
 ZoneLabeller`, built once, and the cell of every displayed point) is kept in a
 byte-bounded cache (:class:`~rough_viewer.app.state.ByteCache`, half the grid
 cache's budget), so a threshold change only re-labels and recolours.
@@ -63,10 +63,10 @@ from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.threshold import map_threshold_advice, zone_threshold
-from rough_viewer.grid.zones import ZoneLabeller, Zones
 from rough_viewer.io.point_fields import CellField
 from rough_viewer.memory import require
 from rough_viewer.report.view import View, ZoneSettings
+from rough_viewer.structure.zones import ZoneLabeller, Zones
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.zones import (
     COMPACT_COLUMNS,

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.set_roughness import cell_odr_statistics, set_roughness
-from rough_viewer.grid.sets import joint_sets
 from rough_viewer.io.mesh import TriangleMesh
 from rough_viewer.profiles.jrc import jrc_from_z2
+from rough_viewer.structure.set_roughness import cell_odr_statistics, set_roughness
+from rough_viewer.structure.sets import joint_sets
 from rough_viewer.synthetic.joints import RockMassSetSpec, RockMassSpec, generate_rock_mass
 from rough_viewer.tin.directional import directional_roughness, facet_roughness
 from rough_viewer.tin.surface import facets

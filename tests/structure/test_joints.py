@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from rough_viewer.grid.joints import RQD_INTERCEPT, RQD_SLOPE, rock_mass_figures
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import JOINT_COLUMNS, joint_sets
+from rough_viewer.structure.joints import RQD_INTERCEPT, RQD_SLOPE, rock_mass_figures
+from rough_viewer.structure.sets import JOINT_COLUMNS, joint_sets
 from rough_viewer.synthetic.joints import ROCK_MASS_SETS, RockMassSpec, generate_rock_mass
 from tests.helpers import axis_angle, face_axes
 

@@ -2,7 +2,7 @@
 the rock-mass figures of the sets (ISRM 1978; Palmstrom 2005).
 
 A **patch** (a row of PLANES.csv) is a group of touching coplanar cells of one set
-(:mod:`rough_viewer.grid.sets`, step 7). On a rock mass cut by several sets a single
+(:mod:`rough_viewer.structure.sets`, step 7). On a rock mass cut by several sets a single
 discontinuity is broken into many patches: the cells where another joint crosses it
 hold two planes and are not planar. A **joint** is every patch of one set that lies
 on one discontinuity, touching or not:

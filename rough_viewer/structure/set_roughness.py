@@ -59,9 +59,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rough_viewer.grid.joints import Joints
 from rough_viewer.grid.orientation import dip_strike_axes
 from rough_viewer.memory import require
+from rough_viewer.structure.joints import Joints
 from rough_viewer.vocabulary import InputError
 
 #: Joints measured per set at most (the largest by points).
@@ -222,7 +222,7 @@ def set_roughness(
     n_sets : int
         ``S``.
     joints : Joints
-        The sets' joints (:mod:`rough_viewer.grid.joints`).
+        The sets' joints (:mod:`rough_viewer.structure.joints`).
     point_joint : (N,) int array
         Joint index 0..J-1 of every point, -1 for none.
     xyz : three (N,) arrays

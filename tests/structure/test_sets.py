@@ -15,7 +15,7 @@ from scipy.stats import vonmises_fisher
 
 from rough_viewer.grid.orientation import stereonet
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import (
+from rough_viewer.structure.sets import (
     PLANE_COLUMNS,
     SET_COLUMNS,
     SetOptions,

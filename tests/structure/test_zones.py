@@ -11,7 +11,7 @@ import pytest
 from scipy import ndimage
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.zones import ZONE_COLUMNS, ZoneLabeller, face_coverage, find_zones
+from rough_viewer.structure.zones import ZONE_COLUMNS, ZoneLabeller, face_coverage, find_zones
 from rough_viewer.synthetic.demos import load_demo_with_truth
 from rough_viewer.vocabulary import InputError
 from tests.helpers import banded_face, face_axes

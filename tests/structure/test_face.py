@@ -1,20 +1,20 @@
 """Joint sets parallel to the exposure face (issue 31 item 2) and planes outside
-their set's cone (item 15): grid/face.py and grid/sets.py against closed forms."""
+their set's cone (item 15): structure/face.py and structure/sets.py against closed forms."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rough_viewer.grid.face import (
+from rough_viewer.grid.orientation import dip_and_direction, plane_normals
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.structure.face import (
     DEFAULT_FACE_TOLERANCE_DEG,
     axial_angle_deg,
     is_surface,
     local_faces,
 )
-from rough_viewer.grid.orientation import dip_and_direction, plane_normals
-from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.sets import SetOptions, joint_sets
+from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.vocabulary import InputError
 
 

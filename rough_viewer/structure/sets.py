@@ -54,7 +54,7 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    that direction, the points binned in strips a quarter of a cell wide across it
    and a chord broken where two consecutive points lie more than one cell apart;
    the area: the summed length of the chords along dip times the strip width.
-9. **Joints** (:mod:`rough_viewer.grid.joints`): the planes above are patches; the
+9. **Joints** (:mod:`rough_viewer.structure.joints`): the planes above are patches; the
    patches of one set that lie on one discontinuity, touching or not, are one joint
    (a plane fitted to both within ``max_plane_rms``, each centroid within
    ``plane_tolerance`` of the other's plane).
@@ -64,12 +64,12 @@ discontinuity planes. The steps (conventions of :mod:`rough_viewer.grid.orientat
    deviation of the normal spacing; the mean persistence: the mean over the set's
    planes of the longer of their two chords; and, over the sets, ``Jv``, the block
    size index and the RQD estimate (:attr:`JointSets.figures`).
-12. **Roughness per set** (:mod:`rough_viewer.grid.set_roughness`): the mean, median
+12. **Roughness per set** (:mod:`rough_viewer.structure.set_roughness`): the mean, median
    and standard deviation of its cells' ODR roughness, and the directional
    roughness of its largest joints along their dip and strike (profiles' JRC
    estimate, ``theta*max/(C+1)`` and ``Delta-T`` of their triangles, each joint in
    its own plane's frame).
-11. **The exposure face** (:mod:`rough_viewer.grid.face`): a set within
+11. **The exposure face** (:mod:`rough_viewer.structure.face`): a set within
    ``face_tolerance_deg`` of the whole-cloud plane or of its cells' local face is
    :attr:`JointSets.face_parallel`: the exposure, not a joint set; its spacing is
    no joint spacing and it adds nothing to the rock-mass figures.
@@ -94,21 +94,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rough_viewer.grid.face import (
-    DEFAULT_FACE_RADIUS_CELLS,
-    DEFAULT_FACE_TOLERANCE_DEG,
-    FaceAngles,
-    face_angles,
-)
-from rough_viewer.grid.joints import (
-    Joints,
-    RockMassFigures,
-    joint_table,
-    merge_patches,
-    rock_mass_figures,
-    rock_mass_text,
-    set_spacing,
-)
 from rough_viewer.grid.orientation import (
     DEFAULT_SMOOTHING_DEG,
     Stereonet,
@@ -121,11 +106,26 @@ from rough_viewer.grid.orientation import (
     stereonet,
 )
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.set_roughness import SetRoughness, set_roughness
-from rough_viewer.grid.zones import _neighbour_pairs
 from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.memory import require
+from rough_viewer.structure.face import (
+    DEFAULT_FACE_RADIUS_CELLS,
+    DEFAULT_FACE_TOLERANCE_DEG,
+    FaceAngles,
+    face_angles,
+)
+from rough_viewer.structure.joints import (
+    Joints,
+    RockMassFigures,
+    joint_table,
+    merge_patches,
+    rock_mass_figures,
+    rock_mass_text,
+    set_spacing,
+)
+from rough_viewer.structure.set_roughness import SetRoughness, set_roughness
+from rough_viewer.structure.zones import _neighbour_pairs
 from rough_viewer.vocabulary import DEFAULT_MIN_CELLS, InputError, ProgressFn
 
 #: Default cone (degrees) around a peak within which a cell joins its set.
@@ -330,7 +330,7 @@ class JointSets:
     """(S,) int64 joints per set."""
     spacing_mean: np.ndarray
     """(S,) mean normal spacing of consecutive joints, metres (NaN with fewer than two
-    joints; :mod:`rough_viewer.grid.joints`)."""
+    joints; :mod:`rough_viewer.structure.joints`)."""
     spacing_median: np.ndarray
     """(S,) median normal spacing, metres."""
     spacing_std: np.ndarray
@@ -347,7 +347,7 @@ class JointSets:
     """(M,) int32 joint of every cell, 0 = in no joint."""
     roughness: SetRoughness
     """Roughness of every set: its cells' ODR roughness, its joints' along dip and
-    strike (:mod:`rough_viewer.grid.set_roughness`)."""
+    strike (:mod:`rough_viewer.structure.set_roughness`)."""
     cell_size: float
     """Grid cell edge, metres."""
     options: SetOptions
@@ -365,7 +365,7 @@ class JointSets:
     note: str
     """Why there is no set (empty when there are sets)."""
     face: FaceAngles
-    """Every set's angles to the exposure face (:mod:`rough_viewer.grid.face`)."""
+    """Every set's angles to the exposure face (:mod:`rough_viewer.structure.face`)."""
     sliver_planes: int
     """Groups of touching cells (of ``min_plane_cells`` or more) whose points' plane
     lies outside the cone of their set's mean (a strip one cell wide: its points do
@@ -417,7 +417,7 @@ class JointSets:
 
     def rock_mass_text(self, unit: str = "m") -> str:
         """The rock-mass figures in the sentence the terminal and the app show
-        (:func:`rough_viewer.grid.joints.rock_mass_text`), lengths in ``unit``."""
+        (:func:`rough_viewer.structure.joints.rock_mass_text`), lengths in ``unit``."""
         face = np.asarray(self.face_parallel, dtype=bool)
         return rock_mass_text(self.figures, unit, face_left_out=bool(face.any()),
                               only_face_spaced=bool(np.any(face & np.isfinite(
@@ -650,10 +650,10 @@ class SetOptions:
     touching cells that curves more is no plane (None: a quarter of a cell)."""
     face_tolerance_deg: float = DEFAULT_FACE_TOLERANCE_DEG
     """A set whose mean pole lies within this angle of the exposure face's normal is
-    flagged parallel to the face (:mod:`rough_viewer.grid.face`)."""
+    flagged parallel to the face (:mod:`rough_viewer.structure.face`)."""
     face_radius: float | None = None
     """Radius (metres) of the neighbourhood of a cell whose plane is its local face
-    (None: :data:`~rough_viewer.grid.face.DEFAULT_FACE_RADIUS_CELLS` cells)."""
+    (None: :data:`~rough_viewer.structure.face.DEFAULT_FACE_RADIUS_CELLS` cells)."""
 
     def __post_init__(self) -> None:
         t, tol = self.max_roughness, self.plane_tolerance
@@ -803,7 +803,7 @@ def joint_sets(
         result, (x, y, z), cell_set, normal, tol, int(min_plane_cells), t,
         int(min_planar_points), max_rms, cone_deg)
     tick(3, 4)
-    # joints: the patches of one discontinuity (grid/joints.py)
+    # joints: the patches of one discontinuity (structure/joints.py)
     patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
                                 planes.normal, tolerance=tol, max_rms=max_rms)
     planes = replace(planes, joint_id=patch_joint + 1)
