@@ -31,7 +31,6 @@ import numpy as np
 
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.lod.octree import Node, _columns
-from rough_viewer.vocabulary import InputError
 
 #: Cube edges (metres) sent in metres (``scale`` 1): float16 keeps its relative
 #: precision down to 2**-14 (normal numbers) and up to 65504.
@@ -92,7 +91,7 @@ def encode_node(points: Points, node: Node) -> EncodedNode:
     x, y, z = _columns(points)
     rows = node.rows
     if rows.shape[0] and int(rows.max()) >= x.shape[0]:
-        raise InputError(f"node {node.id} refers to point {int(rows.max())} of a cloud of "
+        raise ValueError(f"node {node.id} refers to point {int(rows.max())} of a cloud of "
                          f"{x.shape[0]} points: not the cloud the octree was built from")
     centre = node.centre
     scale = node_scale(node.size)

@@ -189,7 +189,7 @@ class Octree:
         """Node ``k``."""
         k = int(k)
         if not 0 <= k < self.n_nodes:
-            raise InputError(f"no node {k}: the octree has {self.n_nodes} nodes")
+            raise IndexError(f"no node {k}: the octree has {self.n_nodes} nodes")
         size = self.side / 2.0 ** int(self.level[k])
         return Node(id=k, level=int(self.level[k]), cube_lo=self.cube_lo[k].copy(), size=size,
                     spacing=size / self.root_grid, rows=self.rows(k))

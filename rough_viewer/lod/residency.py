@@ -135,7 +135,7 @@ class Residency:
         m = self._counts.shape[0]
         bad = [k for k in order if not 0 <= k < m]
         if bad:
-            raise InputError(f"no node {bad[0]}: the octree has {m} nodes")
+            raise IndexError(f"no node {bad[0]}: the octree has {m} nodes")
         self._clock += 1
         wanted = set(order)
         send = [k for k in order if k not in self._visible]

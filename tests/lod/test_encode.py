@@ -64,9 +64,7 @@ def test_node_colours_are_the_points_colours():
 
 
 def test_a_node_of_another_cloud_is_refused():
-    from rough_viewer.vocabulary import InputError
-
     xyz = outcrop(5_000, seed=7)
     tree = build_octree(xyz, root_grid=8, max_node_points=500)
-    with pytest.raises(InputError, match="not the cloud the octree was built from"):
+    with pytest.raises(ValueError, match="not the cloud the octree was built from"):
         encode_node(xyz[:10], tree.node(0))

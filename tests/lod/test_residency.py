@@ -114,7 +114,7 @@ def test_clear_discard_budget_and_bad_input():
     assert set(res.clear()) == {0, 1} and res.held == () and res.held_points == 0
     res.set_budget(3)
     assert res.budget == 3
-    with pytest.raises(InputError, match="no node 7"):
+    with pytest.raises(IndexError, match="no node 7"):
         res.plan([7])
     with pytest.raises(InputError, match="point budget"):
         Residency([1], budget=0)
