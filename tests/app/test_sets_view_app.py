@@ -15,7 +15,7 @@ from rough_viewer.app.state import MapSettings
 from rough_viewer.grid.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import generate_rock_mass
 from tests.app.protocol import pick, shown_colours
-from tests.app.test_joints_app import G, SMALL_ROCK_MASS
+from tests.app.test_joints_app import SMALL_ROCK_MASS, G
 
 
 @pytest.fixture(scope="module")

@@ -287,8 +287,7 @@ class SetsFeature:
         shown = self.active and self.sets is not None
         view = SetsView(
             shown=bool(self.on.value),
-            colour_by=self.colour_by.value if self.colour_by.value in SET_COLOUR_BY
-            else "set",  # type: ignore[arg-type]
+            colour_by=next((c for c in SET_COLOUR_BY if c == self.colour_by.value), "set"),
             poles=POLES_OF.get(self.poles.value, "cell"),
             roughness_pct=float(self.roughness.value), cone_deg=float(self.cone.value),
             min_angle_deg=float(self.min_angle.value), max_sets=int(self.max_sets.value),
@@ -358,7 +357,7 @@ class SetsFeature:
         j = self.selected_joint or None
         poles = POLES_OF.get(self.poles.value, "cell")
         self.stereonet.figure = _compact(sets_stereonet_figure(
-            sets, selected=k, poles=poles, selected_joint=j, **own))  # type: ignore[arg-type]
+            sets, selected=k, poles=poles, selected_joint=j, **own))
         for handle, fig in ((self.table, sets_table_figure(sets, selected=k, **own)),
                             (self.joints, joints_table_figure(sets, set_id=k, selected=j,
                                                               **own)),
