@@ -35,10 +35,14 @@ File layout (``"format": "rough_viewer.view"``, ``"version": 1``)::
      "camera": {"position": [x, y, z], "look_at": [x, y, z], "up": [0, 0, 1],
                 "fov_deg": 50.0},
      "crop": {"min": [x, y, z], "max": [x, y, z], "mode": "keep"},
-     "measures": [{"start": [x, y, z], "end": [x, y, z], "number": 1}]}
+     "measures": [{"start": [x, y, z], "end": [x, y, z], "number": 1}],
+     "sets": {"shown": true, "colour_by": "joint", "poles": "joint", "roughness_pct": 2.0,
+              "cone_deg": 20.0, "min_angle_deg": 30.0, "max_sets": 6, "selected_set": 2,
+              "selected_joint": 5}}
 
-``zones``, ``camera`` and ``crop`` may be ``null``, and ``crop`` may be absent (views
-saved before crops existed read as uncropped); coordinates are metres in the file's
+``zones``, ``camera`` and ``crop`` may be ``null``; ``sets`` (the Sets tab), ``crop``,
+``directions``, ``selection`` and ``measures`` may be absent (views saved before them
+read as the app's defaults: uncropped, no sets shown); coordinates are metres in the file's
 frame. ``crop`` is an axis-aligned box whose points every analysis keeps (``mode``
 ``keep``) or drops (``remove``): :class:`rough_viewer.io.crop.CropBox`, also read by
 ``compute``, ``report`` and ``zones --crop-file``.
@@ -60,6 +64,12 @@ from typing import Any, Literal, TypeVar
 from rough_viewer._version import __version__
 from rough_viewer.io.crop import CROP_MODES, CropBox
 from rough_viewer.io.output import check_output_path, write_atomic
+from rough_viewer.structure.sets import (
+    DEFAULT_CONE_DEG,
+    DEFAULT_MAX_SETS,
+    DEFAULT_MIN_ANGLE_DEG,
+    DEFAULT_PLANAR_SHARE,
+)
 from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
@@ -195,6 +205,48 @@ class DirectionsView:
     """Measured when saved: a restored view measures them again."""
 
 
+#: What "Colour sets by" colours the rock by (the Sets tab's choices).
+SetColourBy = Literal["set", "joint", "patch"]
+SET_COLOUR_BY: tuple[SetColourBy, ...] = ("set", "joint", "patch")
+#: What one stereonet pole stands for (the Sets tab's "Stereonet poles").
+SetPoles = Literal["cell", "patch", "joint"]
+SET_POLES: tuple[SetPoles, ...] = ("cell", "patch", "joint")
+#: Bounds of the Sets tab's controls (the app's own: a view outside them is refused).
+SET_ROUGHNESS_PCT_RANGE = (0.1, 50.0)
+SET_CONE_DEG_RANGE = (1.0, 90.0)
+SET_MIN_ANGLE_DEG_RANGE = (0.0, 90.0)
+SET_MAX_SETS_RANGE = (1, 20)
+#: Largest joint id a view may select (a bound, not a count any scan reaches).
+MAX_JOINT_ID = 10**7
+
+
+@dataclass(frozen=True)
+class SetsView:
+    """The Sets tab's settings, whether the sets were shown, and the selection.
+
+    Defaults are the tab's: :mod:`rough_viewer.structure.sets`' defaults."""
+
+    shown: bool = False
+    """"Show sets" was ticked: a restored view finds and shows them again."""
+    colour_by: SetColourBy = "set"
+    """What colours the rock while the sets are shown."""
+    poles: SetPoles = "cell"
+    """One stereonet pole per planar cell, patch or joint."""
+    roughness_pct: float = 100.0 * DEFAULT_PLANAR_SHARE
+    """Largest ODR roughness of a planar cell, percent of the cell edge,
+    :data:`SET_ROUGHNESS_PCT_RANGE`."""
+    cone_deg: float = DEFAULT_CONE_DEG
+    """A planar cell joins the nearest set's peak within this angle, degrees."""
+    min_angle_deg: float = DEFAULT_MIN_ANGLE_DEG
+    """Least angle between two sets, degrees."""
+    max_sets: int = DEFAULT_MAX_SETS
+    """Most sets."""
+    selected_set: int | None = None
+    """Selected set id (1..), or None."""
+    selected_joint: int | None = None
+    """Selected joint id (1..), or None."""
+
+
 @dataclass(frozen=True)
 class SelectionView:
     """A Select-tab selection: the points a screen rectangle held, through the whole
@@ -270,6 +322,9 @@ class View:
     """The Directions folder's settings (None: absent, the app's defaults)."""
     selection: SelectionView | None = None
     """The Select tab's selection (None: none)."""
+    sets: SetsView | None = None
+    """The Sets tab's settings and selection (None: absent, the tab's defaults; views
+    saved before it read so)."""
 
     def with_(self, **changes: Any) -> View:
         """A copy with some fields changed (validated like a loaded view)."""
@@ -423,7 +478,7 @@ def view_to_dict(view: View) -> dict[str, Any]:
     d["panels"] = list(d["panels"])
     d["profiles"] = [{**p, "start": list(p["start"]), "end": list(p["end"])}
                      for p in d["profiles"]]
-    for key in ("directions", "selection"):  # written only when known: older versions
+    for key in ("directions", "selection", "sets"):  # written only when known: older versions
         if d[key] is None:                   # read the rest
             d.pop(key)
     if "selection" in d:
@@ -542,7 +597,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
     top = r.obj(data, "the file", ["format", "version", "input", "grid"],
                 ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
                  "profiles", "zones", "camera", "crop", "measures", "directions",
-                 "selection"])
+                 "selection", "sets"])
     if top["format"] != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
     version = r.integer(top["version"], "version", 1, 10**6)
@@ -581,6 +636,7 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         panels=panels,
         directions=_optional(top.get("directions"), lambda v: _directions(r, v)),
         selection=_optional(top.get("selection"), lambda v: _selection(r, v)),
+        sets=_optional(top.get("sets"), lambda v: _sets(r, v)),
         measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
                        enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
         profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
@@ -633,6 +689,30 @@ def _directions(r: _Reader, value: Any) -> DirectionsView:
         tin=r.boolean(d.get("tin", default.tin), "directions.tin"),
         lines=r.boolean(d.get("lines", default.lines), "directions.lines"),
         measured=r.boolean(d.get("measured", default.measured), "directions.measured"))
+
+
+def _sets(r: _Reader, value: Any) -> SetsView:
+    keys = ["shown", "colour_by", "poles", "roughness_pct", "cone_deg", "min_angle_deg",
+            "max_sets", "selected_set", "selected_joint"]
+    d = r.obj(value, "sets", [], keys)
+    default = SetsView()
+    return SetsView(
+        shown=r.boolean(d.get("shown", default.shown), "sets.shown"),
+        colour_by=r.choice(d.get("colour_by", default.colour_by), "sets.colour_by",
+                           SET_COLOUR_BY),
+        poles=r.choice(d.get("poles", default.poles), "sets.poles", SET_POLES),
+        roughness_pct=r.number(d.get("roughness_pct", default.roughness_pct),
+                               "sets.roughness_pct", *SET_ROUGHNESS_PCT_RANGE),
+        cone_deg=r.number(d.get("cone_deg", default.cone_deg), "sets.cone_deg",
+                          *SET_CONE_DEG_RANGE),
+        min_angle_deg=r.number(d.get("min_angle_deg", default.min_angle_deg),
+                               "sets.min_angle_deg", *SET_MIN_ANGLE_DEG_RANGE),
+        max_sets=r.integer(d.get("max_sets", default.max_sets), "sets.max_sets",
+                           *SET_MAX_SETS_RANGE),
+        selected_set=_optional(d.get("selected_set"), lambda v: r.integer(
+            v, "sets.selected_set", 1, SET_MAX_SETS_RANGE[1])),
+        selected_joint=_optional(d.get("selected_joint"), lambda v: r.integer(
+            v, "sets.selected_joint", 1, MAX_JOINT_ID)))
 
 
 def _selection(r: _Reader, value: Any) -> SelectionView:

@@ -159,6 +159,28 @@ BAD = {
         "position": [0, 0, 0], "wxyz": [0, 0, 0, 0], "fov_rad": 0.9, "aspect": 1.5,
         "height_px": 800, "corner_a": [0, 0], "corner_b": [1, 1]}),
         "selection.wxyz must be a unit quaternion"),
+    "sets cone": (lambda d: d.update(sets={"cone_deg": 0.5}),
+                  "sets.cone_deg must lie in [1, 90], got 0.5"),
+    "sets roughness": (lambda d: d.update(sets={"roughness_pct": 1e308}),
+                       "sets.roughness_pct must lie in [0.1, 50]"),
+    "sets min angle": (lambda d: d.update(sets={"min_angle_deg": -1}),
+                       "sets.min_angle_deg must lie in [0, 90], got -1"),
+    "sets max sets": (lambda d: d.update(sets={"max_sets": 10**9}),
+                      "sets.max_sets must lie in [1, 20], got 1000000000"),
+    "sets max sets float": (lambda d: d.update(sets={"max_sets": 2.5}),
+                            "sets.max_sets must be a whole number"),
+    "sets colour": (lambda d: d.update(sets={"colour_by": "<script>"}),
+                    "sets.colour_by must be one of set, joint, patch"),
+    "sets poles": (lambda d: d.update(sets={"poles": "per cell"}),
+                   "sets.poles must be one of cell, patch, joint"),
+    "sets shown": (lambda d: d.update(sets={"shown": 1}), "sets.shown must be true or false"),
+    "sets selected": (lambda d: d.update(sets={"selected_set": 0}),
+                      "sets.selected_set must lie in [1, 20], got 0"),
+    "sets joint": (lambda d: d.update(sets={"selected_joint": -3}),
+                   "sets.selected_joint must lie in [1, 10000000], got -3"),
+    "sets key": (lambda d: d.update(sets={"smoothing_deg": 5}),
+                 "sets has an unknown key 'smoothing_deg'"),
+    "sets not an object": (lambda d: d.update(sets=[1]), "sets must be an object"),
     "zone rule": (lambda d: d["zones"].update(threshold_rule="otsu"),
                   "zones.threshold_rule must be one of auto, slider"),
     "camera": (lambda d: d["camera"].update(fov_deg=0), "camera.fov_deg must lie in"),
@@ -253,6 +275,31 @@ def test_measures_and_directions_are_saved_and_reloaded(scan, tmp_path):
     assert load_view(save_view(tmp_path / "s.json", sel)).view == sel
     doc = json.loads(save_view(tmp_path / "plain.json", full_view(scan)).read_text())
     assert "measures" not in doc and "directions" not in doc and "selection" not in doc
+
+
+def test_the_sets_tab_is_saved_and_reloaded_and_old_views_read_as_none(scan, tmp_path):
+    """Issue 31 item 11: a view keeps the Sets tab's settings and selection; a view
+    without them is written without the key and reads as None (nothing to restore)."""
+    from rough_viewer.report.view import SetsView
+
+    sets = SetsView(shown=True, colour_by="joint", poles="patch", roughness_pct=3.5,
+                    cone_deg=15.0, min_angle_deg=25.0, max_sets=4, selected_set=2,
+                    selected_joint=7)
+    view = full_view(scan).with_(sets=sets)
+    path = save_view(tmp_path / "v.json", view)
+    assert json.loads(path.read_text())["sets"] == {
+        "shown": True, "colour_by": "joint", "poles": "patch", "roughness_pct": 3.5,
+        "cone_deg": 15.0, "min_angle_deg": 25.0, "max_sets": 4, "selected_set": 2,
+        "selected_joint": 7}
+    assert load_view(path).view == view
+    doc = json.loads(save_view(tmp_path / "plain.json", full_view(scan)).read_text())
+    assert "sets" not in doc
+    assert load_view(tmp_path / "plain.json").view.sets is None
+    doc["sets"] = {"shown": True}  # the rest: the tab's defaults
+    (tmp_path / "some.json").write_text(json.dumps(doc))
+    got = load_view(tmp_path / "some.json").view.sets
+    assert got == SetsView(shown=True) and (got.cone_deg, got.roughness_pct, got.max_sets) == \
+        (20.0, 2.0, 6)
 
 
 def test_views_without_a_crop_stay_as_before(scan, tmp_path):

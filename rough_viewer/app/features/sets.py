@@ -49,6 +49,16 @@ from rough_viewer.app.state import ByteCache, Colouring, LoadedCloud, by_cell
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.point_fields import CellField
+from rough_viewer.report.view import (
+    SET_COLOUR_BY,
+    SET_CONE_DEG_RANGE,
+    SET_MAX_SETS_RANGE,
+    SET_MIN_ANGLE_DEG_RANGE,
+    SET_ROUGHNESS_PCT_RANGE,
+    SetPoles,
+    SetsView,
+    View,
+)
 from rough_viewer.structure.sets import (
     DEFAULT_CONE_DEG,
     DEFAULT_MAX_SETS,
@@ -81,11 +91,14 @@ L_SELECTED = "Selected set"
 #: The "Selected set" entry for no selection.
 NO_SET = "none"
 #: "Colour sets by" entries and the labels each colours by (patch: a plane of PLANES.csv).
-COLOUR_BY: tuple[str, ...] = ("set", "joint", "patch")
+COLOUR_BY: tuple[str, ...] = SET_COLOUR_BY
 COLOUR_LABELS = {"set": "set", "joint": "joint", "patch": "plane"}
 #: "Stereonet poles" entries: one pole per planar cell, per patch or per joint.
 POLES: tuple[str, ...] = ("per cell", "per patch", "per joint")
-POLES_OF = {"per cell": "cell", "per patch": "patch", "per joint": "joint"}
+POLES_OF: dict[str, SetPoles] = {"per cell": "cell", "per patch": "patch",
+                                  "per joint": "joint"}
+#: The "Stereonet poles" entry of each kind of pole (a saved view's).
+POLES_LABEL = {kind: label for label, kind in POLES_OF.items()}
 #: The tables the Export folder downloads: title -> (file-name part, table).
 DOWNLOAD_TABLES = {"Joint sets: Dips CSV (planes)": "dips", "Joint sets: SETS.csv": "sets",
                    "Joint sets: PLANES.csv": "planes", "Joint sets: JOINTS.csv": "joints"}
@@ -207,6 +220,9 @@ class SetsFeature:
     """The selected joint (0: none; a click on the rock selects it)."""
     cache: ByteCache[tuple[object, ...], JointSets] = field(default_factory=lambda: ByteCache(0))
     cache_for: LoadedCloud | None = None
+    pending_selection: tuple[int, int] | None = None
+    """(set, joint) to select once the sets are next found (a restored view's; 0:
+    none)."""
 
     def __post_init__(self) -> None:
         self.binding = SetsBinding(self)
@@ -256,6 +272,35 @@ class SetsFeature:
         return {"sets_stereonet": self.stereonet, "sets_table": self.table,
                 "joints_table": self.joints, "planes_table": self.planes}
 
+    # ------------------------------------------------------------------ saved views
+    def snapshot(self) -> dict[str, Any]:
+        """The tab's settings, whether the sets are shown, and the selected set and
+        joint (while shown); None when the sets are hidden at the tab's defaults."""
+        shown = self.active and self.sets is not None
+        view = SetsView(
+            shown=bool(self.on.value),
+            colour_by=next((c for c in SET_COLOUR_BY if c == self.colour_by.value), "set"),
+            poles=POLES_OF.get(self.poles.value, "cell"),
+            roughness_pct=float(self.roughness.value), cone_deg=float(self.cone.value),
+            min_angle_deg=float(self.min_angle.value), max_sets=int(self.max_sets.value),
+            selected_set=(self.selected_set or None) if shown else None,
+            selected_joint=(self.selected_joint or None) if shown else None)
+        return {"sets": None if view == SetsView() else view}
+
+    def restore(self, view: View) -> Job[Host] | None:
+        return None if view.sets is None else RestoreSetsJob(self, view.sets)
+
+    def take_selection(self, sets: JointSets) -> None:
+        """Select the pending (restored) set and joint where ``sets`` has them: a
+        joint only within the selected set (worker)."""
+        assert self.pending_selection is not None
+        k, j = self.pending_selection
+        self.pending_selection = None
+        self.selected_set = k if 1 <= k <= sets.n_sets else 0
+        jt = sets.joints
+        fits = self.selected_set and 1 <= j <= jt.n_joints and int(jt.set_id[j - 1]) == k
+        self.selected_joint = j if fits else 0
+
     # ------------------------------------------------------------------ worker side
     def sets_of(self, loaded: LoadedCloud, result: GridRoughness, grid_key: tuple[object, ...],
                 options: SetOptions) -> JointSets:
@@ -304,7 +349,7 @@ class SetsFeature:
         j = self.selected_joint or None
         poles = POLES_OF.get(self.poles.value, "cell")
         self.stereonet.figure = _compact(sets_stereonet_figure(
-            sets, selected=k, poles=poles, selected_joint=j, **own))  # type: ignore[arg-type]
+            sets, selected=k, poles=poles, selected_joint=j, **own))
         for handle, fig in ((self.table, sets_table_figure(sets, selected=k, **own)),
                             (self.joints, joints_table_figure(sets, set_id=k, selected=j,
                                                               **own)),
@@ -321,6 +366,7 @@ class SetsFeature:
     def select_cell(self, cell: int) -> None:
         """Select the set and the joint of cell ``cell`` (0 for none)."""
         assert self.sets is not None
+        self.pending_selection = None
         self.selected_set = int(self.sets.cell_set[cell])
         self.selected_joint = int(self.sets.cell_joint[cell])
 
@@ -374,7 +420,9 @@ class SetsJob(Job[Host]):
         f.status.content = "_finding the joint sets…_"
         sets = f.sets_of(shown.loaded, shown.result, shown.settings.grid_key, options)
         yield "sets"
-        if f.sets is not sets:  # other sets: the old joint ids mean nothing there
+        if f.pending_selection is not None:  # a restored view's
+            f.take_selection(sets)
+        elif f.sets is not sets:  # other sets: the old joint ids mean nothing there
             f.selected_joint = 0
         if f.selected_set > sets.n_sets:
             f.selected_set = 0
@@ -384,6 +432,35 @@ class SetsJob(Job[Host]):
             shown.result.grid.cell_size))
         yield "colours"
         ctx.submit(SetFiguresJob(f))
+
+
+@dataclass(frozen=True)
+class RestoreSetsJob(Job[Host]):
+    """A saved view's Sets settings in the tab's controls, its selection pending, and
+    the sets found (and shown, when they were) again."""
+
+    f: SetsFeature = field(compare=False)
+    view: SetsView
+    lane: ClassVar[str] = "sets-restore"
+
+    @property
+    def title(self) -> str:
+        return "the saved view's joint sets"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        f, v = self.f, self.view
+        b = f.binding
+        b.set(f.colour_by, v.colour_by)
+        b.set(f.poles, POLES_LABEL[v.poles])
+        b.set(f.roughness, float(v.roughness_pct))
+        b.set(f.cone, float(v.cone_deg))
+        b.set(f.min_angle, float(v.min_angle_deg))
+        b.set(f.max_sets, int(v.max_sets))
+        b.set(f.on, bool(v.shown))
+        f.pending_selection = ((v.selected_set or 0, v.selected_joint or 0) if v.shown
+                               else None)
+        yield "settings"
+        ctx.submit(SetsJob(f))
 
 
 @dataclass(frozen=True)
@@ -418,16 +495,20 @@ def mount(host: Host) -> SetsFeature:
             poles=gui.add_dropdown(L_POLES, POLES, initial_value=POLES[0],
                                    hint="One pole on the stereonet per planar cell, per "
                                    "patch or per joint (the density is the cells')."),
-            roughness=gui.add_number(L_ROUGHNESS, 100.0 * DEFAULT_PLANAR_SHARE, min=0.1,
-                                     max=50.0, step=0.1,
+            roughness=gui.add_number(L_ROUGHNESS, 100.0 * DEFAULT_PLANAR_SHARE,
+                                     min=SET_ROUGHNESS_PCT_RANGE[0],
+                                     max=SET_ROUGHNESS_PCT_RANGE[1], step=0.1,
                                      hint="A cell is planar when its ODR roughness is at "
                                      "most this share of the cell's edge."),
-            cone=gui.add_number(L_CONE, DEFAULT_CONE_DEG, min=1.0, max=90.0, step=1.0,
+            cone=gui.add_number(L_CONE, DEFAULT_CONE_DEG, min=SET_CONE_DEG_RANGE[0],
+                                max=SET_CONE_DEG_RANGE[1], step=1.0,
                                 hint="A planar cell joins the nearest set's peak within "
                                 "this angle."),
-            min_angle=gui.add_number(L_MIN_ANGLE, DEFAULT_MIN_ANGLE_DEG, min=0.0, max=90.0,
-                                     step=1.0),
-            max_sets=gui.add_number(L_MAX_SETS, DEFAULT_MAX_SETS, min=1, max=20, step=1),
+            min_angle=gui.add_number(L_MIN_ANGLE, DEFAULT_MIN_ANGLE_DEG,
+                                     min=SET_MIN_ANGLE_DEG_RANGE[0],
+                                     max=SET_MIN_ANGLE_DEG_RANGE[1], step=1.0),
+            max_sets=gui.add_number(L_MAX_SETS, DEFAULT_MAX_SETS, min=SET_MAX_SETS_RANGE[0],
+                                    max=SET_MAX_SETS_RANGE[1], step=1),
             status=gui.add_markdown("Tick **Show sets** to find the joint sets of the map's "
                                     "grid."),
             rock_mass=gui.add_markdown(""),
@@ -477,6 +558,7 @@ class SelectSetJob(Job[Host]):
             return
         if not 0 <= self.k <= f.sets.n_sets:
             raise InputError(f"there is no set {self.k}")
+        f.pending_selection = None
         if self.k != f.selected_set:
             f.selected_joint = 0  # a joint of the set before
         f.selected_set = self.k
