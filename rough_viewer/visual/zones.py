@@ -56,7 +56,7 @@ def _table_columns(zones: Zones, n: int, unit: str = "m"
     lengths in ``unit``, roughness in its roughness unit."""
     (f, u), (rf, ru) = unit_scale(unit), roughness_scale(unit)
     return {
-        "zone": ("zone", 32, [f"<b>{i}</b>" for i in range(1, n + 1)]),
+        "zone": ("zone", 40, [f"<b>{i}</b>" for i in range(1, n + 1)]),
         "cells": ("cells", 55, [f"{c:,}" for c in zones.cells[:n]]),
         "points": ("points", 70, [f"{p:,}" for p in zones.points[:n]]),
         "area": (f"area ({u}²)", 60, [f"{a / f**2:.3g}" for a in zones.area_m2[:n]]),
@@ -77,6 +77,10 @@ def _table_columns(zones: Zones, n: int, unit: str = "m"
                      [", ".join(f"{c / f:.2f}" for c in row) for row in zones.centroid[:n]]),
     }
 
+
+#: Type size of the zone table, px: the compact table's seven columns share a panel
+#: about 380 px wide in a 1280 x 800 window (12 px type clipped the "zone" header).
+TABLE_FONT = 11
 
 #: Columns of the full zone table (the report).
 TABLE_COLUMNS: tuple[str, ...] = ("zone", "cells", "points", "area", "length", "width", "trace",
@@ -127,8 +131,10 @@ def zones_table_figure(
     font = [["white"] * n] + [["#222"] * n] * (len(header) - 1)
     fig = go.Figure(go.Table(
         columnwidth=[every[c][1] for c in columns],
-        header={"values": header, "align": "left", "fill_color": "#e8e8e8"},
-        cells={"values": cells, "align": "left", "fill_color": fill, "font": {"color": font}},
+        header={"values": header, "align": "left", "fill_color": "#e8e8e8",
+                "font": {"size": TABLE_FONT}},
+        cells={"values": cells, "align": "left", "fill_color": fill,
+               "font": {"color": font, "size": TABLE_FONT}},
     ))
     more = f" (the {n} largest shown)" if n < zones.n_zones else ""
     fig.update_layout(
