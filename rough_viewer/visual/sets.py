@@ -320,15 +320,8 @@ def planes_table_figure(
              _num(pl.rms[rows], f), [f"{c:,}" for c in pl.cells[rows]]]
     table = _coloured_table(ids, header, cells, [38, 26, 48, 126, 44, 84, 50, 38],
                             pl.set_id[rows], ids == selected, row_height)
-    fig = go.Figure(table)
-    scope = "" if set_id is None else f" of set {set_id}"
-    more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
-    fig.update_layout(title=_title(f"{total:,} plane{'s' if total != 1 else ''}{scope}{more}",
-                                   sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 140 + (row_height + TABLE_ROW_EXTRA)
-                                     * max(rows.shape[0], 1))),
-                      margin={"l": 10, "r": 10, "t": 80, "b": 10})
-    return fig
+    return _listing(table, "plane", total, rows.shape[0], set_id, row_height, sets,
+                    axis=axis, n_points=n_points, unit=unit)
 
 
 def joints_table_figure(
@@ -367,12 +360,22 @@ def joints_table_figure(
              _num(jt.rms[rows], f)]
     table = _coloured_table(ids, header, cells, [40, 30, 60, 40, 50, 60, 100, 56],
                             jt.set_id[rows], ids == selected)
+    return _listing(table, "joint", total, rows.shape[0], set_id, TABLE_ROW_HEIGHT, sets,
+                    axis=axis, n_points=n_points, unit=unit)
+
+
+def _listing(table: go.Table, noun: str, total: int, shown: int, set_id: int | None,
+             row_height: int, sets: JointSets, *, axis: str, n_points: int,
+             unit: str) -> go.Figure:
+    """The figure of a plane or joint table: its title says how many ``noun`` there
+    are (of set ``set_id``) and how many are shown; as high as its rows, at most
+    1,000 px."""
     fig = go.Figure(table)
     scope = "" if set_id is None else f" of set {set_id}"
-    more = f" (the first {rows.shape[0]} shown)" if rows.shape[0] < total else ""
-    fig.update_layout(title=_title(f"{total:,} joint{'s' if total != 1 else ''}{scope}{more}",
+    more = f" (the first {shown} shown)" if shown < total else ""
+    fig.update_layout(title=_title(f"{total:,} {noun}{'s' if total != 1 else ''}{scope}{more}",
                                    sets, axis=axis, n_points=n_points, unit=unit),
-                      height=int(min(1000, 140 + (TABLE_ROW_HEIGHT + TABLE_ROW_EXTRA)
-                                     * max(rows.shape[0], 1))),
+                      height=int(min(1000, 140 + (row_height + TABLE_ROW_EXTRA)
+                                     * max(shown, 1))),
                       margin={"l": 10, "r": 10, "t": 80, "b": 10})
     return fig
