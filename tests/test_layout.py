@@ -129,7 +129,7 @@ def test_flat_api_names_resolve() -> None:
 APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("core", frozenset({"limits", "markup", "sampling", "picking", "state", "files", "worker",
                         "session", "scene"})),
-    ("host", frozenset({"host"})),
+    ("host", frozenset({"host", "detail"})),  # detail: the scene's level-of-detail jobs
     ("ui", frozenset({"hooks", "controls", "gate", "uploads", "binding", "layout", "shell"})),
     ("features", frozenset({"features", "views"})),
     ("build", frozenset({"server", "__init__"})),

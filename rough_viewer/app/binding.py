@@ -9,7 +9,10 @@ nothing else in the app sets controls quietly.
 
 Callbacks registered with :meth:`Binding.on_change` run on viser's thread pool when
 a browser (or a test, or the app outside a quiet block) changes a control; they
-should only submit a job.
+only submit a job (``tests/test_layout.py`` checks). Every write of a handle goes
+through a binding (:meth:`Binding.set`, :meth:`Binding.write`,
+:meth:`Binding.show_figure`) or the shell's messages, and each checks that it runs
+on a worker (:class:`~rough_viewer.app.worker.NotOnWorker` otherwise).
 """
 
 from __future__ import annotations
@@ -18,6 +21,9 @@ import contextlib
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
+
+from rough_viewer.app.layout import set_figure
+from rough_viewer.app.worker import require_a_worker
 
 T = TypeVar("T")
 
@@ -58,10 +64,26 @@ class Binding:
             _quiet.on = before
 
     def set(self, handle: Any, value: object) -> None:
-        """Show ``value`` in ``handle`` quietly (nothing when it holds it already)."""
+        """Show ``value`` in ``handle`` quietly (nothing when it holds it already;
+        on the worker)."""
+        require_a_worker("a control's value")
         with self.quietly():
             if handle.value != value:
                 assign(handle, value)
+
+    def write(self, handle: Any, **attributes: object) -> None:
+        """Set other attributes of ``handle`` than its value (``content``,
+        ``label``, ``visible``, ``options``, ...) quietly, on the worker."""
+        require_a_worker(f"a control's {', '.join(attributes)}")
+        with self.quietly():
+            for name, value in attributes.items():
+                setattr(handle, name, value)
+
+    def show_figure(self, handle: Any, fig: Any) -> None:
+        """Show a plotly figure in ``handle`` at the height its builder laid it out
+        for (:func:`rough_viewer.app.layout.set_figure`), on the worker."""
+        require_a_worker("a plot")
+        set_figure(handle, fig)
 
     def on_change(self, handles: Iterable[Any], callback: Callable[[Any], object]) -> None:
         """Call ``callback(handle)`` when one of ``handles`` is changed (not quietly)."""

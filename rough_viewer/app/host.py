@@ -15,7 +15,13 @@ host and knows nothing else of the app. The host offers:
   shown), :meth:`Host.on_render` (a map was coloured), :meth:`Host.on_click` (a point
   was picked), :meth:`Host.on_connect` (a browser connected);
 - **messages**: notices, the error line, the status line, a pinned note;
-- **the other features**: :meth:`Host.feature` by type, :meth:`Host.features`.
+- **the map** (:class:`MapService`, handed to the Map tab): :meth:`Host.request` a
+  map, its :meth:`Host.settings`, colour the points instead of it
+  (:meth:`Host.take_overlay`, :meth:`Host.give_back_overlay`), show a cloud
+  (:meth:`Host.show_cloud`, :meth:`Host.load`, :meth:`Host.render`);
+- **the other features**: :meth:`Host.feature` by type, :meth:`Host.features`
+  (no feature imports another's module: what one needs of another goes through
+  the host).
 
 This module imports no feature and no viser internals: features depend on it, the
 shell (:mod:`rough_viewer.app.shell`) implements it.
@@ -43,7 +49,9 @@ if TYPE_CHECKING:
     from rough_viewer.app.files import UploadedFile
     from rough_viewer.app.scene import Scene
     from rough_viewer.app.session import Session
-    from rough_viewer.app.worker import Job
+    from rough_viewer.app.state import Colouring, LoadedCloud, MapSettings
+    from rough_viewer.app.worker import Job, Run
+    from rough_viewer.io import PointCloud
     from rough_viewer.report.view import View
 
 T = TypeVar("T")
@@ -99,6 +107,23 @@ Rule = Callable[[Any], Any]
 """Extra check of a browser's value: returns the value to use or raises InputError."""
 
 
+class CloudSource(Protocol):
+    """Where a load (:meth:`Host.load`) gets its points."""
+
+    @property
+    def title(self) -> str:
+        """How the source is named to the user (a path as typed, an upload's name)."""
+        ...
+
+    def read(self, host: Host, run: Run) -> PointCloud:
+        """The points (InputError naming the file as the user knows it)."""
+        ...
+
+    def release(self) -> None:
+        """Free what the source holds (an upload's file); safe to call twice."""
+        ...
+
+
 @runtime_checkable
 class SavedViewPart(Protocol):
     """A feature's part of a saved view (:class:`rough_viewer.report.view.View`).
@@ -127,7 +152,63 @@ class FigureSource(Protocol):
         ...
 
 
-class Host(Protocol):
+class MapService(Protocol):
+    """What the other features may ask of the map (the mounted Map tab implements
+    it; the shell hands each :class:`Host` call of these names to it). Every
+    method but :meth:`request`, :meth:`settings` and :meth:`load` runs on the
+    worker."""
+
+    def request(self, **changes: object) -> int:
+        """Queue a map once the Map tab's controls named by ``changes`` hold these
+        values, as a person sets them (``toggle=True`` flips ODR and OLS)."""
+        ...
+
+    def settings(self) -> MapSettings:
+        """The settings the Map tab's controls ask for (the shown ones if a control
+        is unusable)."""
+        ...
+
+    def take_overlay(self, owner: object, release: Callable[[], None],
+                     colouring: Colouring) -> None:
+        """``owner`` colours the points with ``colouring`` instead of the map (the
+        feature that held them is told with its ``release``)."""
+        ...
+
+    def give_back_overlay(self, owner: object) -> None:
+        """``owner`` no longer colours the points: the map's colours come back."""
+        ...
+
+    def holds_overlay(self, owner: object) -> bool:
+        """True while ``owner``'s colours are on the points."""
+        ...
+
+    def map_colouring(self) -> Colouring | None:
+        """The map's own colours of the points (None before the first map)."""
+        ...
+
+    def show_cloud(self, loaded: LoadedCloud, settings: MapSettings, *,
+                   frame: bool = True) -> None:
+        """Put ``loaded`` in the scene and ``settings`` in the map's controls; the
+        ``on_cloud`` listeners are told. ``frame``: every camera frames it."""
+        ...
+
+    def render(self, run: Run, settings: MapSettings) -> Iterator[str]:
+        """The stages of a job that colour the map with ``settings``."""
+        ...
+
+    def load(self, source: CloudSource, *, stash: bool = False, label: str = "",
+             adjust: Callable[[MapSettings], MapSettings] | None = None) -> int:
+        """Queue showing the cloud ``source`` reads, at its own default grid, with
+        the map's settings (``adjust``-ed). ``stash``: put the scan shown now aside;
+        ``label``: the status line's name of a cloud that is no file."""
+        ...
+
+    def last_render(self) -> dict[str, object]:
+        """The timing record of the last map coloured (``{}`` before the first)."""
+        ...
+
+
+class Host(MapService, Protocol):
     """What a feature is given (see the module docstring)."""
 
     @property

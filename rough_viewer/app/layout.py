@@ -34,6 +34,14 @@ def placeholder(title: str, note: str = "") -> go.Figure:
     return fig
 
 
+def empty_figure(title: str) -> go.Figure:
+    """A titled panel with nothing in it yet."""
+    fig = go.Figure()
+    fig.update_layout(title=dict(text=title, font=dict(size=12)), height=200,
+                      margin=dict(l=10, r=10, t=30, b=10))
+    return fig
+
+
 def set_figure(handle: viser.GuiPlotlyHandle, fig: go.Figure) -> None:
     """Show ``fig`` at the height its builder laid it out for (at the panel width)."""
     if fig.layout.height is not None:

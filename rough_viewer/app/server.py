@@ -23,7 +23,6 @@ from rough_viewer.app.features import (
     bias,
     board,
     crop,
-    directions,
     export,
     file,
     measure,
@@ -35,6 +34,7 @@ from rough_viewer.app.features import (
 from rough_viewer.app.features import map as roughness_map
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.features.map import InMemory, LoadJob, MapFeature, ShowJob
+from rough_viewer.app.features.profile import directions
 from rough_viewer.app.files import DataFolder, UploadedFile
 from rough_viewer.app.host import AppOptions, Host
 from rough_viewer.app.layout import CONTROL_WIDTH
@@ -216,7 +216,10 @@ def build_app(
     server.gui.main_panel.set_width(CONTROL_WIDTH)
     shell = Shell(server, options, Shown(loaded, settings))
     for mount in FEATURES:
-        shell.add_feature(mount(shell))
+        feature = mount(shell)
+        shell.add_feature(feature)
+        if isinstance(feature, MapFeature):  # the other features' map calls go to it
+            shell.use_map(feature)
     app = App(server, shell, shell.feature(MapFeature), options)
     app.submit(ShowJob(app.map, loaded, settings))
     return app

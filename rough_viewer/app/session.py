@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from rough_viewer.app.state import CellInfo, LoadedCloud, MapSettings, MapStats
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import PointScales
+from rough_viewer.io import PointCloud
+from rough_viewer.io.mesh import TriangleMesh
 from rough_viewer.report.view import View
 
 
@@ -54,9 +56,14 @@ class Session:
     view: View | None
     """The saved view the session was opened with (None: none): saving a view keeps
     its fields that no mounted feature fills."""
+    uploaded_mesh: tuple[PointCloud, TriangleMesh] | None
+    """An uploaded mesh file's cloud and its triangles, read before the upload was
+    deleted (the Directions folder measures on them; None: the last upload had
+    none)."""
 
     _require: Callable[[str], None]
-    _FIELDS = ("shown", "stashed", "panel_key", "face_key", "last_pick", "pick_scales", "view")
+    _FIELDS = ("shown", "stashed", "panel_key", "face_key", "last_pick", "pick_scales", "view",
+               "uploaded_mesh")
 
     def __init__(self, shown: Shown, require_writer: Callable[[str], None]) -> None:
         object.__setattr__(self, "_require", require_writer)

@@ -4,7 +4,8 @@ It holds what every feature shares and no feature owns: the viser server's GUI a
 its tab group, the checks of browsers' values (:mod:`.controls`) and uploads
 (:mod:`.uploads`), the worker that runs every job, the session and the scene (both
 written on the worker only), the events between features, and the messages above
-the tabs (status line, error line, a pinned note, notes, progress bar).
+the tabs (status line, error line, a pinned note, notes, progress bar), which
+are written on the worker only (as the session and the scene).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import contextlib
 import sys
 import traceback
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
 import viser
@@ -21,7 +22,7 @@ import viser
 from rough_viewer.app.binding import assign
 from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import UploadedFile
-from rough_viewer.app.host import AppOptions, ClickHandler, Pick, Rule
+from rough_viewer.app.host import AppOptions, ClickHandler, CloudSource, MapService, Pick, Rule
 from rough_viewer.app.limits import (
     MAX_ERRORS,
     MAX_JOB_RECORDS,
@@ -31,6 +32,7 @@ from rough_viewer.app.limits import (
 from rough_viewer.app.markup import md
 from rough_viewer.app.scene import Scene
 from rough_viewer.app.session import Session, Shown
+from rough_viewer.app.state import Colouring, LoadedCloud, MapSettings
 from rough_viewer.app.uploads import Uploads
 from rough_viewer.app.worker import Job, QueueFull, Run, Worker
 from rough_viewer.io.load import SUPPORTED_SUFFIXES
@@ -79,6 +81,7 @@ class Shell:
         self.server = server
         self._options = options
         self._features: list[object] = []
+        self._map: MapService | None = None
         self._cloud: list[Callable[[], None]] = []
         self._render: list[Callable[[], None]] = []
         self._render_late: list[Callable[[], None]] = []
@@ -232,19 +235,23 @@ class Shell:
             client.add_notification(title, body, auto_close_seconds=10.0, color="red")
 
     def show_error(self, message: str, *, kept: str = "The previous view is kept.") -> None:
+        self.worker.require_worker("the error line")
         self.errors.append(message)
         self.error.content = f"**Error:** {md(message, max_chars=MAX_MESSAGE)}  \n{kept}"
         self.error.visible = True
         self.notify("Error", message[:MAX_MESSAGE], color="red", seconds=10.0)
 
     def clear_error(self) -> None:
+        self.worker.require_worker("the error line")
         if self.error.visible:
             self.error.visible = False
 
     def say(self, status: str) -> None:
+        self.worker.require_worker("the status line")
         self.status.content = status
 
     def warn(self, notes: str) -> None:
+        self.worker.require_worker("the notes")
         if notes == self.notice.content and self.notice.visible == bool(notes):
             return  # the same notes: the folder stays as the user left it
         self.notice.content = notes
@@ -254,11 +261,13 @@ class Shell:
         self.notice_folder.visible = bool(notes)
 
     def pin(self, text: str) -> None:
+        self.worker.require_worker("the pinned note")
         self.pinned = text[:400]
         self.note.content = f"**Saved view:** {md(text, max_chars=400)}"
         self.note.visible = bool(text)
 
     def progress(self, percent: float | None) -> None:
+        self.worker.require_worker("the progress bar")
         if percent is None:
             self.progress_bar.visible = False
             return
@@ -269,10 +278,54 @@ class Shell:
     def clients(self) -> dict[int, viser.ClientHandle]:
         return dict(self.server.get_clients())
 
+    # ------------------------------------------------------------------ Host: the map
+    def map(self) -> MapService:
+        """The mounted map (the first feature, :class:`~.host.MapService`)."""
+        if self._map is None:
+            raise LookupError("no map is mounted")
+        return self._map
+
+    def request(self, **changes: object) -> int:
+        return self.map().request(**changes)
+
+    def settings(self) -> MapSettings:
+        return self.map().settings()
+
+    def take_overlay(self, owner: object, release: Callable[[], None],
+                     colouring: Colouring) -> None:
+        self.map().take_overlay(owner, release, colouring)
+
+    def give_back_overlay(self, owner: object) -> None:
+        self.map().give_back_overlay(owner)
+
+    def holds_overlay(self, owner: object) -> bool:
+        return self.map().holds_overlay(owner)
+
+    def map_colouring(self) -> Colouring | None:
+        return self.map().map_colouring()
+
+    def show_cloud(self, loaded: LoadedCloud, settings: MapSettings, *,
+                   frame: bool = True) -> None:
+        self.map().show_cloud(loaded, settings, frame=frame)
+
+    def render(self, run: Run, settings: MapSettings) -> Iterator[str]:
+        return self.map().render(run, settings)
+
+    def load(self, source: CloudSource, *, stash: bool = False, label: str = "",
+             adjust: Callable[[MapSettings], MapSettings] | None = None) -> int:
+        return self.map().load(source, stash=stash, label=label, adjust=adjust)
+
+    def last_render(self) -> dict[str, object]:
+        return self.map().last_render()
+
     # ------------------------------------------------------------------ Host: features
     def add_feature(self, feature: object) -> None:
         """Register a mounted feature (build does, in mount order)."""
         self._features.append(feature)
+
+    def use_map(self, feature: MapService) -> None:
+        """The mounted map, which the map's host calls go to (build says which)."""
+        self._map = feature
 
     def feature(self, kind: type[T]) -> T:
         for f in self._features:

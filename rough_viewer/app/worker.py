@@ -58,6 +58,18 @@ class NotOnWorker(RuntimeError):
     worker's (:meth:`Worker.require_worker`): the single-writer rule is broken."""
 
 
+_this = threading.local()
+
+
+def require_a_worker(what: str) -> None:
+    """Raise :class:`NotOnWorker` unless called on the thread of a worker (of any
+    app: for writers that do not know which app's worker they serve, as a GUI
+    binding)."""
+    if getattr(_this, "worker", None) is None:
+        raise NotOnWorker(f"{what} is written on thread "
+                          f"{threading.current_thread().name!r}, not on a worker")
+
+
 class Run:
     """The handle a running job gets: is it cancelled, and progress checks."""
 
@@ -313,6 +325,7 @@ class Worker(Generic[C]):
         return bool(st.pending) or st.stop or (self._idle is not None and not st.idle_done)
 
     def _loop(self) -> None:
+        _this.worker = self
         st = self._state
         while True:
             with self._cond:

@@ -230,7 +230,7 @@ def settle(app, until, what: str, timeout: float = 30.0) -> None:
 def pick(app: Any, origin: Any, direction: Any, timeout: float = 60.0) -> Any:
     """A scene click (as a browser's ray) run as the app's pick job; returns the cell
     report it made (None: no point under it, or a tab took the click)."""
-    from rough_viewer.app.features.map import PickJob
+    from rough_viewer.app.features.map.pick import PickJob
 
     before = len(app.map.pick_timings)
     o = [float(v) for v in origin]

@@ -23,7 +23,7 @@ def test_unrotated_board_matches_the_paper_and_ols_grows_with_rotation():
 def test_scan_button_opens_the_board_in_the_app(app):
     board = app.feature(BoardFeature)
     board.alpha.value = 30.0
-    board.scan.value = True  # queues a BoardScanJob on the worker
+    board.scan.value = True  # queues a load of the board scan on the worker
     assert app.wait_idle(60)
     lesson = board.lesson
     assert lesson is not None and app.session.shown.loaded.cloud is lesson.scan.cloud
@@ -32,4 +32,4 @@ def test_scan_button_opens_the_board_in_the_app(app):
     assert "board lesson (α 30°, β 0°, synthetic)" in status and "in-memory" not in status
     assert np.isfinite(lesson.theta["odr"])
     kinds = [r.kind for r in app.worker.records]
-    assert kinds[-2:] == ["BoardScanJob", "PanelsJob"]
+    assert kinds[-2:] == ["LoadJob", "PanelsJob"]  # the board scan is a load

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.app.features.directions import DirectionsFeature
+from rough_viewer.app.features.profile.directions import DirectionsFeature
 from rough_viewer.app.server import build_app
 from rough_viewer.io import PointCloud
 from rough_viewer.report.directions import DirectionSettings, analyse_directions
@@ -63,8 +63,8 @@ def test_directions_yield_to_loads_and_crops_between_azimuths():
     that stops at its second call ends a 1-degree measurement (180 profile lines)
     after at most two of them."""
     from rough_viewer.app.features.crop import CropJob
-    from rough_viewer.app.features.directions import DirectionsJob
-    from rough_viewer.app.features.map import LoadJob
+    from rough_viewer.app.features.map.load import LoadJob
+    from rough_viewer.app.features.profile.directions import DirectionsJob
     from rough_viewer.app.worker import Cancelled
     from rough_viewer.synthetic.fbm import fbm_surface
 

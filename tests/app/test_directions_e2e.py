@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from rough_viewer.app.features.directions import L_MEASURE, L_STEP
+from rough_viewer.app.features.profile.directions import L_MEASURE, L_STEP
 from tests.app import browser as b
 from tests.helpers import face_cloud
 from tests.visual import figure_browser as fb

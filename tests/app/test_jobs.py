@@ -13,7 +13,7 @@ import numpy as np
 
 from rough_viewer.app.features.bias import BiasPanel
 from rough_viewer.app.features.file import FileFeature
-from rough_viewer.app.features.map import RenderJob
+from rough_viewer.app.features.map.render import RenderJob
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import App, build_app
@@ -210,7 +210,7 @@ def test_long_lived_lists_are_bounded(app):
 
 def test_cells_of_repeated_points_get_a_notice():
     """The app says why some cells are 0 (the same sentence as compute and report)."""
-    from rough_viewer.app.features.map import notice_text
+    from rough_viewer.app.features.map.render import notice_text
     from rough_viewer.app.state import LoadedCloud, MapSettings, map_stats
     from rough_viewer.io import PointCloud
     from tests.helpers import repeated_points_cloud

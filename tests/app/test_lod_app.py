@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.app.features.map import CAMERA_REST_S, L_BUDGET
+from rough_viewer.app.detail import CAMERA_REST_S
+from rough_viewer.app.features.map.binding import L_BUDGET
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
 from rough_viewer.app.state import MapSettings

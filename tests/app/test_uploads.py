@@ -212,7 +212,7 @@ def test_an_uploaded_stl_keeps_its_mesh_through_a_crop(live, tmp_path):
     triangles, as ``serve FILE.stl`` does (the upload is deleted once read), and a
     crop uses the triangles of the vertices it keeps."""
     from rough_viewer.app.features.crop import CropFeature, CropJob
-    from rough_viewer.app.features.directions import DirectionsFeature
+    from rough_viewer.app.features.profile.directions import DirectionsFeature
     from rough_viewer.io import load_points
     from rough_viewer.io.crop import CropBox, crop_mask
     from rough_viewer.io.mesh import load_mesh

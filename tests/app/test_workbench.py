@@ -13,7 +13,7 @@ import pytest
 from rough_viewer.app import scene
 from rough_viewer.app.features.board import BACK_LABEL, BoardFeature
 from rough_viewer.app.features.file import FileFeature
-from rough_viewer.app.features.map import RenderJob
+from rough_viewer.app.features.map.render import RenderJob
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.server import build_app

@@ -3,18 +3,17 @@ open the scan in the app, and compare each model's roughness of the whole board 
 the closed-form value. OLS and hybrid grow with the rotation away from the dependent
 axis; ODR stays near the true value.
 
-"Scan board" queues a :class:`BoardScanJob`, which is a load (it replaces a pending
+"Scan board" queues a load of a :class:`BoardSource` (it replaces a pending
 load and takes newer map settings). The scan that was shown is put aside, not
 dropped (:attr:`rough_viewer.app.session.Session.stashed`, with its cached grids and
-settings): "Back to the scan" (a :class:`~rough_viewer.app.features.map.ShowJob`)
-shows it again as it was. The board opens with its own colour range (the default
+settings): "Back to the scan" (a :class:`BackToScanJob`) shows it again as it was. The board opens with its own colour range (the default
 stretch, at its own default grid), whatever range the scan was pinned to.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
 
@@ -22,18 +21,11 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import Binding
-from rough_viewer.app.features.map import (
-    Changes,
-    LoadJob,
-    MapFeature,
-    RenderJob,
-    ShowJob,
-    load_stages,
-    resolve,
-)
 from rough_viewer.app.host import Host
+from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
+from rough_viewer.io import PointCloud
 from rough_viewer.synthetic.board import BoardScan, board_scan
 from rough_viewer.visual.colormaps import ROUGHNESS_STRETCH
 from rough_viewer.vocabulary import Axis
@@ -92,13 +84,13 @@ class BoardFeature:
     """Handles and state of the Board tab."""
 
     host: Host
-    map: MapFeature
     alpha: viser.GuiSliderHandle[float]
     beta: viser.GuiSliderHandle[float]
     scan: viser.GuiButtonHandle
     back: viser.GuiButtonHandle
     """Shows the scan put aside when the board opened (visible while there is one)."""
     note: viser.GuiMarkdownHandle
+    binding: Binding = field(default_factory=Binding)
     lesson: BoardLesson | None = None
     """The last scan's lesson."""
 
@@ -116,37 +108,38 @@ class BoardFeature:
 
 
 @dataclass(frozen=True)
-class BoardScanJob(Job[Host]):
-    """Scan the board at (alpha, beta) degrees and open the scan (a load)."""
+class BoardSource:
+    """The board scanned at (alpha, beta) degrees: a load's source (the lesson is
+    computed, and shown in the tab, when the load reads it)."""
 
     b: BoardFeature = field(compare=False)
     alpha_deg: float
     beta_deg: float
-    changes: Changes = ()
-    lane: ClassVar[str] = LoadJob.lane
-    cancels: ClassVar[frozenset[str]] = LoadJob.cancels
 
     @property
     def title(self) -> str:
-        return "board scan"
+        return "the board scan"
 
-    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
-        if isinstance(newer, RenderJob):
-            return replace(self, changes=self.changes + newer.changes)
-        return None
-
-    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        m = self.b.map
-        settings = resolve(m, None, self.changes) or ctx.session.shown.settings
+    def read(self, host: Host, run: Run) -> PointCloud:
         lesson = board_lesson(self.alpha_deg, self.beta_deg)
-        yield "scan"
         self.b.lesson = lesson
-        self.b.note.content = lesson_markdown(lesson)
-        # its own colour range: the default stretch on its own cells
-        own = settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
-        yield from load_stages(m, run, lambda _run: lesson.scan.cloud, own, stash=True,
-                               label=f"board lesson (α {self.alpha_deg:g}°, "
-                               f"β {self.beta_deg:g}°, synthetic)")
+        self.b.binding.write(self.b.note, content=lesson_markdown(lesson))
+        return lesson.scan.cloud
+
+    def release(self) -> None:
+        pass
+
+
+def own_colours(settings: MapSettings) -> MapSettings:
+    """The board opens with its own colour range: the default stretch on its cells."""
+    return settings.with_(stretch=ROUGHNESS_STRETCH, layer="roughness")
+
+
+def scan_board(host: Host, b: BoardFeature) -> int:
+    """Queue the board scan as a load (the scan shown now is put aside)."""
+    alpha, beta = float(b.alpha.value), float(b.beta.value)
+    return host.load(BoardSource(b, alpha, beta), stash=True, adjust=own_colours,
+                     label=f"board lesson (α {alpha:g}°, β {beta:g}°, synthetic)")
 
 
 @dataclass(frozen=True)
@@ -155,8 +148,8 @@ class BackToScanJob(Job[Host]):
     grids (a load: it cancels maps, panels and picks of the board)."""
 
     b: BoardFeature = field(compare=False)
-    lane: ClassVar[str] = LoadJob.lane
-    cancels: ClassVar[frozenset[str]] = LoadJob.cancels
+    lane: ClassVar[str] = "load"  # a load's: it replaces a pending load
+    cancels: ClassVar[frozenset[str]] = frozenset({"render", "panels", "pick"})
 
     @property
     def title(self) -> str:
@@ -168,7 +161,9 @@ class BackToScanJob(Job[Host]):
             self.b.update_back()
             return
         ctx.session.stashed = None
-        yield from ShowJob(self.b.map, stashed.loaded, stashed.settings).stages(ctx, run)
+        ctx.show_cloud(stashed.loaded, stashed.settings)
+        yield "show"
+        yield from ctx.render(run, stashed.settings)
 
 
 def mount(host: Host) -> BoardFeature:
@@ -176,7 +171,7 @@ def mount(host: Host) -> BoardFeature:
     gui = host.gui
     with host.tab("Board"):
         b = BoardFeature(
-            host=host, map=host.feature(MapFeature),
+            host=host,
             alpha=gui.add_slider("Board α (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
             beta=gui.add_slider("Board β (°)", min=0.0, max=80.0, step=5.0, initial_value=0.0),
             scan=gui.add_button("Scan board",
@@ -187,9 +182,7 @@ def mount(host: Host) -> BoardFeature:
                                   "compare the models with the true roughness."),
         )
     host.allow(b.alpha, b.beta, b.scan, b.back)
-    binding = Binding()
-    binding.on_change([b.scan], lambda _h: host.submit(
-        BoardScanJob(b, float(b.alpha.value), float(b.beta.value))))
-    binding.on_change([b.back], lambda _h: host.submit(BackToScanJob(b)))
+    b.binding.on_change([b.scan], lambda _h: scan_board(host, b))
+    b.binding.on_change([b.back], lambda _h: host.submit(BackToScanJob(b)))
     host.on_cloud(b.update_back)
     return b

@@ -32,7 +32,6 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import Binding
-from rough_viewer.app.features.map import MapFeature, render_stages, show_cloud
 from rough_viewer.app.host import Host
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import Colouring, LoadedCloud, Units
@@ -118,7 +117,6 @@ class CropFeature:
     """A saved view's crop is put back before the other parts (they run on it)."""
 
     host: Host
-    map: MapFeature
     note: viser.GuiMarkdownHandle
     keep: viser.GuiButtonHandle
     exact: viser.GuiButtonHandle
@@ -159,12 +157,12 @@ class CropFeature:
         self.note.content = "  \n".join(lines)
         self.nodes = [self.host.scene.lines("/selection/box", _box_segments(loaded, box),
                                             (255, 0, 255))]
-        self.map.take_overlay(self, self.let_go, self.colouring())
+        self.host.take_overlay(self, self.let_go, self.colouring())
 
     def colouring(self) -> Colouring:
         """The map's colours with the selected points in magenta."""
         assert self.selection is not None
-        mask, base = self.selection.mask, self.map.colouring
+        mask, base = self.selection.mask, self.host.map_colouring()
 
         def colours(idx: np.ndarray) -> np.ndarray:
             c = (np.array(base(idx), dtype=np.uint8) if base is not None
@@ -179,7 +177,7 @@ class CropFeature:
         self.host.scene.remove(self.nodes)
         self.nodes = []
         self.selection = None
-        self.map.give_back_overlay(self)
+        self.host.give_back_overlay(self)
         self.note.content = PROMPT
 
     def let_go(self) -> None:
@@ -191,7 +189,7 @@ class CropFeature:
 
     def on_render(self) -> None:
         """A new map: the selection is drawn over its colours (worker)."""
-        if self.selection is not None and self.map.overlay is self:
+        if self.selection is not None and self.host.holds_overlay(self):
             self.host.scene.colour_by(self.colouring())
 
     def on_cloud(self) -> None:
@@ -310,7 +308,7 @@ class CropJob(Job[Host]):
         return "cropping the cloud" if self.box is not None else "undoing the crop"
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        m, shown = self.f.map, ctx.session.shown
+        shown = ctx.session.shown
         loaded = shown.loaded
         if self.box is None:
             if loaded.uncropped is None:
@@ -331,10 +329,52 @@ class CropJob(Job[Host]):
                                else "crop: not enough memory for the kept points")
                 return
         yield "crop"
-        show_cloud(m, target, shown.settings, frame=False)
+        ctx.show_cloud(target, shown.settings, frame=False)
         yield "show"
         if self.render:
-            yield from render_stages(m, run, shown.settings)
+            yield from ctx.render(run, shown.settings)
+
+
+@dataclass(frozen=True)
+class CropSelectionJob(Job[Host]):
+    """Crop to the selection's box in ``mode`` (``exact``: to its very points), or
+    say that there is no selection yet."""
+
+    f: CropFeature = field(compare=False)
+    mode: CropMode
+    exact: bool = False
+    lane: ClassVar[str] = "crop"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        sel = self.f.selection
+        if sel is None:
+            ctx.notify("Crop", "Select points first: Shift-drag a rectangle over the rock.")
+            return
+        yield "selection"
+        ctx.submit(CropJob(self.f, CropBox(sel.box.lo, sel.box.hi, self.mode),
+                           exact=sel if self.exact else None))
+
+
+@dataclass(frozen=True)
+class TypedCropJob(Job[Host]):
+    """Crop by a box typed as ``compute --crop`` takes it (the cloud's unit), or
+    show why the text is no box."""
+
+    f: CropFeature = field(compare=False)
+    text: str
+    mode: str
+    lane: ClassVar[str] = "crop"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        u = ctx.session.shown.loaded.units
+        try:
+            lo, hi = parse_box(self.text, option="the crop box")
+            box = CropBox(lo, hi, self.mode if self.mode in CROP_MODES else "keep")
+        except InputError as exc:
+            ctx.show_error(str(exc), kept="The cloud is not cropped again.")
+            return
+        yield "parse"
+        ctx.submit(CropJob(self.f, box.scaled(u.per)))
 
 
 # ----------------------------------------------------------------------------- mount
@@ -345,7 +385,7 @@ def mount(host: Host) -> CropFeature:
     gui = host.gui
     with host.tab("Select"):
         f = CropFeature(
-            host=host, map=host.feature(MapFeature),
+            host=host,
             note=gui.add_markdown(PROMPT),
             keep=gui.add_button(L_KEEP, hint="Keep the points in the selection's bounding "
                                 "box; every analysis runs on them."),
@@ -365,29 +405,12 @@ def mount(host: Host) -> CropFeature:
     host.rule(f.box, _box_rule)
     b = f.binding
 
-    def crop_selection(mode: CropMode, exact: bool = False) -> None:
-        sel = f.selection
-        if sel is None:
-            host.notify("Crop", "Select points first: Shift-drag a rectangle over the rock.")
-            return
-        host.submit(CropJob(f, CropBox(sel.box.lo, sel.box.hi, mode),
-                            exact=sel if exact else None))
-
-    def typed(_h: object) -> None:
-        u = host.session.shown.loaded.units
-        try:
-            lo, hi = parse_box(f.box.value, option="the crop box")
-            box = CropBox(lo, hi, f.mode.value if f.mode.value in CROP_MODES else "keep")
-        except InputError as exc:
-            host.show_error(str(exc), kept="The cloud is not cropped again.")
-            return
-        host.submit(CropJob(f, box.scaled(u.per)))
-
-    b.on_change([f.keep], lambda _h: crop_selection("keep"))
-    b.on_change([f.exact], lambda _h: crop_selection("keep", exact=True))
-    b.on_change([f.remove], lambda _h: crop_selection("remove"))
+    b.on_change([f.keep], lambda _h: host.submit(CropSelectionJob(f, "keep")))
+    b.on_change([f.exact], lambda _h: host.submit(CropSelectionJob(f, "keep", exact=True)))
+    b.on_change([f.remove], lambda _h: host.submit(CropSelectionJob(f, "remove")))
     b.on_change([f.clear], lambda _h: host.submit(ClearJob(f)))
-    b.on_change([f.apply], typed)
+    b.on_change([f.apply], lambda _h: host.submit(
+        TypedCropJob(f, str(f.box.value), str(f.mode.value))))
     b.on_change([f.undo], lambda _h: host.submit(CropJob(f, None)))
 
     def rect(event: viser.SceneRectSelectEvent) -> None:

@@ -1,7 +1,7 @@
 """The File tab: load a file from the data folder, or upload one.
 
-"Load file" and an upload each queue a :class:`~rough_viewer.app.features.map.LoadJob`
-(a newer load replaces a pending one; a control change merges into it). Files are read
+"Load file" and an upload each queue a load (:meth:`rough_viewer.app.host.Host.load`;
+a newer load replaces a pending one; a control change merges into it). Files are read
 in the tab's unit (``auto``: the CRS's unit of a LAS file, else metres), within the
 data folder only (:class:`rough_viewer.app.files.DataFolder`), after a memory check
 (:func:`rough_viewer.app.files.read_cloud`).
@@ -14,8 +14,6 @@ from dataclasses import dataclass, replace
 import viser
 
 from rough_viewer.app.binding import Binding
-from rough_viewer.app.features.directions import DirectionsFeature
-from rough_viewer.app.features.map import LoadJob, MapFeature
 from rough_viewer.app.files import UploadedFile, read_cloud, read_mesh
 from rough_viewer.app.host import Host
 from rough_viewer.app.worker import Run
@@ -75,7 +73,7 @@ class Upload:
         mesh = read_mesh(self.upload.path, self.upload.name, units=unit)
         self.upload.delete()
         cloud = replace(cloud, source=self.upload.name)
-        host.feature(DirectionsFeature).keep_upload_mesh(cloud, mesh)
+        host.session.uploaded_mesh = None if mesh is None else (cloud, mesh)
         return cloud
 
     def release(self) -> None:
@@ -87,7 +85,6 @@ class FileFeature:
     """The File tab's controls."""
 
     host: Host
-    map: MapFeature
     path: viser.GuiTextHandle
     units: viser.GuiDropdownHandle[str]
     load: viser.GuiButtonHandle
@@ -96,11 +93,11 @@ class FileFeature:
 
     def load_path(self, typed: str) -> int:
         """Queue loading ``typed`` (a path in the data folder) in the tab's unit."""
-        return self.host.submit(LoadJob(self.map, TypedPath(typed, unit_of(self.units.value))))
+        return self.host.load(TypedPath(typed, unit_of(self.units.value)))
 
     def load_upload(self, upload: UploadedFile) -> int:
         """Queue loading a finished upload in the tab's unit."""
-        return self.host.submit(LoadJob(self.map, Upload(upload, unit_of(self.units.value))))
+        return self.host.load(Upload(upload, unit_of(self.units.value)))
 
 
 def mount(host: Host) -> FileFeature:
@@ -110,7 +107,7 @@ def mount(host: Host) -> FileFeature:
     limit = f", at most {format_bytes(host.options.max_upload_bytes)}"
     with host.tab("File"):
         f = FileFeature(
-            host=host, map=host.feature(MapFeature),
+            host=host,
             path=gui.add_text(L_PATH, shown.loaded.cloud.source,
                               hint="A file in the server's data folder (--data-dir); "
                               "relative paths start there."),

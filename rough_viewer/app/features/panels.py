@@ -26,9 +26,8 @@ from typing import Any, ClassVar
 import plotly.graph_objects as go
 import viser
 
-from rough_viewer.app.features.map import MapFeature, empty_figure
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure, set_figure
 from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.outliers import analysed_values
@@ -151,7 +150,6 @@ class PanelsFeature:
     """The Panels tab's plots."""
 
     host: Host
-    map: MapFeature
     histogram: viser.GuiPlotlyHandle
     variogram: viser.GuiPlotlyHandle
     summary: viser.GuiPlotlyHandle
@@ -170,7 +168,7 @@ class PanelsFeature:
             return
         s = shown.settings
         if self.panel_key(s) != session.panel_key or face_key(s) != session.face_key:
-            record = self.map.timings[-1] if self.map.timings else {}
+            record = self.host.last_render()
             self.host.submit(PanelsJob(self, s, shown.result, record))
 
     # ------------------------------------------------------------------ saved views
@@ -260,7 +258,7 @@ def mount(host: Host) -> PanelsFeature:
     gui = host.gui
     with host.tab("Panels"):
         p = PanelsFeature(
-            host=host, map=host.feature(MapFeature),
+            host=host,
             histogram=gui.add_plotly(empty_figure("histogram"), config=PLOTLY_CONFIG,
                                      aspect=0.85),
             variogram=gui.add_plotly(empty_figure("semivariogram"), config=PLOTLY_CONFIG,

@@ -41,7 +41,6 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.binding import Binding, assign
-from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
@@ -194,7 +193,6 @@ class SetsFeature:
     """Handles and state of the Sets tab (the state is changed by the worker only)."""
 
     host: Host
-    map: MapFeature
     on: viser.GuiCheckboxHandle
     colour_by: viser.GuiDropdownHandle[str]
     poles: viser.GuiDropdownHandle[str]
@@ -328,10 +326,10 @@ class SetsFeature:
     def show_colours(self) -> None:
         """Colour the points by set, joint or patch (the map's colours and colour bar
         give way)."""
-        self.map.take_overlay(self, self.let_go, self.colouring())
+        self.host.take_overlay(self, self.let_go, self.colouring())
 
     def hide(self) -> None:
-        self.map.give_back_overlay(self)
+        self.host.give_back_overlay(self)
 
     def let_go(self) -> None:
         """Another feature colours the points now: "Show sets" goes off (worker)."""
@@ -484,7 +482,7 @@ def mount(host: Host) -> SetsFeature:
     gui = host.gui
     with host.tab("Sets"):
         f = SetsFeature(
-            host=host, map=host.feature(MapFeature),
+            host=host,
             on=gui.add_checkbox(L_ON, False, hint="Colour the rock by joint set: planar "
                                 "cells (smooth ODR planes) grouped by the orientation of "
                                 "their poles (the Map tab's grid)."),

@@ -53,7 +53,6 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.binding import Binding, assign
-from rough_viewer.app.features.map import MODEL_BY_LABEL, MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_TIMINGS
@@ -404,7 +403,6 @@ class ZonesFeature:
     """Handles and state of the Zones tab (the state is changed by the worker only)."""
 
     host: Host
-    map: MapFeature
     on: viser.GuiCheckboxHandle
     threshold: viser.GuiSliderHandle[float]
     """Twin of the Map tab's threshold slider (moving either moves both)."""
@@ -495,8 +493,8 @@ class ZonesFeature:
         map. Raises InputError for settings the tab cannot show."""
         if zones is not None:
             check_zone_settings(zones)
-            if MODEL_BY_LABEL.get(self.map.model.value) != zones.map:
-                self.map.request(model=MODEL_LABELS[zones.map])
+            if self.host.settings().model != zones.map:
+                self.host.request(model=MODEL_LABELS[zones.map])
         self.host.submit(RestoreZonesJob(self, zones))
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
@@ -538,12 +536,12 @@ class ZonesFeature:
     def show_colours(self) -> None:
         """Colour the points by zone (the map's colours and colour bar give way)."""
         assert self.colouring is not None
-        self.map.take_overlay(self, self.let_go, self.colouring)
+        self.host.take_overlay(self, self.let_go, self.colouring)
 
     def hide(self) -> None:
         """Show the map's cloud again; hide the zones."""
         self._hide_nodes()
-        self.map.give_back_overlay(self)
+        self.host.give_back_overlay(self)
 
     def let_go(self) -> None:
         """Another feature colours the points now: "Show zones" goes off (worker)."""
@@ -805,14 +803,13 @@ def _empty(title: str) -> go.Figure:
 def mount(host: Host) -> ZonesFeature:
     """Add the Zones tab; zones follow every map and take scene clicks while shown."""
     gui = host.gui
-    m = host.feature(MapFeature)
     with host.tab("Zones"):
         z = ZonesFeature(
-            host=host, map=m,
+            host=host,
             on=gui.add_checkbox(L_ON, False, hint="Colour the rock by fracture zone: connected "
                                 "cells at or above the threshold (Map tab's model and grid)."),
             threshold=gui.add_slider(L_THRESHOLD, min=0.0, max=1.0, step=0.01,
-                                     initial_value=float(m.threshold.value),
+                                     initial_value=float(host.settings().threshold),
                                      hint="The Map tab's threshold: cells with normalised "
                                      "roughness ≥ this are rough."),
             connectivity=gui.add_dropdown(L_CONNECTIVITY, tuple(CONNECTIVITY_LABELS.values()),
@@ -841,7 +838,7 @@ def mount(host: Host) -> ZonesFeature:
                 lambda _h: host.submit(ZonesJob(z)))
     # the twin moves the Map tab's slider; the map's render moves the twin back
     b.on_change([z.threshold],
-                lambda _h: m.request(threshold=float(z.threshold.value)))
+                lambda _h: host.request(threshold=float(z.threshold.value)))
 
     def select(_handle: object) -> None:
         lab = z.labelling

@@ -80,15 +80,6 @@ class DirectionsFeature:
     """The last measurement, of :attr:`cloud`."""
     cloud: LoadedCloud | None = None
     nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
-    uploaded: tuple[PointCloud, TriangleMesh] | None = None
-    """An uploaded mesh file's cloud and its triangles, read before the upload was
-    deleted (:meth:`keep_upload_mesh`)."""
-
-    def keep_upload_mesh(self, cloud: PointCloud, mesh: TriangleMesh | None) -> None:
-        """Remember the triangles of an uploaded file read as ``cloud`` (None: it has
-        none; a mesh kept before is dropped)."""
-        self.uploaded = None if mesh is None else (cloud, mesh)
-
     def settings(self) -> DirectionSettings:
         """The settings the controls ask for (the fit windows are the Profile tab's)."""
         per = self.host.session.shown.loaded.units.per
@@ -104,8 +95,9 @@ class DirectionsFeature:
         """The triangles of the shown cloud's file (an STL or a PLY with faces in the
         data folder, or uploaded), for a crop those of its kept vertices, or None."""
         whole = loaded.uncropped or loaded
-        if self.uploaded is not None and self.uploaded[0] is whole.cloud:
-            mesh: TriangleMesh | None = self.uploaded[1]
+        uploaded = self.host.session.uploaded_mesh
+        if uploaded is not None and uploaded[0] is whole.cloud:
+            mesh: TriangleMesh | None = uploaded[1]
         else:
             mesh = self._file_mesh(whole.cloud)
         if mesh is None or loaded.crop_mask is None:
@@ -150,10 +142,11 @@ class DirectionsFeature:
         self.nodes = []
         self.result, self.cloud = None, self.host.session.shown.loaded
         session = self.host.session
-        if self.uploaded is not None and not any(
-                s is not None and (s.loaded.uncropped or s.loaded).cloud is self.uploaded[0]
+        uploaded = session.uploaded_mesh
+        if uploaded is not None and not any(
+                s is not None and (s.loaded.uncropped or s.loaded).cloud is uploaded[0]
                 for s in (session.shown, session.stashed)):
-            self.uploaded = None  # its cloud is gone
+            session.uploaded_mesh = None  # its cloud is gone
         self.spacing.label = spacing_label(self.host.session.shown.loaded.units.label)
         self.status.content = "Press **Measure directions** for this cloud."
 

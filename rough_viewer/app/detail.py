@@ -1,0 +1,125 @@
+"""Level of detail: each browser tab chooses the nodes it draws for its camera."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import ClassVar
+
+from rough_viewer.app.host import Host
+from rough_viewer.app.worker import Job, Run
+
+# ----------------------------------------------------------------------------- level of detail
+
+#: Seconds a camera rests before its tab chooses its nodes again (and, while it
+#: moves, the longest wait between two choices).
+CAMERA_REST_S = 0.15
+CAMERA_MOVING_S = 0.5
+
+
+@dataclass(frozen=True)
+class RefineJob(Job[Host]):
+    """Browser tabs choose their nodes for their cameras (level of detail)."""
+
+    clients: frozenset[int]
+    lane: ClassVar[str] = "lod"
+
+    @property
+    def title(self) -> str:
+        return "level of detail"
+
+    def absorb(self, newer: Job[Host]) -> Job[Host] | None:
+        if isinstance(newer, RefineJob):
+            return RefineJob(self.clients | newer.clients)
+        return None
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        for cid in sorted(self.clients):
+            ctx.scene.refine(cid)
+        yield "refine"
+
+
+#: Seconds after a tab left when the heap is trimmed a second time (its connection's
+#: buffers are freed after the tab is dropped).
+GIVE_BACK_AFTER_S = 2.0
+
+
+@dataclass(frozen=True)
+class DropTabJob(Job[Host]):
+    """A browser tab left: its nodes are forgotten."""
+
+    client_id: int
+    lane: ClassVar[str] = "lod-drop"
+    keep_all: ClassVar[bool] = True
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        from rough_viewer.memory import give_back
+
+        ctx.scene.drop_tab(self.client_id)
+        yield "drop"
+        # its messages' memory, freed in pieces the heap keeps (issue 36 item 19): now,
+        # and once its connection's last buffers are gone too
+        give_back()
+        later = threading.Timer(GIVE_BACK_AFTER_S, give_back)
+        later.daemon = True
+        later.start()
+        yield "give back"
+
+
+@dataclass(frozen=True)
+class BudgetJob(Job[Host]):
+    """Every tab's point budget."""
+
+    budget: int
+    lane: ClassVar[str] = "budget"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.set_budget(self.budget)
+        yield "budget"
+
+
+class CameraWatch:
+    """Debounces the cameras of the browser tabs: a tab chooses its nodes again once
+    its camera has rested :data:`CAMERA_REST_S` (and every :data:`CAMERA_MOVING_S`
+    while it moves), as a :class:`RefineJob` on the worker."""
+
+    def __init__(self, host: Host) -> None:
+        self._host = host
+        self._lock = threading.Lock()
+        self._timers: dict[int, threading.Timer] = {}
+        self._last: dict[int, float] = {}
+
+    def moved(self, client_id: int) -> None:
+        """A tab's camera changed (viser's thread pool)."""
+        now = time.monotonic()
+        with self._lock:
+            timer = self._timers.pop(client_id, None)
+            if timer is not None:
+                timer.cancel()
+            due = now - self._last.get(client_id, 0.0) >= CAMERA_MOVING_S
+            if due:
+                self._last[client_id] = now
+            timer = threading.Timer(CAMERA_REST_S, self._rested, args=(client_id,))
+            timer.daemon = True
+            self._timers[client_id] = timer
+            timer.start()
+        if due:
+            self._host.submit(RefineJob(frozenset({client_id})))
+
+    def _rested(self, client_id: int) -> None:
+        with self._lock:
+            self._timers.pop(client_id, None)
+            self._last[client_id] = time.monotonic()
+        self._host.submit(RefineJob(frozenset({client_id})))
+
+    def left(self, client_id: int) -> None:
+        with self._lock:
+            timer = self._timers.pop(client_id, None)
+            self._last.pop(client_id, None)
+        if timer is not None:
+            timer.cancel()
+        self._host.submit(DropTabJob(client_id))
+
+
