@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import functools
 import tomllib
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -238,3 +239,217 @@ def test_the_cycle_check_finds_a_cycle(tmp_path: Path) -> None:
     graph = _module_graph(sorted(pkg.rglob("*.py")), pkg)
     assert graph["rough_viewer.a"] == {"rough_viewer.b"}
     assert graph["rough_viewer.b"] == {"rough_viewer.a"}
+
+
+# ----------------------------------------------------------------------------- features
+
+FEATURES = ROOT / "app" / "features"
+FEATURE_MODULES = sorted(FEATURES.rglob("*.py"))
+
+
+def _feature_of(module: str) -> str | None:
+    """``rough_viewer.app.features.<a>[...]`` -> ``a`` (None: not a feature's module)."""
+    parts = module.split(".")
+    return parts[3] if parts[:3] == ["rough_viewer", "app", "features"] and len(parts) > 3 \
+        else None
+
+
+@pytest.mark.parametrize("path", FEATURE_MODULES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_feature_imports_another(path: Path) -> None:
+    """A feature (``features/<a>.py``, or the package ``features/<a>/``) imports only its
+    own modules: what it needs of the map or of another feature goes through its
+    :class:`~rough_viewer.app.host.Host` (anywhere in the source, ``TYPE_CHECKING``
+    included)."""
+    me = _dotted(path)
+    mine = _feature_of(me)
+    for module in sorted(_package_graph()[me]):
+        theirs = _feature_of(module)
+        assert theirs is None or theirs == mine, f"{me} imports {module}"
+
+
+def test_the_feature_check_finds_a_feature_import(tmp_path: Path) -> None:
+    pkg = tmp_path / "rough_viewer"
+    (pkg / "app" / "features" / "a").mkdir(parents=True)
+    for init in (pkg, pkg / "app", pkg / "app" / "features", pkg / "app" / "features" / "a"):
+        (init / "__init__.py").write_text("")
+    (pkg / "app" / "features" / "b.py").write_text("")
+    (pkg / "app" / "features" / "a" / "x.py").write_text(
+        "from rough_viewer.app.features import b\nfrom rough_viewer.app.features.a import y\n")
+    (pkg / "app" / "features" / "a" / "y.py").write_text("")
+    graph = _module_graph(sorted(pkg.rglob("*.py")), pkg)
+    found = {_feature_of(m) for m in graph["rough_viewer.app.features.a.x"]}
+    assert found == {"a", "b"}
+
+
+# ----------------------------------------------------------------------------- callbacks
+
+#: Methods that register a callback viser (or the upload stream) calls on its own
+#: threads, and the position of the callback among their arguments.
+REGISTRATIONS = {"on_change": 1, "on_update": 0, "on_click": 0, "on_connect": 0,
+                 "on_disconnect": 0, "on_rect_select": 0, "take_uploads": 1}
+#: ``host.on_click`` is the Host's click event, delivered on the worker (not viser's).
+WORKER_EVENTS = {("host", "on_click")}
+#: Calls that hand work to the worker: ``submit`` a job, ``request`` a map (it
+#: submits a render job), ``load`` a cloud (it submits a load job).
+SUBMITS = {"submit", "request", "load"}
+#: Builtins a callback may call to read and convert a browser's values.
+PURE = {"float", "int", "bool", "str", "tuple", "frozenset", "len", "id", "isinstance",
+        "all", "any", "min", "max", "abs", "next"}
+#: Methods of the camera watch (:class:`rough_viewer.app.detail.CameraWatch`): it
+#: debounces camera moves, and its timers only submit level-of-detail jobs.
+DEBOUNCERS = {"moved", "left"}
+
+
+#: Methods that write what a browser shows or the app's state: a function a callback
+#: calls (a helper of the module, reading values) calls none of them.
+WRITERS = {"set", "write", "show_figure", "assign", "set_figure", "show_error", "clear_error",
+           "say", "warn", "pin", "progress", "notify", "notify_client", "add_notification",
+           "remove", "colour_by", "take_overlay", "give_back_overlay", "show_cloud"}
+
+
+def _writes(node: ast.AST) -> list[str]:
+    """Assignments to an attribute (anywhere in the target), ``with`` (a lock),
+    ``global``, ``nonlocal`` and ``del`` inside ``node``."""
+    found = []
+    for sub in ast.walk(node):
+        if isinstance(sub, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
+            targets = sub.targets if isinstance(sub, ast.Assign) else [sub.target]
+            found += [f"line {sub.lineno}: writes {ast.unparse(t)}" for t in targets
+                      if any(isinstance(e, ast.Attribute) for e in ast.walk(t))]
+        elif isinstance(sub, (ast.With, ast.Global, ast.Nonlocal, ast.Delete)):
+            found.append(f"line {sub.lineno}: {type(sub).__name__.lower()}")
+    return found
+
+
+def _body(node: ast.AST) -> list[ast.AST]:
+    return [node.body] if isinstance(node, ast.Lambda) else list(node.body)  # type: ignore[attr-defined]
+
+
+def _callback_problems(node: ast.AST, defs: dict[str, list[ast.AST]], seen: set[int]) -> list[str]:
+    """Why the callback ``node`` (a lambda or a def) does more than submit jobs."""
+    problems = []
+    for part in _body(node):
+        problems += _writes(part)
+        problems += [p for c in ast.walk(part) if isinstance(c, ast.Call)
+                     for p in _call_problems(c, defs, seen)]
+    return problems
+
+
+def _helper_problems(node: ast.AST, defs: dict[str, list[ast.AST]], seen: set[int]) -> list[str]:
+    """Why ``node``, a function of the module a callback calls, is no mere reader."""
+    if id(node) in seen:
+        return []
+    seen.add(id(node))
+    problems = []
+    for part in _body(node):
+        problems += _writes(part)
+        for c in ast.walk(part):
+            if not isinstance(c, ast.Call):
+                continue
+            f = c.func
+            name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+            if name in WRITERS:
+                problems.append(f"line {c.lineno}: calls {ast.unparse(f)}")
+            elif isinstance(f, ast.Name) and name in defs:
+                problems += [p for d in defs[name] for p in _helper_problems(d, defs, seen)]
+    return problems
+
+
+def _call_problems(call: ast.Call, defs: dict[str, list[ast.AST]], seen: set[int]) -> list[str]:
+    f = call.func
+    name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+    if name in SUBMITS or (isinstance(f, ast.Attribute) and name in DEBOUNCERS):
+        return []
+    if isinstance(f, ast.Attribute) and name in REGISTRATIONS:
+        return []  # a nested registration: its callback is checked where it is registered
+    if isinstance(f, ast.Name) and name in PURE:
+        return []
+    root = f
+    while isinstance(root, ast.Attribute):
+        root = root.value
+    if name[:1].isupper() or (isinstance(f, ast.Attribute) and isinstance(root, ast.Name)
+                              and (root.id[:1].isupper() or root.id == "np")):
+        return []  # building a value (a job, a source, a box), or numpy reading numbers
+    if name in defs:  # a function or method of the feature that only reads
+        return [p for d in defs[name] for p in _helper_problems(d, defs, seen)]
+    return [f"line {call.lineno}: calls {ast.unparse(f)}"]
+
+
+def _registered_callbacks(tree: ast.AST, defs: dict[str, list[ast.AST]]
+                          ) -> Iterator[tuple[int, ast.AST | str]]:
+    """(line, the callback's node or a name the feature does not define) of every
+    registration in ``tree``."""
+    for call in ast.walk(tree):
+        if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Attribute)):
+            continue
+        f = call.func
+        if f.attr not in REGISTRATIONS or len(call.args) <= REGISTRATIONS[f.attr]:
+            continue
+        if isinstance(f.value, ast.Name) and (f.value.id, f.attr) in WORKER_EVENTS:
+            continue
+        cb = call.args[REGISTRATIONS[f.attr]]
+        if isinstance(cb, ast.Lambda):
+            yield call.lineno, cb
+        else:
+            name = cb.attr if isinstance(cb, ast.Attribute) else getattr(cb, "id", "")
+            for d in defs.get(name, [ast.unparse(cb)]):
+                yield call.lineno, d
+
+
+def _defs(tree: ast.AST) -> dict[str, list[ast.AST]]:
+    defs: dict[str, list[ast.AST]] = {}
+    for d in ast.walk(tree):
+        if isinstance(d, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            defs.setdefault(d.name, []).append(d)
+    return defs
+
+
+@pytest.mark.parametrize("path", FEATURE_MODULES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_callbacks_only_submit_jobs(path: Path) -> None:
+    """A callback a feature registers with viser (``on_change``, ``on_update``,
+    ``on_click`` of a handle or the scene, ``on_connect``, ``on_disconnect``,
+    ``on_rect_select``, ``take_uploads``) runs on viser's threads, so it only hands
+    work to the worker. The rule, read from the source: the callback (a lambda, a
+    function of the module, or a method of one of its classes, by name) and every
+    function of the module it calls
+
+    - assigns to no attribute (it writes no handle, no state) and has no ``with``
+      (no lock), ``global``, ``nonlocal`` or ``del``;
+    - calls only ``submit``, ``request`` or ``load`` (each submits a job), a class or
+      one of its class methods (building a job, a source, a box), ``np.*`` (reading
+      numbers), the builtins of :data:`PURE`, the camera watch's debouncer
+      (:data:`DEBOUNCERS`), a nested registration (checked itself), or a reader: a
+      function or method of the feature (its modules) that assigns to no attribute,
+      has no ``with``, calls none of :data:`WRITERS`, and calls only readers of the
+      feature.
+
+    Reading attributes (a handle's value, the shown cloud's units) is allowed."""
+    tree = ast.parse(path.read_text())
+    package = path.parent if path.parent != FEATURES else None  # a feature's package
+    defs = _defs(ast.Module(body=[n for p in (sorted(package.glob("*.py")) if package else [path])
+                                  for n in ast.parse(p.read_text()).body], type_ignores=[]))
+    problems = []
+    for line, cb in _registered_callbacks(tree, defs):
+        if isinstance(cb, str):
+            problems.append(f"line {line}: callback {cb} is not defined in the module")
+            continue
+        problems += [f"callback at line {line}: {p}" for p in _callback_problems(cb, defs, set())]
+    assert problems == [], f"{path.name}: " + "; ".join(problems)
+
+
+def test_the_callback_check_finds_work_in_a_callback() -> None:
+    tree = ast.parse(
+        "def mount(host, b, f):\n"
+        "    b.on_change([f.a], lambda _h: host.submit(AJob(float(f.a.value))))\n"
+        "    def typed(_h):\n"
+        "        f.note.content = 'x'\n"
+        "        host.show_error(parse(f.box.value))\n"
+        "    b.on_change([f.b], typed)\n"
+        "    f.c.on_click(lambda _e: helper(f))\n"
+        "def helper(f):\n"
+        "    f.binding.set(f.c, 1)\n")
+    defs = _defs(tree)
+    found = [(line, p) for line, cb in _registered_callbacks(tree, defs)
+             for p in _callback_problems(cb, defs, set())]  # type: ignore[arg-type]
+    assert found == [(6, "line 4: writes f.note.content"), (6, "line 5: calls host.show_error"),
+                     (6, "line 5: calls parse"), (7, "line 9: calls f.binding.set")]

@@ -31,7 +31,9 @@ def test_panel_predicts_from_its_values(server):
     panel.noise_mm.value = 1.6
     panel.er_mm.value = 6.0
     panel.asperity_mm.value = 19.0
-    p = panel.update()
+    panel.button.value = True  # a press: the panel's own worker predicts
+    assert panel.worker is not None and panel.worker.wait_idle(120)
+    p = panel.last
     # the panel's own "Roughness" dropdown (first entry: absolute) decides the convention
     ref = predict_bias(noise_sigma_m=0.0016, effective_radius_m=0.006, asperity_radius_m=0.019,
                        spacing_m=0.002, trials=BIAS_TRIALS, residual=str(panel.residual.value))
@@ -52,5 +54,6 @@ def test_panel_predicts_from_its_values(server):
 def test_panel_refuses_unrepresentable_er(server):
     panel = add_bias_panel(server.gui, spacing_m=0.002)
     panel.er_mm.value = 0.5
-    assert panel.update() is None
+    panel.button.value = True
+    assert panel.worker is not None and panel.worker.wait_idle(60)
     assert "Cannot predict" in panel.result.content and panel.last is None

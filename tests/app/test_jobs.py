@@ -7,7 +7,7 @@ import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -198,9 +198,22 @@ def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypat
     app.stop()
 
 
+@dataclass(frozen=True)
+class Errors(Job[Any]):
+    """Shows ``n`` errors (the error line is written on the worker only)."""
+
+    n: int
+    lane: ClassVar[str] = "errors"
+
+    def stages(self, ctx: Any, run: Run) -> Iterator[str]:
+        for i in range(self.n):
+            ctx.show_error(f"error {i}")
+        yield "errors"
+
+
 def test_long_lived_lists_are_bounded(app):
-    for i in range(300):
-        app.host.show_error(f"error {i}")
+    app.submit(Errors(300))
+    assert app.wait_idle(30)
     assert len(app.host.errors) == 100 and app.host.errors[-1] == "error 299"
     for _ in range(250):
         app.submit(RenderJob(app.map, app.session.shown.settings.with_(threshold=0.1)))

@@ -92,3 +92,28 @@ def test_a_bug_is_logged_and_named_as_an_internal_error(app, capfd):
     msg = app.host.errors[-1]
     assert msg.startswith("internal error: a broken job failed (KeyError)")
     assert "Traceback" not in app.host.error.content and "not a user" not in msg
+
+
+def test_messages_and_binding_writes_from_another_thread_fail(app):
+    """The shell's lines above the tabs and every binding's writes are the worker's,
+    as the session and the scene are (issue 32 item 4)."""
+    from rough_viewer.app.binding import Binding
+
+    host = app.host
+    status = host.status.content
+    for write, what in ((lambda: host.show_error("x"), "the error line"),
+                        (lambda: host.clear_error(), "the error line"),
+                        (lambda: host.say("x"), "the status line"),
+                        (lambda: host.warn("x"), "the notes"),
+                        (lambda: host.pin("x"), "the pinned note"),
+                        (lambda: host.progress(50.0), "the progress bar")):
+        with pytest.raises(NotOnWorker, match=what):
+            write()
+    b = Binding()
+    for write in (lambda: b.set(app.map.threshold, 0.9),
+                  lambda: b.write(app.map.pick, content="x"),
+                  lambda: b.show_figure(app.map.scales, app.map.scales.figure)):
+        with pytest.raises(NotOnWorker):
+            write()
+    assert host.status.content == status and list(host.errors) == []
+    assert app.map.threshold.value != 0.9 and app.map.pick.content != "x"

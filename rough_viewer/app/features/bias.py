@@ -9,12 +9,11 @@ smoothing_curve_figure`). The panel is self-contained: it needs no loaded cloud.
 
 In the app, :func:`mount` puts the panel in a "Bias" tab and its button queues a
 :class:`BiasJob` on the app's worker; on its own (:func:`add_bias_panel`, on any
-viser GUI) the button computes at once.
+viser GUI) the panel has a worker of its own that runs it.
 """
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -22,9 +21,10 @@ from typing import Any, ClassVar
 import numpy as np
 import viser
 
+from rough_viewer.app.binding import Binding
 from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG
-from rough_viewer.app.worker import Job, Run
+from rough_viewer.app.worker import Job, Run, Worker
 from rough_viewer.bias.simulation import BiasPrediction, predict_bias, smoothing_curve
 from rough_viewer.vocabulary import BIAS_RESIDUAL, BIAS_TRIALS, RESIDUALS, Residual
 
@@ -63,13 +63,17 @@ class BiasPanel:
     """Raster spacing of the simulation, metres."""
     last: BiasPrediction | None = None
     """The latest prediction."""
-    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    binding: Binding = field(default_factory=Binding)
+    worker: Worker[BiasPanel] | None = None
+    """The panel's own worker, on a GUI of its own (:func:`add_bias_panel` without
+    ``on_predict``; None in the app, whose worker runs its :class:`BiasJob`)."""
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"bias": self.plot}
 
     def update(self) -> BiasPrediction | None:
-        """Recompute the prediction and the curve from the handles' values.
+        """Recompute the prediction and the curve from the handles' values (a job's
+        work: on a worker, which runs one at a time).
 
         Returns the prediction, or None (with a message in the table) for values that
         cannot be simulated.
@@ -81,34 +85,35 @@ class BiasPanel:
         radius = float(self.asperity_mm.value) * 1e-3
         ratio = float(self.ratio.value)
         residual = _residual(self.residual.value)
+        b = self.binding
         if residual is None or not (noise >= 0 and er >= 0 and radius > 0 and ratio > 0):
-            self.result.content = "**Cannot predict:** values must be positive."
+            b.write(self.result, content="**Cannot predict:** values must be positive.")
             return None
         if 0 < er < 0.5 * self.spacing_m:
-            self.result.content = (f"**Cannot predict:** ER below {self.spacing_m * 500:g} mm "
-                                   "is finer than the simulation raster.")
+            b.write(self.result, content=f"**Cannot predict:** ER below "
+                    f"{self.spacing_m * 500:g} mm is finer than the simulation raster.")
             return None
-        with self._lock:
-            self.button.disabled = True
-            self.result.content = "_computing..._"
-            try:
-                p = predict_bias(noise_sigma_m=noise, effective_radius_m=er,
-                                 asperity_radius_m=radius, spacing_m=self.spacing_m,
-                                 ratio=ratio, trials=BIAS_TRIALS, residual=residual)
-                ratios = np.asarray(CURVE_RATIOS)
-                ratios = ratios[(ratios == 0) | (ratios * radius >= 0.5 * self.spacing_m)]
-                curve = smoothing_curve(ratios * radius, asperity_radius_m=radius,
-                                        noise_sigma_m=noise, spacing_m=self.spacing_m,
-                                        ratio=ratio, residual=residual)
-            except ValueError as exc:
-                self.result.content = f"**Cannot predict:** {exc}"
-                return None
-            finally:
-                self.button.disabled = False
-            self.result.content = prediction_markdown(p)
-            self.plot.figure = smoothing_curve_figure([curve], mark=(p.er_ratio, p.vs_noisy_pct))
-            self.last = p
-            return p
+        b.write(self.button, disabled=True)
+        b.write(self.result, content="_computing..._")
+        try:
+            p = predict_bias(noise_sigma_m=noise, effective_radius_m=er,
+                             asperity_radius_m=radius, spacing_m=self.spacing_m,
+                             ratio=ratio, trials=BIAS_TRIALS, residual=residual)
+            ratios = np.asarray(CURVE_RATIOS)
+            ratios = ratios[(ratios == 0) | (ratios * radius >= 0.5 * self.spacing_m)]
+            curve = smoothing_curve(ratios * radius, asperity_radius_m=radius,
+                                    noise_sigma_m=noise, spacing_m=self.spacing_m,
+                                    ratio=ratio, residual=residual)
+        except ValueError as exc:
+            b.write(self.result, content=f"**Cannot predict:** {exc}")
+            return None
+        finally:
+            b.write(self.button, disabled=False)
+        b.write(self.result, content=prediction_markdown(p))
+        b.write(self.plot, figure=smoothing_curve_figure([curve], mark=(p.er_ratio,
+                                                                       p.vs_noisy_pct)))
+        self.last = p
+        return p
 
 
 def _residual(value: str) -> Residual | None:
@@ -136,7 +141,7 @@ def prediction_markdown(p: BiasPrediction) -> str:
 
 def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1e-3,
                    expand: bool = False,
-                   on_predict: Callable[[BiasPanel], object] | None = None) -> BiasPanel:
+                   submit: Callable[[BiasJob], object] | None = None) -> BiasPanel:
     """Add the scanner-bias panel to a viser GUI.
 
     Parameters
@@ -149,14 +154,14 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
         Raster spacing of the simulation, metres.
     expand : bool
         Open the folder at start.
-    on_predict : callable, optional
-        Called with the panel when "Predict bias" is pressed (the app queues a
-        :class:`BiasJob`); default: :meth:`BiasPanel.update` at once.
+    submit : callable, optional
+        Queues the :class:`BiasJob` "Predict bias" makes (the app's worker's
+        ``submit``); default: the panel's own worker (:attr:`BiasPanel.worker`).
 
     Returns
     -------
     BiasPanel
-        Its handles; the button runs :meth:`BiasPanel.update` (also callable directly).
+        Its handles; the button queues :meth:`BiasPanel.update` as a job.
     """
     import plotly.graph_objects as go
 
@@ -181,18 +186,15 @@ def add_bias_panel(gui: Any, *, order: float | None = None, spacing_m: float = 1
     panel = BiasPanel(noise_mm=noise, er_mm=er, asperity_mm=radius, ratio=ratio,
                       residual=residual, button=button, result=result, plot=plot,
                       spacing_m=spacing_m)
-    def pressed(_event: object) -> None:
-        if on_predict is None:
-            panel.update()
-        else:
-            on_predict(panel)
-
-    button.on_click(pressed)
+    if submit is None:
+        panel.worker = Worker(panel, name="rough-viewer-bias")
+        submit = panel.worker.submit
+    panel.binding.on_change([button], lambda _h: submit(BiasJob(panel)))
     return panel
 
 
 @dataclass(frozen=True)
-class BiasJob(Job[Host]):
+class BiasJob(Job[Any]):
     """Predict the bias from the panel's values (on the app's worker)."""
 
     panel: BiasPanel = field(compare=False)
@@ -202,7 +204,7 @@ class BiasJob(Job[Host]):
     def title(self) -> str:
         return "bias prediction"
 
-    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+    def stages(self, ctx: Any, run: Run) -> Iterator[str]:
         self.panel.update()
         yield "predict"
 
@@ -211,7 +213,7 @@ def mount(host: Host) -> BiasPanel:
     """Add the "Bias" tab with the scanner-bias panel (predictions run as jobs)."""
     with host.tab("Bias"):
         panel = add_bias_panel(host.gui, expand=True,
-                               on_predict=lambda p: host.submit(BiasJob(p)))
+                               submit=host.submit)
     host.allow(panel.noise_mm, panel.er_mm, panel.asperity_mm, panel.ratio,
                panel.residual, panel.button)
     return panel

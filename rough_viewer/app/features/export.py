@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_chec
 import numpy as np
 import viser
 
-from rough_viewer.app.binding import assign
+from rough_viewer.app.binding import Binding
 from rough_viewer.app.host import FigureSource, Host
 from rough_viewer.app.markup import md, public_message
 from rough_viewer.app.session import Shown
@@ -211,6 +211,8 @@ class ExportFeature:
     initial_path: Path | None = None
     """:attr:`initial`'s file, resolved in the folder the server started in (None:
     no file)."""
+    binding: Binding = field(default_factory=Binding)
+    """Writes the folder's status line and progress bar (on the worker)."""
     sent: deque[Sent] = field(default_factory=lambda: deque(maxlen=MAX_SENT_RECORDS))
     _hashes: dict[tuple[str, int, int], InputRef] = field(default_factory=dict, repr=False)
 
@@ -256,7 +258,7 @@ class ExportFeature:
 
     def say(self, text: str) -> None:
         """The Export folder's status line (Markdown; escape user text first)."""
-        self.status.content = text
+        self.binding.write(self.status, content=text)
 
 
 # ----------------------------------------------------------------------------- plans
@@ -581,8 +583,8 @@ class ExportJob(Job[Host]):
                 m.say("The browser that asked has left; nothing sent.")
                 return
             m.say(f"Preparing **{md(plan.name)}**…")
-            assign(m.progress, 0.0)
-            m.progress.visible = True
+            m.binding.set(m.progress, 0.0)
+            m.binding.write(m.progress, visible=True)
             _room(plan.estimate_bytes, len(targets), plan.name, Path(tempfile.gettempdir()))
             yield "check"
             with tempfile.TemporaryDirectory(prefix="rough-viewer-export-") as tmp:
@@ -591,7 +593,7 @@ class ExportJob(Job[Host]):
 
                 def report(done: int, total: int) -> None:
                     if total > 0:
-                        assign(m.progress, float(min(99.0, 100.0 * done / total)))
+                        m.binding.set(m.progress, float(min(99.0, 100.0 * done / total)))
 
                 plan.write(path, run.progress(report))
                 yield "write"
@@ -612,7 +614,7 @@ class ExportJob(Job[Host]):
             m.say(f"Export failed: {md(what)}")
             ctx.show_error(f"export: {what}", kept="Nothing was sent.")
         finally:
-            m.progress.visible = False
+            m.binding.write(m.progress, visible=False)
 
 
 @dataclass(frozen=True)
@@ -717,29 +719,32 @@ def mount(host: Host) -> ExportFeature:
 
 
 def _wire(host: Host, m: ExportFeature) -> None:
-    def export(kind: ExportKind, fmt: Callable[[], str], *, panel: Callable[[], str] = str,
-               figures: bool = False, camera: bool = False) -> Callable[[Any], None]:
-        def on_click(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
-            host.submit(ExportJob(
-                m, kind, fmt(), event.client_id, host.session.shown, panel=panel(),
-                figures=tuple((n, h.figure) for n, h in panel_figures(host).items())
-                if figures else (),
-                camera=camera_of(host, event.client) if camera else None))
-        return on_click
-
-    m.points.on_click(export("points", lambda: m.points_format.value.lower()))
-    m.table.on_click(export("table", lambda: m.table_format.value.lower()))
-    m.tab_table_button.on_click(export("tab-table", lambda: "csv",
-                                       panel=lambda: m.tab_table.value))
-    m.figure_button.on_click(export("figure", lambda: m.figure_format.value.lower(),
-                                    panel=lambda: panel_titles(host).get(m.figure.value,
-                                                                         m.figure.value),
-                                    figures=True))
-    m.report.on_click(export("report", lambda: "html"))
-    m.view.on_click(export("view", lambda: "json", camera=True))
+    """Each button submits an export of what is shown when it is pressed."""
+    m.points.on_click(lambda e: _export(host, m, e, "points", m.points_format.value))
+    m.table.on_click(lambda e: _export(host, m, e, "table", m.table_format.value))
+    m.tab_table_button.on_click(lambda e: _export(host, m, e, "tab-table", "csv",
+                                                  panel=m.tab_table.value))
+    m.figure_button.on_click(lambda e: _export(host, m, e, "figure", m.figure_format.value,
+                                               panel=m.figure.value, figures=True))
+    m.report.on_click(lambda e: _export(host, m, e, "report", "html"))
+    m.view.on_click(lambda e: _export(host, m, e, "view", "json", camera=True))
 
     @m.save_view.on_click
     def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
         host.submit(SaveViewJob(m, camera_of(host, event.client)))
 
     host.on_cloud(lambda: m.say(""))  # what was sent was of the cloud before
+
+
+def _export(host: Host, m: ExportFeature, event: viser.GuiEvent[viser.GuiButtonHandle],
+            kind: ExportKind, fmt: str, *, panel: str = "", figures: bool = False,
+            camera: bool = False) -> None:
+    """Submit the export a button press asks for, of what is shown now (the figure
+    list's ``panel`` title becomes the panel's name; ``figures``: every panel's
+    figure; ``camera``: the asking browser's)."""
+    if kind == "figure":
+        panel = panel_titles(host).get(panel, panel)
+    host.submit(ExportJob(
+        m, kind, fmt.lower(), event.client_id, host.session.shown, panel=panel,
+        figures=tuple((n, h.figure) for n, h in panel_figures(host).items()) if figures else (),
+        camera=camera_of(host, event.client) if camera else None))

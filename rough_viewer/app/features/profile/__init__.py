@@ -23,7 +23,7 @@ import viser
 
 from rough_viewer.app.binding import Binding, assign
 from rough_viewer.app.host import Host, Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_PROFILES
 from rough_viewer.app.markup import md
 from rough_viewer.app.scene import MARKER
@@ -273,9 +273,8 @@ class ProfileBinding(Binding):
     def follow(self, units: Units) -> None:
         """The band is typed in the new cloud's unit."""
         p = self.p
-        p.band.label = band_label(units)
-        p.band.max = units.length(MAX_BAND_M)
-        p.windows.label = windows_label(units)
+        self.write(p.band, label=band_label(units), max=units.length(MAX_BAND_M))
+        self.write(p.windows, label=windows_label(units))
 
 
 @dataclass(eq=False)
@@ -323,8 +322,8 @@ class ProfileFeature:
     def refresh(self) -> None:
         """Redraw the table and the plot (at the height its builder laid it out for)."""
         u = self.units
-        self.note.content = summary_markdown(self.items, u)
-        set_figure(self.plot, profile_figure(
+        self.binding.write(self.note, content=summary_markdown(self.items, u))
+        self.binding.show_figure(self.plot, profile_figure(
             self.items, exaggeration=exaggeration_of(self.exaggeration.value),
             length_unit=(u.label, u.per), height_unit=(u.rough_label, u.rough_per)))
 
@@ -339,7 +338,7 @@ class ProfileFeature:
             self.start = (pick.xyz, pick.local)
             self.nodes.append([host.scene.marker(f"/profiles/{k}/start", pick.local,
                                                  f"{MARKER} P{k + 1}")])
-            self.note.content = "Start picked; click the end of the profile."
+            self.binding.write(self.note, content="Start picked; click the end of the profile.")
             return True
         (p0, _l0), self.start = self.start, None
         try:

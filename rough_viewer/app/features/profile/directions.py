@@ -23,7 +23,7 @@ import viser
 from rough_viewer.app.binding import Binding
 from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
 from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.worker import Job, Run
@@ -147,8 +147,9 @@ class DirectionsFeature:
                 s is not None and (s.loaded.uncropped or s.loaded).cloud is uploaded[0]
                 for s in (session.shown, session.stashed)):
             session.uploaded_mesh = None  # its cloud is gone
-        self.spacing.label = spacing_label(self.host.session.shown.loaded.units.label)
-        self.status.content = "Press **Measure directions** for this cloud."
+        b = self.binding
+        b.write(self.spacing, label=spacing_label(self.host.session.shown.loaded.units.label))
+        b.write(self.status, content="Press **Measure directions** for this cloud.")
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,7 @@ class DirectionsJob(Job[Host]):
         f = self.f
         loaded = ctx.session.shown.loaded
         settings = f.settings()  # InputError: named
-        f.status.content = "_measuring by direction…_"
+        f.binding.write(f.status, content="_measuring by direction…_")
         mesh = f.mesh(loaded) if settings.tin else None
         yield "settings"
         ctx.progress(0.0)
@@ -189,16 +190,16 @@ class DirectionsJob(Job[Host]):
         table = directions_table(result, unit=unit)
         values = ("h_mean", "h_denoised_mean") if result.tin is None \
             else ("h_mean", "theta_max_c1", "delta_t")
-        set_figure(f.rose, rose_figure(table, values=values, unit=unit))
-        set_figure(f.table, directions_table_figure(table, unit=unit))
+        f.binding.show_figure(f.rose, rose_figure(table, values=values, unit=unit))
+        f.binding.show_figure(f.table, directions_table_figure(table, unit=unit))
         profiles = int(sum(int(np.count_nonzero(s.used)) for s in result.sets))
         tin = (f", TIN of {result.n_triangles:,} triangles ({result.surface})"
                if result.tin is not None else "")
         # every warning whole, one a line (one cut at 400 characters ended in "…")
         notes = "".join(f"  \n⚠ {md(w, max_chars=WARNING_CHARS)}"
                         for w in result.warnings[:MAX_WARNINGS])
-        f.status.content = (f"**{len(result.azimuth_deg)} directions**, {profiles:,} profiles"
-                            f"{md(tin)}" + notes)
+        f.binding.write(f.status, content=f"**{len(result.azimuth_deg)} directions**, "
+                        f"{profiles:,} profiles{md(tin)}" + notes)
         yield "figures"
         ctx.scene.remove(f.nodes)
         segs, az = profile_segments(result.sets)
