@@ -453,3 +453,36 @@ def test_the_callback_check_finds_work_in_a_callback() -> None:
              for p in _callback_problems(cb, defs, set())]  # type: ignore[arg-type]
     assert found == [(6, "line 4: writes f.note.content"), (6, "line 5: calls host.show_error"),
                      (6, "line 5: calls parse"), (7, "line 9: calls f.binding.set")]
+
+
+#: Attributes of a viser GUI handle that change what a browser shows.
+HANDLE_ATTRS = {"value", "content", "figure", "visible", "label", "options", "aspect",
+                "disabled", "step", "min", "max", "hint"}
+
+
+@pytest.mark.parametrize("path", FEATURE_MODULES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_features_write_handles_through_a_binding(path: Path) -> None:
+    """A feature writes a GUI handle only through a binding (``binding.set``,
+    ``binding.write``, ``binding.show_figure``, which check they run on a worker) or
+    inside a :class:`~rough_viewer.app.binding.Binding` subclass of its own: no
+    assignment to a handle's attribute (:data:`HANDLE_ATTRS`) and no call of
+    ``assign`` or ``set_figure`` elsewhere. (The shell's messages are the other
+    way: ``host.say``, ``host.show_error``, ...)"""
+    tree = ast.parse(path.read_text())
+    inside: set[int] = set()
+    for c in ast.walk(tree):
+        if isinstance(c, ast.ClassDef) and any(ast.unparse(b).endswith("Binding") for b in c.bases):
+            inside |= {id(n) for n in ast.walk(c)}
+    found = []
+    for n in ast.walk(tree):
+        if id(n) in inside:
+            continue
+        if isinstance(n, (ast.Assign, ast.AugAssign)):
+            targets = n.targets if isinstance(n, ast.Assign) else [n.target]
+            found += [f"line {n.lineno}: {ast.unparse(t)} =" for t in targets
+                      if isinstance(t, ast.Attribute) and t.attr in HANDLE_ATTRS
+                      and isinstance(t.value, ast.Attribute)]  # x.handle.attr, not self.value
+        elif isinstance(n, ast.Call) and isinstance(n.func, ast.Name) \
+                and n.func.id in ("assign", "set_figure"):
+            found.append(f"line {n.lineno}: {n.func.id}(...)")
+    assert found == [], f"{path.name}: " + "; ".join(found)

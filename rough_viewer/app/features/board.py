@@ -99,12 +99,11 @@ class BoardFeature:
         plain text, never Markdown)."""
         stashed = self.host.session.stashed
         if stashed is None:
-            self.back.visible = False
+            self.binding.write(self.back, visible=False)
             return
         source = stashed.loaded.cloud.source
         name = Path(source).name if source else "the scan"
-        self.back.label = f"{BACK_LABEL} ({name[:60]})"
-        self.back.visible = True
+        self.binding.write(self.back, label=f"{BACK_LABEL} ({name[:60]})", visible=True)
 
 
 @dataclass(frozen=True)

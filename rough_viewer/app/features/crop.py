@@ -139,7 +139,7 @@ class CropFeature:
         loaded = self.host.session.shown.loaded
         self.drop_selection()
         if not mask.any():
-            self.note.content = "No point in the rectangle. " + PROMPT
+            self.binding.write(self.note, content="No point in the rectangle. " + PROMPT)
             return
         box = CropBox.around(loaded.cloud, mask)
         try:
@@ -154,7 +154,7 @@ class CropFeature:
                  plane_text(plane, u) if plane is not None else f"No plane: {md(error)}.",
                  "*Keep selection* or *Remove selection* crops the cloud to that box, "
                  f"*{L_EXACT}* to these {self.selection.count:,} points."]
-        self.note.content = "  \n".join(lines)
+        self.binding.write(self.note, content="  \n".join(lines))
         self.nodes = [self.host.scene.lines("/selection/box", _box_segments(loaded, box),
                                             (255, 0, 255))]
         self.host.take_overlay(self, self.let_go, self.colouring())
@@ -178,14 +178,14 @@ class CropFeature:
         self.nodes = []
         self.selection = None
         self.host.give_back_overlay(self)
-        self.note.content = PROMPT
+        self.binding.write(self.note, content=PROMPT)
 
     def let_go(self) -> None:
         """Another feature colours the points now: the selection goes (worker)."""
         self.host.scene.remove(self.nodes)
         self.nodes = []
         self.selection = None
-        self.note.content = PROMPT
+        self.binding.write(self.note, content=PROMPT)
 
     def on_render(self) -> None:
         """A new map: the selection is drawn over its colours (worker)."""
@@ -195,7 +195,7 @@ class CropFeature:
     def on_cloud(self) -> None:
         """Another cloud (or a crop) is shown: the selection was of the old one."""
         self.drop_selection()
-        self.status.content = crop_text(self.host.session.shown.loaded)
+        self.binding.write(self.status, content=crop_text(self.host.session.shown.loaded))
 
     # ------------------------------------------------------------------ saved views
     def snapshot(self) -> dict[str, Any]:

@@ -90,12 +90,12 @@ class MeasureFeature:
         if self.start is None:
             self.start = pick
             self.pending = [scene.marker("/measures/start", pick.local, "● start")]
-            self.note.content = "First point picked; click the second."
+            self.binding.write(self.note, content="First point picked; click the second.")
             return True
         d = point_distance(self.start.xyz, pick.xyz)
         if pick.point == self.start.point or not d.distance_m > 0.0:
-            self.note.content = ("That is the first point again; click a second, "
-                                 "different point.")
+            self.binding.write(self.note, content="That is the first point again; click a "
+                               "second, different point.")
             return True
         a, self.start = self.start, None
         scene.remove(self.pending)
@@ -141,7 +141,7 @@ class MeasureFeature:
     def refresh(self) -> None:
         u = self.host.session.shown.loaded.units
         lines = [distance_text(k, d, u) for k, d, _n in reversed(self.items)]
-        self.note.content = "  \n".join(lines) if lines else PROMPT
+        self.binding.write(self.note, content="  \n".join(lines) if lines else PROMPT)
 
     def forget_start(self) -> None:
         """Drop a first point still waiting for its second (worker)."""
@@ -154,7 +154,7 @@ class MeasureFeature:
         for _k, _d, nodes in self.items:
             self.host.scene.remove(nodes)
         self.items, self.count, self.ends = [], 0, {}
-        self.note.content = PROMPT
+        self.binding.write(self.note, content=PROMPT)
 
 
 @dataclass(frozen=True)

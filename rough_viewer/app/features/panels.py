@@ -26,8 +26,9 @@ from typing import Any, ClassVar
 import plotly.graph_objects as go
 import viser
 
+from rough_viewer.app.binding import Binding
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure
 from rough_viewer.app.state import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.outliers import analysed_values
@@ -155,6 +156,7 @@ class PanelsFeature:
     summary: viser.GuiPlotlyHandle
     face_scales: viser.GuiPlotlyHandle
     """Whole-face mean roughness and binary share against grid size."""
+    binding: Binding = dataclasses.field(default_factory=Binding)
 
     def panel_key(self, settings: MapSettings) -> tuple[object, ...]:
         """What the grid's panels (histogram, semivariogram, Table 1) depend on."""
@@ -220,11 +222,11 @@ class PanelsJob(Job[Host]):
                 yield f"grid {g:g}"
             trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit,
                                           keep_outliers=s.keep_outliers)
-            set_figure(p.face_scales, trend)
+            p.binding.show_figure(p.face_scales, trend)
             session.face_key = face_key(s)
             yield "grid sizes"
             if p.panel_key(s) == session.panel_key:  # the threshold's line moved
-                set_figure(p.histogram, histogram_of(self.result, s, unit=unit))
+                p.binding.show_figure(p.histogram, histogram_of(self.result, s, unit=unit))
                 yield "histogram"
         if p.panel_key(s) == session.panel_key:
             return  # only the trend changed (the binary threshold)
@@ -245,10 +247,10 @@ class PanelsJob(Job[Host]):
                     return
             yield "variogram"
         # the grid's panels change together, as the grid they describe
-        set_figure(p.histogram, dist.histogram)
-        set_figure(p.summary, dist.summary)
+        p.binding.show_figure(p.histogram, dist.histogram)
+        p.binding.show_figure(p.summary, dist.summary)
         if fig is not None:
-            set_figure(p.variogram, fig)
+            p.binding.show_figure(p.variogram, fig)
         session.panel_key = p.panel_key(s)
         self.record["panels_s"] = time.perf_counter() - t0
 

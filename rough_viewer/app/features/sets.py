@@ -346,19 +346,19 @@ class SetsFeature:
         k = self.selected_set or None
         j = self.selected_joint or None
         poles = POLES_OF.get(self.poles.value, "cell")
-        self.stereonet.figure = _compact(sets_stereonet_figure(
-            sets, selected=k, poles=poles, selected_joint=j, **own))
+        self.binding.write(self.stereonet, figure=_compact(sets_stereonet_figure(
+            sets, selected=k, poles=poles, selected_joint=j, **own)))
         for handle, fig in ((self.table, sets_table_figure(sets, selected=k, **own)),
                             (self.joints, joints_table_figure(sets, set_id=k, selected=j,
                                                               **own)),
                             (self.planes, planes_table_figure(sets, set_id=k, **own))):
             # a table gets the height it was laid out for: every row shown (long
             # tables scroll within their most height)
-            handle.aspect = panel_aspect(fig, width=TABLE_PANEL_WIDTH)
-            handle.figure = _compact(fig)
-        self.rock_mass.content = rock_mass_markdown(sets, unit)
-        self.joint_info.content = joint_markdown(sets, self.selected_joint, self.selected_set,
-                                                 unit)
+            self.binding.write(handle, aspect=panel_aspect(fig, width=TABLE_PANEL_WIDTH),
+                               figure=_compact(fig))
+        self.binding.write(self.rock_mass, content=rock_mass_markdown(sets, unit))
+        self.binding.write(self.joint_info, content=joint_markdown(
+            sets, self.selected_joint, self.selected_set, unit))
         self.binding.show_selection(sets, self.selected_set)
 
     def select_cell(self, cell: int) -> None:
@@ -415,7 +415,7 @@ class SetsJob(Job[Host]):
         if shown.result is None:
             return
         options = f.binding.read(shown.result.grid.cell_size)  # InputError: named
-        f.status.content = "_finding the joint sets…_"
+        f.binding.write(f.status, content="_finding the joint sets…_")
         sets = f.sets_of(shown.loaded, shown.result, shown.settings.grid_key, options)
         yield "sets"
         if f.pending_selection is not None:  # a restored view's
@@ -426,8 +426,8 @@ class SetsJob(Job[Host]):
             f.selected_set = 0
         f.sets, f.result = sets, shown.result
         f.show_colours()
-        f.status.content = status_markdown(sets, shown.loaded.units.size_text(
-            shown.result.grid.cell_size))
+        f.binding.write(f.status, content=status_markdown(sets, shown.loaded.units.size_text(
+            shown.result.grid.cell_size)))
         yield "colours"
         ctx.submit(SetFiguresJob(f))
 

@@ -585,13 +585,13 @@ class ZonesFeature:
             return
         zone = lab.zone_at(self.anchor)
         units = lab.loaded.units
-        self.numbers.content = zone_markdown(zones, zone, units)
+        self.binding.write(self.numbers, content=zone_markdown(zones, zone, units))
         res = lab.result
-        self.table.figure = _compact(zones_table_figure(
+        self.binding.write(self.table, figure=_compact(zones_table_figure(
             zones, grid_size=res.grid.cell_size, axis=res.axis, n_points=res.n_points_total,
             selected=zone or None, max_rows=MAX_ZONE_ROWS, columns=COMPACT_COLUMNS,
-            unit=units.unit))
-        self.table.aspect = table_aspect(min(zones.n_zones, MAX_ZONE_ROWS))
+            unit=units.unit)))
+        self.binding.write(self.table, aspect=table_aspect(min(zones.n_zones, MAX_ZONE_ROWS)))
         self.binding.show_selection(zones, zone)
 
     def show_stereonet(self, net: Stereonet) -> None:
@@ -607,7 +607,7 @@ class ZonesFeature:
             highlight={f"zone {k}": lab.labels == k for k in ids},
             colours={f"zone {k}": colormaps.zone_colour(k) for k in ids},
             max_poles=PANEL_POLES, unit=lab.loaded.units.unit)
-        self.stereonet.figure = _compact(fig)
+        self.binding.write(self.stereonet, figure=_compact(fig))
 
     def on_pick(self, pick: Pick) -> bool:
         """A click while zones are shown selects the zone under it (none on a point
@@ -698,7 +698,7 @@ class ZonesJob(Job[Host]):
         z.draw_highlight()
         z.binding.show_threshold(params.threshold)
         done = time.perf_counter()
-        z.status.content = status_markdown(lab, done - t0, cached)
+        z.binding.write(z.status, content=status_markdown(lab, done - t0, cached))
         record = {"basis_s": 0.0 if cached else t_basis, "label_s": t_label,
                   "colours_s": done - t1, "done": done}
         z.timings.append(record)

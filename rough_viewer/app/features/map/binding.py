@@ -14,7 +14,7 @@ import viser
 
 from rough_viewer.app.binding import Binding, assign
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import limit_step, round_limit, set_figure
+from rough_viewer.app.layout import limit_step, round_limit
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.state import (
     MAX_CELL_SIZE,
@@ -390,7 +390,7 @@ class MapTab:
         if self.overlay is not None and self.overlay is not owner:
             self._release()
         self.overlay, self._release = owner, release
-        self.colour_bar.visible = False
+        self.binding.write(self.colour_bar, visible=False)
         self.host.scene.colour_by(colouring)
 
     def give_back_overlay(self, owner: object) -> None:
@@ -398,7 +398,7 @@ class MapTab:
         come back (worker)."""
         if self.overlay is owner:
             self.overlay, self._release = None, lambda: None
-            self.colour_bar.visible = True
+            self.binding.write(self.colour_bar, visible=True)
             if self.colouring is not None:
                 self.host.scene.colour_by(self.colouring)
 
@@ -408,8 +408,8 @@ class MapTab:
         self.host.scene.remove(self.pick_nodes)
         self.pick_nodes = []
         self.host.session.forget_pick()
-        self.pick.content = text
-        set_figure(self.scales, scales_placeholder())
+        self.binding.write(self.pick, content=text)
+        self.binding.show_figure(self.scales, scales_placeholder())
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"colour_bar": self.colour_bar,

@@ -13,7 +13,6 @@ import numpy as np
 
 from rough_viewer.app.features.map.binding import MapTab
 from rough_viewer.app.host import Host, Pick
-from rough_viewer.app.layout import set_figure
 from rough_viewer.app.markup import md
 from rough_viewer.app.picking import pick_cloud_point
 from rough_viewer.app.state import (
@@ -84,14 +83,15 @@ def on_click(m: MapTab, origin: object, direction: object) -> CellInfo | None:
     g = shown.result.grid.cell_size
     u = shown.loaded.units
     host.session.last_pick = info
-    m.pick.content = format_cell_info(info, g, u, trust=shown.loaded.trust(shown.result))
+    m.binding.write(m.pick, content=format_cell_info(info, g, u,
+                                                     trust=shown.loaded.trust(shown.result)))
     host.scene.remove(m.pick_nodes)
     m.pick_nodes = host.scene.mark_pick(shown.loaded, info, local, g)
     t_cell = time.perf_counter() - t0
     scales = across_scales(shown.loaded, shown.settings, shown.result, pick.point)
     fig = point_scales_figure(scales, point_xyz=pick.xyz.tolist(), n_points=shown.loaded.n_total,
                               unit=u.unit)
-    set_figure(m.scales, fig)
+    m.binding.show_figure(m.scales, fig)
     host.session.pick_scales = scales
     m.pick_timings.append({"cell_s": t_cell, "pick_s": time.perf_counter() - t0,
                            "grids": len(scales.cell_sizes)})

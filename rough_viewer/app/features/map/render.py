@@ -225,16 +225,15 @@ def _grid(m: MapTab, run: Run, loaded: LoadedCloud, settings: MapSettings,
 def _show_map_text(m: MapTab, loaded: LoadedCloud, result: GridRoughness, stats: MapStats,
                    settings: MapSettings, seconds: float, cached: bool) -> None:
     fig = colour_bar_of(loaded, result, stats, settings)
-    m.colour_bar.figure = fig
-    m.colour_bar.aspect = panel_aspect(fig)
+    m.binding.write(m.colour_bar, figure=fig, aspect=panel_aspect(fig))
     if (settings.layer == "roughness" and settings.display == "continuous"
             and settings.stretch.mode == "percentile"):
         m.binding.show_range(stats.colour_range)  # the typed limits start from what is shown
     m.host.say(status_text(loaded, result, stats, settings, seconds, cached,
                            budget=m.host.scene.budget))
     m.host.warn(notice_text(loaded, stats, settings, result))
-    m.axis_note.content = (f"auto chose **{loaded.auto_axis}** (closest to the whole-cloud "
-                           f"normal); using **{result.axis}**")
+    m.binding.write(m.axis_note, content=f"auto chose **{loaded.auto_axis}** (closest to "
+                    f"the whole-cloud normal); using **{result.axis}**")
     m.host.scene.draw_axis(loaded, result.axis, chosen=settings.axis != "auto",
                            visible=bool(m.show_axis.value))
 

@@ -39,6 +39,7 @@ from rough_viewer.profiles.fractal import (
 )
 from rough_viewer.profiles.wavelets import Denoised, denoise_result
 from rough_viewer.report.view import ProfilePick, View
+from rough_viewer.visual.app import panel_aspect
 from rough_viewer.visual.profiles import profile_figure
 from rough_viewer.vocabulary import (
     DECOMPOSITIONS,
@@ -580,6 +581,9 @@ def mount(host: Host) -> ProfileFeature:
     """Add the Profile tab: controls, plot, CSV download; clicks go here in profile mode."""
     gui = host.gui
     units = host.session.shown.loaded.units
+    first = profile_figure([], exaggeration=exaggeration_of("auto"),
+                           length_unit=(units.label, units.per),
+                           height_unit=(units.rough_label, units.rough_per))
     with host.tab("Profile"):
         p = ProfileFeature(
             host=host,
@@ -610,13 +614,14 @@ def mount(host: Host) -> ProfileFeature:
                 "Vertical exaggeration", EXAGGERATIONS, initial_value="auto",
                 hint="auto: the height axis spans the profile's relief; 1× is true scale; "
                 "E× draws heights E times as long as distances along the line."),
-            note=gui.add_markdown(summary_markdown([])),
-            plot=gui.add_plotly(profile_figure([]), config=PLOTLY_CONFIG, aspect=1.29),
+            note=gui.add_markdown(summary_markdown([], units)),
+            plot=gui.add_plotly(first, config=PLOTLY_CONFIG,  # axes in the cloud's unit
+                                aspect=1.29 if first.layout.height is None
+                                else panel_aspect(first)),
             clear=gui.add_button("Clear profiles"),
             download=gui.add_button("Download CSV"),
         )
     p.cloud = host.session.shown.loaded
-    p.refresh()  # the plot's axes in the cloud's unit
     host.allow(p.on, p.wavelet, p.level, p.decomposition, p.threshold_rule, p.threshold_mode,
                p.band, p.detrend, p.windows, p.exaggeration, p.clear, p.download)
     b = p.binding
