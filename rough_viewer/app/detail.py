@@ -1,4 +1,11 @@
-"""Level of detail: each browser tab chooses the nodes it draws for its camera."""
+"""Level of detail, beside the scene (:mod:`rough_viewer.app.scene`): each browser
+tab chooses the nodes it draws for its camera.
+
+:class:`CameraWatch` debounces the cameras (viser's threads) into a
+:class:`RefineJob`; a tab that leaves is a :class:`DropTabJob`, a new point budget a
+:class:`BudgetJob`. The Map tab's controls submit them; the jobs only call the
+scene's level-of-detail methods.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +17,6 @@ from typing import ClassVar
 
 from rough_viewer.app.host import Host
 from rough_viewer.app.worker import Job, Run
-
-# ----------------------------------------------------------------------------- level of detail
 
 #: Seconds a camera rests before its tab chooses its nodes again (and, while it
 #: moves, the longest wait between two choices).

@@ -244,3 +244,24 @@ def shown_colours(app: Any) -> Any:
     """The colours the points of the overview sample show now (what every tab's nodes
     are coloured by, read at those points)."""
     return app.host.scene.colours(app.session.shown.loaded.display_index)
+
+
+def on_worker(app: Any, work: Any, timeout: float = 30.0) -> None:
+    """Run ``work()`` as a job on ``app``'s worker, where the app's handles and state
+    are written, and wait for it."""
+    from dataclasses import dataclass, field
+    from typing import ClassVar
+
+    from rough_viewer.app.worker import Job
+
+    @dataclass(frozen=True)
+    class Calls(Job[Any]):
+        fn: Any = field(compare=False)
+        lane: ClassVar[str] = "test"
+
+        def stages(self, ctx: Any, run: Any) -> Any:
+            self.fn()
+            yield "called"
+
+    app.submit(Calls(work))
+    assert app.wait_idle(timeout)

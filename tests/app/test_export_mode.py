@@ -23,7 +23,7 @@ from rough_viewer.app.state import MapSettings
 from rough_viewer.grid.table import cell_columns, point_fields
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256, load_view
-from tests.app.protocol import ProtocolClient
+from tests.app.protocol import ProtocolClient, on_worker
 from tests.helpers import PAPER_PRESETS, face_cloud
 from tests.io.test_las_out import GEOKEYS, _check_fields_equal_table, make_pf3
 
@@ -388,7 +388,7 @@ def test_the_sent_note_goes_with_its_cloud(server):
     try:
         assert app.wait_idle(60)
         mode = app.feature(ExportFeature)
-        mode.say("Sent **outcrop_g0.64_points.laz** (1 MB, 0.3 s).")
+        on_worker(app, lambda: mode.say("Sent **outcrop_g0.64_points.laz** (1 MB, 0.3 s)."))
         app.load(cloud=face_cloud(4_000))
         assert app.wait_idle(60)
         assert mode.status.content == ""

@@ -66,7 +66,7 @@ class BiasPanel:
     binding: Binding = field(default_factory=Binding)
     worker: Worker[BiasPanel] | None = None
     """The panel's own worker, on a GUI of its own (:func:`add_bias_panel` without
-    ``on_predict``; None in the app, whose worker runs its :class:`BiasJob`)."""
+    ``submit``; None in the app, whose worker runs its :class:`BiasJob`)."""
 
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         return {"bias": self.plot}
