@@ -44,29 +44,31 @@ import viser
 
 from rough_viewer.app import scene as scene_mod
 from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import (
+    CellInfo,
+    Colouring,
+    MapStats,
+    by_cell,
+    cell_colours,
+    cell_info,
+    map_stats,
+)
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, limit_step, round_limit, set_figure
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
 from rough_viewer.app.picking import pick_cloud_point
 from rough_viewer.app.session import Shown
-from rough_viewer.app.state import (
+from rough_viewer.app.settings import (
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
-    CellInfo,
-    Colouring,
     DisplayMode,
-    LoadedCloud,
     MapSettings,
-    MapStats,
-    Units,
-    by_cell,
-    cell_colours,
-    cell_info,
     check_settings,
-    map_stats,
 )
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.outliers import outlier_text
@@ -227,7 +229,7 @@ Changes = tuple[tuple[str, object], ...]
 
 
 class MapBinding(Binding):
-    """The Map tab's controls and :class:`~rough_viewer.app.state.MapSettings`."""
+    """The Map tab's controls and :class:`~rough_viewer.app.settings.MapSettings`."""
 
     def __init__(self, m: MapFeature, presets: tuple[float, ...], units: Units) -> None:
         self.m = m
