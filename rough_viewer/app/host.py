@@ -37,8 +37,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 import numpy as np
 
 from rough_viewer.app.files import DataFolder
-from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
-from rough_viewer.app.state import DEFAULT_MAX_DISPLAY
+from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import Unit
@@ -46,10 +45,12 @@ from rough_viewer.vocabulary import Unit
 if TYPE_CHECKING:
     import viser
 
+    from rough_viewer.app.cloud import LoadedCloud
+    from rough_viewer.app.colouring import Colouring
     from rough_viewer.app.files import UploadedFile
     from rough_viewer.app.scene import Scene
     from rough_viewer.app.session import Session
-    from rough_viewer.app.state import Colouring, LoadedCloud, MapSettings
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.worker import Job, Run
     from rough_viewer.io import PointCloud
     from rough_viewer.report.view import View

@@ -20,6 +20,8 @@ from typing import Any, TypeVar
 import viser
 
 from rough_viewer.app.binding import assign
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring
 from rough_viewer.app.controls import ClientValues
 from rough_viewer.app.files import UploadedFile
 from rough_viewer.app.host import AppOptions, ClickHandler, CloudSource, MapService, Pick, Rule
@@ -32,7 +34,7 @@ from rough_viewer.app.limits import (
 from rough_viewer.app.markup import md
 from rough_viewer.app.scene import Scene
 from rough_viewer.app.session import Session, Shown
-from rough_viewer.app.state import Colouring, LoadedCloud, MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.uploads import Uploads
 from rough_viewer.app.worker import Job, QueueFull, Run, Worker
 from rough_viewer.io.load import SUPPORTED_SUFFIXES

@@ -22,7 +22,7 @@ import viser
 
 from rough_viewer.app.binding import Binding
 from rough_viewer.app.host import Host
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import grid_roughness, whole_cloud_axis
 from rough_viewer.io import PointCloud

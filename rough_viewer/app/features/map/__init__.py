@@ -41,6 +41,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring
 from rough_viewer.app.features.map.binding import MapTab
 from rough_viewer.app.features.map.controls import add_controls, wire
 from rough_viewer.app.features.map.load import InMemory, LoadJob, ShowJob, show_cloud
@@ -52,7 +54,7 @@ from rough_viewer.app.features.map.render import (
     render_stages,
 )
 from rough_viewer.app.host import CloudSource, Host
-from rough_viewer.app.state import Colouring, LoadedCloud, MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.report.view import ColourSettings, View
 from rough_viewer.vocabulary import UNITS, Unit

@@ -11,10 +11,8 @@ import viser
 from rough_viewer.app import scene as scene_mod
 from rough_viewer.app.detail import BudgetJob, CameraWatch
 from rough_viewer.app.features.map.binding import (
-    AXIS_BY_NAME,
     CAMERA_PRESETS,
     COLORMAP_OPTIONS,
-    DISPLAY_BY_NAME,
     L_AXIS,
     L_BUDGET,
     L_CAMERA,
@@ -41,7 +39,6 @@ from rough_viewer.app.features.map.binding import (
     PICK_PROMPT,
     MapBinding,
     MapTab,
-    grid_options,
     grid_step,
     l_grid,
     l_grid_free,
@@ -52,11 +49,15 @@ from rough_viewer.app.features.map.binding import (
 from rough_viewer.app.features.map.pick import PickJob, valid_ray
 from rough_viewer.app.features.map.render import RenderJob
 from rough_viewer.app.host import Host
-from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure, round_limit
-from rough_viewer.app.state import (
+from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure
+from rough_viewer.app.settings import (
+    AXIS_BY_NAME,
+    DISPLAY_BY_NAME,
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
+    grid_options,
+    round_limit,
 )
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.visual import colormaps

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 from rough_viewer.app import scene as scene_mod
+from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.features.map.binding import (
     PICK_PROMPT,
     Changes,
@@ -15,10 +16,7 @@ from rough_viewer.app.features.map.binding import (
 )
 from rough_viewer.app.features.map.render import RenderJob, render_stages, resolve
 from rough_viewer.app.host import CloudSource, Host
-from rough_viewer.app.state import (
-    LoadedCloud,
-    MapSettings,
-)
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import (

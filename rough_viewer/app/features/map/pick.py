@@ -11,17 +11,14 @@ from typing import ClassVar
 
 import numpy as np
 
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import CellInfo, cell_info
 from rough_viewer.app.features.map.binding import MapTab
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.markup import md
 from rough_viewer.app.picking import pick_cloud_point
-from rough_viewer.app.state import (
-    CellInfo,
-    LoadedCloud,
-    MapSettings,
-    Units,
-    cell_info,
-)
+from rough_viewer.app.settings import MapSettings
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.roughness import GridRoughness

@@ -13,6 +13,8 @@ import numpy as np
 import plotly.graph_objects as go
 
 from rough_viewer.app import scene as scene_mod
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring, MapStats, by_cell, cell_colours, map_stats
 from rough_viewer.app.features.map.binding import (
     BIG_CLOUD,
     MAX_MIN_POINTS,
@@ -22,18 +24,12 @@ from rough_viewer.app.features.map.binding import (
 from rough_viewer.app.host import Host
 from rough_viewer.app.markup import md
 from rough_viewer.app.session import Shown
-from rough_viewer.app.state import (
+from rough_viewer.app.settings import (
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
-    Colouring,
-    LoadedCloud,
     MapSettings,
-    MapStats,
-    by_cell,
-    cell_colours,
     check_settings,
-    map_stats,
 )
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.outliers import outlier_text
