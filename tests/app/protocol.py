@@ -12,13 +12,15 @@ from __future__ import annotations
 import threading
 import time
 import uuid as uuidlib
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import msgspec
 import viser
 import zstandard
 from websockets.sync.client import connect
 
+from rough_viewer.app.worker import Job
 from tests.app.browser import wait_until
 
 SUBPROTOCOL = "viser-v" + viser.__version__
@@ -246,22 +248,21 @@ def shown_colours(app: Any) -> Any:
     return app.host.scene.colours(app.session.shown.loaded.display_index)
 
 
+
+@dataclass(frozen=True)
+class Calls(Job[Any]):
+    """Calls ``fn()`` on the worker (a test's write of the app's handles or state)."""
+
+    fn: Any = field(compare=False)
+    lane: ClassVar[str] = "test"
+
+    def stages(self, ctx: Any, run: Any) -> Any:
+        self.fn()
+        yield "called"
+
+
 def on_worker(app: Any, work: Any, timeout: float = 30.0) -> None:
     """Run ``work()`` as a job on ``app``'s worker, where the app's handles and state
     are written, and wait for it."""
-    from dataclasses import dataclass, field
-    from typing import ClassVar
-
-    from rough_viewer.app.worker import Job
-
-    @dataclass(frozen=True)
-    class Calls(Job[Any]):
-        fn: Any = field(compare=False)
-        lane: ClassVar[str] = "test"
-
-        def stages(self, ctx: Any, run: Any) -> Any:
-            self.fn()
-            yield "called"
-
     app.submit(Calls(work))
     assert app.wait_idle(timeout)

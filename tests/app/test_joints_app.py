@@ -28,7 +28,7 @@ from rough_viewer.structure.joints import rock_mass_text
 from rough_viewer.structure.sets import joint_sets
 from rough_viewer.synthetic.joints import RockMassSetSpec, RockMassSpec, generate_rock_mass
 from rough_viewer.visual.sets import point_colours
-from tests.app.protocol import ProtocolClient, pick, settle, shown_colours
+from tests.app.protocol import ProtocolClient, on_worker, pick, settle, shown_colours
 
 G = 0.25
 #: A 3 m block of the issue's three sets, fewer joints (44 k points, about 1 s).
@@ -132,8 +132,7 @@ def test_a_click_selects_the_joint_under_it_and_shows_its_row(japp, rock):
     # a click on a cell in no joint: its set, no joint
     none = np.flatnonzero((ref.cell_joint == 0) & (ref.cell_set > 0))
     assert none.size > 0  # cells of a set in no patch (too few touching cells)
-    f.select_cell(int(none[0]))
-    f.show_figures()
+    on_worker(app, lambda: (f.select_cell(int(none[0])), f.show_figures()))
     assert f.selected_joint == 0 and f.selected_set == int(ref.cell_set[none[0]])
     assert "in no joint" in f.joint_info.content
 

@@ -32,6 +32,7 @@ from rough_viewer.app.settings import (
     settle,
 )
 from rough_viewer.app.units import Units
+from rough_viewer.app.worker import require_a_worker
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, InputError
 
@@ -148,7 +149,8 @@ class MapBinding(Binding):
 
     def show_form(self, form: MapForm) -> None:
         """Put ``form`` into the controls quietly (only the ones that differ; a colour
-        limit's step follows its value)."""
+        limit's step follows its value; worker)."""
+        require_a_worker("the Map tab's controls")
         with self.quietly():
             for name, handle in self.handles().items():
                 value = getattr(form, name)
@@ -187,6 +189,7 @@ class MapBinding(Binding):
     def follow(self, loaded: LoadedCloud, point_size: float) -> None:
         """The grid presets, unit labels, colour layers and point-size range of a
         new cloud (without queuing work)."""
+        require_a_worker("the Map tab's controls")
         m = self.m
         u = loaded.units
         assert loaded.presets is not None
