@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 from cmap import Colormap
@@ -71,7 +71,8 @@ LUT_SIZE = 256
 #: ends. viridis: perceptually uniform, colour-blind safe (default for roughness);
 #: cividis: perceptual and readable with red-green colour blindness; magma;
 #: coolwarm: diverging, blue - light grey - red, for differences such as e_ols.
-_SOURCES: dict[str, str | tuple[str, str]] = {
+ColormapName = Literal["viridis", "cividis", "magma", "coolwarm", "gray"]
+_SOURCES: dict[ColormapName, str | tuple[str, str]] = {
     "viridis": "bids:viridis",
     "cividis": "cividis:cividis",
     "magma": "bids:magma",
@@ -80,7 +81,7 @@ _SOURCES: dict[str, str | tuple[str, str]] = {
 }
 
 #: Names offered to the user, default first.
-COLORMAP_NAMES: tuple[str, ...] = tuple(_SOURCES)
+COLORMAP_NAMES: tuple[ColormapName, ...] = get_args(ColormapName)
 
 #: Maps whose middle is neutral (for signed or centred quantities).
 DIVERGING: frozenset[str] = frozenset({"coolwarm"})
