@@ -33,6 +33,7 @@ import numpy as np
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.bias.trust import TrustSettings
+from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import Unit
 
@@ -59,6 +60,9 @@ class AppOptions:
     browser tabs draw the cloud by level of detail (``point_budget``)."""
     point_budget: int = DEFAULT_BUDGET
     """Most points a browser tab shows at once (``serve --point-budget``)."""
+    max_points: int = DEFAULT_MAX_POINTS
+    """Most points a compressed file the File tab reads may declare beyond what its
+    size can hold: the decompression-bomb guard (``serve --max-points``)."""
     variogram: bool = True
     """Compute the semivariogram panel."""
     prefetch: bool = True
