@@ -216,6 +216,7 @@ def build_app(
                          trust=trust, point_budget=int(point_budget),
                          max_points=max_points_limit(max_points))
     loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
+                         cache_pool=options.cache_pool,
                          presets=tuple(presets) if presets is not None else None,
                          trust_settings=trust)
     settings = settings or MapSettings(cell_size=loaded.default_cell_size)
