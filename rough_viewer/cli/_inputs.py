@@ -28,25 +28,24 @@ _GLOB_CHARS = "*?["
 
 
 def add_inputs(parser: argparse.ArgumentParser, *, optional: bool = False,
-               what: str = "point cloud", max_points: bool = True) -> None:
+               what: str = "point cloud") -> None:
     """Add the ``inputs`` positional argument (one or more files or quoted globs;
-    none allowed when ``optional``) and, with ``max_points``, ``--max-points N``
-    (``args.file_max_points``): the decompression-bomb guard's limit
-    (:mod:`rough_viewer.io.estimates`), which the command passes to every read
-    (:func:`load_inputs`' ``max_points``)."""
+    none allowed when ``optional``) and ``--max-points N`` (``args.file_max_points``):
+    the decompression-bomb guard's limit (:mod:`rough_viewer.io.estimates`), and only
+    that in every command, which passes it to every read (:func:`load_inputs`'
+    ``max_points``)."""
+    from rough_viewer.cli._options import positive_int
+    from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
+
     parser.add_argument(
         "inputs", nargs="*" if optional else "+", metavar="INPUT",
         help=f"{what}: {FORMATS}; several files and quoted globs (\"scans/*.laz\") "
         "are merged into one cloud (same CRS and units)")
-    if max_points:
-        from rough_viewer.cli._options import positive_int
-        from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
-
-        parser.add_argument(
-            "--max-points", dest="file_max_points", type=positive_int, metavar="N",
-            help=f"read a compressed file (LAZ, E57) that declares more points than its "
-            f"size can hold (a decompression bomb, refused) if they are at most N "
-            f"(default {DEFAULT_MAX_POINTS:,})")
+    parser.add_argument(
+        "--max-points", dest="file_max_points", type=positive_int, metavar="N",
+        help=f"read a compressed file (LAZ, E57) that declares more points than its "
+        f"size can hold (a decompression bomb, refused) if they are at most N "
+        f"(default {DEFAULT_MAX_POINTS:,})")
 
 
 def expand_inputs(patterns: list[str]) -> list[Path]:
