@@ -662,8 +662,6 @@ class _ViewFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
 
 # ----------------------------------------------------------------------------- errors
 
-_TYPE_WORDS = {"float": "a number", "int": "a whole number", "bool": "true or false",
-               "str": "a string", "object": "an object", "array": "a list"}
 _COUNT_WORDS = {2: "two", 3: "three", 4: "four"}
 _LIST_HINTS = {"colour.range": " [low, high]"}
 _AT = re.compile(r"^(?P<what>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
