@@ -72,7 +72,7 @@ class ByteBudget:
     def used(self) -> int:
         """Bytes held by all the caches now."""
         with self.lock:
-            return sum(c.held for c in list(self._members))
+            return sum(c.bytes for c in list(self._members))
 
     def members(self) -> list[ByteCache[Any, Any]]:
         with self.lock:
@@ -148,11 +148,6 @@ class ByteCache(Generic[K, V]):
             self._items[key] = (value, size, self.pool.tick())
             self._bytes += size
             return True
-
-    @property
-    def held(self) -> int:
-        """Bytes held now (the caller holds the pool's lock or accepts a stale count)."""
-        return self._bytes
 
     @property
     def bytes(self) -> int:
