@@ -16,7 +16,8 @@ import pytest
 
 #: Libraries the compute path never needs.
 NOT_ON_THE_COMPUTE_PATH = ("scipy", "plotly", "viser", "pyarrow", "dask", "distributed",
-                           "pywt", "kaleido", "laspy", "pye57", "plyfile", "tqdm")
+                           "pywt", "kaleido", "laspy", "pye57", "plyfile", "tqdm", "cmap",
+                           "msgspec")
 
 
 def imported_after(code: str, tmp_path: Path, **env: str) -> set[str]:

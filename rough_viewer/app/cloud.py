@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rough_viewer.app.cache import ByteCache
+from rough_viewer.app.cache import ByteBudget, ByteCache
 from rough_viewer.app.colouring import Colouring, by_cell
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY
 from rough_viewer.app.sampling import display_subset
@@ -92,6 +92,10 @@ class LoadedCloud:
         Memory budget of the cached grids (results and cell membership together),
         bytes; least recently used ones are dropped first (default
         :data:`CACHE_BYTES`).
+    cache_pool
+        The budget the grid cache draws from, shared with the app's other caches
+        (:attr:`rough_viewer.app.host.AppOptions.cache_pool`) and with the clouds
+        cropped from this one; default its own of ``cache_bytes``.
     """
 
     cloud: PointCloud
@@ -106,6 +110,7 @@ class LoadedCloud:
     default: its file's name."""
     trust_settings: TrustSettings | None = None
     """Calibration of the scanner figures (default: the bias paper's)."""
+    cache_pool: ByteBudget | None = field(default=None, repr=False)
     crop: CropBox | None = None
     """The crop that made ``cloud`` from :attr:`uncropped`'s (None: not cropped)."""
     crop_mask: np.ndarray | None = field(default=None, repr=False)
@@ -150,7 +155,8 @@ class LoadedCloud:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
         self._shown_key = None
-        self._cache = ByteCache(self.cache_bytes, pinned=_weak_pin(self))
+        self._cache = ByteCache(self.cache_pool or ByteBudget(self.cache_bytes),
+                                pinned=_weak_pin(self), most=self.cache_bytes)
         self._layers = {}
 
     def _pinned(self, key: tuple[str, tuple[float, str, int] | float]) -> bool:
@@ -182,7 +188,8 @@ class LoadedCloud:
             raise InputError(f"{box.describe(whole.units.per, whole.units.label)} keeps "
                              f"{made.kept} of {made.total:,} points; a map needs at least 3")
         return LoadedCloud(made.cloud, max_display=whole.max_display,
-                           cache_bytes=whole.cache_bytes, seed=whole.seed,
+                           cache_bytes=whole.cache_bytes, cache_pool=whole._cache.pool,
+                           seed=whole.seed,
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings, crop=box,
                            crop_mask=made.mask, uncropped=whole,
@@ -209,7 +216,8 @@ class LoadedCloud:
         if kept < 3:
             raise InputError(f"the selection keeps {kept} points; a map needs at least 3")
         return LoadedCloud(whole.cloud.subset(keep), max_display=whole.max_display,
-                           cache_bytes=whole.cache_bytes, seed=whole.seed,
+                           cache_bytes=whole.cache_bytes, cache_pool=whole._cache.pool,
+                           seed=whole.seed,
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings,
                            crop=CropBox.around(whole.cloud, keep), crop_mask=keep,

@@ -6,7 +6,8 @@ folder, the data folder (``--data-dir``; default the folder of the file given to
 followed) and refused unless it lies inside. Reading goes through
 :func:`rough_viewer.io.load.load_points`, which checks the file's header and its
 measured memory estimate first (:mod:`rough_viewer.io.estimates`: a file that
-cannot fit, or a decompression bomb beyond :func:`configure`'s ``max_points``, is
+cannot fit, or a decompression bomb beyond ``max_points`` (``serve --max-points``,
+:attr:`rough_viewer.app.host.AppOptions.max_points`), is
 refused before decoding) and decodes it in a child process
 (:mod:`rough_viewer.io.isolate`): a damaged or crafted file that crashes its
 reader, or runs past its memory or time limit, is one notice, and the server
@@ -25,22 +26,9 @@ from pathlib import Path
 
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
-from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
 from rough_viewer.io.mesh import TriangleMesh, load_mesh
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
-
-#: The decompression-bomb guard's limit for files the browser loads or uploads
-#: (``serve --max-points``; :func:`configure`).
-_limits = {"max_points": DEFAULT_MAX_POINTS}
-
-
-def configure(*, max_points: int) -> None:
-    """Set how many points a compressed file may declare however small it is, for
-    every file the app reads (``serve --max-points``)."""
-    if max_points < 1:
-        raise InputError(f"--max-points must be positive, got {max_points}")
-    _limits["max_points"] = int(max_points)
 
 
 @dataclass(frozen=True)
@@ -103,29 +91,32 @@ class UploadedFile:
         self.path.unlink(missing_ok=True)
 
 
-def read_estimate(path: Path) -> float:
+def read_estimate(path: Path, max_points: int | None = None) -> float:
     """Bytes of memory reading ``path`` is expected to need at its peak (the reader's
-    measured figures, :mod:`rough_viewer.io.estimates`; 0 for an unknown type)."""
+    measured figures, :mod:`rough_viewer.io.estimates`; 0 for an unknown type);
+    ``max_points``: the decompression-bomb guard's limit (None: the default)."""
     reader = reader_for(path)
     if reader is None:
         return 0.0
-    return reader.estimate(path, _limits["max_points"]).typical
+    return reader.estimate(path, max_points).typical
 
 
 def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None = None,
-               progress: ProgressFn | None = None) -> PointCloud:
+               progress: ProgressFn | None = None, max_points: int | None = None
+               ) -> PointCloud:
     """Read ``path`` (its memory checked first, decoded in a child process); errors
     and the reader's warnings mention ``shown`` (the name the user knows), never the
     server path or the file's content.
 
     ``units``: the unit of the file's coordinates (None: the CRS's, else metres;
-    see :func:`rough_viewer.io.load.load_points`).
+    see :func:`rough_viewer.io.load.load_points`). ``max_points``: the
+    decompression-bomb guard's limit (``serve --max-points``; None: the default).
 
     Raises InputError.
     """
     with _shown_errors(path, shown, shown):
         cloud = load_points(path, units=units, cache=cache, progress=progress,
-                            max_points=_limits["max_points"])
+                            max_points=max_points)
     if cloud.warnings:
         paths = _variants(path, shown)
         cloud = replace(cloud, warnings=tuple(public_message(w, paths=paths, quoted=False)

@@ -32,13 +32,16 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
+from rough_viewer.app.cache import ByteBudget
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.bias.trust import TrustSettings
+from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import Unit
 
@@ -69,6 +72,9 @@ class AppOptions:
     browser tabs draw the cloud by level of detail (``point_budget``)."""
     point_budget: int = DEFAULT_BUDGET
     """Most points a browser tab shows at once (``serve --point-budget``)."""
+    max_points: int = DEFAULT_MAX_POINTS
+    """Most points a compressed file the File tab reads may declare beyond what its
+    size can hold: the decompression-bomb guard (``serve --max-points``)."""
     variogram: bool = True
     """Compute the semivariogram panel."""
     prefetch: bool = True
@@ -76,7 +82,8 @@ class AppOptions:
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD_MB << 20
     """Largest upload accepted, bytes."""
     cache_bytes: int = CACHE_BYTES
-    """Memory budget of the cached grids of the loaded cloud, bytes."""
+    """Memory budget of every cache of the app together, bytes: the loaded cloud's
+    grids (and its crops'), the zones' and the sets' caches (:attr:`cache_pool`)."""
     units: Unit | None = None
     """Unit of the coordinates of files loaded from the File tab (``serve --units``;
     None: each file's CRS unit, else metres)."""
@@ -86,6 +93,12 @@ class AppOptions:
     trust: TrustSettings | None = None
     """Calibration of the scanner colour layers and cell report (``serve --noise``,
     ``--beam-radius``, ``--calibration``, ...; None: the bias paper's)."""
+
+    @cached_property
+    def cache_pool(self) -> ByteBudget:
+        """The one budget of :attr:`cache_bytes` every cache of the app draws from
+        (made on first use; a frozen dataclass may cache a property)."""
+        return ByteBudget(self.cache_bytes)
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from rough_viewer.app.shell import Shell
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io import PointCloud
+from rough_viewer.io.estimates import max_points_limit
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import UNITS, InputError, Unit
 
@@ -149,6 +150,7 @@ def build_app(
     save_views: bool = False,
     trust: TrustSettings | None = None,
     point_budget: int = DEFAULT_BUDGET,
+    max_points: int | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -169,6 +171,10 @@ def build_app(
     point_budget
         Most points a browser tab shows at once: each tab gets the nodes of the
         cloud's octree its camera sees (level of detail, :mod:`rough_viewer.lod`).
+    max_points
+        The decompression-bomb guard's limit for the files the File tab loads or
+        uploads (``serve --max-points``; default
+        :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`).
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
     prefetch
@@ -207,8 +213,10 @@ def build_app(
     options = AppOptions(data=data, max_display=max_display, variogram=variogram,
                          prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
                          cache_bytes=int(cache_bytes), units=units, save_views=save_views,
-                         trust=trust, point_budget=int(point_budget))
+                         trust=trust, point_budget=int(point_budget),
+                         max_points=max_points_limit(max_points))
     loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
+                         cache_pool=options.cache_pool,
                          presets=tuple(presets) if presets is not None else None,
                          trust_settings=trust)
     settings = settings or MapSettings(cell_size=loaded.default_cell_size)

@@ -89,10 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from rough_viewer.io import isolate
 
             isolate.warm()
-        from rough_viewer.io.estimates import points_limit
-
-        with points_limit(getattr(args, "file_max_points", None)):
-            return int(args.func(args) or 0)
+        return int(args.func(args) or 0)
     except InputError as exc:
         print(f"rough-viewer: error: {exc}", file=sys.stderr)
         return 2

@@ -28,24 +28,24 @@ _GLOB_CHARS = "*?["
 
 
 def add_inputs(parser: argparse.ArgumentParser, *, optional: bool = False,
-               what: str = "point cloud", max_points: bool = True) -> None:
+               what: str = "point cloud") -> None:
     """Add the ``inputs`` positional argument (one or more files or quoted globs;
-    none allowed when ``optional``) and, with ``max_points``, ``--max-points N``: the
-    decompression-bomb guard's limit (:mod:`rough_viewer.io.estimates`), applied by
-    :func:`rough_viewer.cli.main` to every read of the command."""
+    none allowed when ``optional``) and ``--max-points N`` (``args.file_max_points``):
+    the decompression-bomb guard's limit (:mod:`rough_viewer.io.estimates`), and only
+    that in every command, which passes it to every read (:func:`load_inputs`'
+    ``max_points``)."""
+    from rough_viewer.cli._options import positive_int
+    from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
+
     parser.add_argument(
         "inputs", nargs="*" if optional else "+", metavar="INPUT",
         help=f"{what}: {FORMATS}; several files and quoted globs (\"scans/*.laz\") "
         "are merged into one cloud (same CRS and units)")
-    if max_points:
-        from rough_viewer.cli._options import positive_int
-        from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
-
-        parser.add_argument(
-            "--max-points", dest="file_max_points", type=positive_int, metavar="N",
-            help=f"read a compressed file (LAZ, E57) that declares more points than its "
-            f"size can hold (a decompression bomb, refused) if they are at most N "
-            f"(default {DEFAULT_MAX_POINTS:,})")
+    parser.add_argument(
+        "--max-points", dest="file_max_points", type=positive_int, metavar="N",
+        help=f"read a compressed file (LAZ, E57) that declares more points than its "
+        f"size can hold (a decompression bomb, refused) if they are at most N "
+        f"(default {DEFAULT_MAX_POINTS:,})")
 
 
 def expand_inputs(patterns: list[str]) -> list[Path]:
@@ -165,10 +165,11 @@ def describe(paths: list[Path], *, shown: int = 4) -> str:
     return f"{len(paths)} files: " + ", ".join(names)
 
 
-def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = False
-                ) -> PointCloud:
+def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = False,
+                max_points: int | None = None) -> PointCloud:
     """Read the files as one cloud in memory, with progress bars (unless ``quiet``)
-    and the usual notes on stderr (dropped rows, warnings)."""
+    and the usual notes on stderr (dropped rows, warnings); ``max_points`` is the
+    decompression-bomb guard's limit (``--max-points``; None: the default)."""
     from rough_viewer.cli._progress import FileBars, ProgressBar
     from rough_viewer.scale.sources import load_merged
 
@@ -181,7 +182,8 @@ def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = Fa
         progress = None if bars is None else [_with_overall(bars, i, paths)
                                               for i in range(len(paths))]
     try:
-        cloud = load_merged(paths, units=units, progress=progress)  # type: ignore[arg-type]
+        cloud = load_merged(paths, units=units, progress=progress,  # type: ignore[arg-type]
+                            max_points=max_points)
     finally:
         if bars is not None:
             bars.close()

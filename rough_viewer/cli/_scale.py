@@ -55,7 +55,8 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
     from rough_viewer.scale.sources import open_sources
 
     memory = parse_bytes(args.memory) if args.memory else None
-    sources = open_sources(paths, units=getattr(args, "units", None))
+    sources = open_sources(paths, units=getattr(args, "units", None),
+                           max_points=getattr(args, "file_max_points", None))
     dropped = sum(s.dropped_nonfinite for s in sources)
     notes = tuple(w for s in sources for w in s.warnings)
     report_cloud(PointCloud(x=np.empty(0), y=np.empty(0), z=np.empty(0),

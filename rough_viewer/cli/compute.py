@@ -208,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
                                            residual=residual)
     else:
         cloud, cropped = apply_crop(apply_scanner_options(
-            load_inputs(paths, units=getattr(args, "units", None), quiet=quiet), paths, args,
+            load_inputs(paths, units=getattr(args, "units", None), quiet=quiet,
+                        max_points=args.file_max_points), paths, args,
             unit), box, unit)
         keep = None if cropped is None else cropped.mask
         dropped = cloud.dropped_nonfinite

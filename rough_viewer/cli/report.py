@@ -145,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
     box = crop_from_args(args, resolve_units(paths[0], args.units)[0])
 
     quiet = args.quiet
-    cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet), paths,
+    cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet,
+                                              max_points=args.file_max_points), paths,
                                   args, unit_in)  # prints its warnings
     cloud, _ = apply_crop(cloud, box, cloud.source_unit)
     per = per_unit(cloud.source_unit)

@@ -4,7 +4,7 @@ Contract::
 
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
-        [--min-points K] [--point-budget N] [--units m|mm|ft|us-ft]
+        [--min-points K] [--point-budget N] [--max-points N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
@@ -25,10 +25,11 @@ open at once, and one whose browser stops reading is closed. Ctrl-C stops it.
 
 Files opened from the browser ("Load file", uploads) are decoded in a child process
 (:mod:`rough_viewer.io.isolate`): a file that crashes its reader is a notice, and the
-server keeps serving. ``--point-budget`` (alias ``--max-points``) is the most points a
-browser tab draws at once (level of detail: every point where its camera looks, up
-to that many), and also bounds the points a compressed file may declare when its
-size cannot hold them (a decompression bomb is refused).
+server keeps serving. ``--point-budget`` is the most points a browser tab draws at
+once (level of detail: every point where its camera looks, up to that many);
+``--max-points``, as in every command that reads a cloud, is the decompression-bomb
+guard only: the most points a compressed file (INPUT, or one the browser loads or
+uploads) may declare when its size cannot hold them.
 
 The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
 opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
@@ -69,8 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="open the roughness viewer in the browser",
         description="Start the interactive roughness viewer (viser) on a cloud or a demo.",
     )
-    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)",
-               max_points=False)
+    add_inputs(p, optional=True, what="point cloud (default: the demo outcrop)")
     p.add_argument("--demo", metavar="NAME", help="open a bundled demo instead of INPUT")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 = any free)")
     p.add_argument("--host", default="127.0.0.1",
@@ -83,12 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_axis(p, help="initial dependent axis of OLS and hybrid (default auto)")
     p.add_argument("--min-points", type=int, default=DEFAULT_MIN_POINTS, metavar="K",
                    help="initial minimum points per cell (default 4)")
-    p.add_argument("--point-budget", "--max-points", dest="point_budget", type=int,
-                   default=None, metavar="N",
-                   help="most points a browser tab draws at once, where its camera looks "
-                   "(default 3000000; roughness always uses every point); also the most "
-                   "points a compressed file (LAZ, E57) may declare beyond what its size "
-                   "can hold (a decompression bomb is refused). --max-points is an alias")
+    p.add_argument("--point-budget", dest="point_budget", type=int, default=None,
+                   metavar="N", help="most points a browser tab draws at once, where its "
+                   "camera looks (default 3000000; roughness always uses every point)")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
                    "folder of the first INPUT, or the current folder); paths outside are "
@@ -123,8 +120,8 @@ def _load_cloud(args: argparse.Namespace) -> PointCloud:
         from rough_viewer.cli._inputs import input_paths, load_inputs
 
         paths = input_paths(args)
-        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True),
-                              paths, args)
+        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True,
+                                          max_points=args.file_max_points), paths, args)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
@@ -177,18 +174,14 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.app import files
     from rough_viewer.io import isolate
-    from rough_viewer.io.estimates import points_limit
 
     isolate.warm(keep=True)  # a reader process ready for every file a browser loads
     from rough_viewer.lod.select import DEFAULT_BUDGET
 
     if args.point_budget is None:
         args.point_budget = DEFAULT_BUDGET
-    files.configure(max_points=args.point_budget)
-    with points_limit(args.point_budget):
-        return _run(args)
+    return _run(args)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -242,7 +235,8 @@ def _run(args: argparse.Namespace) -> int:
             from rough_viewer.cli._inputs import load_inputs
 
             cloud = _with_scanners(
-                load_inputs([opened.input_path], units=opened.view.units, quiet=True),
+                load_inputs([opened.input_path], units=opened.view.units, quiet=True,
+                            max_points=args.file_max_points),
                 [opened.input_path], args)
         else:
             cloud = _load_cloud(args)
@@ -265,7 +259,7 @@ def _run(args: argparse.Namespace) -> int:
         waiting.remove()
         app = build_app(server, cloud, settings=settings,
                         max_display=min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
-                        point_budget=args.point_budget,
+                        point_budget=args.point_budget, max_points=args.file_max_points,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
                         units=args.units, presets=presets, save_views=args.save_views,
                         trust=trust_settings(args, cloud.source_unit))

@@ -353,7 +353,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([p for by_grid in outputs.values() for p in by_grid.values()],
                   force=args.force, inputs=inputs)
     quiet = args.quiet
-    cloud = load_inputs(inputs, units=args.units, quiet=quiet)
+    cloud = load_inputs(inputs, units=args.units, quiet=quiet, max_points=args.file_max_points)
     per, u = per_unit(unit), UNIT_LABELS[unit]
     grid_options = {} if args.min_points is None else {"min_points": args.min_points}
     written: list[str] = []

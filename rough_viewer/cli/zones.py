@@ -209,7 +209,8 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(paths, force=args.force, inputs=inputs)
     box = crop_from_args(args, unit)
     quiet = args.quiet
-    cloud, _ = apply_crop(load_inputs(inputs, units=args.units, quiet=quiet), box, unit)
+    cloud, _ = apply_crop(load_inputs(inputs, units=args.units, quiet=quiet,
+                                       max_points=args.file_max_points), box, unit)
     per, u = per_unit(unit), UNIT_LABELS[unit]
     options = {} if args.min_points is None else {"min_points": args.min_points}
     written: list[str] = []

@@ -28,9 +28,6 @@ are within ``max_points`` (``--max-points``).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,30 +57,14 @@ POINTS_PER_BYTE: dict[str, float] = {"laz": 2.0, "e57": 2.0}
 #: Points any file may declare without the bomb guard asking (``--max-points``).
 DEFAULT_MAX_POINTS = 2_000_000
 
-#: The limit the command line set (``--max-points``) for reads that give none.
-_MAX_POINTS: ContextVar[int | None] = ContextVar("rough_viewer_max_points", default=None)
-
-
-@contextmanager
-def points_limit(max_points: int | None) -> Iterator[None]:
-    """Within the block, reads that give no ``max_points`` use this one (None: the
-    default, :data:`DEFAULT_MAX_POINTS`)."""
-    if max_points is not None and max_points < 1:
-        raise InputError(f"--max-points must be positive, got {max_points}")
-    token = _MAX_POINTS.set(max_points)
-    try:
-        yield
-    finally:
-        _MAX_POINTS.reset(token)
-
-
 def max_points_limit(max_points: int | None = None) -> int:
-    """The bomb guard's limit: ``max_points``, else the one :func:`points_limit` set,
-    else :data:`DEFAULT_MAX_POINTS`."""
-    if max_points is not None:
-        return int(max_points)
-    return _MAX_POINTS.get() or DEFAULT_MAX_POINTS
+    """The bomb guard's limit: ``max_points`` (the ``--max-points`` of the command,
+    passed down with every read), else :data:`DEFAULT_MAX_POINTS`.
 
+    >>> max_points_limit(None), max_points_limit(50_000_000)
+    (2000000, 50000000)
+    """
+    return DEFAULT_MAX_POINTS if max_points is None else int(max_points)
 
 
 @dataclass(frozen=True)

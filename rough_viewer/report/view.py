@@ -5,7 +5,8 @@ size, minimum points, dependent axis), the map shown, the units of the input, th
 binary threshold, the colour settings, the open panels, the picked profiles, the
 zone settings and the camera. :func:`save_view` writes one atomically;
 :func:`load_view` reads one back, validating every field (a view file is untrusted
-input: types, ranges and choices are checked, unknown keys refused, size bounded),
+input: types, ranges and choices are checked by typed msgspec structures, unknown keys
+refused, size bounded),
 and says whether the input is still there and the same (:class:`InputCheck`):
 unchanged, changed (its content hash differs), moved (found beside the view file
 with the same content) or missing.
@@ -53,16 +54,18 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
-import math
 import os
 import re
-from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, get_args, get_origin, get_type_hints
+
+import msgspec
+import msgspec.inspect as mi
+from msgspec import Meta
 
 from rough_viewer._version import __version__
-from rough_viewer.io.crop import CROP_MODES, CropBox
+from rough_viewer.io.crop import CropBox, CropMode
 from rough_viewer.io.output import check_output_path, write_atomic
 from rough_viewer.structure.sets import (
     DEFAULT_CONE_DEG,
@@ -70,15 +73,8 @@ from rough_viewer.structure.sets import (
     DEFAULT_MIN_ANGLE_DEG,
     DEFAULT_PLANAR_SHARE,
 )
-from rough_viewer.visual.colormaps import COLORMAP_NAMES, ROUGHNESS_STRETCH, STRETCH_MODES, Stretch
+from rough_viewer.visual.colormaps import ROUGHNESS_STRETCH, ColormapName, Stretch, StretchMode
 from rough_viewer.vocabulary import (
-    AXIS_CHOICES,
-    COLOUR_LAYERS,
-    DECOMPOSITIONS,
-    MAPS,
-    MODES,
-    THRESHOLD_RULES,
-    UNITS,
     AxisChoice,
     ColourLayerName,
     Decomposition,
@@ -113,8 +109,6 @@ Connectivity = Literal["face", "edge", "vertex"]
 CONNECTIVITIES: tuple[Connectivity, ...] = ("face", "edge", "vertex")
 InputStatus = Literal["unchanged", "moved", "changed", "missing", "not_checked"]
 
-_PANEL_NAME = re.compile(r"[a-z][a-z0-9_-]{0,39}")
-_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 Vec3 = tuple[float, float, float]
 
@@ -331,10 +325,21 @@ class View:
         return check_view(replace(self, **changes))
 
 
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (for ``json.dumps``)."""
+    item = getattr(value, "item", None)
+    if item is None:
+        raise TypeError(f"{type(value).__name__} is not a value a view holds")
+    return item()
+
+
 def check_view(view: View) -> View:
     """The view, validated like one read from a file (InputError names the field)."""
-    parsed = view_from_dict({"format": VIEW_FORMAT, "version": VIEW_VERSION,
-                             **view_to_dict(view)})
+    # through JSON text, as a file would be: numpy scalars the app holds become the
+    # plain numbers the typed reader takes, and NaN reaches it to be refused
+    doc = json.loads(json.dumps({"format": VIEW_FORMAT, "version": VIEW_VERSION,
+                                 **view_to_dict(view)}, default=_plain))
+    parsed = view_from_dict(doc)
     return parsed["view"]
 
 
@@ -496,74 +501,171 @@ def view_to_dict(view: View) -> dict[str, Any]:
     return d
 
 
-class _Reader:
-    """Checks one untrusted JSON value after another, naming the field in errors."""
+# ----------------------------------------------------------------------------- the file's types
 
-    def __init__(self, source: str) -> None:
-        self.source = source
+# The file's layout as typed structures: msgspec checks every type, choice, range,
+# length and pattern, refuses unknown keys and fills defaults (a key left out reads
+# as its default). What a type cannot say is checked by hand in the readers below,
+# each for its reason: bounds that depend on another field (a colour range's limits
+# on its mode, log scales above 0), relations between fields (a range rises, a line
+# or a camera is not a point, a crop box's minimum is below its maximum, a unit
+# quaternion, panel names listed once), the wavelet names (PyWavelets' own list, known
+# only once it is imported) and the format's name and version (a newer version gets
+# its own hint). Every object refuses unknown keys (forbid_unknown_fields).
 
-    def fail(self, where: str, what: str) -> InputError:
-        return InputError(f"view file {self.source}: {where} {what}")
+_NO_NUL = "^[^\x00]*$"
+#: The message of each pattern the file's strings must match.
+_PATTERN_MESSAGES = {
+    _NO_NUL: "must be a string without NUL characters",
+    "^[0-9a-f]{64}$": "must be 64 lower-case hex digits",
+    "^[a-z][a-z0-9_-]{0,39}$": "must be a short lower-case name (a-z, 0-9, _ or -)",
+}
 
-    def obj(self, value: Any, where: str, required: Sequence[str],
-            optional: Sequence[str] = ()) -> Mapping[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(where, f"must be an object, got {_kind(value)}")
-        unknown = sorted(set(value) - set(required) - set(optional))
-        if unknown:
-            raise self.fail(where, f"has an unknown key {unknown[0]!r}")
-        missing = [k for k in required if k not in value]
-        if missing:
-            raise self.fail(where, f"lacks {missing[0]!r}")
-        return value
 
-    def number(self, value: Any, where: str, lo: float, hi: float, *,
-               lo_open: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(where, f"must be a number, got {_kind(value)}")
-        v = float(value)
-        if not math.isfinite(v) or v > hi or v < lo or (lo_open and v == lo):
-            bound = f"({lo:g}, {hi:g}]" if lo_open else f"[{lo:g}, {hi:g}]"
-            raise self.fail(where, f"must lie in {bound}, got {value!r}")
-        return v
+_Text = Annotated[str, Meta(max_length=200, pattern=_NO_NUL)]
+_Path = Annotated[str, Meta(min_length=1, max_length=MAX_PATH_CHARS, pattern=_NO_NUL)]
+_Count = Annotated[int, Meta(ge=1, le=10**9)]
+_Panel = Annotated[str, Meta(pattern="^[a-z][a-z0-9_-]{0,39}$")]
+_Bound = Annotated[float, Meta(ge=0.0, le=1e6)]
+_UpPart = Annotated[float, Meta(ge=-1e6, le=1e6)]
+_Coord = Annotated[float, Meta(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+_Point = tuple[_Coord, _Coord, _Coord]
 
-    def integer(self, value: Any, where: str, lo: int, hi: int) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(where, f"must be a whole number, got {_kind(value)}")
-        if not lo <= value <= hi:
-            raise self.fail(where, f"must lie in [{lo}, {hi}], got {value}")
-        return int(value)
 
-    def boolean(self, value: Any, where: str) -> bool:
-        if not isinstance(value, bool):
-            raise self.fail(where, f"must be true or false, got {_kind(value)}")
-        return value
+class _InputFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    path: _Path
+    sha256: Annotated[str, Meta(pattern="^[0-9a-f]{64}$")]
+    size_bytes: Annotated[int, Meta(ge=0, le=2**63 - 1)]
+    relative_path: Annotated[str, Meta(max_length=MAX_PATH_CHARS, pattern=_NO_NUL)] | None = (
+        None)
 
-    def string(self, value: Any, where: str, max_chars: int = 200) -> str:
-        if not isinstance(value, str):
-            raise self.fail(where, f"must be a string, got {_kind(value)}")
-        if len(value) > max_chars or "\x00" in value:
-            raise self.fail(where, f"must be a string of at most {max_chars} characters")
-        return value
 
-    def choice(self, value: Any, where: str, choices: Sequence[str]) -> Any:
-        if not isinstance(value, str) or value not in choices:
-            shown = repr(value)[:40]
-            raise self.fail(where, f"must be one of {', '.join(choices)}, got {shown}")
-        return value
+class _GridFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    cell_size_m: Annotated[float, Meta(gt=0.0, le=1e6)]
+    min_points: Annotated[int, Meta(ge=3, le=10**9)]
+    axis: AxisChoice = "auto"
 
-    def vec3(self, value: Any, where: str, limit: float = MAX_COORDINATE) -> Vec3:
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.fail(where, "must be a list of three numbers")
-        x, y, z = (self.number(v, f"{where}[{i}]", -limit, limit) for i, v in enumerate(value))
-        return (x, y, z)
 
-    def items(self, value: Any, where: str, max_items: int) -> list[Any]:
-        if not isinstance(value, list):
-            raise self.fail(where, f"must be a list, got {_kind(value)}")
-        if len(value) > max_items:
-            raise self.fail(where, f"has {len(value)} entries, at most {max_items} allowed")
-        return value
+class _ColourFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    colormap: ColormapName = "viridis"
+    mode: ColourMode = "continuous"
+    stretch: StretchMode = ROUGHNESS_STRETCH.mode
+    range: tuple[_Bound, _Bound] = (ROUGHNESS_STRETCH.lo, ROUGHNESS_STRETCH.hi)
+    log: bool = ROUGHNESS_STRETCH.log
+    layer: ColourLayerName = "roughness"
+
+
+class _ProfileFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    start: _Point
+    end: _Point
+    band_half_width_m: Annotated[float, Meta(gt=0.0, le=1e4)] | None = None
+    wavelet: str = "db3"
+    level: Annotated[int, Meta(ge=1, le=12)] = 3
+    decomposition: Decomposition = "dwt"
+    threshold_rule: ThresholdRule = "fixed"
+    mode: Mode = "hard"
+    detrend: Annotated[int, Meta(ge=0, le=5)] | None = None
+
+
+class _ZonesFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    map: MapName = "odr"
+    connectivity: Connectivity = "vertex"
+    min_cells: _Count = 3
+    selected: _Count | None = None
+    threshold_rule: ZoneThresholdRule = "slider"  # views saved before the rule: "slider"
+
+
+class _CameraFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    position: _Point
+    look_at: _Point
+    up: tuple[_UpPart, _UpPart, _UpPart] = (0.0, 0.0, 1.0)
+    fov_deg: Annotated[float, Meta(gt=0.0, le=180.0)] = 50.0
+
+
+class _CropFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    min: _Point
+    max: _Point
+    mode: CropMode = "keep"
+
+
+class _MeasureFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    start: _Point
+    end: _Point
+    number: _Count = 1
+
+
+class _DirectionsFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    step_deg: Annotated[float, Meta(ge=1.0, le=90.0)] = 15.0
+    spacing_m: Annotated[float, Meta(gt=0.0, le=1e6)] | None = None
+    tin: bool = False
+    lines: bool = True
+    measured: bool = False
+
+
+_Unit = Annotated[float, Meta(ge=-1.0, le=1.0)]
+_Corner = Annotated[float, Meta(ge=-1.0, le=2.0)]
+
+
+class _SelectionFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    position: _Point
+    wxyz: tuple[_Unit, _Unit, _Unit, _Unit]
+    fov_rad: Annotated[float, Meta(gt=0.0, le=3.1)]
+    aspect: Annotated[float, Meta(gt=0.0, le=100.0)]
+    height_px: Annotated[int, Meta(ge=1, le=100_000)]
+    corner_a: tuple[_Corner, _Corner]
+    corner_b: tuple[_Corner, _Corner]
+
+
+def _within(bounds: tuple[float, float]) -> Meta:
+    return Meta(ge=bounds[0], le=bounds[1])
+
+
+_SetPct = Annotated[float, _within(SET_ROUGHNESS_PCT_RANGE)]
+_SetCone = Annotated[float, _within(SET_CONE_DEG_RANGE)]
+_SetAngle = Annotated[float, _within(SET_MIN_ANGLE_DEG_RANGE)]
+_SetCount = Annotated[int, _within(SET_MAX_SETS_RANGE)]
+
+
+class _SetsFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    shown: bool = False
+    colour_by: SetColourBy = "set"
+    poles: SetPoles = "cell"
+    roughness_pct: _SetPct = 100.0 * DEFAULT_PLANAR_SHARE
+    cone_deg: _SetCone = DEFAULT_CONE_DEG
+    min_angle_deg: _SetAngle = DEFAULT_MIN_ANGLE_DEG
+    max_sets: _SetCount = DEFAULT_MAX_SETS
+    selected_set: Annotated[int, Meta(ge=1, le=SET_MAX_SETS_RANGE[1])] | None = None
+    selected_joint: Annotated[int, Meta(ge=1, le=MAX_JOINT_ID)] | None = None
+
+
+class _ViewFile(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    format: str
+    version: Annotated[int, Meta(ge=1, le=10**6)]
+    input: _InputFile
+    grid: _GridFile
+    software: _Text = ""
+    saved_utc: Annotated[str, Meta(max_length=40, pattern=_NO_NUL)] = ""
+    units: Unit = "m"
+    model: MapName = "odr"
+    threshold: Annotated[float, Meta(ge=0.0, le=1.0)] = 0.05
+    colour: _ColourFile = _ColourFile()
+    panels: Annotated[list[_Panel], Meta(max_length=MAX_PANELS)] = []
+    profiles: Annotated[list[_ProfileFile], Meta(max_length=MAX_PROFILES)] = []
+    zones: _ZonesFile | None = None
+    camera: _CameraFile | None = None
+    crop: _CropFile | None = None
+    measures: Annotated[list[_MeasureFile], Meta(max_length=MAX_MEASURES)] = []
+    directions: _DirectionsFile | None = None
+    selection: _SelectionFile | None = None
+    sets: _SetsFile | None = None
+
+
+# ----------------------------------------------------------------------------- errors
+
+_COUNT_WORDS = {2: "two", 3: "three", 4: "four"}
+_LIST_HINTS = {"colour.range": " [low, high]"}
+_AT = re.compile(r"^(?P<what>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
+_STEP = re.compile(r"\.([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]")
 
 
 def _kind(value: Any) -> str:
@@ -571,11 +673,103 @@ def _kind(value: Any) -> str:
             type(None): "null"}.get(type(value), type(value).__name__)
 
 
-T = TypeVar("T")
+def _walk(data: Any, info: Any, path: str) -> tuple[Any, Any, tuple[Any, ...]]:
+    """The JSON value, the msgspec type information and the declared choices (in the
+    order written; msgspec's information sorts them) at ``path`` (``.a[0].b``); the
+    value is ``None`` where the document has none there."""
+    value, choices = data, ()
+    for name, index in _STEP.findall(path):
+        info = _unwrap(info)
+        if name:
+            value = value.get(name) if isinstance(value, dict) else None
+            field_ = next(f for f in info.fields if f.encode_name == name)
+            hint = get_type_hints(info.cls)[field_.name]
+            choices = next((get_args(a) for a in (hint, *get_args(hint))
+                            if get_origin(a) is Literal), ())
+            info = field_.type
+        else:
+            i = int(index)
+            value = value[i] if isinstance(value, list) and i < len(value) else None
+            info = info.item_types[i] if isinstance(info, mi.TupleType) else info.item_type
+            choices = ()
+    return value, _unwrap(info), choices
 
 
-def _optional(value: Any, parse: Callable[[Any], T]) -> T | None:
-    return None if value is None else parse(value)
+def _unwrap(info: Any) -> Any:
+    """``T`` of ``T | None``."""
+    if isinstance(info, mi.UnionType):
+        return next(t for t in info.types if not isinstance(t, mi.NoneType))
+    return info
+
+
+def _bounds(info: mi.FloatType | mi.IntType) -> str:
+    lo = info.gt if info.gt is not None else info.ge
+    if isinstance(info, mi.IntType):
+        return f"[{lo}, {info.le}]"
+    return f"({lo:g}, {info.le:g}]" if info.gt is not None else f"[{lo:g}, {info.le:g}]"
+
+
+def _complaint(info: Any, value: Any, choices: tuple[Any, ...], hint: str = "") -> str:
+    """What is wrong with ``value`` for a field of type ``info`` (a Literal of
+    ``choices``), in the file's words (``hint`` follows a list's length)."""
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if isinstance(info, mi.LiteralType):
+        return f"must be one of {', '.join(map(str, choices))}, got {repr(value)[:40]}"
+    if isinstance(info, mi.FloatType):
+        return f"must lie in {_bounds(info)}, got {value!r}" if number else \
+            f"must be a number, got {_kind(value)}"
+    if isinstance(info, mi.IntType):
+        return f"must lie in {_bounds(info)}, got {value}" if isinstance(value, int) and \
+            number else f"must be a whole number, got {_kind(value)}"
+    if isinstance(info, mi.BoolType):
+        return f"must be true or false, got {_kind(value)}"
+    if isinstance(info, mi.StrType):
+        if not isinstance(value, str):
+            return f"must be a string, got {_kind(value)}"
+        if info.min_length and len(value) < info.min_length:
+            return "must not be empty"
+        if info.max_length is not None and len(value) > info.max_length:
+            return f"must be a string of at most {info.max_length} characters"
+        return _PATTERN_MESSAGES.get(info.pattern or "", "is not an allowed string")
+    if isinstance(info, mi.TupleType):
+        return f"must be a list of {_COUNT_WORDS[len(info.item_types)]} numbers{hint}"
+    if isinstance(info, mi.ListType):
+        if isinstance(value, list):
+            return f"has {len(value)} entries, at most {info.max_length} allowed"
+        return f"must be a list, got {_kind(value)}"
+    return f"must be an object, got {_kind(value)}"
+
+
+def _explain(error: msgspec.ValidationError, data: Any) -> tuple[str, str]:
+    """Where and what of msgspec's error, as the field's name and one clause."""
+    match = _AT.match(str(error))
+    assert match is not None  # the pattern matches every string
+    what, path = match["what"], match["path"] or ""
+    where = path.lstrip(".") or "the file"
+    key = re.fullmatch(r"Object (contains unknown|missing required) field `(.*)`", what)
+    if key:
+        clause = "has an unknown key" if key[1] == "contains unknown" else "lacks"
+        return where, f"{clause} {key[2]!r}"
+    value, info, choices = _walk(data, mi.type_info(_ViewFile), path)
+    return where, _complaint(info, value, choices, _LIST_HINTS.get(where, ""))
+
+
+# ----------------------------------------------------------------------------- readers
+
+
+class _Checks:
+    """The hand-written checks (see the file's types for why each is by hand), naming
+    the file and the field in errors."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, where: str, what: str) -> InputError:
+        return InputError(f"view file {self.source}: {where} {what}")
+
+    def line(self, start: Vec3, end: Vec3, where: str) -> None:
+        if start == end:
+            raise self.fail(where, "has the same start and end")
 
 
 def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
@@ -593,225 +787,90 @@ def view_from_dict(data: Any, *, source: str = "(in memory)") -> dict[str, Any]:
         One line naming the file and the field: wrong type, out of range, unknown
         choice or key, another format or a newer version.
     """
-    r = _Reader(source)
-    top = r.obj(data, "the file", ["format", "version", "input", "grid"],
-                ["software", "saved_utc", "units", "model", "threshold", "colour", "panels",
-                 "profiles", "zones", "camera", "crop", "measures", "directions",
-                 "selection", "sets"])
-    if top["format"] != VIEW_FORMAT:
+    r = _Checks(source)
+    try:
+        f = msgspec.convert(data, _ViewFile)
+    except msgspec.ValidationError as exc:
+        raise r.fail(*_explain(exc, data)) from None
+    if f.format != VIEW_FORMAT:
         raise r.fail("format", f"must be {VIEW_FORMAT!r} (not a rough_viewer view?)")
-    version = r.integer(top["version"], "version", 1, 10**6)
-    if version > VIEW_VERSION:
-        raise r.fail("version", f"is {version}: made by a newer rough_viewer; this one reads "
+    if f.version > VIEW_VERSION:
+        raise r.fail("version", f"is {f.version}: made by a newer rough_viewer; this one reads "
                      f"version {VIEW_VERSION}")
-    inp = r.obj(top["input"], "input", ["path", "sha256", "size_bytes"], ["relative_path"])
-    path = r.string(inp["path"], "input.path", MAX_PATH_CHARS)
-    if not path:
-        raise r.fail("input.path", "must not be empty")
-    sha = r.string(inp["sha256"], "input.sha256", 64)
-    if not _SHA256.fullmatch(sha):
-        raise r.fail("input.sha256", "must be 64 lower-case hex digits")
-    ref = InputRef(path=path, sha256=sha,
-                   size_bytes=r.integer(inp["size_bytes"], "input.size_bytes", 0, 2**63 - 1))
-    relative = _optional(inp.get("relative_path"),
-                         lambda v: r.string(v, "input.relative_path", MAX_PATH_CHARS))
-    grid = r.obj(top["grid"], "grid", ["cell_size_m", "min_points"], ["axis"])
-    colour = _colour(r, top.get("colour", {}))
-    panels = tuple(r.string(p, f"panels[{i}]", 40)
-                   for i, p in enumerate(r.items(top.get("panels", []), "panels", MAX_PANELS)))
-    for i, name in enumerate(panels):
-        if not _PANEL_NAME.fullmatch(name):
-            raise r.fail(f"panels[{i}]", "must be a short lower-case name (a-z, 0-9, _ or -)")
-    if len(set(panels)) != len(panels):
+    if len(set(f.panels)) != len(f.panels):
         raise r.fail("panels", "lists a panel twice")
     view = View(
-        input=ref,
-        cell_size_m=r.number(grid["cell_size_m"], "grid.cell_size_m", 0.0, 1e6, lo_open=True),
-        min_points=r.integer(grid["min_points"], "grid.min_points", 3, 10**9),
-        axis=r.choice(grid.get("axis", "auto"), "grid.axis", AXIS_CHOICES),
-        model=r.choice(top.get("model", "odr"), "model", MAPS),
-        units=r.choice(top.get("units", "m"), "units", UNITS),
-        threshold=r.number(top.get("threshold", 0.05), "threshold", 0.0, 1.0),
-        colour=colour,
-        panels=panels,
-        directions=_optional(top.get("directions"), lambda v: _directions(r, v)),
-        selection=_optional(top.get("selection"), lambda v: _selection(r, v)),
-        sets=_optional(top.get("sets"), lambda v: _sets(r, v)),
-        measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in
-                       enumerate(r.items(top.get("measures", []), "measures", MAX_MEASURES))),
-        profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in
-                       enumerate(r.items(top.get("profiles", []), "profiles", MAX_PROFILES))),
-        zones=_optional(top.get("zones"), lambda v: _zones(r, v)),
-        camera=_optional(top.get("camera"), lambda v: _camera(r, v)),
-        crop=_optional(top.get("crop"), lambda v: _crop(r, v)),
+        input=InputRef(path=f.input.path, sha256=f.input.sha256,
+                       size_bytes=f.input.size_bytes),
+        cell_size_m=f.grid.cell_size_m, min_points=f.grid.min_points, axis=f.grid.axis,
+        model=f.model, units=f.units, threshold=f.threshold, colour=_colour(r, f.colour),
+        panels=tuple(f.panels),
+        directions=None if f.directions is None else DirectionsView(
+            **msgspec.structs.asdict(f.directions)),
+        selection=None if f.selection is None else _selection(r, f.selection),
+        sets=None if f.sets is None else SetsView(**msgspec.structs.asdict(f.sets)),
+        measures=tuple(_measure(r, m, f"measures[{i}]") for i, m in enumerate(f.measures)),
+        profiles=tuple(_profile(r, p, f"profiles[{i}]") for i, p in enumerate(f.profiles)),
+        zones=None if f.zones is None else ZoneSettings(**msgspec.structs.asdict(f.zones)),
+        camera=None if f.camera is None else _camera(r, f.camera),
+        crop=None if f.crop is None else _crop(r, f.crop),
     )
-    return {
-        "view": view,
-        "relative_path": relative,
-        "software": r.string(top.get("software", ""), "software"),
-        "saved_utc": r.string(top.get("saved_utc", ""), "saved_utc", 40),
-    }
+    return {"view": view, "relative_path": f.input.relative_path, "software": f.software,
+            "saved_utc": f.saved_utc}
 
 
-def _colour(r: _Reader, value: Any) -> ColourSettings:
-    c = r.obj(value, "colour", [], ["colormap", "mode", "stretch", "range", "log", "layer"])
-    default = ColourSettings()
-    mode = r.choice(c.get("stretch", default.stretch.mode), "colour.stretch", STRETCH_MODES)
-    bounds = {"percentile": (0.0, 100.0), "absolute": (0.0, 1e6)}[mode]
-    raw = c.get("range", [default.stretch.lo, default.stretch.hi])
-    if not isinstance(raw, list) or len(raw) != 2:
-        raise r.fail("colour.range", "must be a list of two numbers [low, high]")
-    lo = r.number(raw[0], "colour.range[0]", *bounds)
-    hi = r.number(raw[1], "colour.range[1]", *bounds)
+def _colour(r: _Checks, c: _ColourFile) -> ColourSettings:
+    lo, hi = c.range
+    if c.stretch == "percentile":  # the limits' bounds depend on the mode
+        for i, v in enumerate(c.range):
+            if v > 100.0:
+                raise r.fail(f"colour.range[{i}]", f"must lie in [0, 100], got {v:g}")
     if not lo < hi:
         raise r.fail("colour.range", f"must rise (low < high), got [{lo:g}, {hi:g}]")
-    log = r.boolean(c.get("log", default.stretch.log), "colour.log")
-    if log and mode == "absolute" and lo <= 0.0:
+    if c.log and c.stretch == "absolute" and lo <= 0.0:
         raise r.fail("colour.range", "must start above 0 for a logarithmic absolute scale")
     try:
-        stretch = Stretch(mode, lo, hi, log=log)
+        stretch = Stretch(c.stretch, lo, hi, log=c.log)
     except InputError as exc:
         raise r.fail("colour.range", str(exc)) from None
-    return ColourSettings(
-        colormap=r.choice(c.get("colormap", default.colormap), "colour.colormap", COLORMAP_NAMES),
-        mode=r.choice(c.get("mode", default.mode), "colour.mode", COLOUR_MODES),
-        stretch=stretch,
-        layer=r.choice(c.get("layer", default.layer), "colour.layer", COLOUR_LAYERS))
+    return ColourSettings(colormap=c.colormap, mode=c.mode, stretch=stretch, layer=c.layer)
 
 
-def _directions(r: _Reader, value: Any) -> DirectionsView:
-    d = r.obj(value, "directions", [], ["step_deg", "spacing_m", "tin", "lines", "measured"])
-    default = DirectionsView()
-    return DirectionsView(
-        step_deg=r.number(d.get("step_deg", default.step_deg), "directions.step_deg", 1.0, 90.0),
-        spacing_m=_optional(d.get("spacing_m"), lambda v: r.number(
-            v, "directions.spacing_m", 0.0, 1e6, lo_open=True)),
-        tin=r.boolean(d.get("tin", default.tin), "directions.tin"),
-        lines=r.boolean(d.get("lines", default.lines), "directions.lines"),
-        measured=r.boolean(d.get("measured", default.measured), "directions.measured"))
-
-
-def _sets(r: _Reader, value: Any) -> SetsView:
-    keys = ["shown", "colour_by", "poles", "roughness_pct", "cone_deg", "min_angle_deg",
-            "max_sets", "selected_set", "selected_joint"]
-    d = r.obj(value, "sets", [], keys)
-    default = SetsView()
-    return SetsView(
-        shown=r.boolean(d.get("shown", default.shown), "sets.shown"),
-        colour_by=r.choice(d.get("colour_by", default.colour_by), "sets.colour_by",
-                           SET_COLOUR_BY),
-        poles=r.choice(d.get("poles", default.poles), "sets.poles", SET_POLES),
-        roughness_pct=r.number(d.get("roughness_pct", default.roughness_pct),
-                               "sets.roughness_pct", *SET_ROUGHNESS_PCT_RANGE),
-        cone_deg=r.number(d.get("cone_deg", default.cone_deg), "sets.cone_deg",
-                          *SET_CONE_DEG_RANGE),
-        min_angle_deg=r.number(d.get("min_angle_deg", default.min_angle_deg),
-                               "sets.min_angle_deg", *SET_MIN_ANGLE_DEG_RANGE),
-        max_sets=r.integer(d.get("max_sets", default.max_sets), "sets.max_sets",
-                           *SET_MAX_SETS_RANGE),
-        selected_set=_optional(d.get("selected_set"), lambda v: r.integer(
-            v, "sets.selected_set", 1, SET_MAX_SETS_RANGE[1])),
-        selected_joint=_optional(d.get("selected_joint"), lambda v: r.integer(
-            v, "sets.selected_joint", 1, MAX_JOINT_ID)))
-
-
-def _selection(r: _Reader, value: Any) -> SelectionView:
-    s = r.obj(value, "selection", ["position", "wxyz", "fov_rad", "aspect", "height_px",
-                                   "corner_a", "corner_b"])
-    q = s["wxyz"]
-    if not isinstance(q, list) or len(q) != 4:
-        raise r.fail("selection.wxyz", "must be a list of four numbers")
-    w, x, y, z = (r.number(v, f"selection.wxyz[{i}]", -1.0, 1.0) for i, v in enumerate(q))
-    if not 0.5 < w * w + x * x + y * y + z * z < 1.5:
+def _selection(r: _Checks, s: _SelectionFile) -> SelectionView:
+    if not 0.5 < sum(q * q for q in s.wxyz) < 1.5:
         raise r.fail("selection.wxyz", "must be a unit quaternion")
-
-    def corner(key: str) -> tuple[float, float]:
-        c = s[key]
-        if not isinstance(c, list) or len(c) != 2:
-            raise r.fail(f"selection.{key}", "must be a list of two numbers")
-        return (r.number(c[0], f"selection.{key}[0]", -1.0, 2.0),
-                r.number(c[1], f"selection.{key}[1]", -1.0, 2.0))
-
-    return SelectionView(
-        position=r.vec3(s["position"], "selection.position"), wxyz=(w, x, y, z),
-        fov_rad=r.number(s["fov_rad"], "selection.fov_rad", 0.0, 3.1, lo_open=True),
-        aspect=r.number(s["aspect"], "selection.aspect", 0.0, 100.0, lo_open=True),
-        height_px=r.integer(s["height_px"], "selection.height_px", 1, 100_000),
-        corner_a=corner("corner_a"), corner_b=corner("corner_b"))
+    return SelectionView(**msgspec.structs.asdict(s))
 
 
-def _measure(r: _Reader, value: Any, where: str) -> MeasurePick:
-    m = r.obj(value, where, ["start", "end"], ["number"])
-    start, end = r.vec3(m["start"], f"{where}.start"), r.vec3(m["end"], f"{where}.end")
-    if start == end:
-        raise r.fail(where, "has the same start and end")
-    return MeasurePick(start=start, end=end,
-                       number=r.integer(m.get("number", 1), f"{where}.number", 1, 10**9))
+def _measure(r: _Checks, m: _MeasureFile, where: str) -> MeasurePick:
+    r.line(m.start, m.end, where)
+    return MeasurePick(start=m.start, end=m.end, number=m.number)
 
 
-def _profile(r: _Reader, value: Any, where: str) -> ProfilePick:
+def _profile(r: _Checks, p: _ProfileFile, where: str) -> ProfilePick:
     import pywt
 
-    p = r.obj(value, where, ["start", "end"], ["band_half_width_m", "wavelet", "level",
-                                               "decomposition", "threshold_rule", "mode",
-                                               "detrend"])
-    start, end = r.vec3(p["start"], f"{where}.start"), r.vec3(p["end"], f"{where}.end")
-    if start == end:
-        raise r.fail(where, "has the same start and end")
-    default = ProfilePick(start=start, end=end)
-    return ProfilePick(
-        start=start, end=end,
-        band_half_width_m=_optional(p.get("band_half_width_m"), lambda v: r.number(
-            v, f"{where}.band_half_width_m", 0.0, 1e4, lo_open=True)),
-        wavelet=r.choice(p.get("wavelet", default.wavelet), f"{where}.wavelet",
-                         pywt.wavelist(kind="discrete")),
-        level=r.integer(p.get("level", default.level), f"{where}.level", 1, 12),
-        decomposition=r.choice(p.get("decomposition", default.decomposition),
-                               f"{where}.decomposition", DECOMPOSITIONS),
-        threshold_rule=r.choice(p.get("threshold_rule", default.threshold_rule),
-                                f"{where}.threshold_rule", THRESHOLD_RULES),
-        mode=r.choice(p.get("mode", default.mode), f"{where}.mode", MODES),
-        detrend=_optional(p.get("detrend"), lambda v: r.integer(v, f"{where}.detrend", 0, 5)),
-    )
+    r.line(p.start, p.end, where)
+    wavelets = pywt.wavelist(kind="discrete")
+    if p.wavelet not in wavelets:
+        raise r.fail(f"{where}.wavelet", f"must be one of {', '.join(wavelets)}, got "
+                     f"{repr(p.wavelet)[:40]}")
+    return ProfilePick(**msgspec.structs.asdict(p))
 
 
-def _zones(r: _Reader, value: Any) -> ZoneSettings:
-    z = r.obj(value, "zones", [], ["map", "connectivity", "min_cells", "selected",
-                                   "threshold_rule"])
-    default = ZoneSettings()
-    return ZoneSettings(
-        map=r.choice(z.get("map", default.map), "zones.map", MAPS),
-        connectivity=r.choice(z.get("connectivity", default.connectivity), "zones.connectivity",
-                              CONNECTIVITIES),
-        min_cells=r.integer(z.get("min_cells", default.min_cells), "zones.min_cells", 1, 10**9),
-        selected=_optional(z.get("selected"),
-                           lambda v: r.integer(v, "zones.selected", 1, 10**9)),
-        threshold_rule=r.choice(z.get("threshold_rule", "slider"), "zones.threshold_rule",
-                                ZONE_THRESHOLD_RULES),
-    )
-
-
-def _camera(r: _Reader, value: Any) -> Camera:
-    c = r.obj(value, "camera", ["position", "look_at"], ["up", "fov_deg"])
-    up = r.vec3(c.get("up", [0.0, 0.0, 1.0]), "camera.up", 1e6)
-    if up == (0.0, 0.0, 0.0):
+def _camera(r: _Checks, c: _CameraFile) -> Camera:
+    if c.up == (0.0, 0.0, 0.0):
         raise r.fail("camera.up", "must not be zero")
-    position, look_at = r.vec3(c["position"], "camera.position"), r.vec3(c["look_at"],
-                                                                          "camera.look_at")
-    if position == look_at:
+    if c.position == c.look_at:
         raise r.fail("camera", "looks at its own position")
-    return Camera(position=position, look_at=look_at, up=up,
-                  fov_deg=r.number(c.get("fov_deg", 50.0), "camera.fov_deg", 0.0, 180.0,
-                                   lo_open=True))
+    return Camera(**msgspec.structs.asdict(c))
 
 
-def _crop(r: _Reader, value: Any) -> CropBox:
-    c = r.obj(value, "crop", ["min", "max"], ["mode"])
-    lo, hi = r.vec3(c["min"], "crop.min"), r.vec3(c["max"], "crop.max")
-    for axis, a, b in zip("xyz", lo, hi, strict=True):
+def _crop(r: _Checks, c: _CropFile) -> CropBox:
+    for axis, a, b in zip("xyz", c.min, c.max, strict=True):
         if a > b:
             raise r.fail("crop", f"has its {axis} minimum {a:g} above its maximum {b:g}")
-    return CropBox(lo, hi, r.choice(c.get("mode", "keep"), "crop.mode", CROP_MODES))
+    return CropBox(c.min, c.max, c.mode)
 
 
 # ----------------------------------------------------------------------------- files

@@ -60,6 +60,9 @@ class Source:
     z_unit: str | None = None
     """Unit of the file's z where its CRS gives a vertical unit unlike ``unit``
     (:func:`rough_viewer.io.load.axis_units`); None: ``unit``."""
+    max_points: int | None = None
+    """The decompression-bomb guard's limit its reads use (``--max-points``; None:
+    :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`)."""
 
     @property
     def factor(self) -> float:
@@ -86,13 +89,13 @@ class Chunk:
         return self.stop - self.start
 
 
-def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None = None
-                ) -> Source:
+def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None = None,
+                max_points: int | None = None) -> Source:
 
     from rough_viewer.io.estimates import estimate_las
     from rough_viewer.io.las import laz_backend, open_las
 
-    estimate_las(p, None)  # the raw header's checks and the decompression-bomb guard
+    estimate_las(p, max_points)  # the raw header's checks and the decompression-bomb guard
     with open_las(p, laz_backend=laz_backend()) as reader:  # header only: no decoding
         hdr = reader.header
         n = int(hdr.point_count)
@@ -105,11 +108,12 @@ def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None =
                       factor=float(f.max()))
     lo, hi = lo * f, hi * f
     return Source(path=str(p), n_points=n, bounds_min=lo, bounds_max=hi, unit=unit,
-                  streamed=True, warnings=notes, z_unit=None if z_unit == unit else z_unit)
+                  streamed=True, warnings=notes, z_unit=None if z_unit == unit else z_unit,
+                  max_points=max_points)
 
 
-def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None
-                 ) -> list[Source]:
+def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None,
+                 max_points: int | None = None) -> list[Source]:
     """Describe the files of one merged cloud from their headers.
 
     LAS/LAZ headers give the point count and bounding box without decoding a
@@ -121,6 +125,9 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
         The files (any format :func:`~rough_viewer.io.load.load_points` reads).
     units : {"m", "mm", "ft", "us-ft"}, optional
         Unit of every file's coordinates; default each file's CRS unit, else metres.
+    max_points : int, optional
+        The decompression-bomb guard's limit (``--max-points``), kept in each
+        :class:`Source` for its later reads.
 
     Raises
     ------
@@ -140,16 +147,16 @@ def open_sources(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None 
             check_input_file(p)
             with foreign_errors(f"cannot read {p}"):
                 unit, z_unit, notes_p = axis_units(p, units)
-                out.append(_las_source(p, unit, notes_p, z_unit))
+                out.append(_las_source(p, unit, notes_p, z_unit, max_points))
         else:
             if suffix not in SUPPORTED_SUFFIXES:
                 load_points(p)  # raises the one message for unknown types
-            cloud = load_points(p, units=units)
+            cloud = load_points(p, units=units, max_points=max_points)
             lo, hi = cloud.bounds()
             out.append(Source(path=str(p), n_points=cloud.n, bounds_min=lo, bounds_max=hi,
                               unit=cloud.source_unit, streamed=False,
                               dropped_nonfinite=cloud.dropped_nonfinite,
-                              warnings=tuple(cloud.warnings)))
+                              warnings=tuple(cloud.warnings), max_points=max_points))
     notes += overlap_warnings([(s.path, s.bounds_min, s.bounds_max) for s in out])
     if notes:
         out[0] = replace(out[0], warnings=out[0].warnings + notes)
@@ -306,7 +313,8 @@ def read_chunk(source: Source, chunk: Chunk, *, parallel: bool = True) -> Column
         from rough_viewer.io.load import load_points
 
         # a z in its own vertical unit comes from the CRS again, not from --units
-        cloud = load_points(source.path, units=None if source.z_unit else source.unit)  # type: ignore[arg-type]
+        cloud = load_points(source.path, units=None if source.z_unit else source.unit,  # type: ignore[arg-type]
+                            max_points=source.max_points)
         return (cloud.x[chunk.start:chunk.stop], cloud.y[chunk.start:chunk.stop],
                 cloud.z[chunk.start:chunk.stop])
     cached = _from_cache(source, chunk)
@@ -561,7 +569,8 @@ def merge_clouds(clouds: Sequence[PointCloud]) -> PointCloud:
 
 
 def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None = None,
-                progress: Sequence[ProgressFn] | None = None) -> PointCloud:
+                progress: Sequence[ProgressFn] | None = None,
+                max_points: int | None = None) -> PointCloud:
     """Read several files (after :func:`check_compatible`) as one cloud, in memory.
 
     Parameters
@@ -572,13 +581,16 @@ def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None =
         Unit of their coordinates (default: each file's CRS unit, else metres).
     progress : sequence of callable, optional
         One ``progress(done, total)`` per file.
+    max_points : int, optional
+        The decompression-bomb guard's limit (``--max-points``; default
+        :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`).
     """
     from rough_viewer.io.load import load_points
 
     if not paths:
         raise InputError("no input files")
     notes = check_compatible(paths, units=units)
-    clouds = [load_points(p, units=units, progress=None if progress is None else progress[i])
-              for i, p in enumerate(paths)]
+    clouds = [load_points(p, units=units, progress=None if progress is None else progress[i],
+                          max_points=max_points) for i, p in enumerate(paths)]
     notes += overlap_warnings([(str(p), *c.bounds()) for p, c in zip(paths, clouds, strict=True)])
     return merge_clouds(clouds).with_warnings(*notes)

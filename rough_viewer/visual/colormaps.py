@@ -1,10 +1,12 @@
 """Colour maps: the one place that turns numbers into colours.
 
-Each map is a small look-up table (LUT, ``(256, 3)`` uint8) built by linear
-interpolation between a few anchor colours written here. Anchors for the
-perceptual maps (viridis, cividis, magma) are sampled from their published
-definitions at evenly spaced positions; the interpolated tables are close to,
-not identical with, matplotlib's. No matplotlib dependency.
+Each map is a small look-up table (LUT, ``(256, 3)`` uint8). viridis, magma,
+cividis and coolwarm are matplotlib's own tables, read from the ``cmap`` package
+(pure Python, numpy only, no matplotlib) and rounded to 8 bits: the published
+256-entry tables of viridis, magma and cividis entry for entry, matplotlib's
+segmented coolwarm sampled at 256 points as matplotlib samples it. ``gray`` is this
+package's own ramp from dark to light grey (not black to white, so points stay
+visible on either background), linear between its two ends.
 
 Used by the app (point colours, colour bar) and by any figure that needs the same
 colours, so a value has the same colour everywhere.
@@ -40,9 +42,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
+from cmap import Colormap
 
 from rough_viewer.vocabulary import InputError, hex_to_rgb
 
@@ -63,31 +66,22 @@ PAPER_BINARY_COLORSCALE: list[list[float | str]] = [
 #: Number of entries of every LUT.
 LUT_SIZE = 256
 
-_ANCHORS: dict[str, tuple[str, ...]] = {
-    # Perceptually uniform, colour-blind safe (default for roughness).
-    "viridis": (
-        "#440154", "#482878", "#3e4989", "#31688e", "#26828e",
-        "#1f9e89", "#35b779", "#6ece58", "#b5de2b", "#fde725",
-    ),
-    # Perceptual and readable with red-green colour blindness.
-    "cividis": (
-        "#00224e", "#123570", "#3b496c", "#575d6d", "#707173",
-        "#8a8779", "#a69d75", "#c4b56c", "#e4cf5b", "#fee838",
-    ),
-    "magma": (
-        "#000004", "#180f3d", "#440f76", "#721f81", "#9e2f7f",
-        "#cd4071", "#f1605d", "#fd9668", "#feca8d", "#fcfdbf",
-    ),
-    # Diverging, blue - light grey - red, for differences such as e_ols.
-    "coolwarm": (
-        "#3b4cc0", "#6788ee", "#9abbff", "#c9d7f0", "#edd1c2",
-        "#f7a889", "#e26952", "#b40426",
-    ),
+#: Source of each map, default first: a ``cmap`` catalogue name (the fully
+#: namespaced one, so an alias never changes meaning) or, for the grey ramp, its two
+#: ends. viridis: perceptually uniform, colour-blind safe (default for roughness);
+#: cividis: perceptual and readable with red-green colour blindness; magma;
+#: coolwarm: diverging, blue - light grey - red, for differences such as e_ols.
+ColormapName = Literal["viridis", "cividis", "magma", "coolwarm", "gray"]
+_SOURCES: dict[ColormapName, str | tuple[str, str]] = {
+    "viridis": "bids:viridis",
+    "cividis": "cividis:cividis",
+    "magma": "bids:magma",
+    "coolwarm": "matplotlib:coolwarm",
     "gray": ("#1a1a1a", "#f0f0f0"),
 }
 
 #: Names offered to the user, default first.
-COLORMAP_NAMES: tuple[str, ...] = tuple(_ANCHORS)
+COLORMAP_NAMES: tuple[ColormapName, ...] = get_args(ColormapName)
 
 #: Maps whose middle is neutral (for signed or centred quantities).
 DIVERGING: frozenset[str] = frozenset({"coolwarm"})
@@ -118,15 +112,19 @@ DEFAULT_COLORMAPS: dict[str, str] = {
 }
 
 
-def _build_lut(anchors: tuple[str, ...], size: int = LUT_SIZE) -> np.ndarray:
-    rgb = np.array([hex_to_rgb(a) for a in anchors], dtype=np.float64)
-    pos = np.linspace(0.0, 1.0, len(anchors))
-    t = np.linspace(0.0, 1.0, size)
-    table = np.column_stack([np.interp(t, pos, rgb[:, k]) for k in range(3)])
+def _build_lut(source: str | tuple[str, str], size: int = LUT_SIZE) -> np.ndarray:
+    """``(size, 3)`` uint8 table of one :data:`_SOURCES` entry: the ``cmap`` table
+    (float RGB in [0, 1]) times 255, rounded; or the linear ramp between two ends."""
+    if isinstance(source, str):
+        table = Colormap(source).lut(size)[:, :3] * 255.0
+    else:
+        rgb = np.array([hex_to_rgb(c) for c in source], dtype=np.float64)
+        t = np.linspace(0.0, 1.0, size)[:, None]
+        table = rgb[0] + t * (rgb[1] - rgb[0])
     return np.round(table).astype(np.uint8)
 
 
-_LUTS: dict[str, np.ndarray] = {name: _build_lut(a) for name, a in _ANCHORS.items()}
+_LUTS: dict[str, np.ndarray] = {name: _build_lut(src) for name, src in _SOURCES.items()}
 for _table in _LUTS.values():
     _table.setflags(write=False)
 

@@ -361,3 +361,19 @@ def test_compute_without_grid_takes_the_point_spacings_as_report_and_serve(tmp_p
     assert auto.read_text() == given.read_text()
     assert main(["compute", str(src), "--memory", "1GB", "--out", str(tmp_path / "x.csv")]) == 2
     assert "give --grid with --memory or --scheduler" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("chunked", [False, True], ids=["in memory", "chunked"])
+def test_max_points_reaches_every_read(tmp_path, capsys, chunked):
+    """Issue 32 item 5: --max-points is passed down with the reads (no module global):
+    the bomb guard refuses a small LAZ declaring 3 M points by default and lets it
+    through with --max-points, in memory and chunk by chunk."""
+    from tests.io.crafted import laz_declaring
+
+    bomb = laz_declaring(tmp_path / "bomb.laz", 3_000_000)
+    extra = ["--memory", "256MB"] if chunked else []
+    argv = ["compute", str(bomb), "--grid", "0.5", "--out", str(tmp_path / "c.csv"), *extra]
+    assert main(argv) == 2
+    assert "decompression bomb" in capsys.readouterr().err
+    main([*argv, "--max-points", "5000000"])
+    assert "decompression bomb" not in capsys.readouterr().err

@@ -196,3 +196,23 @@ def test_serve_says_its_address_first_and_answers_while_it_reads(tmp_path):
     finally:
         proc.terminate()
         proc.wait(30)
+
+
+def test_point_budget_and_max_points_each_mean_one_thing(tmp_path, capsys):
+    """Issue 32 item 5: --point-budget is the display budget only, --max-points the
+    decompression-bomb guard only (as in compute): neither sets the other."""
+    from rough_viewer.cli import build_parser
+    from tests.io.crafted import laz_declaring
+
+    args = build_parser("serve").parse_args(["serve", "--max-points", "5000000"])
+    assert (args.file_max_points, args.point_budget) == (5_000_000, None)
+    args = build_parser("serve").parse_args(["serve", "--point-budget", "100000"])
+    assert (args.file_max_points, args.point_budget) == (None, 100_000)
+    bomb = laz_declaring(tmp_path / "bomb.laz", 3_000_000)  # beyond the default 2,000,000
+    # a point budget above its points does not let it in (it did when it was an alias)
+    assert main(["serve", str(bomb), "--point-budget", "5000000", "--port", "0",
+                 "--no-block"]) == 2
+    assert "decompression bomb" in capsys.readouterr().err
+    # --max-points does (the read then fails on the points the file lacks)
+    main(["serve", str(bomb), "--max-points", "5000000", "--port", "0", "--no-block"])
+    assert "decompression bomb" not in capsys.readouterr().err

@@ -3,15 +3,52 @@ import pytest
 
 from rough_viewer.visual import colormaps
 
+# Exact values of matplotlib's maps, written out from the published tables (the
+# 256-entry lists of viridis, magma and cividis in matplotlib's _cm_listed.py, and the
+# ends of coolwarm's segment data), not computed by the code under test.
+_PUBLISHED = {
+    "viridis": {0: (0.267004, 0.004874, 0.329415), 128: (0.127568, 0.566949, 0.550556),
+                255: (0.993248, 0.906157, 0.143936)},
+    "magma": {0: (0.001462, 0.000466, 0.013866), 255: (0.987053, 0.991438, 0.749504)},
+    "cividis": {0: (0.000000, 0.135112, 0.304751), 255: (0.995737, 0.909344, 0.217772)},
+    "coolwarm": {0: (0.2298057, 0.298717966, 0.753683153),
+                 255: (0.705673158, 0.01555616, 0.150232812)},
+}
+# matplotlib's five-colour palettes, ``to_hex(cmap(np.linspace(0, 1, 5)))``: entries
+# 0, 64, 128, 192 and 255 of the 256-entry tables
+_PALETTES = {
+    "viridis": ("#440154", "#3b528b", "#21918c", "#5ec962", "#fde725"),
+    "magma": ("#000004", "#51127c", "#b73779", "#fc8961", "#fcfdbf"),
+}
 
-def test_luts_have_anchor_colours_at_the_ends():
-    v = colormaps.lut("viridis")
-    assert v.shape == (256, 3) and v.dtype == np.uint8
-    assert tuple(v[0]) == (0x44, 0x01, 0x54)
-    assert tuple(v[-1]) == (0xFD, 0xE7, 0x25)
-    # halfway between two anchors is their mean (linear interpolation)
-    c = colormaps.lut("gray")
-    assert abs(int(c[128][0]) - round(0x1A + (0xF0 - 0x1A) * 128 / 255)) <= 1
+
+@pytest.mark.parametrize("name", sorted(_PUBLISHED))
+def test_luts_are_the_published_tables_rounded_to_8_bits(name):
+    table = colormaps.lut(name)
+    assert table.shape == (256, 3) and table.dtype == np.uint8
+    for index, rgb in _PUBLISHED[name].items():
+        assert tuple(table[index]) == tuple(round(255 * v) for v in rgb), index
+
+
+@pytest.mark.parametrize("name", sorted(_PALETTES))
+def test_luts_match_matplotlibs_five_colour_palettes(name):
+    table = colormaps.lut(name)
+    got = tuple("#{:02x}{:02x}{:02x}".format(*table[i]) for i in (0, 64, 128, 192, 255))
+    assert got == _PALETTES[name]
+
+
+def test_gray_is_a_linear_ramp_between_its_ends():
+    c = colormaps.lut("gray").astype(int)
+    assert tuple(c[0]) == (0x1A,) * 3 and tuple(c[-1]) == (0xF0,) * 3
+    k = np.arange(256)
+    np.testing.assert_array_equal(c[:, 0], np.round(0x1A + (0xF0 - 0x1A) * k / 255))
+    assert (c[:, 0] == c[:, 1]).all() and (c[:, 1] == c[:, 2]).all()
+
+
+def test_outlier_colour_is_reached_by_no_map():
+    for name in colormaps.COLORMAP_NAMES:
+        dist = np.abs(colormaps.lut(name).astype(int) - colormaps.OUTLIER_RGB).sum(axis=1)
+        assert dist.min() > 100, name
 
 
 def test_viridis_lightness_increases():

@@ -47,7 +47,8 @@ class TypedPath:
 
     def read(self, host: Host, run: Run) -> PointCloud:
         path = host.options.data.resolve(self.typed)
-        return read_cloud(path, self.typed.strip(), units=self.units, progress=run.progress())
+        return read_cloud(path, self.typed.strip(), units=self.units, progress=run.progress(),
+                          max_points=host.options.max_points)
 
     def release(self) -> None:
         pass
@@ -66,7 +67,7 @@ class Upload:
 
     def read(self, host: Host, run: Run) -> PointCloud:
         cloud = read_cloud(self.upload.path, self.upload.name, cache=False, units=self.units,
-                           progress=run.progress())
+                           progress=run.progress(), max_points=host.options.max_points)
         # an STL or PLY mesh keeps its own triangles, as serve FILE.stl does (the
         # file is deleted once read)
         unit = next((u for u in UNITS if u == cloud.source_unit), None)

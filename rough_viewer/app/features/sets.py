@@ -306,7 +306,8 @@ class SetsFeature:
                 options: SetOptions) -> JointSets:
         """The sets of ``result`` with ``options`` (cached per grid and settings)."""
         if self.cache_for is not loaded:
-            self.cache = ByteCache(self.host.options.cache_bytes // 4)
+            self.cache = ByteCache(self.host.options.cache_pool,
+                                   most=self.host.options.cache_bytes // 4)
             self.cache_for = loaded
         key = (grid_key, options)
         hit = self.cache.get(key)
@@ -525,7 +526,7 @@ def mount(host: Host) -> SetsFeature:
             planes=gui.add_plotly(placeholder("Planes of the selected set"),
                                   config=PLOTLY_CONFIG, aspect=0.6),
         )
-    f.cache = ByteCache(host.options.cache_bytes // 4)
+    f.cache = ByteCache(host.options.cache_pool, most=host.options.cache_bytes // 4)
     host.allow(f.on, f.colour_by, f.poles, f.roughness, f.cone, f.min_angle, f.max_sets,
                f.selected)
     b = f.binding

@@ -33,8 +33,9 @@ SelectZoneJob   select                                       zones-select
 
 Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.structure.zones.
 ZoneLabeller`, built once, and the cell of every displayed point) is kept in a
-byte-bounded cache (:class:`~rough_viewer.app.cache.ByteCache`, half the grid
-cache's budget), so a threshold change only re-labels and recolours.
+byte-bounded cache (:class:`~rough_viewer.app.cache.ByteCache`, at most half of the
+app's one cache budget, which the grids and the sets share), so a threshold change
+only re-labels and recolours.
 
 Saved views read and restore the zone settings with :meth:`ZonesFeature.snapshot`
 and :meth:`ZonesFeature.restore` (:class:`rough_viewer.report.view.ZoneSettings`).
@@ -533,7 +534,8 @@ class ZonesFeature:
     def _own(self, loaded: LoadedCloud) -> None:
         """Forget the cache when another cloud is shown."""
         if self.cloud_for is not loaded:
-            self.cache = ByteCache(self.host.options.cache_bytes // 2)
+            self.cache = ByteCache(self.host.options.cache_pool,
+                                   most=self.host.options.cache_bytes // 2)
             self.cloud_for = loaded
             self.labelling, self.zones = None, None
 
@@ -835,7 +837,7 @@ def mount(host: Host) -> ZonesFeature:
             table=gui.add_plotly(_empty("zones"), config=PLOTLY_CONFIG, aspect=0.4),
             stereonet=gui.add_plotly(_empty("stereonet"), config=PLOTLY_CONFIG, aspect=0.95),
         )
-    z.cache = ByteCache(host.options.cache_bytes // 2)
+    z.cache = ByteCache(host.options.cache_pool, most=host.options.cache_bytes // 2)
     host.allow(z.on, z.threshold, z.connectivity, z.min_cells, z.selected, z.rule)
     b = z.binding
     b.on_change([z.on, z.connectivity, z.min_cells, z.rule],

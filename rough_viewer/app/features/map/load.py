@@ -103,6 +103,7 @@ def load_stages(m: MapTab, run: Run, read: Callable[[Run], PointCloud],
         yield "read"
         loaded = LoadedCloud(cloud, max_display=host.options.max_display,
                              cache_bytes=host.options.cache_bytes, label=label,
+                             cache_pool=host.options.cache_pool,
                              trust_settings=host.options.trust)
     except (InputError, MemoryError) as exc:
         host.show_error(str(exc) if isinstance(exc, InputError) else "not enough memory "
