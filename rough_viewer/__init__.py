@@ -123,10 +123,10 @@ _API: dict[str, str] = {
     "simulate_target": "rough_viewer.bias.simulation",
     "smoothing_curve": "rough_viewer.bias.simulation",
     # scanner-aware roughness (docs/scanner.md)
-    "with_scanner": "rough_viewer.io.scanners",
-    "scan_geometry": "rough_viewer.grid.scanner",
-    "cell_trust": "rough_viewer.bias.trust",
-    "TrustSettings": "rough_viewer.bias.trust",
+    "with_scanner": "rough_viewer.scanner.positions",
+    "scan_geometry": "rough_viewer.scanner.geometry",
+    "cell_trust": "rough_viewer.scanner.trust",
+    "TrustSettings": "rough_viewer.scanner.trust",
     # synthetic data and demos
     "board_scan": "rough_viewer.synthetic.board",
     "generate_outcrop": "rough_viewer.synthetic.outcrop",
@@ -156,7 +156,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         target_roughness,
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
-    from rough_viewer.bias.trust import TrustSettings, cell_trust
     from rough_viewer.grid.maps import face_maps, face_raster
     from rough_viewer.grid.measure import point_distance, region_plane
     from rough_viewer.grid.orientation import (
@@ -175,7 +174,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         whole_cloud_axis,
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
-    from rough_viewer.grid.scanner import scan_geometry
     from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
@@ -194,7 +192,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.io.las_out import write_las_fields
     from rough_viewer.io.load import load_points
     from rough_viewer.io.ply import write_ply_fields
-    from rough_viewer.io.scanners import with_scanner
     from rough_viewer.io.table import write_table
     from rough_viewer.lod.camera import ViewCamera
     from rough_viewer.lod.octree import build_octree
@@ -212,6 +209,9 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.report.view import View, load_view, save_view
     from rough_viewer.scale.chunked import chunked_roughness
     from rough_viewer.scale.sources import load_merged, open_sources
+    from rough_viewer.scanner.geometry import scan_geometry
+    from rough_viewer.scanner.positions import with_scanner
+    from rough_viewer.scanner.trust import TrustSettings, cell_trust
     from rough_viewer.structure.sets import JointSets, SetOptions, joint_sets
     from rough_viewer.structure.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.synthetic.board import board_scan

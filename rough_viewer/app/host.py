@@ -32,8 +32,8 @@ import numpy as np
 
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
-from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.lod.select import DEFAULT_BUDGET
+from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import Unit
 
 if TYPE_CHECKING:

@@ -29,7 +29,7 @@ from rough_viewer.io.cloud import PointCloud
 from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 if TYPE_CHECKING:
-    from rough_viewer.bias.trust import TrustSettings
+    from rough_viewer.scanner.trust import TrustSettings
 
 #: Options this module adds (to tell whether any was given).
 SCANNER_OPTIONS = ("scanner", "scanners", "noise", "beam_radius", "calibration",
@@ -74,7 +74,7 @@ def apply_scanner_options(cloud: PointCloud, paths: Sequence[Path], args: argpar
                           unit: str) -> PointCloud:
     """The cloud with the positions of ``--scanner`` or ``--scanners`` (in ``unit``),
     which replace any an E57 file gave; else the cloud as it is."""
-    from rough_viewer.io.scanners import (
+    from rough_viewer.scanner.positions import (
         assign_scanners,
         point_source_ids,
         read_scanner_table,
@@ -108,7 +108,7 @@ def _length(value: float | None, option: str, unit: str, *, allow_zero: bool = T
 def trust_settings(args: argparse.Namespace, unit: str) -> TrustSettings:
     """The checked trust settings of the options (lengths given in ``unit``)."""
     from rough_viewer.bias.calibration import calibration
-    from rough_viewer.bias.trust import DEFAULT_ASPERITY_RADIUS_M, TrustSettings
+    from rough_viewer.scanner.trust import DEFAULT_ASPERITY_RADIUS_M, TrustSettings
 
     noise = _length(getattr(args, "noise", None), "--noise", unit)
     radius = _length(getattr(args, "beam_radius", None), "--beam-radius", unit)

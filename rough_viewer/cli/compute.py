@@ -64,9 +64,9 @@ from rough_viewer.io.table import UNIT_COLUMN
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
-    from rough_viewer.bias.trust import CellTrust, TrustSettings
     from rough_viewer.grid.roughness import GridRoughness
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.scanner.trust import CellTrust, TrustSettings
 
 #: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`),
 #: then the unit of its lengths (:data:`rough_viewer.io.table.UNIT_COLUMN`: metres per
@@ -308,9 +308,9 @@ def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSetti
            quiet: bool, unit: str) -> CellTrust | None:
     """The per-cell scanner figures of one grid (printed as a few lines), or None
     when the cloud has no scanner positions (said once, in one line)."""
-    from rough_viewer.bias.trust import cell_trust
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.io.scanners import NO_POSITIONS
+    from rough_viewer.scanner.positions import NO_POSITIONS
+    from rough_viewer.scanner.trust import cell_trust
 
     if cloud is None:  # streamed: no points kept
         return None

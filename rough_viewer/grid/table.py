@@ -59,7 +59,7 @@ def cell_columns(result: GridRoughness, *, unit: str = "m",
     (:func:`rough_viewer.grid.outliers.outlier_flags`; the values stay in their
     columns), and the scanner columns :data:`TRUST_COLUMNS` from ``trust`` (per-cell
     arrays aligned with the result's cells, lengths in metres:
-    :meth:`rough_viewer.bias.trust.CellTrust.columns`), all empty without it. Lengths
+    :meth:`rough_viewer.scanner.trust.CellTrust.columns`), all empty without it. Lengths
     in ``unit`` (default metres;
     ``rough_viewer.vocabulary.UNITS``).
     """
@@ -128,7 +128,7 @@ def point_fields(result: GridRoughness,
     ``theta_hybrid``, ``e_ols`` (float32, metres, NaN where the cell has no value),
     ``cell_ix``, ``cell_iy``, ``cell_iz`` (int32 cell index) and ``cell_points``
     (uint32, points in the cell); with ``trust`` (the scanner columns,
-    :meth:`rough_viewer.bias.trust.CellTrust.columns`) also :data:`TRUST_COLUMNS`:
+    :meth:`rough_viewer.scanner.trust.CellTrust.columns`) also :data:`TRUST_COLUMNS`:
     ``scans`` (uint16), ``trusted`` (int8: 1 trusted, 0 flagged, -1 not judged) and
     the others float32 (lengths in metres, NaN where none).
     """

@@ -244,7 +244,7 @@ def test_the_las_output_of_two_runs_is_exclusive_too(tmp_path):
 def test_extra_dimensions_and_point_source_ids_decode_in_the_child_too(tmp_path, capsys):
     """bias normalise --truth-dim and --scanners decode the file again: isolated too."""
     from rough_viewer.io import read_las_extra
-    from rough_viewer.io.scanners import point_source_ids
+    from rough_viewer.scanner.positions import point_source_ids
 
     bad = crafted.laz_ff_chunk(tmp_path / "ff.laz")
     with pytest.raises(InputError, match="the LAS/LAZ reader crashed .* on .*ff.laz"):

@@ -70,13 +70,13 @@ from rough_viewer.app.settings import (
 )
 from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
 from rough_viewer.io import PointCloud
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.report.view import Camera, ColourSettings, View
+from rough_viewer.scanner.trust import CellTrust
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.app import (
     category_legend_figure,

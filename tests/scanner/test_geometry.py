@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.scanner import plane_cut_area, points_extent_area, scan_geometry
+from rough_viewer.scanner.geometry import plane_cut_area, points_extent_area, scan_geometry
 from rough_viewer.synthetic.board import PAPER_ROTATIONS_DEG, board_scan
 from rough_viewer.vocabulary import InputError
 from tests.helpers import ray_grid, scan_plane

@@ -18,7 +18,11 @@ from rough_viewer.bias.calibration import (
 )
 from rough_viewer.bias.measurement import normalise_population
 from rough_viewer.bias.simulation import paper_target, simulate_target
-from rough_viewer.bias.trust import (
+from rough_viewer.cli import main
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.io import PointCloud
+from rough_viewer.scanner.positions import with_scanner
+from rough_viewer.scanner.trust import (
     FLAG_INCIDENCE,
     FLAG_NOISE,
     FLAG_RANGE,
@@ -28,10 +32,6 @@ from rough_viewer.bias.trust import (
     cell_trust,
     ratio_samples,
 )
-from rough_viewer.cli import main
-from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.io import PointCloud
-from rough_viewer.io.scanners import with_scanner
 from rough_viewer.vocabulary import TRUST_FIELDS, InputError
 from tests.helpers import board_points, ray_grid, scan_plane, wire_points
 

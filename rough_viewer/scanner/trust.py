@@ -1,8 +1,8 @@
 """Scanner-aware roughness: how far to trust each cell (docs/scanner.md).
 
 For every cell of a grid result of a cloud whose scanner positions are known
-(:mod:`rough_viewer.io.scanners`), the scanner geometry
-(:func:`rough_viewer.grid.scanner.scan_geometry`: scans, range, incidence, density
+(:mod:`rough_viewer.scanner.positions`), the scanner geometry
+(:func:`rough_viewer.scanner.geometry.scan_geometry`: scans, range, incidence, density
 ratio, occlusion) and the roughness bias the toolkit's models predict for it:
 
 - noise inflation: range noise ``sigma`` acts along the beam, so ``s = sigma cos(i)``
@@ -43,9 +43,9 @@ import numpy as np
 from rough_viewer.bias.calibration import Calibration, paper_calibration
 from rough_viewer.bias.simulation import PAPER_RADIUS_M, BiasPrediction, predict_paper_target
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.scanner import ScanGeometry, scan_geometry
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
+from rough_viewer.scanner.geometry import ScanGeometry, scan_geometry
+from rough_viewer.scanner.positions import NO_POSITIONS, cloud_scanners
 from rough_viewer.vocabulary import (
     BIAS_TRIALS,
     TRUST_FIELDS,
@@ -328,7 +328,7 @@ def cell_trust(
     ----------
     cloud : PointCloud
         The points ``result`` was computed from, with scanner positions
-        (:func:`rough_viewer.io.scanners.cloud_scanners`).
+        (:func:`rough_viewer.scanner.positions.cloud_scanners`).
     result : GridRoughness
         The grid result (in memory: its point-to-cell map is needed).
     settings : TrustSettings, optional
@@ -339,7 +339,7 @@ def cell_trust(
     Returns
     -------
     CellTrust, or None when the cloud has no scanner positions
-    (:data:`rough_viewer.io.scanners.NO_POSITIONS` says what to give).
+    (:data:`rough_viewer.scanner.positions.NO_POSITIONS` says what to give).
     """
     settings = settings or TrustSettings()
     settings.check()
