@@ -21,7 +21,7 @@ import rough_viewer
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
 SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod", "structure",
-           "scanner")
+           "scanner", "directions")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -38,14 +38,15 @@ ALLOWED: dict[str, set[str]] = {
     "lod": {"lazy", "vocabulary", "memory", "io", "grid"},
     "structure": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "tin"},
     "scanner": {"lazy", "vocabulary", "memory", "io", "grid", "bias"},
+    "directions": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "tin"},
     "visual": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "tin", "lod", "structure", "scanner"},
+               "tin", "lod", "structure", "scanner", "directions"},
     "report": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "visual", "tin", "lod", "structure", "scanner"},
+               "visual", "tin", "lod", "structure", "scanner", "directions"},
     "app": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "tin", "lod", "structure", "scanner"},
+            "visual", "report", "tin", "lod", "structure", "scanner", "directions"},
     "cli": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "tin", "lod", "structure", "scanner", "__init__"},
+            "visual", "report", "app", "tin", "lod", "structure", "scanner", "directions", "__init__"},
     "__init__": {"_version", "lazy"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

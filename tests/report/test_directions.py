@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.cli import main
-from rough_viewer.io import PointCloud
-from rough_viewer.report.directions import (
+from rough_viewer.directions.analysis import (
     EXTRA_COLUMNS,
     TABLE_COLUMNS,
     DirectionSettings,
@@ -17,6 +16,7 @@ from rough_viewer.report.directions import (
     directions_dict,
     directions_table,
 )
+from rough_viewer.io import PointCloud
 from rough_viewer.synthetic.fbm import fbm_sheet
 
 
