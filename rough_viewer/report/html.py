@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 
-from rough_viewer.directions.analysis import directions_html
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.grid.outliers import outlier_mask
 from rough_viewer.report.build import (
@@ -18,6 +17,7 @@ from rough_viewer.report.build import (
     Report,
     report_raster,
 )
+from rough_viewer.report.directions import directions_html
 from rough_viewer.visual.colormaps import zone_colour
 from rough_viewer.vocabulary import (
     MAP_LABELS,

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from rough_viewer.directions.analysis import directions_dict
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.grid.orientation import Stereonet
 from rough_viewer.grid.variogram import Semivariogram
 from rough_viewer.io.jsonable import to_jsonable
 from rough_viewer.report.build import Report
+from rough_viewer.report.directions import directions_dict
 from rough_viewer.structure.joints import RQD_FORMULA
 from rough_viewer.structure.sets import PLANE_COLUMNS, SET_COLUMNS, JointSets
 from rough_viewer.structure.zones import ZONE_COLUMNS, Zones

@@ -11,11 +11,8 @@ import numpy as np
 import pytest
 
 from rough_viewer.cli import main
-from rough_viewer.directions.analysis import (
-    DirectionSettings,
-    analyse_directions,
-    directions_table,
-)
+from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
+from rough_viewer.directions.table import directions_table
 from rough_viewer.io.load import load_points
 from rough_viewer.synthetic.fbm import fbm_surface
 from tests.io.test_mesh import write_binary_stl

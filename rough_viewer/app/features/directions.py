@@ -31,8 +31,8 @@ from rough_viewer.directions.analysis import (
     DirectionSettings,
     DirectionsResult,
     analyse_directions,
-    directions_table,
 )
+from rough_viewer.directions.table import directions_table
 from rough_viewer.io import PointCloud
 from rough_viewer.io.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
 from rough_viewer.report.view import DirectionsView, View
