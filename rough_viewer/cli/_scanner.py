@@ -31,11 +31,6 @@ from rough_viewer.vocabulary import UNIT_METRES, InputError
 if TYPE_CHECKING:
     from rough_viewer.scanner.trust import TrustSettings
 
-#: Options this module adds (to tell whether any was given).
-SCANNER_OPTIONS = ("scanner", "scanners", "noise", "beam_radius", "calibration",
-                   "asperity_radius", "angular_step")
-
-
 #: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
 #: scanners' (about 0.001 deg); finer ones underflow the expected density's square
 #: (``--angular-step 1e-300`` ended in ZeroDivisionError).
