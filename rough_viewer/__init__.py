@@ -46,11 +46,11 @@ _API: dict[str, str] = {
     # points
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
-    "write_las": "rough_viewer.io.las",
-    "read_crs": "rough_viewer.io.crs",
-    "CrsInfo": "rough_viewer.io.crs",
-    "write_las_fields": "rough_viewer.io.las_out",
-    "write_ply_fields": "rough_viewer.io.ply",
+    "write_las": "rough_viewer.io.formats.las",
+    "read_crs": "rough_viewer.io.formats.crs",
+    "CrsInfo": "rough_viewer.io.formats.crs",
+    "write_las_fields": "rough_viewer.io.formats.las_out",
+    "write_ply_fields": "rough_viewer.io.formats.ply",
     "write_table": "rough_viewer.io.table",
     "CropBox": "rough_viewer.io.crop",
     "crop_cloud": "rough_viewer.io.crop",
@@ -187,11 +187,11 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.crop import CropBox, crop_cloud
-    from rough_viewer.io.crs import CrsInfo, read_crs
-    from rough_viewer.io.las import write_las
-    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.formats.crs import CrsInfo, read_crs
+    from rough_viewer.io.formats.las import write_las
+    from rough_viewer.io.formats.las_out import write_las_fields
+    from rough_viewer.io.formats.ply import write_ply_fields
     from rough_viewer.io.load import load_points
-    from rough_viewer.io.ply import write_ply_fields
     from rough_viewer.io.table import write_table
     from rough_viewer.lod.camera import ViewCamera
     from rough_viewer.lod.octree import build_octree

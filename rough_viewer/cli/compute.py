@@ -284,7 +284,7 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
 def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
              inputs: list[Path], unit: str = "m") -> dict[str, dict[float, Path]]:
     """Every output path of the run by option and grid size, all checked before any work."""
-    from rough_viewer.io.las_out import check_las_output
+    from rough_viewer.io.formats.las_out import check_las_output
     from rough_viewer.io.table import check_table_output
 
     given = {opt: getattr(args, opt) for opt in ("out", "summary_json", "las_out", "ply_out")
@@ -338,8 +338,8 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         point_fields,
         table_metadata,
     )
-    from rough_viewer.io.las_out import write_las_fields
-    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.formats.las_out import write_las_fields
+    from rough_viewer.io.formats.ply import write_ply_fields
     from rough_viewer.io.table import write_table
 
     written = []

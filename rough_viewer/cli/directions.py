@@ -114,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
     from rough_viewer.directions.table import directions_table
+    from rough_viewer.io.formats.mesh import load_mesh
     from rough_viewer.io.load import load_points
-    from rough_viewer.io.mesh import load_mesh
     from rough_viewer.io.table import check_table_output, write_table
     from rough_viewer.profiles.profile_sets import DEFAULT_MIN_SAMPLES
     from rough_viewer.profiles.wavelets import min_run_length

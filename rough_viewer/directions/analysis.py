@@ -21,7 +21,7 @@ import numpy as np
 from rough_viewer.grid.maps import FaceFrame, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.profiles.profile_sets import (
     DEFAULT_MIN_SAMPLES,
     ProfileSet,
@@ -217,8 +217,8 @@ def analyse_paths(
 ) -> list[DirectionsResult]:
     """:func:`analyse_directions` of each file on its own (its mesh where it has
     one): the report's section per input."""
+    from rough_viewer.io.formats.mesh import load_mesh
     from rough_viewer.io.load import load_points
-    from rough_viewer.io.mesh import load_mesh
 
     out = []
     for i, p in enumerate(paths):

@@ -13,7 +13,7 @@ import numpy as np
 
 from rough_viewer.grid.outliers import outlier_flags
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.vocabulary import TRUST_FIELDS, UNIT_METRES, InputError
 
 #: The scanner columns of the per-cell table (docs/scanner.md), after the roughness

@@ -107,7 +107,7 @@ from rough_viewer.grid.orientation import (
 )
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.cloud import PointCloud, as_columns
-from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.memory import require
 from rough_viewer.structure.face import (
     DEFAULT_FACE_RADIUS_CELLS,

@@ -45,7 +45,7 @@ import numpy as np
 
 from rough_viewer.grid.maps import FaceFrame, Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.memory import require
 from rough_viewer.tin.surface import facets
 from rough_viewer.vocabulary import InputError, ProgressFn
@@ -379,7 +379,7 @@ def directional_roughness(
     A sawtooth of 30-degree facets along x has ``theta*max/(C+1) = Delta-T = 30``
     degrees along and against the teeth, and 0 along the ridges:
 
-    >>> from rough_viewer.io.mesh import TriangleMesh
+    >>> from rough_viewer.io.formats.mesh import TriangleMesh
     >>> x = np.arange(9.0); z = np.tan(np.radians(30.0)) * (x % 2)
     >>> xx, yy = np.meshgrid(x, np.arange(3.0))
     >>> zz = np.broadcast_to(z, xx.shape)

@@ -77,7 +77,7 @@ def test_directions_csv_contract_on_a_sawtooth_mesh(sawtooth_stl, tmp_path, caps
     assert cols["rms_mean"][6] < 1e-3 and cols["z2_mean"][6] < 1e-3
     # the numbers are those of the API, in mm where they are lengths
     cloud = load_points(sawtooth_stl, units="mm")
-    from rough_viewer.io.mesh import load_mesh
+    from rough_viewer.io.formats.mesh import load_mesh
 
     settings = DirectionSettings(step_deg=15.0, sample_spacing=float(step) * 1e-3)
     api = directions_table(analyse_directions(cloud, settings,

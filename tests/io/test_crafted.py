@@ -13,9 +13,10 @@ import pytest
 
 from rough_viewer.cli import main
 from rough_viewer.cli._inputs import expand_inputs
-from rough_viewer.io import isolate, load_points
+from rough_viewer.io import load_points
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.las import write_las
+from rough_viewer.io.formats.las import write_las
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.vocabulary import InputError
 from tests.io import crafted
 
@@ -263,7 +264,7 @@ def test_a_mesh_declaring_4e9_faces_stops_at_its_memory_limit(tmp_path):
     """plyfile would allocate 52 GB for the faces of a 200-byte PLY (directions, report)."""
     import struct
 
-    from rough_viewer.io.mesh import load_mesh
+    from rough_viewer.io.formats.mesh import load_mesh
 
     path = tmp_path / "faces.ply"
     path.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"

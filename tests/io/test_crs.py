@@ -1,4 +1,4 @@
-"""io/crs.py: the CRS and linear unit of LAS/LAZ files, from WKT and GeoTIFF records
+"""io/formats/crs.py: the CRS and linear unit of LAS/LAZ files, from WKT and GeoTIFF records
 written here byte by byte."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import laspy
 import numpy as np
 import pytest
 
-from rough_viewer.io.crs import CrsInfo, parse_geotiff_keys, parse_wkt_crs, read_crs
+from rough_viewer.io.formats.crs import CrsInfo, parse_geotiff_keys, parse_wkt_crs, read_crs
 
 WKT_FT = (
     'PROJCS["NAD83 / California zone 3 (ftUS)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",'

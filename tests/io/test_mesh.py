@@ -8,8 +8,8 @@ from plyfile import PlyData, PlyElement
 
 from rough_viewer.cli import main
 from rough_viewer.io import load_points
-from rough_viewer.io.mesh import check_mesh, load_mesh
-from rough_viewer.io.stl import read_stl, read_stl_mesh
+from rough_viewer.io.formats.mesh import check_mesh, load_mesh
+from rough_viewer.io.formats.stl import read_stl, read_stl_mesh
 from rough_viewer.vocabulary import InputError
 
 # a 3 x 3 grid of vertices, 8 triangles, z = x y

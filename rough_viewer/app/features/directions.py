@@ -34,7 +34,7 @@ from rough_viewer.directions.analysis import (
 )
 from rough_viewer.directions.table import directions_table
 from rough_viewer.io import PointCloud
-from rough_viewer.io.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
+from rough_viewer.io.formats.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
 from rough_viewer.report.view import DirectionsView, View
 from rough_viewer.visual.directions import (
     directions_table_figure,

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io import isolate
 from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
 
@@ -117,8 +117,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
     InputError
         Missing or unreadable file, malformed faces.
     """
-    from rough_viewer.io.ply import read_ply_mesh
-    from rough_viewer.io.stl import read_stl_mesh
+    from rough_viewer.io.formats.ply import read_ply_mesh
+    from rough_viewer.io.formats.stl import read_stl_mesh
 
     p = Path(path)
     suffix = p.suffix.lower()
@@ -142,7 +142,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
 
 
 def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    """The mesh read in a child process (:mod:`rough_viewer.io.isolate`): plyfile and the
+    """The mesh read in a child process (:mod:`rough_viewer.io.sandbox.isolate`): plyfile and the
     STL parser run on bytes anyone can craft."""
     size = p.stat().st_size
     items = isolate.stream_isolated(
@@ -157,8 +157,8 @@ def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _mesh_items(p: Path, *, progress: object = None) -> Iterator[dict[str, np.ndarray]]:
     """The mesh as one item of a stream (empty: no faces), what the child runs."""
-    from rough_viewer.io.ply import read_ply_mesh
-    from rough_viewer.io.stl import read_stl_mesh
+    from rough_viewer.io.formats.ply import read_ply_mesh
+    from rough_viewer.io.formats.stl import read_stl_mesh
 
     read = read_stl_mesh(p) if p.suffix.lower() == ".stl" else read_ply_mesh(p)
     yield {} if read is None else {"vertices": read[0], "faces": read[1]}

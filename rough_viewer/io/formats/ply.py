@@ -13,8 +13,8 @@ from typing import BinaryIO
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.formats.point_fields import PointFields
 from rough_viewer.io.output import write_path_atomic
-from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import UNIT_METRES, InputError
 

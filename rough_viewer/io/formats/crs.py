@@ -68,7 +68,7 @@ NO_CRS = CrsInfo()
 
 
 #: Address space a child may add to read a file's CRS, bytes: a WKT of at most
-#: :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
+#: :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
 #: than this allows are a crafted file.
 CRS_READ_BUDGET = 256 << 20
 #: The format of a CRS's file as messages name it, by suffix.
@@ -80,12 +80,12 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     """The CRS a point file declares (header only; no points are decoded).
 
     A WKT (LAS record or ``.prj``) and GeoTIFF tags are parsed in a reader child
-    process where reads are isolated (:func:`rough_viewer.io.isolate.call_isolated`;
+    process where reads are isolated (:func:`rough_viewer.io.sandbox.isolate.call_isolated`;
     the answer kept for the file's identity, :data:`CRS_CACHE_ENTRIES`), and every
     record is bounded in bytes before it is read (:func:`crs_here`). This process
-    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.las.check_las_layout`),
+    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.formats.las.check_las_layout`),
     parses a LAS file's GeoKeys when it has no WKT (three records of at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
     child's answer.
 
     Parameters
@@ -103,9 +103,9 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     ------
     InputError
         A LAS/LAZ file whose header cannot be read, a CRS record or ``.prj`` longer
-        than :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
+        than :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
     """
-    from rough_viewer.io import isolate
+    from rough_viewer.io.sandbox import isolate
 
     p = Path(path)
     suffix = p.suffix.lower()
@@ -115,7 +115,7 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
         return NO_CRS
     described = p
     if suffix in (".las", ".laz"):
-        from rough_viewer.io.las import check_las_layout
+        from rough_viewer.io.formats.las import check_las_layout
 
         check_input_file(p)
         records = {record_id for record_id, _, _ in check_las_layout(p).crs_records}
@@ -124,7 +124,7 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
         if WKT_RECORD not in records:  # GeoKeys only: 3 x 64 KiB at most, parsed in ~1 MB
             return _las_crs(p)
     elif suffix == ".asc":
-        from rough_viewer.io.dem import prj_beside
+        from rough_viewer.io.formats.dem import prj_beside
 
         prj = prj_beside(p)
         if prj is None:
@@ -214,7 +214,7 @@ def crs_from_fields(value: object, p: Path) -> CrsInfo:
 
 def _geotiff_crs(p: Path) -> CrsInfo:
     """The GeoKeys of a GeoTIFF raster (the same keys a LAS file may carry)."""
-    from rough_viewer.io.dem import GEO_KEY_DIRECTORY, geokey_bytes, geotiff_tags
+    from rough_viewer.io.formats.dem import GEO_KEY_DIRECTORY, geokey_bytes, geotiff_tags
 
     check_input_file(p)
     with foreign_errors(f"cannot read the tags of {p}"):
@@ -226,9 +226,9 @@ def _geotiff_crs(p: Path) -> CrsInfo:
 
 def _prj_crs(p: Path) -> CrsInfo:
     """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any (at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`)."""
-    from rough_viewer.io.dem import prj_beside
-    from rough_viewer.io.las import MAX_CRS_RECORD_BYTES
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`)."""
+    from rough_viewer.io.formats.dem import prj_beside
+    from rough_viewer.io.formats.las import MAX_CRS_RECORD_BYTES
 
     prj = prj_beside(p)
     if prj is None:
@@ -245,8 +245,8 @@ def _prj_crs(p: Path) -> CrsInfo:
 
 def _las_crs(p: Path) -> CrsInfo:
     """The CRS records of a LAS/LAZ file, read from their raw bytes (each at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`) without laspy."""
-    from rough_viewer.io.las import check_las_layout, las_crs_records
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`) without laspy."""
+    from rough_viewer.io.formats.las import check_las_layout, las_crs_records
 
     check_input_file(p)
     raw = las_crs_records(p, check_las_layout(p))
