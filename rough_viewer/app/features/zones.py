@@ -56,12 +56,12 @@ from rough_viewer.app.binding import Binding, assign
 from rough_viewer.app.cache import ByteCache
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import Colouring, by_cell
-from rough_viewer.app.features.map import MODEL_BY_LABEL, MapFeature
+from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.settings import MODEL_LABELS
+from rough_viewer.app.settings import MODEL_BY_LABEL, MODEL_LABELS
 from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
