@@ -48,7 +48,7 @@ import numpy as np
 
 from rough_viewer.io import estimates
 from rough_viewer.io.cache import cache_lookup, cache_write
-from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file, read_errors
+from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file
 from rough_viewer.io.formats.crs import read_crs
 from rough_viewer.io.formats.dem import DEM_SUFFIXES, read_dem
 from rough_viewer.io.formats.e57 import read_e57
@@ -65,6 +65,7 @@ from rough_viewer.vocabulary import (
     ProgressFn,
     Unit,
     error_line,
+    foreign_errors,
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
@@ -213,7 +214,7 @@ def load_points(
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     if max_points is not None and max_points < 1:
         raise InputError(f"--max-points must be positive, got {max_points}")
-    with read_errors(p):
+    with foreign_errors(f"cannot read {p}", libraries=("laspy", "lazrs")):
         cloud = _read(p, reader, progress=progress, cache=cache, max_points=max_points)
         unit, z_unit, notes = axis_units(p, units)
         check_coordinates((cloud.x, cloud.y, cloud.z), p,

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
+from rough_viewer.io.cloud import PointCloud, check_input_file
 from rough_viewer.io.sandbox import isolate
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
+from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit, foreign_errors
 
 #: Formats whose files may carry triangles.
 MESH_SUFFIXES = (".stl", ".ply")
@@ -129,7 +129,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     # the file's bytes, a few copies of its corners and the faces
     require(8.0 * p.stat().st_size, f"reading the mesh of {p.name}")
-    with read_errors(p):
+    with foreign_errors(f"cannot read {p}", libraries=("plyfile",)):
         read = _read_isolated(p) if isolate.available() else \
             read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
     if read is None:
