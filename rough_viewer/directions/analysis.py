@@ -156,20 +156,20 @@ def analyse_directions(
     warnings = list(set_warnings(sets))
     surface, tin, tin_error, n_tri = "none", None, None, 0
     surf = mesh
-    try:
-        if not settings.tin:
-            raise InputError("not asked for")
-        if surf is None:
-            surf = triangulate_cloud(cloud, plane=plane, max_edge=settings.max_edge)
-            surface = "triangulated"
-        else:
-            surface = "mesh"
-        tin = directional_roughness(surf, az, dip_step_deg=settings.dip_step_deg, plane=plane,
-                                    progress=within(1))
-        n_tri = tin.n_triangles
-    except InputError as exc:
-        tin_error, surface, surf = str(exc), "none", None
-        if settings.tin:
+    if not settings.tin:
+        tin_error, surf = "not asked for", None
+    else:
+        try:
+            if surf is None:
+                surf = triangulate_cloud(cloud, plane=plane, max_edge=settings.max_edge)
+                surface = "triangulated"
+            else:
+                surface = "mesh"
+            tin = directional_roughness(surf, az, dip_step_deg=settings.dip_step_deg,
+                                        plane=plane, progress=within(1))
+            n_tri = tin.n_triangles
+        except InputError as exc:
+            tin_error, surface, surf = str(exc), "none", None
             warnings.append(f"no TIN parameters (theta*max/(C+1), Delta-T): {exc}")
     stage(2)
     windows, window_error = None, None

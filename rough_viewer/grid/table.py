@@ -84,7 +84,7 @@ def _trust_columns(trust: Mapping[str, np.ndarray] | None, keep: np.ndarray, row
             continue
         v = np.ma.asanyarray(trust[name]) if name in TRUST_INTEGERS else np.asarray(trust[name])
         if v.shape[0] != keep.shape[0]:
-            raise InputError(f"scanner column {name!r} has {v.shape[0]:,} cells, the result "
+            raise ValueError(f"scanner column {name!r} has {v.shape[0]:,} cells, the result "
                              f"{keep.shape[0]:,}")
         v = v[keep]
         out[name] = v / per if name in TRUST_LENGTHS and per != 1.0 else v

@@ -297,7 +297,7 @@ def scan_geometry(
     scan = (np.zeros(n, dtype=np.int64) if point_scan is None
             else np.asarray(point_scan).astype(np.int64, copy=False))
     if scan.shape != (n,) or (n and (scan.min() < 0 or scan.max() >= n_scans)):
-        raise InputError(f"point scans must be {n:,} rows of 0..{n_scans - 1}")
+        raise ValueError(f"point scans must be {n:,} rows of 0..{n_scans - 1}")
     if angular_step_rad is not None and not (np.isfinite(angular_step_rad)
                                              and 0 < angular_step_rad < np.pi):
         raise InputError(f"angular step must be in (0, pi) radians, got {angular_step_rad!r}")

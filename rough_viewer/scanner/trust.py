@@ -241,7 +241,7 @@ class CellTrust:
         """(M,) float64 values of one :data:`rough_viewer.vocabulary.TRUST_FIELDS`
         field (lengths in metres, NaN where none): a colour layer of the cells."""
         if name not in TRUST_FIELDS:
-            raise InputError(f"unknown trust field {name!r}; expected one of "
+            raise ValueError(f"unknown trust field {name!r}; expected one of "
                              f"{', '.join(TRUST_FIELDS)}")
         geo = self.geometry
         values: dict[str, np.ndarray] = {
@@ -280,7 +280,7 @@ class CellTrust:
         rper, rl = roughness_scale(unit)
         geo = self.geometry
         if not (0 <= row < self.theta_m.shape[0]):
-            raise InputError(f"no cell {row}")
+            raise IndexError(f"no cell {row}")
         if not np.isfinite(geo.range_m[row]):
             return [f"seen by {int(geo.scans[row])} scan(s); no plane, so no range, incidence "
                     "or predicted bias"]

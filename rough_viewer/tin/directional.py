@@ -470,9 +470,9 @@ def facet_roughness(
     a = np.asarray(areas, dtype=np.float64).ravel()
     g = np.asarray(group, dtype=np.int64).ravel()
     if not (m.shape[0] == a.shape[0] == g.shape[0]):
-        raise InputError("facet normals, areas and groups must have one row per facet")
+        raise ValueError("facet normals, areas and groups must have one row per facet")
     if g.size and (g.min() < 0 or g.max() >= n_groups):
-        raise InputError(f"facet groups must lie in 0..{n_groups - 1}")
+        raise ValueError(f"facet groups must lie in 0..{n_groups - 1}")
     require(m.shape[0] * PAIR_BYTES, f"the apparent dips of {m.shape[0]:,} triangles")
     k = int(n_groups)
     eye = np.eye(3)

@@ -138,5 +138,6 @@ def test_a_crop_of_the_vertices_keeps_the_triangles_of_kept_corners():
     np.testing.assert_array_equal(got.vertices, GRID[keep])
     assert triangles_as_sets(got.vertices, got.faces) == triangles_as_sets(GRID, np.array(want))
     assert mesh.kept(GRID[:, 0] == 0.0) is None  # a line of vertices: no triangle
-    with pytest.raises(InputError, match="cannot crop a mesh of 9 vertices"):
+    with pytest.raises(ValueError, match="cannot crop a mesh of 9 vertices") as bug:
         mesh.kept(np.ones(4, dtype=bool))
+    assert type(bug.value) is ValueError  # the caller's mistake, not the user's

@@ -226,8 +226,9 @@ def test_columns_lines_and_layers(wall):
     assert f"{trust.geometry.range_m[row] / 0.3048:.2f} ft" in ft[0]
     for name in TRUST_FIELDS:
         assert trust.layer(name).shape == (res.n_cells,)
-    with pytest.raises(InputError, match="unknown trust field"):
+    with pytest.raises(ValueError, match="unknown trust field") as bug:
         trust.layer("nope")
+    assert type(bug.value) is ValueError  # the caller's mistake, not the user's
     summary = trust.summary()
     assert summary.cells == int(trust.known.sum())
     assert summary.trusted + summary.flagged["incidence"] >= summary.cells - summary.flagged[

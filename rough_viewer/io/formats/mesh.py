@@ -66,7 +66,7 @@ class TriangleMesh:
         vertices in their order. None when no triangle is left."""
         keep = np.asarray(mask, dtype=bool)
         if keep.shape != (self.n_vertices,):
-            raise InputError(f"a mask over {keep.shape[0]:,} points cannot crop a mesh of "
+            raise ValueError(f"a mask over {keep.shape[0]:,} points cannot crop a mesh of "
                              f"{self.n_vertices:,} vertices")
         faces = self.faces[keep[self.faces].all(axis=1)]
         if faces.shape[0] == 0:
