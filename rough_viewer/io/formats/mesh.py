@@ -129,7 +129,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     # the file's bytes, a few copies of its corners and the faces
     require(8.0 * p.stat().st_size, f"reading the mesh of {p.name}")
-    with foreign_errors(f"cannot read {p}", libraries=("plyfile",)):
+    with foreign_errors(f"cannot read {p}", libraries=()):
         read = _read_isolated(p) if isolate.available() else \
             read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
     if read is None:
@@ -142,8 +142,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
 
 
 def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    """The mesh read in a child process (:mod:`rough_viewer.io.sandbox.isolate`): plyfile and the
-    STL parser run on bytes anyone can craft."""
+    """The mesh read in a child process (:mod:`rough_viewer.io.sandbox.isolate`): the PLY and
+    STL parsers run on bytes anyone can craft."""
     size = p.stat().st_size
     items = isolate.stream_isolated(
         f"{__name__}:_mesh_items", p, label="PLY" if p.suffix.lower() == ".ply" else "STL",
