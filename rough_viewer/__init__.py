@@ -16,11 +16,17 @@ The public API is flat: everything a notebook needs is importable from here.
 Packages, data flowing one way (each imports only those above it):
 
 - :mod:`rough_viewer.vocabulary`: models, maps, axes, labels, the one error type;
-- :mod:`rough_viewer.io`: reading points, the decode cache, writers;
+- :mod:`rough_viewer.io`: the point cloud, reading and writing points (formats in
+  :mod:`rough_viewer.io.formats`, the reader sandbox in :mod:`rough_viewer.io.sandbox`),
+  the decode cache;
 - :mod:`rough_viewer.grid`: grid roughness, maps, semivariograms, measurements;
 - :mod:`rough_viewer.lod`: the level-of-detail octree and node selection;
 - :mod:`rough_viewer.profiles`: profiles, wavelets, fractal dimension;
+- :mod:`rough_viewer.tin`: directional roughness of triangulated surfaces;
 - :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
+- :mod:`rough_viewer.scanner`: scanner positions, scan geometry and per-cell trust;
+- :mod:`rough_viewer.directions`: roughness by direction (profiles and TIN);
+- :mod:`rough_viewer.structure`: orientation zones, joints and joint sets;
 - :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
 - :mod:`rough_viewer.visual`: colour maps and plotly figures;
 - :mod:`rough_viewer.report`: the HTML/JSON report and saved views;

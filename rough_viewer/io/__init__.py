@@ -1,6 +1,8 @@
-"""Reading and writing points: readers by format, the decode cache, LAS/LAZ and PLY
-writing with per-point fields, cell tables (CSV, Parquet), safe output files, the
-crop and the one JSON conversion.
+"""Reading and writing points: the point cloud (:mod:`.cloud`), loading any file
+(:mod:`.load`), the formats (:mod:`.formats`: LAS/LAZ, E57, PLY, STL, text, DEM,
+meshes, the CRS, LAS and PLY writing with per-point fields), the reader sandbox
+(:mod:`.sandbox`), the decode cache (:mod:`.cache`), cell tables (CSV, Parquet), safe
+output files, the crop and the one JSON conversion.
 
 The science of this package knows nothing of the terminal: progress is a callback
 and every problem with a file is an :class:`rough_viewer.vocabulary.InputError`
