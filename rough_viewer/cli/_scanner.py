@@ -31,12 +31,6 @@ from rough_viewer.vocabulary import UNIT_METRES, InputError
 if TYPE_CHECKING:
     from rough_viewer.scanner.trust import TrustSettings
 
-#: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
-#: scanners' (about 0.001 deg); finer ones underflow the expected density's square
-#: (``--angular-step 1e-300`` ended in ZeroDivisionError).
-MIN_ANGULAR_STEP_DEG = 1e-6
-
-
 def add_scanner_options(p: argparse.ArgumentParser) -> None:
     """Add the scanner position and calibration options to a command."""
     g = p.add_argument_group(
@@ -103,7 +97,11 @@ def _length(value: float | None, option: str, unit: str, *, allow_zero: bool = T
 def trust_settings(args: argparse.Namespace, unit: str) -> TrustSettings:
     """The checked trust settings of the options (lengths given in ``unit``)."""
     from rough_viewer.bias.calibration import calibration
-    from rough_viewer.scanner.trust import DEFAULT_ASPERITY_RADIUS_M, TrustSettings
+    from rough_viewer.scanner.trust import (
+        DEFAULT_ASPERITY_RADIUS_M,
+        MIN_ANGULAR_STEP_DEG,
+        TrustSettings,
+    )
 
     noise = _length(getattr(args, "noise", None), "--noise", unit)
     radius = _length(getattr(args, "beam_radius", None), "--beam-radius", unit)

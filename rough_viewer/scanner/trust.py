@@ -85,6 +85,12 @@ FLAG_NAMES: dict[int, str] = {
 LENGTH_FIELDS = ("range", "noise_pred", "smoothing_pred", "bias_pred")
 
 
+#: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
+#: scanners' (about 0.001 deg); finer ones underflow the expected density's square
+#: (``--angular-step 1e-300`` ended in ZeroDivisionError).
+MIN_ANGULAR_STEP_DEG = 1e-6
+
+
 @dataclass(frozen=True)
 class TrustSettings:
     """What the per-cell trust is computed with (the ``--scanner ...`` options)."""
@@ -105,8 +111,10 @@ class TrustSettings:
         if not (math.isfinite(a) and 0.0 < a < 1.0):
             raise InputError(f"asperity radius must be a length > 0 and below 1 m, got {a:g} m")
         s = self.angular_step_rad
-        if s is not None and not (math.isfinite(s) and 0.0 < s < math.radians(10.0)):
-            raise InputError(f"angular step must be above 0 and below 10 degrees, got "
+        if s is not None and not (math.isfinite(s) and math.radians(MIN_ANGULAR_STEP_DEG) <= s
+                                  < math.radians(10.0)):
+            raise InputError(f"angular step must be above 0 and below 10 degrees (at least "
+                             f"{MIN_ANGULAR_STEP_DEG:g}: no scanner steps finer), got "
                              f"{math.degrees(s):g} degrees")
         if not 1 <= int(self.trials) <= 1000:
             raise InputError(f"trials must be 1 to 1000, got {self.trials}")

@@ -288,3 +288,12 @@ def test_ratio_samples():
     assert len(coarse) <= 8 and coarse[0] == 0.0 and coarse[-1] >= 1.0
     assert ratio_samples(np.array([np.nan])) == (0.0,)
     assert ratio_samples(np.array([5.0, 9.0])) == (3.0,)
+
+
+def test_an_angular_step_finer_than_any_scanner_is_refused_by_the_settings():
+    """The bound the command line had alone (1e-300 deg ended in ZeroDivisionError)."""
+    import math
+
+    with pytest.raises(InputError, match="no scanner steps finer"):
+        TrustSettings(angular_step_rad=math.radians(1e-300)).check()
+    TrustSettings(angular_step_rad=math.radians(2e-6)).check()
