@@ -28,8 +28,8 @@ from pathlib import Path
 from rough_viewer.io import load_points
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.table import cell_columns, point_fields
-from rough_viewer.io.las_out import write_las_fields
-from rough_viewer.io.ply import write_ply_fields
+from rough_viewer.io.formats.las_out import write_las_fields
+from rough_viewer.io.formats.ply import write_ply_fields
 from rough_viewer.io.table import write_table
 
 src, grid, fmt, out = sys.argv[1], float(sys.argv[2]), sys.argv[3], Path(sys.argv[4])

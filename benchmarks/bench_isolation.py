@@ -25,7 +25,8 @@ DEFAULTS = [Path("demo_data/outcrop.laz"),
 
 
 def _time(path: Path, *, isolated: bool, warm: bool) -> float:
-    from rough_viewer.io import isolate, load_points
+    from rough_viewer.io import load_points
+    from rough_viewer.io.sandbox import isolate
 
     os.environ["ROUGH_VIEWER_ISOLATE"] = "1" if isolated else "0"
     if isolated and warm:
@@ -43,7 +44,8 @@ def main() -> None:
     parser.add_argument("files", nargs="*", type=Path)
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
-    from rough_viewer.io import isolate, load_points
+    from rough_viewer.io import load_points
+    from rough_viewer.io.sandbox import isolate
 
     files = args.files or [p for p in DEFAULTS if p.exists()]
     print(f"cpus {os.cpu_count()}, isolation available: {isolate.available()}")

@@ -24,7 +24,7 @@ Every figure is the median of ``--repeat`` runs (cameras: of ``--cameras``).
 
 Targets (issue 23, 100 M points, 2 cores): build within 1.5 x the decode time; peak
 RSS at most 64 B/point + 1 GB. At 100 M the points alone are 2.4 GB, the decode
-peaks near 75 B/point (``rough_viewer.io.las.READ_BYTES_PER_POINT``) and the build at
+peaks near 75 B/point (``rough_viewer.io.formats.las.READ_BYTES_PER_POINT``) and the build at
 16 B/point more: run it only where ``free -g`` shows 10 GB free. ``--in-memory``
 generates the same points in memory instead (no LAZ, no decode figures): the build,
 memory and per-camera figures at 100 M within about 5 GB.
@@ -71,7 +71,7 @@ def make_laz(path: Path, total: int) -> None:
     """Write the synthetic outcrop as LAZ, a chunk at a time."""
     import laspy
 
-    from rough_viewer.io.las import laz_backend
+    from rough_viewer.io.formats.las import laz_backend
 
     header = laspy.LasHeader(version="1.4", point_format=7)
     header.scales = np.array([1e-4, 1e-4, 1e-4])

@@ -1,4 +1,4 @@
-"""PLY reading: our reader (rough_viewer.io.ply.read_ply) against plyfile, on the
+"""PLY reading: our reader (rough_viewer.io.formats.ply.read_ply) against plyfile, on the
 same files, to decide which one load_points uses (issue 15: plyfile for reading too
 if it is at least as fast).
 
@@ -59,7 +59,7 @@ def read_plyfile(path: Path):
 
 
 def read_ours(path: Path):
-    from rough_viewer.io.ply import read_ply
+    from rough_viewer.io.formats.ply import read_ply
 
     return read_ply(path)
 

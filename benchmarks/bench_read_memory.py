@@ -13,7 +13,7 @@ larger files (where the libraries' fixed buffers no longer count) and the larges
 peak per byte of file of the worst shapes (a text file of one long line of numbers,
 of digits), beside the figures the estimates use. The fixed part (lazrs' thread pool
 and buffers, the same for every file) is covered by the isolated reader's allowance
-(``rough_viewer.io.isolate.CHILD_ALLOWANCE``), not by the estimates. Prints the
+(``rough_viewer.io.sandbox.isolate.CHILD_ALLOWANCE``), not by the estimates. Prints the
 median over ``--repeat`` runs of each file.
 """
 
@@ -84,7 +84,7 @@ def make_files(folder: Path, n: int) -> list[tuple[str, str, Path, int, bool]]:
     from plyfile import PlyData, PlyElement
 
     from rough_viewer.io.cloud import PointCloud
-    from rough_viewer.io.las import write_las
+    from rough_viewer.io.formats.las import write_las
 
     rng = np.random.default_rng(0)
     out: list[tuple[str, str, Path, int, bool]] = []

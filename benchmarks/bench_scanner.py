@@ -2,8 +2,8 @@
 
 On the bundled demo outcrop (2 M points, one scanner at its spec's position) and on
 the 2012 board at its 25 rotations: the median over ``--repeat`` runs of
-:func:`rough_viewer.grid.scanner.scan_geometry` and of
-:func:`rough_viewer.bias.trust.cell_trust` (the bias model's simulations cached after
+:func:`rough_viewer.scanner.geometry.scan_geometry` and of
+:func:`rough_viewer.scanner.trust.cell_trust` (the bias model's simulations cached after
 the first grid: their cost is printed apart), the peak memory those allocate
 (tracemalloc, a separate run), and the figures: incidence, density ratio, occlusion,
 predicted bias, trusted share; on the outcrop against its ground truth (fracture and
@@ -33,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from timing import median_seconds  # noqa: E402
 
-from rough_viewer.bias.trust import TrustSettings, bias_model, cell_trust  # noqa: E402
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
-from rough_viewer.grid.scanner import scan_geometry  # noqa: E402
-from rough_viewer.io.scanners import cloud_scanners  # noqa: E402
+from rough_viewer.scanner.geometry import scan_geometry  # noqa: E402
+from rough_viewer.scanner.positions import cloud_scanners  # noqa: E402
+from rough_viewer.scanner.trust import TrustSettings, bias_model, cell_trust  # noqa: E402
 from rough_viewer.synthetic.board import PAPER_ROTATIONS_DEG, board_scan  # noqa: E402
 from rough_viewer.synthetic.demos import demo_angular_step, load_demo_with_truth  # noqa: E402
 
@@ -126,7 +126,7 @@ def truth(grids: list[float]) -> None:
     import dataclasses
 
     from rough_viewer.bias.calibration import calibration
-    from rough_viewer.bias.trust import FLAG_NOISE
+    from rough_viewer.scanner.trust import FLAG_NOISE
     from rough_viewer.synthetic.outcrop import OUTCROP, generate_outcrop
 
     noisy = generate_outcrop(OUTCROP)

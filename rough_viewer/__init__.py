@@ -16,11 +16,17 @@ The public API is flat: everything a notebook needs is importable from here.
 Packages, data flowing one way (each imports only those above it):
 
 - :mod:`rough_viewer.vocabulary`: models, maps, axes, labels, the one error type;
-- :mod:`rough_viewer.io`: reading points, the decode cache, writers;
+- :mod:`rough_viewer.io`: the point cloud, reading and writing points (formats in
+  :mod:`rough_viewer.io.formats`, the reader sandbox in :mod:`rough_viewer.io.sandbox`),
+  the decode cache;
 - :mod:`rough_viewer.grid`: grid roughness, maps, semivariograms, measurements;
 - :mod:`rough_viewer.lod`: the level-of-detail octree and node selection;
 - :mod:`rough_viewer.profiles`: profiles, wavelets, fractal dimension;
+- :mod:`rough_viewer.tin`: directional roughness of triangulated surfaces;
 - :mod:`rough_viewer.bias`: scanner-bias measurement and simulation;
+- :mod:`rough_viewer.scanner`: scanner positions, scan geometry and per-cell trust;
+- :mod:`rough_viewer.directions`: roughness by direction (profiles and TIN);
+- :mod:`rough_viewer.structure`: orientation zones, joints and joint sets;
 - :mod:`rough_viewer.synthetic`: the demo board and outcrop, fBm profiles;
 - :mod:`rough_viewer.visual`: colour maps and plotly figures;
 - :mod:`rough_viewer.report`: the HTML/JSON report and saved views;
@@ -46,11 +52,11 @@ _API: dict[str, str] = {
     # points
     "PointCloud": "rough_viewer.io.cloud",
     "load_points": "rough_viewer.io.load",
-    "write_las": "rough_viewer.io.las",
-    "read_crs": "rough_viewer.io.crs",
-    "CrsInfo": "rough_viewer.io.crs",
-    "write_las_fields": "rough_viewer.io.las_out",
-    "write_ply_fields": "rough_viewer.io.ply",
+    "write_las": "rough_viewer.io.formats.las",
+    "read_crs": "rough_viewer.io.formats.crs",
+    "CrsInfo": "rough_viewer.io.formats.crs",
+    "write_las_fields": "rough_viewer.io.formats.las_out",
+    "write_ply_fields": "rough_viewer.io.formats.ply",
     "write_table": "rough_viewer.io.table",
     "CropBox": "rough_viewer.io.crop",
     "crop_cloud": "rough_viewer.io.crop",
@@ -123,10 +129,10 @@ _API: dict[str, str] = {
     "simulate_target": "rough_viewer.bias.simulation",
     "smoothing_curve": "rough_viewer.bias.simulation",
     # scanner-aware roughness (docs/scanner.md)
-    "with_scanner": "rough_viewer.io.scanners",
-    "scan_geometry": "rough_viewer.grid.scanner",
-    "cell_trust": "rough_viewer.bias.trust",
-    "TrustSettings": "rough_viewer.bias.trust",
+    "with_scanner": "rough_viewer.scanner.positions",
+    "scan_geometry": "rough_viewer.scanner.geometry",
+    "cell_trust": "rough_viewer.scanner.trust",
+    "TrustSettings": "rough_viewer.scanner.trust",
     # synthetic data and demos
     "board_scan": "rough_viewer.synthetic.board",
     "generate_outcrop": "rough_viewer.synthetic.outcrop",
@@ -156,7 +162,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         target_roughness,
     )
     from rough_viewer.bias.simulation import predict_bias, simulate_target, smoothing_curve
-    from rough_viewer.bias.trust import TrustSettings, cell_trust
     from rough_viewer.grid.maps import face_maps, face_raster
     from rough_viewer.grid.measure import point_distance, region_plane
     from rough_viewer.grid.orientation import (
@@ -175,7 +180,6 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
         whole_cloud_axis,
     )
     from rough_viewer.grid.scales import face_scales, point_scales, point_scales_from_prepared
-    from rough_viewer.grid.scanner import scan_geometry
     from rough_viewer.grid.spacing import default_cell_size, point_spacing, preset_cell_sizes
     from rough_viewer.grid.summary import (
         Summary,
@@ -189,12 +193,11 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.grid.variogram import face_semivariogram, plan_semivariogram, semivariogram
     from rough_viewer.io.cloud import PointCloud
     from rough_viewer.io.crop import CropBox, crop_cloud
-    from rough_viewer.io.crs import CrsInfo, read_crs
-    from rough_viewer.io.las import write_las
-    from rough_viewer.io.las_out import write_las_fields
+    from rough_viewer.io.formats.crs import CrsInfo, read_crs
+    from rough_viewer.io.formats.las import write_las
+    from rough_viewer.io.formats.las_out import write_las_fields
+    from rough_viewer.io.formats.ply import write_ply_fields
     from rough_viewer.io.load import load_points
-    from rough_viewer.io.ply import write_ply_fields
-    from rough_viewer.io.scanners import with_scanner
     from rough_viewer.io.table import write_table
     from rough_viewer.lod.camera import ViewCamera
     from rough_viewer.lod.octree import build_octree
@@ -212,6 +215,9 @@ if TYPE_CHECKING:  # names for type checkers and IDEs; loaded lazily at run time
     from rough_viewer.report.view import View, load_view, save_view
     from rough_viewer.scale.chunked import chunked_roughness
     from rough_viewer.scale.sources import load_merged, open_sources
+    from rough_viewer.scanner.geometry import scan_geometry
+    from rough_viewer.scanner.positions import with_scanner
+    from rough_viewer.scanner.trust import TrustSettings, cell_trust
     from rough_viewer.structure.sets import JointSets, SetOptions, joint_sets
     from rough_viewer.structure.zones import ZoneLabeller, Zones, find_zones
     from rough_viewer.synthetic.board import board_scan

@@ -43,22 +43,48 @@ def error_line(exc: BaseException) -> str:
     return line or type(exc).__name__
 
 
+#: What reading a file raises that is the file's fault rather than a bug: the OS (a
+#: missing or unreadable file), malformed content, a truncated stream.
+FILE_ERRORS: tuple[type[Exception], ...] = (OSError, ValueError, EOFError, KeyError, IndexError)
+
+
 @contextlib.contextmanager
-def foreign_errors(what: str) -> Iterator[None]:
-    """Turn an error a library raises in the block (laspy, lazrs, pye57 raise their
-    own types) into one :class:`InputError` line, ``"<what>: <its first line>"``;
-    an :class:`InputError` passes as it is.
+def foreign_errors(what: str, *, libraries: tuple[str, ...] | None = None) -> Iterator[None]:
+    """Turn an error raised in the block by reading a file into one :class:`InputError`
+    line, ``"<what>: <its first line>"``; an :class:`InputError` passes as it is and a
+    :class:`MemoryError` becomes ``"<what>: not enough memory"``. The one converter of
+    library errors: every reader uses it.
+
+    Parameters
+    ----------
+    what : str
+        What was being done, naming the file (``"cannot read a.las"``).
+    libraries : tuple of str, optional
+        None (default): every exception is taken for the library's (pye57 and the
+        libraries behind it raise types of their own, with no common base). Else only
+        :data:`FILE_ERRORS` and the exceptions of these libraries' modules (by top-level
+        name: ``("laspy", "lazrs")``) convert; any other (a ``TypeError`` of ours)
+        passes, for a bug is not the file's fault.
 
     >>> with foreign_errors("cannot read a.las"):
     ...     raise OSError("unexpected end of file")
     Traceback (most recent call last):
     rough_viewer.vocabulary.InputError: cannot read a.las: unexpected end of file
+    >>> with foreign_errors("cannot read a.las", libraries=("laspy",)):
+    ...     raise TypeError("a bug")
+    Traceback (most recent call last):
+    TypeError: a bug
     """
     try:
         yield
     except InputError:
         raise
+    except MemoryError:
+        raise InputError(f"{what}: not enough memory") from None
     except Exception as exc:
+        if (libraries is not None and not isinstance(exc, FILE_ERRORS)
+                and type(exc).__module__.split(".")[0] not in libraries):
+            raise
         raise InputError(f"{what}: {error_line(exc)}") from None
 
 

@@ -2,8 +2,8 @@
 
 Every import in ``rough_viewer`` (top-level, inside a function or under
 ``TYPE_CHECKING``) is read from the source and checked against the layers below. The
-science packages (io, grid, lod, profiles, bias, synthetic, scale) import no UI library,
-print nothing and import nothing above them. Inside the app the layers run one way
+science packages (:data:`SCIENCE`) import no UI library, print nothing and import
+nothing above them. Inside the app the layers run one way
 too (:data:`APP_LAYERS`), and no module of the package takes part in an import cycle.
 """
 
@@ -21,7 +21,8 @@ import rough_viewer
 
 ROOT = Path(rough_viewer.__file__).resolve().parent
 
-SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod", "structure")
+SCIENCE = ("io", "grid", "profiles", "bias", "synthetic", "scale", "tin", "lod", "structure",
+           "scanner", "directions")
 
 #: package -> the rough_viewer packages it may import (besides itself).
 ALLOWED: dict[str, set[str]] = {
@@ -32,19 +33,21 @@ ALLOWED: dict[str, set[str]] = {
     "grid": {"lazy", "vocabulary", "memory", "io"},
     "profiles": {"lazy", "vocabulary", "memory", "io", "grid"},
     "bias": {"lazy", "vocabulary", "memory", "io", "grid", "profiles"},
-    "synthetic": {"lazy", "vocabulary", "memory", "io", "grid"},
+    "synthetic": {"lazy", "vocabulary", "memory", "io", "grid", "scanner"},
     "scale": {"lazy", "vocabulary", "memory", "io", "grid"},
     "tin": {"lazy", "vocabulary", "memory", "io", "grid"},
     "lod": {"lazy", "vocabulary", "memory", "io", "grid"},
     "structure": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "tin"},
+    "scanner": {"lazy", "vocabulary", "memory", "io", "grid", "bias"},
+    "directions": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "tin"},
     "visual": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "tin", "lod", "structure"},
+               "tin", "lod", "structure", "scanner", "directions"},
     "report": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-               "visual", "tin", "lod", "structure"},
+               "visual", "tin", "lod", "structure", "scanner", "directions"},
     "app": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "tin", "lod", "structure"},
+            "visual", "report", "tin", "lod", "structure", "scanner", "directions"},
     "cli": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "tin", "lod", "structure", "__init__"},
+            "visual", "report", "app", "tin", "lod", "structure", "scanner", "directions", "__init__"},
     "__init__": {"_version", "lazy"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

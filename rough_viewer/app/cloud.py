@@ -24,7 +24,6 @@ from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY
 from rough_viewer.app.sampling import display_subset
 from rough_viewer.app.settings import MIN_CELL_SIZE, MapSettings, check_settings
 from rough_viewer.app.units import Units
-from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
     GridRoughness,
@@ -37,6 +36,7 @@ from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.io import PointCloud
 from rough_viewer.io.crop import CropBox, crop_cloud
 from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
+from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.visual.layers import (
     ColourLayer,
     face_plane_distance,

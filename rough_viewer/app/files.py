@@ -9,7 +9,7 @@ measured memory estimate first (:mod:`rough_viewer.io.estimates`: a file that
 cannot fit, or a decompression bomb beyond ``max_points`` (``serve --max-points``,
 :attr:`rough_viewer.app.host.AppOptions.max_points`), is
 refused before decoding) and decodes it in a child process
-(:mod:`rough_viewer.io.isolate`): a damaged or crafted file that crashes its
+(:mod:`rough_viewer.io.sandbox.isolate`): a damaged or crafted file that crashes its
 reader, or runs past its memory or time limit, is one notice, and the server
 keeps serving every browser. Error messages name the file as the user gave it and
 never carry server paths or text read from the file
@@ -26,8 +26,8 @@ from pathlib import Path
 
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
+from rough_viewer.io.formats.mesh import TriangleMesh, load_mesh
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
-from rough_viewer.io.mesh import TriangleMesh, load_mesh
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
 
@@ -126,7 +126,7 @@ def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None
 
 def read_mesh(path: Path, shown: str, *, units: Unit | None = None) -> TriangleMesh | None:
     """The triangles of ``path`` (an STL, or a PLY with faces; None for any other
-    file, :func:`rough_viewer.io.mesh.load_mesh`); errors mention ``shown``, never
+    file, :func:`rough_viewer.io.formats.mesh.load_mesh`); errors mention ``shown``, never
     the server path. Raises InputError."""
     with _shown_errors(path, shown, f"the triangles of {shown}"):
         return load_mesh(path, units=units)

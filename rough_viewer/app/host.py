@@ -40,9 +40,9 @@ import numpy as np
 from rough_viewer.app.cache import ByteBudget
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
-from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
 from rough_viewer.lod.select import DEFAULT_BUDGET
+from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import Unit
 
 if TYPE_CHECKING:

@@ -44,10 +44,10 @@ from rough_viewer.app.session import Session, Shown
 from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.shell import Shell
 from rough_viewer.app.worker import Job, Worker
-from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.io.estimates import max_points_limit
 from rough_viewer.lod.select import DEFAULT_BUDGET
+from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import UNITS, InputError, Unit
 
 __all__ = ["App", "AppOptions", "FEATURES", "build_app"]

@@ -17,7 +17,7 @@ from rough_viewer.app.settings import MapSettings
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import PointScales
 from rough_viewer.io import PointCloud
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.report.view import View
 
 

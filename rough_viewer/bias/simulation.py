@@ -532,7 +532,7 @@ def predict_paper_target(
     the paper's target layout (:func:`paper_target`, nodes drawn with ``seed``).
 
     The one code path of every prediction on the paper's targets: the command, and
-    the per-cell predictions of a scan (:mod:`rough_viewer.bias.trust`), so the same
+    the per-cell predictions of a scan (:mod:`rough_viewer.scanner.trust`), so the same
     noise, effective radius and asperity radius give the same numbers in both.
 
     Parameters

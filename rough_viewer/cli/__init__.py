@@ -63,7 +63,7 @@ def _terminate(_signum: int, _frame: object) -> None:
 
 
 #: Commands that read point clouds: a reader process is started with the command,
-#: so its start-up overlaps the command's own (:func:`rough_viewer.io.isolate.warm`).
+#: so its start-up overlaps the command's own (:func:`rough_viewer.io.sandbox.isolate.warm`).
 READING_COMMANDS = frozenset({"compute", "report", "zones", "profile", "serve"})
 
 
@@ -86,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         if args.command in READING_COMMANDS and getattr(args, "inputs", None):
-            from rough_viewer.io import isolate
+            from rough_viewer.io.sandbox import isolate
 
             isolate.warm()
         return int(args.func(args) or 0)

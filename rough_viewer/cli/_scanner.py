@@ -29,18 +29,7 @@ from rough_viewer.io.cloud import PointCloud
 from rough_viewer.vocabulary import UNIT_METRES, InputError
 
 if TYPE_CHECKING:
-    from rough_viewer.bias.trust import TrustSettings
-
-#: Options this module adds (to tell whether any was given).
-SCANNER_OPTIONS = ("scanner", "scanners", "noise", "beam_radius", "calibration",
-                   "asperity_radius", "angular_step")
-
-
-#: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
-#: scanners' (about 0.001 deg); finer ones underflow the expected density's square
-#: (``--angular-step 1e-300`` ended in ZeroDivisionError).
-MIN_ANGULAR_STEP_DEG = 1e-6
-
+    from rough_viewer.scanner.trust import TrustSettings
 
 def add_scanner_options(p: argparse.ArgumentParser) -> None:
     """Add the scanner position and calibration options to a command."""
@@ -74,7 +63,7 @@ def apply_scanner_options(cloud: PointCloud, paths: Sequence[Path], args: argpar
                           unit: str) -> PointCloud:
     """The cloud with the positions of ``--scanner`` or ``--scanners`` (in ``unit``),
     which replace any an E57 file gave; else the cloud as it is."""
-    from rough_viewer.io.scanners import (
+    from rough_viewer.scanner.positions import (
         assign_scanners,
         point_source_ids,
         read_scanner_table,
@@ -108,7 +97,11 @@ def _length(value: float | None, option: str, unit: str, *, allow_zero: bool = T
 def trust_settings(args: argparse.Namespace, unit: str) -> TrustSettings:
     """The checked trust settings of the options (lengths given in ``unit``)."""
     from rough_viewer.bias.calibration import calibration
-    from rough_viewer.bias.trust import DEFAULT_ASPERITY_RADIUS_M, TrustSettings
+    from rough_viewer.scanner.trust import (
+        DEFAULT_ASPERITY_RADIUS_M,
+        MIN_ANGULAR_STEP_DEG,
+        TrustSettings,
+    )
 
     noise = _length(getattr(args, "noise", None), "--noise", unit)
     radius = _length(getattr(args, "beam_radius", None), "--beam-radius", unit)

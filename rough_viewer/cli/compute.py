@@ -64,9 +64,9 @@ from rough_viewer.io.table import UNIT_COLUMN
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError, Residual
 
 if TYPE_CHECKING:
-    from rough_viewer.bias.trust import CellTrust, TrustSettings
     from rough_viewer.grid.roughness import GridRoughness
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.scanner.trust import CellTrust, TrustSettings
 
 #: The per-cell table's columns (the contract; defined in :mod:`rough_viewer.grid.table`),
 #: then the unit of its lengths (:data:`rough_viewer.io.table.UNIT_COLUMN`: metres per
@@ -285,7 +285,7 @@ def check_has_values(result: GridRoughness, unit: str, cloud: PointCloud | None)
 def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
              inputs: list[Path], unit: str = "m") -> dict[str, dict[float, Path]]:
     """Every output path of the run by option and grid size, all checked before any work."""
-    from rough_viewer.io.las_out import check_las_output
+    from rough_viewer.io.formats.las_out import check_las_output
     from rough_viewer.io.table import check_table_output
 
     given = {opt: getattr(args, opt) for opt in ("out", "summary_json", "las_out", "ply_out")
@@ -309,9 +309,9 @@ def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSetti
            quiet: bool, unit: str) -> CellTrust | None:
     """The per-cell scanner figures of one grid (printed as a few lines), or None
     when the cloud has no scanner positions (said once, in one line)."""
-    from rough_viewer.bias.trust import cell_trust
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.io.scanners import NO_POSITIONS
+    from rough_viewer.scanner.positions import NO_POSITIONS
+    from rough_viewer.scanner.trust import cell_trust
 
     if cloud is None:  # streamed: no points kept
         return None
@@ -339,8 +339,8 @@ def _write_outputs(outputs: dict[str, dict[float, Path]], g: float, result,
         point_fields,
         table_metadata,
     )
-    from rough_viewer.io.las_out import write_las_fields
-    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.formats.las_out import write_las_fields
+    from rough_viewer.io.formats.ply import write_ply_fields
     from rough_viewer.io.table import write_table
 
     written = []

@@ -13,7 +13,7 @@ d_mean, d_std, rms_mean, z2_mean, jrc_mean, theta_max_c1`` and ``delta_t`` where
 input is a mesh (STL, PLY with faces) or could be triangulated in its best-fit
 plane, then ``h_denoised_mean, h_denoised_std, d_denoised_mean, d_denoised_std,
 rms_std, z2_std, jrc_std, theta_max, c, a0``
-(:data:`rough_viewer.report.directions.TABLE_COLUMNS`, ``EXTRA_COLUMNS``). ``rms``
+(:data:`rough_viewer.directions.table.TABLE_COLUMNS`, ``EXTRA_COLUMNS``). ``rms``
 is in ``--units``; angles in degrees; H, D, Z2, C, A0 and the JRC estimates
 dimensionless. WINDOWS.csv: one row per window and azimuth, ``cx, cy, cz, area,
 azimuth_deg, delta_t, theta_max_c1`` (centre and area in ``--units`` and its
@@ -112,17 +112,14 @@ def no_profile_reasons(sets) -> str:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import report_cloud
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
+    from rough_viewer.directions.table import directions_table
+    from rough_viewer.io.formats.mesh import load_mesh
     from rough_viewer.io.load import load_points
-    from rough_viewer.io.mesh import load_mesh
     from rough_viewer.io.table import check_table_output, write_table
     from rough_viewer.profiles.profile_sets import DEFAULT_MIN_SAMPLES
     from rough_viewer.profiles.wavelets import min_run_length
-    from rough_viewer.report.directions import (
-        DirectionSettings,
-        analyse_directions,
-        directions_table,
-        format_directions,
-    )
+    from rough_viewer.report.directions import format_directions
 
     shortest = min_run_length("db3", 3)
     if args.min_samples is not None and args.min_samples < shortest:

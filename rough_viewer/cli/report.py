@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     warn(report.warnings[len(cloud.warnings):])
     if args.directions is not None:
-        from rough_viewer.report.directions import DirectionSettings, analyse_paths
+        from rough_viewer.directions.analysis import DirectionSettings, analyse_paths
 
         found = analyse_paths(paths, DirectionSettings(step_deg=args.directions),
                               units=args.units,

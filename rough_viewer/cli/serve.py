@@ -24,7 +24,7 @@ WebSocket connections without it, or from pages of another origin, are refused
 open at once, and one whose browser stops reading is closed. Ctrl-C stops it.
 
 Files opened from the browser ("Load file", uploads) are decoded in a child process
-(:mod:`rough_viewer.io.isolate`): a file that crashes its reader is a notice, and the
+(:mod:`rough_viewer.io.sandbox.isolate`): a file that crashes its reader is a notice, and the
 server keeps serving. ``--point-budget`` is the most points a browser tab draws at
 once (level of detail: every point where its camera looks, up to that many);
 ``--max-points``, as in every command that reads a cloud, is the decompression-bomb
@@ -174,7 +174,7 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.io import isolate
+    from rough_viewer.io.sandbox import isolate
 
     isolate.warm(keep=True)  # a reader process ready for every file a browser loads
     from rough_viewer.lod.select import DEFAULT_BUDGET

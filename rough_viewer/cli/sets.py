@@ -341,7 +341,7 @@ def run(args: argparse.Namespace) -> int:
                "las_out", "ply_out")
               if getattr(args, opt)]
     if args.las_out:
-        from rough_viewer.io.las_out import check_las_output
+        from rough_viewer.io.formats.las_out import check_las_output
 
         check_las_output(args.las_out)
     if args.ply_out and Path(args.ply_out).suffix.lower() != ".ply":
@@ -396,8 +396,8 @@ def _write(outputs: dict[str, dict[float, Path]], g: float, sets, result, cloud,
     """Write every output of one grid size; the lines that say so."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.table import cell_columns, table_metadata
-    from rough_viewer.io.las_out import write_las_fields
-    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.formats.las_out import write_las_fields
+    from rough_viewer.io.formats.ply import write_ply_fields
     from rough_viewer.io.table import write_table
     from rough_viewer.structure.sets import set_point_fields
 

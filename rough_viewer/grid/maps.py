@@ -166,9 +166,9 @@ def face_image(raster: FaceRaster, values: np.ndarray, *, reduce: Reduce = "max"
     """
     values = np.asarray(values, dtype=np.float64)
     if values.shape != (raster.pixel.shape[0],):
-        raise InputError(f"values must have shape ({raster.pixel.shape[0]},), got {values.shape}")
+        raise ValueError(f"values must have shape ({raster.pixel.shape[0]},), got {values.shape}")
     if reduce not in ("max", "mean"):
-        raise InputError(f"reduce must be 'max' or 'mean', got {reduce!r}")
+        raise ValueError(f"reduce must be 'max' or 'mean', got {reduce!r}")
     rows, cols = raster.shape
     size = rows * cols
     require(size * BYTES_PER_PIXEL, f"a face-plane image of {cols:,} x {rows:,} pixels "

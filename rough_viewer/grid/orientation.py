@@ -65,7 +65,7 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
     """(M, 3) float64 copy of ``v`` with rows scaled to unit length (NaN rows stay)."""
     a = np.array(v, dtype=np.float64, ndmin=2)
     if a.ndim != 2 or a.shape[1] != 3:
-        raise InputError(f"expected an (M, 3) array of vectors, got shape {np.shape(v)}")
+        raise ValueError(f"expected an (M, 3) array of vectors, got shape {np.shape(v)}")
     with np.errstate(invalid="ignore", divide="ignore"):
         return a / np.linalg.norm(a, axis=1, keepdims=True)
 
@@ -375,13 +375,13 @@ def stereonet(
         raise InputError(f"a stereonet needs at least 3 nodes per axis, got {nodes}")
     n = np.array(normals, dtype=np.float64, ndmin=2)
     if n.ndim != 2 or n.shape[1] != 3:
-        raise InputError(f"expected an (M, 3) array of normals, got shape {np.shape(normals)}")
+        raise ValueError(f"expected an (M, 3) array of normals, got shape {np.shape(normals)}")
     rows = np.flatnonzero(np.all(np.isfinite(n), axis=1) & np.any(n != 0.0, axis=1))
     w = None
     if weights is not None:
         w_all = np.asarray(weights, dtype=np.float64).reshape(-1)
         if w_all.shape[0] != n.shape[0] or not np.all(np.isfinite(w_all) & (w_all >= 0)):
-            raise InputError(f"expected {n.shape[0]} finite weights >= 0, got shape "
+            raise ValueError(f"expected {n.shape[0]} finite weights >= 0, got shape "
                              f"{np.shape(weights)}")
         w = w_all[rows]
     trend, plunge = poles(n[rows], toward)

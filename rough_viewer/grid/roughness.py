@@ -356,7 +356,7 @@ def grid_roughness(
     if prepared is None:
         prepared = prepare_grid(cloud, cell_size, origin=origin, engine=engine)
     elif prepared.index.point_cell.shape[0] != n_total:
-        raise InputError("prepared grid was made for another cloud")
+        raise ValueError("prepared grid was made for another cloud")
     tick(2, 5)
     whole = prepared.whole_plane()
     used_axis: Axis = dominant_axis(whole.normal) if axis == "auto" else axis

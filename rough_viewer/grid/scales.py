@@ -94,12 +94,12 @@ def _sorted_results(results: Sequence[GridRoughness]) -> list[GridRoughness]:
     first = ordered[0]
     for r in ordered[1:]:
         if r.n_points_total != first.n_points_total:
-            raise InputError("the grids were computed on different clouds "
+            raise ValueError("the grids were computed on different clouds "
                              f"({r.n_points_total:,} and {first.n_points_total:,} points)")
         if r.axis != first.axis:
-            raise InputError(f"the grids use different dependent axes ({r.axis} and {first.axis})")
+            raise ValueError(f"the grids use different dependent axes ({r.axis} and {first.axis})")
         if r.min_points != first.min_points:
-            raise InputError("the grids use different minimum points per cell "
+            raise ValueError("the grids use different minimum points per cell "
                              f"({r.min_points} and {first.min_points})")
     return ordered
 
@@ -198,7 +198,7 @@ def point_scales_from_prepared(
     rows: list[tuple[int, int, float, float, float]] = []
     for prep in ordered:
         if prep.index.point_cell.shape[0] != n:
-            raise InputError("a prepared grid was made for another cloud")
+            raise ValueError("a prepared grid was made for another cloud")
         c = int(prep.index.point_cell[p])
         members = np.flatnonzero(prep.index.point_cell == c)
         count = int(members.shape[0])
@@ -257,7 +257,7 @@ class FaceScales:
         if name not in MAPS:
             raise InputError(f"unknown map {name!r}; expected one of {', '.join(MAPS)}")
         if what not in ("mean", "std", "min", "max", "variance", "cells", "mean_points"):
-            raise InputError(f"unknown statistic {what!r}")
+            raise ValueError(f"unknown statistic {what!r}")
         return np.array([getattr(s[name], what) for s in self.summaries], dtype=np.float64)
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from rough_viewer.grid.outliers import outlier_flags
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.vocabulary import TRUST_FIELDS, UNIT_METRES, InputError
 
 #: The scanner columns of the per-cell table (docs/scanner.md), after the roughness
@@ -59,7 +59,7 @@ def cell_columns(result: GridRoughness, *, unit: str = "m",
     (:func:`rough_viewer.grid.outliers.outlier_flags`; the values stay in their
     columns), and the scanner columns :data:`TRUST_COLUMNS` from ``trust`` (per-cell
     arrays aligned with the result's cells, lengths in metres:
-    :meth:`rough_viewer.bias.trust.CellTrust.columns`), all empty without it. Lengths
+    :meth:`rough_viewer.scanner.trust.CellTrust.columns`), all empty without it. Lengths
     in ``unit`` (default metres;
     ``rough_viewer.vocabulary.UNITS``).
     """
@@ -84,7 +84,7 @@ def _trust_columns(trust: Mapping[str, np.ndarray] | None, keep: np.ndarray, row
             continue
         v = np.ma.asanyarray(trust[name]) if name in TRUST_INTEGERS else np.asarray(trust[name])
         if v.shape[0] != keep.shape[0]:
-            raise InputError(f"scanner column {name!r} has {v.shape[0]:,} cells, the result "
+            raise ValueError(f"scanner column {name!r} has {v.shape[0]:,} cells, the result "
                              f"{keep.shape[0]:,}")
         v = v[keep]
         out[name] = v / per if name in TRUST_LENGTHS and per != 1.0 else v
@@ -128,7 +128,7 @@ def point_fields(result: GridRoughness,
     ``theta_hybrid``, ``e_ols`` (float32, metres, NaN where the cell has no value),
     ``cell_ix``, ``cell_iy``, ``cell_iz`` (int32 cell index) and ``cell_points``
     (uint32, points in the cell); with ``trust`` (the scanner columns,
-    :meth:`rough_viewer.bias.trust.CellTrust.columns`) also :data:`TRUST_COLUMNS`:
+    :meth:`rough_viewer.scanner.trust.CellTrust.columns`) also :data:`TRUST_COLUMNS`:
     ``scans`` (uint16), ``trusted`` (int8: 1 trusted, 0 flagged, -1 not judged) and
     the others float32 (lengths in metres, NaN where none).
     """

@@ -272,11 +272,11 @@ def _finite_cells(ijk: np.ndarray, values: np.ndarray) -> _Cells:
     ijk = np.asarray(ijk)
     values = np.asarray(values, dtype=np.float64)
     if ijk.ndim != 2 or ijk.shape[1] not in (2, 3):
-        raise InputError(f"ijk must have shape (M, 2) or (M, 3), got {ijk.shape}")
+        raise ValueError(f"ijk must have shape (M, 2) or (M, 3), got {ijk.shape}")
     if values.shape != (ijk.shape[0],):
-        raise InputError(f"values must have shape ({ijk.shape[0]},), got {values.shape}")
+        raise ValueError(f"values must have shape ({ijk.shape[0]},), got {values.shape}")
     if not np.issubdtype(ijk.dtype, np.integer):
-        raise InputError("ijk must be an integer array of cell indices")
+        raise ValueError("ijk must be an integer array of cell indices")
     ok = np.isfinite(values)
     idx = ijk[ok].astype(np.int64)
     z = values[ok]

@@ -4,15 +4,13 @@ index) and what a reader noticed on the way (warnings)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rough_viewer.vocabulary import InputError, error_line
+from rough_viewer.vocabulary import InputError
 
 #: Largest coordinate magnitude a cloud may have, metres: far beyond any survey
 #: (geocentric coordinates reach 6.4e6 m) and still resolving a micrometre; larger
@@ -153,24 +151,6 @@ def as_xyz(points: Any) -> np.ndarray:
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise InputError(f"points must be an (N, 3) array, got shape {xyz.shape}")
     return xyz
-
-
-@contextmanager
-def read_errors(path: Path) -> Iterator[None]:
-    """Turn what reading ``path`` raises into one InputError line naming it: memory,
-    the OS, malformed content, a LAS library's own error types; an InputError passes."""
-    try:
-        yield
-    except InputError:
-        raise
-    except MemoryError:
-        raise InputError(f"not enough memory to read {path}") from None
-    except (OSError, ValueError, EOFError, KeyError, IndexError) as exc:
-        raise InputError(f"cannot read {path}: {error_line(exc)}") from None
-    except Exception as exc:  # laspy raises its own error types
-        if type(exc).__module__.startswith("laspy") or "Laz" in type(exc).__name__:
-            raise InputError(f"cannot read {path}: {error_line(exc)}") from None
-        raise
 
 
 def finite_cloud(

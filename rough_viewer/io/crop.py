@@ -4,7 +4,7 @@ The box is closed (a point on a face is inside), in metres in the cloud's frame.
 ``keep`` keeps the points inside, ``remove`` keeps those outside. A cropped cloud
 keeps every per-point field (:meth:`rough_viewer.io.cloud.PointCloud.subset`), and
 its mask over the original points says which rows a LAS/LAZ copy keeps
-(:func:`rough_viewer.io.las_out.write_las_fields` ``keep=``).
+(:func:`rough_viewer.io.formats.las_out.write_las_fields` ``keep=``).
 
 >>> import numpy as np
 >>> from rough_viewer.io.cloud import PointCloud

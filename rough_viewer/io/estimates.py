@@ -10,7 +10,7 @@ shape measured (one long line, the longest rows): text readers hold their
 tokens, so their peak depends on the layout of the lines, which cannot be known
 without reading them. A read is refused beforehand when its typical peak cannot
 fit in the memory available (:func:`rough_viewer.memory.require`); the isolated
-reader's address-space limit (:mod:`rough_viewer.io.isolate`) allows the worst
+reader's address-space limit (:mod:`rough_viewer.io.sandbox.isolate`) allows the worst
 case, as far as the memory available allows, so a file of an unusual shape still
 reads and one that asks for more stops with one line instead of taking the
 machine's memory.
@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from rough_viewer.io.costs import COSTS
-from rough_viewer.io.isolate import BUDGET_FLOOR, MARGIN, Limits, time_limit
+from rough_viewer.io.sandbox.isolate import BUDGET_FLOOR, MARGIN, Limits, time_limit
 from rough_viewer.memory import USABLE_SHARE, available_bytes, format_bytes
 from rough_viewer.vocabulary import InputError
 
@@ -126,8 +126,8 @@ def check_plausible(p: Path, declared: int, *, size: int, kind: str, max_points:
 
 def estimate_las(p: Path, max_points: int | None) -> Estimate:
     """LAS/LAZ: the header's point count (raw bytes, checked by
-    :func:`rough_viewer.io.las.check_las_layout`); LAZ through the bomb guard."""
-    from rough_viewer.io.las import check_las_layout
+    :func:`rough_viewer.io.formats.las.check_las_layout`); LAZ through the bomb guard."""
+    from rough_viewer.io.formats.las import check_las_layout
 
     layout = check_las_layout(p)
     if layout.compressed:
@@ -158,8 +158,8 @@ def estimate_text(p: Path, max_points: int | None) -> Estimate:
 
 def estimate_ply(p: Path, max_points: int | None) -> Estimate:
     """PLY: the vertex count of its header (checked by
-    :func:`rough_viewer.io.ply.read_ply_header`)."""
-    from rough_viewer.io.ply import read_ply_header
+    :func:`rough_viewer.io.formats.ply.read_ply_header`)."""
+    from rough_viewer.io.formats.ply import read_ply_header
 
     with open(p, "rb") as fh:
         header = read_ply_header(fh, p)
@@ -172,7 +172,7 @@ def estimate_ply(p: Path, max_points: int | None) -> Estimate:
 
 def estimate_stl(p: Path, max_points: int | None) -> Estimate:
     """STL: binary from its triangle count (three vertices each), ASCII from its size."""
-    from rough_viewer.io.stl import stl_layout
+    from rough_viewer.io.formats.stl import stl_layout
 
     binary, n_tri = stl_layout(p)
     size = p.stat().st_size
@@ -187,11 +187,11 @@ TIFF_CELLS_PER_BYTE = 16
 
 
 def estimate_dem(p: Path, max_points: int | None) -> Estimate:
-    """Elevation rasters (:mod:`rough_viewer.io.dem`): an ESRI ASCII grid from its
+    """Elevation rasters (:mod:`rough_viewer.io.formats.dem`): an ESRI ASCII grid from its
     header's rows and columns (a cell takes at least 2 bytes of text); a GeoTIFF,
     whose header only the isolated reader parses, from its size (4 bytes a cell,
     uncompressed float32), at worst :data:`TIFF_CELLS_PER_BYTE` cells a byte."""
-    from rough_viewer.io.dem import BYTES_PER_CELL, _esri_header, _tifffile
+    from rough_viewer.io.formats.dem import BYTES_PER_CELL, _esri_header, _tifffile
 
     size = p.stat().st_size
     if p.suffix.lower() == ".asc":

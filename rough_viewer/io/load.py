@@ -14,7 +14,7 @@ Supported inputs (by file extension):
   (pye57); intensity, colour, scan index and scanner positions kept.
 - ``.asc`` (ESRI ASCII grid), ``.tif``/``.tiff`` (GeoTIFF, needs the optional
   package tifffile): elevation rasters, one point per cell with a value at the
-  cell's centre (:mod:`rough_viewer.io.dem`).
+  cell's centre (:mod:`rough_viewer.io.formats.dem`).
 
 Units: the cloud is always in metres. A file's coordinates are taken to be in
 ``units`` when given, else in the linear unit of its CRS (LAS/LAZ, GeoTIFF, an ESRI
@@ -32,7 +32,7 @@ Rows with NaN or infinite coordinates are dropped and counted
 Each format is one :class:`Reader` in :data:`READERS`. Before a file is read its
 header is checked and its peak memory estimated (:mod:`rough_viewer.io.estimates`:
 measured figures, the decompression-bomb guard); an ``untrusted`` reader then runs in
-a child process with memory and time limits (:mod:`rough_viewer.io.isolate`), so a
+a child process with memory and time limits (:mod:`rough_viewer.io.sandbox.isolate`), so a
 file that crashes its decoder is one error line, never the end of this process.
 """
 
@@ -46,16 +46,17 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io import estimates, isolate
+from rough_viewer.io import estimates
 from rough_viewer.io.cache import cache_lookup, cache_write
-from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file, read_errors
-from rough_viewer.io.crs import read_crs
-from rough_viewer.io.dem import DEM_SUFFIXES, read_dem
-from rough_viewer.io.e57 import read_e57
-from rough_viewer.io.las import read_las
-from rough_viewer.io.ply import read_ply
-from rough_viewer.io.stl import read_stl
-from rough_viewer.io.text import read_npy, read_text
+from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file
+from rough_viewer.io.formats.crs import read_crs
+from rough_viewer.io.formats.dem import DEM_SUFFIXES, read_dem
+from rough_viewer.io.formats.e57 import read_e57
+from rough_viewer.io.formats.las import read_las
+from rough_viewer.io.formats.ply import read_ply
+from rough_viewer.io.formats.stl import read_stl
+from rough_viewer.io.formats.text import read_npy, read_text
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import (
     UNIT_LABELS,
@@ -64,6 +65,7 @@ from rough_viewer.vocabulary import (
     ProgressFn,
     Unit,
     error_line,
+    foreign_errors,
 )
 
 TEXT_SUFFIXES = (".xyz", ".txt", ".csv", ".pts")
@@ -76,7 +78,7 @@ class Reader:
 
     A new format is one entry in :data:`READERS`. An ``untrusted`` reader (its
     decoder runs native code on bytes anyone can craft) runs in a child process with
-    memory and time limits (:mod:`rough_viewer.io.isolate`).
+    memory and time limits (:mod:`rough_viewer.io.sandbox.isolate`).
     """
 
     label: str
@@ -212,7 +214,7 @@ def load_points(
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     if max_points is not None and max_points < 1:
         raise InputError(f"--max-points must be positive, got {max_points}")
-    with read_errors(p):
+    with foreign_errors(f"cannot read {p}", libraries=("laspy", "lazrs")):
         cloud = _read(p, reader, progress=progress, cache=cache, max_points=max_points)
         unit, z_unit, notes = axis_units(p, units)
         check_coordinates((cloud.x, cloud.y, cloud.z), p,

@@ -132,7 +132,7 @@ class Profile:
         """
         h = self.heights if heights is None else np.asarray(heights, dtype=float)
         if h.shape != self.distance.shape:
-            raise InputError(f"heights must have shape {self.distance.shape}, got {h.shape}")
+            raise ValueError(f"heights must have shape {self.distance.shape}, got {h.shape}")
         f = self.frame
         offset = float((self.start - f.origin) @ f.normal)
         return self.start + self.distance[:, None] * f.along + (h - offset)[:, None] * f.normal

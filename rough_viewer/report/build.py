@@ -14,7 +14,7 @@ from typing import TypeVar
 import numpy as np
 
 from rough_viewer._version import __version__
-from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
+from rough_viewer.directions.analysis import DirectionsResult
 from rough_viewer.grid.maps import FaceMaps, FaceRaster, face_maps, face_raster
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.outliers import analysed_values, outlier_text
@@ -25,8 +25,8 @@ from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, 
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.grid.variogram import Semivariogram, semivariogram
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
-from rough_viewer.report.directions import DirectionsResult
+from rough_viewer.scanner.positions import NO_POSITIONS, cloud_scanners
+from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.structure.sets import JointSets, joint_sets
 from rough_viewer.structure.zones import ZoneLabeller, Zones
 from rough_viewer.vocabulary import (

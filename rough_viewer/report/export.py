@@ -18,12 +18,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.io.output import write_atomic
 from rough_viewer.report.build import Report, build_report
 from rough_viewer.report.html import report_html
 from rough_viewer.report.numbers import report_json
+from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import (
     AXIS_CHOICES,
     DEFAULT_THRESHOLD,
@@ -57,7 +57,7 @@ class ReportSettings:
     ``PointCloud.source_unit``); the numbers stay metres."""
     trust: TrustSettings | None = None
     """Calibration and options of the scanner section, made when the cloud has scanner
-    positions (default: the bias paper's, :class:`rough_viewer.bias.trust.TrustSettings`)."""
+    positions (default: the bias paper's, :class:`rough_viewer.scanner.trust.TrustSettings`)."""
     keep_outliers: bool = False
     """Keep cells whose OLS or hybrid roughness is larger than the cell in every
     statistic and figure (``--keep-outliers``; default: left out and counted,

@@ -93,7 +93,7 @@ def _las_source(p: Path, unit: str, notes: tuple[str, ...], z_unit: str | None =
                 max_points: int | None = None) -> Source:
 
     from rough_viewer.io.estimates import estimate_las
-    from rough_viewer.io.las import laz_backend, open_las
+    from rough_viewer.io.formats.las import laz_backend, open_las
 
     estimate_las(p, max_points)  # the raw header's checks and the decompression-bomb guard
     with open_las(p, laz_backend=laz_backend()) as reader:  # header only: no decoding
@@ -182,7 +182,7 @@ Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 def _file_columns(points, hdr) -> Columns:
     """x, y, z as stored (the file's unit) from a laspy point record:
-    ``X * scale + offset`` per axis, as :func:`rough_viewer.io.las.read_las` computes."""
+    ``X * scale + offset`` per axis, as :func:`rough_viewer.io.formats.las.read_las` computes."""
     scale = np.asarray(hdr.scales, dtype=np.float64)
     offset = np.asarray(hdr.offsets, dtype=np.float64)
     cols = []
@@ -221,7 +221,7 @@ def _from_cache(source: Source, chunk: Chunk) -> Columns | None:
 def _open_las(path: str, *, parallel: bool = True):
     import laspy
 
-    from rough_viewer.io.las import _selection, laz_backend, open_las
+    from rough_viewer.io.formats.las import _selection, laz_backend, open_las
 
     backend = laz_backend()
     if not parallel and backend == laspy.LazBackend.LazrsParallel:
@@ -242,7 +242,7 @@ def decode_las_chunks(p: Path, *, progress: ProgressFn | None = None,
     reader (seeking only where a range does not follow the last): x, y, z as stored
     (the file's unit), and intensity and RGB with ``extras`` (where the point format
     has them). The generator :func:`read_chunk` and :func:`iter_chunks` run in a
-    child process (:func:`rough_viewer.io.isolate.stream_isolated`).
+    child process (:func:`rough_viewer.io.sandbox.isolate.stream_isolated`).
 
     Raises InputError naming the file when it ends before a range (``total``: the
     points its header declares)."""
@@ -272,9 +272,9 @@ def _decoded(source: Source, plan: list[Chunk], *, parallel: bool = True,
              extras: bool = False) -> Generator[dict[str, np.ndarray], None, None]:
     """:func:`decode_las_chunks` of ``plan``, in a child process where reads are
     isolated (memory for the largest chunk, time per chunk)."""
-    from rough_viewer.io import isolate
     from rough_viewer.io.costs import COSTS
     from rough_viewer.io.load import reader_for
+    from rough_viewer.io.sandbox import isolate
 
     ranges = [[c.start, c.stop] for c in plan]
     options = {"plan": ranges, "parallel": parallel, "extras": extras,
@@ -400,7 +400,7 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
     """Refuse files that cannot be one cloud: different CRSs or different units.
 
     Two files differ in CRS when both declare one (LAS/LAZ WKT or GeoTIFF keys, read
-    by :func:`rough_viewer.io.crs.read_crs`) and their EPSG codes (or, without
+    by :func:`rough_viewer.io.formats.crs.read_crs`) and their EPSG codes (or, without
     codes, their descriptions) differ; in unit when the units they are read in
     (``units``, else each CRS's linear unit, else metres) differ.
 
@@ -417,7 +417,7 @@ def check_compatible(paths: Sequence[str | os.PathLike[str]], *, units: Unit | N
     InputError
         Naming the two files and what differs.
     """
-    from rough_viewer.io.crs import read_crs
+    from rough_viewer.io.formats.crs import read_crs
     from rough_viewer.io.load import resolve_units
 
     if len(paths) < 2:

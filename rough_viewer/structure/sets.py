@@ -107,7 +107,7 @@ from rough_viewer.grid.orientation import (
 )
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.cloud import PointCloud, as_columns
-from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.memory import require
 from rough_viewer.structure.face import (
     DEFAULT_FACE_RADIUS_CELLS,
@@ -1175,7 +1175,7 @@ def set_point_fields(sets: JointSets, result: GridRoughness) -> PointFields:
     (uint8, 0 = in no set), ``plane_id`` (int32, 0 = in no plane) and ``joint_id``
     (int32, 0 = in no joint) of every point's cell (0 for a point in no cell)."""
     if sets.cell_set.shape[0] != result.n_cells:
-        raise InputError("the joint sets are of another grid result")
+        raise ValueError("the joint sets are of another grid result")
     return PointFields(fields=(
         CellField("set_id", sets.cell_set.astype(np.uint8), "joint set id (0 = none)",
                   np.uint8(0)),

@@ -314,7 +314,7 @@ class ZoneLabeller:
         res = self.result
         labels = np.asarray(labels, dtype=np.int32)
         if labels.shape != (res.n_cells,):
-            raise InputError(f"labels must have shape ({res.n_cells},), got {labels.shape}")
+            raise ValueError(f"labels must have shape ({res.n_cells},), got {labels.shape}")
         sel = np.flatnonzero(labels > 0)
         zi = labels[sel].astype(np.int64) - 1
         n_z = int(labels.max()) if labels.size else 0

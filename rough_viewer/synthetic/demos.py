@@ -150,7 +150,7 @@ def demo_angular_step(name: str) -> float:
 
 def _with_demo_scanner(name: str, cloud: PointCloud) -> PointCloud:
     """A bundled outcrop's cloud with its spec's scanner position (one scan)."""
-    from rough_viewer.io.scanners import with_scanner
+    from rough_viewer.scanner.positions import with_scanner
 
     return with_scanner(cloud, _OUTCROPS[name][1].scanner)
 

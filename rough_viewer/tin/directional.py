@@ -45,7 +45,7 @@ import numpy as np
 
 from rough_viewer.grid.maps import FaceFrame, Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.memory import require
 from rough_viewer.tin.surface import facets
 from rough_viewer.vocabulary import InputError, ProgressFn
@@ -379,7 +379,7 @@ def directional_roughness(
     A sawtooth of 30-degree facets along x has ``theta*max/(C+1) = Delta-T = 30``
     degrees along and against the teeth, and 0 along the ridges:
 
-    >>> from rough_viewer.io.mesh import TriangleMesh
+    >>> from rough_viewer.io.formats.mesh import TriangleMesh
     >>> x = np.arange(9.0); z = np.tan(np.radians(30.0)) * (x % 2)
     >>> xx, yy = np.meshgrid(x, np.arange(3.0))
     >>> zz = np.broadcast_to(z, xx.shape)
@@ -470,9 +470,9 @@ def facet_roughness(
     a = np.asarray(areas, dtype=np.float64).ravel()
     g = np.asarray(group, dtype=np.int64).ravel()
     if not (m.shape[0] == a.shape[0] == g.shape[0]):
-        raise InputError("facet normals, areas and groups must have one row per facet")
+        raise ValueError("facet normals, areas and groups must have one row per facet")
     if g.size and (g.min() < 0 or g.max() >= n_groups):
-        raise InputError(f"facet groups must lie in 0..{n_groups - 1}")
+        raise ValueError(f"facet groups must lie in 0..{n_groups - 1}")
     require(m.shape[0] * PAIR_BYTES, f"the apparent dips of {m.shape[0]:,} triangles")
     k = int(n_groups)
     eye = np.eye(3)

@@ -23,7 +23,7 @@ from rough_viewer.grid.maps import Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.grid.spacing import neighbour_distance
 from rough_viewer.io.cloud import PointCloud, as_xyz
-from rough_viewer.io.mesh import TriangleMesh, check_mesh
+from rough_viewer.io.formats.mesh import TriangleMesh, check_mesh
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, error_line
 

@@ -98,7 +98,7 @@ DEFAULT_COLORMAPS: dict[str, str] = {
     "e_ols": "magma",
     "intensity": "gray",
     "distance": "coolwarm",
-    # the per-cell scanner figures (rough_viewer.bias.trust, docs/scanner.md):
+    # the per-cell scanner figures (rough_viewer.scanner.trust, docs/scanner.md):
     # quantities that only grow sequential, ratios about 1 and biases about 0 diverging
     "scans": "viridis",
     "range": "viridis",

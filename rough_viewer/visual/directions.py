@@ -2,7 +2,7 @@
 circular windows, and the profile lines to draw on the rock.
 
 Pure functions: the ``DIRECTIONS.csv`` table
-(:func:`rough_viewer.report.directions.directions_table`, a dict of columns),
+(:func:`rough_viewer.directions.table.directions_table`, a dict of columns),
 :class:`rough_viewer.tin.directional.WindowRoughness` or the profile sets in, a
 plotly figure or plain arrays out. Azimuths are drawn as they are defined:
 counter-clockwise from the face's ``u`` axis (0 degrees, to the right) towards its

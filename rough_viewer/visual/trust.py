@@ -1,4 +1,4 @@
-"""Figures of the per-cell scanner trust (:mod:`rough_viewer.bias.trust`,
+"""Figures of the per-cell scanner trust (:mod:`rough_viewer.scanner.trust`,
 docs/scanner.md): which cells are trusted and why not, and the predicted bias, on
 the face plane."""
 
@@ -10,8 +10,8 @@ import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from rough_viewer.bias.trust import FLAG_INCIDENCE, FLAG_NOISE, FLAG_RANGE, CellTrust
 from rough_viewer.grid.maps import FaceRaster, face_image
+from rough_viewer.scanner.trust import FLAG_INCIDENCE, FLAG_NOISE, FLAG_RANGE, CellTrust
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.grid import _display_image, _title
 from rough_viewer.vocabulary import unit_scale

@@ -8,8 +8,8 @@ import pytest
 
 from rough_viewer.app.features.profile.directions import DirectionsFeature
 from rough_viewer.app.server import build_app
+from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
 from rough_viewer.io import PointCloud
-from rough_viewer.report.directions import DirectionSettings, analyse_directions
 from rough_viewer.synthetic.fbm import fbm_sheet
 
 

@@ -223,7 +223,7 @@ def _export_dirs() -> set[str]:
 
 
 def test_a_failure_mid_write_sends_nothing_and_leaves_nothing(exported, monkeypatch):
-    from rough_viewer.io import las_out
+    from rough_viewer.io.formats import las_out
     from rough_viewer.io.output import write_path_atomic
 
     app, client, _ = exported

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from rough_viewer.io import isolate
+from rough_viewer.io.sandbox import isolate
 from tests.app.protocol import ProtocolClient
 from tests.app.serve_process import ServeProcess
 from tests.helpers import face_cloud

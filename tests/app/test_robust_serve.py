@@ -15,7 +15,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 
 from rough_viewer.app.gate import open_server
-from rough_viewer.io import isolate
+from rough_viewer.io.sandbox import isolate
 from tests.app.browser import wait_until
 from tests.app.protocol import SUBPROTOCOL, ProtocolClient
 from tests.app.serve_process import ServeProcess

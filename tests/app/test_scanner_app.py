@@ -8,9 +8,9 @@ import pytest
 
 from rough_viewer.app.server import build_app
 from rough_viewer.app.settings import MapSettings
-from rough_viewer.bias.trust import TrustSettings, cell_trust
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.io import PointCloud
+from rough_viewer.scanner.trust import TrustSettings, cell_trust
 from rough_viewer.visual.layers import trust_layer
 from rough_viewer.vocabulary import COLOUR_LAYER_LABELS, COLOUR_LAYERS, TRUST_FIELDS
 from tests.app.protocol import pick, shown_colours
@@ -91,7 +91,7 @@ def test_the_exports_carry_the_scanner_columns_compute_writes(server, tmp_path):
     from rough_viewer.app.features import export as em
     from rough_viewer.cli import main
     from rough_viewer.io import load_points
-    from rough_viewer.io.scanners import with_scanner
+    from rough_viewer.scanner.positions import with_scanner
     from tests.app.protocol import ProtocolClient
 
     rays = ray_grid(SCANNER, np.array([0.0, 0.0, 1.0]), 0.2, step=2e-3)

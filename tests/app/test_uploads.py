@@ -213,10 +213,10 @@ def test_an_uploaded_stl_keeps_its_mesh_through_a_crop(live, tmp_path):
     crop uses the triangles of the vertices it keeps."""
     from rough_viewer.app.features.crop import CropFeature, CropJob
     from rough_viewer.app.features.profile.directions import DirectionsFeature
+    from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
     from rough_viewer.io import load_points
     from rough_viewer.io.crop import CropBox, crop_mask
-    from rough_viewer.io.mesh import load_mesh
-    from rough_viewer.report.directions import DirectionSettings, analyse_directions
+    from rough_viewer.io.formats.mesh import load_mesh
     from tests.io.test_mesh import write_binary_stl
 
     app, client, _ = live

@@ -11,12 +11,9 @@ import numpy as np
 import pytest
 
 from rough_viewer.cli import main
+from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
+from rough_viewer.directions.table import directions_table
 from rough_viewer.io.load import load_points
-from rough_viewer.report.directions import (
-    DirectionSettings,
-    analyse_directions,
-    directions_table,
-)
 from rough_viewer.synthetic.fbm import fbm_surface
 from tests.io.test_mesh import write_binary_stl
 
@@ -80,7 +77,7 @@ def test_directions_csv_contract_on_a_sawtooth_mesh(sawtooth_stl, tmp_path, caps
     assert cols["rms_mean"][6] < 1e-3 and cols["z2_mean"][6] < 1e-3
     # the numbers are those of the API, in mm where they are lengths
     cloud = load_points(sawtooth_stl, units="mm")
-    from rough_viewer.io.mesh import load_mesh
+    from rough_viewer.io.formats.mesh import load_mesh
 
     settings = DirectionSettings(step_deg=15.0, sample_spacing=float(step) * 1e-3)
     api = directions_table(analyse_directions(cloud, settings,

@@ -9,13 +9,13 @@ import json
 import numpy as np
 import pytest
 
-from rough_viewer.bias.trust import TrustSettings, cell_trust
 from rough_viewer.cli import build_parser, main
 from rough_viewer.cli.compute import CSV_COLUMNS
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.table import TRUST_COLUMNS
 from rough_viewer.io import load_points, read_las_extra
-from rough_viewer.io.scanners import NO_POSITIONS, with_scanner
+from rough_viewer.scanner.positions import NO_POSITIONS, with_scanner
+from rough_viewer.scanner.trust import TrustSettings, cell_trust
 from tests.helpers import ray_grid, scan_plane
 
 SCANNER = np.array([2.0, -1.0, 1.5])

@@ -1,6 +1,6 @@
 """Readers that fail on purpose, for testing the isolation itself (tests/io/test_isolate.py):
 the child process imports them by name (``tests.io.crashers:segfault``), the test-only
-hook of :func:`rough_viewer.io.isolate.read_isolated`. Never imported by the package.
+hook of :func:`rough_viewer.io.sandbox.isolate.read_isolated`. Never imported by the package.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.io import cache, load_points
-from rough_viewer.io.las import write_las
+from rough_viewer.io.formats.las import write_las
 from tests.helpers import face_cloud
 
 

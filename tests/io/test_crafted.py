@@ -13,9 +13,10 @@ import pytest
 
 from rough_viewer.cli import main
 from rough_viewer.cli._inputs import expand_inputs
-from rough_viewer.io import isolate, load_points
+from rough_viewer.io import load_points
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.las import write_las
+from rough_viewer.io.formats.las import write_las
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.vocabulary import InputError
 from tests.io import crafted
 
@@ -244,7 +245,7 @@ def test_the_las_output_of_two_runs_is_exclusive_too(tmp_path):
 def test_extra_dimensions_and_point_source_ids_decode_in_the_child_too(tmp_path, capsys):
     """bias normalise --truth-dim and --scanners decode the file again: isolated too."""
     from rough_viewer.io import read_las_extra
-    from rough_viewer.io.scanners import point_source_ids
+    from rough_viewer.scanner.positions import point_source_ids
 
     bad = crafted.laz_ff_chunk(tmp_path / "ff.laz")
     with pytest.raises(InputError, match="the LAS/LAZ reader crashed .* on .*ff.laz"):
@@ -258,12 +259,13 @@ def test_extra_dimensions_and_point_source_ids_decode_in_the_child_too(tmp_path,
     assert point_source_ids(good).tolist() == [0] * 300
 
 
-@needs_isolation
-def test_a_mesh_declaring_4e9_faces_stops_at_its_memory_limit(tmp_path):
-    """plyfile would allocate 52 GB for the faces of a 200-byte PLY (directions, report)."""
+def test_a_mesh_declaring_4e9_faces_is_refused_before_any_allocation(tmp_path):
+    """plyfile would allocate 52 GB for the faces of a 200-byte PLY (directions, report);
+    the reader checks the count against the bytes the file holds (in the child, where
+    reads are isolated, and without it alike)."""
     import struct
 
-    from rough_viewer.io.mesh import load_mesh
+    from rough_viewer.io.formats.mesh import load_mesh
 
     path = tmp_path / "faces.ply"
     path.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
@@ -271,5 +273,6 @@ def test_a_mesh_declaring_4e9_faces_stops_at_its_memory_limit(tmp_path):
                      b"property list uchar int vertex_indices\nend_header\n"
                      + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + bytes([3])
                      + struct.pack("<3i", 0, 1, 2))
-    with pytest.raises(InputError, match="the PLY reader went past its memory limit of"):
+    with pytest.raises(InputError, match="declares 4,000,000,000 face records but the file "
+                                         "holds at most 13"):
         load_mesh(path)

@@ -11,7 +11,7 @@ from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.table import point_fields
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.crop import CropBox, crop_cloud, crop_mask
-from rough_viewer.io.las_out import write_las_fields
+from rough_viewer.io.formats.las_out import write_las_fields
 from rough_viewer.vocabulary import InputError
 from tests.io.test_las_out import make_pf3  # LAS 1.2 format 3, every kind of dimension
 

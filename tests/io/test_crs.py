@@ -1,4 +1,4 @@
-"""io/crs.py: the CRS and linear unit of LAS/LAZ files, from WKT and GeoTIFF records
+"""io/formats/crs.py: the CRS and linear unit of LAS/LAZ files, from WKT and GeoTIFF records
 written here byte by byte."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ import laspy
 import numpy as np
 import pytest
 
-from rough_viewer.io.crs import CrsInfo, parse_geotiff_keys, parse_wkt_crs, read_crs
+from rough_viewer.io.formats import crs as crs_module
+from rough_viewer.io.formats.crs import CrsInfo, parse_geotiff_keys, parse_wkt_crs, read_crs
 
 WKT_FT = (
     'PROJCS["NAD83 / California zone 3 (ftUS)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",'
@@ -25,6 +26,36 @@ WKT2_M = (
     'CS[Cartesian,2],AXIS["easting",east,ORDER[1],LENGTHUNIT["metre",1]],'
     'AXIS["northing",north,ORDER[2],LENGTHUNIT["metre",1]],ID["EPSG",32610]]'
 )
+
+
+#: A compound CRS (WKT 1): UTM 11N in metres, NAVD88 heights in US survey feet.
+WKT_COMPOUND = (
+    'COMPD_CS["NAD83 / UTM zone 11N + NAVD88 height (ftUS)",PROJCS["NAD83 / UTM zone 11N",'
+    'GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],'
+    'PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
+    'PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",-117],'
+    'PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],'
+    'PARAMETER["false_northing",0],UNIT["metre",1],AUTHORITY["EPSG","26911"]],'
+    'VERT_CS["NAVD88 height (ftUS)",VERT_DATUM["North American Vertical Datum 1988",2005],'
+    'UNIT["US survey foot",0.304800609601219],AXIS["Up",UP]]]'
+)
+#: The same in WKT 2.
+WKT2_COMPOUND = (
+    'COMPOUNDCRS["UTM 10N + height (ft)",' + WKT2_M + ','
+    'VERTCRS["NAVD88 height (ft)",VDATUM["North American Vertical Datum 1988"],'
+    'CS[vertical,1],AXIS["gravity-related height (H)",up,LENGTHUNIT["foot",0.3048]]]]'
+)
+
+
+@pytest.fixture(params=["pyproj", "fallback"])
+def wkt_reader(request, monkeypatch):
+    """Each CRS test twice: through pyproj (where installed) and through the reader
+    here, pyproj forced off."""
+    if request.param == "pyproj":
+        pytest.importorskip("pyproj")
+    else:
+        monkeypatch.setattr(crs_module, "_pyproj", lambda: None)
+    return request.param
 
 
 def _geokeys(entries: list[tuple[int, int, int, int]]) -> bytes:
@@ -46,7 +77,7 @@ def _las_with(tmp_path, name: str, vlrs: list[laspy.VLR], *, version="1.2", fmt=
     return path
 
 
-def test_wkt_units_by_conversion_factor():
+def test_wkt_units_by_conversion_factor(wkt_reader):
     assert parse_wkt_crs(WKT_FT).unit == "us-ft"
     assert parse_wkt_crs(WKT_FT).epsg == 2227
     info = parse_wkt_crs(WKT2_M)
@@ -57,7 +88,7 @@ def test_wkt_units_by_conversion_factor():
     assert ft.unit == "ft" and ft.epsg is None
 
 
-def test_geotiff_keys_units_and_codes():
+def test_geotiff_keys_units_and_codes(wkt_reader):
     # projected, EPSG 2227, ProjLinearUnits 9003 (US survey foot), vertical 9002 (foot)
     info = parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 2227), (3076, 0, 1, 9003),
                                         (4099, 0, 1, 9002)]))
@@ -70,6 +101,54 @@ def test_geotiff_keys_units_and_codes():
     assert (info.unit, info.epsg, info.description) == ("m", None, "my local grid")
     # a UTM code alone gives metres
     assert parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 32611)])).unit == "m"
+
+
+def test_compound_crs_gives_its_vertical_unit(wkt_reader):
+    info = parse_wkt_crs(WKT_COMPOUND)
+    assert (info.unit, info.vertical_unit, info.epsg, info.geographic) == ("m", "us-ft", 26911, False)
+    info = parse_wkt_crs(WKT2_COMPOUND)
+    assert (info.unit, info.vertical_unit, info.epsg, info.geographic) == ("m", "ft", 32610, False)
+    vertical = parse_wkt_crs('VERT_CS["h",VERT_DATUM["d",2005],UNIT["foot",0.3048]]')
+    assert vertical.vertical_unit == "ft"
+
+
+def test_pyproj_reads_what_the_fallback_cannot():
+    """A bound CRS (WKT 1 with TOWGS84) whose unit sits after a nested GEOGCS, and a
+    GeoTIFF vertical CRS given by its EPSG code alone: PROJ knows both."""
+    pytest.importorskip("pyproj")
+    bound = parse_wkt_crs(
+        'PROJCS["x",GEOGCS["g",DATUM["d",SPHEROID["s",6378137,298.25],TOWGS84[0,0,0,0,0,0,0]],'
+        'PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],'
+        'PROJECTION["Transverse_Mercator"],UNIT["foot",0.3048],AUTHORITY["EPSG","2229"]]')
+    assert (bound.unit, bound.epsg, bound.geographic) == ("ft", 2229, False)
+    # VerticalCSTypeGeoKey 6360 (NAVD88 height (ftUS)), no VerticalUnitsGeoKey
+    keys = parse_geotiff_keys(_geokeys([(1024, 0, 1, 1), (3072, 0, 1, 26911), (4096, 0, 1, 6360)]))
+    assert (keys.unit, keys.vertical_unit) == ("m", "us-ft")
+
+
+def test_a_las_compound_crs_is_parsed_in_the_reader_child(tmp_path, monkeypatch):
+    """With reads isolated, the WKT of a LAS file (pyproj or not) is parsed in the
+    child: the parent's parser is never called, and z in US feet converts."""
+    pytest.importorskip("pyproj")
+    from rough_viewer.io.load import axis_units
+    from rough_viewer.io.sandbox import isolate
+
+    if not isolate.available():
+        pytest.skip("reads are not isolated here")
+
+    def not_here():
+        raise AssertionError("pyproj asked for in the parent")
+
+    monkeypatch.setattr(crs_module, "_pyproj", not_here)
+    path = _las_with(tmp_path, "compound.las",
+                     [laspy.VLR("LASF_Projection", 2112, "", WKT_COMPOUND.encode() + b"\0")],
+                     version="1.4", fmt=6)
+    info = read_crs(path)
+    assert (info.unit, info.vertical_unit, info.epsg, info.source) == ("m", "us-ft", 26911, "wkt")
+    assert axis_units(path, None)[:2] == ("m", "us-ft")
+    gt = _las_with(tmp_path, "gt.las", [laspy.VLR("LASF_Projection", 34735, "", _geokeys(
+        [(1024, 0, 1, 1), (3072, 0, 1, 26911), (4096, 0, 1, 6360)]))])
+    assert read_crs(gt).vertical_unit == "us-ft"  # the EPSG look-up ran in the child too
 
 
 def test_read_crs_from_las_records(tmp_path):

@@ -1,4 +1,4 @@
-"""io/dem.py: elevation rasters as points, each cell centre one point, nodata dropped,
+"""io/formats/dem.py: elevation rasters as points, each cell centre one point, nodata dropped,
 the georeferencing honoured; files written here byte by byte (ESRI ASCII) or with
 tifffile's writer and the GeoTIFF tags set by hand."""
 
@@ -11,8 +11,8 @@ import pytest
 
 from rough_viewer.cli import main
 from rough_viewer.io import load_points
-from rough_viewer.io.crs import read_crs
-from rough_viewer.io.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
+from rough_viewer.io.formats.crs import read_crs
+from rough_viewer.io.formats.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
 from rough_viewer.vocabulary import InputError
 from tests.io import crafted
 

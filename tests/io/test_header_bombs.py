@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.io import isolate, load_points
-from rough_viewer.io.crs import read_crs
-from rough_viewer.io.las import MAX_CRS_RECORD_BYTES, MAX_VLRS, check_las_layout
+from rough_viewer.io import load_points
+from rough_viewer.io.formats.crs import read_crs
+from rough_viewer.io.formats.las import MAX_CRS_RECORD_BYTES, MAX_VLRS, check_las_layout
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.vocabulary import InputError
 from tests.io import crafted
 from tests.io.test_crs import WKT_FT

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rough_viewer.io import isolate
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.isolate import Limits, read_isolated, stream_isolated
+from rough_viewer.io.sandbox import isolate
+from rough_viewer.io.sandbox.isolate import Limits, read_isolated, stream_isolated
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
 
@@ -188,7 +188,7 @@ def test_a_read_under_ulimit_v_asks_no_more_than_the_hard_limit(tmp_path):
     path.write_bytes(b"anything")
     script = (
         "import resource, sys\n"
-        "from rough_viewer.io.isolate import Limits, read_isolated\n"
+        "from rough_viewer.io.sandbox.isolate import Limits, read_isolated\n"
         "hard = 6 << 30\n"
         "resource.setrlimit(resource.RLIMIT_AS, (hard, hard))\n"
         "cloud = read_isolated('tests.io.crashers:reads', sys.argv[1], label='LAZ',\n"
@@ -203,7 +203,7 @@ def test_a_read_under_ulimit_v_asks_no_more_than_the_hard_limit(tmp_path):
 
 def test_the_address_limit_is_the_lower_of_the_wanted_and_the_hard_limit():
     script = ("import resource\n"
-              "from rough_viewer.io._child import address_limit\n"
+              "from rough_viewer.io.sandbox._child import address_limit\n"
               "resource.setrlimit(resource.RLIMIT_AS, (5 << 30, 5 << 30))\n"
               "print(address_limit(64 << 30), address_limit(1 << 30))\n")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,

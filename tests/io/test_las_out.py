@@ -16,8 +16,8 @@ from rough_viewer.cli import main
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.table import NO_CELL, POINT_FIELD_NAMES, point_fields
 from rough_viewer.io import load_points
-from rough_viewer.io.las_out import coordinate_scale, copy_las_with_fields, write_las_fields
-from rough_viewer.io.point_fields import CellField, PointFields
+from rough_viewer.io.formats.las_out import coordinate_scale, copy_las_with_fields, write_las_fields
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.vocabulary import InputError
 from tests.helpers import rough_surface
 

@@ -8,8 +8,8 @@ from plyfile import PlyData, PlyElement
 
 from rough_viewer.cli import main
 from rough_viewer.io import load_points
-from rough_viewer.io.mesh import check_mesh, load_mesh
-from rough_viewer.io.stl import read_stl, read_stl_mesh
+from rough_viewer.io.formats.mesh import check_mesh, load_mesh
+from rough_viewer.io.formats.stl import read_stl, read_stl_mesh
 from rough_viewer.vocabulary import InputError
 
 # a 3 x 3 grid of vertices, 8 triangles, z = x y
@@ -138,5 +138,42 @@ def test_a_crop_of_the_vertices_keeps_the_triangles_of_kept_corners():
     np.testing.assert_array_equal(got.vertices, GRID[keep])
     assert triangles_as_sets(got.vertices, got.faces) == triangles_as_sets(GRID, np.array(want))
     assert mesh.kept(GRID[:, 0] == 0.0) is None  # a line of vertices: no triangle
-    with pytest.raises(InputError, match="cannot crop a mesh of 9 vertices"):
+    with pytest.raises(ValueError, match="cannot crop a mesh of 9 vertices") as bug:
         mesh.kept(np.ones(4, dtype=bool))
+    assert type(bug.value) is ValueError  # the caller's mistake, not the user's
+
+
+@pytest.mark.parametrize("byte_order", ["<", ">", "="])
+def test_ply_faces_after_other_elements_and_with_more_properties(tmp_path, byte_order):
+    """An element before the vertices, a face property beside the lists, either byte
+    order and ASCII ("="): the faces as plyfile (the writer here) wrote them."""
+    rng = np.random.default_rng(4)
+    vertex = np.array([(*v, k) for k, v in enumerate(GRID)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"),
+                                                       ("w", "u1")])
+    meta = np.array([(1.5, 7), (2.5, 8)], dtype=[("a", "f8"), ("b", "i2")])
+    faces = np.empty(len(TRIS) + 1, dtype=[("flag", "u1"), ("vertex_index", "O")])
+    for k, f in enumerate(TRIS):
+        faces[k] = (rng.integers(0, 9), np.asarray(f, dtype=np.uint32))
+    faces[len(TRIS)] = (1, np.array([0, 1, 2, 5, 4], dtype=np.uint32))  # a pentagon: 3 triangles
+    path = tmp_path / "more.ply"
+    PlyData([PlyElement.describe(meta, "meta"), PlyElement.describe(vertex, "vertex"),
+             PlyElement.describe(faces, "face", val_types={"vertex_index": "uint32"})],
+            text=byte_order == "=", byte_order=byte_order if byte_order != "=" else "<"
+            ).write(str(path))
+    mesh = load_mesh(path)
+    np.testing.assert_array_equal(mesh.vertices, GRID.astype(np.float32))
+    want = np.vstack([TRIS, [[0, 1, 2], [0, 2, 5], [0, 5, 4]]])
+    np.testing.assert_array_equal(mesh.faces, want)
+
+
+def test_a_ply_ending_inside_its_faces_is_one_line(tmp_path):
+    vertex = np.array([tuple(v) for v in GRID], dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
+    faces = np.empty(2, dtype=[("vertex_indices", "O")])
+    faces["vertex_indices"][0] = np.array([0, 1, 4, 3], dtype=np.int32)
+    faces["vertex_indices"][1] = np.array([1, 2, 5], dtype=np.int32)
+    path = tmp_path / "cut.ply"
+    PlyData([PlyElement.describe(vertex, "vertex"), PlyElement.describe(faces, "face")]
+            ).write(str(path))
+    path.write_bytes(path.read_bytes()[:-6])
+    with pytest.raises(InputError, match="PLY file is truncated"):
+        load_mesh(path)

@@ -10,7 +10,7 @@ from rough_viewer.cli import main
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.table import POINT_FIELD_NAMES, point_fields
 from rough_viewer.io import PointCloud, load_points
-from rough_viewer.io.ply import write_ply_fields
+from rough_viewer.io.formats.ply import write_ply_fields
 from tests.helpers import rough_surface
 
 OFFSET = np.array([512_000.123456789, 4_170_000.987654321, 100.5])

@@ -81,7 +81,7 @@ def test_header_only_and_pickled_npy_are_one_line(tmp_path, capfd):
 def test_npy_columns_are_read_straight_from_the_file(tmp_path, monkeypatch, layout):
     """Every plain numeric layout reads into the same float64 columns as np.load gives,
     block by block (blocks made small here), non-finite rows dropped across blocks."""
-    import rough_viewer.io.text as text
+    import rough_viewer.io.formats.text as text
 
     monkeypatch.setattr(text, "NPY_BLOCK_ROWS", 1000)
     rng = np.random.default_rng(1)

@@ -8,15 +8,10 @@ import numpy as np
 import pytest
 
 from rough_viewer.cli import main
+from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
+from rough_viewer.directions.table import EXTRA_COLUMNS, TABLE_COLUMNS, directions_table
 from rough_viewer.io import PointCloud
-from rough_viewer.report.directions import (
-    EXTRA_COLUMNS,
-    TABLE_COLUMNS,
-    DirectionSettings,
-    analyse_directions,
-    directions_dict,
-    directions_table,
-)
+from rough_viewer.report.directions import directions_dict
 from rough_viewer.synthetic.fbm import fbm_sheet
 
 

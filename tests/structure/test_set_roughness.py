@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.profiles.jrc import jrc_from_z2
 from rough_viewer.structure.set_roughness import cell_odr_statistics, set_roughness
 from rough_viewer.structure.sets import joint_sets

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.maps import FacePlane
-from rough_viewer.io.mesh import TriangleMesh
+from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.tin.directional import (
     apparent_dips,
     azimuths,

@@ -5,12 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rough_viewer.directions.analysis import DirectionSettings, analyse_directions
+from rough_viewer.directions.table import directions_table
 from rough_viewer.io import PointCloud
-from rough_viewer.report.directions import (
-    DirectionSettings,
-    analyse_directions,
-    directions_table,
-)
 from rough_viewer.synthetic.fbm import fbm_sheet
 from rough_viewer.visual.directions import (
     directions_table_figure,

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rough_viewer.bias.trust import FLAG_INCIDENCE, FLAG_NOISE, TrustSettings, cell_trust
 from rough_viewer.grid.maps import face_raster
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.io import PointCloud
-from rough_viewer.io.scanners import with_scanner
+from rough_viewer.scanner.positions import with_scanner
+from rough_viewer.scanner.trust import FLAG_INCIDENCE, FLAG_NOISE, TrustSettings, cell_trust
 from rough_viewer.visual import colormaps
 from rough_viewer.visual.layers import trust_layer
 from rough_viewer.visual.trust import TRUST_CLASSES, trust_codes, trust_map_figure

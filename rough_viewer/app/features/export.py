@@ -5,7 +5,7 @@ file transfer on the app's WebSocket, so it works when the server runs on anothe
 machine; the browser saves it at once, no link to click):
 
 - **points**: every point with its cell's roughness as LAS/LAZ extra dimensions or
-  PLY properties (:mod:`rough_viewer.io.las_out`, :mod:`rough_viewer.io.ply`); a
+  PLY properties (:mod:`rough_viewer.io.formats.las_out`, :mod:`rough_viewer.io.formats.ply`); a
   cloud read from a LAS/LAZ file on the server is copied from that file with all its
   dimensions, VLRs (the CRS) and EVLRs, as ``compute --las-out`` does;
 - **cell table**: CSV, or Parquet when pyarrow is installed (the ``compute --out``
@@ -63,8 +63,8 @@ from rough_viewer.app.views import camera_of, view_of
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io import PointCloud
+from rough_viewer.io.formats.point_fields import CellField, PointFields
 from rough_viewer.io.output import check_output_path, path_in_folder, write_atomic
-from rough_viewer.io.point_fields import CellField, PointFields
 from rough_viewer.memory import format_bytes, require
 from rough_viewer.report.view import Camera, InputRef, file_sha256, view_text
 from rough_viewer.visual.export import FORMATS_NOTE, figure_formats, figure_title
@@ -282,8 +282,8 @@ def _stem(cloud: PointCloud) -> str:
 
 def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
     from rough_viewer.grid.table import POINT_LENGTH_FIELDS, point_fields
-    from rough_viewer.io.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
-    from rough_viewer.io.ply import write_ply_fields
+    from rough_viewer.io.formats.las_out import LAS_SUFFIXES, copy_las_with_fields, write_las_points
+    from rough_viewer.io.formats.ply import write_ply_fields
 
     assert shown.result is not None
     cloud, result = shown.loaded.cloud, shown.result

@@ -49,7 +49,7 @@ from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.io.point_fields import CellField
+from rough_viewer.io.formats.point_fields import CellField
 from rough_viewer.report.view import (
     SET_COLOUR_BY,
     SET_CONE_DEG_RANGE,

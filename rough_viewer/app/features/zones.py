@@ -67,7 +67,7 @@ from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.threshold import map_threshold_advice, zone_threshold
-from rough_viewer.io.point_fields import CellField
+from rough_viewer.io.formats.point_fields import CellField
 from rough_viewer.memory import require
 from rough_viewer.report.view import View, ZoneSettings
 from rough_viewer.structure.zones import ZoneLabeller, Zones

@@ -20,9 +20,9 @@ from rough_viewer.app.picking import pick_cloud_point
 from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import PointScales, point_scales_from_prepared
+from rough_viewer.scanner.trust import CellTrust
 from rough_viewer.visual.scales import point_scales_figure
 
 # ----------------------------------------------------------------------------- pick

@@ -27,14 +27,14 @@ from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.io import PointCloud
-from rough_viewer.io.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
-from rough_viewer.report.directions import (
+from rough_viewer.directions.analysis import (
     DirectionSettings,
     DirectionsResult,
     analyse_directions,
-    directions_table,
 )
+from rough_viewer.directions.table import directions_table
+from rough_viewer.io import PointCloud
+from rough_viewer.io.formats.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh
 from rough_viewer.report.view import DirectionsView, View
 from rough_viewer.visual.directions import (
     directions_table_figure,

@@ -36,9 +36,9 @@ import numpy as np
 
 from rough_viewer._version import __version__
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.las import laz_backend, open_las
+from rough_viewer.io.formats.las import laz_backend, open_las
+from rough_viewer.io.formats.point_fields import PointFields
 from rough_viewer.io.output import write_path_atomic
-from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import InputError, ProgressFn, error_line, foreign_errors
 
@@ -279,7 +279,7 @@ def copy_las_with_fields(
 
 def _finite_rows(chunk, scales: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Rows of a chunk whose coordinates are finite, computed exactly as
-    :func:`rough_viewer.io.las.read_las` does, so rows line up with the cloud."""
+    :func:`rough_viewer.io.formats.las.read_las` does, so rows line up with the cloud."""
     kept = np.ones(len(chunk), dtype=bool)
     if np.all(np.abs(scales) < 1e290) and np.all(np.abs(offsets) < 1e300):
         return kept  # 32-bit integers times a sane scale: always finite

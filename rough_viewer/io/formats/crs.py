@@ -1,5 +1,13 @@
 """The coordinate reference system (CRS) a point file declares: its name, EPSG code
-and linear unit, read without pyproj.
+and linear units, horizontal and vertical.
+
+A WKT is parsed by pyproj where it is installed (the optional extra ``crs``: every
+WKT flavour PROJ reads, compound CRSs with their vertical unit, bound CRSs), else,
+or where pyproj cannot read it, by the small reader here (:func:`parse_wkt_text`:
+WKT 1 and 2, ESRI's flavour, compound CRSs), which stays as the fallback so that a
+plain install reads the common files. Either runs in the reader child where reads
+are isolated (:func:`read_crs`): the parent never parses a file's WKT, with pyproj
+or without, and checks the child's small answer field by field.
 
 LAS/LAZ files declare their CRS in variable-length records (VLRs, or extended VLRs
 in LAS 1.4) of user id ``LASF_Projection``: an OGC WKT string (record 2112) or the
@@ -17,11 +25,13 @@ carry no CRS.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import os
 import re
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -68,7 +78,7 @@ NO_CRS = CrsInfo()
 
 
 #: Address space a child may add to read a file's CRS, bytes: a WKT of at most
-#: :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
+#: :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES` parses in ~16 MB; tags larger
 #: than this allows are a crafted file.
 CRS_READ_BUDGET = 256 << 20
 #: The format of a CRS's file as messages name it, by suffix.
@@ -80,12 +90,12 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     """The CRS a point file declares (header only; no points are decoded).
 
     A WKT (LAS record or ``.prj``) and GeoTIFF tags are parsed in a reader child
-    process where reads are isolated (:func:`rough_viewer.io.isolate.call_isolated`;
+    process where reads are isolated (:func:`rough_viewer.io.sandbox.isolate.call_isolated`;
     the answer kept for the file's identity, :data:`CRS_CACHE_ENTRIES`), and every
     record is bounded in bytes before it is read (:func:`crs_here`). This process
-    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.las.check_las_layout`),
+    walks a LAS header's record table (bounded: :func:`~rough_viewer.io.formats.las.check_las_layout`),
     parses a LAS file's GeoKeys when it has no WKT (three records of at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`: ~1 MB of work), and checks the
     child's answer.
 
     Parameters
@@ -103,9 +113,9 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
     ------
     InputError
         A LAS/LAZ file whose header cannot be read, a CRS record or ``.prj`` longer
-        than :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
+        than :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`, a reader that failed.
     """
-    from rough_viewer.io import isolate
+    from rough_viewer.io.sandbox import isolate
 
     p = Path(path)
     suffix = p.suffix.lower()
@@ -115,16 +125,17 @@ def read_crs(path: str | os.PathLike[str]) -> CrsInfo:
         return NO_CRS
     described = p
     if suffix in (".las", ".laz"):
-        from rough_viewer.io.las import check_las_layout
+        from rough_viewer.io.formats.las import check_las_layout
 
         check_input_file(p)
         records = {record_id for record_id, _, _ in check_las_layout(p).crs_records}
         if not records:
             return NO_CRS
-        if WKT_RECORD not in records:  # GeoKeys only: 3 x 64 KiB at most, parsed in ~1 MB
-            return _las_crs(p)
+        if WKT_RECORD not in records and importlib.util.find_spec("pyproj") is None:
+            return _las_crs(p)  # GeoKeys only: 3 x 64 KiB at most, parsed in ~1 MB here
+            # (with pyproj, its EPSG look-ups run in the child too)
     elif suffix == ".asc":
-        from rough_viewer.io.dem import prj_beside
+        from rough_viewer.io.formats.dem import prj_beside
 
         prj = prj_beside(p)
         if prj is None:
@@ -214,7 +225,7 @@ def crs_from_fields(value: object, p: Path) -> CrsInfo:
 
 def _geotiff_crs(p: Path) -> CrsInfo:
     """The GeoKeys of a GeoTIFF raster (the same keys a LAS file may carry)."""
-    from rough_viewer.io.dem import GEO_KEY_DIRECTORY, geokey_bytes, geotiff_tags
+    from rough_viewer.io.formats.dem import GEO_KEY_DIRECTORY, geokey_bytes, geotiff_tags
 
     check_input_file(p)
     with foreign_errors(f"cannot read the tags of {p}"):
@@ -226,9 +237,9 @@ def _geotiff_crs(p: Path) -> CrsInfo:
 
 def _prj_crs(p: Path) -> CrsInfo:
     """The WKT of the ``.prj`` file beside an ESRI ASCII grid, if any (at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`)."""
-    from rough_viewer.io.dem import prj_beside
-    from rough_viewer.io.las import MAX_CRS_RECORD_BYTES
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`)."""
+    from rough_viewer.io.formats.dem import prj_beside
+    from rough_viewer.io.formats.las import MAX_CRS_RECORD_BYTES
 
     prj = prj_beside(p)
     if prj is None:
@@ -245,8 +256,8 @@ def _prj_crs(p: Path) -> CrsInfo:
 
 def _las_crs(p: Path) -> CrsInfo:
     """The CRS records of a LAS/LAZ file, read from their raw bytes (each at most
-    :data:`~rough_viewer.io.las.MAX_CRS_RECORD_BYTES`) without laspy."""
-    from rough_viewer.io.las import check_las_layout, las_crs_records
+    :data:`~rough_viewer.io.formats.las.MAX_CRS_RECORD_BYTES`) without laspy."""
+    from rough_viewer.io.formats.las import check_las_layout, las_crs_records
 
     check_input_file(p)
     raw = las_crs_records(p, check_las_layout(p))
@@ -294,6 +305,8 @@ def parse_geotiff_keys(directory: bytes, doubles: bytes = b"", ascii_params: byt
     if unit is None and epsg is not None and not geographic:
         unit = _unit_of_epsg(epsg)
     vertical = EPSG_UNITS.get(_code(keys.get(VERTICAL_UNITS)) or 0)
+    if vertical is None and _code(keys.get(VERTICAL_CS_TYPE)) is not None:
+        vertical = _unit_of_epsg(_code(keys.get(VERTICAL_CS_TYPE)) or 0, projected=False)
     citation = keys.get(PCS_CITATION) or keys.get(GT_CITATION)
     description = citation if isinstance(citation, str) and citation else None
     if description is None and epsg is not None:
@@ -310,18 +323,27 @@ def _code(value: int | str | None) -> int | None:
     return None
 
 
-def _unit_of_epsg(epsg: int) -> CrsUnit | None:
-    """Linear unit of a projected EPSG code: pyproj when installed, else the UTM
-    families (WGS 84, NAD83, NAD27, ETRS89), which are all metres."""
+def _pyproj() -> Any:
+    """The pyproj module where it is installed (the optional extra ``crs``), else None."""
     try:
-        import pyproj  # optional
+        import pyproj
     except ImportError:
+        return None
+    return pyproj
+
+
+def _unit_of_epsg(epsg: int, *, projected: bool = True) -> CrsUnit | None:
+    """Linear unit of an EPSG code (a projected CRS, or a vertical one): pyproj when
+    installed, else the UTM families (WGS 84, NAD83, NAD27, ETRS89), which are all
+    metres, and no vertical code."""
+    pyproj = _pyproj()
+    if pyproj is None:
         utm = (32601 <= epsg <= 32660 or 32701 <= epsg <= 32760 or 26901 <= epsg <= 26923
                or 26701 <= epsg <= 26722 or 25828 <= epsg <= 25838)
-        return "m" if utm else None
+        return "m" if utm and projected else None
     try:
         axis = pyproj.CRS.from_epsg(epsg).axis_info
-    except Exception:  # unknown code
+    except Exception:  # unknown code: pyproj.exceptions.CRSError
         return None
     return _unit_of_factor(axis[0].unit_conversion_factor) if axis else None
 
@@ -396,7 +418,73 @@ _UNITS = ("UNIT", "LENGTHUNIT")
 
 
 def parse_wkt_crs(text: str) -> CrsInfo:
-    """A CRS from OGC WKT (version 1 or 2, ESRI flavour included).
+    """A CRS from OGC WKT: by pyproj where it is installed and reads it
+    (:func:`_pyproj_wkt_crs`), else by :func:`parse_wkt_text`.
+
+    The horizontal unit is the (projected) CRS's linear unit, a geographic or
+    geocentric CRS having none; the vertical unit that of a compound CRS's vertical
+    part (or of a vertical CRS); the EPSG code the one the (horizontal) CRS declares
+    (its AUTHORITY or ID: never a code looked up for a CRS that gives none).
+    """
+    pyproj = _pyproj()
+    if pyproj is not None:
+        found = _pyproj_wkt_crs(pyproj, text)
+        if found is not None:
+            return found
+    return parse_wkt_text(text)
+
+
+def _pyproj_wkt_crs(pyproj: Any, text: str) -> CrsInfo | None:
+    """:func:`parse_wkt_crs` by pyproj; None where pyproj cannot read ``text``."""
+    try:
+        crs = pyproj.CRS.from_wkt(text)
+    except Exception:  # pyproj.exceptions.CRSError, and PROJ's parser on odd text
+        return None
+    crs = _unbound(crs)
+    horizontal, vertical = crs, None
+    if crs.is_compound:
+        parts = [_unbound(c) for c in crs.sub_crs_list]
+        horizontal = next((c for c in parts if not c.is_vertical), crs)
+        vertical = next((c for c in parts if c.is_vertical), None)
+    elif crs.is_vertical:
+        horizontal, vertical = crs, crs
+    geographic = bool(horizontal.is_geographic or horizontal.is_geocentric)
+    return CrsInfo(
+        description=text, unit=None if geographic else _pyproj_unit(horizontal),
+        epsg=_pyproj_epsg(horizontal),
+        vertical_unit=None if vertical is None else _pyproj_unit(vertical),
+        geographic=geographic, source="wkt",
+    )
+
+
+def _unbound(crs: Any) -> Any:
+    """The source CRS of a bound CRS (a WKT 1 TOWGS84), else ``crs``."""
+    return crs.source_crs if crs.is_bound and crs.source_crs is not None else crs
+
+
+def _pyproj_unit(crs: Any) -> CrsUnit | None:
+    """Linear unit of a pyproj CRS's first axis (None for an angular or unknown one)."""
+    axes = crs.axis_info
+    return _unit_of_factor(axes[0].unit_conversion_factor) if axes else None
+
+
+def _pyproj_epsg(crs: Any) -> int | None:
+    """The EPSG code a pyproj CRS declares (its PROJJSON ``id``, or the first of its
+    ``ids``); None where it declares none."""
+    found = crs.to_json_dict()
+    ids = [found["id"]] if "id" in found else list(found.get("ids", ()))
+    for ident in ids:
+        if str(ident.get("authority", "")).upper() == "EPSG":
+            try:
+                return int(ident["code"])
+            except (KeyError, TypeError, ValueError):
+                return None
+    return None
+
+
+def parse_wkt_text(text: str) -> CrsInfo:
+    """A CRS from OGC WKT (version 1 or 2, ESRI flavour included) by the reader here,
+    without pyproj (:func:`parse_wkt_crs`'s fallback).
 
     The horizontal unit is the projected CRS's own UNIT (WKT 1) or LENGTHUNIT
     (WKT 2, on the CS or on an axis), classified by its conversion factor to

@@ -3,7 +3,7 @@ density against the expected one, and occlusion (docs/scanner.md).
 
 Per cell of a :class:`~rough_viewer.grid.roughness.GridRoughness` (arrays aligned with
 its rows), from the scanner positions and each point's scan
-(:func:`rough_viewer.io.scanners.cloud_scanners`):
+(:func:`rough_viewer.scanner.positions.cloud_scanners`):
 
 - ``scans``: scans with at least one point in the cell;
 - ``range_m``: distance from the scanner to the cell's centroid, averaged over the
@@ -97,7 +97,7 @@ class ScanGeometry:
     plane_variance: np.ndarray
     """(M,) mean squared orthogonal distance of the cell's points to its ODR plane (the
     smallest eigenvalue of their covariance), square metres: the variance range noise
-    adds to (:mod:`rough_viewer.bias.trust`)."""
+    adds to (:mod:`rough_viewer.scanner.trust`)."""
     beam: np.ndarray
     """(M, 3) mean unit beam direction (scanner to cell), point-weighted over scans."""
     n0: np.ndarray
@@ -297,7 +297,7 @@ def scan_geometry(
     scan = (np.zeros(n, dtype=np.int64) if point_scan is None
             else np.asarray(point_scan).astype(np.int64, copy=False))
     if scan.shape != (n,) or (n and (scan.min() < 0 or scan.max() >= n_scans)):
-        raise InputError(f"point scans must be {n:,} rows of 0..{n_scans - 1}")
+        raise ValueError(f"point scans must be {n:,} rows of 0..{n_scans - 1}")
     if angular_step_rad is not None and not (np.isfinite(angular_step_rad)
                                              and 0 < angular_step_rad < np.pi):
         raise InputError(f"angular step must be in (0, pi) radians, got {angular_step_rad!r}")

@@ -1,5 +1,5 @@
-"""The child process of :mod:`rough_viewer.io.isolate`:
-``python -m rough_viewer.io._child FD PARENT_PID``.
+"""The child process of :mod:`rough_viewer.io.sandbox.isolate`:
+``python -m rough_viewer.io.sandbox._child FD PARENT_PID``.
 
 It imports the common readers' libraries first (so a spare child is ready), then
 waits on its socket (descriptor ``FD``) for one request, limits its own address
@@ -28,7 +28,7 @@ def _die_with_parent(parent_pid: int) -> None:
 
     Linux sends that signal when the parent THREAD that started the child ends, not
     the parent process; so the parent starts every child from one thread that lives
-    as long as it does (:func:`rough_viewer.io.isolate.spawn`)."""
+    as long as it does (:func:`rough_viewer.io.sandbox.isolate.spawn`)."""
     try:
         import ctypes
         import signal
@@ -53,7 +53,7 @@ def _vm_size() -> int:
 def _limit_memory(budget: int) -> None:
     import resource
 
-    from rough_viewer.io.isolate import CHILD_ALLOWANCE, CHILD_ALLOWANCE_PER_CPU
+    from rough_viewer.io.sandbox.isolate import CHILD_ALLOWANCE, CHILD_ALLOWANCE_PER_CPU
 
     limit = _vm_size() + max(0, budget) + CHILD_ALLOWANCE \
         + CHILD_ALLOWANCE_PER_CPU * (os.cpu_count() or 1)
@@ -90,7 +90,7 @@ def _error_text(exc: BaseException, path: str) -> tuple[str, str]:
 
 
 def _serve(sock: Any) -> None:
-    from rough_viewer.io import isolate
+    from rough_viewer.io.sandbox import isolate
 
     request, _ = isolate.receive(sock)
     if request is None:

@@ -1,8 +1,8 @@
 """Scanner-aware roughness: how far to trust each cell (docs/scanner.md).
 
 For every cell of a grid result of a cloud whose scanner positions are known
-(:mod:`rough_viewer.io.scanners`), the scanner geometry
-(:func:`rough_viewer.grid.scanner.scan_geometry`: scans, range, incidence, density
+(:mod:`rough_viewer.scanner.positions`), the scanner geometry
+(:func:`rough_viewer.scanner.geometry.scan_geometry`: scans, range, incidence, density
 ratio, occlusion) and the roughness bias the toolkit's models predict for it:
 
 - noise inflation: range noise ``sigma`` acts along the beam, so ``s = sigma cos(i)``
@@ -43,9 +43,9 @@ import numpy as np
 from rough_viewer.bias.calibration import Calibration, paper_calibration
 from rough_viewer.bias.simulation import PAPER_RADIUS_M, BiasPrediction, predict_paper_target
 from rough_viewer.grid.roughness import GridRoughness
-from rough_viewer.grid.scanner import ScanGeometry, scan_geometry
 from rough_viewer.io.cloud import PointCloud
-from rough_viewer.io.scanners import NO_POSITIONS, cloud_scanners
+from rough_viewer.scanner.geometry import ScanGeometry, scan_geometry
+from rough_viewer.scanner.positions import NO_POSITIONS, cloud_scanners
 from rough_viewer.vocabulary import (
     BIAS_TRIALS,
     TRUST_FIELDS,
@@ -85,6 +85,12 @@ FLAG_NAMES: dict[int, str] = {
 LENGTH_FIELDS = ("range", "noise_pred", "smoothing_pred", "bias_pred")
 
 
+#: Finest angular step accepted, degrees: a thousandth of the finest terrestrial
+#: scanners' (about 0.001 deg); finer ones underflow the expected density's square
+#: (``--angular-step 1e-300`` ended in ZeroDivisionError).
+MIN_ANGULAR_STEP_DEG = 1e-6
+
+
 @dataclass(frozen=True)
 class TrustSettings:
     """What the per-cell trust is computed with (the ``--scanner ...`` options)."""
@@ -105,8 +111,10 @@ class TrustSettings:
         if not (math.isfinite(a) and 0.0 < a < 1.0):
             raise InputError(f"asperity radius must be a length > 0 and below 1 m, got {a:g} m")
         s = self.angular_step_rad
-        if s is not None and not (math.isfinite(s) and 0.0 < s < math.radians(10.0)):
-            raise InputError(f"angular step must be above 0 and below 10 degrees, got "
+        if s is not None and not (math.isfinite(s) and math.radians(MIN_ANGULAR_STEP_DEG) <= s
+                                  < math.radians(10.0)):
+            raise InputError(f"angular step must be above 0 and below 10 degrees (at least "
+                             f"{MIN_ANGULAR_STEP_DEG:g}: no scanner steps finer), got "
                              f"{math.degrees(s):g} degrees")
         if not 1 <= int(self.trials) <= 1000:
             raise InputError(f"trials must be 1 to 1000, got {self.trials}")
@@ -241,7 +249,7 @@ class CellTrust:
         """(M,) float64 values of one :data:`rough_viewer.vocabulary.TRUST_FIELDS`
         field (lengths in metres, NaN where none): a colour layer of the cells."""
         if name not in TRUST_FIELDS:
-            raise InputError(f"unknown trust field {name!r}; expected one of "
+            raise ValueError(f"unknown trust field {name!r}; expected one of "
                              f"{', '.join(TRUST_FIELDS)}")
         geo = self.geometry
         values: dict[str, np.ndarray] = {
@@ -280,7 +288,7 @@ class CellTrust:
         rper, rl = roughness_scale(unit)
         geo = self.geometry
         if not (0 <= row < self.theta_m.shape[0]):
-            raise InputError(f"no cell {row}")
+            raise IndexError(f"no cell {row}")
         if not np.isfinite(geo.range_m[row]):
             return [f"seen by {int(geo.scans[row])} scan(s); no plane, so no range, incidence "
                     "or predicted bias"]
@@ -328,7 +336,7 @@ def cell_trust(
     ----------
     cloud : PointCloud
         The points ``result`` was computed from, with scanner positions
-        (:func:`rough_viewer.io.scanners.cloud_scanners`).
+        (:func:`rough_viewer.scanner.positions.cloud_scanners`).
     result : GridRoughness
         The grid result (in memory: its point-to-cell map is needed).
     settings : TrustSettings, optional
@@ -339,7 +347,7 @@ def cell_trust(
     Returns
     -------
     CellTrust, or None when the cloud has no scanner positions
-    (:data:`rough_viewer.io.scanners.NO_POSITIONS` says what to give).
+    (:data:`rough_viewer.scanner.positions.NO_POSITIONS` says what to give).
     """
     settings = settings or TrustSettings()
     settings.check()

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rough_viewer.io import isolate
-from rough_viewer.io.cloud import PointCloud, check_input_file, read_errors
+from rough_viewer.io.cloud import PointCloud, check_input_file
+from rough_viewer.io.sandbox import isolate
 from rough_viewer.memory import require
-from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit
+from rough_viewer.vocabulary import UNIT_METRES, InputError, Unit, foreign_errors
 
 #: Formats whose files may carry triangles.
 MESH_SUFFIXES = (".stl", ".ply")
@@ -66,7 +66,7 @@ class TriangleMesh:
         vertices in their order. None when no triangle is left."""
         keep = np.asarray(mask, dtype=bool)
         if keep.shape != (self.n_vertices,):
-            raise InputError(f"a mask over {keep.shape[0]:,} points cannot crop a mesh of "
+            raise ValueError(f"a mask over {keep.shape[0]:,} points cannot crop a mesh of "
                              f"{self.n_vertices:,} vertices")
         faces = self.faces[keep[self.faces].all(axis=1)]
         if faces.shape[0] == 0:
@@ -117,8 +117,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
     InputError
         Missing or unreadable file, malformed faces.
     """
-    from rough_viewer.io.ply import read_ply_mesh
-    from rough_viewer.io.stl import read_stl_mesh
+    from rough_viewer.io.formats.ply import read_ply_mesh
+    from rough_viewer.io.formats.stl import read_stl_mesh
 
     p = Path(path)
     suffix = p.suffix.lower()
@@ -129,7 +129,7 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNIT_METRES)}")
     # the file's bytes, a few copies of its corners and the faces
     require(8.0 * p.stat().st_size, f"reading the mesh of {p.name}")
-    with read_errors(p):
+    with foreign_errors(f"cannot read {p}", libraries=()):
         read = _read_isolated(p) if isolate.available() else \
             read_stl_mesh(p) if suffix == ".stl" else read_ply_mesh(p)
     if read is None:
@@ -142,8 +142,8 @@ def load_mesh(path: str | os.PathLike[str], *, units: Unit | None = None) -> Tri
 
 
 def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    """The mesh read in a child process (:mod:`rough_viewer.io.isolate`): plyfile and the
-    STL parser run on bytes anyone can craft."""
+    """The mesh read in a child process (:mod:`rough_viewer.io.sandbox.isolate`): the PLY and
+    STL parsers run on bytes anyone can craft."""
     size = p.stat().st_size
     items = isolate.stream_isolated(
         f"{__name__}:_mesh_items", p, label="PLY" if p.suffix.lower() == ".ply" else "STL",
@@ -157,8 +157,8 @@ def _read_isolated(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _mesh_items(p: Path, *, progress: object = None) -> Iterator[dict[str, np.ndarray]]:
     """The mesh as one item of a stream (empty: no faces), what the child runs."""
-    from rough_viewer.io.ply import read_ply_mesh
-    from rough_viewer.io.stl import read_stl_mesh
+    from rough_viewer.io.formats.ply import read_ply_mesh
+    from rough_viewer.io.formats.stl import read_stl_mesh
 
     read = read_stl_mesh(p) if p.suffix.lower() == ".stl" else read_ply_mesh(p)
     yield {} if read is None else {"vertices": read[0], "faces": read[1]}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.scanner import plane_cut_area, points_extent_area, scan_geometry
+from rough_viewer.scanner.geometry import plane_cut_area, points_extent_area, scan_geometry
 from rough_viewer.synthetic.board import PAPER_ROTATIONS_DEG, board_scan
 from rough_viewer.vocabulary import InputError
 from tests.helpers import ray_grid, scan_plane
@@ -189,8 +189,9 @@ def test_points_extent_area_of_a_lattice_is_exact():
 
 def test_refuses_what_it_cannot_use(tilted):
     pts, res, _ = tilted
-    with pytest.raises(InputError, match="point scans"):
+    with pytest.raises(ValueError, match="point scans") as bug:  # the caller's, not the user's
         scan_geometry(pts, res, np.zeros((2, 3)), np.full(len(pts), 2))
+    assert type(bug.value) is ValueError
     with pytest.raises(InputError, match="needs the points"):
         scan_geometry(pts[:-1], res, np.zeros((1, 3)))
     with pytest.raises(InputError, match="angular step"):

@@ -1,6 +1,10 @@
 """PLY point files: reading ASCII or binary (either byte order) vertex ``x``, ``y``,
 ``z`` (:func:`read_ply`) or the vertices with their faces (:func:`read_ply_mesh`);
-writing binary little-endian PLY with per-point fields (through plyfile)."""
+writing binary little-endian PLY with per-point fields (through plyfile).
+
+One reader of the format, this one, for the points and for the faces alike: its
+header parser bounds every line and count before anything is read, and it is faster
+than plyfile (docs/export.md); plyfile only writes."""
 
 from __future__ import annotations
 
@@ -8,13 +12,13 @@ import os
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from rough_viewer.io.cloud import PointCloud, finite_cloud
+from rough_viewer.io.formats.point_fields import PointFields
 from rough_viewer.io.output import write_path_atomic
-from rough_viewer.io.point_fields import PointFields
 from rough_viewer.memory import require
 from rough_viewer.vocabulary import UNIT_METRES, InputError
 
@@ -170,6 +174,10 @@ _FACE_LISTS = ("vertex_indices", "vertex_index")
 def read_ply_mesh(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
     """The vertices and triangles of a PLY file, or None when it has no faces.
 
+    The same reader as the points' (:func:`read_ply_header`, every count checked
+    against the bytes the file holds before anything is allocated), walking the
+    elements in their order.
+
     Returns
     -------
     (vertices, faces) or None
@@ -179,31 +187,20 @@ def read_ply_mesh(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
         an index outside the vertices, or a non-finite corner, are dropped. Vertices
         are kept as they are (an unused one changes nothing downstream).
     """
-    from plyfile import PlyData, PlyParseError
-
-    triangles = {"face": {k: 3 for k in _FACE_LISTS}}
-    try:
-        try:  # all triangles (binary): read as a fixed-size list, fast
-            ply = PlyData.read(str(p), known_list_len=triangles)
-        except PlyParseError:  # polygons of other sizes: the general reader
-            ply = PlyData.read(str(p))
-    except PlyParseError as exc:
-        raise InputError(f"cannot read the mesh of {p}: {exc}") from None
-    names = [e.name for e in ply.elements]
-    if "vertex" not in names:
-        raise InputError(f"PLY file has no vertex element: {p}")
-    vertex = ply["vertex"].data
-    if not all(k in (vertex.dtype.names or ()) for k in "xyz"):
-        raise InputError(f"PLY vertex element lacks x, y, z properties: {p}")
-    if "face" not in names or len(ply["face"].data) == 0:
-        return None
-    face = ply["face"].data
-    key = next((k for k in _FACE_LISTS if k in (face.dtype.names or ())), None)
-    if key is None:
-        raise InputError(f"PLY face element has no vertex_indices list: {p}")
+    with open(p, "rb") as fh:
+        header = read_ply_header(fh, p)
+        names = [e.name for e in header.elements]
+        if "face" not in names or header.elements[names.index("face")].count == 0:
+            return None
+        face = header.elements[names.index("face")]
+        key = next((q for q in face.properties if q[0] in _FACE_LISTS and q[1] is not None), None)
+        if key is None:
+            raise InputError(f"PLY face element has no vertex_indices list: {p}")
+        read = _ascii_elements if header.format == "ascii" else _binary_elements
+        found = read(fh, header, p)
+    vertex, lists = found["vertex"], found["face"][key[0]]
     vertices = np.column_stack([np.asarray(vertex[k], dtype=np.float64) for k in "xyz"])
-    lists = face[key]
-    if lists.dtype != object:  # (T, 3) already
+    if isinstance(lists, np.ndarray) and lists.dtype != object:  # (T, 3) already
         faces = np.asarray(lists, dtype=np.int64).reshape(-1, 3)
     else:
         faces = _fans(lists, p)
@@ -214,8 +211,111 @@ def read_ply_mesh(p: Path) -> tuple[np.ndarray, np.ndarray] | None:
     return vertices, faces
 
 
-def _fans(lists: np.ndarray, p: Path) -> np.ndarray:
-    """(T, 3) triangles of polygons given as an object array of index lists: a fan
+def _ply_dtype(kind: str, p: Path, end: str = "<") -> np.dtype:
+    try:
+        return np.dtype(end + _PLY_TYPES[kind])
+    except KeyError:
+        raise InputError(f"unknown PLY property type {kind!r} in {p}") from None
+
+
+def _binary_elements(fh: BinaryIO, header: PlyHeader, p: Path) -> dict[str, dict[str, object]]:
+    """Every element of a binary PLY up to the last of vertex and face, as
+    ``{element: {property: values}}``: a scalar property an array, a list property an
+    (N, 3) array where every list holds 3 values, else a list of arrays."""
+    end = "<" if header.format == "binary_little_endian" else ">"
+    size = p.stat().st_size
+    last = max(k for k, e in enumerate(header.elements) if e.name in ("vertex", "face"))
+    out: dict[str, dict[str, object]] = {}
+    for e in header.elements[: last + 1]:
+        room = max(0, size - fh.tell())
+        if all(q[1] is None for q in e.properties):
+            dt = np.dtype([(q[0], _ply_dtype(q[2], p, end)) for q in e.properties])
+            if e.count * dt.itemsize > room:
+                raise _truncated(p, e, room // max(dt.itemsize, 1))
+            require(2.0 * dt.itemsize * e.count, f"reading {p.name}")
+            rec = np.fromfile(fh, dtype=dt, count=e.count)
+            out[e.name] = {q[0]: rec[q[0]] for q in e.properties}
+            continue
+        least = sum(_ply_dtype(q[1] or q[2], p, end).itemsize for q in e.properties)
+        if e.count * least > room:
+            raise _truncated(p, e, room // max(least, 1))
+        out[e.name] = _binary_lists(fh, e, end, p, room)
+    return out
+
+
+def _binary_lists(fh: BinaryIO, e: HeaderElement, end: str, p: Path, room: int
+                  ) -> dict[str, object]:
+    """An element with list properties: as fixed 3-lists when every list holds three
+    values (one read), else record by record."""
+    types = [(q[0], _ply_dtype(q[1], p, end) if q[1] else None, _ply_dtype(q[2], p, end))
+             for q in e.properties]
+    fixed = np.dtype([(n, v) if c is None else (n, [("n", c), ("v", v, (3,))])
+                      for n, c, v in types])
+    start = fh.tell()
+    if e.count * fixed.itemsize <= room:
+        require(2.0 * fixed.itemsize * e.count, f"reading {p.name}")
+        rec = np.fromfile(fh, dtype=fixed, count=e.count)
+        if rec.shape[0] == e.count and all(np.all(rec[n]["n"] == 3)
+                                           for n, c, _ in types if c is not None):
+            return {n: rec[n] if c is None else rec[n]["v"] for n, c, _ in types}
+        fh.seek(start)
+    data = fh.read(room)
+    require(24.0 * len(data), f"the faces of {p.name}")
+    cols: dict[str, list[object]] = {n: [] for n, _, _ in types}
+    at = 0
+    try:
+        for _ in range(e.count):
+            for n, c, v in types:
+                if c is None:
+                    cols[n].append(np.frombuffer(data, v, 1, at)[0])
+                    at += v.itemsize
+                    continue
+                k = int(np.frombuffer(data, c, 1, at)[0])
+                at += c.itemsize
+                cols[n].append(np.frombuffer(data, v, k, at))
+                at += k * v.itemsize
+    except ValueError:  # a buffer too small: the file ends inside the element
+        raise InputError(f"PLY file is truncated: it ends inside its {e.name} element: {p}") from None
+    return dict(cols)
+
+
+def _ascii_elements(fh: BinaryIO, header: PlyHeader, p: Path) -> dict[str, dict[str, object]]:
+    """:func:`_binary_elements` of an ASCII PLY, one line a record (every list a list
+    of arrays)."""
+    last = max(k for k, e in enumerate(header.elements) if e.name in ("vertex", "face"))
+    out: dict[str, dict[str, object]] = {}
+    for e in header.elements[: last + 1]:
+        cols: dict[str, list[object]] = {q[0]: [] for q in e.properties}
+        kinds = [(n, c, _ply_dtype(v, p)) for n, c, v in e.properties]
+        for _ in range(e.count):
+            line = fh.readline(MAX_HEADER_LINE + 1)
+            if not line:
+                raise InputError(f"PLY file is truncated: it ends inside its {e.name} element: {p}")
+            words = line.split()
+            try:
+                at = 0
+                for name, count, kind in kinds:
+                    k = 1 if count is None else int(words[at])
+                    at += 0 if count is None else 1
+                    if k < 0 or at + k > len(words):
+                        raise ValueError(line)
+                    values = np.array([float(w) for w in words[at:at + k]], dtype=np.float64)
+                    cols[name].append(values[0] if count is None else values.astype(kind))
+                    at += k
+            except (IndexError, ValueError):
+                raise InputError(f"malformed PLY {e.name} line {line[:80]!r} in {p}") from None
+        out[e.name] = {n: np.asarray(cols[n], dtype=np.float64) if c is None else cols[n]
+                       for n, c, _ in kinds}
+    return out
+
+
+def _truncated(p: Path, e: HeaderElement, holds: int) -> InputError:
+    return InputError(f"PLY file is truncated: its header declares {e.count:,} {e.name} "
+                      f"records but the file holds at most {holds:,}: {p}")
+
+
+def _fans(lists: Any, p: Path) -> np.ndarray:
+    """(T, 3) triangles of polygons given as a sequence of index arrays: a fan
     per polygon, (corner 0, corner j, corner j + 1) for j = 1 .. size - 2."""
     sizes = np.fromiter((len(f) for f in lists), dtype=np.int64, count=len(lists))
     require(48.0 * float(sizes.sum()), f"the faces of {p.name}")

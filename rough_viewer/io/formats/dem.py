@@ -18,8 +18,8 @@ Every raster cell with a value becomes one point at the cell's centre, its heigh
   raster type key says whether a tie point is a pixel's corner (``PixelIsArea``, the
   default: centres are half a pixel in) or its centre (``PixelIsPoint``); nodata from
   GDAL's ``GDAL_NODATA`` tag; the CRS from the GeoKeys
-  (:func:`rough_viewer.io.crs.parse_geotiff_keys`), read by
-  :func:`rough_viewer.io.crs.read_crs`.
+  (:func:`rough_viewer.io.formats.crs.parse_geotiff_keys`), read by
+  :func:`rough_viewer.io.formats.crs.read_crs`.
 
 A DEM is a 2.5-D surface sampled on a lattice: cells of a roughness grid holding two
 rows of it fit their plane exactly (roughness 0, counted as exact fits), and the
@@ -142,10 +142,10 @@ def _esri_header(p: Path) -> tuple[dict[str, float], int]:
     """The header values and the number of header lines.
 
     Bounded before it is read (it runs in the server's own process, for the memory
-    estimate): a header line may be at most :data:`~rough_viewer.io.ply.MAX_HEADER_LINE`
-    bytes and the header :data:`~rough_viewer.io.ply.MAX_HEADER_BYTES`, as PLY's; a
+    estimate): a header line may be at most :data:`~rough_viewer.io.formats.ply.MAX_HEADER_LINE`
+    bytes and the header :data:`~rough_viewer.io.formats.ply.MAX_HEADER_BYTES`, as PLY's; a
     line of data is recognised by its first bytes, never read whole here."""
-    from rough_viewer.io.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
+    from rough_viewer.io.formats.ply import MAX_HEADER_BYTES, MAX_HEADER_LINE
 
     head: dict[str, float] = {}
     lines = 0
@@ -292,7 +292,7 @@ def geotiff_tags(p: Path) -> dict[int, object]:
 
 def geokey_bytes(tags: dict[int, object]) -> tuple[bytes, bytes, bytes]:
     """The GeoKey directory, double and ASCII parameters as the bytes
-    :func:`rough_viewer.io.crs.parse_geotiff_keys` reads (LAS stores them so)."""
+    :func:`rough_viewer.io.formats.crs.parse_geotiff_keys` reads (LAS stores them so)."""
     directory = np.asarray(tags.get(GEO_KEY_DIRECTORY, ()), dtype="<u2").tobytes()
     doubles = np.asarray(tags.get(GEO_DOUBLE_PARAMS, ()), dtype="<f8").tobytes()
     text = tags.get(GEO_ASCII_PARAMS, "")

@@ -6,7 +6,7 @@ the cloud's frame, and ``scan_index`` (N,), the row of ``scanner_positions`` eac
 point belongs to. They come from
 
 - E57 files: every scan's pose (its translation is the scanner's origin), read by
-  :func:`rough_viewer.io.e57.read_e57`;
+  :func:`rough_viewer.io.formats.e57.read_e57`;
 - one position given for the whole cloud (``--scanner X,Y,Z``):
   :func:`with_scanner`;
 - a table of positions by LAS ``point_source_id`` (``--scanners FILE``, a CSV of
@@ -252,9 +252,9 @@ def point_source_ids(path: str | os.PathLike[str]) -> np.ndarray:
 
 def _isolated_ids(p: Path) -> np.ndarray:
     """:func:`_las_ids` in a child process where reads are isolated
-    (:mod:`rough_viewer.io.isolate`): lazrs decodes the file again, another layer."""
-    from rough_viewer.io import isolate
-    from rough_viewer.io.las import LAS_CHUNK, check_las_layout
+    (:mod:`rough_viewer.io.sandbox.isolate`): lazrs decodes the file again, another layer."""
+    from rough_viewer.io.formats.las import LAS_CHUNK, check_las_layout
+    from rough_viewer.io.sandbox import isolate
 
     if not isolate.available():
         return _las_ids(p)
@@ -278,7 +278,7 @@ def _las_id_items(p: Path, *, progress: object = None) -> Iterator[dict[str, np.
 def _las_ids(p: Path) -> np.ndarray:
     import laspy
 
-    from rough_viewer.io.las import LAS_CHUNK, laz_backend, open_las
+    from rough_viewer.io.formats.las import LAS_CHUNK, laz_backend, open_las
 
     with open_las(p, laz_backend=laz_backend()) as reader:
         hdr = reader.header
@@ -316,7 +316,7 @@ def _normal_name(name: str) -> str:
 
 def _text_ids(p: Path) -> np.ndarray | None:
     """The ``point_source_id`` column of a text cloud with a header naming it, or None."""
-    from rough_viewer.io.text import SEPARATORS, _fields, _significant_lines
+    from rough_viewer.io.formats.text import SEPARATORS, _fields, _significant_lines
 
     lines = _significant_lines(p, 2)
     if len(lines) < 2:

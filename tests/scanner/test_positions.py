@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.grid.scanner import scan_geometry
 from rough_viewer.io import PointCloud, load_points
-from rough_viewer.io.scanners import (
+from rough_viewer.scanner.geometry import scan_geometry
+from rough_viewer.scanner.positions import (
     assign_scanners,
     cloud_scanners,
     point_source_ids,

@@ -432,14 +432,14 @@ def load_las_with_extra(
         Extra dimensions to return (e.g. ``("truth",)``).
     trusted : bool
         Decode in this process (files the package made itself, the bundled demos);
-        else in a child process (:mod:`rough_viewer.io.isolate`).
+        else in a child process (:mod:`rough_viewer.io.sandbox.isolate`).
 
     Returns
     -------
     PointCloud, dict
         The points (metres, with intensity) and name -> (N,) array, row-aligned.
     """
-    from rough_viewer.io import isolate
+    from rough_viewer.io.sandbox import isolate
 
     p = Path(path)
     if trusted or not isolate.available():

@@ -18,7 +18,11 @@ from rough_viewer.bias.calibration import (
 )
 from rough_viewer.bias.measurement import normalise_population
 from rough_viewer.bias.simulation import paper_target, simulate_target
-from rough_viewer.bias.trust import (
+from rough_viewer.cli import main
+from rough_viewer.grid.roughness import grid_roughness
+from rough_viewer.io import PointCloud
+from rough_viewer.scanner.positions import with_scanner
+from rough_viewer.scanner.trust import (
     FLAG_INCIDENCE,
     FLAG_NOISE,
     FLAG_RANGE,
@@ -28,10 +32,6 @@ from rough_viewer.bias.trust import (
     cell_trust,
     ratio_samples,
 )
-from rough_viewer.cli import main
-from rough_viewer.grid.roughness import grid_roughness
-from rough_viewer.io import PointCloud
-from rough_viewer.io.scanners import with_scanner
 from rough_viewer.vocabulary import TRUST_FIELDS, InputError
 from tests.helpers import board_points, ray_grid, scan_plane, wire_points
 
@@ -226,8 +226,9 @@ def test_columns_lines_and_layers(wall):
     assert f"{trust.geometry.range_m[row] / 0.3048:.2f} ft" in ft[0]
     for name in TRUST_FIELDS:
         assert trust.layer(name).shape == (res.n_cells,)
-    with pytest.raises(InputError, match="unknown trust field"):
+    with pytest.raises(ValueError, match="unknown trust field") as bug:
         trust.layer("nope")
+    assert type(bug.value) is ValueError  # the caller's mistake, not the user's
     summary = trust.summary()
     assert summary.cells == int(trust.known.sum())
     assert summary.trusted + summary.flagged["incidence"] >= summary.cells - summary.flagged[
@@ -287,3 +288,12 @@ def test_ratio_samples():
     assert len(coarse) <= 8 and coarse[0] == 0.0 and coarse[-1] >= 1.0
     assert ratio_samples(np.array([np.nan])) == (0.0,)
     assert ratio_samples(np.array([5.0, 9.0])) == (3.0,)
+
+
+def test_an_angular_step_finer_than_any_scanner_is_refused_by_the_settings():
+    """The bound the command line had alone (1e-300 deg ended in ZeroDivisionError)."""
+    import math
+
+    with pytest.raises(InputError, match="no scanner steps finer"):
+        TrustSettings(angular_step_rad=math.radians(1e-300)).check()
+    TrustSettings(angular_step_rad=math.radians(2e-6)).check()

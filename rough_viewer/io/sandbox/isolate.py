@@ -7,7 +7,7 @@ endless recursion (SIGSEGV), a chunk table that claims 0xFFFFFFFF chunks makes i
 allocate 64 GiB and abort, an E57 whose XML nests 160,000 levels deep keeps
 libE57Format busy for a minute, then crashes. In a server every browser would lose
 it. So each read runs in a child process of our own module
-(``python -m rough_viewer.io._child``, started with :mod:`subprocess`: a fresh
+(``python -m rough_viewer.io.sandbox._child``, started with :mod:`subprocess`: a fresh
 interpreter, safe however many threads the parent runs, no pickled functions):
 
 - **memory**: the child sets ``RLIMIT_AS`` to its own size after start-up plus the
@@ -63,7 +63,7 @@ from rough_viewer.memory import format_bytes
 from rough_viewer.vocabulary import InputError, ProgressFn
 
 #: The child's module (``python -m``).
-CHILD_MODULE = "rough_viewer.io._child"
+CHILD_MODULE = "rough_viewer.io.sandbox._child"
 #: Address space a child may use beyond its size after start-up and the read's own
 #: budget: thread stacks (8 MiB each), malloc arenas (at most
 #: :data:`MALLOC_ARENAS`, 64 MiB of address space each) and modules imported late
