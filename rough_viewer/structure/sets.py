@@ -748,8 +748,7 @@ def joint_sets(
     o = options if options is not None else SetOptions()
     g = float(result.grid.cell_size)
     t, tol, max_rms = o.lengths(g)
-    cone_deg, min_angle_deg, max_sets = o.cone_deg, o.min_angle_deg, o.max_sets
-    smoothing_deg, min_density, min_set_cells = o.smoothing_deg, o.min_density, o.min_set_cells
+    cone_deg, max_sets, min_density = o.cone_deg, o.max_sets, o.min_density
     min_plane_cells, min_planar_points = o.min_plane_cells, o.min_planar_points
     x, y, z = as_columns(cloud)
     if result.point_cell.shape[0] != x.shape[0]:
@@ -767,27 +766,13 @@ def joint_sets(
             f"joint sets of {rows.shape[0]:,} planar cells", hint="choose a larger grid size")
     weights = result.n_points[rows].astype(np.float64)
     toward = result.whole_plane.normal
-    net = stereonet(result.normal[rows], toward=toward, smoothing_deg=smoothing_deg,
-                    weights=weights)
-    net = Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes, density=net.density,
-                    smoothing_deg=net.smoothing_deg, weights=net.weights)
-    poles = _downward(result.normal[rows])
-    peaks, peak_density = density_peaks(net, poles, weights, min_density=min_density,
-                                        min_angle_deg=min_angle_deg, max_peaks=max_sets)
+    net, poles, peaks, peak_density = _pole_peaks(result, rows, weights, o)
     tick(1, 4)
-    labels = np.zeros(rows.shape[0], dtype=np.int64)  # set index + 1 per planar cell
-    while peaks.shape[0]:
-        labels = _assign(poles, peaks, cone_deg)
-        counts = np.bincount(labels, minlength=peaks.shape[0] + 1)[1:]
-        small = counts < min_set_cells
-        if not small.any():
-            break
-        peaks, peak_density = peaks[~small], peak_density[~small]
-    if not peaks.shape[0]:
-        labels[:] = 0
+    labels, peaks, peak_density = _gather_sets(poles, peaks, peak_density, o.cone_deg,
+                                               o.min_set_cells)
     n_sets = int(peaks.shape[0])
     note = _why_none(result, rows, has_plane, t, int(min_planar_points), min_density,
-                     min_set_cells, cone_deg) if n_sets == 0 else ""
+                     o.min_set_cells, cone_deg) if n_sets == 0 else ""
     # per set: Fisher statistics of its cells' poles, turned to the peak's side; a
     # cell the peak gathered that lies outside the cone of its set's final mean
     # leaves the set (issue 31 item 15), until none does
@@ -803,30 +788,12 @@ def joint_sets(
         result, (x, y, z), cell_set, normal, tol, int(min_plane_cells), t,
         int(min_planar_points), max_rms, cone_deg)
     tick(3, 4)
-    # joints: the patches of one discontinuity (structure/joints.py)
-    patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
-                                planes.normal, tolerance=tol, max_rms=max_rms)
-    planes = replace(planes, joint_id=patch_joint + 1)
-    cell_joint = np.zeros(m_cells, dtype=np.int32)
-    on_plane = cell_plane > 0
-    cell_joint[on_plane] = (patch_joint[cell_plane[on_plane] - 1] + 1).astype(np.int32)
-    point_joint = cell_joint[result.point_cell].astype(np.int64) - 1
-    joints = joint_table(patch_joint, planes.set_id, planes.points, planes.centroid,
-                         planes.scatter, planes.area, point_joint, (x, y, z), toward)
-    spacing = np.full((n_sets, 4), np.nan)
-    persistence_mean = np.full(n_sets, np.nan)
+    planes, cell_joint, point_joint, joints = _joints(result, (x, y, z), cell_plane, planes,
+                                                      toward, tol, max_rms)
     n_planes = np.bincount(planes.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
     n_joints = np.bincount(joints.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
-    for s in range(n_sets):
-        mine = planes.set_id == s + 1
-        if mine.any():
-            persistence_mean[s] = float(planes.persistence[mine].mean())
-        sp = set_spacing(joints, s + 1, normal[s], point_joint, (x, y, z), result.grid.origin,
-                         g, tol)
-        if sp.normal.size:
-            spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
-        if sp.scanline.size:
-            spacing[s, 3] = sp.scanline.mean()
+    spacing, persistence_mean = _spacing_and_persistence(
+        planes, joints, normal, point_joint, (x, y, z), result.grid.origin, g, tol)
     # the cell statistics are of the cells whose poles made the set (not the edge
     # cells of fewer points its planes took in)
     set_rough = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
@@ -845,6 +812,81 @@ def joint_sets(
         joints=joints, cell_joint=cell_joint, roughness=set_rough, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
         note=note, face=face, sliver_planes=slivers)
+
+
+def _pole_peaks(result: GridRoughness, rows: np.ndarray, weights: np.ndarray,
+                o: SetOptions) -> tuple[Stereonet, np.ndarray, np.ndarray, np.ndarray]:
+    """The stereonet of the poles of the planar cells ``rows`` (weighted by their
+    points), the poles (downward unit vectors) and the density peaks with their
+    densities (MUD)."""
+    net = stereonet(result.normal[rows], toward=result.whole_plane.normal,
+                    smoothing_deg=o.smoothing_deg, weights=weights)
+    net = Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes, density=net.density,
+                    smoothing_deg=net.smoothing_deg, weights=net.weights)
+    poles = _downward(result.normal[rows])
+    peaks, peak_density = density_peaks(net, poles, weights, min_density=o.min_density,
+                                        min_angle_deg=o.min_angle_deg, max_peaks=o.max_sets)
+    return net, poles, peaks, peak_density
+
+
+def _gather_sets(poles: np.ndarray, peaks: np.ndarray, peak_density: np.ndarray,
+                 cone_deg: float, min_set_cells: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every pole to its nearest peak within the cone (label set + 1, 0 for none),
+    the peaks gathering fewer than ``min_set_cells`` cells dropped until none does;
+    returns the labels and the peaks kept with their densities."""
+    labels = np.zeros(poles.shape[0], dtype=np.int64)  # set index + 1 per planar cell
+    while peaks.shape[0]:
+        labels = _assign(poles, peaks, cone_deg)
+        counts = np.bincount(labels, minlength=peaks.shape[0] + 1)[1:]
+        small = counts < min_set_cells
+        if not small.any():
+            break
+        peaks, peak_density = peaks[~small], peak_density[~small]
+    if not peaks.shape[0]:
+        labels[:] = 0
+    return labels, peaks, peak_density
+
+
+def _joints(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+            cell_plane: np.ndarray, planes: JointPlanes, toward: np.ndarray, tol: float,
+            max_rms: float) -> tuple[JointPlanes, np.ndarray, np.ndarray, Joints]:
+    """The joints: the patches of one discontinuity (structure/joints.py). Returns the
+    planes with their joint ids, the joint of every cell (1..J, 0 for none), of every
+    point (0..J-1, -1 for none) and the joint table."""
+    patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
+                                planes.normal, tolerance=tol, max_rms=max_rms)
+    planes = replace(planes, joint_id=patch_joint + 1)
+    cell_joint = np.zeros(result.n_cells, dtype=np.int32)
+    on_plane = cell_plane > 0
+    cell_joint[on_plane] = (patch_joint[cell_plane[on_plane] - 1] + 1).astype(np.int32)
+    point_joint = cell_joint[result.point_cell].astype(np.int64) - 1
+    joints = joint_table(patch_joint, planes.set_id, planes.points, planes.centroid,
+                         planes.scatter, planes.area, point_joint, xyz, toward)
+    return planes, cell_joint, point_joint, joints
+
+
+def _spacing_and_persistence(planes: JointPlanes, joints: Joints, normal: np.ndarray,
+                             point_joint: np.ndarray,
+                             xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+                             origin: np.ndarray, g: float, tol: float
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """Per set: the normal spacing's mean, median and standard deviation and the
+    scanline spacing's mean ((S, 4), metres, NaN where none), and the mean
+    persistence of its planes ((S,), metres). A loop over sets."""
+    n_sets = normal.shape[0]
+    spacing = np.full((n_sets, 4), np.nan)
+    persistence_mean = np.full(n_sets, np.nan)
+    for s in range(n_sets):
+        mine = planes.set_id == s + 1
+        if mine.any():
+            persistence_mean[s] = float(planes.persistence[mine].mean())
+        sp = set_spacing(joints, s + 1, normal[s], point_joint, xyz, origin, g, tol)
+        if sp.normal.size:
+            spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
+        if sp.scanline.size:
+            spacing[s, 3] = sp.scanline.mean()
+    return spacing, persistence_mean
 
 
 #: Most passes of :func:`_set_statistics` (each drops the cells outside the cone of
