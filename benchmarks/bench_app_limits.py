@@ -83,8 +83,10 @@ def _data(folder: Path) -> None:
 
 
 def cache_table() -> None:
+    from rough_viewer.app.cache import nbytes
+    from rough_viewer.app.cloud import LoadedCloud
     from rough_viewer.app.limits import CACHE_BYTES
-    from rough_viewer.app.state import LoadedCloud, MapSettings, nbytes
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.synthetic import demos
 
     cloud = demos.load_demo("outcrop")

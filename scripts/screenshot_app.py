@@ -49,8 +49,9 @@ def main() -> None:
     import viser
     from playwright.sync_api import sync_playwright
 
+    from rough_viewer.app.cloud import grid_presets
     from rough_viewer.app.server import build_app
-    from rough_viewer.app.state import MapSettings, grid_presets
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.synthetic import demos
 
     cloud = demos.load_demo(args.demo)

@@ -47,7 +47,7 @@ def main() -> None:
 
     from rough_viewer.app.features.zones import ZonesFeature
     from rough_viewer.app.server import build_app
-    from rough_viewer.app.state import MapSettings
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.io.load import load_points
     from rough_viewer.synthetic import demos
     from rough_viewer.visual import colormaps

@@ -127,7 +127,8 @@ def test_flat_api_names_resolve() -> None:
 #: host nothing of the UI, the UI nothing of the features, the features nothing of
 #: the build (server.py), which the command line uses.
 APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
-    ("core", frozenset({"limits", "markup", "sampling", "picking", "state", "files", "worker",
+    ("core", frozenset({"limits", "markup", "sampling", "picking", "settings", "units", "cache",
+                        "colouring", "cloud", "files", "worker",
                         "session", "scene"})),
     ("host", frozenset({"host"})),
     ("ui", frozenset({"hooks", "controls", "gate", "uploads", "binding", "layout", "shell"})),

@@ -31,8 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 import numpy as np
 
 from rough_viewer.app.files import DataFolder
-from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
-from rough_viewer.app.state import DEFAULT_MAX_DISPLAY
+from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.vocabulary import Unit

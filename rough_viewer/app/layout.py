@@ -14,8 +14,7 @@ import viser
 
 from rough_viewer.visual.app import CONTROL_WIDTH, panel_aspect
 
-__all__ = ["CONTROL_WIDTH", "PLOTLY_CONFIG", "limit_step", "placeholder", "round_limit",
-           "set_figure"]
+__all__ = ["CONTROL_WIDTH", "PLOTLY_CONFIG", "limit_step", "placeholder", "set_figure"]
 #: Plotly options of every panel: no mode bar (it covered the plots' titles at the top
 #: right; dragging still zooms, a double click resets, and the Export folder saves
 #: figures), no plotly logo.
@@ -52,13 +51,3 @@ def limit_step(value: float) -> float:
     if not v or v != v:
         return 0.001
     return min(0.001, 10.0 ** (math.floor(math.log10(v)) - 2))
-
-
-def round_limit(value: float) -> float:
-    """A colour limit as typed: 3 significant digits (0 and NaN stay 0).
-
-    >>> round_limit(6.2249), round_limit(float("nan"))
-    (6.22, 0.0)
-    """
-    v = float(value)
-    return float(f"{v:.3g}") if v == v and v != 0 else 0.0

@@ -36,3 +36,7 @@ MAX_REFUSALS = 100
 MAX_TEXT = 4096
 #: Longest message shown to a browser, characters.
 MAX_MESSAGE = 300
+
+#: Default display budget (points drawn in the browser).
+DEFAULT_MAX_DISPLAY = 2_000_000
+

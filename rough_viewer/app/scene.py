@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import viser
 
-from rough_viewer.app.state import CellInfo, Colouring, LoadedCloud
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import CellInfo, Colouring
 from rough_viewer.lod.camera import ViewCamera, camera_moved
 from rough_viewer.lod.encode import encode_node, node_scale
 from rough_viewer.lod.octree import Octree
@@ -210,7 +211,7 @@ class Scene:
     The cloud is shown in every browser tab by level of detail: each tab (viser's
     per-client scene) holds the nodes of the cloud's octree (:mod:`rough_viewer.lod`)
     its own camera sees, within the point budget (:meth:`refine`), and every node is
-    coloured by the one :data:`~rough_viewer.app.state.Colouring` of the points
+    coloured by the one :data:`~rough_viewer.app.colouring.Colouring` of the points
     (:meth:`colour_by`): the map's, or a feature's (the zones, the sets).
 
     Parameters

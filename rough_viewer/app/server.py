@@ -19,6 +19,7 @@ from typing import Any, TypeVar
 
 import viser
 
+from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.features import (
     bias,
     board,
@@ -38,10 +39,10 @@ from rough_viewer.app.features.map import InMemory, LoadJob, MapFeature, ShowJob
 from rough_viewer.app.files import DataFolder, UploadedFile
 from rough_viewer.app.host import AppOptions, Host
 from rough_viewer.app.layout import CONTROL_WIDTH
-from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_UPLOAD_MB
+from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.app.session import Session, Shown
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.shell import Shell
-from rough_viewer.app.state import DEFAULT_MAX_DISPLAY, LoadedCloud, MapSettings
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.bias.trust import TrustSettings
 from rough_viewer.io import PointCloud
@@ -161,7 +162,7 @@ def build_app(
     settings
         Initial map. Default: :class:`MapSettings` at the cloud's default grid
         (the finest of its presets, from the point spacing:
-        :func:`rough_viewer.app.state.grid_presets`).
+        :func:`rough_viewer.app.cloud.grid_presets`).
     max_display
         Points of the even overview sample (camera framing, point size, highlights;
         roughness uses every point).
@@ -186,7 +187,7 @@ def build_app(
         shown cloud's own unit is ``cloud.source_unit``.
     presets
         Grid presets of ``cloud``, metres (default
-        :func:`rough_viewer.app.state.grid_presets`: from its point spacing). Files
+        :func:`rough_viewer.app.cloud.grid_presets`: from its point spacing). Files
         loaded later get their own.
     save_views
         "Save view beside the input" may write into the data folder

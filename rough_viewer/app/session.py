@@ -11,7 +11,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from rough_viewer.app.state import CellInfo, LoadedCloud, MapSettings, MapStats
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import CellInfo, MapStats
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import PointScales
 from rough_viewer.report.view import View

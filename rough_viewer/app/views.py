@@ -42,7 +42,7 @@ import viser
 
 from rough_viewer.app.features.map import check_view_for_app
 from rough_viewer.app.host import Host, parts
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.report.view import (
     Camera,

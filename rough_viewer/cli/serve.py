@@ -199,12 +199,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rough_viewer.app.state import (
-        DEFAULT_MAX_DISPLAY,
-        MapSettings,
-        check_settings,
-        grid_presets,
-    )
+    from rough_viewer.app.cloud import grid_presets
+    from rough_viewer.app.limits import DEFAULT_MAX_DISPLAY
+    from rough_viewer.app.settings import MapSettings, check_settings
     from rough_viewer.grid import fast
     from rough_viewer.vocabulary import UNIT_METRES
 

@@ -99,6 +99,12 @@ def _serve(sock: Any) -> None:
         if isinstance(entry, str) and entry not in sys.path:
             sys.path.append(entry)
     path = str(request.get("path", ""))
+    cwd = request.get("cwd")
+    if isinstance(cwd, str) and cwd:
+        try:
+            os.chdir(cwd)  # the parent's folder now, not the one this child started in
+        except OSError:
+            pass  # an absolute path still reads; a relative one fails naming the file
     last = [0.0]
 
     def progress(done: int, total: int) -> None:

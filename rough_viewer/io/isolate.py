@@ -536,7 +536,11 @@ class _Session:
         self.selector = selectors.DefaultSelector()
         self.selector.register(self.child.sock, selectors.EVENT_READ)
         self._last_call = 0.0
-        request = dict(request, memory=int(limits.memory), sys_path=list(sys.path))
+        try:  # a spare child was forked earlier: it reads relative paths from our folder
+            cwd = os.getcwd()
+        except OSError:
+            cwd = ""
+        request = dict(request, memory=int(limits.memory), sys_path=list(sys.path), cwd=cwd)
         try:
             send(self.child.sock, request)
         except OSError:

@@ -13,7 +13,7 @@ from rough_viewer.app.features.bias import BiasPanel
 from rough_viewer.app.features.file import FileFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.vocabulary import InputError
 from tests.app.browser import wait_until
 from tests.app.protocol import join, settle

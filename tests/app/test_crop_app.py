@@ -26,7 +26,7 @@ from rough_viewer.app.features.crop import (
 from rough_viewer.app.features.measure import LINE_DOTS, MeasureFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.views import apply_view
 from rough_viewer.cli import main
 from rough_viewer.grid.table import cell_columns, table_metadata

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.features import export as em
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256
 from tests.app import browser as b

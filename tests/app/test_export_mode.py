@@ -19,7 +19,7 @@ import pytest
 from rough_viewer.app.features import export as em
 from rough_viewer.app.features.export import ExportFeature, panel_figures, safe_name
 from rough_viewer.app.features.panels import PanelsFeature
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.grid.table import cell_columns, point_fields
 from rough_viewer.io import load_points
 from rough_viewer.report.view import file_sha256, load_view
@@ -371,7 +371,7 @@ def test_download_names_carry_the_grid_as_shown():
     """A millimetre scan's 2.5 mm grid is 'g2.5mm' in its downloads, not 'g0.0025'."""
     from dataclasses import replace
 
-    from rough_viewer.app.state import LoadedCloud
+    from rough_viewer.app.cloud import LoadedCloud
 
     mm = LoadedCloud(replace(face_cloud(3_000), source_unit="mm"))
     assert em.grid_tag(mm, 0.0025) == "g2.5mm"

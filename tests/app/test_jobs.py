@@ -17,7 +17,7 @@ from rough_viewer.app.features.map import RenderJob
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import App, build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from tests.app.protocol import join, settle, shown_colours
 from tests.helpers import PAPER_PRESETS
@@ -210,8 +210,10 @@ def test_long_lived_lists_are_bounded(app):
 
 def test_cells_of_repeated_points_get_a_notice():
     """The app says why some cells are 0 (the same sentence as compute and report)."""
+    from rough_viewer.app.cloud import LoadedCloud
+    from rough_viewer.app.colouring import map_stats
     from rough_viewer.app.features.map import notice_text
-    from rough_viewer.app.state import LoadedCloud, MapSettings, map_stats
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.io import PointCloud
     from tests.helpers import repeated_points_cloud
 

@@ -22,7 +22,7 @@ from rough_viewer.app.features.sets import (
 )
 from rough_viewer.app.markup import md
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.cli.sets import format_sets
 from rough_viewer.structure.joints import rock_mass_text
 from rough_viewer.structure.sets import joint_sets

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.features.sets import L_COLOUR, L_ON, SetsFeature
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.cli import main
 from rough_viewer.io import load_points, write_las
 from rough_viewer.synthetic.joints import generate_rock_mass

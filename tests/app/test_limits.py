@@ -16,7 +16,7 @@ import laspy
 import numpy as np
 import pytest
 
-from rough_viewer.app.state import grid_presets
+from rough_viewer.app.cloud import grid_presets
 from tests.app.protocol import ProtocolClient
 from tests.app.serve_process import ServeProcess
 from tests.helpers import face_cloud

@@ -12,7 +12,7 @@ import pytest
 from rough_viewer.app.features.map import CAMERA_REST_S, L_BUDGET
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from tests.app.browser import wait_until
 from tests.app.protocol import join, pick, settle
 from tests.helpers import UTM, face_cloud

@@ -11,7 +11,7 @@ import pytest
 from rough_viewer.app.features.measure import LINE_DOTS, MeasureFeature
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import PointCloud
 from tests.app.browser import wait_until
 from tests.app.protocol import pick

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.bias.trust import TrustSettings, cell_trust
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.io import PointCloud

@@ -7,7 +7,7 @@ runs on the app's worker thread, so each test waits with ``app.wait_idle()``.
 import numpy as np
 import pytest
 
-from rough_viewer.app import state as state_mod
+from rough_viewer.app import cloud as state_mod
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.files import UploadedFile
 from rough_viewer.app.server import build_app

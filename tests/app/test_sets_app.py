@@ -10,7 +10,7 @@ import pytest
 from rough_viewer.app.features.sets import NO_SET, SetsFeature, set_option
 from rough_viewer.app.features.zones import ZonesFeature
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import JOINT_BLOCK, generate_joint_block
 from rough_viewer.visual.sets import point_colours

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from rough_viewer.app.features.sets import SetsFeature
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import PointCloud
 from tests.app import browser as b
 from tests.structure.test_face import hillside

@@ -11,7 +11,7 @@ import pytest
 from rough_viewer.app.features.sets import SetsFeature, set_option
 from rough_viewer.app.markup import md
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.structure.sets import SetOptions, joint_sets
 from rough_viewer.synthetic.joints import generate_rock_mass
 from tests.app.protocol import pick, shown_colours

@@ -3,17 +3,11 @@
 import numpy as np
 import pytest
 
-from rough_viewer.app import state as state_mod
-from rough_viewer.app.state import (
-    ByteCache,
-    LoadedCloud,
-    MapSettings,
-    cell_info,
-    check_settings,
-    map_stats,
-    nbytes,
-    point_colours,
-)
+from rough_viewer.app import cloud as state_mod
+from rough_viewer.app.cache import ByteCache, nbytes
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import cell_info, map_stats, point_colours
+from rough_viewer.app.settings import MapSettings, check_settings
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import binary, normalise
 from rough_viewer.visual import colormaps

@@ -14,7 +14,7 @@ from rough_viewer.app.features.sets import L_ON as L_SETS_ON
 from rough_viewer.app.features.sets import SetsFeature
 from rough_viewer.app.features.zones import L_ON as L_ZONES_ON
 from rough_viewer.app.features.zones import ZonesFeature
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.synthetic.joints import generate_rock_mass
 from tests.app import browser as b

@@ -14,7 +14,7 @@ from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.features.zones import ZonesFeature
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.roughness import grid_roughness
 from rough_viewer.grid.summary import histogram, normalise

@@ -13,11 +13,12 @@ import pytest
 from plotly.io.json import to_json_plotly
 
 from rough_viewer.app.binding import assign
+from rough_viewer.app.colouring import point_colours
 from rough_viewer.app.features import export as em
 from rough_viewer.app.features.export import ExportFeature, panel_figures
 from rough_viewer.app.features.map import PickJob
 from rough_viewer.app.features.profile import ProfileFeature
-from rough_viewer.app.state import MapSettings, point_colours
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.views import apply_view, open_view
 from rough_viewer.cli import main
 from rough_viewer.io import load_points

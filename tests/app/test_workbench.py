@@ -309,7 +309,7 @@ def test_every_preset_frames_the_cloud_in_the_free_part_of_the_window(scale, pre
     extent across the view spans FILL of the free width or height)."""
     from dataclasses import replace
 
-    from rough_viewer.app.state import LoadedCloud
+    from rough_viewer.app.cloud import LoadedCloud
     from tests.helpers import face_cloud
 
     base = face_cloud(20_000, seed=3)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app.features.zones import HIGHLIGHT_RGB, ZonesFeature
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import hex_to_rgb

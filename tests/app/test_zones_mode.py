@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import hooks
+from rough_viewer.app.colouring import point_colours
 from rough_viewer.app.features.zones import (
     HIGHLIGHT_RGB,
     NO_ZONE,
@@ -17,7 +18,7 @@ from rough_viewer.app.features.zones import (
 )
 from rough_viewer.app.gate import open_server
 from rough_viewer.app.server import build_app
-from rough_viewer.app.state import MapSettings, point_colours
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.io import PointCloud
 from rough_viewer.report.view import ZoneSettings
 from rough_viewer.structure.zones import ZoneLabeller
@@ -324,8 +325,8 @@ def test_values_from_a_browser_are_checked(hostile):
 
 
 def test_labellers_are_cached_within_a_byte_budget(server, banded):
+    from rough_viewer.app.cache import nbytes
     from rough_viewer.app.features.zones import zone_basis
-    from rough_viewer.app.state import nbytes
     from rough_viewer.grid.roughness import grid_roughness
 
     cloud = banded[0]

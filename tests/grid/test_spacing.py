@@ -80,7 +80,8 @@ def test_a_cloud_in_us_feet_gets_round_sizes_in_us_feet():
     with at least the target points per typical cell, in the app and the report."""
     from dataclasses import replace
 
-    from rough_viewer.app.state import Units, grid_presets
+    from rough_viewer.app.cloud import grid_presets
+    from rough_viewer.app.units import Units
     from rough_viewer.io import PointCloud
     from rough_viewer.report.build import default_report_grids
     from rough_viewer.vocabulary import UNIT_METRES

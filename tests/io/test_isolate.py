@@ -210,3 +210,27 @@ def test_the_address_limit_is_the_lower_of_the_wanted_and_the_hard_limit():
                           timeout=60, check=True,
                           env=dict(os.environ, PYTHONPATH=str(Path(__file__).parents[2])))
     assert done.stdout.split() == [str(5 << 30), str(1 << 30)]
+
+
+def test_a_relative_path_is_read_from_the_callers_folder_not_the_spares(tmp_path, monkeypatch):
+    """A spare child is forked before the caller changes folder (``cd data && serve
+    face.las`` in one process after a read elsewhere): it reads the relative path from
+    the caller's folder now. Before, 'cannot read face.las: No such file or directory'."""
+    import laspy
+
+    from rough_viewer.io import load_points
+
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        header = laspy.LasHeader(point_format=0, version="1.2")
+        header.scales = np.array([0.001, 0.001, 0.001])
+        las = laspy.LasData(header)
+        n = 10 if name == "a" else 20
+        las.x, las.y, las.z = np.arange(n) * 0.1, np.arange(n) * 0.2, np.zeros(n)
+        las.write(tmp_path / name / "face.las")
+    monkeypatch.chdir(tmp_path / "a")
+    assert load_points("face.las").n == 10
+    isolate.warm()  # a spare started in folder a
+    monkeypatch.chdir(tmp_path / "b")
+    cloud = load_points("face.las")
+    assert cloud.n == 20 and cloud.source == "face.las"

@@ -124,7 +124,7 @@ def test_figures_follow_the_unit(zoned):
     """A cloud in millimetres or feet: lengths, areas and the caption in its unit,
     roughness in mm for metric input and in feet for feet."""
     from rough_viewer.app.features.zones import zone_markdown
-    from rough_viewer.app.state import Units
+    from rough_viewer.app.units import Units
 
     res, zones = zoned
     mm = zones_table_figure(zones, unit="mm", **kw(res))

@@ -32,10 +32,12 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import Binding
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring
 from rough_viewer.app.features.map import MapFeature, render_stages, show_cloud
 from rough_viewer.app.host import Host
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import Colouring, LoadedCloud, Units
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.measure import PlaneMeasure, region_plane
 from rough_viewer.io.crop import CROP_MODES, CropBox, CropMode, parse_box

@@ -21,11 +21,11 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import Binding
+from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.features.profile import ProfileFeature
 from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder, set_figure
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.io import PointCloud
 from rough_viewer.io.mesh import MESH_SUFFIXES, TriangleMesh, load_mesh

@@ -55,10 +55,10 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import assign
+from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.host import FigureSource, Host
 from rough_viewer.app.markup import md, public_message
 from rough_viewer.app.session import Shown
-from rough_viewer.app.state import LoadedCloud
 from rough_viewer.app.views import camera_of, view_of
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
@@ -321,7 +321,7 @@ def _has_scanners(cloud: PointCloud) -> bool:
 def _trust_columns(shown: Shown, progress: Callable[[int, int], None]
                    ) -> dict[str, np.ndarray] | None:
     """The scanner columns of the shown grid, as the app shows them and ``compute``
-    writes them (:meth:`rough_viewer.app.state.LoadedCloud.trust`, cached per grid;
+    writes them (:meth:`rough_viewer.app.cloud.LoadedCloud.trust`, cached per grid;
     None without scanner positions)."""
     assert shown.result is not None
     trust = shown.loaded.trust(shown.result, progress=progress)

@@ -44,29 +44,40 @@ import viser
 
 from rough_viewer.app import scene as scene_mod
 from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import (
+    CellInfo,
+    Colouring,
+    MapStats,
+    by_cell,
+    cell_colours,
+    cell_info,
+    map_stats,
+)
 from rough_viewer.app.host import Host, Pick
-from rough_viewer.app.layout import PLOTLY_CONFIG, limit_step, round_limit, set_figure
+from rough_viewer.app.layout import PLOTLY_CONFIG, limit_step, set_figure
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
 from rough_viewer.app.picking import pick_cloud_point
 from rough_viewer.app.session import Shown
-from rough_viewer.app.state import (
+from rough_viewer.app.settings import (
+    AXIS_BY_NAME,
+    DISPLAY_BY_NAME,
+    FORM_FIELDS,
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
-    CellInfo,
-    Colouring,
-    DisplayMode,
-    LoadedCloud,
+    GridChoices,
+    MapForm,
     MapSettings,
-    MapStats,
-    Units,
-    by_cell,
-    cell_colours,
-    cell_info,
     check_settings,
-    map_stats,
+    form_of,
+    grid_options,
+    round_limit,
+    settings_of,
+    settle,
 )
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.bias.trust import CellTrust
 from rough_viewer.grid.outliers import outlier_text
@@ -85,16 +96,11 @@ from rough_viewer.visual.app import (
 from rough_viewer.visual.layers import ColourLayer
 from rough_viewer.visual.scales import point_scales_figure
 from rough_viewer.vocabulary import (
-    AXIS_CHOICES,
     COLOUR_LAYER_LABELS,
-    COLOUR_LAYERS,
     TRUST_FIELDS,
     TRUST_LABELS,
     UNITS,
-    AxisChoice,
-    ColourLayerName,
     InputError,
-    MapName,
     Unit,
 )
 
@@ -104,10 +110,6 @@ BIG_CLOUD = 1_000_000
 #: Colour-map dropdown: "auto" = the map's own (viridis; magma for e_ols).
 COLORMAP_OPTIONS: tuple[str, ...] = ("auto", *colormaps.COLORMAP_NAMES)
 MODEL_OPTIONS: tuple[str, ...] = tuple(MODEL_LABELS.values())
-MODEL_BY_LABEL: dict[str, MapName] = {label: name for name, label in MODEL_LABELS.items()}
-DISPLAY_BY_NAME: dict[str, DisplayMode] = {"continuous": "continuous", "binary": "binary"}
-AXIS_BY_NAME: dict[str, AxisChoice] = {a: a for a in AXIS_CHOICES}
-LAYER_BY_LABEL: dict[str, ColourLayerName] = {COLOUR_LAYER_LABELS[n]: n for n in COLOUR_LAYERS}
 #: Camera presets (the "View" button group).
 CAMERA_PRESETS: tuple[str, ...] = ("face-on", "top", "side")
 
@@ -158,24 +160,6 @@ def l_range_hi(units: Units) -> str:
     return f"Highest θ ({units.rough_label})"
 
 
-def resolve_colormap(choice: str, model: str) -> str:
-    """Colour map actually used: ``auto`` -> the map's own
-    (:func:`rough_viewer.visual.colormaps.default_colormap`: magma, a sequential map,
-    for e_ols; viridis for the roughness maps)."""
-    if choice == "auto":
-        return colormaps.default_colormap(model)
-    return choice
-
-
-def grid_options(presets: tuple[float, ...], units: Units) -> dict[str, float]:
-    """Grid dropdown entries (the presets in the cloud's unit, as text) -> metres.
-
-    >>> grid_options((0.5, 0.25), Units("m"))
-    {'0.5': 0.5, '0.25': 0.25}
-    """
-    return {f"{units.length(g):g}": g for g in presets}
-
-
 def grid_step(presets: tuple[float, ...], units: Units) -> float:
     """The free grid field's step, in the cloud's unit: the finest preset's third
     significant digit, at most 0.001 (the field shows as many decimals).
@@ -185,18 +169,6 @@ def grid_step(presets: tuple[float, ...], units: Units) -> float:
     """
     finest = units.length(min(presets))
     return min(0.001, 10.0 ** (math.floor(math.log10(finest)) - 2)) if finest > 0 else 0.001
-
-
-def grid_choice(cell_size: float, options: dict[str, float]) -> str:
-    """The grid dropdown entry for a cell size (metres): a preset, or ``free``.
-
-    >>> grid_choice(0.25, {"0.5": 0.5, "0.25": 0.25}), grid_choice(0.3, {"0.5": 0.5})
-    ('0.25', 'free')
-    """
-    for text, size in options.items():
-        if abs(size - cell_size) <= 1e-9 * max(size, 1e-12):
-            return text
-    return "free"
 
 
 def scales_placeholder() -> go.Figure:
@@ -227,134 +199,67 @@ Changes = tuple[tuple[str, object], ...]
 
 
 class MapBinding(Binding):
-    """The Map tab's controls and :class:`~rough_viewer.app.state.MapSettings`."""
+    """Between the Map tab's controls and :class:`~rough_viewer.app.settings.MapForm`:
+    it copies the controls into a form and a form into the controls, and nothing
+    else; what a change means (the twin controls, the settings asked for) is
+    :mod:`rough_viewer.app.settings`' pure functions."""
 
     def __init__(self, m: MapFeature, presets: tuple[float, ...], units: Units) -> None:
         self.m = m
-        self.units = units
+        self.choices = GridChoices.of(presets, units)
+        """The shown cloud's grid entries and the unit of the lengths the controls show."""
+
+    @property
+    def units(self) -> Units:
         """The unit of the lengths the controls show (the shown cloud's)."""
-        self.grid_values = grid_options(presets, units)
-        """Grid dropdown entry -> cell size, metres (the shown cloud's presets)."""
+        return self.choices.units
+
+    # ------------------------------------------------------------------ controls <-> form
+    def handles(self) -> dict[str, Any]:
+        """Field of :class:`MapForm` -> its control."""
+        return {name: getattr(self.m, name) for name in FORM_FIELDS}
+
+    def read_form(self) -> MapForm:
+        """What the controls hold now."""
+        return MapForm(**{name: h.value for name, h in self.handles().items()})
+
+    def show_form(self, form: MapForm) -> None:
+        """Put ``form`` into the controls quietly (only the ones that differ; a colour
+        limit's step follows its value)."""
+        with self.quietly():
+            for name, handle in self.handles().items():
+                value = getattr(form, name)
+                if name in ("range_lo", "range_hi") and handle.value != value:
+                    handle.step = limit_step(value)
+                if handle.value != value:
+                    assign(handle, value)
 
     # ------------------------------------------------------------------ read
     def read(self) -> MapSettings:
         """The settings the controls ask for (InputError if a control holds a value
         the app cannot use). Lengths typed in the cloud's unit become metres."""
-        m, u = self.m, self.units
-        if m.grid.value == "free":
-            cell = float(m.grid_free.value) * u.per
-        else:
-            preset = self.grid_values.get(m.grid.value)
-            if preset is None:
-                raise InputError("the grid size is not one of this cloud's presets")
-            cell = preset
-        model = MODEL_BY_LABEL.get(m.model.value)
-        axis = AXIS_BY_NAME.get(m.axis.value)
-        display = DISPLAY_BY_NAME.get(m.display.value)
-        layer = LAYER_BY_LABEL.get(m.layer.value)
-        if model is None or axis is None or display is None or layer is None:
-            raise InputError("a control holds a value that is not one of its options")
-        return MapSettings(cell_size=cell, model=model, axis=axis,
-                           min_points=int(m.min_points.value), display=display,
-                           threshold=float(m.threshold.value),
-                           colormap=resolve_colormap(m.colormap.value, model),
-                           stretch=self.read_stretch(), layer=layer,
-                           keep_outliers=bool(m.keep_outliers.value))
-
-    def read_stretch(self) -> colormaps.Stretch:
-        """The colour stretch the controls ask for: percentiles of the cells, or the
-        absolute limits typed in the roughness unit (InputError if unusable)."""
-        m = self.m
-        log = bool(m.log.value)
-        if m.stretch.value == "absolute":
-            per = self.units.rough_per
-            lo, hi = float(m.range_lo.value), float(m.range_hi.value)
-            if log and lo <= 0:
-                raise InputError("a log colour scale needs a lowest θ above 0")
-            return colormaps.Stretch("absolute", lo * per, hi * per, log=log)
-        p_lo, p_hi = (float(v) for v in m.percentiles.value)
-        return colormaps.Stretch("percentile", p_lo, p_hi, log=log)
+        return settings_of(self.read_form(), self.choices)
 
     def settle(self, changes: Changes) -> None:
         """Put each change's value back into its control (the app may have shown
-        another since: a colour range after a map), then move the controls that follow
-        the last changed one of their group (worker)."""
-        m = self.m
-        with self.quietly():
-            for name, value in changes:
-                if name == "toggle":
-                    assign(m.model, "OLS" if m.model.value == "ODR" else "ODR")
-                elif getattr(m, name).value != value:
-                    assign(getattr(m, name), value)
-        last = {name: k for k, (name, _value) in enumerate(changes)}
-        grid, free = last.get("grid", -1), last.get("grid_free", -1)
-        if free > grid:
-            self.set(m.grid, "free")
-        elif grid >= 0:
-            size = self.grid_values.get(m.grid.value)
-            if size is not None:
-                self.set(m.grid_free, self.units.length(size))
-        typed = max(last.get("pct_lo", -1), last.get("pct_hi", -1))
-        if typed > last.get("percentiles", -1):  # typed percentiles move the slider
-            lo, hi = sorted((float(m.pct_lo.value), float(m.pct_hi.value)))
-            self.set(m.percentiles, (lo, hi))
-        stretch = {k: last.get(k, -1)
-                   for k in ("stretch", "percentiles", "pct_lo", "pct_hi", "range_lo", "range_hi")}
-        latest = max(stretch, key=lambda k: stretch[k])
-        if stretch[latest] >= 0 and latest != "stretch":
-            absolute = latest in ("range_lo", "range_hi")
-            self.set(m.stretch, "absolute" if absolute else "percentile")
-        self.show_percentiles()
-
-    def show_percentiles(self) -> None:
-        """The typed fields show the slider's two ends."""
-        lo, hi = (float(v) for v in self.m.percentiles.value)
-        self.set(self.m.pct_lo, lo)
-        self.set(self.m.pct_hi, hi)
+        another since: a colour range after a map) and move the controls that follow
+        it (:func:`rough_viewer.app.settings.settle`; worker)."""
+        self.show_form(settle(self.read_form(), changes, self.choices))
 
     # ------------------------------------------------------------------ show
     def show(self, settings: MapSettings) -> None:
         """Show ``settings`` in the controls without queuing work (after an error, a
         restored view, or a cloud with other presets)."""
-        m, u = self.m, self.units
-        with self.quietly():
-            assign(m.grid, grid_choice(settings.cell_size, self.grid_values))
-            assign(m.grid_free, u.length(settings.cell_size))
-            assign(m.model, MODEL_LABELS[settings.model])
-            assign(m.keep_outliers, bool(settings.keep_outliers))
-            assign(m.axis, settings.axis)
-            assign(m.min_points, int(settings.min_points))
-            assign(m.display, settings.display)
-            assign(m.threshold, float(settings.threshold))
-            auto = resolve_colormap("auto", settings.model)
-            assign(m.colormap, "auto" if settings.colormap == auto else settings.colormap)
-            label = COLOUR_LAYER_LABELS[settings.layer]
-            if label in m.layer.options:
-                assign(m.layer, label)
-            st = settings.stretch
-            assign(m.stretch, st.mode)
-            assign(m.log, bool(st.log))
-            if st.mode == "absolute":
-                for handle, metres in ((m.range_lo, st.lo), (m.range_hi, st.hi)):
-                    value = round_limit(u.rough(metres))
-                    handle.step = limit_step(value)
-                    assign(handle, value)
-            else:
-                assign(m.percentiles, (float(st.lo), float(st.hi)))
-        self.show_percentiles()
+        self.show_form(form_of(settings, self.choices, self.read_form(),
+                               layers=tuple(self.m.layer.options)))
 
     def show_range(self, colour_range: colormaps.ColourRange) -> None:
         """Put the roughness range the colours span into the lowest/highest fields
         (roughness unit, 3 digits), so switching to an absolute stretch pins it."""
-        m, u = self.m, self.units
+        u = self.units
         lo, hi = round_limit(u.rough(colour_range.lo)), round_limit(u.rough(colour_range.hi))
-        if hi <= lo:
-            return
-        with self.quietly():
-            # the fields show as many decimals as their step has: 3 digits of each
-            for handle, value in ((m.range_lo, lo), (m.range_hi, hi)):
-                handle.step = limit_step(value)
-                assign(handle, value)
+        if hi > lo:
+            self.show_form(replace(self.read_form(), range_lo=lo, range_hi=hi))
 
     def follow(self, loaded: LoadedCloud, point_size: float) -> None:
         """The grid presets, unit labels, colour layers and point-size range of a
@@ -362,10 +267,9 @@ class MapBinding(Binding):
         m = self.m
         u = loaded.units
         assert loaded.presets is not None
-        self.units = u
-        self.grid_values = grid_options(loaded.presets, u)
+        self.choices = GridChoices.of(loaded.presets, u)
         with self.quietly():
-            m.grid.options = (*self.grid_values, "free")
+            m.grid.options = (*self.choices.values, "free")
             m.grid.label = l_grid(u)
             m.grid_free.label = l_grid_free(u)
             m.grid_free.min, m.grid_free.max = u.length(MIN_CELL_SIZE), u.length(MAX_CELL_SIZE)

@@ -24,7 +24,7 @@ import viser
 
 from rough_viewer.app.binding import Binding
 from rough_viewer.app.host import Host, Pick
-from rough_viewer.app.state import Units
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.measure import Distance, point_distance
 from rough_viewer.report.view import MeasurePick, View

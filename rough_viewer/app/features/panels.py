@@ -29,7 +29,7 @@ import viser
 from rough_viewer.app.features.map import MapFeature, empty_figure
 from rough_viewer.app.host import Host
 from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
-from rough_viewer.app.state import MapSettings
+from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.outliers import analysed_values
 from rough_viewer.grid.roughness import GridRoughness

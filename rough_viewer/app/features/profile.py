@@ -22,12 +22,13 @@ import numpy as np
 import viser
 
 from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, set_figure
 from rough_viewer.app.limits import MAX_PROFILES
 from rough_viewer.app.markup import md
 from rough_viewer.app.scene import MARKER
-from rough_viewer.app.state import LoadedCloud, Units
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.profiles.extraction import Profile, extract_profile
 from rough_viewer.profiles.fractal import (

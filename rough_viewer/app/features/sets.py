@@ -41,11 +41,13 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.binding import Binding, assign
+from rough_viewer.app.cache import ByteCache
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring, by_cell
 from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG, placeholder
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import ByteCache, Colouring, LoadedCloud, by_cell
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.io.point_fields import CellField

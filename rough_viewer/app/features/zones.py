@@ -33,7 +33,7 @@ SelectZoneJob   select                                       zones-select
 
 Per grid result and map, :class:`ZoneBasis` (the :class:`~rough_viewer.structure.zones.
 ZoneLabeller`, built once, and the cell of every displayed point) is kept in a
-byte-bounded cache (:class:`~rough_viewer.app.state.ByteCache`, half the grid
+byte-bounded cache (:class:`~rough_viewer.app.cache.ByteCache`, half the grid
 cache's budget), so a threshold change only re-labels and recolours.
 
 Saved views read and restore the zone settings with :meth:`ZonesFeature.snapshot`
@@ -53,12 +53,16 @@ import plotly.graph_objects as go
 import viser
 
 from rough_viewer.app.binding import Binding, assign
-from rough_viewer.app.features.map import MODEL_BY_LABEL, MapFeature
+from rough_viewer.app.cache import ByteCache
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.colouring import Colouring, by_cell
+from rough_viewer.app.features.map import MapFeature
 from rough_viewer.app.host import Host, Pick
 from rough_viewer.app.layout import PLOTLY_CONFIG
 from rough_viewer.app.limits import MAX_TIMINGS
 from rough_viewer.app.markup import md
-from rough_viewer.app.state import MODEL_LABELS, ByteCache, Colouring, LoadedCloud, Units, by_cell
+from rough_viewer.app.settings import MODEL_BY_LABEL, MODEL_LABELS
+from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.orientation import Stereonet, cell_stereonet
 from rough_viewer.grid.roughness import GridRoughness

@@ -1,34 +1,32 @@
-"""What the app shows, as plain data: settings, the loaded cloud, cached grid
-results and the colours they give. No viser here, so all of it is testable.
+"""The loaded cloud: a cloud prepared for display (its overview sample, presets,
+colour layers, crop lineage) and what is computed from all of its points (grid
+results, the octree, the scanner figures), cached.
 
-Data flow: a :class:`MapSettings` snapshot names a grid (cell size, dependent
-axis, minimum points) and a way to colour it. :meth:`LoadedCloud.result` computes
-that grid with the core (:func:`rough_viewer.grid.roughness.grid_roughness`, the
-same call as ``rough-viewer compute``) once and caches it; :func:`point_colours`
-turns a result plus the colouring settings into one RGB triple per displayed
-point without touching the planes again.
+Data flow: a :class:`~rough_viewer.app.settings.MapSettings` snapshot names a grid
+(cell size, dependent axis, minimum points) and a way to colour it.
+:meth:`LoadedCloud.result` computes that grid with the core
+(:func:`rough_viewer.grid.roughness.grid_roughness`, the same call as
+``rough-viewer compute``) once and caches it; :mod:`rough_viewer.app.colouring` turns a
+result plus the colouring settings into colours without touching the planes again.
 """
 
 from __future__ import annotations
 
-import math
-import threading
 import weakref
-from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields, is_dataclass, replace
-from typing import Generic, Literal, TypeVar
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rough_viewer.app.limits import CACHE_BYTES
+from rough_viewer.app.cache import ByteCache
+from rough_viewer.app.colouring import Colouring, by_cell
+from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY
 from rough_viewer.app.sampling import display_subset
+from rough_viewer.app.settings import MIN_CELL_SIZE, MapSettings, check_settings
+from rough_viewer.app.units import Units
 from rough_viewer.bias.trust import CellTrust, TrustSettings, cell_trust
-from rough_viewer.grid.orientation import dip_and_direction
-from rough_viewer.grid.outliers import analysed_values, outlier_mask
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
-    EXACT_FIT,
     GridRoughness,
     PreparedGrid,
     coarsen_prepared,
@@ -36,13 +34,9 @@ from rough_viewer.grid.roughness import (
     prepare_grid,
 )
 from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
-from rough_viewer.grid.summary import normalise
-from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
 from rough_viewer.io import PointCloud
 from rough_viewer.io.crop import CropBox, crop_cloud
 from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
-from rough_viewer.report.build import SPARSE_SHARE
-from rough_viewer.visual import colormaps
 from rough_viewer.visual.layers import (
     ColourLayer,
     face_plane_distance,
@@ -53,142 +47,11 @@ from rough_viewer.visual.layers import (
 )
 from rough_viewer.vocabulary import (
     COLOUR_LAYERS,
-    MAP_TITLES,
-    MAPS,
-    ROUGHNESS_UNIT,
     TRUST_FIELDS,
-    UNIT_LABELS,
-    UNIT_METRES,
-    AxisChoice,
     ColourLayerName,
     InputError,
-    MapName,
     ProgressFn,
 )
-
-DisplayMode = Literal["continuous", "binary"]
-
-#: Maps in the order the GUI lists them; names shown to the user.
-MODEL_LABELS: dict[MapName, str] = {name: MAP_TITLES[name] for name in MAPS}
-
-#: Default display budget (points drawn in the browser).
-DEFAULT_MAX_DISPLAY = 2_000_000
-
-#: Smallest cell size the app accepts (metres): 0.1 mm, for lab scans of joints (a
-#: 20 mm joint scanned densely has presets below 1 mm); the grid code checks memory.
-MIN_CELL_SIZE = 1e-4
-
-#: Largest cell size the app accepts (metres).
-MAX_CELL_SIZE = 10_000.0
-
-
-@dataclass(frozen=True)
-class MapSettings:
-    """Everything the user chose that changes the picture (one immutable snapshot)."""
-
-    cell_size: float = 0.25
-    """Grid cell edge in metres."""
-    model: MapName = "odr"
-    """Which roughness map colours the points."""
-    axis: AxisChoice = "auto"
-    """Dependent axis for OLS and hybrid; ``auto`` = closest to the whole-cloud normal."""
-    min_points: int = 4
-    """Cells with fewer points get no value."""
-    display: DisplayMode = "continuous"
-    """Continuous roughness colours, or the binary transform at ``threshold``."""
-    threshold: float = 0.05
-    """Binary threshold on normalised roughness (0-1)."""
-    colormap: str = "viridis"
-    """Colour map name (see :mod:`rough_viewer.visual.colormaps`)."""
-    stretch: colormaps.Stretch = colormaps.ROUGHNESS_STRETCH
-    """How roughness spreads over the colour map (percentiles of the cells or absolute
-    limits in metres, linear or log): :class:`rough_viewer.visual.colormaps.Stretch`."""
-    layer: ColourLayerName = "roughness"
-    """What colours the points: the roughness map, the scan's RGB, its intensity, or
-    the distance to the whole-cloud face plane."""
-    keep_outliers: bool = False
-    """Keep cells whose roughness is larger than the cell (outliers of the hybrid or
-    OLS definition, :mod:`rough_viewer.grid.outliers`) in the colour stretch, the
-    binary transform, the panels and the zones; by default they are left out and
-    drawn in :data:`rough_viewer.visual.colormaps.OUTLIER_RGB`."""
-
-    @property
-    def grid_key(self) -> tuple[float, str, int]:
-        """Cache key of the grid computation: (cell size, axis, min points)."""
-        return (round(float(self.cell_size), 9), self.axis, int(self.min_points))
-
-    def with_(self, **changes: object) -> MapSettings:
-        """A copy with some fields changed."""
-        return replace(self, **changes)  # type: ignore[arg-type]
-
-
-# ----------------------------------------------------------------------------- units
-
-
-@dataclass(frozen=True)
-class Units:
-    """How lengths are shown: grid sizes and coordinates in the cloud's unit,
-    roughness in :data:`rough_viewer.vocabulary.ROUGHNESS_UNIT` of it (mm for metric
-    input). The app computes in metres; only what is shown or typed is converted.
-
-    >>> u = Units("ft")
-    >>> u.length(0.3048), u.label, u.rough_label
-    (1.0, 'ft', 'ft')
-    >>> Units("m").rough(0.002), Units("m").rough_label
-    (2.0, 'mm')
-    """
-
-    unit: str = "m"
-    """Unit of the cloud's coordinates (``PointCloud.source_unit``)."""
-
-    @property
-    def per(self) -> float:
-        """Metres per length unit."""
-        return UNIT_METRES[self.unit]
-
-    @property
-    def label(self) -> str:
-        return UNIT_LABELS[self.unit]
-
-    @property
-    def rough_unit(self) -> str:
-        return ROUGHNESS_UNIT[self.unit] if self.unit in ROUGHNESS_UNIT else self.unit
-
-    @property
-    def rough_per(self) -> float:
-        """Metres per roughness unit."""
-        return UNIT_METRES[self.rough_unit]
-
-    @property
-    def rough_label(self) -> str:
-        return UNIT_LABELS[self.rough_unit]
-
-    def length(self, metres: float) -> float:
-        """A length in metres, in the cloud's unit (rounded to 9 significant digits)."""
-        return float(f"{metres / self.per:.9g}")
-
-    def rough(self, metres: float) -> float:
-        """A roughness in metres, in the roughness unit."""
-        return float(metres) / self.rough_per
-
-    def rough_text(self, metres: float) -> str:
-        """A roughness as shown beside others: 3 significant digits in the roughness
-        unit, a metric one under 0.01 mm in µm (e_ols of a lab mesh is
-        ``"0.505 µm"``, not ``"0.0005048 mm"``); a dash when it is not finite.
-
-        >>> Units("mm").rough_text(5.048e-7), Units("m").rough_text(0.0012345)
-        ('0.505 µm', '1.23 mm')
-        """
-        if not math.isfinite(metres):
-            return "—"
-        v = self.rough(metres)
-        if self.rough_unit == "mm" and v != 0.0 and abs(v) < 0.01:
-            return f"{1000.0 * v:.3g} µm"
-        return f"{v:.3g} {self.rough_label}"
-
-    def size_text(self, metres: float) -> str:
-        """``"0.25 m"``, ``"12.5 mm"``: a grid size as shown."""
-        return f"{self.length(metres):g} {self.label}"
 
 
 def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
@@ -200,118 +63,6 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     # readable in the cloud's unit (default_cell_size's rule, as report and compute)
     return cell_sizes_from(max(default_cell_size(cloud), MIN_CELL_SIZE))
 
-
-def check_settings(settings: MapSettings) -> None:
-    """Raise InputError for settings the core cannot use (message for the GUI)."""
-    if not np.isfinite(settings.cell_size) or settings.cell_size < MIN_CELL_SIZE:
-        raise InputError(
-            f"grid size {settings.cell_size:g} m is too small (minimum {MIN_CELL_SIZE:g} m)"
-        )
-    if settings.min_points < 3:
-        raise InputError(f"minimum points per cell must be at least 3, got {settings.min_points}")
-    if settings.model not in MODEL_LABELS:
-        raise InputError(f"unknown model {settings.model!r}")
-    if settings.axis not in ("auto", "x", "y", "z"):
-        raise InputError(f"unknown dependent axis {settings.axis!r}")
-    if settings.cell_size > MAX_CELL_SIZE:
-        raise InputError(f"grid size {settings.cell_size:g} m is too large "
-                         f"(maximum {MAX_CELL_SIZE:g} m)")
-    if settings.layer not in COLOUR_LAYERS:
-        raise InputError(f"unknown colour layer {settings.layer!r}")
-    if not isinstance(settings.stretch, colormaps.Stretch):
-        raise InputError("the colour stretch must be a Stretch")
-    colormaps.lut(settings.colormap)
-
-
-def nbytes(obj: object) -> int:
-    """Bytes held by the numpy arrays inside ``obj`` (dataclasses, tuples, lists and
-    dicts are walked; an array and its views count once, at their base's size)."""
-    seen: set[int] = set()
-    total = 0
-    stack: list[object] = [obj]
-    while stack:
-        o = stack.pop()
-        if isinstance(o, np.ndarray):
-            base = o
-            while isinstance(base.base, np.ndarray):
-                base = base.base
-            if id(base) not in seen:
-                seen.add(id(base))
-                total += int(base.nbytes)
-        elif is_dataclass(o) and not isinstance(o, type):
-            stack.extend(getattr(o, f.name) for f in fields(o))
-        elif isinstance(o, (tuple, list)):
-            stack.extend(o)
-        elif isinstance(o, dict):
-            stack.extend(o.values())
-    return total
-
-
-K = TypeVar("K")
-V = TypeVar("V")
-
-
-class ByteCache(Generic[K, V]):
-    """A thread-safe least-recently-used cache bounded by the bytes of its values.
-
-    Parameters
-    ----------
-    budget
-        Most bytes (by :func:`nbytes`) the cache holds. A value larger than the
-        whole budget is not kept.
-    pinned
-        Keys never evicted to make room (they still count against the budget).
-    """
-
-    def __init__(self, budget: int, *, pinned: Callable[[K], bool] = lambda _k: False) -> None:
-        self.budget = int(budget)
-        self._pinned = pinned
-        self._items: OrderedDict[K, tuple[V, int]] = OrderedDict()
-        self._bytes = 0
-        self._lock = threading.Lock()
-
-    def get(self, key: K) -> V | None:
-        with self._lock:
-            item = self._items.get(key)
-            if item is None:
-                return None
-            self._items.move_to_end(key)
-            return item[0]
-
-    def __contains__(self, key: object) -> bool:
-        with self._lock:
-            return key in self._items
-
-    def put(self, key: K, value: V) -> bool:
-        """Keep ``value`` (evicting least recently used values to make room);
-        returns False, evicting nothing, when it cannot fit beside the pinned values."""
-        size = nbytes(value)
-        with self._lock:
-            old = self._items.pop(key, None)
-            if old is not None:
-                self._bytes -= old[1]
-            movable = [k for k in self._items if not self._pinned(k)]
-            if self._bytes - sum(self._items[k][1] for k in movable) + size > self.budget:
-                return False  # it cannot fit: keep what is there rather than flush it
-            for k in movable:
-                if self._bytes + size <= self.budget:
-                    break
-                self._bytes -= self._items.pop(k)[1]
-            if self._bytes + size > self.budget:
-                return False
-            self._items[key] = (value, size)
-            self._bytes += size
-            return True
-
-    @property
-    def bytes(self) -> int:
-        """Bytes held now."""
-        with self._lock:
-            return self._bytes
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._items)
 
 
 def _weak_pin(cloud: LoadedCloud) -> Callable[[tuple[str, tuple[float, str, int] | float]], bool]:
@@ -684,182 +435,3 @@ class LoadedCloud:
         self._cache.put(key, prep)
         return prep
 
-
-def map_values(result: GridRoughness, settings: MapSettings) -> np.ndarray:
-    """(M,) the shown map's roughness as the colours, panels and zones use it, metres:
-    NaN without a value and, unless ``settings.keep_outliers``, for outlier cells
-    (:func:`rough_viewer.grid.outliers.analysed_values`)."""
-    return analysed_values(result, settings.model, keep_outliers=settings.keep_outliers)
-
-
-def normalised_map(result: GridRoughness, settings: MapSettings) -> np.ndarray:
-    """Min-max normalised roughness of every cell of the shown map (NaN: no value, or
-    an outlier left out)."""
-    return normalise(map_values(result, settings))
-
-
-def colour_range(result: GridRoughness, settings: MapSettings) -> colormaps.ColourRange:
-    """The stretch of ``settings`` resolved on the cells of the shown map (one vote
-    per cell with a value, as Table 1 counts; outliers left out unless kept), metres."""
-    return colormaps.resolve(map_values(result, settings), settings.stretch)
-
-
-def shown_outliers(result: GridRoughness, settings: MapSettings) -> np.ndarray | None:
-    """(M,) bool: the cells drawn in the outlier colour (None: none, or kept)."""
-    if settings.keep_outliers:
-        return None
-    mask = outlier_mask(result, settings.model)
-    return mask if mask.any() else None
-
-
-Colouring = Callable[[np.ndarray], np.ndarray]
-"""What colours the points: ``colouring(idx)`` gives the (K, 3) uint8 colours of cloud
-points ``idx`` (indices into the loaded cloud), for any subset (the nodes a browser
-tab shows)."""
-
-
-def by_cell(cell_rgb: np.ndarray, point_cell: np.ndarray) -> Colouring:
-    """The colouring that gives each point its cell's colour ((M, 3) ``cell_rgb``)."""
-    def colouring(idx: np.ndarray) -> np.ndarray:
-        return cell_rgb[point_cell[idx]]
-
-    return colouring
-
-
-def cell_colours(
-    result: GridRoughness,
-    settings: MapSettings,
-    *,
-    colours_range: colormaps.ColourRange | None = None,
-) -> np.ndarray:
-    """(M, 3) uint8 colour of every cell of the shown map (see :func:`point_colours`)."""
-    out = shown_outliers(result, settings)
-    if settings.display == "binary":
-        norm = normalised_map(result, settings)
-        with np.errstate(invalid="ignore"):
-            flags = norm >= settings.threshold
-        return colormaps.apply_binary(flags, np.isfinite(norm), settings.colormap, outliers=out)
-    rng = colours_range if colours_range is not None else colour_range(result, settings)
-    return colormaps.stretch_colours(map_values(result, settings), rng, settings.colormap,
-                                     outliers=out)
-
-
-def point_colours(
-    result: GridRoughness,
-    settings: MapSettings,
-    point_index: np.ndarray,
-    *,
-    colours_range: colormaps.ColourRange | None = None,
-) -> np.ndarray:
-    """RGB colour (``(K, 3)`` uint8) of the points ``point_index`` of the cloud.
-
-    Continuous display: each point takes the colour of its cell's roughness under
-    the settings' stretch (:func:`colour_range`; robust log percentiles by default,
-    or absolute limits) on ``settings.colormap``. Binary display: the 2011 paper's
-    transform, min-max normalised roughness ``>= threshold`` in the map's last
-    colour, the rest in its first. Points in cells without a value get
-    :data:`colormaps.NEUTRAL_RGB`, points in outlier cells (left out)
-    :data:`colormaps.OUTLIER_RGB`. ``colours_range`` may pass a precomputed
-    :func:`colour_range`.
-    """
-    return cell_colours(result, settings, colours_range=colours_range)[
-        result.point_cell[point_index]]
-
-
-@dataclass(frozen=True)
-class MapStats:
-    """Numbers the colour bar and status line show for the current map."""
-
-    theta_min: float
-    """Smallest roughness of a valid cell (metres)."""
-    theta_max: float
-    """Largest roughness of a valid cell (metres)."""
-    cells: int
-    """Occupied cells."""
-    valid_cells: int
-    """Cells with a value for this model."""
-    rough_share: float
-    """Share of valid cells at or above the binary threshold."""
-    colour_range: colormaps.ColourRange
-    """The stretch resolved on this map (what the colours' ends mean)."""
-    exact_fit: int = 0
-    """Cells with a value of 0 to round-off (points exactly on a plane, e.g. repeated
-    points; :data:`rough_viewer.grid.roughness.EXACT_FIT`)."""
-    outliers: int = 0
-    """Cells whose roughness is larger than the cell (left out unless kept)."""
-    advice: ThresholdAdvice | None = None
-    """What the binary threshold flags, and the data's own threshold."""
-
-    @property
-    def sparse(self) -> bool:
-        """Most occupied cells have no value (fewer than ``SPARSE_SHARE`` of them):
-        the grid is too fine for the point density."""
-        return self.cells > 0 and self.valid_cells < SPARSE_SHARE * self.cells
-
-
-def map_stats(result: GridRoughness, settings: MapSettings) -> MapStats:
-    """Range and counts of the current map (see :class:`MapStats`); outliers left out
-    unless kept."""
-    values = map_values(result, settings)
-    finite = np.isfinite(values)
-    norm = normalise(values)
-    valid = int(finite.sum())
-    if valid:
-        lo, hi = float(values[finite].min()), float(values[finite].max())
-        rough = float(np.mean(norm[finite] >= settings.threshold))
-    else:
-        lo = hi = rough = float("nan")
-    return MapStats(lo, hi, len(values), valid, rough,
-                    colormaps.resolve(values, settings.stretch),
-                    exact_fit=result.cell_report(settings.model)["exact_fit"],
-                    outliers=int(outlier_mask(result, settings.model).sum()),
-                    advice=threshold_advice(values, settings.threshold,
-                                            exact_fit=EXACT_FIT * result.grid.cell_size))
-
-
-@dataclass(frozen=True)
-class CellInfo:
-    """What a click on a point reports about its cell (file frame, metres)."""
-
-    cell: int
-    """Index into the result's cell arrays."""
-    ijk: tuple[int, int, int]
-    """Grid index of the cell."""
-    centre: tuple[float, float, float]
-    n_points: int
-    theta: dict[str, float]
-    """Roughness per model (``odr``, ``ols``, ``hybrid``, ``e_ols``), metres, NaN if none."""
-    normal: tuple[float, float, float]
-    """ODR unit normal of the cell (NaN if no plane)."""
-    point: tuple[float, float, float]
-    """The clicked point, file frame."""
-    axis: str
-    """Dependent axis used for OLS/hybrid."""
-    dip_deg: float = math.nan
-    """Dip of the cell's ODR plane, degrees [0, 90] (docs/zones.md; NaN if none)."""
-    dip_direction_deg: float = math.nan
-    """Azimuth of its down-dip direction, degrees clockwise from +y, [0, 360); a
-    vertical plane takes the side of the whole-cloud normal."""
-
-
-def cell_info(result: GridRoughness, point: int, point_xyz: np.ndarray) -> CellInfo:
-    """Describe the cell holding cloud point number ``point`` (see :class:`CellInfo`)."""
-    c = int(result.point_cell[point])
-
-    def three(a: np.ndarray) -> tuple[float, float, float]:
-        return float(a[0]), float(a[1]), float(a[2])
-
-    i, j, k = (int(v) for v in result.ijk[c])
-    dip, dd = dip_and_direction(result.normal[c:c + 1], result.whole_plane.normal)
-    return CellInfo(
-        cell=c,
-        ijk=(i, j, k),
-        centre=three(result.centre[c]),
-        n_points=int(result.n_points[c]),
-        theta={m: float(result.values(m)[c]) for m in MODEL_LABELS},
-        normal=three(result.normal[c]),
-        point=three(np.asarray(point_xyz, dtype=np.float64)),
-        axis=result.axis,
-        dip_deg=float(dip[0]),
-        dip_direction_deg=float(dd[0]),
-    )
