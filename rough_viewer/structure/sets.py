@@ -977,36 +977,15 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     """Planes of every set: the plane and set of every cell (with the edge cells
     the planes took in), the plane table and the numbers of curved groups and of
     slivers (a plane outside the cone of its set's mean) dropped."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    m = result.n_cells
     members = np.flatnonzero(cell_set > 0)
-    sid = cell_set[members].astype(np.int64)
-    cell_plane = np.zeros(m, dtype=np.int32)
+    cell_plane = np.zeros(result.n_cells, dtype=np.int32)
     if members.shape[0] == 0:
         return cell_plane, cell_set, _no_planes(), 0, 0
-    origin = result.grid.origin
-    offset = np.einsum("ij,ij->i", result.centroid[members] - origin, set_normal[sid - 1])
-    a, b, _ = _neighbour_pairs(result.ijk[members])
-    keep = (sid[a] == sid[b]) & (np.abs(offset[a] - offset[b]) <= tol)
-    k = members.shape[0]
-    graph = coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (a[keep], b[keep])), shape=(k, k))
-    _, comp = connected_components(graph.tocsr(), directed=False)
-    sizes = np.bincount(comp)
-    comp_set = np.zeros(sizes.shape[0], dtype=np.int64)
-    comp_set[comp] = sid
-    first = np.full(sizes.shape[0], k, dtype=np.int64)
-    np.minimum.at(first, comp, np.arange(k))  # grid order breaks ties
-    big = np.flatnonzero(sizes >= min_cells)
-    big = big[np.lexsort((first[big], -sizes[big], comp_set[big]))]
-    new_id = np.zeros(sizes.shape[0], dtype=np.int32)
-    new_id[big] = np.arange(1, big.shape[0] + 1, dtype=np.int32)
-    cell_plane[members] = new_id[comp]
-    n_p = int(big.shape[0])
+    plane_of, plane_set = _cell_groups(result, members, cell_set, set_normal, tol, min_cells)
+    cell_plane[members] = plane_of
+    n_p = int(plane_set.shape[0])
     if n_p == 0:
         return cell_plane, cell_set, _no_planes(), 0, 0
-    plane_set = comp_set[big]
     in_set = cell_set > 0  # before the planes take in their edge cells
     cell_set = cell_set.copy()
     first_fit = _fit_planes(result, xyz, cell_plane, n_p, measure=False)
@@ -1015,11 +994,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     flat = first_fit.rms <= max_rms
     curved = int(np.count_nonzero(~flat))
     if curved:
-        renumber = np.zeros(n_p + 1, dtype=np.int32)
-        renumber[1:][flat] = np.arange(1, int(flat.sum()) + 1, dtype=np.int32)
-        cell_plane[:] = renumber[cell_plane]
-        plane_set = plane_set[flat]
-        n_p = int(flat.sum())
+        plane_set, n_p = _renumber(cell_plane, plane_set, flat)
         if n_p == 0:
             return cell_plane, cell_set, _no_planes(), curved, 0
         first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
@@ -1040,28 +1015,74 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     if slivers:
         gone = np.concatenate([[False], sliver])[cell_plane]
         cell_set[gone & ~in_set] = 0
-        renumber = np.zeros(n_p + 1, dtype=np.int32)
-        renumber[1:][~sliver] = np.arange(1, int((~sliver).sum()) + 1, dtype=np.int32)
-        cell_plane[:] = renumber[cell_plane]
-        plane_set = plane_set[~sliver]
-        n_p = int((~sliver).sum())
+        plane_set, n_p = _renumber(cell_plane, plane_set, ~sliver)
         if n_p == 0:
             return cell_plane, cell_set, _no_planes(), curved, slivers
         keep = ~sliver
         fit = _Fit(normal=fit.normal[keep], centroid=fit.centroid[keep], rms=fit.rms[keep],
                    points=fit.points[keep], cov=fit.cov[keep], chord_dip=fit.chord_dip[keep],
                    chord_strike=fit.chord_strike[keep], area=fit.area[keep])
+    return cell_plane, cell_set, _plane_table(result, fit, cell_plane, plane_set,
+                                              set_normal), curved, slivers
+
+
+def _cell_groups(result: GridRoughness, members: np.ndarray, cell_set: np.ndarray,
+                 set_normal: np.ndarray, tol: float, min_cells: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The groups of cells of one set that touch (faces, edges, corners) and lie
+    within ``tol`` (metres) of one another along the set's normal, of at least
+    ``min_cells`` cells: the plane of every cell ``members`` (1..P by set, then size
+    largest first, then grid order; 0 for none) and the set of every plane."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    sid = cell_set[members].astype(np.int64)
+    offset = np.einsum("ij,ij->i", result.centroid[members] - result.grid.origin,
+                       set_normal[sid - 1])
+    a, b, _ = _neighbour_pairs(result.ijk[members])
+    keep = (sid[a] == sid[b]) & (np.abs(offset[a] - offset[b]) <= tol)
+    k = members.shape[0]
+    graph = coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (a[keep], b[keep])), shape=(k, k))
+    _, comp = connected_components(graph.tocsr(), directed=False)
+    sizes = np.bincount(comp)
+    comp_set = np.zeros(sizes.shape[0], dtype=np.int64)
+    comp_set[comp] = sid
+    first = np.full(sizes.shape[0], k, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(k))  # grid order breaks ties
+    big = np.flatnonzero(sizes >= min_cells)
+    big = big[np.lexsort((first[big], -sizes[big], comp_set[big]))]
+    new_id = np.zeros(sizes.shape[0], dtype=np.int32)
+    new_id[big] = np.arange(1, big.shape[0] + 1, dtype=np.int32)
+    return new_id[comp], comp_set[big]
+
+
+def _renumber(cell_plane: np.ndarray, plane_set: np.ndarray, kept: np.ndarray
+              ) -> tuple[np.ndarray, int]:
+    """Keep the planes ``kept`` ((P,) bool), numbered 1.. in their order: the cells of
+    the others go to plane 0 (``cell_plane`` in place). Returns the kept planes' sets
+    and their number."""
+    renumber = np.zeros(plane_set.shape[0] + 1, dtype=np.int32)
+    renumber[1:][kept] = np.arange(1, int(kept.sum()) + 1, dtype=np.int32)
+    cell_plane[:] = renumber[cell_plane]
+    return plane_set[kept], int(kept.sum())
+
+
+def _plane_table(result: GridRoughness, fit: _Fit, cell_plane: np.ndarray,
+                 plane_set: np.ndarray, set_normal: np.ndarray) -> JointPlanes:
+    """The table of the planes fitted (``fit``, measured) with their cells and sets."""
     assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
+    n_p = int(plane_set.shape[0])
     plane_cells = np.bincount(cell_plane, minlength=n_p + 1)[1:].astype(np.int64)
     toward = result.whole_plane.normal
     normal = orient_normals(fit.normal, toward)
     dip, dd = dip_and_direction(normal, toward)
-    offset_p = np.einsum("ij,ij->i", fit.centroid - origin, set_normal[plane_set - 1])
-    return cell_plane, cell_set, JointPlanes(
+    offset_p = np.einsum("ij,ij->i", fit.centroid - result.grid.origin,
+                         set_normal[plane_set - 1])
+    return JointPlanes(
         set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
         dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
         persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
-        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64)), curved, slivers
+        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64))
 
 
 #: An edge cell joins a plane when its centroid lies within this many times the
