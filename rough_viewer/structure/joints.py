@@ -239,20 +239,7 @@ def merge_patches(patch_set: np.ndarray, points: np.ndarray, centroid: np.ndarra
         k = mine.shape[0]
         if k < 2:
             continue
-        require(8.0 * 6 * min(k, _PAIR_CHUNK) * k, f"patch pairs of a set of {k:,} patches")
-        ci, cj = [], []
-        for start in range(0, k, _PAIR_CHUNK):
-            rows = mine[start:start + _PAIR_CHUNK]
-            d = centroid[mine][None, :, :] - centroid[rows][:, None, :]  # (r, k, 3)
-            d_ij = np.abs(np.einsum("rkx,rx->rk", d, normal[rows]))
-            d_ji = np.abs(np.einsum("rkx,kx->rk", d, normal[mine]))
-            ok = np.maximum(d_ij, d_ji) <= tolerance
-            ok &= np.arange(k)[None, :] > (start + np.arange(rows.shape[0]))[:, None]
-            r, c = np.nonzero(ok)
-            ci.append(rows[r])
-            cj.append(mine[c])
-        i = np.concatenate(ci)
-        j = np.concatenate(cj)
+        i, j = _near_pairs(mine, centroid, normal, tolerance)
         if i.size == 0:
             continue
         _, _, pair_cov = _moments_of_pairs(n, centroid, cov, i, j)
@@ -277,7 +264,34 @@ def merge_patches(patch_set: np.ndarray, points: np.ndarray, centroid: np.ndarra
             parent[rb] = ra
             gn[ra], gc[ra], gcov[ra] = tot[0], mid[0], mcov[0]
     roots = np.array([find(a) for a in range(p_n)], dtype=np.int64)
-    # joint ids by set, then by points (largest first), then first patch
+    return _joint_ids(roots, patch_set, n)
+
+
+def _near_pairs(mine: np.ndarray, centroid: np.ndarray, normal: np.ndarray, tolerance: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``(i, j)`` (``i`` before ``j`` in ``mine``) of the patches ``mine`` of
+    one set each of whose centroids lies within ``tolerance`` (metres) of the other's
+    plane; a loop over chunks of :data:`_PAIR_CHUNK` rows."""
+    k = mine.shape[0]
+    require(8.0 * 6 * min(k, _PAIR_CHUNK) * k, f"patch pairs of a set of {k:,} patches")
+    ci, cj = [], []
+    for start in range(0, k, _PAIR_CHUNK):
+        rows = mine[start:start + _PAIR_CHUNK]
+        d = centroid[mine][None, :, :] - centroid[rows][:, None, :]  # (r, k, 3)
+        d_ij = np.abs(np.einsum("rkx,rx->rk", d, normal[rows]))
+        d_ji = np.abs(np.einsum("rkx,kx->rk", d, normal[mine]))
+        ok = np.maximum(d_ij, d_ji) <= tolerance
+        ok &= np.arange(k)[None, :] > (start + np.arange(rows.shape[0]))[:, None]
+        r, c = np.nonzero(ok)
+        ci.append(rows[r])
+        cj.append(mine[c])
+    return np.concatenate(ci), np.concatenate(cj)
+
+
+def _joint_ids(roots: np.ndarray, patch_set: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Joint index 0..J-1 of every patch from its group's root patch: by set, then by
+    points ``n`` (largest first), then first patch."""
+    p_n = int(roots.shape[0])
     uniq, inverse = np.unique(roots, return_inverse=True)
     j_points = np.bincount(inverse, weights=n, minlength=uniq.shape[0])
     j_set = np.zeros(uniq.shape[0], dtype=np.int64)
