@@ -52,6 +52,7 @@ import io
 import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -207,26 +208,15 @@ def _run(args: argparse.Namespace) -> int:
 
     fast.preload()  # the app computes grids for as long as it runs: load them while it starts
 
-    if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
-        raise InputError(f"--grid must be a positive length, got {args.grid:g}")
-    if args.demo and args.units:
-        raise InputError("--units applies to INPUT files; the demos are in metres")
+    _check_grid_and_units(args)
     opened = _open_view(args)
     settings: MapSettings | None = opened.settings if opened is not None else None
-    data_dir = _check_options(args)
-    if opened is not None and opened.data_dir is not None and args.data_dir is None:
-        data_dir = opened.data_dir
-
+    data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
     from rough_viewer.app.server import build_app
 
     server, url = _open_server(args)
-    what = _what_loads(args, opened)
-    # the address first: the page says what it is waiting for until the cloud is read
-    print(f"rough-viewer: listening at {url} ; reading {what}, the page fills in once it "
-          "is ready", file=sys.stderr, flush=True)
-    waiting = server.gui.add_markdown(f"**Reading {_markdown_text(what)}…** the map appears "
-                                      "when the cloud is read and its first grid computed.")
+    waiting = _say_listening(server, url, _what_loads(args, opened))
     app = None
     previous = _stop_on_terminate()
     try:
@@ -238,8 +228,7 @@ def _run(args: argparse.Namespace) -> int:
                                    min_points=args.min_points)
             check_settings(settings)
         if not args.inputs and opened is None:  # files: load_inputs said them already, once
-            for warning in cloud.warnings:
-                print(f"rough-viewer: warning: {warning}", file=sys.stderr)
+            _say_warnings(cloud.warnings)
         waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
         presets = grid_presets(cloud)
         if settings is None:  # the cloud's default grid (its finest preset)
@@ -261,8 +250,7 @@ def _run(args: argparse.Namespace) -> int:
         if opened is not None:
             _apply_opened_view(app, opened, args)
         print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
-        if app.host.errors:
-            print(f"rough-viewer: warning: {app.host.errors[-1]}", file=sys.stderr)
+        _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:
@@ -273,6 +261,38 @@ def _run(args: argparse.Namespace) -> int:
         server.stop()
         _restore_signals(previous)
     return 0
+
+
+def _check_grid_and_units(args: argparse.Namespace) -> None:
+    """Refuse a --grid that is no positive length, and --units with a demo."""
+    if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
+        raise InputError(f"--grid must be a positive length, got {args.grid:g}")
+    if args.demo and args.units:
+        raise InputError("--units applies to INPUT files; the demos are in metres")
+
+
+def _data_dir(args: argparse.Namespace, opened: OpenedView | None) -> Path:
+    """The folder the File tab may read from: --data-dir, else the saved view's, else
+    the first input's (:func:`_check_options`, which checks the options first)."""
+    data_dir = _check_options(args)
+    if opened is not None and opened.data_dir is not None and args.data_dir is None:
+        return opened.data_dir
+    return data_dir
+
+
+def _say_listening(server: viser.ViserServer, url: str, what: str) -> viser.GuiMarkdownHandle:
+    """Say the address first (stderr) and what the page waits for until the cloud is
+    read; returns the waiting page's text."""
+    print(f"rough-viewer: listening at {url} ; reading {what}, the page fills in once it "
+          "is ready", file=sys.stderr, flush=True)
+    return server.gui.add_markdown(f"**Reading {_markdown_text(what)}…** the map appears "
+                                   "when the cloud is read and its first grid computed.")
+
+
+def _say_warnings(warnings: Sequence[str]) -> None:
+    """Each warning on stderr, one a line."""
+    for warning in warnings:
+        print(f"rough-viewer: warning: {warning}", file=sys.stderr)
 
 
 def _open_view(args: argparse.Namespace) -> OpenedView | None:
