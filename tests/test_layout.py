@@ -5,12 +5,16 @@ Every import in ``rough_viewer`` (top-level, inside a function or under
 science packages (:data:`SCIENCE`) import no UI library, print nothing and import
 nothing above them. Inside the app the layers run one way
 too (:data:`APP_LAYERS`), and no module of the package takes part in an import cycle.
+No function of the package holds more than 80 lines of code (:func:`code_lines`; ruff's
+C901 and PLR0915 bound its paths and statements, pyproject.toml).
 """
 
 from __future__ import annotations
 
 import ast
 import functools
+import io
+import tokenize
 import tomllib
 from collections.abc import Iterator
 from pathlib import Path
@@ -122,6 +126,82 @@ def test_every_package_is_installed() -> None:
 def test_flat_api_names_resolve() -> None:
     for name in rough_viewer.__all__:
         assert getattr(rough_viewer, name) is not None, name
+
+
+# ------------------------------------------------------------------ function length
+
+#: Most lines of code a function of the package may hold (:func:`code_lines`).
+MAX_FUNCTION_LINES = 80
+
+def _code_line_numbers(source: str) -> set[int]:
+    """Line numbers (1-based) of ``source`` holding a token that is neither a comment
+    nor layout (newline, indent, dedent): blank and comment-only lines are left out."""
+    layout = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT,
+              tokenize.DEDENT, tokenize.ENDMARKER}
+    lines: set[int] = set()
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type not in layout:
+            lines.update(range(tok.start[0], tok.end[0] + 1))
+    return lines
+
+
+def code_lines(function: ast.FunctionDef | ast.AsyncFunctionDef, code: set[int]) -> int:
+    """Lines of code of a function: the distinct line numbers spanned by the statements
+    of its body (each from its first line to its last, ``lineno..end_lineno``), less
+    the docstring expression (a string constant as the body's first statement), less
+    the lines that hold no code (``code``, from :func:`_code_line_numbers`: blank lines
+    and comment-only lines). The ``def`` line, its signature and its decorators do not
+    count; a nested function's lines count in the function that holds it (and in its
+    own count too)."""
+    body = function.body
+    if (body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)):
+        body = body[1:]
+    spanned: set[int] = set()
+    for statement in body:
+        spanned.update(range(statement.lineno, (statement.end_lineno or statement.lineno) + 1))
+    return len(spanned & code)
+
+
+def _long_functions(path: Path, root: Path = ROOT) -> dict[str, int]:
+    """``"path:name" -> lines of code`` of the functions of a module over the limit."""
+    source = path.read_text()
+    code = _code_line_numbers(source)
+    rel = path.relative_to(root).as_posix()
+    return {f"{rel}:{node.name}": n for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+            and (n := code_lines(node, code)) > MAX_FUNCTION_LINES}
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_function_over_80_lines_of_code(path: Path) -> None:
+    """No function holds more than :data:`MAX_FUNCTION_LINES` lines of code
+    (:func:`code_lines`)."""
+    long = _long_functions(path)
+    assert long == {}, f"split these functions (lines of code): {long}"
+
+
+def test_the_size_rules_exempt_no_module_of_the_package() -> None:
+    """ruff's C901 (complexity) and PLR0915 (statements) cover the whole package: no
+    module of ``rough_viewer`` skips them (pyproject's per-file-ignores)."""
+    lint = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["tool"]["ruff"]["lint"]
+    assert {"C901", "PLR0915"} <= set(lint["select"])
+    skipped = {pattern for pattern, rules in lint.get("per-file-ignores", {}).items()
+               if {"C901", "PLR0915"} & set(rules) and pattern.startswith("rough_viewer")}
+    assert not skipped, sorted(skipped)
+
+
+def test_the_line_count_leaves_out_docstring_comments_and_blanks() -> None:
+    """The counter itself: a docstring, a comment line and a blank line do not count;
+    a statement over three lines counts three; a nested function counts in its holder."""
+    source = ('def f(x):\n    """Doc\n    string."""\n    # a comment\n\n'
+              '    y = (x +\n         1 +\n         2)\n    def g():\n        return y\n'
+              '    return g\n')
+    tree = ast.parse(source)
+    code = _code_line_numbers(source)
+    f, g = (n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef))
+    assert code_lines(f, code) == 3 + 2 + 1
+    assert code_lines(g, code) == 1
 
 
 # ----------------------------------------------------------------------------- the app

@@ -75,25 +75,36 @@ def check_value(handle: Any, value: Any) -> Any:
             raise InputError(f"{what} must be text of at most {MAX_TEXT} characters")
         return value
     if isinstance(handle, viser.GuiMultiSliderHandle):
-        current = handle.value
-        if not isinstance(value, (list, tuple)) or len(value) != len(current):
-            raise InputError(f"{what} must be {len(current)} numbers")
-        vs = [_number(v, what) for v in value]
-        for v in vs:
-            _in_range(v, handle.min, handle.max, what)
-        gap = handle.min_range or 0.0
-        if any(b - a < gap - 1e-12 for a, b in zip(vs, vs[1:], strict=False)):
-            raise InputError(f"{what} must be increasing, at least {gap:g} apart")
-        return tuple(type(c)(v) for c, v in zip(current, vs, strict=True))
+        return _check_multi_slider(handle, value, what)
     if isinstance(handle, (viser.GuiNumberHandle, viser.GuiSliderHandle)):
-        v = _number(value, what)
-        _in_range(v, handle.min, handle.max, what)
-        if isinstance(handle.value, int):
-            if not v.is_integer():
-                raise InputError(f"{what} must be a whole number")
-            return int(v)
-        return v
+        return _check_number(handle, value, what)
     raise InputError(f"{what} cannot be set from the browser")
+
+
+def _check_multi_slider(handle: Any, value: Any, what: str) -> tuple[Any, ...]:
+    """A multi-slider's ends: as many numbers as it has, in range, increasing at least
+    its minimum range apart (each as the control's type)."""
+    current = handle.value
+    if not isinstance(value, (list, tuple)) or len(value) != len(current):
+        raise InputError(f"{what} must be {len(current)} numbers")
+    vs = [_number(v, what) for v in value]
+    for v in vs:
+        _in_range(v, handle.min, handle.max, what)
+    gap = handle.min_range or 0.0
+    if any(b - a < gap - 1e-12 for a, b in zip(vs, vs[1:], strict=False)):
+        raise InputError(f"{what} must be increasing, at least {gap:g} apart")
+    return tuple(type(c)(v) for c, v in zip(current, vs, strict=True))
+
+
+def _check_number(handle: Any, value: Any, what: str) -> float | int:
+    """A number field's or slider's value: in range, whole for a whole-number control."""
+    v = _number(value, what)
+    _in_range(v, handle.min, handle.max, what)
+    if isinstance(handle.value, int):
+        if not v.is_integer():
+            raise InputError(f"{what} must be a whole number")
+        return int(v)
+    return v
 
 
 @dataclass(frozen=True)

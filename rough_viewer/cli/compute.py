@@ -37,7 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -151,17 +151,11 @@ def summary_dict(result, cloud_source: str, dropped: int, unit: str = "m",
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.cli._crop import (
-        adopt_view_units,
-        apply_crop,
-        crop_from_args,
-        refuse_with_chunks,
-    )
+    from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs, preload_kernels_for
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.cli._scale import chunked_results, wants_chunks
     from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
-    from rough_viewer.cli._table import format_table
     from rough_viewer.grid.roughness import grid_roughness
     from rough_viewer.io.load import resolve_units
     from rough_viewer.vocabulary import MODELS
@@ -196,14 +190,7 @@ def run(args: argparse.Namespace) -> int:
     cloud: PointCloud | None = None
     keep: np.ndarray | None = None
     if wants_chunks(args):
-        refuse_with_chunks(args)
-        if args.las_out or args.ply_out:
-            raise InputError("--las-out and --ply-out write every point, which --memory and "
-                             "--scheduler do not keep; run without them for those outputs")
-        if args.scanner or args.scanners:
-            raise InputError("the per-cell scanner figures need every point, which --memory "
-                             "and --scheduler do not keep; run without them for --scanner "
-                             "and --scanners")
+        _refuse_point_outputs_with_chunks(args)
         results, dropped = chunked_results(args, paths, metres, origin=origin, models=models,
                                            residual=residual)
     else:
@@ -225,19 +212,46 @@ def run(args: argparse.Namespace) -> int:
     with all_or_nothing():  # a failed grid or write leaves none of the run's outputs
         results_iter = iter(results)
         for i, g in enumerate(grids):
-            with at_grid(g, unit):
-                result = next(results_iter)
-                check_has_values(result, unit, cloud)
-            if i:
-                print()
-            print(format_table(result, source=source, unit=unit,
-                               keep_outliers=args.keep_outliers))
-            cells = _trust(cloud, result, trust, quiet, unit)
-            written += _write_outputs(outputs, g, result, cloud, dropped, source, args, unit,
-                                      cells, keep=keep)
+            written += _one_grid(results_iter, first=i == 0, g=g,
+                                 args=args, unit=unit, cloud=cloud, source=source,
+                                 trust=trust, outputs=outputs, dropped=dropped, keep=keep)
     for line in written:
         print(line)
     return 0
+
+
+def _refuse_point_outputs_with_chunks(args: argparse.Namespace) -> None:
+    """Refuse with ``--memory`` or ``--scheduler`` the options that need every point."""
+    from rough_viewer.cli._crop import refuse_with_chunks
+
+    refuse_with_chunks(args)
+    if args.las_out or args.ply_out:
+        raise InputError("--las-out and --ply-out write every point, which --memory and "
+                         "--scheduler do not keep; run without them for those outputs")
+    if args.scanner or args.scanners:
+        raise InputError("the per-cell scanner figures need every point, which --memory "
+                         "and --scheduler do not keep; run without them for --scanner "
+                         "and --scanners")
+
+
+def _one_grid(results: Iterator[GridRoughness], *, first: bool, g: float,
+              args: argparse.Namespace, unit: str, cloud: PointCloud | None, source: str,
+              trust: TrustSettings, outputs: dict[str, dict[float, Path]],
+              dropped: int, keep: np.ndarray | None) -> list[str]:
+    """One grid size ``g`` (in ``unit``) of the run: its result (the next of
+    ``results``) computed and checked, its table printed, its outputs written;
+    returns what was written, to say."""
+    from rough_viewer.cli._table import format_table
+
+    with at_grid(g, unit):
+        result = next(results)
+        check_has_values(result, unit, cloud)
+    if not first:
+        print()
+    print(format_table(result, source=source, unit=unit, keep_outliers=args.keep_outliers))
+    cells = _trust(cloud, result, trust, args.quiet, unit)
+    return _write_outputs(outputs, g, result, cloud, dropped, source, args, unit, cells,
+                          keep=keep)
 
 
 def _chosen_grid(cloud: PointCloud, per: float, unit: str,

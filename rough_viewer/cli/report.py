@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rough_viewer.cli._crop import add_crop_options
 from rough_viewer.cli._inputs import add_inputs
@@ -43,6 +44,10 @@ from rough_viewer.cli._options import (
 from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
+
+if TYPE_CHECKING:
+    from rough_viewer.report.build import Report
+    from rough_viewer.report.export import ReportFormat, ReportSettings
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -106,11 +111,10 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.cli._scanner import apply_scanner_options, trust_settings
+    from rough_viewer.cli._scanner import apply_scanner_options
     from rough_viewer.io.load import resolve_units
-    from rough_viewer.report import check_png_export, png_figures
-    from rough_viewer.report.export import ReportSettings, compute_report, write_report
-    from rough_viewer.visual.export import image_session, write_figure
+    from rough_viewer.report import check_png_export
+    from rough_viewer.report.export import compute_report
 
     paths = input_paths(args)
     from rough_viewer.grid import fast
@@ -118,27 +122,7 @@ def run(args: argparse.Namespace) -> int:
     fast.preload()  # a report is seconds of work: the kernels load while the input is read
     adopt_view_units(args)
     unit_in = resolve_units(paths[0], args.units)[0]
-    # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
-    given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None
-    settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
-                              axis=args.axis, threshold=args.threshold,
-                              trust=trust_settings(args, unit_in),
-                              keep_outliers=args.keep_outliers)
-    try:
-        settings.check()
-    except InputError as exc:  # name the option as the user typed it
-        text = str(exc)
-        for word, option in (("grid size", "--grid"), ("threshold", "--threshold"),
-                             ("min points", "--min-points")):
-            text = text.replace(word, option, 1) if text.startswith(word) else text
-        raise InputError(text) from None
-    if args.directions is not None:
-        from rough_viewer.tin.directional import MIN_AZIMUTH_STEP_DEG
-
-        if not MIN_AZIMUTH_STEP_DEG <= args.directions <= 360:
-            raise InputError(f"--directions must be from {MIN_AZIMUTH_STEP_DEG:g} to at most "
-                             f"360 degrees (each direction is a set of profiles), got "
-                             f"{args.directions:g}")
+    given, settings = _report_settings(args, unit_in)
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if args.png:
         check_png_export()
@@ -160,20 +144,73 @@ def run(args: argparse.Namespace) -> int:
     report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
     warn(report.warnings[len(cloud.warnings):])
     if args.directions is not None:
-        from rough_viewer.directions.analysis import DirectionSettings, analyse_paths
-
-        found = analyse_paths(paths, DirectionSettings(step_deg=args.directions),
-                              units=args.units,
-                              progress=None if quiet else ProgressBar("directions"))
-        for d in found:
-            warn([f"{d.source}: {w}" for w in d.warnings])
-        report = replace(report, directions=tuple(found))
+        report = _with_directions(report, paths, args)
     if given is None:
         print("grid sizes from the point spacing: "
               + ", ".join(f"{s.grid_size / per:g}" for s in report.sections) + f" {u}")
         if args.png:
             png_dir, _ = _png_targets(args.png, [s.grid_size for s in report.sections],
                                       force=args.force)
+    _say_section_errors(report, per, u)
+    n_figures = _write_outputs(out, report, args.format, png_dir, quiet=quiet)
+    print(f"wrote {out}")
+    if png_dir is not None:
+        print(f"wrote {n_figures} PNG figures to {png_dir}")
+    return 0
+
+
+def _report_settings(args: argparse.Namespace, unit_in: str
+                     ) -> tuple[tuple[float, ...] | None, ReportSettings]:
+    """The grid sizes given (in the inputs' unit ``unit_in``, None for those from the
+    point spacing) and the report's settings, checked (an error names the option as
+    the user typed it); ``--directions`` checked too."""
+    from rough_viewer.cli._scanner import trust_settings
+    from rough_viewer.report.export import ReportSettings
+
+    # grid sizes are given in the inputs' unit (--units, else the CRS's): say so
+    given = tuple(grid_sizes(args.grid, unit_in)) if args.grid else None
+    settings = ReportSettings(min_points=args.min_points, grid_sizes=given,
+                              axis=args.axis, threshold=args.threshold,
+                              trust=trust_settings(args, unit_in),
+                              keep_outliers=args.keep_outliers)
+    try:
+        settings.check()
+    except InputError as exc:  # name the option as the user typed it
+        text = str(exc)
+        for word, option in (("grid size", "--grid"), ("threshold", "--threshold"),
+                             ("min points", "--min-points")):
+            text = text.replace(word, option, 1) if text.startswith(word) else text
+        raise InputError(text) from None
+    if args.directions is not None:
+        from rough_viewer.tin.directional import MIN_AZIMUTH_STEP_DEG
+
+        if not MIN_AZIMUTH_STEP_DEG <= args.directions <= 360:
+            raise InputError(f"--directions must be from {MIN_AZIMUTH_STEP_DEG:g} to at most "
+                             f"360 degrees (each direction is a set of profiles), got "
+                             f"{args.directions:g}")
+    return given, settings
+
+
+def _with_directions(report: Report, paths: list[Path], args: argparse.Namespace) -> Report:
+    """The report with the directional roughness of every input (``--directions``
+    degrees apart), its warnings said."""
+    from dataclasses import replace
+
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.directions.analysis import DirectionSettings, analyse_paths
+
+    found = analyse_paths(paths, DirectionSettings(step_deg=args.directions),
+                          units=args.units,
+                          progress=None if args.quiet else ProgressBar("directions"))
+    for d in found:
+        warn([f"{d.source}: {w}" for w in d.warnings])
+    return replace(report, directions=tuple(found))
+
+
+def _say_section_errors(report: Report, per: float, u: str) -> None:
+    """Refuse a report whose every grid size failed (nothing written); else say on
+    stderr each grid size and figure that failed (``per`` input units a metre, ``u``
+    their label)."""
     failed = [s for s in report.sections if s.error is not None]
     if failed and len(failed) == len(report.sections):  # nothing to report: refuse, write nothing
         raise InputError("no grid size could be computed: " + "; ".join(
@@ -185,10 +222,22 @@ def run(args: argparse.Namespace) -> int:
             print(f"rough-viewer: grid {s.grid_size / per:g} {u}: no {key} figure: {why}",
                   file=sys.stderr)
 
+
+def _write_outputs(out: Path, report: Report, fmt: ReportFormat, png_dir: Path | None, *,
+                   quiet: bool) -> int:
+    """Write the report and, into ``png_dir`` where given, its PNG figures: all or
+    nothing (a PNG that fails takes the page with it, and a folder made for them goes
+    again). Returns the number of PNG figures written."""
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.report import png_figures
+    from rough_viewer.report.export import write_report
+    from rough_viewer.visual.export import image_session, write_figure
+
+    figures = []
     made_dir = png_dir is not None and not png_dir.exists()
     try:
         with all_or_nothing():  # a PNG that fails takes the page with it: nothing half done
-            write_report(out, report, args.format)
+            write_report(out, report, fmt)
             if png_dir is not None:
                 figures = png_figures(report)
                 bar = None if quiet else ProgressBar("PNG figures")
@@ -202,7 +251,4 @@ def run(args: argparse.Namespace) -> int:
         if made_dir and png_dir is not None and png_dir.is_dir() and not any(png_dir.iterdir()):
             png_dir.rmdir()
         raise
-    print(f"wrote {out}")
-    if png_dir is not None:
-        print(f"wrote {len(figures)} PNG figures to {png_dir}")
-    return 0
+    return len(figures)

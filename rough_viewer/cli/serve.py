@@ -53,7 +53,9 @@ import io
 import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rough_viewer.app.gate import DEFAULT_MAX_CONNECTIONS
 from rough_viewer.app.limits import DEFAULT_MAX_UPLOAD_MB
@@ -62,6 +64,12 @@ from rough_viewer.cli._options import add_axis, add_units
 from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+
+if TYPE_CHECKING:
+    import viser
+
+    from rough_viewer.app.server import App
+    from rough_viewer.app.views import OpenedView
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -193,61 +201,27 @@ def _run(args: argparse.Namespace) -> int:
 
     fast.preload()  # the app computes grids for as long as it runs: load them while it starts
 
-    if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
-        raise InputError(f"--grid must be a positive length, got {args.grid:g}")
-    if args.demo and args.units:
-        raise InputError("--units applies to INPUT files; the demos are in metres")
-    opened = None
-    settings: MapSettings | None = None
-    if args.view:
-        from rough_viewer.app.views import open_view
-        from rough_viewer.cli._inputs import input_paths
-
-        if args.demo:
-            raise InputError("give either --view or --demo, not both")
-        opened = open_view(args.view, inputs=input_paths(args) if args.inputs else (),
-                           data_dir=args.data_dir)
-        settings = opened.settings
-    data_dir = _check_options(args)
-    if opened is not None and opened.data_dir is not None and args.data_dir is None:
-        data_dir = opened.data_dir
-
+    _check_grid_and_units(args)
+    opened = _open_view(args)
+    settings: MapSettings | None = opened.settings if opened is not None else None
+    data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
-    from rough_viewer.app.gate import new_token, open_server
     from rough_viewer.app.server import build_app
 
-    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner shows a URL without the token
-        server, gate = open_server(args.host, args.port,
-                                   token=None if args.no_token else new_token(),
-                                   allow_origins=args.allow_origin,
-                                   max_connections=args.max_connections)
-    url = gate.url(args.host, server.get_port())
-    what = _what_loads(args, opened)
-    # the address first: the page says what it is waiting for until the cloud is read
-    print(f"rough-viewer: listening at {url} ; reading {what}, the page fills in once it "
-          "is ready", file=sys.stderr, flush=True)
-    waiting = server.gui.add_markdown(f"**Reading {_markdown_text(what)}…** the map appears "
-                                      "when the cloud is read and its first grid computed.")
+    server, url = _open_server(args)
+    waiting = _say_listening(server, url, _what_loads(args, opened))
     app = None
     previous = _stop_on_terminate()
     try:
-        if opened is not None:
-            from rough_viewer.cli._inputs import load_inputs
-
-            cloud = _with_scanners(
-                load_inputs([opened.input_path], units=opened.view.units, quiet=True,
-                            max_points=args.file_max_points),
-                [opened.input_path], args)
-        else:
-            cloud = _load_cloud(args)
-            if args.grid is not None:  # in the input's unit (--units, else its CRS's, else m)
-                settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
-                                        model=args.model, axis=args.axis,
-                                        min_points=args.min_points)
-                check_settings(settings)
+        cloud = _read_cloud(args, opened)
+        if opened is None and args.grid is not None:
+            # --grid is in the input's unit (--units, else its CRS's, else m)
+            settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+                                   model=args.model, axis=args.axis,
+                                   min_points=args.min_points)
+            check_settings(settings)
         if not args.inputs and opened is None:  # files: load_inputs said them already, once
-            for warning in cloud.warnings:
-                print(f"rough-viewer: warning: {warning}", file=sys.stderr)
+            _say_warnings(cloud.warnings)
         waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
         presets = grid_presets(cloud)
         if settings is None:  # the cloud's default grid (its finest preset)
@@ -267,20 +241,9 @@ def _run(args: argparse.Namespace) -> int:
         del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
         if opened is not None:
-            from rough_viewer.app.views import apply_view
-
-            # browsers see file names, never the server's folders (the terminal does)
-            public = opened.notice
-            for full in {str(opened.view.input.path), str(opened.input_path)}:
-                if full:
-                    public = public.replace(full, Path(full).name)
-            apply_view(app.host, opened.view, source=Path(args.view).name, notice=public)
-            app.wait_idle(timeout=None if not args.no_block else 120.0)
-            if opened.notice:
-                print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
+            _apply_opened_view(app, opened, args)
         print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
-        if app.host.errors:
-            print(f"rough-viewer: warning: {app.host.errors[-1]}", file=sys.stderr)
+        _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:
@@ -291,6 +254,92 @@ def _run(args: argparse.Namespace) -> int:
         server.stop()
         _restore_signals(previous)
     return 0
+
+
+def _check_grid_and_units(args: argparse.Namespace) -> None:
+    """Refuse a --grid that is no positive length, and --units with a demo."""
+    if args.grid is not None and not (math.isfinite(args.grid) and args.grid > 0):
+        raise InputError(f"--grid must be a positive length, got {args.grid:g}")
+    if args.demo and args.units:
+        raise InputError("--units applies to INPUT files; the demos are in metres")
+
+
+def _data_dir(args: argparse.Namespace, opened: OpenedView | None) -> Path:
+    """The folder the File tab may read from: --data-dir, else the saved view's, else
+    the first input's (:func:`_check_options`, which checks the options first)."""
+    data_dir = _check_options(args)
+    if opened is not None and opened.data_dir is not None and args.data_dir is None:
+        return opened.data_dir
+    return data_dir
+
+
+def _say_listening(server: viser.ViserServer, url: str, what: str) -> viser.GuiMarkdownHandle:
+    """Say the address first (stderr) and what the page waits for until the cloud is
+    read; returns the waiting page's text."""
+    print(f"rough-viewer: listening at {url} ; reading {what}, the page fills in once it "
+          "is ready", file=sys.stderr, flush=True)
+    return server.gui.add_markdown(f"**Reading {_markdown_text(what)}…** the map appears "
+                                   "when the cloud is read and its first grid computed.")
+
+
+def _say_warnings(warnings: Sequence[str]) -> None:
+    """Each warning on stderr, one a line."""
+    for warning in warnings:
+        print(f"rough-viewer: warning: {warning}", file=sys.stderr)
+
+
+def _open_view(args: argparse.Namespace) -> OpenedView | None:
+    """The saved view of ``--view`` opened (its input found, its settings checked), or
+    None without one."""
+    if not args.view:
+        return None
+    from rough_viewer.app.views import open_view
+    from rough_viewer.cli._inputs import input_paths
+
+    if args.demo:
+        raise InputError("give either --view or --demo, not both")
+    return open_view(args.view, inputs=input_paths(args) if args.inputs else (),
+                     data_dir=args.data_dir)
+
+
+def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, str]:
+    """The viser server behind its gate (token, origins, connections) and its URL."""
+    from rough_viewer.app.gate import new_token, open_server
+
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner shows a URL without the token
+        server, gate = open_server(args.host, args.port,
+                                   token=None if args.no_token else new_token(),
+                                   allow_origins=args.allow_origin,
+                                   max_connections=args.max_connections)
+    return server, gate.url(args.host, server.get_port())
+
+
+def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointCloud:
+    """The cloud to show: the saved view's input, else INPUT or the demo, with the
+    scanner options applied."""
+    if opened is None:
+        return _load_cloud(args)
+    from rough_viewer.cli._inputs import load_inputs
+
+    return _with_scanners(
+        load_inputs([opened.input_path], units=opened.view.units, quiet=True,
+                    max_points=args.file_max_points),
+        [opened.input_path], args)
+
+
+def _apply_opened_view(app: App, opened: OpenedView, args: argparse.Namespace) -> None:
+    """Restore the saved view on the running app and wait until it shows."""
+    from rough_viewer.app.views import apply_view
+
+    # browsers see file names, never the server's folders (the terminal does)
+    public = opened.notice
+    for full in {str(opened.view.input.path), str(opened.input_path)}:
+        if full:
+            public = public.replace(full, Path(full).name)
+    apply_view(app.host, opened.view, source=Path(args.view).name, notice=public)
+    app.wait_idle(timeout=None if not args.no_block else 120.0)
+    if opened.notice:
+        print(f"rough-viewer: note: {opened.notice}", file=sys.stderr)
 
 
 def _check_source(args: argparse.Namespace, opened: object) -> None:

@@ -64,7 +64,10 @@ from rough_viewer.vocabulary import (
 )
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from rough_viewer.grid.roughness import GridRoughness
+    from rough_viewer.structure.zones import Zones
 
 #: Zones listed on the terminal (all of them go to ZONES.csv).
 SHOWN = 10
@@ -183,10 +186,9 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._inputs import describe, input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.grid.roughness import grid_roughness
-    from rough_viewer.grid.table import cell_columns, table_metadata
     from rough_viewer.grid.threshold import map_threshold_advice
     from rough_viewer.io.load import resolve_units
-    from rough_viewer.io.table import check_table_output, write_table
+    from rough_viewer.io.table import check_table_output
     from rough_viewer.structure.zones import ZoneLabeller
 
     if args.threshold is not None and not (math.isfinite(args.threshold)
@@ -228,16 +230,7 @@ def run(args: argparse.Namespace) -> int:
                 threshold, connectivity=args.connectivity, min_cells=args.min_cells)
             advice = map_threshold_advice(result, args.method, threshold,
                                           keep_outliers=args.keep_outliers)
-            out = outputs["out"][g]
-            write_table(out, zones.file_table(per), unit=unit)  # in --units, said in it
-            names = [str(out)]
-            if "cells_out" in outputs:
-                cells_out = outputs["cells_out"][g]
-                keep = result.n_points >= result.min_points  # the rows of cell_columns
-                write_table(cells_out,
-                            {**cell_columns(result, unit=unit), "zone": zones.labels[keep]},
-                            metadata=table_metadata(result, source, unit=unit), unit=unit)
-                names.append(str(cells_out))
+            names = _write_tables(outputs, g, zones, result, source=source, unit=unit)
             if i:
                 print()
             if chose:  # said beside the summary, not as a warning on stderr
@@ -248,3 +241,23 @@ def run(args: argparse.Namespace) -> int:
     for line in written:
         print(line)
     return 0
+
+
+def _write_tables(outputs: dict[str, dict[float, Path]], g: float, zones: Zones,
+                  result: GridRoughness, *, source: str, unit: str) -> list[str]:
+    """Write the zone table of grid ``g`` (in ``unit``) and, with ``--cells-out``, every
+    cell's row with its zone; lengths in ``unit``. Returns the files written."""
+    from rough_viewer.grid.table import cell_columns, table_metadata
+    from rough_viewer.io.table import write_table
+
+    out = outputs["out"][g]
+    write_table(out, zones.file_table(per_unit(unit)), unit=unit)  # in --units, said in it
+    names = [str(out)]
+    if "cells_out" in outputs:
+        cells_out = outputs["cells_out"][g]
+        keep = result.n_points >= result.min_points  # the rows of cell_columns
+        write_table(cells_out,
+                    {**cell_columns(result, unit=unit), "zone": zones.labels[keep]},
+                    metadata=table_metadata(result, source, unit=unit), unit=unit)
+        names.append(str(cells_out))
+    return names

@@ -433,6 +433,45 @@ def _drop_taken(codes: np.ndarray, rest: np.ndarray, a: int, b: int, take: np.nd
     return write
 
 
+def _checked_sizes(root_grid: int, max_node_points: int) -> tuple[int, int]:
+    """The root grid and the node cap, checked (:func:`build_octree`)."""
+    g = int(root_grid)
+    if g != root_grid or g < 2 or g > 1024 or g & (g - 1):
+        raise InputError(f"root grid must be a power of two from 2 to 1024, got {root_grid}")
+    cap = int(max_node_points)
+    if cap != max_node_points or cap < 1:
+        raise InputError(f"max node points must be a whole number >= 1, got {max_node_points}")
+    return g, cap
+
+
+def _root_cube(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, float]:
+    """The root cube of the points: its lowest corner (3,) and its side, metres (a
+    tiny cube about one spot)."""
+    lo = np.array([x.min(), y.min(), z.min()])
+    hi = np.array([x.max(), y.max(), z.max()])
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise InputError("the octree needs finite coordinates (a NaN or infinite one found)")
+    side = float(np.max(hi - lo))
+    if not side > 0.0:
+        side = max(1.0, float(np.max(np.abs(lo)))) * 1e-9  # one spot: any cube holds it
+    return lo, side
+
+
+def _samples(codes: np.ndarray, a: int, b: int, sample_shift: np.uint64, node_shift: int,
+             cap: int) -> np.ndarray:
+    """The points ``a:b`` of the sorted ``codes`` a level takes (offsets from ``a``):
+    the middle point of each sample cell, at most ``cap`` per node kept evenly."""
+    starts = _sample_starts(codes, a, b, sample_shift)
+    runs = np.diff(np.append(starts, b - a))
+    take = starts + runs // 2  # the middle point of each sample cell
+    node_of = codes[a:b][take] >> np.uint64(node_shift)
+    edge = np.flatnonzero(node_of[1:] != node_of[:-1]) + 1
+    per_node = np.diff(np.concatenate(([0], edge, [take.shape[0]])))
+    if per_node.max() > cap:
+        take = take[_kept_evenly(per_node, cap)]
+    return take
+
+
 def build_octree(
     points: PointCloud | np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray],
     *,
@@ -472,21 +511,10 @@ def build_octree(
     n = int(x.shape[0])
     if n == 0:
         raise InputError("an octree needs at least one point")
-    g = int(root_grid)
-    if g != root_grid or g < 2 or g > 1024 or g & (g - 1):
-        raise InputError(f"root grid must be a power of two from 2 to 1024, got {root_grid}")
-    cap = int(max_node_points)
-    if cap != max_node_points or cap < 1:
-        raise InputError(f"max node points must be a whole number >= 1, got {max_node_points}")
+    g, cap = _checked_sizes(root_grid, max_node_points)
     workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
     require(build_bytes(n, workers), f"the level-of-detail octree of {n:,} points")
-    lo = np.array([x.min(), y.min(), z.min()])
-    hi = np.array([x.max(), y.max(), z.max()])
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise InputError("the octree needs finite coordinates (a NaN or infinite one found)")
-    side = float(np.max(hi - lo))
-    if not side > 0.0:
-        side = max(1.0, float(np.max(np.abs(lo)))) * 1e-9  # one spot: any cube holds it
+    lo, side = _root_cube(x, y, z)
     g_bits = g.bit_length() - 1
     if progress:
         progress(0, n)
@@ -513,17 +541,8 @@ def build_octree(
         a = 0
         while a < n_rest:
             b = _chunk_stop(codes[:n_rest], a, node_shift)
-            if last:
-                take = np.arange(b - a, dtype=np.int64)
-            else:
-                starts = _sample_starts(codes, a, b, sample_shift)
-                runs = np.diff(np.append(starts, b - a))
-                take = starts + runs // 2  # the middle point of each sample cell
-                node_of = codes[a:b][take] >> np.uint64(node_shift)
-                edge = np.flatnonzero(node_of[1:] != node_of[:-1]) + 1
-                per_node = np.diff(np.concatenate(([0], edge, [take.shape[0]])))
-                if per_node.max() > cap:
-                    take = take[_kept_evenly(per_node, cap)]
+            take = (np.arange(b - a, dtype=np.int64) if last
+                    else _samples(codes, a, b, sample_shift, node_shift, cap))
             taken = codes[a:b][take] >> np.uint64(node_shift)
             k = int(take.shape[0])
             order[placed:placed + k] = rest[a:b][take]

@@ -295,19 +295,13 @@ def _measure(heights: np.ndarray, step: float, windows: np.ndarray | str | None,
     return out
 
 
-def _one_direction(
-    prep: _Prepared,
-    azimuth_deg: float,
-    *,
-    windows: np.ndarray | str | None,
-    min_samples: int,
-    denoise: DenoiseSettings,
-    progress: ProgressFn | None = None,
-) -> ProfileSet:
-    f = prep.frame
-    alpha = np.radians(azimuth_deg)
-    t = np.cos(alpha) * f.u_axis + np.sin(alpha) * f.v_axis
-    w = np.cross(f.normal, t)
+def _bands(prep: _Prepared, w: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The bands of the profiles across unit ``w``: every ``prep.spacing`` from the
+    lowest point along ``w``, ``prep.band`` either side (metres), those with points:
+    their offsets along ``w`` (metres), point counts, first rows in ``idx`` and
+    ``idx`` the points of every band one band after the other (a point in two bands
+    twice)."""
     c = prep.rel @ w
     order = np.argsort(c, kind="stable")
     cs = c[order]
@@ -324,8 +318,24 @@ def _one_direction(
             hint="choose a larger spacing or a narrower band")
     first = np.cumsum(count) - count
     pos = np.arange(total) - np.repeat(first, count) + np.repeat(lo, count)
-    idx = order[pos]
-    del pos, order, cs
+    return centres, count, first, order[pos]
+
+
+def _one_direction(
+    prep: _Prepared,
+    azimuth_deg: float,
+    *,
+    windows: np.ndarray | str | None,
+    min_samples: int,
+    denoise: DenoiseSettings,
+    progress: ProgressFn | None = None,
+) -> ProfileSet:
+    f = prep.frame
+    alpha = np.radians(azimuth_deg)
+    t = np.cos(alpha) * f.u_axis + np.sin(alpha) * f.v_axis
+    w = np.cross(f.normal, t)
+    s, band = prep.spacing, prep.band
+    centres, count, first, idx = _bands(prep, w)
     along = prep.rel[idx] @ t
     height = prep.rel[idx] @ f.normal
     amin = np.minimum.reduceat(along, first)

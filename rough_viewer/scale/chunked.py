@@ -273,48 +273,12 @@ def chunked_roughness(
     inner = int(getattr(run, "inner_threads", 0))
     if chunk_points is None:
         chunk_points = chunk_points_for(memory_bytes, parallel=parallel)
-    cell_room = None if memory_bytes is None else (1 - CHUNK_SHARE) * memory_bytes
-
-    def check(nbytes: int, cells: int | None = None) -> None:
-        if cell_room is None:
-            return
-        need = nbytes * 3 if cells is None else cells * BYTES_PER_CELL
-        if need > cell_room:
-            raise InputError(
-                f"the cell tables need about {format_bytes(need)}, more than the "
-                f"{format_bytes(cell_room)} of --memory {format_bytes(memory_bytes or 0)} "
-                "left for them; give more memory or a larger grid size")
-
-    n_passes = 2
-    done_all = [0]
-    done_files = [0] * len(sources)
-
-    def on_chunk(chunk: Chunk) -> None:
-        done_all[0] += chunk.n
-        done_files[chunk.source] += chunk.n
-        if progress:
-            progress(done_all[0], n_passes * n_total)
-        if file_progress:
-            file_progress[chunk.source](done_files[chunk.source],
-                                        n_passes * sources[chunk.source].n_points)
-
-    lo = np.min([s.bounds_min for s in sources], axis=0)
-    hi = np.max([s.bounds_max for s in sources], axis=0)
+    check = _CellRoom(memory_bytes)
+    on_chunk = _PassProgress(sources, n_total, progress, file_progress)
     if progress:
-        progress(0, n_passes * n_total)
-    for attempt in range(2):
-        grids = tuple(make_grid(lo, hi, g, origin) for g in sizes)
-        tables = run.map_reduce(sources, chunk_points, Pass1(grids, engine, inner), len(grids),
+        progress(0, on_chunk.n_passes * n_total)
+    grids, tables = _first_pass(run, sources, chunk_points, sizes, origin, engine, inner,
                                 on_chunk, check)
-        exact_lo, exact_hi = tables[0].bounds_min, tables[0].bounds_max
-        assert exact_lo is not None and exact_hi is not None
-        shifted = origin is None and not np.array_equal(exact_lo, lo)
-        if not (shifted or any(t.outside for t in tables)):
-            break
-        if attempt:  # pragma: no cover - the measured box holds every point
-            raise InputError("points moved between two reads of the same files")
-        lo, hi = exact_lo, exact_hi  # a header's box was wrong: again, on the measured box
-        n_passes = 3
     stages: list[_GridStage] = []
     for grid, table in zip(grids, tables, strict=True):
         check(0, table.n_cells)
@@ -333,6 +297,73 @@ def chunked_roughness(
             axis_requested=axis, min_points=int(min_points), residual=residual,
             models=models_t, point_cell=np.empty(0, dtype=np.int64), n_points_total=n_total))
     return out
+
+
+class _CellRoom:
+    """Refuses cell tables beyond the memory left for them: ``(1 - CHUNK_SHARE)`` of
+    ``memory_bytes`` (no limit without one). Called with the bytes of the tables so
+    far (counted three times: a merge holds two and makes one) or a number of cells."""
+
+    def __init__(self, memory_bytes: int | None) -> None:
+        self.memory_bytes = memory_bytes
+        self.room = None if memory_bytes is None else (1 - CHUNK_SHARE) * memory_bytes
+
+    def __call__(self, nbytes: int, cells: int | None = None) -> None:
+        if self.room is None:
+            return
+        need = nbytes * 3 if cells is None else cells * BYTES_PER_CELL
+        if need > self.room:
+            raise InputError(
+                f"the cell tables need about {format_bytes(need)}, more than the "
+                f"{format_bytes(self.room)} of --memory {format_bytes(self.memory_bytes or 0)} "
+                "left for them; give more memory or a larger grid size")
+
+
+class _PassProgress:
+    """Says the points done over all passes (``n_passes``: 2, 3 when the first pass
+    runs again), overall and per source; called once per chunk read."""
+
+    def __init__(self, sources: Sequence[Source], n_total: int, progress: ProgressFn | None,
+                 file_progress: Sequence[ProgressFn] | None) -> None:
+        self.sources, self.n_total = sources, n_total
+        self.progress, self.file_progress = progress, file_progress
+        self.n_passes = 2
+        self.done_all = 0
+        self.done_files = [0] * len(sources)
+
+    def __call__(self, chunk: Chunk) -> None:
+        self.done_all += chunk.n
+        self.done_files[chunk.source] += chunk.n
+        if self.progress:
+            self.progress(self.done_all, self.n_passes * self.n_total)
+        if self.file_progress:
+            self.file_progress[chunk.source](self.done_files[chunk.source],
+                                             self.n_passes * self.sources[chunk.source].n_points)
+
+
+def _first_pass(run: Runner, sources: Sequence[Source], chunk_points: int, sizes: list[float],
+                origin: np.ndarray | None, engine: Engine, inner: int,
+                on_chunk: _PassProgress, check: _CellRoom
+                ) -> tuple[tuple[GridSpec, ...], list[Partial]]:
+    """Pass 1 (the moments of every cell) of every grid over the sources' header box;
+    run again on the box measured when a header's box was wrong (a point outside it,
+    or its lowest corner off where the origin follows it)."""
+    lo = np.min([s.bounds_min for s in sources], axis=0)
+    hi = np.max([s.bounds_max for s in sources], axis=0)
+    for attempt in range(2):
+        grids = tuple(make_grid(lo, hi, g, origin) for g in sizes)
+        tables = run.map_reduce(sources, chunk_points, Pass1(grids, engine, inner), len(grids),
+                                on_chunk, check)
+        exact_lo, exact_hi = tables[0].bounds_min, tables[0].bounds_max
+        assert exact_lo is not None and exact_hi is not None
+        shifted = origin is None and not np.array_equal(exact_lo, lo)
+        if not (shifted or any(t.outside for t in tables)):
+            break
+        if attempt:  # pragma: no cover - the measured box holds every point
+            raise InputError("points moved between two reads of the same files")
+        lo, hi = exact_lo, exact_hi  # a header's box was wrong: again, on the measured box
+        on_chunk.n_passes = 3
+    return grids, tables
 
 
 @dataclass(frozen=True)

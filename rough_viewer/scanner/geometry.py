@@ -286,9 +286,43 @@ def scan_geometry(
     """
     tick = progress or (lambda done, total: None)
     x, y, z = as_columns(cloud)
-    n = int(x.shape[0])
     pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    n_scans = pos.shape[0]
+    scan = _checked_scans(result, int(x.shape[0]), pos.shape[0], point_scan, angular_step_rad)
+    m = result.n_cells
+    require(m * 400.0, f"the scanner geometry of {m:,} cells")
+    tick(0, 3)
+    beams = _beams(result, pos, scan)
+    tick(1, 3)
+    area, area_cut, plane_variance = _face_areas(x, y, z, result, beams.has, engine)
+    tick(2, 3)
+    # expected points: N0 A cos(i) / (r^2 cos(e)) per pair
+    pc, ps, has = beams.pc, beams.ps, beams.has
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # steradians of the cell's face, per pair
+        solid = area[pc] * beams.cos_i / (beams.r * beams.r * beams.cos_e)
+        n0, source = _rays_per_steradian(ps, beams.pn, solid, pos.shape[0], angular_step_rad,
+                                         result.min_points)
+        expected = np.bincount(pc, weights=np.nan_to_num(n0[ps] * solid), minlength=m)
+        expected[~has] = np.nan
+        # below one expected point (a sliver of points whose plane holds the beam) the
+        # scanner's grid predicts nothing to compare with
+        density = np.where(expected >= MIN_EXPECTED, result.n_points / expected, np.nan)
+        whole = expected * (area_cut / area)
+        coverage = np.where(whole >= MIN_EXPECTED, result.n_points / whole, np.nan)
+    occlusion = _occlusion(result, coverage, beams.beam, has)
+    tick(3, 3)
+    return ScanGeometry(scans=beams.scans, range_m=beams.range_m,
+                        incidence_deg=beams.incidence, density_ratio=density,
+                        occlusion=occlusion, expected_points=expected, coverage=coverage,
+                        area_m2=area, plane_variance=plane_variance, beam=beams.beam, n0=n0,
+                        n0_source=source, positions=pos, n_pairs=int(pc.shape[0]))
+
+
+def _checked_scans(result: GridRoughness, n: int, n_scans: int,
+                   point_scan: np.ndarray | None, angular_step_rad: float | None
+                   ) -> np.ndarray:
+    """The scan (row of the positions) of every one of the ``n`` points, the inputs of
+    :func:`scan_geometry` checked."""
     if n_scans == 0:
         raise InputError("no scanner positions")
     if result.point_cell.shape[0] != n:
@@ -301,13 +335,42 @@ def scan_geometry(
     if angular_step_rad is not None and not (np.isfinite(angular_step_rad)
                                              and 0 < angular_step_rad < np.pi):
         raise InputError(f"angular step must be in (0, pi) radians, got {angular_step_rad!r}")
-    m = result.n_cells
-    g = result.grid.cell_size
-    require(m * 400.0, f"the scanner geometry of {m:,} cells")
-    tick(0, 3)
+    return scan
 
-    # (cell, scan) pairs and their geometry
-    pc, ps, pn = _pairs(result.point_cell, scan, n_scans, result.n_points)
+
+@dataclass(frozen=True)
+class _Beams:
+    """The (cell, scan) pairs of the cells with a plane and their geometry, and per
+    cell the point-weighted means over its pairs."""
+
+    scans: np.ndarray
+    """(M,) scans with points in every cell (planes or not)."""
+    has: np.ndarray
+    """(M,) bool: the cell has a centroid and a normal."""
+    pc: np.ndarray
+    """(P,) cell of every pair."""
+    ps: np.ndarray
+    """(P,) scan of every pair."""
+    pn: np.ndarray
+    """(P,) points of every pair."""
+    r: np.ndarray
+    """(P,) range from the scanner to the cell's centroid, metres."""
+    cos_i: np.ndarray
+    """(P,) cosine of the incidence angle (beam to the cell's normal)."""
+    cos_e: np.ndarray
+    """(P,) cosine of the beam's elevation."""
+    range_m: np.ndarray
+    """(M,) mean range, metres (NaN without a plane)."""
+    incidence: np.ndarray
+    """(M,) mean incidence angle, degrees (NaN without a plane)."""
+    beam: np.ndarray
+    """(M, 3) mean unit beam direction."""
+
+
+def _beams(result: GridRoughness, pos: np.ndarray, scan: np.ndarray) -> _Beams:
+    """The beams from the scanners ``pos`` to every cell their points ``scan`` are in."""
+    m = result.n_cells
+    pc, ps, pn = _pairs(result.point_cell, scan, pos.shape[0], result.n_points)
     scans = np.bincount(pc, minlength=m).astype(np.int64)  # every cell, planes or not
     has = np.isfinite(result.centroid[:, 0]) & np.isfinite(result.normal[:, 0])
     keep = has[pc]
@@ -327,9 +390,17 @@ def scan_geometry(
         beam = beam / np.linalg.norm(beam, axis=1)[:, None]
     range_m[~has] = np.nan
     incidence[~has] = np.nan
-    tick(1, 3)
+    return _Beams(scans=scans, has=has, pc=pc, ps=ps, pn=pn, r=r, cos_i=cos_i, cos_e=cos_e,
+                  range_m=range_m, incidence=incidence, beam=beam)
 
-    # face area of every cell
+
+def _face_areas(x: np.ndarray, y: np.ndarray, z: np.ndarray, result: GridRoughness,
+                has: np.ndarray, engine: Engine
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per cell: the face area the scanner saw and the area of the whole cell's face
+    (square metres), and the variance of its points about their plane (square
+    metres); NaN without a plane."""
+    g = result.grid.cell_size
     index = CellIndex(grid=result.grid, ijk=result.ijk, counts=result.n_points,
                       point_cell=result.point_cell)
     cov = cell_moments(x, y, z, index, engine=engine).covariance()
@@ -351,40 +422,30 @@ def scan_geometry(
     area_cut = np.where(plane_ok, cut, extent)
     area[~has] = np.nan
     area_cut[~has] = np.nan
-    tick(2, 3)
+    return area, area_cut, plane_variance
 
-    # expected points: N0 A cos(i) / (r^2 cos(e)) per pair
+
+def _rays_per_steradian(ps: np.ndarray, pn: np.ndarray, solid: np.ndarray, n_scans: int,
+                        angular_step_rad: float | None, min_points: int
+                        ) -> tuple[np.ndarray, N0Source]:
+    """``N0`` of every scan (rays per steradian; NaN for a scan with no pair) and where
+    it comes from: the angular step given, else the median over the scan's pairs of
+    points per steradian of face (``solid``), those of at least ``min_points`` points
+    where it has any. A loop over scans, not points."""
+    n0 = np.full(n_scans, np.nan)
+    if angular_step_rad is not None:
+        n0[np.unique(ps)] = 1.0 / float(angular_step_rad) ** 2
+        return n0, "angular step"
     with np.errstate(invalid="ignore", divide="ignore"):
-        solid = area[pc] * cos_i / (r * r * cos_e)  # steradians of the cell's face, per pair
-        n0 = np.full(n_scans, np.nan)
-        source: N0Source
-        if angular_step_rad is not None:
-            n0[np.unique(ps)] = 1.0 / float(angular_step_rad) ** 2
-            source = "angular step"
-        else:
-            source = "fitted"
-            good = (solid > 0) & np.isfinite(solid) & (pn >= result.min_points)
-            ratio = pn / solid
-            for k in np.unique(ps):  # one median per scan (a loop over scans, not points)
-                sel = (ps == k) & good
-                if not np.any(sel):
-                    sel = (ps == k) & (solid > 0) & np.isfinite(solid)
-                if np.any(sel):
-                    n0[k] = float(np.median(ratio[sel]))
-        expected = np.bincount(pc, weights=np.nan_to_num(n0[ps] * solid), minlength=m)
-        expected[~has] = np.nan
-        # below one expected point (a sliver of points whose plane holds the beam) the
-        # scanner's grid predicts nothing to compare with
-        density = np.where(expected >= MIN_EXPECTED, result.n_points / expected, np.nan)
-        whole = expected * (area_cut / area)
-        coverage = np.where(whole >= MIN_EXPECTED, result.n_points / whole, np.nan)
-    occlusion = _occlusion(result, coverage, beam, has)
-    tick(3, 3)
-    return ScanGeometry(scans=scans, range_m=range_m, incidence_deg=incidence,
-                        density_ratio=density, occlusion=occlusion, expected_points=expected,
-                        coverage=coverage, area_m2=area, plane_variance=plane_variance,
-                        beam=beam, n0=n0, n0_source=source, positions=pos,
-                        n_pairs=int(pc.shape[0]))
+        good = (solid > 0) & np.isfinite(solid) & (pn >= min_points)
+        ratio = pn / solid
+    for k in np.unique(ps):  # one median per scan (a loop over scans, not points)
+        sel = (ps == k) & good
+        if not np.any(sel):
+            sel = (ps == k) & (solid > 0) & np.isfinite(solid)
+        if np.any(sel):
+            n0[k] = float(np.median(ratio[sel]))
+    return n0, "fitted"
 
 
 def _occlusion(result: GridRoughness, density: np.ndarray, beam: np.ndarray,

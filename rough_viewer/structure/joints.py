@@ -50,6 +50,7 @@ correlation with a wide scatter, for ``Jv`` between 4 and 44 (100 below 4, 0 abo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -238,20 +239,7 @@ def merge_patches(patch_set: np.ndarray, points: np.ndarray, centroid: np.ndarra
         k = mine.shape[0]
         if k < 2:
             continue
-        require(8.0 * 6 * min(k, _PAIR_CHUNK) * k, f"patch pairs of a set of {k:,} patches")
-        ci, cj = [], []
-        for start in range(0, k, _PAIR_CHUNK):
-            rows = mine[start:start + _PAIR_CHUNK]
-            d = centroid[mine][None, :, :] - centroid[rows][:, None, :]  # (r, k, 3)
-            d_ij = np.abs(np.einsum("rkx,rx->rk", d, normal[rows]))
-            d_ji = np.abs(np.einsum("rkx,kx->rk", d, normal[mine]))
-            ok = np.maximum(d_ij, d_ji) <= tolerance
-            ok &= np.arange(k)[None, :] > (start + np.arange(rows.shape[0]))[:, None]
-            r, c = np.nonzero(ok)
-            ci.append(rows[r])
-            cj.append(mine[c])
-        i = np.concatenate(ci)
-        j = np.concatenate(cj)
+        i, j = _near_pairs(mine, centroid, normal, tolerance)
         if i.size == 0:
             continue
         _, _, pair_cov = _moments_of_pairs(n, centroid, cov, i, j)
@@ -276,7 +264,34 @@ def merge_patches(patch_set: np.ndarray, points: np.ndarray, centroid: np.ndarra
             parent[rb] = ra
             gn[ra], gc[ra], gcov[ra] = tot[0], mid[0], mcov[0]
     roots = np.array([find(a) for a in range(p_n)], dtype=np.int64)
-    # joint ids by set, then by points (largest first), then first patch
+    return _joint_ids(roots, patch_set, n)
+
+
+def _near_pairs(mine: np.ndarray, centroid: np.ndarray, normal: np.ndarray, tolerance: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``(i, j)`` (``i`` before ``j`` in ``mine``) of the patches ``mine`` of
+    one set each of whose centroids lies within ``tolerance`` (metres) of the other's
+    plane; a loop over chunks of :data:`_PAIR_CHUNK` rows."""
+    k = mine.shape[0]
+    require(8.0 * 6 * min(k, _PAIR_CHUNK) * k, f"patch pairs of a set of {k:,} patches")
+    ci, cj = [], []
+    for start in range(0, k, _PAIR_CHUNK):
+        rows = mine[start:start + _PAIR_CHUNK]
+        d = centroid[mine][None, :, :] - centroid[rows][:, None, :]  # (r, k, 3)
+        d_ij = np.abs(np.einsum("rkx,rx->rk", d, normal[rows]))
+        d_ji = np.abs(np.einsum("rkx,kx->rk", d, normal[mine]))
+        ok = np.maximum(d_ij, d_ji) <= tolerance
+        ok &= np.arange(k)[None, :] > (start + np.arange(rows.shape[0]))[:, None]
+        r, c = np.nonzero(ok)
+        ci.append(rows[r])
+        cj.append(mine[c])
+    return np.concatenate(ci), np.concatenate(cj)
+
+
+def _joint_ids(roots: np.ndarray, patch_set: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Joint index 0..J-1 of every patch from its group's root patch: by set, then by
+    points ``n`` (largest first), then first patch."""
+    p_n = int(roots.shape[0])
     uniq, inverse = np.unique(roots, return_inverse=True)
     j_points = np.bincount(inverse, weights=n, minlength=uniq.shape[0])
     j_set = np.zeros(uniq.shape[0], dtype=np.int64)
@@ -370,6 +385,138 @@ class SetSpacing:
     """Every distance between consecutive crossings on the set's scanlines."""
 
 
+@dataclass(frozen=True)
+class _SetFrame:
+    """A set's frame and its joints' planes in it: ``m`` the set's unit normal, ``e1``
+    and ``e2`` its dip and strike axes; per joint (local index ``k``) the plane
+    ``n . (p - origin) = base`` written as a height along ``m``."""
+
+    m: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    base: np.ndarray
+    a1: np.ndarray
+    a2: np.ndarray
+    nm: np.ndarray
+
+    def height(self, k: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Height along ``m`` of joint ``k`` (local index) at in-plane ``(u, v)``, metres."""
+        return (self.base[k] - u * self.a1[k] - v * self.a2[k]) / self.nm[k]
+
+
+def _set_frame(joints: Joints, ids: np.ndarray, set_normal: np.ndarray, origin: np.ndarray,
+               bin_size: float) -> _SetFrame:
+    """The frame of the set of joints ``ids`` (:class:`_SetFrame`)."""
+    m = np.asarray(set_normal, dtype=np.float64)
+    m = m / np.linalg.norm(m)
+    e1, e2 = (a[0] for a in dip_strike_axes(m[None]))
+    # a joint narrower than a bin (a strip) has a poorly known tilt across it: its
+    # plane is taken at the set's mean orientation through its centroid
+    nj = np.where((joints.width[ids] >= bin_size)[:, None], joints.normal[ids], m[None])
+    nm = nj @ m
+    nm = np.where(np.abs(nm) < 1e-9, 1e-9, nm)
+    base = np.einsum("ij,ij->i", nj, joints.centroid[ids] - origin)
+    return _SetFrame(m=m, e1=e1, e2=e2, base=base, a1=nj @ e1, a2=nj @ e2, nm=nm)
+
+
+@dataclass(frozen=True)
+class _Bins:
+    """Every point in a set's frame: in-plane ``u``, ``v`` and height ``hp`` (metres),
+    its bin ``cell`` (row-major, ``width`` bins a row, from bin ``(u_lo, v_lo)``) and
+    the points sorted by bin (``by_cell``, ``sorted_cell``)."""
+
+    u: np.ndarray
+    v: np.ndarray
+    hp: np.ndarray
+    cell: np.ndarray
+    width: int
+    u_lo: int
+    v_lo: int
+    by_cell: np.ndarray
+    sorted_cell: np.ndarray
+
+
+def _bin_points(frame: _SetFrame, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+                origin: np.ndarray, bin_size: float) -> _Bins:
+    """Every point's bin and height in the set's frame (:class:`_Bins`)."""
+    e1, e2, m = frame.e1, frame.e2, frame.m
+    n_all = int(xyz[0].shape[0])
+    require(n_all * 72.0, f"the scanlines of a set over {n_all:,} points")
+    rel = [xyz[a] - origin[a] for a in range(3)]
+    u = rel[0] * e1[0] + rel[1] * e1[1] + rel[2] * e1[2]
+    v = rel[0] * e2[0] + rel[1] * e2[1] + rel[2] * e2[2]
+    hp = rel[0] * m[0] + rel[1] * m[1] + rel[2] * m[2]
+    del rel
+    bu = np.floor(u / bin_size).astype(np.int64)
+    bv = np.floor(v / bin_size).astype(np.int64)
+    u_lo, v_lo = int(bu.min()), int(bv.min())
+    bu -= u_lo
+    bv -= v_lo
+    width = int(bv.max()) + 1
+    cell = bu * width + bv
+    del bu, bv
+    by_cell = np.argsort(cell, kind="stable")
+    return _Bins(u=u, v=v, hp=hp, cell=cell, width=width, u_lo=u_lo, v_lo=v_lo,
+                 by_cell=by_cell, sorted_cell=cell[by_cell])
+
+
+def _covered_pairs(frame: _SetFrame, bins: _Bins, own: np.ndarray, band: np.ndarray,
+                   point_joint: np.ndarray, k_n: int) -> np.ndarray:
+    """``bin * k_n + joint`` of every bin a joint covers: those with its own points
+    (``own``) and those within :data:`COVER_REACH_BINS` of them holding a point of
+    no joint within ``band`` (metres) of its plane. A loop over joints, vectorised
+    over points."""
+    width, cell = bins.width, bins.cell
+    own_cell, own_joint = own // k_n, own % k_n
+    found = [own]
+    for k in range(k_n):
+        mine = own_cell[own_joint == k]
+        if mine.size == 0:
+            continue
+        iu, iv = mine // width, mine % width
+        lo_u, hi_u = int(iu.min()) - COVER_REACH_BINS, int(iu.max()) + COVER_REACH_BINS
+        lo_v = max(int(iv.min()) - COVER_REACH_BINS, 0)
+        hi_v = min(int(iv.max()) + COVER_REACH_BINS, width - 1)
+        rows = np.arange(max(lo_u, 0), hi_u + 1)
+        first = np.searchsorted(bins.sorted_cell, rows * width + lo_v)
+        last = np.searchsorted(bins.sorted_cell, rows * width + hi_v, side="right")
+        runs = last - first
+        if int(runs.sum()) == 0:
+            continue
+        pick = bins.by_cell[np.repeat(first - np.cumsum(runs) + runs, runs)
+                            + np.arange(int(runs.sum()))]
+        pick = pick[point_joint[pick] < 0]  # points of no joint: never another's
+        kk = np.full(pick.shape[0], k)
+        near = np.abs(bins.hp[pick] - frame.height(kk, bins.u[pick], bins.v[pick])) <= band[k]
+        found.append(cell[pick[near]] * k_n + k)
+    return np.unique(np.concatenate(found))
+
+
+def _bin_centres(c: np.ndarray, width: int, u_lo: int, v_lo: int, bin_size: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """In-plane coordinates of the centres of bins ``c`` (:class:`_Bins`), metres."""
+    return (c // width + u_lo + 0.5) * bin_size, (c % width + v_lo + 0.5) * bin_size
+
+
+def _normal_gaps(frame: _SetFrame, offset: np.ndarray, cells_of: list[np.ndarray],
+                 centre: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Signed distances along the set's normal between consecutive joints (by their
+    centroids' ``offset``), the mean over the bins both cover (``cells_of``), else
+    between the centroids; metres. A loop over joints."""
+    rank = np.argsort(offset, kind="stable")
+    normal_gaps = []
+    for a, b in zip(rank[:-1].tolist(), rank[1:].tolist(), strict=True):
+        shared = np.intersect1d(cells_of[a], cells_of[b], assume_unique=True)
+        if shared.size:
+            su, sv = centre(shared)
+            ka, kb = np.full(su.shape[0], a), np.full(su.shape[0], b)
+            normal_gaps.append(float(np.mean(frame.height(kb, su, sv)
+                                             - frame.height(ka, su, sv))))
+        else:
+            normal_gaps.append(float(offset[b] - offset[a]))
+    return np.array(normal_gaps)
+
+
 def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
                 point_joint: np.ndarray, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
                 origin: np.ndarray, bin_size: float, tolerance: float) -> SetSpacing:
@@ -398,81 +545,30 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
     empty = SetSpacing(np.zeros(0), np.zeros(0))
     if ids.shape[0] < 2:
         return empty
-    m = np.asarray(set_normal, dtype=np.float64)
-    m = m / np.linalg.norm(m)
-    e1, e2 = (a[0] for a in dip_strike_axes(m[None]))
-    # a joint narrower than a bin (a strip) has a poorly known tilt across it: its
-    # plane is taken at the set's mean orientation through its centroid
-    nj = np.where((joints.width[ids] >= bin_size)[:, None], joints.normal[ids], m[None])
-    nm = nj @ m
-    nm = np.where(np.abs(nm) < 1e-9, 1e-9, nm)
-    base = np.einsum("ij,ij->i", nj, joints.centroid[ids] - origin)
-    a1, a2 = nj @ e1, nj @ e2
-
-    def height(k: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Height along ``m`` of joint ``k`` (local index) at in-plane ``(u, v)``."""
-        return (base[k] - u * a1[k] - v * a2[k]) / nm[k]
-
+    frame = _set_frame(joints, ids, set_normal, origin, bin_size)
     local = np.full(joints.n_joints, -1, dtype=np.int64)
     local[ids] = np.arange(ids.shape[0])
-    n_all = int(xyz[0].shape[0])
     # every point's bin and height in the set's frame: a joint covers the bins where
     # the cloud has points on its plane, through the strips where other joints cross
     # it (no planar cell there) and up to its edges
-    require(n_all * 72.0, f"the scanlines of a set over {n_all:,} points")
-    rel = [xyz[a] - origin[a] for a in range(3)]
-    u = rel[0] * e1[0] + rel[1] * e1[1] + rel[2] * e1[2]
-    v = rel[0] * e2[0] + rel[1] * e2[1] + rel[2] * e2[2]
-    hp = rel[0] * m[0] + rel[1] * m[1] + rel[2] * m[2]
-    del rel
-    bu = np.floor(u / bin_size).astype(np.int64)
-    bv = np.floor(v / bin_size).astype(np.int64)
-    u_lo, v_lo = int(bu.min()), int(bv.min())
-    bu -= u_lo
-    bv -= v_lo
-    width = int(bv.max()) + 1
-    k_n = ids.shape[0]
-    cell = bu * width + bv
-    del bu, bv
-    by_cell = np.argsort(cell, kind="stable")
-    sorted_cell = cell[by_cell]
+    bins = _bin_points(frame, xyz, origin, bin_size)
+    width, k_n = bins.width, ids.shape[0]
     sel = np.flatnonzero(point_joint >= 0)
     sel = sel[local[point_joint[sel]] >= 0]
     q = local[point_joint[sel]]
-    own = np.unique(cell[sel] * k_n + q)  # (bin, joint) with the joint's own points
+    own = np.unique(bins.cell[sel] * k_n + q)  # (bin, joint) with the joint's own points
     own_cell, own_joint = own // k_n, own % k_n
     band = np.maximum(COVER_RMS_FACTOR * joints.rms[ids], 1e-9)
-    found = [own]
-    for k in range(k_n):
-        mine = own_cell[own_joint == k]
-        if mine.size == 0:
-            continue
-        iu, iv = mine // width, mine % width
-        lo_u, hi_u = int(iu.min()) - COVER_REACH_BINS, int(iu.max()) + COVER_REACH_BINS
-        lo_v = max(int(iv.min()) - COVER_REACH_BINS, 0)
-        hi_v = min(int(iv.max()) + COVER_REACH_BINS, width - 1)
-        rows = np.arange(max(lo_u, 0), hi_u + 1)
-        first = np.searchsorted(sorted_cell, rows * width + lo_v)
-        last = np.searchsorted(sorted_cell, rows * width + hi_v, side="right")
-        runs = last - first
-        if int(runs.sum()) == 0:
-            continue
-        pick = by_cell[np.repeat(first - np.cumsum(runs) + runs, runs)
-                       + np.arange(int(runs.sum()))]
-        pick = pick[point_joint[pick] < 0]  # points of no joint: never another's
-        kk = np.full(pick.shape[0], k)
-        near = np.abs(hp[pick] - height(kk, u[pick], v[pick])) <= band[k]
-        found.append(cell[pick[near]] * k_n + k)
-    pair = np.unique(np.concatenate(found))
+    pair = _covered_pairs(frame, bins, own, band, point_joint, k_n)
     b_cell, b_joint = _fill(pair // k_n // width, pair // k_n % width, pair % k_n, width, k_n)
-    del u, v, hp
+    u_lo, v_lo = bins.u_lo, bins.v_lo
+    del bins
     o_cell, o_joint = _fill(own_cell // width, own_cell % width, own_joint, width, k_n)
 
     def centre(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """In-plane coordinates of the centres of bins ``c``."""
-        return (c // width + u_lo + 0.5) * bin_size, (c % width + v_lo + 0.5) * bin_size
+        return _bin_centres(c, width, u_lo, v_lo, bin_size)
 
-    h = height(b_joint, *centre(b_cell))
+    h = frame.height(b_joint, *centre(b_cell))
     # scanlines: per bin, crossings sorted by height
     order = np.lexsort((h, b_cell))
     hs, cs = h[order], b_cell[order]
@@ -481,21 +577,11 @@ def set_spacing(joints: Joints, set_id: int, set_normal: np.ndarray,
     scan = gaps[gaps > tolerance]
     # normal spacing: consecutive joints by their centroids' offsets along m,
     # measured where they overlap (else between the centroids)
-    offset = (joints.centroid[ids] - origin) @ m
-    rank = np.argsort(offset, kind="stable")
+    offset = (joints.centroid[ids] - origin) @ frame.m
     by_joint = np.argsort(o_joint, kind="stable")
     starts = np.searchsorted(o_joint[by_joint], np.arange(k_n + 1))
     cells_of = [o_cell[by_joint[starts[k]:starts[k + 1]]] for k in range(k_n)]
-    normal_gaps = []
-    for a, b in zip(rank[:-1].tolist(), rank[1:].tolist(), strict=True):
-        shared = np.intersect1d(cells_of[a], cells_of[b], assume_unique=True)
-        if shared.size:
-            su, sv = centre(shared)
-            ka, kb = np.full(su.shape[0], a), np.full(su.shape[0], b)
-            normal_gaps.append(float(np.mean(height(kb, su, sv) - height(ka, su, sv))))
-        else:
-            normal_gaps.append(float(offset[b] - offset[a]))
-    g = np.abs(np.array(normal_gaps))
+    g = np.abs(_normal_gaps(frame, offset, cells_of, centre))
     return SetSpacing(normal=g[g > tolerance], scanline=scan)
 
 

@@ -198,6 +198,157 @@ def _no_sets() -> SetRoughness:
     return SetRoughness(*(e,) * 3, ei, *(e,) * 6, ei, ei, *(e,) * 4, ei, ei, ei, e)
 
 
+#: The directional values of the profiles, by key: ``jrc0`` dip, ``jrc1`` strike, ...
+_PROFILE_KEYS = ("jrc0", "jrc1", "z20", "z21", "rms0", "rms1")
+
+
+class _Tally:
+    """What the measured joints of every set give, gathered joint by joint (mutable,
+    local to one :func:`set_roughness` call)."""
+
+    def __init__(self, n_sets: int) -> None:
+        self.values: dict[str, list[list[np.ndarray]]] = {
+            k: [[] for _ in range(n_sets)] for k in _PROFILE_KEYS}
+        self.steps: list[list[float]] = [[] for _ in range(n_sets)]
+        self.normals: list[np.ndarray] = []
+        self.areas: list[np.ndarray] = []
+        self.groups: list[np.ndarray] = []
+        self.measured = np.zeros(n_sets, dtype=np.int64)
+        self.points = np.zeros(n_sets, dtype=np.int64)
+        self.skipped: dict[str, int] = {}
+
+    def pooled(self, key: str) -> np.ndarray:
+        """(S,) mean of the finite values of ``key`` of every set, NaN where none."""
+        out = np.full(len(self.steps), np.nan)
+        for s, parts in enumerate(self.values[key]):
+            v = np.concatenate(parts) if parts else np.zeros(0)
+            v = v[np.isfinite(v)]
+            if v.size:
+                out[s] = float(v.mean())
+        return out
+
+    def count(self, key: str) -> np.ndarray:
+        """(S,) int64 values of ``key`` of every set (the profiles used)."""
+        return np.array([sum(int(v.size) for v in parts) for parts in self.values[key]],
+                        dtype=np.int64)
+
+
+def _measured_joints(joints: Joints, s: int, max_joints: int, max_points: int,
+                     skipped: dict[str, int]) -> tuple[list[int], list[int]]:
+    """The joints of set ``s + 1`` to measure (largest first, at most ``max_joints``)
+    and the points each may give (:func:`point_shares`); the rest counted in
+    ``skipped``."""
+    ids = np.flatnonzero(joints.set_id == s + 1)  # largest first (joint ids' order)
+    big = ids[joints.points[ids] >= MIN_JOINT_POINTS]
+    _count(skipped, f"fewer than {MIN_JOINT_POINTS} points", ids.size - big.size)
+    _count(skipped, f"beyond the {max_joints} largest of a set", big.size - max_joints)
+    big = big[:max_joints]
+    caps = point_shares(joints.points[big], int(max_points))
+    _count(skipped, f"its share of the {max_points:,} points measured per set under "
+           f"{MIN_JOINT_POINTS}", int(np.count_nonzero(caps < MIN_JOINT_POINTS)))
+    return big.tolist(), caps.tolist()
+
+
+def _joint_frame(rows: np.ndarray, rot: np.ndarray, centroid: np.ndarray,
+                 xyz: tuple[np.ndarray, np.ndarray, np.ndarray], cap: int,
+                 skipped: dict[str, int]) -> np.ndarray:
+    """(n, 3) points ``rows`` of a joint in its own frame (rows of ``rot``: dip,
+    strike, normal; from its centroid), metres; at most ``cap`` of them, the disc of
+    those nearest the centroid (its spacing kept)."""
+    require(rows.shape[0] * 32.0, f"the points of a joint of {rows.shape[0]:,} points")
+    loc = np.column_stack([xyz[a][rows] - centroid[a] for a in range(3)]) @ rot.T
+    if loc.shape[0] > cap:  # the disc about its centroid: its spacing kept
+        _count(skipped, "measured on the disc of its points nearest its centroid, "
+               "partly", 1)
+        r2 = loc[:, 0] ** 2 + loc[:, 1] ** 2
+        loc = loc[np.argpartition(r2, cap - 1)[:cap]]
+    return loc
+
+
+def _measure_joint(loc: np.ndarray, s: int, tally: _Tally, max_profiles: int) -> bool:
+    """Measure one joint of set ``s + 1`` (its points ``loc`` in its own frame,
+    metres) into ``tally``: its spacing, its profiles' values along dip and strike and
+    its facets. True where profiles or triangles gave something."""
+    from rough_viewer.grid.maps import FacePlane
+    from rough_viewer.grid.spacing import neighbour_distance
+    from rough_viewer.profiles.profile_sets import profile_sets
+    from rough_viewer.tin.surface import MAX_EDGE_SPACINGS, facets, triangulate_cloud
+
+    skipped = tally.skipped
+    local_plane = FacePlane(centroid=np.zeros(3), normal=np.array([0.0, 0.0, 1.0]))
+    extent = float(np.max(loc[:, :2].max(axis=0) - loc[:, :2].min(axis=0)))
+    try:  # the point spacing, as profiles and triangles take it
+        spacing = neighbour_distance(loc[:, :2], k=4)
+    except InputError:
+        _count(skipped, "its points coincide", 1)
+        return False
+    tally.steps[s].append(spacing)
+    took = False
+    try:
+        sets = profile_sets(loc, AZIMUTHS_DEG, plane=local_plane,
+                            spacing=extent / max_profiles, band_half_width=spacing,
+                            sample_spacing=spacing, min_samples=PROFILE_MIN_SAMPLES)
+    except InputError:
+        sets = ()
+        _count(skipped, "no profiles", 1)
+    for d, ps in enumerate(sets):
+        used = ps.used
+        if used.any():
+            took = True
+            for name in ("jrc", "z2", "rms"):
+                tally.values[f"{name}{d}"][s].append(ps.values[name][used])
+    try:
+        mesh = triangulate_cloud(loc, plane=local_plane, max_edge=MAX_EDGE_SPACINGS * spacing)
+        f = facets(mesh, toward=np.array([0.0, 0.0, 1.0]))
+    except InputError:
+        _count(skipped, "no triangles", 1)
+    else:
+        if f.areas.size:
+            took = True
+            tally.normals.append(f.normals)
+            tally.areas.append(f.areas)
+            tally.groups.append(np.full(f.areas.size, s, dtype=np.int64))
+    return took
+
+
+def _facet_statistics(tally: _Tally, n_sets: int
+                      ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """``theta_max_c1`` and ``delta_t`` ((S, 2): dip, strike; degrees, NaN where no
+    facet) of the pooled facets of every set, and the facets pooled ((S,) int64)."""
+    from rough_viewer.tin.directional import facet_roughness
+
+    tin = {k: np.full((n_sets, 2), np.nan) for k in ("theta_max_c1", "delta_t")}
+    tri = np.zeros(n_sets, dtype=np.int64)
+    if tally.normals:
+        g = np.concatenate(tally.groups)
+        res = facet_roughness(np.concatenate(tally.normals), np.concatenate(tally.areas), g,
+                              n_sets, AZIMUTHS_DEG)
+        tin = {k: res[k] for k in ("theta_max_c1", "delta_t")}
+        tri = np.bincount(g, minlength=n_sets).astype(np.int64)
+    return tin, tri
+
+
+def _warnings(step: np.ndarray, profiles: np.ndarray, skipped: dict[str, int]) -> list[str]:
+    """What the reader should know: the JRC estimate's sampling (``step``, (S,) median
+    sample spacing, metres), the sets without profiles, the joints left out."""
+    from rough_viewer.profiles.jrc import jrc_warnings
+
+    warnings: list[str] = []
+    if profiles.any():
+        warnings += list(jrc_warnings(float(np.nanmedian(step[profiles > 0]))))
+    for s in np.flatnonzero((profiles == 0) & np.isfinite(step)).tolist():
+        warnings.append(f"set {s + 1}: no JRC estimate: no profile on its joints has the "
+                        f"{PROFILE_MIN_SAMPLES} samples with data a profile needs (sampled "
+                        f"every {step[s] * 1e3:.3g} mm, the point spacing)")
+    for why, k in skipped.items():
+        if why.startswith("measured"):
+            warnings.append(f"set roughness: {k:,} joint{'s' if k != 1 else ''} {why}")
+        else:
+            warnings.append(f"set roughness: {k:,} joint{'s' if k != 1 else ''} not "
+                            f"measured ({why})")
+    return warnings
+
+
 def set_roughness(
     cell_set: np.ndarray,
     theta_odr: np.ndarray,
@@ -237,142 +388,45 @@ def set_roughness(
     -------
     SetRoughness
     """
-    from rough_viewer.grid.maps import FacePlane
-    from rough_viewer.grid.spacing import neighbour_distance
-    from rough_viewer.profiles.jrc import jrc_warnings
-    from rough_viewer.profiles.profile_sets import profile_sets
-    from rough_viewer.tin.directional import facet_roughness
-    from rough_viewer.tin.surface import MAX_EDGE_SPACINGS, facets, triangulate_cloud
-
     if n_sets == 0:
         return _no_sets()
     if max_joints < 1 or max_points < MIN_JOINT_POINTS or max_profiles < 1:
         raise InputError("set roughness needs at least one joint, one profile and "
                          f"{MIN_JOINT_POINTS} points per set")
     odr = cell_odr_statistics(cell_set, theta_odr, n_sets)
-    nan = np.full(n_sets, np.nan)
     pj = np.asarray(point_joint, dtype=np.int64)
     sel = np.flatnonzero(pj >= 0)
     order = sel[np.argsort(pj[sel], kind="stable")]
     starts = np.searchsorted(pj[order], np.arange(joints.n_joints + 1))
     dip_axis, strike_axis = dip_strike_axes(joints.normal) if joints.n_joints else (
         np.zeros((0, 3)), np.zeros((0, 3)))
-    local_plane = FacePlane(centroid=np.zeros(3), normal=np.array([0.0, 0.0, 1.0]))
-    values: dict[str, list[list[np.ndarray]]] = {
-        k: [[] for _ in range(n_sets)] for k in ("jrc0", "jrc1", "z20", "z21", "rms0", "rms1")}
-    steps: list[list[float]] = [[] for _ in range(n_sets)]
-    normals, areas, groups = [], [], []
-    measured = np.zeros(n_sets, dtype=np.int64)
-    points = np.zeros(n_sets, dtype=np.int64)
-    warnings: list[str] = []
-    skipped: dict[str, int] = {}
+    tally = _Tally(n_sets)
     for s in range(n_sets if directional else 0):
-        ids = np.flatnonzero(joints.set_id == s + 1)  # largest first (joint ids' order)
-        big = ids[joints.points[ids] >= MIN_JOINT_POINTS]
-        _count(skipped, f"fewer than {MIN_JOINT_POINTS} points", ids.size - big.size)
-        _count(skipped, f"beyond the {max_joints} largest of a set", big.size - max_joints)
-        big = big[:max_joints]
-        caps = point_shares(joints.points[big], int(max_points))
-        _count(skipped, f"its share of the {max_points:,} points measured per set under "
-               f"{MIN_JOINT_POINTS}", int(np.count_nonzero(caps < MIN_JOINT_POINTS)))
-        for j, cap in zip(big.tolist(), caps.tolist(), strict=True):
+        for j, cap in zip(*_measured_joints(joints, s, max_joints, max_points, tally.skipped),
+                          strict=True):
             if cap < MIN_JOINT_POINTS:
                 continue
-            rows = order[starts[j]:starts[j + 1]]
             rot = np.stack([dip_axis[j], strike_axis[j], joints.normal[j]])
-            c = joints.centroid[j]
-            require(rows.shape[0] * 32.0, f"the points of a joint of {rows.shape[0]:,} points")
-            loc = np.column_stack([xyz[a][rows] - c[a] for a in range(3)]) @ rot.T
-            if loc.shape[0] > cap:  # the disc about its centroid: its spacing kept
-                _count(skipped, "measured on the disc of its points nearest its centroid, "
-                       "partly", 1)
-                r2 = loc[:, 0] ** 2 + loc[:, 1] ** 2
-                loc = loc[np.argpartition(r2, cap - 1)[:cap]]
+            loc = _joint_frame(order[starts[j]:starts[j + 1]], rot, joints.centroid[j], xyz,
+                               cap, tally.skipped)
             n = loc.shape[0]
             require(n * BYTES_PER_POINT, f"the roughness of a joint of {n:,} points",
                     hint="choose a larger grid size")
-            extent = float(np.max(loc[:, :2].max(axis=0) - loc[:, :2].min(axis=0)))
-            try:  # the point spacing, as profiles and triangles take it
-                spacing = neighbour_distance(loc[:, :2], k=4)
-            except InputError:
-                _count(skipped, "its points coincide", 1)
-                continue
-            steps[s].append(spacing)
-            took = False
-            try:
-                sets = profile_sets(loc, AZIMUTHS_DEG, plane=local_plane,
-                                    spacing=extent / max_profiles, band_half_width=spacing,
-                                    sample_spacing=spacing, min_samples=PROFILE_MIN_SAMPLES)
-            except InputError:
-                sets = ()
-                _count(skipped, "no profiles", 1)
-            for d, ps in enumerate(sets):
-                used = ps.used
-                if used.any():
-                    took = True
-                    values[f"jrc{d}"][s].append(ps.values["jrc"][used])
-                    values[f"z2{d}"][s].append(ps.values["z2"][used])
-                    values[f"rms{d}"][s].append(ps.values["rms"][used])
-            try:
-                mesh = triangulate_cloud(loc, plane=local_plane,
-                                         max_edge=MAX_EDGE_SPACINGS * spacing)
-                f = facets(mesh, toward=np.array([0.0, 0.0, 1.0]))
-            except InputError:
-                _count(skipped, "no triangles", 1)
-            else:
-                if f.areas.size:
-                    took = True
-                    normals.append(f.normals)
-                    areas.append(f.areas)
-                    groups.append(np.full(f.areas.size, s, dtype=np.int64))
-            if took:
-                measured[s] += 1
-                points[s] += n
-    tin = {k: np.full((n_sets, 2), np.nan) for k in ("theta_max_c1", "delta_t")}
-    tri = np.zeros(n_sets, dtype=np.int64)
-    if normals:
-        g = np.concatenate(groups)
-        res = facet_roughness(np.concatenate(normals), np.concatenate(areas), g, n_sets,
-                              AZIMUTHS_DEG)
-        tin = {k: res[k] for k in ("theta_max_c1", "delta_t")}
-        tri = np.bincount(g, minlength=n_sets).astype(np.int64)
-
-    def pooled(key: str) -> np.ndarray:
-        out = nan.copy()
-        for s in range(n_sets):
-            v = np.concatenate(values[key][s]) if values[key][s] else np.zeros(0)
-            v = v[np.isfinite(v)]
-            if v.size:
-                out[s] = float(v.mean())
-        return out
-
-    def count(key: str) -> np.ndarray:
-        return np.array([sum(int(v.size) for v in values[key][s]) for s in range(n_sets)],
-                        dtype=np.int64)
-
-    step = np.array([float(np.median(v)) if v else np.nan for v in steps])
-    profiles = count("jrc0") + count("jrc1")
-    if profiles.any():
-        warnings += list(jrc_warnings(float(np.nanmedian(step[profiles > 0]))))
-    for s in np.flatnonzero((profiles == 0) & np.isfinite(step)).tolist():
-        warnings.append(f"set {s + 1}: no JRC estimate: no profile on its joints has the "
-                        f"{PROFILE_MIN_SAMPLES} samples with data a profile needs (sampled "
-                        f"every {step[s] * 1e3:.3g} mm, the point spacing)")
-    for why, k in skipped.items():
-        if why.startswith("measured"):
-            warnings.append(f"set roughness: {k:,} joint{'s' if k != 1 else ''} {why}")
-        else:
-            warnings.append(f"set roughness: {k:,} joint{'s' if k != 1 else ''} not "
-                            f"measured ({why})")
+            if _measure_joint(loc, s, tally, max_profiles):
+                tally.measured[s] += 1
+                tally.points[s] += n
+    tin, tri = _facet_statistics(tally, n_sets)
+    step = np.array([float(np.median(v)) if v else np.nan for v in tally.steps])
+    profiles = tally.count("jrc0") + tally.count("jrc1")
     return SetRoughness(
         odr_mean=odr[0], odr_median=odr[1], odr_std=odr[2], odr_cells=odr[3],
-        jrc_estimate_dip=pooled("jrc0"), jrc_estimate_strike=pooled("jrc1"),
-        z2_dip=pooled("z20"), z2_strike=pooled("z21"),
-        rms_dip=pooled("rms0"), rms_strike=pooled("rms1"),
-        profiles_dip=count("jrc0"), profiles_strike=count("jrc1"),
+        jrc_estimate_dip=tally.pooled("jrc0"), jrc_estimate_strike=tally.pooled("jrc1"),
+        z2_dip=tally.pooled("z20"), z2_strike=tally.pooled("z21"),
+        rms_dip=tally.pooled("rms0"), rms_strike=tally.pooled("rms1"),
+        profiles_dip=tally.count("jrc0"), profiles_strike=tally.count("jrc1"),
         theta_max_c1_dip=tin["theta_max_c1"][:, 0],
         theta_max_c1_strike=tin["theta_max_c1"][:, 1],
         delta_t_dip=tin["delta_t"][:, 0], delta_t_strike=tin["delta_t"][:, 1],
-        joints_measured=measured, points_measured=points, triangles=tri,
+        joints_measured=tally.measured, points_measured=tally.points, triangles=tri,
         sample_spacing=step,
-        warnings=tuple(dict.fromkeys(warnings)))
+        warnings=tuple(dict.fromkeys(_warnings(step, profiles, tally.skipped))))

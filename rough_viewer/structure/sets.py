@@ -748,8 +748,7 @@ def joint_sets(
     o = options if options is not None else SetOptions()
     g = float(result.grid.cell_size)
     t, tol, max_rms = o.lengths(g)
-    cone_deg, min_angle_deg, max_sets = o.cone_deg, o.min_angle_deg, o.max_sets
-    smoothing_deg, min_density, min_set_cells = o.smoothing_deg, o.min_density, o.min_set_cells
+    cone_deg, max_sets, min_density = o.cone_deg, o.max_sets, o.min_density
     min_plane_cells, min_planar_points = o.min_plane_cells, o.min_planar_points
     x, y, z = as_columns(cloud)
     if result.point_cell.shape[0] != x.shape[0]:
@@ -767,27 +766,13 @@ def joint_sets(
             f"joint sets of {rows.shape[0]:,} planar cells", hint="choose a larger grid size")
     weights = result.n_points[rows].astype(np.float64)
     toward = result.whole_plane.normal
-    net = stereonet(result.normal[rows], toward=toward, smoothing_deg=smoothing_deg,
-                    weights=weights)
-    net = Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes, density=net.density,
-                    smoothing_deg=net.smoothing_deg, weights=net.weights)
-    poles = _downward(result.normal[rows])
-    peaks, peak_density = density_peaks(net, poles, weights, min_density=min_density,
-                                        min_angle_deg=min_angle_deg, max_peaks=max_sets)
+    net, poles, peaks, peak_density = _pole_peaks(result, rows, weights, o)
     tick(1, 4)
-    labels = np.zeros(rows.shape[0], dtype=np.int64)  # set index + 1 per planar cell
-    while peaks.shape[0]:
-        labels = _assign(poles, peaks, cone_deg)
-        counts = np.bincount(labels, minlength=peaks.shape[0] + 1)[1:]
-        small = counts < min_set_cells
-        if not small.any():
-            break
-        peaks, peak_density = peaks[~small], peak_density[~small]
-    if not peaks.shape[0]:
-        labels[:] = 0
+    labels, peaks, peak_density = _gather_sets(poles, peaks, peak_density, o.cone_deg,
+                                               o.min_set_cells)
     n_sets = int(peaks.shape[0])
     note = _why_none(result, rows, has_plane, t, int(min_planar_points), min_density,
-                     min_set_cells, cone_deg) if n_sets == 0 else ""
+                     o.min_set_cells, cone_deg) if n_sets == 0 else ""
     # per set: Fisher statistics of its cells' poles, turned to the peak's side; a
     # cell the peak gathered that lies outside the cone of its set's final mean
     # leaves the set (issue 31 item 15), until none does
@@ -803,30 +788,12 @@ def joint_sets(
         result, (x, y, z), cell_set, normal, tol, int(min_plane_cells), t,
         int(min_planar_points), max_rms, cone_deg)
     tick(3, 4)
-    # joints: the patches of one discontinuity (structure/joints.py)
-    patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
-                                planes.normal, tolerance=tol, max_rms=max_rms)
-    planes = replace(planes, joint_id=patch_joint + 1)
-    cell_joint = np.zeros(m_cells, dtype=np.int32)
-    on_plane = cell_plane > 0
-    cell_joint[on_plane] = (patch_joint[cell_plane[on_plane] - 1] + 1).astype(np.int32)
-    point_joint = cell_joint[result.point_cell].astype(np.int64) - 1
-    joints = joint_table(patch_joint, planes.set_id, planes.points, planes.centroid,
-                         planes.scatter, planes.area, point_joint, (x, y, z), toward)
-    spacing = np.full((n_sets, 4), np.nan)
-    persistence_mean = np.full(n_sets, np.nan)
+    planes, cell_joint, point_joint, joints = _joints(result, (x, y, z), cell_plane, planes,
+                                                      toward, tol, max_rms)
     n_planes = np.bincount(planes.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
     n_joints = np.bincount(joints.set_id, minlength=n_sets + 1)[1:].astype(np.int64)
-    for s in range(n_sets):
-        mine = planes.set_id == s + 1
-        if mine.any():
-            persistence_mean[s] = float(planes.persistence[mine].mean())
-        sp = set_spacing(joints, s + 1, normal[s], point_joint, (x, y, z), result.grid.origin,
-                         g, tol)
-        if sp.normal.size:
-            spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
-        if sp.scanline.size:
-            spacing[s, 3] = sp.scanline.mean()
+    spacing, persistence_mean = _spacing_and_persistence(
+        planes, joints, normal, point_joint, (x, y, z), result.grid.origin, g, tol)
     # the cell statistics are of the cells whose poles made the set (not the edge
     # cells of fewer points its planes took in)
     set_rough = set_roughness(np.where(planar, cell_set, 0), result.theta_odr, n_sets,
@@ -845,6 +812,81 @@ def joint_sets(
         joints=joints, cell_joint=cell_joint, roughness=set_rough, cell_size=g, options=o,
         max_roughness=t, plane_tolerance=tol, max_plane_rms=max_rms, curved_groups=curved,
         note=note, face=face, sliver_planes=slivers)
+
+
+def _pole_peaks(result: GridRoughness, rows: np.ndarray, weights: np.ndarray,
+                o: SetOptions) -> tuple[Stereonet, np.ndarray, np.ndarray, np.ndarray]:
+    """The stereonet of the poles of the planar cells ``rows`` (weighted by their
+    points), the poles (downward unit vectors) and the density peaks with their
+    densities (MUD)."""
+    net = stereonet(result.normal[rows], toward=result.whole_plane.normal,
+                    smoothing_deg=o.smoothing_deg, weights=weights)
+    net = Stereonet(x=net.x, y=net.y, rows=rows[net.rows], nodes=net.nodes, density=net.density,
+                    smoothing_deg=net.smoothing_deg, weights=net.weights)
+    poles = _downward(result.normal[rows])
+    peaks, peak_density = density_peaks(net, poles, weights, min_density=o.min_density,
+                                        min_angle_deg=o.min_angle_deg, max_peaks=o.max_sets)
+    return net, poles, peaks, peak_density
+
+
+def _gather_sets(poles: np.ndarray, peaks: np.ndarray, peak_density: np.ndarray,
+                 cone_deg: float, min_set_cells: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every pole to its nearest peak within the cone (label set + 1, 0 for none),
+    the peaks gathering fewer than ``min_set_cells`` cells dropped until none does;
+    returns the labels and the peaks kept with their densities."""
+    labels = np.zeros(poles.shape[0], dtype=np.int64)  # set index + 1 per planar cell
+    while peaks.shape[0]:
+        labels = _assign(poles, peaks, cone_deg)
+        counts = np.bincount(labels, minlength=peaks.shape[0] + 1)[1:]
+        small = counts < min_set_cells
+        if not small.any():
+            break
+        peaks, peak_density = peaks[~small], peak_density[~small]
+    if not peaks.shape[0]:
+        labels[:] = 0
+    return labels, peaks, peak_density
+
+
+def _joints(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+            cell_plane: np.ndarray, planes: JointPlanes, toward: np.ndarray, tol: float,
+            max_rms: float) -> tuple[JointPlanes, np.ndarray, np.ndarray, Joints]:
+    """The joints: the patches of one discontinuity (structure/joints.py). Returns the
+    planes with their joint ids, the joint of every cell (1..J, 0 for none), of every
+    point (0..J-1, -1 for none) and the joint table."""
+    patch_joint = merge_patches(planes.set_id, planes.points, planes.centroid, planes.scatter,
+                                planes.normal, tolerance=tol, max_rms=max_rms)
+    planes = replace(planes, joint_id=patch_joint + 1)
+    cell_joint = np.zeros(result.n_cells, dtype=np.int32)
+    on_plane = cell_plane > 0
+    cell_joint[on_plane] = (patch_joint[cell_plane[on_plane] - 1] + 1).astype(np.int32)
+    point_joint = cell_joint[result.point_cell].astype(np.int64) - 1
+    joints = joint_table(patch_joint, planes.set_id, planes.points, planes.centroid,
+                         planes.scatter, planes.area, point_joint, xyz, toward)
+    return planes, cell_joint, point_joint, joints
+
+
+def _spacing_and_persistence(planes: JointPlanes, joints: Joints, normal: np.ndarray,
+                             point_joint: np.ndarray,
+                             xyz: tuple[np.ndarray, np.ndarray, np.ndarray],
+                             origin: np.ndarray, g: float, tol: float
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """Per set: the normal spacing's mean, median and standard deviation and the
+    scanline spacing's mean ((S, 4), metres, NaN where none), and the mean
+    persistence of its planes ((S,), metres). A loop over sets."""
+    n_sets = normal.shape[0]
+    spacing = np.full((n_sets, 4), np.nan)
+    persistence_mean = np.full(n_sets, np.nan)
+    for s in range(n_sets):
+        mine = planes.set_id == s + 1
+        if mine.any():
+            persistence_mean[s] = float(planes.persistence[mine].mean())
+        sp = set_spacing(joints, s + 1, normal[s], point_joint, xyz, origin, g, tol)
+        if sp.normal.size:
+            spacing[s, :3] = (sp.normal.mean(), np.median(sp.normal), sp.normal.std())
+        if sp.scanline.size:
+            spacing[s, 3] = sp.scanline.mean()
+    return spacing, persistence_mean
 
 
 #: Most passes of :func:`_set_statistics` (each drops the cells outside the cone of
@@ -935,36 +977,15 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     """Planes of every set: the plane and set of every cell (with the edge cells
     the planes took in), the plane table and the numbers of curved groups and of
     slivers (a plane outside the cone of its set's mean) dropped."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    m = result.n_cells
     members = np.flatnonzero(cell_set > 0)
-    sid = cell_set[members].astype(np.int64)
-    cell_plane = np.zeros(m, dtype=np.int32)
+    cell_plane = np.zeros(result.n_cells, dtype=np.int32)
     if members.shape[0] == 0:
         return cell_plane, cell_set, _no_planes(), 0, 0
-    origin = result.grid.origin
-    offset = np.einsum("ij,ij->i", result.centroid[members] - origin, set_normal[sid - 1])
-    a, b, _ = _neighbour_pairs(result.ijk[members])
-    keep = (sid[a] == sid[b]) & (np.abs(offset[a] - offset[b]) <= tol)
-    k = members.shape[0]
-    graph = coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (a[keep], b[keep])), shape=(k, k))
-    _, comp = connected_components(graph.tocsr(), directed=False)
-    sizes = np.bincount(comp)
-    comp_set = np.zeros(sizes.shape[0], dtype=np.int64)
-    comp_set[comp] = sid
-    first = np.full(sizes.shape[0], k, dtype=np.int64)
-    np.minimum.at(first, comp, np.arange(k))  # grid order breaks ties
-    big = np.flatnonzero(sizes >= min_cells)
-    big = big[np.lexsort((first[big], -sizes[big], comp_set[big]))]
-    new_id = np.zeros(sizes.shape[0], dtype=np.int32)
-    new_id[big] = np.arange(1, big.shape[0] + 1, dtype=np.int32)
-    cell_plane[members] = new_id[comp]
-    n_p = int(big.shape[0])
+    plane_of, plane_set = _cell_groups(result, members, cell_set, set_normal, tol, min_cells)
+    cell_plane[members] = plane_of
+    n_p = int(plane_set.shape[0])
     if n_p == 0:
         return cell_plane, cell_set, _no_planes(), 0, 0
-    plane_set = comp_set[big]
     in_set = cell_set > 0  # before the planes take in their edge cells
     cell_set = cell_set.copy()
     first_fit = _fit_planes(result, xyz, cell_plane, n_p, measure=False)
@@ -973,11 +994,7 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     flat = first_fit.rms <= max_rms
     curved = int(np.count_nonzero(~flat))
     if curved:
-        renumber = np.zeros(n_p + 1, dtype=np.int32)
-        renumber[1:][flat] = np.arange(1, int(flat.sum()) + 1, dtype=np.int32)
-        cell_plane[:] = renumber[cell_plane]
-        plane_set = plane_set[flat]
-        n_p = int(flat.sum())
+        plane_set, n_p = _renumber(cell_plane, plane_set, flat)
         if n_p == 0:
             return cell_plane, cell_set, _no_planes(), curved, 0
         first_fit = _Fit(normal=first_fit.normal[flat], centroid=first_fit.centroid[flat],
@@ -998,28 +1015,74 @@ def _planes(result: GridRoughness, xyz: tuple[np.ndarray, np.ndarray, np.ndarray
     if slivers:
         gone = np.concatenate([[False], sliver])[cell_plane]
         cell_set[gone & ~in_set] = 0
-        renumber = np.zeros(n_p + 1, dtype=np.int32)
-        renumber[1:][~sliver] = np.arange(1, int((~sliver).sum()) + 1, dtype=np.int32)
-        cell_plane[:] = renumber[cell_plane]
-        plane_set = plane_set[~sliver]
-        n_p = int((~sliver).sum())
+        plane_set, n_p = _renumber(cell_plane, plane_set, ~sliver)
         if n_p == 0:
             return cell_plane, cell_set, _no_planes(), curved, slivers
         keep = ~sliver
         fit = _Fit(normal=fit.normal[keep], centroid=fit.centroid[keep], rms=fit.rms[keep],
                    points=fit.points[keep], cov=fit.cov[keep], chord_dip=fit.chord_dip[keep],
                    chord_strike=fit.chord_strike[keep], area=fit.area[keep])
+    return cell_plane, cell_set, _plane_table(result, fit, cell_plane, plane_set,
+                                              set_normal), curved, slivers
+
+
+def _cell_groups(result: GridRoughness, members: np.ndarray, cell_set: np.ndarray,
+                 set_normal: np.ndarray, tol: float, min_cells: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The groups of cells of one set that touch (faces, edges, corners) and lie
+    within ``tol`` (metres) of one another along the set's normal, of at least
+    ``min_cells`` cells: the plane of every cell ``members`` (1..P by set, then size
+    largest first, then grid order; 0 for none) and the set of every plane."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    sid = cell_set[members].astype(np.int64)
+    offset = np.einsum("ij,ij->i", result.centroid[members] - result.grid.origin,
+                       set_normal[sid - 1])
+    a, b, _ = _neighbour_pairs(result.ijk[members])
+    keep = (sid[a] == sid[b]) & (np.abs(offset[a] - offset[b]) <= tol)
+    k = members.shape[0]
+    graph = coo_matrix((np.ones(int(keep.sum()), dtype=np.int8), (a[keep], b[keep])), shape=(k, k))
+    _, comp = connected_components(graph.tocsr(), directed=False)
+    sizes = np.bincount(comp)
+    comp_set = np.zeros(sizes.shape[0], dtype=np.int64)
+    comp_set[comp] = sid
+    first = np.full(sizes.shape[0], k, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(k))  # grid order breaks ties
+    big = np.flatnonzero(sizes >= min_cells)
+    big = big[np.lexsort((first[big], -sizes[big], comp_set[big]))]
+    new_id = np.zeros(sizes.shape[0], dtype=np.int32)
+    new_id[big] = np.arange(1, big.shape[0] + 1, dtype=np.int32)
+    return new_id[comp], comp_set[big]
+
+
+def _renumber(cell_plane: np.ndarray, plane_set: np.ndarray, kept: np.ndarray
+              ) -> tuple[np.ndarray, int]:
+    """Keep the planes ``kept`` ((P,) bool), numbered 1.. in their order: the cells of
+    the others go to plane 0 (``cell_plane`` in place). Returns the kept planes' sets
+    and their number."""
+    renumber = np.zeros(plane_set.shape[0] + 1, dtype=np.int32)
+    renumber[1:][kept] = np.arange(1, int(kept.sum()) + 1, dtype=np.int32)
+    cell_plane[:] = renumber[cell_plane]
+    return plane_set[kept], int(kept.sum())
+
+
+def _plane_table(result: GridRoughness, fit: _Fit, cell_plane: np.ndarray,
+                 plane_set: np.ndarray, set_normal: np.ndarray) -> JointPlanes:
+    """The table of the planes fitted (``fit``, measured) with their cells and sets."""
     assert fit.chord_dip is not None and fit.chord_strike is not None and fit.area is not None
+    n_p = int(plane_set.shape[0])
     plane_cells = np.bincount(cell_plane, minlength=n_p + 1)[1:].astype(np.int64)
     toward = result.whole_plane.normal
     normal = orient_normals(fit.normal, toward)
     dip, dd = dip_and_direction(normal, toward)
-    offset_p = np.einsum("ij,ij->i", fit.centroid - origin, set_normal[plane_set - 1])
-    return cell_plane, cell_set, JointPlanes(
+    offset_p = np.einsum("ij,ij->i", fit.centroid - result.grid.origin,
+                         set_normal[plane_set - 1])
+    return JointPlanes(
         set_id=plane_set, cells=plane_cells, points=fit.points, normal=normal, dip_deg=dip,
         dip_direction_deg=dd, centroid=fit.centroid, rms=fit.rms, area=fit.area,
         persistence_dip=fit.chord_dip, persistence_strike=fit.chord_strike,
-        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64)), curved, slivers
+        offset=offset_p, scatter=fit.cov, joint_id=np.zeros(n_p, dtype=np.int64))
 
 
 #: An edge cell joins a plane when its centroid lies within this many times the

@@ -569,48 +569,13 @@ def face_coverage(result: GridRoughness) -> FaceCoverage:
     h = 0.5 * g
     corner, along = _cube_edges(h)
     step = 2.0 * h * np.eye(3)[along]  # (12, 3)
-    grid_offsets = np.arange(_CANDIDATES)
-    da = np.repeat(grid_offsets, _CANDIDATES)
-    db = np.tile(grid_offsets, _CANDIDATES)
     counts = np.zeros(m, dtype=np.int64)
     pieces: list[np.ndarray] = []
     for first in range(0, ok.size, _COVER_CHUNK):
         rows = ok[first:first + _COVER_CHUNK]
-        n = result.normal[rows]
-        c = result.centroid[rows] - result.centre[rows]  # centroid within the cell
-        n_e = n[:, along]  # (K, 12)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = (n @ corner.T - np.einsum("ij,ij->i", n, c)[:, None]) / (-2.0 * h * n_e)
-        hit = np.isfinite(t) & (t >= 0.0) & (t <= 1.0)
-        pts = corner[None] + np.where(hit, t, 0.0)[:, :, None] * step[None]  # (K, 12, 3)
-        pts += (result.centre[rows] - origin)[:, None, :]
-        pu = pts @ u_axis
-        pw = pts @ w_axis
-        n_hit = np.maximum(hit.sum(axis=1), 1)
-        mu = np.where(hit, pu, 0.0).sum(axis=1) / n_hit
-        mw = np.where(hit, pw, 0.0).sum(axis=1) / n_hit
-        ang = np.where(hit, np.arctan2(pw - mw[:, None], pu - mu[:, None]), np.inf)
-        o = np.argsort(ang, axis=1)  # counter-clockwise; unused slots last
-        valid = np.take_along_axis(hit, o, axis=1)
-        su = np.take_along_axis(pu, o, axis=1)
-        sw = np.take_along_axis(pw, o, axis=1)
-        su = np.where(valid, su, su[:, :1])  # unused slots repeat the first vertex:
-        sw = np.where(valid, sw, sw[:, :1])  # zero-length edges that never exclude
-        eu = np.roll(su, -1, axis=1) - su
-        ew = np.roll(sw, -1, axis=1) - sw
-        a0 = np.ceil(np.where(valid, su, np.inf).min(axis=1) / s - 0.5).astype(np.int64)
-        b0 = np.ceil(np.where(valid, sw, np.inf).min(axis=1) / s - 0.5).astype(np.int64)
-        a_hi = np.floor(np.where(valid, su, -np.inf).max(axis=1) / s - 0.5).astype(np.int64)
-        b_hi = np.floor(np.where(valid, sw, -np.inf).max(axis=1) / s - 0.5).astype(np.int64)
-        ca = a0[:, None] + da[None]  # (K, 25) candidate pixels
-        cb = b0[:, None] + db[None]
-        qu = (ca + 0.5) * s
-        qw = (cb + 0.5) * s
-        cross = (eu[:, None, :] * (qw[:, :, None] - sw[:, None, :])
-                 - ew[:, None, :] * (qu[:, :, None] - su[:, None, :]))
-        inside = np.all(cross >= -1e-12 * g * g, axis=2)
-        inside &= (ca <= a_hi[:, None]) & (cb <= b_hi[:, None])
-        inside &= (valid.sum(axis=1) >= 3)[:, None]
+        su, sw, valid = _cell_polygons(result, rows, (corner, along, step), origin,
+                                       (u_axis, w_axis))
+        ca, cb, inside = _pixels_inside(su, sw, valid, s, g)
         counts[rows] = inside.sum(axis=1)
         pieces.append((ca[inside] - a_lo) * n_b + (cb[inside] - b_lo))
     indptr = np.zeros(m + 1, dtype=np.int64)
@@ -618,6 +583,67 @@ def face_coverage(result: GridRoughness) -> FaceCoverage:
     keys = np.concatenate(pieces) if pieces else np.zeros(0, dtype=np.int64)
     # pieces follow ``ok`` (ascending rows), the order of indptr
     return FaceCoverage(pixel_size=s, indptr=indptr, keys=keys, n_keys=n_a * n_b)
+
+
+def _cell_polygons(result: GridRoughness, rows: np.ndarray,
+                   edges: tuple[np.ndarray, np.ndarray, np.ndarray], origin: np.ndarray,
+                   axes: tuple[np.ndarray, np.ndarray]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The polygon where the ODR plane of each cell ``rows`` cuts its cube, projected on
+    the face (``axes``: its in-plane unit axes, from ``origin``): (K, 12) vertex
+    coordinates ``su``, ``sw`` (metres), counter-clockwise, and (K, 12) ``valid`` (the
+    unused slots last, repeating the first vertex: zero-length edges). ``edges``: the
+    cube's edges (:func:`_cube_edges` start corners, axes, (12, 3) steps)."""
+    corner, along, step = edges
+    u_axis, w_axis = axes
+    h = 0.5 * result.grid.cell_size
+    n = result.normal[rows]
+    c = result.centroid[rows] - result.centre[rows]  # centroid within the cell
+    n_e = n[:, along]  # (K, 12)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (n @ corner.T - np.einsum("ij,ij->i", n, c)[:, None]) / (-2.0 * h * n_e)
+    hit = np.isfinite(t) & (t >= 0.0) & (t <= 1.0)
+    pts = corner[None] + np.where(hit, t, 0.0)[:, :, None] * step[None]  # (K, 12, 3)
+    pts += (result.centre[rows] - origin)[:, None, :]
+    pu = pts @ u_axis
+    pw = pts @ w_axis
+    n_hit = np.maximum(hit.sum(axis=1), 1)
+    mu = np.where(hit, pu, 0.0).sum(axis=1) / n_hit
+    mw = np.where(hit, pw, 0.0).sum(axis=1) / n_hit
+    ang = np.where(hit, np.arctan2(pw - mw[:, None], pu - mu[:, None]), np.inf)
+    o = np.argsort(ang, axis=1)  # counter-clockwise; unused slots last
+    valid = np.take_along_axis(hit, o, axis=1)
+    su = np.take_along_axis(pu, o, axis=1)
+    sw = np.take_along_axis(pw, o, axis=1)
+    su = np.where(valid, su, su[:, :1])  # unused slots repeat the first vertex:
+    sw = np.where(valid, sw, sw[:, :1])  # zero-length edges that never exclude
+    return su, sw, valid
+
+
+def _pixels_inside(su: np.ndarray, sw: np.ndarray, valid: np.ndarray, s: float, g: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The candidate pixels (size ``s``, metres) of every polygon (:func:`_cell_polygons`)
+    and which have their centre inside it: (K, 25) pixel indices ``ca``, ``cb`` and
+    ``inside`` (a polygon of fewer than 3 vertices covers none; ``g`` the cell size)."""
+    grid_offsets = np.arange(_CANDIDATES)
+    da = np.repeat(grid_offsets, _CANDIDATES)
+    db = np.tile(grid_offsets, _CANDIDATES)
+    eu = np.roll(su, -1, axis=1) - su
+    ew = np.roll(sw, -1, axis=1) - sw
+    a0 = np.ceil(np.where(valid, su, np.inf).min(axis=1) / s - 0.5).astype(np.int64)
+    b0 = np.ceil(np.where(valid, sw, np.inf).min(axis=1) / s - 0.5).astype(np.int64)
+    a_hi = np.floor(np.where(valid, su, -np.inf).max(axis=1) / s - 0.5).astype(np.int64)
+    b_hi = np.floor(np.where(valid, sw, -np.inf).max(axis=1) / s - 0.5).astype(np.int64)
+    ca = a0[:, None] + da[None]  # (K, 25) candidate pixels
+    cb = b0[:, None] + db[None]
+    qu = (ca + 0.5) * s
+    qw = (cb + 0.5) * s
+    cross = (eu[:, None, :] * (qw[:, :, None] - sw[:, None, :])
+             - ew[:, None, :] * (qu[:, :, None] - su[:, None, :]))
+    inside = np.all(cross >= -1e-12 * g * g, axis=2)
+    inside &= (ca <= a_hi[:, None]) & (cb <= b_hi[:, None])
+    inside &= (valid.sum(axis=1) >= 3)[:, None]
+    return ca, cb, inside
 
 
 #: Cells per chunk of :func:`face_coverage` (bounds its (K, 25, 12) temporaries).

@@ -443,6 +443,37 @@ class RockMassScan:
         return np.diff(np.sort(self.joint_offset[self.joint_set == set_id]))
 
 
+def _planted_joints(spec: RockMassSpec
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The joints of every set of ``spec``, checked: set (1..S) of every joint, its unit
+    normal (Fisher about its set's), its offset along its set's mean normal from the
+    block's centre (metres), and the sets' mean normals (S, 3)."""
+    rng = np.random.default_rng([spec.seed, 30])
+    set_n, joint_set, normals, offsets = [], [], [], []
+    for k, s in enumerate(spec.sets, start=1):
+        if s.joints < 1 or not s.spacing_m > 0 or not s.kappa > 1 \
+                or not 0 <= s.spacing_jitter < 1 or not s.corrugation_m >= 0 \
+                or not s.corrugation_wavelength_m > 0:
+            raise InputError(f"rock mass set {k}: joints >= 1, a spacing > 0, kappa > 1, "
+                             "a jitter in [0, 1), a corrugation >= 0 and a wavelength > 0 "
+                             "are needed")
+        m = plane_normals(np.array([s.dip_deg]), np.array([s.dip_direction_deg]))[0]
+        steps = s.spacing_m * (1.0 + rng.uniform(-s.spacing_jitter, s.spacing_jitter,
+                                                 s.joints - 1))
+        if steps.size:
+            steps *= s.spacing_m / steps.mean()
+        off = np.concatenate([[0.0], np.cumsum(steps)])
+        set_n.append(m)
+        joint_set.append(np.full(s.joints, k, dtype=np.int64))
+        normals.append(exact_fisher_normals(rng, m, s.kappa, s.joints))
+        offsets.append(off - 0.5 * off[-1])
+    jset = np.concatenate(joint_set)
+    jn = np.concatenate(normals)
+    joff = np.concatenate(offsets)
+    sn = np.array(set_n)
+    return jset, jn, joff, sn
+
+
 def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     """Sample the persistent joints of ``spec`` inside its cube.
 
@@ -469,30 +500,8 @@ def generate_rock_mass(spec: RockMassSpec = RockMassSpec()) -> RockMassScan:
     n_side = int(np.ceil(2 * reach / spec.point_spacing_m))
     if n_side * n_side * sum(s.joints for s in spec.sets) > 5e7:
         raise InputError("the rock mass would need over 5e7 samples; choose a coarser spacing")
-    rng = np.random.default_rng([spec.seed, 30])
     centre = np.full(3, half)
-    set_n, joint_set, normals, offsets = [], [], [], []
-    for k, s in enumerate(spec.sets, start=1):
-        if s.joints < 1 or not s.spacing_m > 0 or not s.kappa > 1 \
-                or not 0 <= s.spacing_jitter < 1 or not s.corrugation_m >= 0 \
-                or not s.corrugation_wavelength_m > 0:
-            raise InputError(f"rock mass set {k}: joints >= 1, a spacing > 0, kappa > 1, "
-                             "a jitter in [0, 1), a corrugation >= 0 and a wavelength > 0 "
-                             "are needed")
-        m = plane_normals(np.array([s.dip_deg]), np.array([s.dip_direction_deg]))[0]
-        steps = s.spacing_m * (1.0 + rng.uniform(-s.spacing_jitter, s.spacing_jitter,
-                                                 s.joints - 1))
-        if steps.size:
-            steps *= s.spacing_m / steps.mean()
-        off = np.concatenate([[0.0], np.cumsum(steps)])
-        set_n.append(m)
-        joint_set.append(np.full(s.joints, k, dtype=np.int64))
-        normals.append(exact_fisher_normals(rng, m, s.kappa, s.joints))
-        offsets.append(off - 0.5 * off[-1])
-    jset = np.concatenate(joint_set)
-    jn = np.concatenate(normals)
-    joff = np.concatenate(offsets)
-    sn = np.array(set_n)
+    jset, jn, joff, sn = _planted_joints(spec)
     dip, strike = dip_strike_axes(jn)
     srng = np.random.default_rng([spec.seed, 2])
     ia, ib = np.meshgrid(np.arange(n_side), np.arange(n_side), indexing="ij")

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -47,7 +48,7 @@ from rough_viewer.grid.maps import FaceFrame, Plane, face_frame
 from rough_viewer.grid.planes import whole_cloud_plane
 from rough_viewer.io.formats.mesh import TriangleMesh
 from rough_viewer.memory import require
-from rough_viewer.tin.surface import facets
+from rough_viewer.tin.surface import Facets, facets
 from rough_viewer.vocabulary import InputError, ProgressFn
 
 #: Default step of the apparent-dip thresholds the C fit uses, degrees.
@@ -539,6 +540,41 @@ def require_window_work(n_windows: float, per_window: float, n_azimuths: int,
             "(default: the radius), a radius of fewer triangles or a larger azimuth step")
 
 
+def _windows_of(cu: np.ndarray, tree: Any, uv: np.ndarray, faces: np.ndarray, f: Facets,
+                projected: np.ndarray, vert: np.ndarray, frame: FaceFrame, *, radius: float,
+                min_coverage: float, az: np.ndarray, dstep: float
+                ) -> dict[str, np.ndarray] | None:
+    """The windows about the candidate centres ``cu`` ((K, 2) in the face plane,
+    metres) whose triangles (those wholly inside the disc, found with ``tree`` of the
+    triangles' centres ``uv``) cover ``min_coverage`` of it: each measured in its own
+    plane (:func:`window_roughness`'s columns); None where no window is kept."""
+    from scipy.spatial import cKDTree
+
+    disc = np.pi * radius * radius
+    pairs = cKDTree(cu).sparse_distance_matrix(tree, radius, output_type="ndarray")
+    pw, pt = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+    corner = uv[faces[pt]] - cu[pw][:, None, :]  # (P, 3, 2)
+    inside = np.all(np.sum(corner * corner, axis=2) <= radius * radius, axis=1)
+    pw, pt = pw[inside], pt[inside]
+    cover = np.bincount(pw, weights=projected[pt], minlength=cu.shape[0])
+    ntri = np.bincount(pw, minlength=cu.shape[0])
+    ok = (cover >= min_coverage * disc) & (ntri >= 3)
+    if not ok.any():
+        return None
+    renum = np.cumsum(ok) - 1
+    sel = ok[pw]
+    pw, pt = renum[pw[sel]], pt[sel]
+    wuv = cu[ok]
+    centre3 = frame.origin + wuv[:, :1] * frame.u_axis + wuv[:, 1:] * frame.v_axis
+    normal, u_w, v_w = _window_planes(vert, faces, pw, pt, centre3, frame)
+    res = _grouped(pw, int(ok.sum()), f.normals[pt], f.areas[pt], normal, u_w, v_w, az, dstep)
+    area = np.bincount(pw, weights=f.areas[pt], minlength=wuv.shape[0])
+    centroid = np.stack([np.bincount(pw, weights=f.areas[pt] * f.centroids[pt, i],
+                                     minlength=wuv.shape[0]) for i in range(3)], 1)
+    return {"centre": centroid / area[:, None], "centre_uv": wuv, "area": area,
+            "n_triangles": np.bincount(pw, minlength=wuv.shape[0]), "normal": normal, **res}
+
+
 def window_roughness(
     mesh: TriangleMesh,
     azimuth_deg: Sequence[float] | np.ndarray,
@@ -616,30 +652,11 @@ def window_roughness(
     tree = cKDTree(tri_uv)
     kept: list[dict[str, np.ndarray]] = []
     for start in range(0, n_cand, chunk):
-        cu = cand_uv[start:start + chunk]
-        pairs = cKDTree(cu).sparse_distance_matrix(tree, radius, output_type="ndarray")
-        pw, pt = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
-        corner = uv[faces[pt]] - cu[pw][:, None, :]  # (P, 3, 2)
-        inside = np.all(np.sum(corner * corner, axis=2) <= radius * radius, axis=1)
-        pw, pt = pw[inside], pt[inside]
-        cover = np.bincount(pw, weights=projected[pt], minlength=cu.shape[0])
-        ntri = np.bincount(pw, minlength=cu.shape[0])
-        ok = (cover >= min_coverage * disc) & (ntri >= 3)
-        if ok.any():
-            renum = np.cumsum(ok) - 1
-            sel = ok[pw]
-            pw, pt = renum[pw[sel]], pt[sel]
-            wuv = cu[ok]
-            centre3 = frame.origin + wuv[:, :1] * frame.u_axis + wuv[:, 1:] * frame.v_axis
-            normal, u_w, v_w = _window_planes(vert, faces, pw, pt, centre3, frame)
-            res = _grouped(pw, int(ok.sum()), f.normals[pt], f.areas[pt], normal, u_w, v_w,
-                           az, dstep)
-            area = np.bincount(pw, weights=f.areas[pt], minlength=wuv.shape[0])
-            centroid = np.stack([np.bincount(pw, weights=f.areas[pt] * f.centroids[pt, i],
-                                             minlength=wuv.shape[0]) for i in range(3)], 1)
-            kept.append({"centre": centroid / area[:, None], "centre_uv": wuv, "area": area,
-                         "n_triangles": np.bincount(pw, minlength=wuv.shape[0]),
-                         "normal": normal, **res})
+        got = _windows_of(cand_uv[start:start + chunk], tree, uv, faces, f, projected,
+                          vert, frame, radius=radius, min_coverage=min_coverage, az=az,
+                          dstep=dstep)
+        if got is not None:
+            kept.append(got)
         if progress is not None:
             progress(min(start + chunk, n_cand), n_cand)
     if not kept:

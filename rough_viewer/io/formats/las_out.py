@@ -176,20 +176,10 @@ def copy_las_with_fields(
     str
         One line: version, point format, VLRs and EVLRs carried over.
     """
-    import laspy
-
     src = Path(source)
     out = Path(path)
     check_las_output(out, "output")
-    if fields.n_points != cloud.n:
-        raise InputError(f"{fields.n_points} per-point values for a cloud of {cloud.n} points")
-    read_n = cloud.n
-    if keep is not None:
-        keep = np.asarray(keep, dtype=bool)
-        if keep.ndim != 1 or int(np.count_nonzero(keep)) != cloud.n:
-            raise InputError(f"the crop keeps {int(np.count_nonzero(keep)):,} points but the "
-                             f"cropped cloud has {cloud.n:,}")
-        read_n = int(keep.shape[0])
+    keep, read_n = _checked_counts(cloud, fields, keep)
     chunk_points = max(1, int(chunk_points))
     with foreign_errors(f"cannot read {src}"):
         reader_cm = open_las(src, laz_backend=laz_backend(), read_evlrs=True)
@@ -201,64 +191,19 @@ def copy_las_with_fields(
             raise InputError(f"{src} has {n_file:,} points but the cloud read from it has "
                              f"{read_n + cloud.dropped_nonfinite:,} (did the file change?{hint})")
         header = _output_header(header_in, fields, src)
-        size_in = header_in.point_format.size
-        size_out = header.point_format.size
         m = min(chunk_points, max(n_file, 1))
         # input and output records, coordinates for the finite check, gathered fields
         # a crop copies the kept records once more
         copies = 2.0 if keep is None else 3.0
-        require(m * (2.0 * size_in + copies * size_out + 40.0 + 2.0 * fields.bytes_per_point),
+        require(m * (2.0 * header_in.point_format.size + copies * header.point_format.size
+                     + 40.0 + 2.0 * fields.bytes_per_point),
                 f"copying {src.name} in chunks of {m:,} points",
                 hint="a smaller chunk size needs less")
         evlrs = header_in.evlrs
-        scales = np.asarray(header_in.scales, dtype=np.float64)
-        offsets = np.asarray(header_in.offsets, dtype=np.float64)
 
         def write_to(tmp: Path) -> None:
-            done = kept_total = finite_total = 0
-            if progress:
-                progress(0, n_file)
-            with laspy.open(tmp, mode="w", header=header, do_compress=out.suffix.lower() == ".laz",
-                            laz_backend=laz_backend()) as writer:
-                for chunk in reader.chunk_iterator(m):
-                    k = len(chunk)
-                    if k == 0:
-                        continue
-                    record = laspy.PackedPointRecord.zeros(k, header.point_format)
-                    raw_in = np.ascontiguousarray(chunk.array).view(np.uint8).reshape(k, size_in)
-                    raw_out = record.array.view(np.uint8).reshape(k, size_out)
-                    raw_out[:, :size_in] = raw_in
-                    kept = _finite_rows(chunk, scales, offsets)
-                    n_finite = int(np.count_nonzero(kept))
-                    if keep is None:
-                        values = fields.gather_rows(kept, kept_total)
-                    else:  # a crop: the kept finite rows only
-                        if finite_total + n_finite > read_n:
-                            raise InputError(f"{src} has more finite points than when it "
-                                             "was read (did the file change?)")
-                        rows = kept.copy()
-                        rows[kept] = keep[finite_total:finite_total + n_finite]
-                        finite_total += n_finite
-                        n_rows = int(np.count_nonzero(rows))
-                        if n_rows < k:
-                            record = record[rows]
-                        values = fields.gather(kept_total, kept_total + n_rows)
-                        kept = rows
-                    for f, v in zip(fields.fields, values, strict=True):
-                        record.array[f.name] = v
-                    if len(record):
-                        writer.write_points(record)
-                    kept_total += int(np.count_nonzero(kept))
-                    done += k
-                    if progress:
-                        progress(done, n_file)
-                if evlrs:
-                    writer.write_evlrs(evlrs)
-            if kept_total != fields.n_points or done != n_file or (
-                    keep is not None and finite_total != read_n):
-                raise InputError(f"{src} gave {done:,} points ({kept_total:,} finite) on the "
-                                 f"second read, expected {n_file:,} ({fields.n_points:,} "
-                                 "finite): did the file change?")
+            _copy_points(reader, tmp, header, m, fields, src=src, keep=keep, read_n=read_n,
+                         compress=out.suffix.lower() == ".laz", progress=progress)
 
         try:
             write_path_atomic(out, write_to)
@@ -275,6 +220,83 @@ def copy_las_with_fields(
     return (f"LAS {header.version} point format {header.point_format.id}, {written}, "
             f"{n_vlrs} VLRs and {len(evlrs or [])} EVLRs of {src.name} kept, "
             f"{len(fields.fields)} extra dimensions added")
+
+
+def _checked_counts(cloud: PointCloud, fields: PointFields, keep: np.ndarray | None
+                    ) -> tuple[np.ndarray | None, int]:
+    """The crop mask as a bool array (None without a crop) and the number of finite
+    points read from the source (the cloud's, or the mask's length), the counts of
+    ``cloud``, ``fields`` and ``keep`` checked against one another."""
+    if fields.n_points != cloud.n:
+        raise InputError(f"{fields.n_points} per-point values for a cloud of {cloud.n} points")
+    if keep is None:
+        return None, cloud.n
+    keep = np.asarray(keep, dtype=bool)
+    if keep.ndim != 1 or int(np.count_nonzero(keep)) != cloud.n:
+        raise InputError(f"the crop keeps {int(np.count_nonzero(keep)):,} points but the "
+                         f"cropped cloud has {cloud.n:,}")
+    return keep, int(keep.shape[0])
+
+
+def _copy_points(reader, tmp: Path, header, m: int, fields: PointFields, *, src: Path,
+                 keep: np.ndarray | None, read_n: int, compress: bool,
+                 progress: ProgressFn | None) -> None:
+    """Copy every record of the open ``reader`` to ``tmp`` under ``header`` (the
+    input's with the fields' extra bytes), ``m`` points a chunk: the input's bytes,
+    then the fields' values; with a crop (``keep``, over the ``read_n`` finite
+    points) only the kept rows. Refuses a file (``src``) that changed since it was
+    read."""
+    import laspy
+
+    header_in = reader.header
+    n_file = int(header_in.point_count)
+    size_in, size_out = header_in.point_format.size, header.point_format.size
+    scales = np.asarray(header_in.scales, dtype=np.float64)
+    offsets = np.asarray(header_in.offsets, dtype=np.float64)
+    done = kept_total = finite_total = 0
+    if progress:
+        progress(0, n_file)
+    with laspy.open(tmp, mode="w", header=header, do_compress=compress,
+                    laz_backend=laz_backend()) as writer:
+        for chunk in reader.chunk_iterator(m):
+            k = len(chunk)
+            if k == 0:
+                continue
+            record = laspy.PackedPointRecord.zeros(k, header.point_format)
+            raw_in = np.ascontiguousarray(chunk.array).view(np.uint8).reshape(k, size_in)
+            raw_out = record.array.view(np.uint8).reshape(k, size_out)
+            raw_out[:, :size_in] = raw_in
+            kept = _finite_rows(chunk, scales, offsets)
+            n_finite = int(np.count_nonzero(kept))
+            if keep is None:
+                values = fields.gather_rows(kept, kept_total)
+            else:  # a crop: the kept finite rows only
+                if finite_total + n_finite > read_n:
+                    raise InputError(f"{src} has more finite points than when it "
+                                     "was read (did the file change?)")
+                rows = kept.copy()
+                rows[kept] = keep[finite_total:finite_total + n_finite]
+                finite_total += n_finite
+                n_rows = int(np.count_nonzero(rows))
+                if n_rows < k:
+                    record = record[rows]
+                values = fields.gather(kept_total, kept_total + n_rows)
+                kept = rows
+            for f, v in zip(fields.fields, values, strict=True):
+                record.array[f.name] = v
+            if len(record):
+                writer.write_points(record)
+            kept_total += int(np.count_nonzero(kept))
+            done += k
+            if progress:
+                progress(done, n_file)
+        if header_in.evlrs:
+            writer.write_evlrs(header_in.evlrs)
+    if kept_total != fields.n_points or done != n_file or (
+            keep is not None and finite_total != read_n):
+        raise InputError(f"{src} gave {done:,} points ({kept_total:,} finite) on the "
+                         f"second read, expected {n_file:,} ({fields.n_points:,} "
+                         "finite): did the file change?")
 
 
 def _finite_rows(chunk, scales: np.ndarray, offsets: np.ndarray) -> np.ndarray:

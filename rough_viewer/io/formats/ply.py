@@ -9,7 +9,7 @@ than plyfile (docs/export.md); plyfile only writes."""
 from __future__ import annotations
 
 import os
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -63,6 +63,47 @@ class PlyHeader:
         return next(e for e in self.elements if e.name == "vertex")
 
 
+def _header_lines(fh: BinaryIO, p: Path) -> Iterator[list[str]]:
+    """The words of every header line after the magic one but comments and blank
+    lines, up to ``end_header`` (the caller stops there); refuses a header without
+    it, a line longer than :data:`MAX_HEADER_LINE` or a header longer than
+    :data:`MAX_HEADER_BYTES`."""
+    while True:
+        raw = fh.readline(MAX_HEADER_LINE + 1)
+        if not raw:
+            raise InputError(f"PLY header has no end_header: {p}")
+        if len(raw) > MAX_HEADER_LINE or fh.tell() > MAX_HEADER_BYTES:
+            raise InputError(f"PLY header of {p} has a line longer than {MAX_HEADER_LINE:,} "
+                             f"bytes or is longer than {MAX_HEADER_BYTES:,}: not a PLY file, "
+                             "or a damaged one")
+        parts = raw.decode("ascii", errors="replace").split()
+        if parts and parts[0] not in ("comment", "obj_info"):
+            yield parts
+
+
+def _header_line(parts: list[str], fmt: str | None,
+                 elements: list[tuple[str, int, list[tuple[str, str | None, str]]]],
+                 p: Path) -> str | None:
+    """Read one header line's words: a ``format`` line gives the format returned (else
+    ``fmt``), an ``element`` or ``property`` line goes into ``elements`` (in place)."""
+    if parts[0] == "format":
+        return parts[1]
+    if parts[0] == "element":
+        count = int(parts[2])
+        if count < 0:
+            raise InputError(f"PLY element {parts[1]!r} of {p} declares {count:,} "
+                             "records: a damaged header")
+        elements.append((parts[1], count, []))
+    elif parts[0] == "property":
+        if not elements:
+            raise InputError(f"PLY property before any element: {p}")
+        if parts[1] == "list":
+            elements[-1][2].append((parts[4], parts[2], parts[3]))
+        else:
+            elements[-1][2].append((parts[2], None, parts[1]))
+    return fmt
+
+
 def read_ply_header(fh: BinaryIO, p: Path) -> PlyHeader:
     """Parse a PLY header from ``fh`` (at the file's start), leaving ``fh`` at the data.
 
@@ -77,35 +118,11 @@ def read_ply_header(fh: BinaryIO, p: Path) -> PlyHeader:
         raise InputError(f"not a PLY file (no 'ply' magic line): {p}")
     fmt = None
     elements: list[tuple[str, int, list[tuple[str, str | None, str]]]] = []
-    while True:
-        raw = fh.readline(MAX_HEADER_LINE + 1)
-        if not raw:
-            raise InputError(f"PLY header has no end_header: {p}")
-        if len(raw) > MAX_HEADER_LINE or fh.tell() > MAX_HEADER_BYTES:
-            raise InputError(f"PLY header of {p} has a line longer than {MAX_HEADER_LINE:,} "
-                             f"bytes or is longer than {MAX_HEADER_BYTES:,}: not a PLY file, "
-                             "or a damaged one")
-        parts = raw.decode("ascii", errors="replace").split()
-        if not parts or parts[0] in ("comment", "obj_info"):
-            continue
+    for parts in _header_lines(fh, p):
+        if parts[0] == "end_header":
+            break
         try:
-            if parts[0] == "format":
-                fmt = parts[1]
-            elif parts[0] == "element":
-                count = int(parts[2])
-                if count < 0:
-                    raise InputError(f"PLY element {parts[1]!r} of {p} declares {count:,} "
-                                     "records: a damaged header")
-                elements.append((parts[1], count, []))
-            elif parts[0] == "property":
-                if not elements:
-                    raise InputError(f"PLY property before any element: {p}")
-                if parts[1] == "list":
-                    elements[-1][2].append((parts[4], parts[2], parts[3]))
-                else:
-                    elements[-1][2].append((parts[2], None, parts[1]))
-            elif parts[0] == "end_header":
-                break
+            fmt = _header_line(parts, fmt, elements, p)
         except InputError:
             raise
         except (IndexError, ValueError):
