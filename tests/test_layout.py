@@ -212,7 +212,7 @@ def test_the_line_count_leaves_out_docstring_comments_and_blanks() -> None:
 #: the build (server.py), which the command line uses.
 APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("core", frozenset({"limits", "markup", "sampling", "picking", "settings", "units", "cache",
-                        "colouring", "cloud", "files", "worker",
+                        "colouring", "store", "cloud", "files", "worker",
                         "session", "scene"})),
     ("host", frozenset({"host", "detail"})),  # detail: the scene's level-of-detail jobs
     ("ui", frozenset({"hooks", "controls", "gate", "uploads", "binding", "layout", "shell"})),

@@ -1,5 +1,6 @@
 """The loaded cloud: a cloud prepared for display (its overview sample, presets,
-colour layers, crop lineage) and what is computed from all of its points (grid
+colour layers, crop lineage) and, behind its :attr:`LoadedCloud.store`
+(:mod:`rough_viewer.app.store`), what is computed from all of its points (grid
 results, the octree, the scanner figures), cached.
 
 Data flow: a :class:`~rough_viewer.app.settings.MapSettings` snapshot names a grid
@@ -12,31 +13,27 @@ result plus the colouring settings into colours without touching the planes agai
 
 from __future__ import annotations
 
-import weakref
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from rough_viewer.app.cache import ByteBudget, ByteCache
+from rough_viewer.app.cache import ByteBudget
 from rough_viewer.app.colouring import Colouring, by_cell
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY
 from rough_viewer.app.sampling import display_subset
-from rough_viewer.app.settings import MIN_CELL_SIZE, MapSettings, check_settings
+from rough_viewer.app.settings import MIN_CELL_SIZE, MapSettings
+from rough_viewer.app.store import CloudStore, InMemoryStore
 from rough_viewer.app.units import Units
 from rough_viewer.grid.planes import PlaneFit, dominant_axis, whole_cloud_plane
 from rough_viewer.grid.roughness import (
     GridRoughness,
     PreparedGrid,
-    coarsen_prepared,
-    grid_roughness,
-    prepare_grid,
 )
 from rough_viewer.grid.spacing import cell_sizes_from, default_cell_size
 from rough_viewer.io import PointCloud
 from rough_viewer.io.crop import CropBox, crop_cloud
-from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
-from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
+from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree
+from rough_viewer.scanner.trust import CellTrust, TrustSettings
 from rough_viewer.visual.layers import (
     ColourLayer,
     face_plane_distance,
@@ -63,19 +60,6 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     # readable in the cloud's unit (default_cell_size's rule, as report and compute)
     return cell_sizes_from(max(default_cell_size(cloud), MIN_CELL_SIZE))
 
-
-
-def _weak_pin(cloud: LoadedCloud) -> Callable[[tuple[str, tuple[float, str, int] | float]], bool]:
-    """The cloud's pin rule through a weak reference: the cache it gives it to must
-    not hold the cloud (a cycle cloud -> cache -> bound method -> cloud kept every
-    loaded cloud, and its arrays, until a full garbage collection)."""
-    ref = weakref.ref(cloud)
-
-    def pinned(key: tuple[str, tuple[float, str, int] | float]) -> bool:
-        owner = ref()
-        return owner is not None and owner._pinned(key)
-
-    return pinned
 
 
 @dataclass(eq=False)
@@ -129,11 +113,10 @@ class LoadedCloud:
     display_points: np.ndarray = field(init=False)
     plane: PlaneFit = field(init=False)
     auto_axis: str = field(init=False)
-    _cache: ByteCache[tuple[str, tuple[float, str, int] | float], GridRoughness | PreparedGrid | CellTrust] = \
-        field(init=False, repr=False)
+    store: CloudStore = field(init=False, repr=False)
+    """What is computed from every point, cached (:mod:`rough_viewer.app.store`: the
+    points in memory today; a store on disk implements the same protocol)."""
     _layers: dict[str, ColourLayer] = field(init=False, repr=False)
-    _octree: Octree | None = field(init=False, repr=False, default=None)
-    _shown_key: tuple[str, tuple[float, str, int]] | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
@@ -154,27 +137,10 @@ class LoadedCloud:
         if not self.presets or self.presets[-1] < MIN_CELL_SIZE:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
-        self._shown_key = None
-        self._cache = ByteCache(self.cache_pool or ByteBudget(self.cache_bytes),
-                                pinned=_weak_pin(self), most=self.cache_bytes)
+        self.store = InMemoryStore(self.cloud, self.presets,
+                                   self.cache_pool or ByteBudget(self.cache_bytes),
+                                   most=self.cache_bytes)
         self._layers = {}
-
-    def _pinned(self, key: tuple[str, tuple[float, str, int] | float]) -> bool:
-        """What the grid cache never evicts: the fine grid's cells (every preset is
-        coarsened from them), the grid on screen (the panels' preset grids must not
-        push it out), and the cells of every grid with its axis and minimum points
-        (the panels' trend across the presets: small, and computed again for every
-        threshold if a big cloud's full grids pushed them out)."""
-        if key == ("prepared", round(self.fine_cell_size, 9)):
-            return True
-        shown = self._shown_key
-        if shown is None:
-            return False
-        if key == shown:
-            return True
-        grid, mine = key[1], shown[1]
-        return (key[0] == "cells" and isinstance(grid, tuple)
-                and grid[1:] == mine[1:])
 
     def cropped(self, box: CropBox) -> LoadedCloud:
         """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``
@@ -188,7 +154,7 @@ class LoadedCloud:
             raise InputError(f"{box.describe(whole.units.per, whole.units.label)} keeps "
                              f"{made.kept} of {made.total:,} points; a map needs at least 3")
         return LoadedCloud(made.cloud, max_display=whole.max_display,
-                           cache_bytes=whole.cache_bytes, cache_pool=whole._cache.pool,
+                           cache_bytes=whole.cache_bytes, cache_pool=whole.store.pool,
                            seed=whole.seed,
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings, crop=box,
@@ -216,7 +182,7 @@ class LoadedCloud:
         if kept < 3:
             raise InputError(f"the selection keeps {kept} points; a map needs at least 3")
         return LoadedCloud(whole.cloud.subset(keep), max_display=whole.max_display,
-                           cache_bytes=whole.cache_bytes, cache_pool=whole._cache.pool,
+                           cache_bytes=whole.cache_bytes, cache_pool=whole.store.pool,
                            seed=whole.seed,
                            presets=whole.presets, label=whole.label,
                            trust_settings=whole.trust_settings,
@@ -257,32 +223,6 @@ class LoadedCloud:
         if self.cloud.scanner_positions is not None and self.cloud.scan_index is not None:
             out += [name for name in COLOUR_LAYERS if name in TRUST_FIELDS]
         return tuple(out)
-
-    def trust(self, result: GridRoughness, *, progress: ProgressFn | None = None
-              ) -> CellTrust | None:
-        """Scanner geometry and predicted bias of every cell of ``result`` (one of
-        this cloud's grids), with :attr:`trust_settings`; cached per grid. None
-        without scanner positions. The first call of a calibration simulates its
-        bias curves (seconds)."""
-        if self.cloud.scanner_positions is None or self.cloud.scan_index is None:
-            return None
-        key = ("trust", (round(float(result.grid.cell_size), 9), result.axis,
-                         int(result.min_points)))
-        hit = self._cache.get(key)
-        if isinstance(hit, CellTrust) and hit.theta_m.shape[0] == result.n_cells:
-            return hit
-        made = cell_trust(self.cloud, result, self.trust_settings, progress=progress)
-        if made is not None:
-            self._cache.put(key, made)
-        return made
-
-    def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
-        """The level-of-detail octree of every point (built once, memory checked:
-        :func:`rough_viewer.lod.octree.build_octree`), nodes of at most
-        ``max_node_points`` points at its first call; browser tabs get its nodes."""
-        if self._octree is None:
-            self._octree = build_octree(self.cloud, max_node_points=max_node_points)
-        return self._octree
 
     def layer_colouring(self, name: ColourLayerName, result: GridRoughness) -> Colouring:
         """The colouring of colour layer ``name`` (not ``roughness``) for any points:
@@ -360,7 +300,7 @@ class LoadedCloud:
     @property
     def cached_bytes(self) -> int:
         """Bytes held by the cached grids now (at most ``cache_bytes``)."""
-        return self._cache.bytes
+        return self.store.cached_bytes
 
     def to_file_frame(self, local: np.ndarray) -> np.ndarray:
         """Local display coordinates -> the file's frame (metres, float64)."""
@@ -370,76 +310,43 @@ class LoadedCloud:
         """File-frame coordinates (metres) -> the display frame (float64)."""
         return np.asarray(xyz, dtype=np.float64) - self.origin
 
+    # ------------------------------------------------------------------ the store's
     def is_cached(self, settings: MapSettings) -> bool:
-        return ("result", settings.grid_key) in self._cache
+        """The grid result of ``settings`` is at hand (no computing)."""
+        return self.store.is_cached(settings)
 
     def mark_shown(self, settings: MapSettings) -> None:
         """The grid of ``settings`` is on screen: keep its result in the cache while
         other grids come and go (it is pinned, like the finest preset's cells)."""
-        self._shown_key = ("result", settings.grid_key)
+        self.store.mark_shown(settings)
 
-    def result(
-        self,
-        settings: MapSettings,
-        *,
-        progress: ProgressFn | None = None,
-    ) -> GridRoughness:
-        """Grid roughness for the settings' (cell size, axis, min points), cached."""
-        key = ("result", settings.grid_key)
-        hit = self._cache.get(key)
-        if isinstance(hit, GridRoughness):
-            return hit
-        check_settings(settings)
-        res = grid_roughness(
-            self.cloud,
-            settings.cell_size,
-            min_points=settings.min_points,
-            axis=settings.axis,
-            models=("odr", "ols", "hybrid"),
-            progress=progress,
-            prepared=self.prepared(settings.cell_size, progress=progress),
-        )
-        self._cache.put(key, res)
-        return res
+    def result(self, settings: MapSettings, *,
+               progress: ProgressFn | None = None) -> GridRoughness:
+        """Grid roughness for the settings' (cell size, axis, min points), cached
+        (:meth:`rough_viewer.app.store.CloudStore.result`)."""
+        return self.store.result(settings, progress=progress)
 
     def cell_result(self, settings: MapSettings, *,
                     progress: ProgressFn | None = None) -> GridRoughness:
-        """:meth:`result` without its point-to-cell map (``point_cell`` of shape (0,)):
-        every per-cell figure, for whole-face statistics across grids (the Panels
-        tab's trend against grid size). Cached apart and pinned while the shown grid
-        has its axis and minimum points: at 20 M points a grid's point-to-cell map is
-        160 MB and its cells a few MB to tens of MB, so a threshold change need not
-        compute the presets again after their full results left the cache."""
-        key = ("cells", settings.grid_key)
-        hit = self._cache.get(key)
-        if isinstance(hit, GridRoughness):
-            return hit
-        full = self.result(settings, progress=progress)
-        light = replace(full, point_cell=np.empty(0, dtype=full.point_cell.dtype))
-        self._cache.put(key, light)  # pinned while its axis and minimum points are shown
-        return light
+        """:meth:`result` without its point-to-cell map, cached apart
+        (:meth:`rough_viewer.app.store.InMemoryStore.cell_result`)."""
+        return self.store.cell_result(settings, progress=progress)
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
-        """Cell membership and moments of the grid ``cell_size`` (metres), cached.
+        """Cell membership and moments of the grid ``cell_size`` (metres), cached;
+        presets coarsened from the finest."""
+        return self.store.prepared(cell_size, progress=progress)
 
-        Sizes that are integer multiples of :attr:`fine_cell_size` (the presets)
-        are coarsened from the fine grid, which shares their origin (the
-        bounding-box minimum), instead of indexing the points again.
-        ``progress(0, 1)`` is called before each pass over the points (so a
-        cancelled job stops there).
-        """
-        key = ("prepared", round(float(cell_size), 9))
-        hit = self._cache.get(key)
-        if isinstance(hit, PreparedGrid):
-            return hit
-        factor = cell_size / self.fine_cell_size
-        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
-            fine = self.prepared(self.fine_cell_size, progress=progress)
-            prep = coarsen_prepared(fine, int(round(factor)))
-        else:
-            if progress is not None:
-                progress(0, 1)
-            prep = prepare_grid(self.cloud, cell_size)
-        self._cache.put(key, prep)
-        return prep
+    def trust(self, result: GridRoughness, *, progress: ProgressFn | None = None
+              ) -> CellTrust | None:
+        """Scanner geometry and predicted bias of every cell of ``result`` (one of
+        this cloud's grids), with :attr:`trust_settings`; cached per grid. None
+        without scanner positions. The first call of a calibration simulates its
+        bias curves (seconds)."""
+        return self.store.trust(result, self.trust_settings, progress=progress)
 
+    def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
+        """The level-of-detail octree of every point, nodes of at most
+        ``max_node_points`` points (built again when another node size is asked
+        for); browser tabs get its nodes."""
+        return self.store.octree(max_node_points)

@@ -49,7 +49,7 @@ def test_a_crop_shares_its_whole_clouds_budget(cloud):
     mid = 0.5 * (lo + hi)
     crop = whole.cropped(CropBox((float(lo[0]), float(lo[1]), float(lo[2]) - 1),
                                  (float(mid[0]), float(hi[1]), float(hi[2]) + 1)))
-    assert crop._cache.pool is whole._cache.pool
+    assert crop.store.pool is whole.store.pool
     for g in (0.3, 0.4, 0.5, 0.6, 0.7):
         whole.result(MapSettings(cell_size=g))
         crop.result(MapSettings(cell_size=g))
@@ -68,7 +68,7 @@ def test_the_app_has_one_budget_for_all_its_caches(server, cloud):
         assert app.wait_idle(60)
         pool = app.options.cache_pool
         assert pool.total == app.options.cache_bytes == 50_000_000
-        assert app.session.shown.loaded._cache.pool is pool
+        assert app.session.shown.loaded.store.pool is pool
         assert app.feature(ZonesFeature).cache.pool is pool
         assert app.feature(SetsFeature).cache.pool is pool
         assert pool.used <= pool.total

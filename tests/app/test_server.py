@@ -7,7 +7,7 @@ runs on the app's worker thread, so each test waits with ``app.wait_idle()``.
 import numpy as np
 import pytest
 
-from rough_viewer.app import cloud as state_mod
+from rough_viewer.app import store as store_mod
 from rough_viewer.app.features.panels import PanelsFeature
 from rough_viewer.app.files import UploadedFile
 from rough_viewer.app.server import build_app
@@ -107,8 +107,8 @@ def test_the_whole_face_trend_against_the_preset_grids(app, cloud):
 
 def test_threshold_and_colormap_recolour_without_recomputing(app, monkeypatch):
     calls = []
-    real = state_mod.grid_roughness
-    monkeypatch.setattr(state_mod, "grid_roughness", lambda *a, **k: calls.append(a) or real(*a, **k))
+    real = store_mod.grid_roughness
+    monkeypatch.setattr(store_mod, "grid_roughness", lambda *a, **k: calls.append(a) or real(*a, **k))
     app.map.display.value = "binary"
     app.map.threshold.value = 0.3
     assert app.wait_idle(60)

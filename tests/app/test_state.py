@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from rough_viewer.app import cloud as state_mod
+from rough_viewer.app import store as store_mod
 from rough_viewer.app.cache import ByteCache, nbytes
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import cell_info, map_stats, point_colours
@@ -30,13 +31,13 @@ def test_local_origin_keeps_float32_precise(loaded, cloud):
 
 def test_results_cached_per_grid_key(loaded, monkeypatch):
     calls = []
-    real = state_mod.grid_roughness
+    real = store_mod.grid_roughness
 
     def counting(*a, **k):
         calls.append((a[1], k["axis"], k["min_points"]))
         return real(*a, **k)
 
-    monkeypatch.setattr(state_mod, "grid_roughness", counting)
+    monkeypatch.setattr(store_mod, "grid_roughness", counting)
     s = MapSettings(cell_size=0.5)
     r1 = loaded.result(s)
     # colouring changes share the grid result
@@ -56,7 +57,7 @@ def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
     full results (with the point-to-cell map) are evicted, so a threshold change
     computes no grid again."""
     calls = []
-    real = state_mod.grid_roughness
+    real = store_mod.grid_roughness
 
     def counting(*a, **k):
         calls.append(a[1])
@@ -70,7 +71,7 @@ def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
     budget = nbytes(small.prepared(0.5)) + sum(nbytes(r) - nbytes(r.point_cell)
                                                for r in full.values()) + per_point // 2
     small = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5), cache_bytes=budget)
-    monkeypatch.setattr(state_mod, "grid_roughness", counting)
+    monkeypatch.setattr(store_mod, "grid_roughness", counting)
     s = MapSettings(cell_size=0.5)
     small.mark_shown(s)
     first = [small.cell_result(s.with_(cell_size=g)) for g in (1.0, 0.5)]
@@ -86,10 +87,10 @@ def test_cell_results_stay_cached_when_full_results_cannot(cloud, monkeypatch):
     assert calls == [1.0, 0.5] and all(a is b for a, b in zip(again, first, strict=True))
     # only the cells of the shown grid's axis and minimum are held (others may go)
     cells = ("cells", s.with_(cell_size=1.0).grid_key)
-    assert small._pinned(cells)
+    assert small.store._pinned(cells)
     small.mark_shown(s.with_(axis="z"))
-    assert not small._pinned(cells)
-    assert small._pinned(("cells", s.with_(axis="z", cell_size=2.0).grid_key))
+    assert not small.store._pinned(cells)
+    assert small.store._pinned(("cells", s.with_(axis="z", cell_size=2.0).grid_key))
     roomy = LoadedCloud(cloud, max_display=15_000, presets=(1.0, 0.5))  # 1 GiB cache
     roomy.cell_result(s.with_(cell_size=1.0))
     assert roomy.is_cached(s.with_(cell_size=1.0))  # small: kept whole (a preset recolours)
@@ -276,10 +277,10 @@ def test_a_dropped_cloud_is_freed_without_a_garbage_collection(cloud):
         loaded.mark_shown(settings)
         loaded.result(settings)
         loaded.result(settings.with_(cell_size=1.0))  # the pin rule runs on every put
-        assert loaded._cache._pinned(("result", settings.grid_key))
-        ref = weakref.ref(loaded)
+        assert loaded.store._cache._pinned(("result", settings.grid_key))
+        ref, store = weakref.ref(loaded), weakref.ref(loaded.store)
         del loaded
-        assert ref() is None
+        assert ref() is None and store() is None
     finally:
         gc.enable()
 
@@ -288,3 +289,19 @@ def test_clouds_compare_by_identity(cloud):
     a = LoadedCloud(cloud, max_display=2_000)
     b = LoadedCloud(cloud, max_display=2_000)
     assert a == a and a != b  # no element-wise array comparison (eq=False)
+
+
+def test_the_octree_has_the_node_size_asked_for(cloud):
+    """The octree was built at its first call's node size and kept whatever a later
+    call asked (a budget changed between two showings of the cloud). Now the same size
+    gives the same tree, another size a tree whose nodes hold at most that many."""
+    from rough_viewer.lod.octree import build_octree
+
+    loaded = LoadedCloud(cloud, max_display=2_000)
+    big = loaded.octree(5_000)
+    assert loaded.octree(5_000) is big
+    small = loaded.octree(1_000)
+    assert small is not big and small.max_node_points == 1_000
+    assert int(small.counts.max()) <= 1_000 < int(big.counts.max())
+    want = build_octree(cloud, max_node_points=1_000)  # the reference: built directly
+    np.testing.assert_array_equal(small.counts, want.counts)

@@ -1,0 +1,259 @@
+"""What is computed from every point of a loaded cloud, behind one seam.
+
+:class:`CloudStore` is what the app asks of a cloud's points beyond its overview
+sample: the grid results of a setting, the nested grids they are made from, the
+scanner figures of a grid and the level-of-detail octree, each cached under one byte
+budget. :class:`InMemoryStore` holds the points in memory (every file today); a
+store whose points stay on disk (an indexed campaign, issue 33) implements the same
+protocol, and :class:`~rough_viewer.app.cloud.LoadedCloud` and everything above it
+does not change.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Protocol
+
+import numpy as np
+
+from rough_viewer.app.cache import ByteBudget, ByteCache
+from rough_viewer.app.settings import MapSettings, check_settings
+from rough_viewer.grid.roughness import (
+    GridRoughness,
+    PreparedGrid,
+    coarsen_prepared,
+    grid_roughness,
+    prepare_grid,
+)
+from rough_viewer.io import PointCloud
+from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octree
+from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
+from rough_viewer.vocabulary import ProgressFn
+
+Key = tuple[str, tuple[float, str, int] | float]
+"""A cache key: (kind, grid key or cell size)."""
+
+
+class CloudStore(Protocol):
+    """What is computed from all of a cloud's points, cached (see the module)."""
+
+    @property
+    def presets(self) -> tuple[float, ...]:
+        """The grid presets, metres, coarsest first and nested."""
+        ...
+
+    @property
+    def pool(self) -> ByteBudget:
+        """The byte budget the store's cache draws from (shared with the app's)."""
+        ...
+
+    @property
+    def cached_bytes(self) -> int:
+        """Bytes its cache holds now."""
+        ...
+
+    def is_cached(self, settings: MapSettings) -> bool:
+        """The grid result of ``settings`` is at hand."""
+        ...
+
+    def mark_shown(self, settings: MapSettings) -> None:
+        """The grid of ``settings`` is on screen (kept while others come and go)."""
+        ...
+
+    def result(self, settings: MapSettings, *,
+               progress: ProgressFn | None = None) -> GridRoughness:
+        """Grid roughness of ``settings``' (cell size, axis, min points)."""
+        ...
+
+    def cell_result(self, settings: MapSettings, *,
+                    progress: ProgressFn | None = None) -> GridRoughness:
+        """:meth:`result` without its point-to-cell map."""
+        ...
+
+    def prepared(self, cell_size: float, *,
+                 progress: ProgressFn | None = None) -> PreparedGrid:
+        """Cell membership and moments of the grid ``cell_size`` (metres)."""
+        ...
+
+    def trust(self, result: GridRoughness, settings: TrustSettings | None, *,
+              progress: ProgressFn | None = None) -> CellTrust | None:
+        """Scanner figures of every cell of ``result`` (None: no scanner positions)."""
+        ...
+
+    def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
+        """The level-of-detail octree of every point, nodes of at most
+        ``max_node_points`` points."""
+        ...
+
+
+def _weak_pin(store: InMemoryStore) -> Callable[[Key], bool]:
+    """The store's pin rule through a weak reference: the cache it gives it to must
+    not hold the store (a cycle store -> cache -> bound method -> store kept every
+    loaded cloud, and its arrays, until a full garbage collection)."""
+    ref = weakref.ref(store)
+
+    def pinned(key: Key) -> bool:
+        owner = ref()
+        return owner is not None and owner._pinned(key)
+
+    return pinned
+
+
+class InMemoryStore:
+    """A :class:`CloudStore` over a cloud held in memory.
+
+    Parameters
+    ----------
+    cloud
+        The points (file frame, metres).
+    presets
+        Grid presets, metres, coarsest first and nested (each a whole multiple of
+        the finest, which the others are coarsened from).
+    pool
+        The byte budget the cache draws from.
+    most
+        Most bytes this store's cache holds of the pool.
+    """
+
+    def __init__(self, cloud: PointCloud, presets: tuple[float, ...], pool: ByteBudget,
+                 *, most: int) -> None:
+        self.cloud = cloud
+        self._presets = tuple(presets)
+        self._cache: ByteCache[Key, GridRoughness | PreparedGrid | CellTrust] = ByteCache(
+            pool, pinned=_weak_pin(self), most=most)
+        self._octree: Octree | None = None
+        self._shown_key: tuple[str, tuple[float, str, int]] | None = None
+
+    @property
+    def presets(self) -> tuple[float, ...]:
+        return self._presets
+
+    @property
+    def pool(self) -> ByteBudget:
+        return self._cache.pool
+
+    @property
+    def cached_bytes(self) -> int:
+        return self._cache.bytes
+
+    def _pinned(self, key: Key) -> bool:
+        """What the grid cache never evicts: the fine grid's cells (every preset is
+        coarsened from them), the grid on screen (the panels' preset grids must not
+        push it out), and the cells of every grid with its axis and minimum points
+        (the panels' trend across the presets: small, and computed again for every
+        threshold if a big cloud's full grids pushed them out)."""
+        if key == ("prepared", round(self.presets[-1], 9)):
+            return True
+        shown = self._shown_key
+        if shown is None:
+            return False
+        if key == shown:
+            return True
+        grid, mine = key[1], shown[1]
+        return (key[0] == "cells" and isinstance(grid, tuple)
+                and grid[1:] == mine[1:])
+
+    def trust(self, result: GridRoughness, settings: TrustSettings | None, *,
+              progress: ProgressFn | None = None) -> CellTrust | None:
+        """Scanner geometry and predicted bias of every cell of ``result`` (one of
+        this cloud's grids), with ``settings`` (None: the bias paper's); cached per grid. None
+        without scanner positions. The first call of a calibration simulates its
+        bias curves (seconds)."""
+        if self.cloud.scanner_positions is None or self.cloud.scan_index is None:
+            return None
+        key = ("trust", (round(float(result.grid.cell_size), 9), result.axis,
+                         int(result.min_points)))
+        hit = self._cache.get(key)
+        if isinstance(hit, CellTrust) and hit.theta_m.shape[0] == result.n_cells:
+            return hit
+        made = cell_trust(self.cloud, result, settings, progress=progress)
+        if made is not None:
+            self._cache.put(key, made)
+        return made
+
+    def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
+        """The level-of-detail octree of every point (memory checked:
+        :func:`rough_viewer.lod.octree.build_octree`), nodes of at most
+        ``max_node_points`` points: built at the first call and again when another
+        node size is asked for (the scene asks when it shows the cloud, before any
+        tab holds a node)."""
+        tree = self._octree
+        if tree is None or tree.max_node_points != int(max_node_points):
+            self._octree = None  # the old one goes before the new one is built
+            tree = self._octree = build_octree(self.cloud, max_node_points=max_node_points)
+        return tree
+
+    def is_cached(self, settings: MapSettings) -> bool:
+        return ("result", settings.grid_key) in self._cache
+
+    def mark_shown(self, settings: MapSettings) -> None:
+        """The grid of ``settings`` is on screen: keep its result in the cache while
+        other grids come and go (it is pinned, like the finest preset's cells)."""
+        self._shown_key = ("result", settings.grid_key)
+
+    def result(
+        self,
+        settings: MapSettings,
+        *,
+        progress: ProgressFn | None = None,
+    ) -> GridRoughness:
+        """Grid roughness for the settings' (cell size, axis, min points), cached."""
+        key = ("result", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
+        check_settings(settings)
+        res = grid_roughness(
+            self.cloud,
+            settings.cell_size,
+            min_points=settings.min_points,
+            axis=settings.axis,
+            models=("odr", "ols", "hybrid"),
+            progress=progress,
+            prepared=self.prepared(settings.cell_size, progress=progress),
+        )
+        self._cache.put(key, res)
+        return res
+
+    def cell_result(self, settings: MapSettings, *,
+                    progress: ProgressFn | None = None) -> GridRoughness:
+        """:meth:`result` without its point-to-cell map (``point_cell`` of shape (0,)):
+        every per-cell figure, for whole-face statistics across grids (the Panels
+        tab's trend against grid size). Cached apart and pinned while the shown grid
+        has its axis and minimum points: at 20 M points a grid's point-to-cell map is
+        160 MB and its cells a few MB to tens of MB, so a threshold change need not
+        compute the presets again after their full results left the cache."""
+        key = ("cells", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
+        full = self.result(settings, progress=progress)
+        light = replace(full, point_cell=np.empty(0, dtype=full.point_cell.dtype))
+        self._cache.put(key, light)  # pinned while its axis and minimum points are shown
+        return light
+
+    def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
+        """Cell membership and moments of the grid ``cell_size`` (metres), cached.
+
+        Sizes that are integer multiples of the finest preset
+        are coarsened from the fine grid, which shares their origin (the
+        bounding-box minimum), instead of indexing the points again.
+        ``progress(0, 1)`` is called before each pass over the points (so a
+        cancelled job stops there).
+        """
+        key = ("prepared", round(float(cell_size), 9))
+        hit = self._cache.get(key)
+        if isinstance(hit, PreparedGrid):
+            return hit
+        factor = cell_size / self.presets[-1]
+        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
+            fine = self.prepared(self.presets[-1], progress=progress)
+            prep = coarsen_prepared(fine, int(round(factor)))
+        else:
+            if progress is not None:
+                progress(0, 1)
+            prep = prepare_grid(self.cloud, cell_size)
+        self._cache.put(key, prep)
+        return prep
