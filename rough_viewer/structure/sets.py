@@ -506,10 +506,6 @@ class JointSets:
             "CELLS": pl.cells, "FACE_PARALLEL": face.astype(np.int64),
         }
 
-    def cells_of(self, set_id: int) -> np.ndarray:
-        """Row indices of the cells of set ``set_id`` (1..S)."""
-        return np.flatnonzero(self.cell_set == set_id)
-
 
 def _in_unit(cols: dict[str, np.ndarray], unit_m: float) -> dict[str, np.ndarray]:
     return {k: (v / unit_m if k in LENGTH_COLUMNS else v) for k, v in cols.items()}
