@@ -1,4 +1,5 @@
-"""The session: what the app shows, what is put aside, and the keys of what is drawn.
+"""The session: one analysis (what the app shows, its selection, what is put aside,
+the keys of what is drawn).
 
 One :class:`Session` per app, owned by the worker (:mod:`rough_viewer.app.worker`):
 every attribute is read from any thread, but written only on the worker's thread
@@ -11,14 +12,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import CellInfo, MapStats
 from rough_viewer.app.settings import MapSettings
+from rough_viewer.grid.measure import PlaneMeasure
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import PointScales
 from rough_viewer.io import PointCloud
+from rough_viewer.io.crop import CropBox
 from rough_viewer.io.formats.mesh import TriangleMesh
-from rough_viewer.report.view import View
+from rough_viewer.report.view import SelectionView, View
 
 
 @dataclass(frozen=True)
@@ -31,8 +36,30 @@ class Shown:
     stats: MapStats | None = None
 
 
+@dataclass(frozen=True)
+class Selection:
+    """Points selected on the shown cloud."""
+
+    loaded: LoadedCloud
+    """The cloud they were selected on."""
+    mask: np.ndarray
+    """(N,) bool over its points."""
+    box: CropBox
+    """Their bounding box (metres, the file frame; mode ``keep``)."""
+    plane: PlaneMeasure | None
+    """Their ODR plane (None: fewer than 3 points, or on a line)."""
+    plane_error: str = ""
+    made_by: SelectionView | None = None
+    """The camera and rectangle that selected them (what a saved view holds)."""
+
+    @property
+    def count(self) -> int:
+        return int(np.count_nonzero(self.mask))
+
+
 class Session:
-    """The app's state, written by the worker only.
+    """One analysis's state (the app's, shared by its tabs today; a tab's own once each
+    has one), written by the worker only.
 
     Parameters
     ----------
@@ -63,9 +90,12 @@ class Session:
     deleted (the Directions folder measures on them; None: the last upload had
     none)."""
 
+    selection: Selection | None
+    """The points selected on the shown cloud (the Select tab; None: none)."""
+
     _require: Callable[[str], None]
     _FIELDS = ("shown", "stashed", "panel_key", "face_key", "last_pick", "pick_scales", "view",
-               "uploaded_mesh")
+               "uploaded_mesh", "selection")
 
     def __init__(self, shown: Shown, require_writer: Callable[[str], None]) -> None:
         object.__setattr__(self, "_require", require_writer)

@@ -117,3 +117,20 @@ def test_messages_and_binding_writes_from_another_thread_fail(app):
             write()
     assert host.status.content == status and list(host.errors) == []
     assert app.map.threshold.value != 0.9 and app.map.pick.content != "x"
+
+
+def test_the_selection_is_the_sessions(app):
+    """The Select tab's selection lives in the session (one analysis holds it), so a
+    write from another thread fails there, and a job's selection is the session's."""
+    from rough_viewer.app.features.crop import CropFeature
+    from tests.app.protocol import on_worker
+
+    f = app.host.feature(CropFeature)
+    loaded = app.session.shown.loaded
+    mask = np.zeros(loaded.cloud.n, dtype=bool)
+    mask[:500] = True
+    with pytest.raises(NotOnWorker, match="session.selection"):
+        f.selection = None
+    on_worker(app, lambda: f.select(mask))
+    assert app.session.selection is f.selection is not None
+    assert f.selection.count == 500 and f.selection.loaded is loaded

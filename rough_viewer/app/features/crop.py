@@ -36,6 +36,7 @@ from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import Colouring
 from rough_viewer.app.host import Host
 from rough_viewer.app.markup import md
+from rough_viewer.app.session import Selection
 from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.measure import PlaneMeasure, region_plane
@@ -59,27 +60,6 @@ PROMPT = ("**Shift-drag** a rectangle over the rock to select every point under 
 HIGHLIGHT = np.array([255, 0, 255], dtype=np.uint8)
 #: Longest crop box text accepted from a browser, characters.
 MAX_BOX_TEXT = 300
-
-
-@dataclass(frozen=True)
-class Selection:
-    """Points selected on the shown cloud."""
-
-    loaded: LoadedCloud
-    """The cloud they were selected on."""
-    mask: np.ndarray
-    """(N,) bool over its points."""
-    box: CropBox
-    """Their bounding box (metres, the file frame; mode ``keep``)."""
-    plane: PlaneMeasure | None
-    """Their ODR plane (None: fewer than 3 points, or on a line)."""
-    plane_error: str = ""
-    made_by: SelectionView | None = None
-    """The camera and rectangle that selected them (what a saved view holds)."""
-
-    @property
-    def count(self) -> int:
-        return int(np.count_nonzero(self.mask))
 
 
 def box_text(box: CropBox, units: Units) -> str:
@@ -130,9 +110,18 @@ class CropFeature:
     undo: viser.GuiButtonHandle
     status: viser.GuiMarkdownHandle
     binding: Binding = field(default_factory=Binding)
-    selection: Selection | None = None
     nodes: list[viser.SceneNodeHandle] = field(default_factory=list)
     """The selection's bounding box."""
+
+    @property
+    def selection(self) -> Selection | None:
+        """The points selected on the shown cloud: the session's (it holds the
+        analysis), read anywhere."""
+        return self.host.session.selection
+
+    @selection.setter
+    def selection(self, value: Selection | None) -> None:
+        self.host.session.selection = value  # worker only (the session checks)
 
     # ------------------------------------------------------------------ selection
     def select(self, mask: np.ndarray, made_by: SelectionView | None = None) -> None:
