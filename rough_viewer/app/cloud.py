@@ -61,7 +61,6 @@ def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     return cell_sizes_from(max(default_cell_size(cloud), MIN_CELL_SIZE))
 
 
-
 @dataclass(eq=False)
 class LoadedCloud:
     """A cloud prepared for display, with its grid results cached.
