@@ -5,8 +5,10 @@
 is a composition: the viser server, the session (what is shown), the worker (the
 only thread that changes the session and the scene), the shell (the features' host:
 :mod:`rough_viewer.app.shell`), the features (:data:`FEATURES`, mounted in tab
-order) and the options. All scene nodes and GUI controls are server-level: every
-browser tab sees the same state.
+order) and the options. The GUI controls and the scene's overlays (axis, labels,
+outlines) are server-level, so every browser tab sees the same analysis; the cloud's
+points are per tab (each tab draws the octree nodes its camera needs, within its point
+budget: :mod:`rough_viewer.app.scene`).
 """
 
 from __future__ import annotations
