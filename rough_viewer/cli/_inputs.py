@@ -34,13 +34,19 @@ def add_inputs(parser: argparse.ArgumentParser, *, optional: bool = False,
     the decompression-bomb guard's limit (:mod:`rough_viewer.io.estimates`), and only
     that in every command, which passes it to every read (:func:`load_inputs`'
     ``max_points``)."""
-    from rough_viewer.cli._options import positive_int
-    from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
-
     parser.add_argument(
         "inputs", nargs="*" if optional else "+", metavar="INPUT",
         help=f"{what}: {FORMATS}; several files and quoted globs (\"scans/*.laz\") "
         "are merged into one cloud (same CRS and units)")
+    add_max_points(parser)
+
+
+def add_max_points(parser: argparse.ArgumentParser) -> None:
+    """Add ``--max-points N`` (``args.file_max_points``), the decompression-bomb
+    guard's limit and only that, in every command that reads a cloud."""
+    from rough_viewer.cli._options import positive_int
+    from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
+
     parser.add_argument(
         "--max-points", dest="file_max_points", type=positive_int, metavar="N",
         help=f"read a compressed file (LAZ, E57) that declares more points than its "

@@ -205,3 +205,23 @@ def test_noise_on_a_rough_surface_and_radius_on_a_board_warn(capsys, tmp_path, b
     assert _json(capsys, ["bias", "radius", str(wire), "--json"])["warnings"] == []
     flat = _json(capsys, ["bias", "noise", str(board_path), "--json"])
     assert flat["warnings"] == []
+
+
+def test_noise_subsample_is_sample_points_and_max_points_the_bomb_guard(capsys, board_file,
+                                                                        tmp_path):
+    """Issue 32 item 5: in ``bias noise`` as in every command ``--max-points`` is the
+    decompression-bomb guard only; the paper's random subsample is ``--sample-points``
+    (equal to range_noise's own subsample of the same seed)."""
+    from tests.io.crafted import laz_declaring
+
+    path, xyz = board_file
+    data = _json(capsys, ["bias", "noise", str(path), "--sample-points", "5000", "--json"])
+    assert data["n_points"] == 5000
+    assert data["sigma"] == pytest.approx(range_noise(xyz, max_points=5000, seed=0).sigma,
+                                          rel=1e-12)
+    bomb = laz_declaring(tmp_path / "bomb.laz", 3_000_000)
+    for command in ("noise", "normalise", "radius"):
+        assert main(["bias", command, str(bomb)]) == 2
+        assert "decompression bomb" in capsys.readouterr().err, command
+    main(["bias", "noise", str(bomb), "--max-points", "5000000"])
+    assert "decompression bomb" not in capsys.readouterr().err

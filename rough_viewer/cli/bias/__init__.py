@@ -5,7 +5,7 @@ metres in JSON, millimetres in text; the commands reading a scan take lengths in
 ``--units`` and show them in mm for metric input, in the input's unit otherwise)::
 
     rough-viewer bias noise BOARD_SCAN [--segments 8|RxC] [--scanner X,Y,Z]
-        [--max-points N] [--seed S] [--units m|mm|ft|us-ft] [--json]
+        [--sample-points N] [--seed S] [--max-points N] [--units m|mm|ft|us-ft] [--json]
     rough-viewer bias radius WIRE_SCAN [WIRE_SCAN ...] [--scanner X,Y,Z]
         [--top-fraction 0.02] [--wire-radius M] [--break-range M]
         [--units m|mm|ft|us-ft] [--json]

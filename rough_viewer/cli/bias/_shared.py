@@ -175,10 +175,12 @@ def small(v: float, unit: str = "m", *, label: bool = True) -> str:
     return f"{text} {UNIT_LABELS[su]}" if label else text
 
 
-def load(path: str, units: str | None = None) -> PointCloud:
+def load(path: str, units: str | None = None, *, max_points: int | None = None) -> PointCloud:
     """The points of ``path`` read in ``units`` (default: a LAS CRS's, else metres),
-    in metres; prints the reader's warnings."""
-    cloud = load_points(path, units=cast("Unit | None", units))  # argparse checked it
+    in metres, a compressed file refused beyond the bomb guard's ``max_points``
+    (``--max-points``; None: the default); prints the reader's warnings."""
+    cloud = load_points(path, units=cast("Unit | None", units),  # argparse checked it
+                        max_points=max_points)
     warn(cloud.warnings)
     return cloud
 

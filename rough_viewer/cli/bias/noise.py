@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from rough_viewer.cli._inputs import add_max_points
 from rough_viewer.cli._options import (
     add_units,
     naming,
@@ -34,8 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "axis (default 8)")
     q.add_argument("--scanner", metavar="X,Y,Z",
                    help="scanner position in --units (orients offsets)")
-    q.add_argument("--max-points", type=positive_int, metavar="N",
+    q.add_argument("--sample-points", type=positive_int, metavar="N",
                    help="random subsample of N points (the paper: 180000)")
+    add_max_points(q)
     q.add_argument("--seed", type=non_negative_int, default=0,
                    help="seed of the subsample (default 0)")
     add_units(q)
@@ -46,12 +48,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from rough_viewer.bias.measurement import range_noise
 
-    cloud = load(args.input, args.units)
+    cloud = load(args.input, args.units, max_points=args.file_max_points)
     unit = cloud.source_unit
     scanner = scanner_position(args, unit)
     with naming(args.input):
         r = range_noise(cloud.xyz(), segments=args.segments, scanner=scanner,
-                        max_points=args.max_points, seed=args.seed)
+                        max_points=args.sample_points, seed=args.seed)
     segs = [
         {"row": s.row, "col": s.col, "n_points": s.n_points, "sigma": s.sigma,
          "offset": s.offset, "tilt_deg": s.tilt_deg, "centre": s.centre}

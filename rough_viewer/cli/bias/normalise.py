@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rough_viewer.cli._inputs import add_max_points
 from rough_viewer.cli._options import (
     add_units,
     naming,
@@ -61,6 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--out", metavar="OUT.las", help="write the kept points (.las/.laz)")
     q.add_argument("--force", action="store_true", help="overwrite --out")
     add_units(q)
+    add_max_points(q)
     add_json_option(q)
     q.set_defaults(func=run)
 
@@ -81,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     check_count(args.ratio, "--ratio", maximum=MAX_RATIO)
     if args.classes == "truth" and not args.truth_dim:
         raise InputError("--classes truth needs --truth-dim NAME")
-    cloud = load(args.input, unit)
+    cloud = load(args.input, unit, max_points=args.file_max_points)
     truth = None
     if args.truth_dim:
         if Path(args.input).suffix.lower() not in (".las", ".laz"):

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from rough_viewer.cli._inputs import add_max_points
 from rough_viewer.cli._options import (
     add_units,
     naming,
@@ -45,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="break point of the piecewise fit, in --units (default: least "
                    "squares; below 10 km)")
     add_units(q)
+    add_max_points(q)
     add_json_option(q)
     q.set_defaults(func=run)
 
@@ -72,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--break-range needs at least 4 wire scans (a piecewise fit)")
     scans: list[dict[str, Any]] = []
     for path in args.inputs:
-        cloud = load(path, unit)
+        cloud = load(path, unit, max_points=args.file_max_points)
         with naming(path):
             e = effective_radius(cloud.xyz(), scanner=scanner, top_fraction=args.top_fraction,
                                  wire_radius=wire_radius)
