@@ -23,6 +23,7 @@ from rough_viewer.app.settings import (
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
     MODEL_LABELS,
+    Change,
     GridChoices,
     MapForm,
     MapSettings,
@@ -117,9 +118,8 @@ def scales_placeholder() -> go.Figure:
 
 # ----------------------------------------------------------------------------- the binding
 
-Changes = tuple[tuple[str, object], ...]
+Changes = tuple[Change, ...]
 """(control's name on :class:`MapTab`, its value), oldest first."""
-
 
 
 class MapBinding(Binding):

@@ -53,11 +53,13 @@ from rough_viewer.app.layout import PLOTLY_CONFIG, empty_figure
 from rough_viewer.app.settings import (
     AXIS_BY_NAME,
     DISPLAY_BY_NAME,
+    FORM_FIELDS,
     MAX_CELL_SIZE,
     MIN_CELL_SIZE,
-    MODEL_LABELS,
+    GridChoices,
+    MapForm,
+    form_of,
     grid_options,
-    round_limit,
 )
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.visual import colormaps
@@ -131,92 +133,95 @@ def add_controls(host: Host, kind: type[M]) -> M:
         # never hidden: viser's client fails to lay out a plot that was created hidden
         placeholder = scales_placeholder()
         scales = gui.add_plotly(placeholder, config=PLOTLY_CONFIG, aspect=panel_aspect(placeholder))
-        handles = {**_grid_controls(host), **_colour_controls(host), **_view_controls(host)}
+        form = _first_form(host)
+        handles = {**_grid_controls(host, form), **_colour_controls(host, form),
+                   **_view_controls(host)}
         m = kind(host=host, colour_bar=colour_bar, pick=pick, scales=scales, **handles)
     m.binding = MapBinding(m, loaded.presets, loaded.units)
     host.allow(*m.inputs())
     return m
 
 
-def _grid_controls(host: Host) -> dict[str, Any]:
+def _first_form(host: Host) -> MapForm:
+    """What the Map tab's controls hold first: the shown settings as a form
+    (:func:`rough_viewer.app.settings.form_of`, the rule every later show follows)."""
+    loaded, settings = host.session.shown.loaded, host.session.shown.settings
+    assert loaded.presets is not None
+    layers = tuple(COLOUR_LAYER_LABELS[n] for n in loaded.layers)
+    return form_of(settings, GridChoices.of(loaded.presets, loaded.units), MapForm(),
+                   layers=layers)
+
+
+def _grid_controls(host: Host, form: MapForm) -> dict[str, Any]:
     """What colours the points, the grid, the model, its axis and the binary view."""
     gui = host.gui
-    loaded, settings = host.session.shown.loaded, host.session.shown.settings
-    units, layers = loaded.units, loaded.layers
+    loaded = host.session.shown.loaded
+    units = loaded.units
     assert loaded.presets is not None
     values = grid_options(loaded.presets, units)
-    preset = f"{units.length(settings.cell_size):g}"
     return dict(
         layer=gui.add_dropdown(
-            L_LAYER, tuple(COLOUR_LAYER_LABELS[n] for n in layers),
-            initial_value=COLOUR_LAYER_LABELS[settings.layer if settings.layer in layers
-                                              else "roughness"],
+            L_LAYER, tuple(COLOUR_LAYER_LABELS[n] for n in loaded.layers),
+            initial_value=form.layer,
             hint="The roughness map, or the rock itself: scan colours, intensity, or "
             "the distance to the whole-cloud face plane."),
         grid=gui.add_dropdown(
-            l_grid(units), (*values, "free"),
-            initial_value=preset if preset in values else "free",
+            l_grid(units), (*values, "free"), initial_value=form.grid,
             hint="Cell edge of the roughness grid: presets from the point spacing "
             "(the finest holds about 16 points in a typical cell); 'free' uses the "
             "number below."),
         grid_free=gui.add_number(
-            l_grid_free(units), units.length(settings.cell_size),
+            l_grid_free(units), form.grid_free,
             min=units.length(MIN_CELL_SIZE), max=units.length(MAX_CELL_SIZE),
             step=grid_step(loaded.presets, units),
             hint="Any cell size (switches the grid size to 'free')."),
-        model=gui.add_dropdown(L_MODEL, MODEL_OPTIONS,
-                               initial_value=MODEL_LABELS[settings.model]),
+        model=gui.add_dropdown(L_MODEL, MODEL_OPTIONS, initial_value=form.model),
         keep_outliers=gui.add_checkbox(
-            L_KEEP_OUTLIERS, bool(settings.keep_outliers),
+            L_KEEP_OUTLIERS, form.keep_outliers,
             hint="Hybrid or OLS roughness larger than the cell (a plane nearly along "
             "the dependent axis) is an outlier of the definition, not rock: left "
             "out of the colours, panels and zones and drawn in cyan unless kept."),
         toggle=gui.add_button(L_TOGGLE, hint="Same cells, other reference plane."),
-        axis=gui.add_dropdown(L_AXIS, tuple(AXIS_BY_NAME), initial_value=settings.axis,
+        axis=gui.add_dropdown(L_AXIS, tuple(AXIS_BY_NAME), initial_value=form.axis,
                               hint="Dependent variable of the OLS and hybrid fits."),
         axis_note=gui.add_markdown(""),
         show_axis=gui.add_checkbox(L_SHOW_AXIS, True),
         display=gui.add_dropdown(L_DISPLAY, tuple(DISPLAY_BY_NAME),
-                                 initial_value=settings.display),
+                                 initial_value=form.display),
         threshold=gui.add_slider(
-            L_THRESHOLD, min=0.0, max=1.0, step=0.01, initial_value=settings.threshold,
+            L_THRESHOLD, min=0.0, max=1.0, step=0.01, initial_value=form.threshold,
             hint="Binary view: cells with normalised roughness ≥ this are rough."),
-        min_points=gui.add_number(L_MIN_POINTS, int(settings.min_points), min=3,
+        min_points=gui.add_number(L_MIN_POINTS, form.min_points, min=3,
                                   max=MAX_MIN_POINTS, step=1),
     )
 
 
-def _colour_controls(host: Host) -> dict[str, Any]:
+def _colour_controls(host: Host, form: MapForm) -> dict[str, Any]:
     """The colour map and its stretch: percentiles (slider and typed) or limits."""
     gui = host.gui
-    units, st = host.session.shown.loaded.units, host.session.shown.settings.stretch
-    pct = (st.lo, st.hi) if st.mode == "percentile" else (2.0, 98.0)
-    if st.mode == "absolute":
-        lo_r, hi_r = round_limit(units.rough(st.lo)), round_limit(units.rough(st.hi))
-    else:
-        lo_r = hi_r = 0.0
+    units = host.session.shown.loaded.units
     return dict(
-        colormap=gui.add_dropdown(L_COLORMAP, COLORMAP_OPTIONS, initial_value="auto",
+        colormap=gui.add_dropdown(L_COLORMAP, COLORMAP_OPTIONS, initial_value=form.colormap,
                                   hint="auto: viridis for roughness, magma for e_ols."),
         stretch=gui.add_dropdown(
-            L_STRETCH, colormaps.STRETCH_MODES, initial_value=st.mode,
+            L_STRETCH, colormaps.STRETCH_MODES, initial_value=form.stretch,
             hint="percentile: the colours span these percentiles of the cells (robust "
             "to a few extreme cells); absolute: fixed limits, so one colour means one "
             "roughness on every grid and file."),
-        log=gui.add_checkbox(L_LOG, bool(st.log),
+        log=gui.add_checkbox(L_LOG, form.log,
                              hint="Equal ratios of roughness get equal colour steps."),
         percentiles=gui.add_multi_slider(
             L_PERCENTILES, min=0.0, max=100.0, step=0.5, min_range=1.0,
-            initial_value=pct, marks=PERCENTILE_MARKS,
+            initial_value=form.percentiles, marks=PERCENTILE_MARKS,
             hint="Percentiles of the cells with a value at the first and last colour."),
-        pct_lo=gui.add_number(L_PCT_LO, pct[0], min=0.0, max=100.0, step=0.5,
+        pct_lo=gui.add_number(L_PCT_LO, form.pct_lo, min=0.0, max=100.0, step=0.5,
                               hint="The percentile at the first colour (typed)."),
-        pct_hi=gui.add_number(L_PCT_HI, pct[1], min=0.0, max=100.0, step=0.5,
+        pct_hi=gui.add_number(L_PCT_HI, form.pct_hi, min=0.0, max=100.0, step=0.5,
                               hint="The percentile at the last colour (typed)."),
-        range_lo=gui.add_number(l_range_lo(units), lo_r, min=0.0, max=1e9, step=0.001,
+        range_lo=gui.add_number(l_range_lo(units), form.range_lo, min=0.0, max=1e9, step=0.001,
                                 hint="Roughness at the first colour; typing here pins "
                                 "the colours (absolute stretch)."),
-        range_hi=gui.add_number(l_range_hi(units), hi_r, min=0.0, max=1e9, step=0.001,
+        range_hi=gui.add_number(l_range_hi(units), form.range_hi, min=0.0, max=1e9, step=0.001,
                                 hint="Roughness at the last colour (absolute stretch)."),
     )
 
@@ -241,10 +246,7 @@ def _view_controls(host: Host) -> dict[str, Any]:
 def wire(host: Host, m: MapTab) -> None:
     """Every control submits a job naming itself; clicks on the scene submit a pick."""
     b = m.binding
-    names = ("layer", "grid", "grid_free", "model", "keep_outliers", "axis", "display",
-             "threshold",
-             "min_points", "colormap", "stretch", "log", "percentiles", "pct_lo", "pct_hi",
-             "range_lo", "range_hi", "toggle")
+    names = (*FORM_FIELDS, "toggle")  # every control of the form, and the toggle
     by_handle = {id(getattr(m, n)): n for n in names}
     b.on_change([getattr(m, n) for n in names], lambda handle: host.submit(
         RenderJob(m, changes=((by_handle[id(handle)], handle.value),))))
