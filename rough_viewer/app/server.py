@@ -28,6 +28,7 @@ from rough_viewer.app.features import (
     crop,
     export,
     file,
+    lesson,
     measure,
     panels,
     profile,
@@ -48,6 +49,7 @@ from rough_viewer.app.shell import Shell
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.io import PointCloud
 from rough_viewer.io.estimates import max_points_limit
+from rough_viewer.lessons import Lesson
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import UNITS, InputError, Unit
@@ -68,6 +70,7 @@ FEATURES: tuple[Mount, ...] = (
     profile.mount,
     directions.mount,  # a folder in the Profile tab
     board.mount,
+    lesson.mount,  # the Lesson tab: guided steps (serve --lesson)
     bias.mount,
     zones.mount,
     sets.mount,
@@ -153,6 +156,7 @@ def build_app(
     trust: TrustSettings | None = None,
     point_budget: int = DEFAULT_BUDGET,
     max_points: int | None = None,
+    lesson: Lesson | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -177,6 +181,9 @@ def build_app(
         The decompression-bomb guard's limit for the files the File tab loads or
         uploads (``serve --max-points``; default
         :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`).
+    lesson
+        The lesson the Lesson tab opens on (``serve --lesson``): its first step's
+        scene is set up once the first map is shown.
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
     prefetch
@@ -216,7 +223,7 @@ def build_app(
                          prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
                          cache_bytes=int(cache_bytes), units=units, save_views=save_views,
                          trust=trust, point_budget=int(point_budget),
-                         max_points=max_points_limit(max_points))
+                         max_points=max_points_limit(max_points), lesson=lesson)
     loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
                          cache_pool=options.cache_pool,
                          presets=tuple(presets) if presets is not None else None,

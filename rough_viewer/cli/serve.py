@@ -9,6 +9,7 @@ Contract::
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
+        [--lesson NAME|FILE.toml]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
@@ -43,6 +44,9 @@ camera; the view's settings replace ``--grid``, ``--model``, ``--axis`` and
 default the view file's folder; bundled demos always open), or be given as INPUT. A
 view whose input moved or changed says so (stderr and the app). ``--save-views`` lets
 the Export folder also write views next to the input in the data folder.
+
+``--lesson NAME`` (a bundled lesson or a lesson file, docs/lessons.md) opens the
+Lesson tab on it: once the first map is shown, its first step sets its scene up.
 """
 
 from __future__ import annotations
@@ -70,6 +74,7 @@ if TYPE_CHECKING:
 
     from rough_viewer.app.server import App
     from rough_viewer.app.views import OpenedView
+    from rough_viewer.lessons import Lesson
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -116,6 +121,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save-views", action="store_true",
                    help="let the Export folder also save views next to the input in the data "
                    "folder (without it views are only downloaded)")
+    p.add_argument("--lesson", metavar="NAME",
+                   help="open the Lesson tab on a lesson: a bundled one (tilted-board, "
+                   "turned-wall, scale; `rough-viewer lesson --list`) or a lesson file "
+                   "(.toml, docs/lessons.md)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     add_scanner_options(p)
     p.set_defaults(func=run)
@@ -206,6 +215,7 @@ def _run(args: argparse.Namespace) -> int:
     settings: MapSettings | None = opened.settings if opened is not None else None
     data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
+    lesson = _lesson(args)
     from rough_viewer.app.server import build_app
 
     server, url = _open_server(args)
@@ -236,7 +246,7 @@ def _run(args: argparse.Namespace) -> int:
                         point_budget=args.point_budget, max_points=args.file_max_points,
                         data_dir=data_dir, max_upload_mb=args.max_upload_mb,
                         units=args.units, presets=presets, save_views=args.save_views,
-                        trust=trust_settings(args, cloud.source_unit))
+                        trust=trust_settings(args, cloud.source_unit), lesson=lesson)
         n_points = cloud.n
         del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
         app.wait_idle(timeout=None if not args.no_block else 120.0)
@@ -254,6 +264,15 @@ def _run(args: argparse.Namespace) -> int:
         server.stop()
         _restore_signals(previous)
     return 0
+
+
+def _lesson(args: argparse.Namespace) -> Lesson | None:
+    """The lesson of ``--lesson`` read and checked (None without it)."""
+    if not getattr(args, "lesson", None):
+        return None
+    from rough_viewer.lessons import find_lesson
+
+    return find_lesson(args.lesson)
 
 
 def _check_grid_and_units(args: argparse.Namespace) -> None:
