@@ -71,10 +71,10 @@ def raw_value(question: Question, result: GridRoughness, *, keep_outliers: bool 
         if scales is None:
             raise InputError("click a point on the cloud first: the question is about its cell")
         series = scales.values(m)
-        v = float(series[-1] if q.grid == "coarsest" else series[0])
-        if not np.isfinite(v):
+        value = float(series[-1] if q.grid == "coarsest" else series[0])
+        if not np.isfinite(value):
             raise InputError(f"the clicked point's cell has no {m} value on the {q.grid} grid")
-        return v
+        return value
     return first_lag(result, m, keep_outliers=keep_outliers)
 
 

@@ -437,6 +437,10 @@ def mount(host: Host) -> LessonFeature:
     b.on_change([f.next], lambda _h: host.submit(LessonJob(f, "go", delta=1)))
     b.on_change([f.previous], lambda _h: host.submit(LessonJob(f, "go", delta=-1)))
     b.on_change([f.again], lambda _h: host.submit(LessonJob(f, "go", delta=0)))
-    f.handout.on_click(lambda e: host.submit(HandoutJob(f, e.client_id)))
+
+    @f.handout.on_click
+    def _(event: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        host.submit(HandoutJob(f, event.client_id))  # to the browser that asked
+
     host.on_cloud(lambda: cloud_shown(f))
     return f
