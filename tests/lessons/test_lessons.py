@@ -237,3 +237,18 @@ def test_the_turned_wall_numbers_follow_one_over_cos_35():
     assert raw_value(ratio, main_face) == pytest.approx(1.0, abs=0.01)
     assert raw_value(ratio, wall) == pytest.approx(1 / math.cos(math.radians(35)), rel=0.03)
     assert Path(lesson.source).name == "turned-wall.toml"
+
+
+def test_a_scene_cloud_is_read_once_for_every_tab():
+    """Thirty tabs on one step show one cloud, not thirty copies (the clouds kept)."""
+    from rough_viewer.lessons import Scene
+    from rough_viewer.lessons.clouds import scene_cloud
+
+    wall = Scene(cloud="outcrop-small", part="turned wall")
+    assert scene_cloud(wall) is scene_cloud(Scene(cloud="outcrop-small", part="turned wall",
+                                                  model="ols", grid=0.5))
+    board = scene_cloud(Scene(cloud="board", alpha=10))
+    assert board is scene_cloud(Scene(cloud="board", alpha=10.0))
+    assert board is not scene_cloud(Scene(cloud="board", alpha=20))
+    with pytest.raises(InputError, match="keeps the cloud shown"):
+        scene_cloud(Scene())

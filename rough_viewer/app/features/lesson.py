@@ -161,6 +161,7 @@ class LessonFeature:
                 f"**Question:** {md(q.text)}")
         done = self.answers.get(self.step)
         b.write(self.verdict, content="" if done is None or q is None else verdict_text(q, done))
+        b.set(self.answer, float(done.given) if done is not None else 0.0)  # this step's own
 
     def say(self, text: str) -> None:
         self.binding.write(self.verdict, content=text)
