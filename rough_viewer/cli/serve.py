@@ -54,8 +54,9 @@ line with its own token: ``open URL`` for the students and ``teacher URL`` for t
 teacher, whose tab also has the Class tab (the students listed, their views, "Send
 my view to everyone", "Follow me").
 
-``--lesson NAME`` (a bundled lesson or a lesson file, docs/lessons.md) opens the
-Lesson tab on it: once the first map is shown, its first step sets its scene up.
+``--lesson NAME`` (a bundled lesson or a lesson file, docs/lessons.md, checked before
+the server opens) opens the Lesson tab on it: once the first map is shown, its first
+step sets its scene up (with ``--classroom``, in every tab, each then on its own).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ step read its cloud once and show the same points, not thirty copies.
 from __future__ import annotations
 
 import functools
+import threading
 
 from rough_viewer.io import PointCloud
 from rough_viewer.lessons import PARTS, Scene
@@ -15,6 +16,8 @@ from rough_viewer.vocabulary import InputError
 
 #: Scene clouds kept in memory (a board scan is about 10 MB, the small outcrop 5 MB).
 KEPT = 6
+#: One read at a time: tabs that ask at once (a classroom's workers) get one cloud.
+_READING = threading.Lock()
 
 
 def scene_cloud(scene: Scene) -> PointCloud:
@@ -23,9 +26,10 @@ def scene_cloud(scene: Scene) -> PointCloud:
     cloud shown, or a part the demo does not have."""
     if scene.cloud_key is None:
         raise InputError("this scene keeps the cloud shown")
-    if scene.cloud == "board":
-        return _read(scene.cloud, "", float(scene.alpha), float(scene.beta))
-    return _read(scene.cloud, scene.part, 0.0, 0.0)
+    board = scene.cloud == "board"
+    with _READING:
+        return _read(scene.cloud, "" if board else scene.part,
+                     float(scene.alpha) if board else 0.0, float(scene.beta) if board else 0.0)
 
 
 @functools.lru_cache(maxsize=KEPT)

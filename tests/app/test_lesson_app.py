@@ -215,3 +215,59 @@ def test_serve_refuses_an_unknown_lesson_in_one_line():
         _lesson(args)
     args = build_parser("serve").parse_args(["serve", "--lesson", "scale"])
     assert _lesson(args).title == "Roughness depends on scale"
+
+
+def test_every_classroom_tab_has_its_own_lesson_and_the_teacher_sees_the_answers(cloud):
+    """``serve --classroom --lesson``: each student's tab opens on the lesson, steps
+    and answers are the tab's own, the lesson's cloud is one object for every tab, and
+    the teacher's classroom lists each student's step and answers."""
+    import dataclasses
+
+    from rough_viewer.app.classroom import Classroom
+    from rough_viewer.app.gate import new_token, open_server
+    from rough_viewer.app.server import app_options, shared_cloud
+    from rough_viewer.app.settings import MapSettings
+    from tests.app.browser import wait_until
+    from tests.app.protocol import ProtocolClient
+
+    server, gate = open_server("127.0.0.1", 0, token=new_token(), teacher_token=new_token(),
+                               log=False)
+    options = dataclasses.replace(app_options(cloud, prefetch=False,
+                                              lesson=find_lesson("tilted-board")),
+                                  compute_slots=2)
+    loaded = shared_cloud(cloud, options)
+    room = Classroom(server, gate, loaded, MapSettings(cell_size=loaded.default_cell_size),
+                     options).start()
+    tabs = []
+    try:
+        rooms = []
+        for _ in range(2):
+            before = set(room.rooms)
+            tabs.append(ProtocolClient(server.get_port(), gate.path))
+            new = wait_until(lambda before=before: set(room.rooms) - before, 60, "a tab's app")
+            rooms.append(room.rooms[max(new)])
+        features = [r.app.feature(LessonFeature) for r in rooms]
+        for r, f in zip(rooms, features, strict=True):
+            settle(r.app, lambda f=f, r=r: f.lesson is not None and f.waiting is None
+                   and r.app.session.shown.settings.cell_size == 2.0, "the lesson's first step",
+                   timeout=120)
+        a, b = tabs
+        (ra, rb), (fa, fb) = rooms, features
+        assert ra.app.session.shown.loaded.cloud is rb.app.session.shown.loaded.cloud
+        reference = grid_roughness(load_demo("board"), 2.0, axis="y")
+        since = len(b.messages)
+        _answer(ra.app, a, fa, 1e3 * _mean(reference, "ols"))
+        _go(ra.app, a, fa, lm.L_NEXT, 1)
+        assert fa.answers[0].correct and fb.answers == {} and fb.step == 0
+        assert "α 45°" in ra.app.host.status.content.replace("\\", "")
+        assert "α 0°" in rb.app.host.status.content.replace("\\", "")
+        assert not any("Correct" in str(m) for m in b.messages[since:])  # nothing of A's
+        lines = {s.client_id: (s.lesson, s.answers) for s in room.students()}
+        assert lines[ra.client_id] == ("tilted-board 2/5", "1 of 1 right")
+        assert lines[rb.client_id] == ("tilted-board 1/5", "")
+        assert isinstance(fb, LessonReporter) and fb.lesson_status().answers == ()
+    finally:
+        for tab in tabs:
+            tab.close()
+        room.stop()
+        server.stop()
