@@ -116,6 +116,14 @@ def test_the_turned_wall_lesson_finds_one_over_cos_35(tab):
     _right_and_wrong(app, client, f, _ratio(on_y))
     assert f.answers[1].expected.value == pytest.approx(1 / math.cos(math.radians(35)), rel=0.03)
     assert _answer(app, client, f, 1 / math.cos(math.radians(35)))  # the theory is accepted
+    assert "not this step's" not in f.verdict.content
+    client.set_value("Dependent axis", "x")  # the student moves away from the step's map
+    settle(app, lambda: app.session.shown.settings.axis == "x", "axis x")
+    assert not _answer(app, client, f, 1 / math.cos(math.radians(35)))  # checked on x
+    assert "not this step's (axis x instead of y)" in f.verdict.content
+    _go(app, client, f, lm.L_AGAIN, 1)  # the step's own map again
+    settle(app, lambda: app.session.shown.settings.axis == "y", "axis y again")
+    assert _answer(app, client, f, 1 / math.cos(math.radians(35)))
     _go(app, client, f, lm.L_NEXT, 2)
     _right_and_wrong(app, client, f, 1e3 * _mean(on_y, "odr"))
     _go(app, client, f, lm.L_NEXT, 3)

@@ -235,6 +235,22 @@ def map_changes(host: Host, scene: Scene) -> dict[str, object]:
     return changes
 
 
+def off_scene(f: LessonFeature, scene: Scene) -> list[str]:
+    """How the map shown differs from ``scene`` (what its number depends on: the
+    cloud, grid, axis and minimum points); [] when it is the scene's."""
+    shown = f.host.session.shown.settings
+    out = []
+    if not f.shows_lesson_cloud(scene.cloud_key):
+        out.append("another cloud")
+    elif grid_changes(f.host, scene):
+        out.append("another grid")
+    if scene.axis is not None and shown.axis != scene.axis:
+        out.append(f"axis {shown.axis} instead of {scene.axis}")
+    if scene.min_points is not None and shown.min_points != scene.min_points:
+        out.append("other minimum points")
+    return out
+
+
 def set_scene(f: LessonFeature, scene: Scene) -> None:
     """Queue what puts ``scene`` on screen (worker): a load of its cloud (the grid
     and camera follow once it is shown: :func:`cloud_shown`), or the map's changes
@@ -356,7 +372,10 @@ class CheckJob(Job[Host]):
         answer = HandoutAnswer(f.step, self.given, expected,
                                accepted(self.given, expected.value, q), where, figure)
         f.answers = {**f.answers, f.step: answer}
-        f.say(verdict_text(q, answer))
+        off = off_scene(f, effective_scene(lesson, f.step))
+        f.say(verdict_text(q, answer) + ("" if not off else
+              f"\n\n*Checked on the map shown, not this step's ({', '.join(off)}): "
+              f"**{L_AGAIN}** puts the step's map back.*"))
         yield "checked"
 
 
