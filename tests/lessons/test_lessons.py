@@ -252,3 +252,21 @@ def test_a_scene_cloud_is_read_once_for_every_tab():
     assert board is not scene_cloud(Scene(cloud="board", alpha=20))
     with pytest.raises(InputError, match="keeps the cloud shown"):
         scene_cloud(Scene())
+
+
+def test_serve_opens_on_a_lesson_and_refuses_a_broken_one_before_listening(tmp_path, capsys):
+    from rough_viewer.cli import main
+
+    rng = np.random.default_rng(0)
+    path = tmp_path / "pts.npy"
+    np.save(path, np.column_stack([rng.uniform(0, 2, 5000), rng.uniform(0, 2, 5000),
+                                   rng.normal(0, 0.003, 5000)]))
+    bad = tmp_path / "bad.toml"
+    bad.write_text(GOOD.replace("[[steps]]", "[[stepz]]"))
+    assert main(["serve", str(path), "--port", "0", "--lesson", str(bad), "--no-block"]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.strip() == "rough-viewer: error: lesson bad.toml: stepz: unknown field " \
+        "(expected one of title, introduction, steps)"
+    assert "listening" not in captured.err  # refused before the server opened
+    assert main(["serve", str(path), "--port", "0", "--lesson", "scale", "--no-block"]) == 0
+    assert "5,000 points, open http://127.0.0.1:" in capsys.readouterr().out
