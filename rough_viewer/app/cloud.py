@@ -50,6 +50,11 @@ from rough_viewer.vocabulary import (
     ProgressFn,
 )
 
+#: From this many points the whole-cloud plane is combined from the cell moments of
+#: the coarsest preset (the coarse first map's grid, prepared anyway) instead of a
+#: pass of its own over the points.
+PLANE_FROM_GRID_POINTS = 2_000_000
+
 
 def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     """The app's grid presets for ``cloud``, metres, coarsest first: the default
@@ -128,8 +133,6 @@ class LoadedCloud:
                        if self.frame_origin is not None else np.round(0.5 * (lo + hi)))
         self.display_index = display_subset(xyz, self.max_display, seed=self.seed)
         self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
-        self.plane = whole_cloud_plane(self.cloud)
-        self.auto_axis = dominant_axis(self.plane.normal)
         if self.presets is None:
             self.presets = grid_presets(self.cloud)
         self.presets = tuple(sorted((float(g) for g in self.presets), reverse=True))
@@ -140,6 +143,13 @@ class LoadedCloud:
                                    self.cache_pool or ByteBudget(self.cache_bytes),
                                    most=self.cache_bytes)
         self._layers = {}
+        if self.cloud.n >= PLANE_FROM_GRID_POINTS:
+            # the coarsest preset's moments give the plane (equal up to rounding), and
+            # its cells are the big cloud's first map: one pass over the points for both
+            self.plane = self.store.prepared(self.presets[0]).whole_plane()
+        else:
+            self.plane = whole_cloud_plane(self.cloud)
+        self.auto_axis = dominant_axis(self.plane.normal)
 
     def cropped(self, box: CropBox) -> LoadedCloud:
         """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``

@@ -58,6 +58,10 @@ SPACING_QUERIES = 5000
 TREE_POINTS = 2_000_000
 #: Largest point set counted per cell when refining the grid.
 COUNT_POINTS = 5_000_000
+#: Cells of the grid's box per counted point up to which the cells are counted in
+#: one array over the box (a bincount: the same counts as sorting the keys, several
+#: times faster; 2 x 8 bytes per point at most).
+DENSE_CELLS_PER_POINT = 2
 #: Refinement steps on the real grid.
 REFINE_STEPS = 4
 #: Readable mantissas the default grid is rounded up to.
@@ -74,7 +78,9 @@ def neighbour_distance(xyz: np.ndarray, *, k: int = SPACING_NEIGHBOUR) -> float:
     if xyz.shape[0] <= k:
         raise InputError(f"need more than {k} points to estimate the point spacing")
     require(xyz.shape[0] * 80.0, f"a neighbour search over {xyz.shape[0]:,} points")
-    tree = cKDTree(xyz)
+    # a sliding-midpoint tree without shrunk node boxes: 2.5x faster to build for the
+    # few thousand queries, the same (exact) neighbours
+    tree = cKDTree(xyz, balanced_tree=False, compact_nodes=False)
     step = max(1, xyz.shape[0] // SPACING_QUERIES)
     dist, _ = tree.query(xyz[::step], k=k + 1)
     value = float(np.median(dist[:, k]))
@@ -122,7 +128,12 @@ def _median_count(pts: np.ndarray, lo: np.ndarray, fraction: float, cell_size: f
     require(pts.shape[0] * 64.0, f"counting {pts.shape[0]:,} points per cell")
     keys = np.floor((pts - lo) / cell_size).astype(np.int64)
     dims = keys.max(axis=0) + 1
-    if float(np.prod(dims.astype(np.float64))) < 2.0**62:  # one int64 key per cell
+    cells = float(np.prod(dims.astype(np.float64)))
+    if cells <= DENSE_CELLS_PER_POINT * pts.shape[0]:  # a count per cell of the box
+        flat = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
+        counts = np.bincount(flat, minlength=int(cells))
+        counts = counts[counts > 0]
+    elif cells < 2.0**62:  # one int64 key per cell
         flat = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
         _, counts = np.unique(flat, return_counts=True)
     else:
