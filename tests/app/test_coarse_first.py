@@ -139,3 +139,30 @@ def test_a_small_cloud_shows_its_grid_at_once(app, cloud):
     stages = dict(next(r for r in app.worker.records if r.kind == "ShowJob").stages)
     assert "preview" not in stages and "grid" in stages
     assert "computing grid" not in app.host.status.content
+
+
+def test_a_big_clouds_plane_comes_from_its_coarse_first_grid(monkeypatch, cloud):
+    """From PLANE_FROM_GRID_POINTS the whole-cloud plane is combined from the coarsest
+    preset's cell moments (prepared once, for the plane and the coarse first map):
+    the plane of a pass over the points, up to rounding."""
+    from rough_viewer.app import cloud as cloud_mod
+    from rough_viewer.app.cloud import LoadedCloud
+    from rough_viewer.grid.planes import whole_cloud_plane
+
+    want = whole_cloud_plane(cloud)
+    monkeypatch.setattr(cloud_mod, "PLANE_FROM_GRID_POINTS", 1)
+    loaded = LoadedCloud(cloud, max_display=1000, presets=PRESETS)
+    assert ("prepared", 0.4) in loaded.store._cache and ("prepared", 0.1) not in loaded.store._cache
+    np.testing.assert_allclose(loaded.plane.normal, want.normal, atol=1e-12)
+    np.testing.assert_allclose(loaded.plane.centroid, want.centroid, rtol=1e-12)
+    assert loaded.auto_axis == "y"
+    # the finest preset is then indexed on its own; the coarse grid indexed alone holds
+    # the cells and points that coarsening the fine one gives
+    from rough_viewer.grid.roughness import coarsen_prepared
+
+    fine = loaded.prepared(0.1)
+    alone, made = loaded.prepared(0.4), coarsen_prepared(fine, 4)
+    assert alone is not made
+    np.testing.assert_array_equal(alone.index.ijk, made.index.ijk)
+    np.testing.assert_array_equal(alone.index.point_cell, made.index.point_cell)
+    np.testing.assert_allclose(alone.moments.s2, made.moments.s2, rtol=1e-7)  # round-off
