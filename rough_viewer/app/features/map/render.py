@@ -243,7 +243,7 @@ def _coarse_first(m: MapTab, run: Run, loaded: LoadedCloud,
     if m.overlay is None:
         host.scene.colour_by(colouring)
     host.session.shown = Shown(loaded, coarse, result, stats)
-    loaded.mark_shown(coarse)
+    loaded.mark_shown(coarse, host.session)
     fig = colour_bar_of(loaded, result, stats, coarse)
     m.binding.write(m.colour_bar, figure=fig, aspect=panel_aspect(fig))
     m.previews.append({"cell_size": coarse.cell_size, "for": settings.cell_size,
