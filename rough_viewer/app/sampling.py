@@ -54,8 +54,11 @@ def _keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, size: flo
     ``floor((p - lo) / size)`` per axis, clipped to ``dims``, flattened."""
     key = np.zeros(x.shape[0], dtype=np.int64)
     for axis, col in enumerate((x, y, z)):
-        i = np.floor((col - lo[axis]) / size).astype(np.int64)
-        np.clip(i, 0, dims[axis] - 1, out=i)
+        t = col - lo[axis]  # >= 0: lo is the minimum, so truncation is the floor
+        t /= size
+        i = t.astype(np.int64)
+        del t
+        np.minimum(i, dims[axis] - 1, out=i)
         if axis:
             key *= dims[axis]
         key += i
