@@ -96,6 +96,9 @@ def test_first_map_is_the_coarsest_preset_then_the_chosen_grid(big):
     # the first load's job: the coarse map is a stage of its own
     stages = dict(next(r for r in app.worker.records if r.kind == "ShowJob").stages)
     assert {"show", "preview", "grid", "colours"} <= set(stages)
+    # what the first frame did not wait for still ran: the chosen grid, then the panels
+    kinds = [r.kind for r in app.worker.records]
+    assert "PanelsJob" in kinds[kinds.index("ShowJob"):]
 
 
 def test_a_slow_grid_change_keeps_the_old_colours_until_the_new_are_ready(big, monkeypatch):
