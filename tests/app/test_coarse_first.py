@@ -169,3 +169,36 @@ def test_a_big_clouds_plane_comes_from_its_coarse_first_grid(monkeypatch, cloud)
     np.testing.assert_array_equal(alone.index.ijk, made.index.ijk)
     np.testing.assert_array_equal(alone.index.point_cell, made.index.point_cell)
     np.testing.assert_allclose(alone.moments.s2, made.moments.s2, rtol=1e-7)  # round-off
+
+
+def test_a_failed_chosen_grid_leaves_the_coarse_map_shown(recorded, cloud, monkeypatch):
+    """The chosen grid runs out of memory after the coarse map is up: the coarse map
+    stays the map shown, with the error, and the status line names it."""
+    from rough_viewer.app.gate import open_server
+    from rough_viewer.app.server import build_app
+
+    colourings, said = recorded
+    result = InMemoryStore.result
+
+    def no_fine(self, settings, *, progress=None):
+        if settings.cell_size == 0.1:
+            raise MemoryError
+        return result(self, settings, progress=progress)
+
+    monkeypatch.setattr(InMemoryStore, "result", no_fine)
+    server, _ = open_server("127.0.0.1", 0, token=None, log=False)
+    client = join(server)
+    app = build_app(server, cloud, prefetch=False, variogram=False, presets=PRESETS)
+    try:
+        assert app.wait_idle(60)
+        shown = app.session.shown
+        assert shown.settings.cell_size == 0.4 and shown.result is not None
+        assert app.map.grid.value == "0.4"  # the controls show what the points show
+        assert "not enough memory" in app.host.errors[-1]
+        assert "ODR, grid 0.4 m, axis y" in said[-1] and "computing" not in said[-1]
+        np.testing.assert_array_equal(
+            shown_colours(app), expected(shown.loaded, shown.settings, shown.loaded.display_index))
+    finally:
+        client.close()
+        app.stop()
+        server.stop()

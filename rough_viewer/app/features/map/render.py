@@ -175,6 +175,8 @@ def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
     t0 = time.perf_counter()
     result = _grid(m, run, loaded, settings, cached, waiting)
     if result is None:
+        if waiting is not None:  # what is on the points stays the map shown
+            _say_shown(m, coarse=waiting.startswith(COARSE))
         return
     yield "grid"
     stats = map_stats(result, settings)
@@ -249,6 +251,19 @@ def _coarse_first(m: MapTab, run: Run, loaded: LoadedCloud,
     m.previews.append({"cell_size": coarse.cell_size, "for": settings.cell_size,
                        "at": time.perf_counter()})
     return f"{COARSE}, grid {u.size_text(coarse.cell_size)}"
+
+
+def _say_shown(m: MapTab, *, coarse: bool) -> None:
+    """The status line of the map shown, once the grid computed after it failed; a
+    coarse first map becomes the map shown (the features that follow the map follow
+    it)."""
+    shown = m.host.session.shown
+    if shown.result is None or shown.stats is None:
+        return
+    m.host.say(status_text(shown.loaded, shown.result, shown.stats, shown.settings, 0.0,
+                           True, budget=m.host.scene.budget))
+    if coarse:
+        m.host.rendered()
 
 
 def pending_text(loaded: LoadedCloud, waiting: str, settings: MapSettings,
