@@ -170,11 +170,16 @@ def one_class(n: int) -> dict[str, float]:
         counts = [len(t.messages) for t in tabs]
         tabs[0].set_value("Model", "OLS" if want[0][0] == "ODR" else "ODR")
         time.sleep(3.0)
-        leaked = sum(len(t.messages) - c for t, c in zip(tabs[1:], counts[1:], strict=True))
-        kinds = sorted({str(m.get("type")) for t, c in zip(tabs[1:], counts[1:], strict=True)
-                        for m in t.messages[c:]})
-        if kinds:
-            print(f"  the other tabs received: {', '.join(kinds)}", flush=True)
+        first_ids = {m.get("uuid") for m in tabs[0].messages if m.get("uuid")}
+        later = [m for t, c in zip(tabs[1:], counts[1:], strict=True) for m in t.messages[c:]]
+        leaked = sum(1 for m in later if m.get("uuid") in first_ids)
+        theirs = [m for m in later if m.get("uuid") not in first_ids]
+        if theirs:  # their own work that was still going on (panels, idle precomputing)
+            what = sorted({f"{m.get('type')} {sorted((m.get('updates') or {}).keys())}"
+                           for m in theirs})
+            print(f"  the other tabs' own messages meanwhile: {len(theirs)} "
+                  f"({'; '.join(what)})",
+                  flush=True)
         # the teacher sends a view
         teacher = ProtocolClient(server.port, server.teacher_path, timeout=30.0)
         wait(lambda: status_of(teacher) is not None, 300, "the teacher's first map")

@@ -155,7 +155,7 @@ def _load_cloud(args: argparse.Namespace) -> PointCloud:
         from rough_viewer.cli._inputs import input_paths, load_inputs
 
         paths = input_paths(args)
-        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True,
+        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=False,
                                           max_points=args.file_max_points), paths, args)
     try:
         from rough_viewer.synthetic import demos
@@ -421,7 +421,7 @@ def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointClo
     from rough_viewer.cli._inputs import load_inputs
 
     return _with_scanners(
-        load_inputs([opened.input_path], units=opened.view.units, quiet=True,
+        load_inputs([opened.input_path], units=opened.view.units, quiet=False,
                     max_points=args.file_max_points),
         [opened.input_path], args)
 

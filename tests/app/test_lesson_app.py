@@ -271,7 +271,9 @@ def test_every_classroom_tab_has_its_own_lesson_and_the_teacher_sees_the_answers
         assert "α 0°" in rb.app.host.status.content.replace("\\", "")
         assert not any("Correct" in str(m) for m in b.messages[since:])  # nothing of A's
         lines = {s.client_id: (s.lesson, s.answers) for s in room.students()}
-        assert lines[ra.client_id] == ("tilted-board 2/5", "1 of 1 right")
+        given = fa.lesson_status().answers[0].given
+        assert lines[ra.client_id] == ("tilted-board 2/5",
+                                       f"step 1: {given:.3g} ✓ (1 of 1 right)")
         assert lines[rb.client_id] == ("tilted-board 1/5", "")
         assert isinstance(fb, LessonReporter) and fb.lesson_status().answers == ()
     finally:
