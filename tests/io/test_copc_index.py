@@ -224,3 +224,64 @@ def test_oversized_buckets_split_again_by_streaming(campaign, tmp_path):
     Z = np.concatenate([np.asarray(s.Z) for s in ins])
     np.testing.assert_array_equal(_sorted(np.asarray(got.X), np.asarray(got.Y),
                                           np.asarray(got.Z))[0], _sorted(X, Y, Z)[0])
+
+
+def _plain(path, n, seed, *, scale, offset, fmt=3, version="1.2", crs=None):
+    rng = np.random.default_rng(seed)
+    h = laspy.LasHeader(point_format=fmt, version=version)
+    h.scales = np.full(3, scale)
+    h.offsets = np.asarray(offset, float)
+    if crs is not None:
+        h.add_crs(crs)
+    las = laspy.LasData(h)
+    las.x = 300 + rng.random(n) * 5
+    las.y = 600 + rng.random(n) * 5
+    las.z = 20 + rng.random(n)
+    las.write(path)
+    return laspy.read(path)
+
+
+def test_geotiff_keys_become_wkt(tmp_path):
+    pyproj = pytest.importorskip("pyproj")
+    from rough_viewer.io.formats.crs import read_crs
+
+    src = tmp_path / "keys.laz"
+    _plain(src, 5000, 5, scale=0.001, offset=(300, 600, 0), crs=pyproj.CRS.from_epsg(26911))
+    assert read_crs(src).source == "geotiff"
+    out = tmp_path / "k.copc.laz"
+    assert main(["index", str(src), "--out", str(out), "--quiet"]) == 0
+    got = read_crs(out)
+    assert (got.source, got.epsg) == ("wkt", 26911)
+    with laspy.open(out) as r:
+        assert r.header.point_format.id == 7 and r.header.global_encoding.wkt  # 3: colours
+
+
+def test_different_scales_requantized_to_the_finest(tmp_path):
+    a = _plain(tmp_path / "a.laz", 4000, 6, scale=0.01, offset=(300, 600, 0))
+    b = _plain(tmp_path / "b.laz", 4000, 7, scale=0.001, offset=(0, 0, 0))
+    out = tmp_path / "o.copc.laz"
+    assert main(["index", str(tmp_path / "a.laz"), str(tmp_path / "b.laz"), "--out", str(out),
+                 "--quiet"]) == 0
+    with laspy.CopcReader.open(out) as r:
+        np.testing.assert_allclose(r.header.scales, 0.001)
+        got = r.query()
+    # both inputs lie on the 1 mm lattice: the output holds the same points exactly
+    want = [np.round((np.r_[a[k], b[k]] - o) / 0.001).astype(np.int64)
+            for k, o in (("x", 300), ("y", 600), ("z", 0))]
+    have = [np.asarray(got[k], np.int64) for k in "XYZ"]
+    np.testing.assert_array_equal(_sorted(*have)[0], _sorted(*want)[0])
+
+
+def test_header_bounds_that_lie_refused(tmp_path, capsys):
+    src = tmp_path / "lies.las"
+    _plain(src, 2000, 8, scale=0.001, offset=(300, 600, 0))
+    data = bytearray(src.read_bytes())
+    import struct
+
+    struct.pack_into("<d", data, 179, 301.0)  # max x: points reach 305
+    src.write_bytes(bytes(data))
+    out = tmp_path / "o.copc.laz"
+    assert main(["index", str(src), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bounding box" in err[0]
+    assert not out.exists()

@@ -130,6 +130,26 @@ def _header_facts(path: Path) -> dict:
         }
 
 
+def _wkt_of_epsg(path: Path, vlrs: list[RawVlr]) -> tuple[list[RawVlr], bool]:
+    """The CRS VLRs for a 1.4 file: a WKT one kept as it is; GeoTIFF keys that give
+    an EPSG code replaced by its WKT (pyproj); else the VLRs as they are."""
+    if any(v.user_id == "LASF_Projection" and v.record_id == 2112 for v in vlrs):
+        return vlrs, True
+    from rough_viewer.io.formats.crs import read_crs
+
+    epsg = read_crs(path).epsg
+    try:
+        import pyproj
+
+        wkt = pyproj.CRS.from_epsg(epsg).to_wkt("WKT1_GDAL") if epsg else None
+    except Exception:  # no pyproj, an unknown code: keep the keys
+        wkt = None
+    if not wkt:
+        return vlrs, False
+    kept = [v for v in vlrs if v.user_id != "LASF_Projection"]
+    return [*kept, RawVlr("LASF_Projection", 2112, "OGC WKT", wkt.encode() + b"\0")], True
+
+
 def plan_index(paths: list[Path], *, memory_bytes: int, workers: int = 1) -> Plan:
     """Read the inputs' headers and size the two passes for ``memory_bytes``.
 
@@ -166,10 +186,11 @@ def plan_index(paths: list[Path], *, memory_bytes: int, workers: int = 1) -> Pla
     depth = 0
     while total > bucket // 2 * 4 ** depth and depth < MAX_BUCKET_DEPTH:
         depth += 1
+    vlrs, wkt = _wkt_of_epsg(paths[0], first["vlrs"])
     return Plan(paths=tuple(paths), total=total, point_format=fmt, extra_bytes=first["extra"],
                 scales=scales, offsets=offsets, same_grid=same,  # type: ignore[arg-type]
-                cube=octree.cube_of_bounds(mins, maxs), vlrs=tuple(first["vlrs"]),
-                wkt=first["wkt"], bucket_depth=depth, chunk_points=chunk,
+                cube=octree.cube_of_bounds(mins, maxs), vlrs=tuple(vlrs),
+                wkt=wkt, bucket_depth=depth, chunk_points=chunk,
                 bucket_points=bucket, workers=workers)
 
 
@@ -281,6 +302,20 @@ class _Totals:
         br = self.by_return if self.by_return is not None else np.zeros(15, int)
         return Summary(self.count, tuple(lo), tuple(hi), tuple(int(v) for v in br),  # type: ignore[arg-type]
                        gps)
+
+
+def _check_inside(totals: _Totals, plan: Plan) -> None:
+    """Refuse points outside the cube made from the headers' bounding boxes (a
+    header that lies): their nodes would not hold them."""
+    if totals.lo is None or totals.hi is None:
+        return
+    sc, of = np.asarray(plan.scales), np.asarray(plan.offsets)
+    lo, hi = totals.lo * sc + of, totals.hi * sc + of
+    c, h = np.asarray(plan.cube.center), plan.cube.halfsize
+    if (lo < c - h).any() or (hi > c + h).any():
+        raise InputError("points lie outside the bounding boxes the input headers declare "
+                         "(a damaged header); rewrite the files (e.g. with PDAL or lasinfo "
+                         "-repair_bb) and index again")
 
 
 def _read_inputs(plan: Plan) -> Iterator[np.ndarray]:
@@ -398,6 +433,7 @@ def build_copc(plan: Plan, out: Path, *, work_dir: Path,
             split(raw, lattice(raw, plan), 0, plan.bucket_depth, taken, nodes, buckets)
             tick(raw.shape[0])
         del taken
+        _check_inside(totals, plan)
         total[0] = 2 * totals.count
         writer = CopcWriter(out, plan.point_format, plan.record_size, plan.scales,
                             plan.offsets, plan.cube, list(plan.vlrs), plan.wkt)

@@ -147,15 +147,40 @@ class Subtree:
     counts: np.ndarray
 
 
+def _spread(v: np.ndarray) -> np.ndarray:
+    """Bits of 21-bit integers spread to every third bit (for :func:`morton`)."""
+    v = v.astype(np.uint64) & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def morton(q: np.ndarray) -> np.ndarray:
+    """Morton (Z-order) codes, uint64, of lattice points (N, 3): sorted by them, the
+    points of every node and of every level-of-detail cell, at every depth, are
+    contiguous (their keys are prefixes of the code: ``code >> 3 * (BITS - depth)``)."""
+    return (_spread(q[:, 0]) << np.uint64(2)) | (_spread(q[:, 1]) << np.uint64(1)) | _spread(
+        q[:, 2])
+
+
+def _runs(sorted_codes: np.ndarray) -> np.ndarray:
+    """Start of each run of equal values (True where a run starts)."""
+    starts = np.ones(sorted_codes.size, bool)
+    if sorted_codes.size > 1:
+        np.not_equal(sorted_codes[1:], sorted_codes[:-1], out=starts[1:])
+    return starts
+
+
 def build_subtree(q: np.ndarray, depth: int, *, leaf_points: int,
                   max_depth: int = MAX_DEPTH) -> Subtree:
     """Place the points of one depth-``depth`` region (all in one node at that
     depth) in that node and its descendants.
 
     A node whose region holds at most ``leaf_points`` points, or at
-    ``max_depth``, keeps them all; another keeps the first point of each
-    level-of-detail cell and passes the rest to its children. Vectorised over all
-    nodes of a depth at once.
+    ``max_depth``, keeps them all; another keeps one point of each level-of-detail
+    cell (the first in Morton order) and passes the rest to its children.
+    Vectorised over all nodes of a depth at once, after one sort by Morton code.
 
     Parameters
     ----------
@@ -168,30 +193,36 @@ def build_subtree(q: np.ndarray, depth: int, *, leaf_points: int,
     max_depth : int
         Deepest node (at most :data:`MAX_DEPTH`).
     """
-    n = q.shape[0]
-    node_of = np.full(n, -1, np.int64)  # packed node code, per point
-    depth_of = np.zeros(n, np.int64)
-    active = np.arange(n)
+    codes = morton(q)
+    active = np.argsort(codes, kind="stable")
+    codes = codes[active]
+    parts: list[np.ndarray] = []
+    depths: list[np.ndarray] = []
+    keys: list[np.ndarray] = []
+    counts: list[np.ndarray] = []
     d = depth
     while active.size:
-        qa = q[active]
-        nodes = node_codes(qa, d)
-        uniq, inverse, counts = np.unique(nodes, return_inverse=True, return_counts=True)
-        leaf = (counts <= leaf_points)[inverse] | (d >= max_depth)
-        keep = leaf.copy()
-        inner = ~leaf
-        if inner.any():
-            chosen, _ = first_per_cell(cell_codes(qa[inner], d))
-            keep[np.flatnonzero(inner)[chosen]] = True
-        node_of[active[keep]] = nodes[keep]
-        depth_of[active[keep]] = d
-        active = active[~keep]
+        node = codes >> np.uint64(3 * (BITS - d))
+        starts = _runs(node)
+        first = np.flatnonzero(starts)
+        sizes = np.diff(np.r_[first, node.size])
+        leaf = np.repeat((sizes <= leaf_points) | (d >= max_depth), sizes)
+        if d < max_depth:
+            cell = codes >> np.uint64(3 * (BITS - d - GRID_BITS))
+            keep = leaf | _runs(cell)
+        else:
+            keep = leaf
+        taken = active[keep]
+        node_starts = _runs(node[keep])
+        parts.append(taken)
+        idx = np.flatnonzero(node_starts)
+        counts.append(np.diff(np.r_[idx, taken.size]))
+        keys.append(q[taken[idx]] >> (BITS - d))
+        depths.append(np.full(idx.size, d, np.int64))
+        active, codes = active[~keep], codes[~keep]
         d += 1
-    order = np.lexsort((node_of, depth_of))
-    sorted_depth = depth_of[order]
-    sorted_node = node_of[order]
-    starts = np.flatnonzero(np.r_[True, (np.diff(sorted_depth) != 0)
-                                  | (np.diff(sorted_node) != 0)]) if n else np.zeros(0, int)
-    counts = np.diff(np.r_[starts, n])
-    return Subtree(order=order, depths=sorted_depth[starts], keys=unpack(sorted_node[starts]),
-                   counts=counts)
+    if not parts:
+        return Subtree(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3), np.int64),
+                       np.zeros(0, np.int64))
+    return Subtree(order=np.concatenate(parts), depths=np.concatenate(depths),
+                   keys=np.concatenate(keys), counts=np.concatenate(counts))
