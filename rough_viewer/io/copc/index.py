@@ -188,7 +188,7 @@ def plan_index(paths: list[Path], *, memory_bytes: int, workers: int = 1) -> Pla
         depth += 1
     vlrs, wkt = _wkt_of_epsg(paths[0], first["vlrs"])
     return Plan(paths=tuple(paths), total=total, point_format=fmt, extra_bytes=first["extra"],
-                scales=scales, offsets=offsets, same_grid=same,  # type: ignore[arg-type]
+                scales=scales, offsets=offsets, same_grid=same,
                 cube=octree.cube_of_bounds(mins, maxs), vlrs=tuple(vlrs),
                 wkt=wkt, bucket_depth=depth, chunk_points=chunk,
                 bucket_points=bucket, workers=workers)
@@ -300,7 +300,7 @@ class _Totals:
         hi = (self.hi if self.hi is not None else np.zeros(3)) * sc + of
         gps = self.gps if self.count else (0.0, 0.0)
         br = self.by_return if self.by_return is not None else np.zeros(15, int)
-        return Summary(self.count, tuple(lo), tuple(hi), tuple(int(v) for v in br),  # type: ignore[arg-type]
+        return Summary(self.count, tuple(lo), tuple(hi), tuple(int(v) for v in br),
                        gps)
 
 
