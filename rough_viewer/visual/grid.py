@@ -16,7 +16,7 @@ grid sizes, lags and face-map axes in that unit, roughness in
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -254,6 +254,18 @@ def _threshold_lines(fig: go.Figure, threshold: float | None,
         fig.update_layout(yaxis2={"overlaying": "y", "range": [0, 1], "visible": False})
 
 
+def variogram_method_note(variograms: Iterable[Semivariogram], *, prefix: str = "") -> str:
+    """How the semivariograms were computed, for a subtitle or a report: empty when
+    all are exact over every pair, else the sampled pairs and what the bars mean."""
+    sampled = [vg for vg in variograms if not vg.exact and vg.sampled is not None]
+    if not sampled:
+        return ""
+    least = min(int(vg.sampled.min()) if vg.sampled.size else 0 for vg in sampled)
+    most = max(int(vg.sampled.sum()) for vg in sampled)
+    return (f"{prefix}estimated from a random sample of {most:,} cell pairs (at least "
+            f"{least:,} a lag), bars ±1 standard error")
+
+
 def variogram_figure(
     variograms: Mapping[str, Semivariogram],
     *,
@@ -280,16 +292,23 @@ def variogram_figure(
         vg = variograms[name]
         space = "in the face plane" if vg.space == "plane" else "3-D"
         y = vg.gamma_normalised if normalised else vg.gamma / f**2
+        se = vg.gamma_normalised_se if normalised else (
+            None if vg.gamma_se is None else vg.gamma_se / f**2)
         fig.add_trace(go.Scatter(
             x=vg.lag / f, y=y, mode="markers", name=label(name),
             marker={"symbol": MAP_MARKERS.get(name, "circle-open"), "color": MAP_COLOURS.get(name),
                     "size": 7},
-            customdata=vg.pairs,
+            error_y=(None if se is None else {"type": "data", "array": se, "visible": True,
+                                              "thickness": 1, "width": 0}),
+            customdata=vg.pairs if se is None else np.column_stack([vg.pairs, vg.sampled, se]),
             hovertemplate=(label(name) + f": lag %{{x:.3f}} {u}, γ %{{y:.4g}}, "
-                           "%{customdata:,} pairs<extra></extra>"),
+                           + ("%{customdata:,} pairs" if se is None else
+                              "± %{customdata[2]:.2g} (1 SE), %{customdata[1]:,} of "
+                              "≈%{customdata[0]:,} pairs sampled") + "<extra></extra>"),
         ))
     limited = sorted({vg.max_lag / f for vg in variograms.values() if vg.lag_limited})
     note = (f" · lags up to {limited[0]:g} {u} (memory)" if limited else "")
+    note += variogram_method_note(variograms.values(), prefix=" · ")
     title = _title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
                    grid_size=grid_size, axis=axis, n_points=n_points, models=names,
                    unit=unit)
