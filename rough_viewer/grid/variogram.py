@@ -64,7 +64,7 @@ mean of the cells falling into one pixel), and the same estimator runs on that
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
@@ -718,6 +718,18 @@ def _assemble(cells: _Cells, plan: VariogramPlan, w: float, space: Space,
         space=space,
         lag_limited=plan.lag_limited,
     )
+
+
+def sampling_note(variograms: Iterable[Semivariogram], *, prefix: str = "") -> str:
+    """How the semivariograms were computed, for a subtitle or a report: empty when
+    all are exact over every pair, else the sampled pairs and what the bars mean."""
+    sampled = [vg.sampled for vg in variograms if not vg.exact and vg.sampled is not None]
+    if not sampled:
+        return ""
+    least = min(int(n.min()) if n.size else 0 for n in sampled)
+    most = max(int(n.sum()) for n in sampled)
+    return (f"{prefix}estimated from a random sample of {most:,} cell pairs (at least "
+            f"{least:,} a lag), bars ±1 standard error")
 
 
 def face_semivariogram(

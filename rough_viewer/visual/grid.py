@@ -16,7 +16,7 @@ grid sizes, lags and face-map axes in that unit, roughness in
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -24,7 +24,7 @@ import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
 from rough_viewer.grid.maps import FaceMaps
-from rough_viewer.grid.variogram import Semivariogram
+from rough_viewer.grid.variogram import Semivariogram, sampling_note
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import (
     MAP_COLOURS,
@@ -254,18 +254,6 @@ def _threshold_lines(fig: go.Figure, threshold: float | None,
         fig.update_layout(yaxis2={"overlaying": "y", "range": [0, 1], "visible": False})
 
 
-def variogram_method_note(variograms: Iterable[Semivariogram], *, prefix: str = "") -> str:
-    """How the semivariograms were computed, for a subtitle or a report: empty when
-    all are exact over every pair, else the sampled pairs and what the bars mean."""
-    sampled = [vg for vg in variograms if not vg.exact and vg.sampled is not None]
-    if not sampled:
-        return ""
-    least = min(int(vg.sampled.min()) if vg.sampled.size else 0 for vg in sampled)
-    most = max(int(vg.sampled.sum()) for vg in sampled)
-    return (f"{prefix}estimated from a random sample of {most:,} cell pairs (at least "
-            f"{least:,} a lag), bars ±1 standard error")
-
-
 def variogram_figure(
     variograms: Mapping[str, Semivariogram],
     *,
@@ -308,7 +296,7 @@ def variogram_figure(
         ))
     limited = sorted({vg.max_lag / f for vg in variograms.values() if vg.lag_limited})
     note = (f" · lags up to {limited[0]:g} {u} (memory)" if limited else "")
-    note += variogram_method_note(variograms.values(), prefix=" · ")
+    note += sampling_note(variograms.values(), prefix=" · ")
     title = _title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
                    grid_size=grid_size, axis=axis, n_points=n_points, models=names,
                    unit=unit)
