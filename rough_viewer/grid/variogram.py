@@ -149,12 +149,13 @@ BYTES_PER_CELL = 96
 MEMORY_BUDGET = 512 * 2**20
 #: Estimated seconds per FFT frame cell and block (eight real transforms), per lag
 #: vector and block (extracting and binning the window) and per ordered pair of the
-#: direct count (measured on the project's 2-core machine): the cost model that
-#: picks the method and, with the default lag, keeps a map's estimate under
-#: :data:`TIME_BUDGET` seconds.
+#: direct count (NumPy; compiled on all threads: 1.4-6e-9 measured), on the
+#: project's 2-core machine: the cost model that picks the method. ``TIME_BUDGET``:
+#: the default seconds of :func:`semivariogram` (``time_budget``).
 FRAME_SECONDS = 4.0e-7
 LAG_SECONDS = 1.5e-6
 PAIR_SECONDS = 1.2e-8
+PAIR_SECONDS_COMPILED = 3.0e-9
 TIME_BUDGET = 3.0
 #: Memory of one chunk of the direct pair count, bytes.
 PAIR_CHUNK_BYTES = 32 * 2**20
@@ -489,6 +490,20 @@ def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
                          samples=samples, proposals=proposals)
 
 
+def _pair_seconds(m: int, n_maps: int, time_budget: float) -> float:
+    """Cost-model seconds of the direct count of ``n_maps`` maps of ``m`` cells:
+    :data:`PAIR_SECONDS_COMPILED` a pair where the compiled count will run (asked
+    only when that rate could fit ``time_budget``: asking may load the kernels,
+    which the count would load anyway), else :data:`PAIR_SECONDS`."""
+    ordered = float(m) * max(m - 1, 0) * n_maps
+    if PAIR_SECONDS_COMPILED * ordered <= time_budget:
+        from rough_viewer.grid import fast
+
+        if fast.resolve_engine("auto", n_points=m * m) == "numba":
+            return PAIR_SECONDS_COMPILED * ordered
+    return PAIR_SECONDS * ordered
+
+
 def _cheapest_exact(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
                     n_maps: int, time_budget: float) -> VariogramPlan | None:
     """The cheaper exact plan at the full lag for ``n_maps`` maps (seconds for all
@@ -497,7 +512,7 @@ def _cheapest_exact(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
     in a frame) is below the direct count's and the budget."""
     m = int(cells.z.size)
     budget = _memory_budget()
-    pairs_s = PAIR_SECONDS * m * max(m - 1, 0) * n_maps
+    pairs_s = _pair_seconds(m, n_maps, time_budget)
     pairs = VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=False, reach=(),
                           block=(), frame=(), n_blocks=0,
                           bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m, method="pairs",

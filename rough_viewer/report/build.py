@@ -23,7 +23,7 @@ from rough_viewer.grid.roughness import EXACT_FIT, GridRoughness, exact_fit_text
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
-from rough_viewer.grid.variogram import TIME_BUDGET, Semivariogram, semivariograms
+from rough_viewer.grid.variogram import Semivariogram, semivariograms
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.scanner.positions import NO_POSITIONS, cloud_scanners
 from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
@@ -55,7 +55,7 @@ FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 ROUGHNESS_STAGES = 4
 """Progress stages reported by ``grid_roughness``."""
 STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 2
-VARIOGRAM_BUDGET = TIME_BUDGET
+VARIOGRAM_BUDGET = 10.0
 """Cost-model seconds the semivariograms of one grid size may take (all maps):
 exact where that fits, else estimated from a sample of pairs sized to it
 (:func:`rough_viewer.grid.variogram.semivariograms`), so a fine grid's report does

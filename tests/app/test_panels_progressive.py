@@ -19,6 +19,7 @@ def _too_dear_for_exact(monkeypatch):
 
     monkeypatch.setattr(variogram, "FRAME_SECONDS", 1.0)
     monkeypatch.setattr(variogram, "PAIR_SECONDS", 1.0)
+    monkeypatch.setattr(variogram, "PAIR_SECONDS_COMPILED", 1.0)
     monkeypatch.setattr(sample, "CHUNK", 1 << 13)
 
 

@@ -104,6 +104,7 @@ def test_maps_share_the_sample_and_keep_their_own_missing_cells_and_extent():
 
 
 def test_the_method_follows_the_cost_estimate(monkeypatch):
+    monkeypatch.setenv("ROUGH_VIEWER_ENGINE", "numpy")  # the NumPy count's cost
     # few cells: the direct count (M^2 pairs) is cheap
     rng = np.random.default_rng(0)
     few = np.argwhere(rng.random((30, 30)) < 0.5)
@@ -127,6 +128,14 @@ def test_the_method_follows_the_cost_estimate(monkeypatch):
     assert plan_semivariogram(full, np.ones(len(full)), 0.1).method == "sample"
     monkeypatch.setattr(vmod, "PAIR_SECONDS", 1e-15)
     assert plan_semivariogram(full, np.ones(len(full)), 0.1).method == "pairs"
+    # the compiled count's rate where it runs
+    from rough_viewer.grid import fast
+
+    if fast.available():
+        monkeypatch.setenv("ROUGH_VIEWER_ENGINE", "numba")
+        plan = plan_semivariogram(few, np.ones(len(few)), 0.1)
+        assert plan.seconds == pytest.approx(
+            vmod.PAIR_SECONDS_COMPILED * len(few) * (len(few) - 1))
 
 
 def test_a_fine_face_is_planned_fast_and_sampled_within_its_memory_estimate():

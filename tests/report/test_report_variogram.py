@@ -23,6 +23,7 @@ def test_a_grid_too_dear_for_exact_is_sampled_and_the_report_says_so(monkeypatch
     # the cost model of a fine grid of a big scan: neither exact method fits
     monkeypatch.setattr(variogram, "FRAME_SECONDS", 1.0)
     monkeypatch.setattr(variogram, "PAIR_SECONDS", 1.0)
+    monkeypatch.setattr(variogram, "PAIR_SECONDS_COMPILED", 1.0)
     report = build_report(cloud, [0.25])
     data = report_json(report)
     result = grid_roughness(cloud, 0.25)
