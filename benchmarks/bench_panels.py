@@ -10,7 +10,8 @@ Prints, medians of several runs:
 - the report's semivariograms of one grid (all four maps, ``VARIOGRAM_BUDGET``);
 - what the exact methods would cost by the same cost model (not run: minutes).
 
-Run: PYTHONPATH=. python benchmarks/bench_panels.py [--points 20000000] [--runs 5]
+Run: PYTHONPATH=. flock /tmp/rough_viewer_heavy.lock python benchmarks/bench_panels.py
+[--points 20000000] [--grid 0.07] [--runs 5]
 """
 
 from __future__ import annotations

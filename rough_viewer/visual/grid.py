@@ -288,7 +288,8 @@ def variogram_figure(
                     "size": 7},
             error_y=(None if se is None else {"type": "data", "array": se, "visible": True,
                                               "thickness": 1, "width": 0}),
-            customdata=vg.pairs if se is None else np.column_stack([vg.pairs, vg.sampled, se]),
+            customdata=(vg.pairs if se is None or vg.sampled is None
+                        else np.column_stack([vg.pairs, vg.sampled, se])),
             hovertemplate=(label(name) + f": lag %{{x:.3f}} {u}, γ %{{y:.4g}}, "
                            + ("%{customdata:,} pairs" if se is None else
                               "± %{customdata[2]:.2g} (1 SE), %{customdata[1]:,} of "

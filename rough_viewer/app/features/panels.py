@@ -128,7 +128,7 @@ def variograms(
     turned True first. ``progress`` is passed on (called between FFT blocks and
     sample chunks; an exception from it stops the computation). Raises InputError
     when a semivariogram cannot fit in memory."""
-    values = {m: analysed_values(result, m, keep_outliers=keep_outliers) for m in maps}
+    values = {str(m): analysed_values(result, m, keep_outliers=keep_outliers) for m in maps}
     if is_stale():
         return None
     return semivariograms(result.ijk, values, result.grid.cell_size, time_budget=time_budget,
@@ -276,10 +276,10 @@ class PanelsJob(Job[Host]):
         p, session, s = self.p, ctx.session, self.settings
         loaded = session.shown.loaded
         unit = loaded.units.unit
-        results = []
-        for g in loaded.presets:
+        results, presets = [], loaded.presets or ()
+        for g in presets:
             results.append(loaded.cell_result(s.with_(cell_size=g), progress=run.progress()))
-            if len(results) > 1 or len(loaded.presets) == 1:  # a line once it has two
+            if len(results) > 1 or len(presets) == 1:  # a line once it has two
                 p.binding.show_figure(p.face_scales, face_scales_figure_of(
                     results, threshold=s.threshold, unit=unit, keep_outliers=s.keep_outliers))
             yield f"grid {g:g}"
