@@ -1,4 +1,6 @@
-"""Experimental semivariograms of per-cell maps, exact over all pairs of cells.
+"""Experimental semivariograms of per-cell maps: exact over all pairs of cells where
+that fits a time budget, else estimated from a random sample of pairs with a
+standard error per lag.
 
 Definition (2011 paper, Fig. 4; docs/science.md section 1)::
 
@@ -41,8 +43,17 @@ two patches far apart cost two small frames, not the box between them.
 
 Few cells spread far apart are cheaper counted directly: every ordered pair, a
 chunk of rows at a time (time ``O(M^2)``, memory :data:`PAIR_CHUNK_BYTES` plus
-``O(M)``), exact at any lag. A cost model (:data:`FRAME_SECONDS`,
-:data:`PAIR_SECONDS`) picks the cheaper method; ``method=`` forces one.
+``O(M)``), exact at any lag.
+
+Choice of method (``method="auto"``), by a cost estimate, never by a timing: the
+direct count costs ``PAIR_SECONDS x M^2`` (:data:`PAIR_SECONDS_COMPILED` where the
+compiled count runs), the tiled FFT its blocks' frame volumes
+(:data:`FRAME_SECONDS`, :data:`LAG_SECONDS`; only where its memory fits). The
+cheaper runs when its estimate for all the maps of the call fits ``time_budget``
+seconds (default :data:`TIME_BUDGET`); beyond, the semivariogram is estimated at the
+full lag from a random sample of cell pairs sized to that budget, with a standard
+error per bin (:mod:`rough_viewer.grid.variogram_sample`; ``method="sample"``).
+``method=`` forces one.
 
 Cost of the FFT: time ``O(blocks x F log F)``, memory ``O(F + W + M)`` with ``F`` the frame
 volume (about :data:`BYTES_PER_FRAME_CELL` bytes per frame cell at the peak), ``W =
@@ -50,11 +61,11 @@ prod(2 r_a + 1)`` the lag window (:data:`BYTES_PER_LAG` bytes each) and ``M`` th
 cells with a value. Both follow the occupied cells and the largest lag, never the
 distance between far-apart parts. The estimate is :func:`plan_semivariogram`'s
 ``bytes``; it is checked with :func:`rough_viewer.memory.require` before anything
-large is allocated. With the default ``max_lag`` the lag is shortened (halved until
-the estimate fits :data:`MEMORY_BUDGET`, the available memory and
-:data:`TIME_BUDGET` seconds, unless the direct count fits that time at full lag) and
-the result says so (``lag_limited``); a ``max_lag`` given explicitly is never shortened, and
-one that cannot fit is an InputError.
+large is allocated. With ``method="fft"`` forced and the default ``max_lag`` the
+lag is shortened (halved until the estimate fits :data:`MEMORY_BUDGET`, the
+available memory and the time budget) and the result says so (``lag_limited``); a
+``max_lag`` given explicitly is never shortened, and one that cannot fit is an
+InputError.
 
 The face-plane variant (:func:`face_semivariogram`) is the 2-D analogue: cell
 centres are projected onto the plane of the face, rasterised at the cell size (the
@@ -379,8 +390,9 @@ def _sampled(union: _Cells, maps: Mapping[str, np.ndarray], plan: VariogramPlan,
         ok = np.isfinite(z)
         zs.append(np.where(ok, z, np.nan))
         n = int(np.count_nonzero(ok))
-        extent = max((int(c[ok].max()) - int(c[ok].min()) + 1 for c in union.idx.T),
-                     default=1) if n else 1
+        extent = 1 if n == 0 else max(union.shape) if n == ok.size else max(
+            int(c.max(where=ok, initial=0)) - int(c.min(where=ok, initial=2**62)) + 1
+            for c in union.idx.T)
         stats.append((n, float(np.var(z[ok])) if n else float("nan"), extent))
     sums = sampled_sums(union.idx, union.shape, zs, plan.n_bins, g / w, plan.samples,
                         plan.proposals, seed=seed, progress=progress)
@@ -756,6 +768,8 @@ def face_semivariogram(
     bin_width: float | None = None,
     max_lag: float | None = None,
     workers: int | None = None,
+    time_budget: float | None = None,
+    seed: int = 0,
     progress: ProgressFn | None = None,
 ) -> Semivariogram:
     """Semivariogram in the plane of the face (the 2-D analogue of :func:`semivariogram`).
@@ -776,8 +790,8 @@ def face_semivariogram(
     plane : Plane
         Anything with ``centroid`` (3,) and unit ``normal`` (3,), e.g. the whole-cloud
         ODR plane (:class:`rough_viewer.grid.planes.PlaneFit`).
-    bin_width, max_lag, workers, progress
-        As for :func:`semivariogram`.
+    bin_width, max_lag, workers, time_budget, seed, progress
+        As for :func:`semivariogram` (exact or sampled by the same cost model).
     """
     values = np.asarray(values, dtype=np.float64)
     ok = np.isfinite(values)
@@ -789,5 +803,5 @@ def face_semivariogram(
     mean = total / np.maximum(count, 1)
     return semivariogram(
         pix, mean, cell_size, bin_width=bin_width, max_lag=max_lag, space="plane",
-        workers=workers, progress=progress,
+        workers=workers, time_budget=time_budget, seed=seed, progress=progress,
     )

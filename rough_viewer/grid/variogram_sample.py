@@ -65,8 +65,9 @@ UNIFORM_SHARE = 0.5
 MIN_SAMPLES = 50_000
 #: Share of stage 2's proposals spent on the pilot round.
 PILOT_SHARE = 0.2
-#: Bytes per cell of the lookup: sorted keys, their order, indices.
-BYTES_PER_CELL = 48
+#: Bytes per cell: sorted keys and their order, the table of indices (and 8 bytes
+#: a map).
+BYTES_PER_CELL = 96
 #: Largest occupancy bitmap of the occupied box (one bit a cell) that stage 2
 #: builds to skip the sorted-key lookup of most proposals, bytes.
 BITMAP_BYTES = 32 * 2**20
@@ -105,17 +106,22 @@ def sample_seconds(samples: int, proposals: int, n_maps: int) -> float:
 
 def sample_bytes(n_cells: int, n_maps: int = 1) -> float:
     """Estimated peak memory of a sampled estimate, bytes."""
-    return ((BYTES_PER_CELL + 16 * n_maps) * n_cells + BITMAP_BYTES
-            + (BYTES_PER_DRAW + 16 * n_maps) * CHUNK)
+    return ((BYTES_PER_CELL + 24 * n_maps) * n_cells + BITMAP_BYTES
+            + (BYTES_PER_DRAW + 48 * n_maps) * CHUNK)
 
 
 class _Accumulator:
     """Sums per map and bin, and the geometry counts of each stage."""
 
-    def __init__(self, zs: Sequence[np.ndarray], n_bins: int) -> None:
+    def __init__(self, idx: np.ndarray, zs: Sequence[np.ndarray], n_bins: int) -> None:
         self.zs = zs
-        self.stacked = np.ascontiguousarray(np.column_stack(zs)) if zs else np.zeros((0, 0))
-        """(M, maps): one gather brings a pair's values of every map."""
+        self.dims = int(idx.shape[1])
+        self.table = np.empty((idx.shape[0], self.dims + len(zs)))
+        """(M, D + maps): a cell's indices (exact as floats) and its value in every
+        map, one row: one random gather brings all of a pair's end."""
+        self.table[:, :self.dims] = idx
+        for m, z in enumerate(zs):
+            self.table[:, self.dims + m] = z
         size = n_bins + 1
         self.n = [np.zeros(size) for _ in zs]
         self.s1 = [np.zeros(size) for _ in zs]
@@ -126,7 +132,11 @@ class _Accumulator:
             into: list[np.ndarray] | None = None) -> None:
         """Add the pairs ``(i, j)`` of bins ``k`` to every map (and the per-map pair
         counts of this stage to ``into``)."""
-        diff = self.stacked[i] - self.stacked[j]
+        self.add_diff(k, self.table[i, self.dims:] - self.table[j, self.dims:], into)
+
+    def add_diff(self, k: np.ndarray, diff: np.ndarray,
+                 into: list[np.ndarray] | None = None) -> None:
+        """Add pairs of bins ``k`` whose value differences are ``diff`` (n, maps)."""
         for m in range(len(self.zs)):
             e = diff[:, m]
             ok = np.isfinite(e)
@@ -172,26 +182,24 @@ def sampled_sums(
     """
     m = int(idx.shape[0])
     rng = np.random.default_rng(seed)
-    acc = _Accumulator(zs, n_bins)
+    acc = _Accumulator(idx, zs, n_bins)
     total = samples + proposals
     if progress is not None:
         progress(0, total)
     geo_a = np.zeros(acc.size)
     from_a = [np.zeros(acc.size) for _ in zs]
-    cols = [np.ascontiguousarray(idx[:, a], dtype=np.int32) for a in range(idx.shape[1])]
+    dims = acc.dims
     done = 0
     for start in range(0, samples, CHUNK):
         n = min(CHUNK, samples - start)
         i = rng.integers(0, m, n)
         j = (i + 1 + rng.integers(0, m - 1, n)) % m
-        d2 = np.zeros(n, dtype=np.int64)
-        for c in cols:
-            t = (c[i] - c[j]).astype(np.int64)
-            d2 += t * t
-        k = np.floor(np.sqrt(d2.astype(np.float64)) * scale + 0.5).astype(np.int64)
+        diff = acc.table[i] - acc.table[j]  # index differences: whole numbers, exact
+        d2 = np.einsum("ij,ij->i", diff[:, :dims], diff[:, :dims])
+        k = np.floor(np.sqrt(d2) * scale + 0.5).astype(np.int64)
         keep = (k >= 1) & (k <= n_bins)
         geo_a += np.bincount(k[keep], minlength=acc.size)
-        acc.add(i[keep], j[keep], k[keep], from_a)
+        acc.add_diff(k[keep], diff[keep, dims:], from_a)
         done += n
         if progress is not None:
             progress(done, total)
