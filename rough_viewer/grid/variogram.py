@@ -744,6 +744,7 @@ def _assemble(cells: _Cells, plan: VariogramPlan, w: float, space: Space,
         max_lag=float(plan.max_lag),
         space=space,
         lag_limited=plan.lag_limited,
+        method="pairs" if plan.method == "pairs" else "fft",
     )
 
 

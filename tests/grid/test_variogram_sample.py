@@ -45,6 +45,8 @@ def test_exact_methods_equal_brute_force_on_anisotropic_boxes_with_holes(method,
         vg = semivariogram(occupied, values, g, bin_width=w, method=method)
         pairs, gamma = brute_force(occupied, values, g, w=w)
         assert vg.exact and vg.gamma_se is None and vg.sampled is None
+        plan = plan_semivariogram(occupied, values, g, bin_width=w, method=method)
+        assert vg.method == plan.method == (method if method != "auto" else plan.method)
         np.testing.assert_array_equal(vg.pairs, pairs)
         np.testing.assert_allclose(vg.gamma, gamma, rtol=1e-9)
 
