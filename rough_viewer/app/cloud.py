@@ -351,8 +351,13 @@ class LoadedCloud:
                     progress: ProgressFn | None = None) -> GridRoughness:
         """:meth:`result` without its point-to-cell map, cached apart
         (:meth:`rough_viewer.app.store.InMemoryStore.cell_result`)."""
-        with self._computing(("cells", settings.grid_key), progress):
-            return self.store.cell_result(settings, progress=progress)
+        with self.store.one_at_a_time(("cells", settings.grid_key)):
+            if self.store.has_cells(settings):
+                return self.store.cell_result(settings, progress=progress)
+            # made from the full result: under its flight, so that a map and a panel
+            # asking for the same grid at once compute it once
+            with self._computing(("result", settings.grid_key), progress):
+                return self.store.cell_result(settings, progress=progress)
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached;

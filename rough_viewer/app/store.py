@@ -60,6 +60,10 @@ class CloudStore(Protocol):
         """The grid result of ``settings`` is at hand."""
         ...
 
+    def has_cells(self, settings: MapSettings) -> bool:
+        """The per-cell figures of ``settings`` (:meth:`cell_result`) are at hand."""
+        ...
+
     def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
         """The grid of ``settings`` is on screen in ``owner``'s analysis (kept while
         others come and go)."""
@@ -211,6 +215,10 @@ class InMemoryStore:
 
     def is_cached(self, settings: MapSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
+
+    def has_cells(self, settings: MapSettings) -> bool:
+        """:meth:`cell_result` of ``settings`` is at hand."""
+        return ("cells", settings.grid_key) in self._cache
 
     def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
         """The grid of ``settings`` is on screen in ``owner``'s analysis (None: the

@@ -10,6 +10,7 @@ Contract::
         [--classroom]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
+        [--lesson NAME|FILE.toml]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
@@ -52,6 +53,10 @@ all: :mod:`rough_viewer.app.classroom`) and prints two addresses, each on its ow
 line with its own token: ``open URL`` for the students and ``teacher URL`` for the
 teacher, whose tab also has the Class tab (the students listed, their views, "Send
 my view to everyone", "Follow me").
+
+``--lesson NAME`` (a bundled lesson or a lesson file, docs/lessons.md, checked before
+the server opens) opens the Lesson tab on it: once the first map is shown, its first
+step sets its scene up (with ``--classroom``, in every tab, each then on its own).
 """
 
 from __future__ import annotations
@@ -83,6 +88,7 @@ if TYPE_CHECKING:
     from rough_viewer.app.server import App
     from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.views import OpenedView
+    from rough_viewer.lessons import Lesson
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -133,6 +139,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="every browser tab its own analysis of the one cloud (grids computed "
                    "once for all); prints the students' address (open ...) and the "
                    "teacher's (teacher ...), whose tab has the Class tab")
+    p.add_argument("--lesson", metavar="NAME",
+                   help="open the Lesson tab on a lesson: a bundled one (tilted-board, "
+                   "turned-wall, scale; `rough-viewer lesson --list`) or a lesson file "
+                   "(.toml, docs/lessons.md)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     add_scanner_options(p)
     p.set_defaults(func=run)
@@ -145,7 +155,7 @@ def _load_cloud(args: argparse.Namespace) -> PointCloud:
         from rough_viewer.cli._inputs import input_paths, load_inputs
 
         paths = input_paths(args)
-        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True,
+        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=False,
                                           max_points=args.file_max_points), paths, args)
     try:
         from rough_viewer.synthetic import demos
@@ -222,6 +232,7 @@ def _run(args: argparse.Namespace) -> int:
     opened = _open_view(args)
     data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
+    args.lesson_data = _lesson(args)  # a bad lesson file is refused before the server opens
     server, gate = _open_server(args)
     url = gate.url(args.host, server.get_port())
     waiting = _say_listening(server, url, _what_loads(args, opened))
@@ -262,6 +273,15 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _lesson(args: argparse.Namespace) -> Lesson | None:
+    """The lesson of ``--lesson`` read and checked (None without it)."""
+    if not getattr(args, "lesson", None):
+        return None
+    from rough_viewer.lessons import find_lesson
+
+    return find_lesson(args.lesson)
+
+
 def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
                         ) -> tuple[PointCloud, MapSettings]:
     """The cloud to show and its first map's settings (the saved view's, ``--grid``
@@ -293,7 +313,8 @@ def _app_options(args: argparse.Namespace, cloud: PointCloud, data_dir: Path) ->
     return {"max_display": min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
             "point_budget": args.point_budget, "max_points": args.file_max_points,
             "data_dir": data_dir, "max_upload_mb": args.max_upload_mb, "units": args.units,
-            "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit)}
+            "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit),
+            "lesson": getattr(args, "lesson_data", None)}
 
 
 def _start_app(args: argparse.Namespace, server: viser.ViserServer, cloud: PointCloud,
@@ -400,7 +421,7 @@ def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointClo
     from rough_viewer.cli._inputs import load_inputs
 
     return _with_scanners(
-        load_inputs([opened.input_path], units=opened.view.units, quiet=True,
+        load_inputs([opened.input_path], units=opened.view.units, quiet=False,
                     max_points=args.file_max_points),
         [opened.input_path], args)
 
