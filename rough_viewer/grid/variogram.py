@@ -495,10 +495,10 @@ def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
             return best
     from rough_viewer.grid.variogram_sample import sample_bytes, sample_seconds, sample_sizes
 
-    samples, proposals = sample_sizes(time_budget, n_maps)
+    samples, proposals = sample_sizes(time_budget, n_maps, m)
     return VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=False, reach=(), block=(),
                          frame=(), n_blocks=0, bytes=sample_bytes(m, n_maps), method="sample",
-                         seconds=sample_seconds(samples, proposals, n_maps),
+                         seconds=sample_seconds(samples, proposals, n_maps, m),
                          samples=samples, proposals=proposals)
 
 

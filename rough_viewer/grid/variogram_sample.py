@@ -33,9 +33,9 @@ Several maps of one grid (same cells, different values and missing cells) share
 the draws: a pair enters a map's estimate when both its cells have a value there,
 which keeps it uniform over that map's pairs.
 
-Cost: time ``O(samples + proposals)`` (about :data:`PAIR_SAMPLE_SECONDS` and
-:data:`PROPOSAL_SECONDS` each, plus :data:`MAP_SAMPLE_SECONDS` per map), memory
-``O(M + CHUNK)``.
+Cost: time ``O(M + samples + proposals)`` (about :data:`CELL_SAMPLE_SECONDS` a cell,
+:data:`PAIR_SAMPLE_SECONDS` and :data:`PROPOSAL_SECONDS` each, plus
+:data:`MAP_SAMPLE_SECONDS` per map), memory ``O(M + CHUNK)``.
 """
 
 from __future__ import annotations
@@ -54,11 +54,14 @@ _Tick = Callable[[int], None]
 #: progress call (where a cancelled job stops) after each chunk.
 CHUNK = 1 << 18
 #: Estimated seconds per uniformly drawn pair (draw, distance, bin), per lag-vector
-#: proposal (draw, bin, sorted-key lookup) and per pair and map (values, sums);
-#: measured on the project's 2-core machine (benchmarks/bench_variogram.py).
-PAIR_SAMPLE_SECONDS = 6.0e-8
-PROPOSAL_SECONDS = 4.0e-7
-MAP_SAMPLE_SECONDS = 2.0e-8
+#: proposal (draw, bin, bitmap and sorted-key lookup) and per pair and map (values,
+#: sums); measured on the project's 2-core machine, load average about 3
+#: (benchmarks/bench_panels.py).
+PAIR_SAMPLE_SECONDS = 7.0e-8
+PROPOSAL_SECONDS = 1.5e-7
+MAP_SAMPLE_SECONDS = 4.0e-8
+#: Estimated fixed seconds per cell (the cells' table, sorted keys, bitmap).
+CELL_SAMPLE_SECONDS = 1.2e-7
 #: Share of the time budget spent on stage 1 (uniform pairs); the rest on stage 2.
 UNIFORM_SHARE = 0.5
 #: Fewest pairs and proposals a sampled estimate draws, whatever the budget.
@@ -89,19 +92,22 @@ class SampledSums:
     """(K,) estimated number of unordered pairs in the bin."""
 
 
-def sample_sizes(budget_s: float, n_maps: int) -> tuple[int, int]:
+def sample_sizes(budget_s: float, n_maps: int, n_cells: int = 0) -> tuple[int, int]:
     """Stage-1 pairs and stage-2 proposals that fit ``budget_s`` seconds of the
-    cost model for ``n_maps`` maps (at least :data:`MIN_SAMPLES` each)."""
+    cost model for ``n_maps`` maps of ``n_cells`` cells (the fixed cost per cell
+    first; at least :data:`MIN_SAMPLES` each)."""
     per_map = MAP_SAMPLE_SECONDS * max(n_maps, 1)
-    samples = int(UNIFORM_SHARE * budget_s / (PAIR_SAMPLE_SECONDS + per_map))
-    proposals = int((1.0 - UNIFORM_SHARE) * budget_s / (PROPOSAL_SECONDS + per_map))
+    left = max(budget_s - CELL_SAMPLE_SECONDS * n_cells, 0.0)
+    samples = int(UNIFORM_SHARE * left / (PAIR_SAMPLE_SECONDS + per_map))
+    proposals = int((1.0 - UNIFORM_SHARE) * left / (PROPOSAL_SECONDS + per_map))
     return max(samples, MIN_SAMPLES), max(proposals, MIN_SAMPLES)
 
 
-def sample_seconds(samples: int, proposals: int, n_maps: int) -> float:
+def sample_seconds(samples: int, proposals: int, n_maps: int, n_cells: int = 0) -> float:
     """Cost-model seconds of a sampled estimate."""
     per_map = MAP_SAMPLE_SECONDS * max(n_maps, 1)
-    return samples * (PAIR_SAMPLE_SECONDS + per_map) + proposals * (PROPOSAL_SECONDS + per_map)
+    return (CELL_SAMPLE_SECONDS * n_cells + samples * (PAIR_SAMPLE_SECONDS + per_map)
+            + proposals * (PROPOSAL_SECONDS + per_map))
 
 
 def sample_bytes(n_cells: int, n_maps: int = 1) -> float:
@@ -132,16 +138,19 @@ class _Accumulator:
             into: list[np.ndarray] | None = None) -> None:
         """Add the pairs ``(i, j)`` of bins ``k`` to every map (and the per-map pair
         counts of this stage to ``into``)."""
-        self.add_diff(k, self.table[i, self.dims:] - self.table[j, self.dims:], into)
+        rows_i = np.take(self.table, i, axis=0)  # take: ~5x faster than fancy rows
+        rows_j = np.take(self.table, j, axis=0)
+        self.add_diff(k, rows_i[:, self.dims:] - rows_j[:, self.dims:], into)
 
     def add_diff(self, k: np.ndarray, diff: np.ndarray,
                  into: list[np.ndarray] | None = None) -> None:
-        """Add pairs of bins ``k`` whose value differences are ``diff`` (n, maps)."""
+        """Add pairs of bins ``k`` whose value differences are ``diff`` (n, maps);
+        bin 0 takes what counts nowhere (pairs out of range, missing values)."""
         for m in range(len(self.zs)):
             e = diff[:, m]
             ok = np.isfinite(e)
-            kk = k[ok]
-            half = 0.5 * e[ok] * e[ok]
+            kk = np.where(ok, k, 0)
+            half = np.where(ok, 0.5 * e * e, 0.0)
             cnt = np.bincount(kk, minlength=self.size).astype(np.float64)
             self.n[m] += cnt
             self.s1[m] += np.bincount(kk, weights=half, minlength=self.size)
@@ -194,12 +203,15 @@ def sampled_sums(
         n = min(CHUNK, samples - start)
         i = rng.integers(0, m, n)
         j = (i + 1 + rng.integers(0, m - 1, n)) % m
-        diff = acc.table[i] - acc.table[j]  # index differences: whole numbers, exact
-        d2 = np.einsum("ij,ij->i", diff[:, :dims], diff[:, :dims])
+        # index differences (whole numbers, exact) and value differences, one row
+        diff = np.take(acc.table, i, axis=0) - np.take(acc.table, j, axis=0)
+        d2 = diff[:, 0] * diff[:, 0]
+        for a in range(1, dims):
+            d2 += diff[:, a] * diff[:, a]
         k = np.floor(np.sqrt(d2) * scale + 0.5).astype(np.int64)
-        keep = (k >= 1) & (k <= n_bins)
-        geo_a += np.bincount(k[keep], minlength=acc.size)
-        acc.add_diff(k[keep], diff[keep, dims:], from_a)
+        k[k > n_bins] = 0  # bin 0: beyond the last lag (sliced off at the end)
+        geo_a += np.bincount(k, minlength=acc.size)
+        acc.add_diff(k, diff[:, dims:], from_a)
         done += n
         if progress is not None:
             progress(done, total)
@@ -311,7 +323,7 @@ class _ShortLags:
         h = np.rint(u).astype(np.int64)
         kh = np.floor(np.sqrt((h * h).sum(axis=1).astype(np.float64)) * self.scale + 0.5)
         i = self.rng.integers(0, self.idx.shape[0], n)
-        t = self.idx[i] + h
+        t = np.take(self.idx, i, axis=0) + h
         ok = (kh.astype(np.int64) == kk) & np.all((t >= 0) & (t < self.shape), axis=1)
         i, t, kk = i[ok], t[ok], kk[ok]
         key = np.ravel_multi_index(t.T, tuple(int(s) for s in self.shape))
