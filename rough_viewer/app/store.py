@@ -277,7 +277,9 @@ class InMemoryStore:
 
         Sizes that are integer multiples of the finest preset
         are coarsened from the fine grid, which shares their origin (the
-        bounding-box minimum), instead of indexing the points again.
+        bounding-box minimum), instead of indexing the points again; the presets
+        coarser than the finest are indexed on their own while the fine grid is not
+        at hand (the coarse first map of a cloud needs no fine grid).
         ``progress(0, 1)`` is called before each pass over the points (so a
         cancelled job stops there).
         """
@@ -286,7 +288,10 @@ class InMemoryStore:
         if isinstance(hit, PreparedGrid):
             return hit
         factor = cell_size / self.presets[-1]
-        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
+        fine_key = ("prepared", round(float(self.presets[-1]), 9))
+        coarse_alone = key[1] in {round(float(g), 9) for g in self.presets} \
+            and fine_key not in self._cache
+        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1 and not coarse_alone:
             fine = self.prepared(self.presets[-1], progress=progress)
             prep = coarsen_prepared(fine, int(round(factor)))
         else:

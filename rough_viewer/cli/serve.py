@@ -68,7 +68,7 @@ import io
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -79,6 +79,9 @@ from rough_viewer.cli._options import add_axis, add_units
 from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
+
+Progress = Callable[[int, int, int], None]
+"""``progress(file index, done, total)`` of the input's reading."""
 
 if TYPE_CHECKING:
     import viser
@@ -148,7 +151,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _load_cloud(args: argparse.Namespace) -> PointCloud:
+def _load_cloud(args: argparse.Namespace, also: Progress | None = None) -> PointCloud:
     if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
     if args.inputs:
@@ -156,7 +159,8 @@ def _load_cloud(args: argparse.Namespace) -> PointCloud:
 
         paths = input_paths(args)
         return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=False,
-                                          max_points=args.file_max_points), paths, args)
+                                          max_points=args.file_max_points, also=also),
+                              paths, args)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
@@ -240,7 +244,8 @@ def _run(args: argparse.Namespace) -> int:
     previous = _stop_on_terminate()
     try:
         _start_background()
-        cloud, settings = _cloud_and_settings(args, opened)
+        cloud, settings = _cloud_and_settings(
+            args, opened, _page_progress(waiting, _what_loads(args, opened)))
         waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
         n_points = cloud.n
         if args.classroom:
@@ -256,9 +261,11 @@ def _run(args: argparse.Namespace) -> int:
             app = _start_app(args, server, cloud, settings, data_dir)
             del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
             waiting.remove()
-            app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened is not None:
+                app.wait_idle(timeout=None if not args.no_block else 120.0)
                 _apply_opened_view(app, opened, args)
+            else:  # the first map is ready: the panels and the rest come after
+                _wait_first_map(app, timeout=None if not args.no_block else 120.0)
             print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
             _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
@@ -282,8 +289,35 @@ def _lesson(args: argparse.Namespace) -> Lesson | None:
     return find_lesson(args.lesson)
 
 
-def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
-                        ) -> tuple[PointCloud, MapSettings]:
+def _page_progress(waiting: viser.GuiMarkdownHandle, what: str) -> Progress:
+    """The waiting page's line told how far the reading is (at most twice a second)."""
+    last = [0.0]
+
+    def tell(i: int, done: int, total: int) -> None:
+        now = time.monotonic()
+        if total <= 0 or (now - last[0] < 0.5 and done < total):
+            return
+        last[0] = now
+        file = f" (file {i + 1})" if i else ""
+        waiting.content = (f"**Reading {_markdown_text(what)}{file}: "
+                           f"{min(100.0, 100.0 * done / total):.0f} %…** the map appears when "
+                           "the cloud is read and its first grid computed.")
+
+    return tell
+
+
+def _wait_first_map(app: App, timeout: float | None) -> None:
+    """Until the app has coloured its first map (or has nothing left to do: a map it
+    could not make is an error line), not for the panels that follow it."""
+    end = None if timeout is None else time.monotonic() + timeout
+    while not app.map.timings and app.worker.busy:
+        if end is not None and time.monotonic() > end:
+            return
+        time.sleep(0.05)
+
+
+def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
+                        also: Progress | None = None) -> tuple[PointCloud, MapSettings]:
     """The cloud to show and its first map's settings (the saved view's, ``--grid``
     in the input's unit, else the cloud's default grid: its finest preset)."""
     from rough_viewer.app.cloud import grid_presets
@@ -291,7 +325,7 @@ def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
     from rough_viewer.vocabulary import UNIT_METRES
 
     settings: MapSettings | None = opened.settings if opened is not None else None
-    cloud = _read_cloud(args, opened)
+    cloud = _read_cloud(args, opened, also)
     if opened is None and args.grid is not None:
         # --grid is in the input's unit (--units, else its CRS's, else m)
         settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
@@ -413,16 +447,17 @@ def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, Gate]:
     return server, gate
 
 
-def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointCloud:
+def _read_cloud(args: argparse.Namespace, opened: OpenedView | None,
+                also: Progress | None = None) -> PointCloud:
     """The cloud to show: the saved view's input, else INPUT or the demo, with the
-    scanner options applied."""
+    scanner options applied (``also(i, done, total)``: the reading's progress)."""
     if opened is None:
-        return _load_cloud(args)
+        return _load_cloud(args, also)
     from rough_viewer.cli._inputs import load_inputs
 
     return _with_scanners(
         load_inputs([opened.input_path], units=opened.view.units, quiet=False,
-                    max_points=args.file_max_points),
+                    max_points=args.file_max_points, also=also),
         [opened.input_path], args)
 
 
