@@ -261,9 +261,11 @@ def _run(args: argparse.Namespace) -> int:
             app = _start_app(args, server, cloud, settings, data_dir)
             del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
             waiting.remove()
-            app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened is not None:
+                app.wait_idle(timeout=None if not args.no_block else 120.0)
                 _apply_opened_view(app, opened, args)
+            else:  # the first map is ready: the panels and the rest come after
+                _wait_first_map(app, timeout=None if not args.no_block else 120.0)
             print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
             _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
@@ -302,6 +304,16 @@ def _page_progress(waiting: viser.GuiMarkdownHandle, what: str) -> Progress:
                            "the cloud is read and its first grid computed.")
 
     return tell
+
+
+def _wait_first_map(app: App, timeout: float | None) -> None:
+    """Until the app has coloured its first map (or has nothing left to do: a map it
+    could not make is an error line), not for the panels that follow it."""
+    end = None if timeout is None else time.monotonic() + timeout
+    while not app.map.timings and app.worker.busy:
+        if end is not None and time.monotonic() > end:
+            return
+        time.sleep(0.05)
 
 
 def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
