@@ -285,3 +285,27 @@ def test_header_bounds_that_lie_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bounding box" in err[0]
     assert not out.exists()
+
+
+def test_workers_write_the_same_points(campaign, tmp_path):
+    d, _, out = campaign
+    par = tmp_path / "par.copc.laz"
+    assert main(["index", str(d / "[abc].laz"), "--out", str(par), "--memory", "8MB",
+                 "--workers", "2", "--quiet"]) == 0
+    with laspy.CopcReader.open(par) as r1, laspy.CopcReader.open(out) as r2:
+        assert len(r1.root_page.entries) > 8  # several buckets on the workers
+        a, b = r1.query().array, r2.query().array
+    # the workers' smaller buckets give other nodes, with the same records in them
+    oa = np.lexsort((a["gps_time"], a["Z"], a["Y"], a["X"]))
+    ob = np.lexsort((b["gps_time"], b["Z"], b["Y"], b["X"]))
+    assert a.dtype == b.dtype and np.array_equal(a[oa], b[ob])
+
+
+def test_memory_too_small_refused(campaign, tmp_path, capsys):
+    d, _, _ = campaign
+    out = tmp_path / "o.copc.laz"
+    assert main(["index", str(d / "a.laz"), "--out", str(out), "--memory", "1MB",
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--memory" in err[0] and "too small" in err[0]
+    assert list(tmp_path.iterdir()) == []
