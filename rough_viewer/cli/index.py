@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "nodes, read by QGIS, PDAL, Potree and laspy) of every point of the inputs. Two "
         "passes: the inputs are streamed in chunks into bucket files beside --out "
         "(one uncompressed copy of the points on disk, ~30-40 bytes a point), then each "
-        "bucket's octree is built in memory and compressed. Peak memory about --memory "
+        "bucket's octree is built in memory and compressed. Peak memory at most about --memory "
         "plus the interpreter (~150 MB a process).")
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="LAS/LAZ files and quoted globs (\"scans/*.laz\"), one cloud "

@@ -309,3 +309,13 @@ def test_memory_too_small_refused(campaign, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--memory" in err[0] and "too small" in err[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_no_points_refused(tmp_path, capsys):
+    src = tmp_path / "empty.laz"
+    _plain(src, 0, 9, scale=0.001, offset=(0, 0, 0))
+    out = tmp_path / "o.copc.laz"
+    assert main(["index", str(src), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["rough-viewer: error: the inputs hold no points"]
+    assert not out.exists()

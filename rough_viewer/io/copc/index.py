@@ -305,10 +305,10 @@ class _Totals:
 
 
 def _check_inside(totals: _Totals, plan: Plan) -> None:
-    """Refuse points outside the cube made from the headers' bounding boxes (a
-    header that lies): their nodes would not hold them."""
+    """Refuse inputs without points, and points outside the cube made from the
+    headers' bounding boxes (a header that lies): their nodes would not hold them."""
     if totals.lo is None or totals.hi is None:
-        return
+        raise InputError("the inputs hold no points")
     sc, of = np.asarray(plan.scales), np.asarray(plan.offsets)
     lo, hi = totals.lo * sc + of, totals.hi * sc + of
     c, h = np.asarray(plan.cube.center), plan.cube.halfsize
@@ -473,9 +473,14 @@ def _write_buckets(writer: CopcWriter, plan: Plan, final: list[tuple[Path, int]]
     import multiprocessing
 
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(plan.workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(plan,)) as pool:
+    pool = ProcessPoolExecutor(plan.workers, mp_context=ctx, initializer=_init_worker,
+                               initargs=(plan,))
+    try:
         _emit(writer, pool.map(_build_bucket, jobs), tick)
+    except BaseException:  # an error or Ctrl-C: drop the buckets not started
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown()
 
 
 def _emit(writer: CopcWriter, results: Iterator, tick: Callable[[int], None]) -> None:
