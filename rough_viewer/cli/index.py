@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.io.copc.index import build_copc, plan_index
+    from rough_viewer.io.copc.index import build_copc, check_disk, plan_index
     from rough_viewer.io.output import check_output_path, write_path_atomic
     from rough_viewer.scale.chunked import parse_bytes
     from rough_viewer.scale.sources import check_compatible
@@ -69,12 +69,13 @@ def run(args: argparse.Namespace) -> int:
     for w in check_compatible(paths):
         print(f"rough-viewer: warning: {w}", file=__import__("sys").stderr)
     plan = plan_index(paths, memory_bytes=memory, workers=args.workers)
+    folder = out.parent if str(out.parent) else Path(os.curdir)
+    check_disk(plan, folder)
     bar = None if args.quiet else ProgressBar("indexing", unit="pt")
     got = []
     try:
         write_path_atomic(out, lambda tmp: got.append(
-            build_copc(plan, tmp, work_dir=out.parent if out.parent != Path("") else Path(
-                os.curdir), progress=bar)))
+            build_copc(plan, tmp, work_dir=folder, progress=bar)))
     finally:
         if bar is not None:
             bar.close()

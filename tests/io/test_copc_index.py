@@ -319,3 +319,17 @@ def test_no_points_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["rough-viewer: error: the inputs hold no points"]
     assert not out.exists()
+
+
+def test_disk_too_small_refused(campaign, tmp_path, monkeypatch, capsys):
+    import shutil
+    from collections import namedtuple
+
+    d, _, _ = campaign
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda _p: usage(10**9, 10**9 - 10**5, 10**5))
+    out = tmp_path / "o.copc.laz"
+    assert main(["index", str(d / "a.laz"), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "disk" in err[0] and "0.0 GB free" in err[0]
+    assert list(tmp_path.iterdir()) == []

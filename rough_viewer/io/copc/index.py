@@ -95,6 +95,23 @@ def memory_per_point(record_size: int) -> tuple[int, int]:
     return 3 * record_size + 150, 2 * record_size + 200
 
 
+def disk_needed(plan: Plan) -> int:
+    """Bytes of disk the build needs beside the output, at its peak: the
+    uncompressed bucket copy of every point and the COPC file (counted at the
+    record size over 3, more than LAZ usually takes)."""
+    return plan.total * plan.record_size * 4 // 3
+
+
+def check_disk(plan: Plan, folder: Path) -> None:
+    """Refuse, in one line, a folder without room for :func:`disk_needed`."""
+    free = shutil.disk_usage(folder).free
+    need = disk_needed(plan)
+    if need > free:
+        raise InputError(f"index needs about {need / 1e9:.1f} GB of disk in {folder} "
+                         f"(one uncompressed copy of the points, then the file); "
+                         f"{free / 1e9:.1f} GB free")
+
+
 def _open(path: Path):
     import laspy
 
