@@ -326,6 +326,8 @@ def distance_sums(
     vectors: dict[str, tuple[np.ndarray, np.ndarray]],
     *,
     engine: Engine = "numpy",
+    lookup: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
 
@@ -340,6 +342,11 @@ def distance_sums(
         reference point relative to the cell centre, metres.
     engine : {"numpy", "numba", "auto"}
         As :func:`index_points`.
+    lookup : (K,) int64, optional
+        ``index.point_cell`` holds keys (or a finer grid's rows) rather than rows:
+        the row of point ``i`` is ``lookup[index.point_cell[i]]``, written to
+        ``rows`` on the way (``rows`` may be ``index.point_cell``: in place; the
+        compiled engine does it within its pass over the points).
 
     Returns
     -------
@@ -353,13 +360,21 @@ def distance_sums(
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
-    if fast.resolve_engine(engine) == "numba" and offsets:
+    if fast.resolve_engine(engine) == "numba" and (offsets or lookup is not None):
         names = list(offsets)
+        q = len(names)
         sums = fast.distance_sums(
             x, y, z, index.point_cell, index.grid.centres(index.ijk),
-            np.stack([offsets[k][0] for k in names]), np.stack([offsets[k][1] for k in names]),
-            _chunk_size(m_cells))
+            np.stack([offsets[k][0] for k in names]) if q else np.empty((0, m_cells, 3)),
+            np.stack([offsets[k][1] for k in names]) if q else np.empty((0, m_cells)),
+            _chunk_size(m_cells), lookup=lookup, rows=rows)
         return {k: (sums[q, 0], sums[q, 1]) for q, k in enumerate(names)}
+    if lookup is not None:
+        target = index.point_cell if rows is None else rows
+        for s in _chunks(int(x.shape[0]), 1 << 21):
+            target[s] = lookup[index.point_cell[s]]
+        index = CellIndex(grid=index.grid, ijk=index.ijk, counts=index.counts,
+                          point_cell=target)
     out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     for pc, local in _local_chunks(x, y, z, index):
         for name, (v, off) in offsets.items():

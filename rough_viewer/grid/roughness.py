@@ -56,7 +56,7 @@ from rough_viewer.grid.planes import (
     plane_from_scatter,
     whole_cloud_plane,
 )
-from rough_viewer.io.cloud import PointCloud, as_columns
+from rough_viewer.io.cloud import PointCloud, as_columns, known_bounds, note_bounds, on_faces
 from rough_viewer.vocabulary import (
     AXES,
     DEFAULT_MIN_POINTS,
@@ -154,20 +154,62 @@ def prepare_grid(
     """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments
     (``engine``: see :func:`~rough_viewer.grid.cells.index_points`)."""
     x, y, z = as_columns(cloud)
+    prepared, lookup = _prepare(x, y, z, cell_size, origin, engine)
+    if lookup is not None:  # the fused pass left keys: rows now
+        fast.relabel(prepared.index.point_cell, lookup)
+    return prepared
+
+
+def _prepare(x: np.ndarray, y: np.ndarray, z: np.ndarray, cell_size: float,
+             origin: np.ndarray | None, engine: Engine
+             ) -> tuple[PreparedGrid, np.ndarray | None]:
+    """:func:`prepare_grid`, but where the compiled engine's fused pass ran, the
+    prepared grid's ``point_cell`` still holds every point's key and the second value
+    is the lookup of their rows (:func:`~rough_viewer.grid.cells.distance_sums`
+    applies it on its pass); else None.
+
+    The bounds come from :func:`~rough_viewer.io.cloud.known_bounds` where a reader
+    or an earlier grid noted them, checked: the six points noted on the box's faces
+    must still lie there and the fused pass must find every point inside (the box
+    is then the points' bounds exactly); else they are taken again
+    (:func:`~rough_viewer.grid.fast.bounds_at`), so a noted box never changes a
+    result, and the bounds pass is saved for every grid after the first."""
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
-    engine = resolve_engine(engine, n_points=int(x.shape[0]))
-    if engine == "numba":
-        lo, hi = fast.bounds(x, y, z)
-    else:
+    n = int(x.shape[0])
+    engine = resolve_engine(engine, n_points=n)
+    if engine != "numba":
         lo = np.array([x.min(), y.min(), z.min()])
         hi = np.array([x.max(), y.max(), z.max()])
-    grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
-    if engine == "numba":
-        index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
-        return PreparedGrid(index=index, moments=moments)
-    index = index_points(x, y, z, grid, engine=engine)
-    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine))
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+        index = index_points(x, y, z, grid, engine=engine)
+        return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine)), None
+    hint = known_bounds(x, y, z)
+    if hint is not None and not on_faces(x, y, z, *hint):
+        hint = None  # changed in place since
+    if hint is not None:
+        lo, hi, at = hint
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+        if fast.fused_fits(grid.n_cells, n):
+            got = fast.fused_index_and_moments(x, y, z, grid, lo, hi)
+            if got.inside:  # and a point on each face: these points' bounds
+                return _from_fused(grid, got)
+    lo, hi, at = fast.bounds_at(x, y, z)
+    grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+    note_bounds(x, y, z, lo, hi, at)
+    if fast.fused_fits(grid.n_cells, n):
+        got = fast.fused_index_and_moments(x, y, z, grid, lo, hi)
+        if not got.inside:  # cannot happen: bounds_at saw these very points
+            raise AssertionError("the fused pass found points outside their bounds")
+        return _from_fused(grid, got)
+    index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
+    return PreparedGrid(index=index, moments=moments), None
+
+
+def _from_fused(grid: GridSpec, got: fast.Fused) -> tuple[PreparedGrid, np.ndarray]:
+    index = CellIndex(grid=grid, ijk=got.ijk, counts=got.counts, point_cell=got.key)
+    return (PreparedGrid(index=index, moments=CellMoments(counts=got.counts, s1=got.s1,
+                                                          s2=got.s2)), got.lookup)
 
 
 def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
@@ -353,8 +395,9 @@ def grid_roughness(
     engine = resolve_engine(engine, n_points=n_total)
 
     tick(0, 5)
+    lookup = None
     if prepared is None:
-        prepared = prepare_grid(cloud, cell_size, origin=origin, engine=engine)
+        prepared, lookup = _prepare(x, y, z, cell_size, origin, engine)
     elif prepared.index.point_cell.shape[0] != n_total:
         raise ValueError("prepared grid was made for another cloud")
     tick(2, 5)
@@ -363,7 +406,8 @@ def grid_roughness(
     planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t,
                          cell_size=prepared.cell_size)
     tick(3, 5)
-    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine)
+    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine,
+                         lookup=lookup)  # keys to rows on the way, in place
     tick(4, 5)
     index = prepared.index
     result = assemble_roughness(
