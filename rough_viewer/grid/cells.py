@@ -12,6 +12,7 @@ that UTM-sized coordinates lose no precision.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -390,8 +391,8 @@ def distance_sums(
 
 
 def coarsen(
-    index: CellIndex, moments: CellMoments, factor: int
-) -> tuple[CellIndex, CellMoments]:
+    index: CellIndex, moments: CellMoments, factor: int, *, gather: bool = True
+) -> Any:
     """The cell index and moments of the grid ``factor`` times coarser, from a finer
     grid's, without touching the point coordinates.
 
@@ -406,12 +407,19 @@ def coarsen(
         Of the fine grid (edge ``g``).
     factor : int
         Positive integer; the coarse edge is ``factor * g``.
+    gather : bool
+        Make the coarse ``point_cell`` (one gather over the points). With False it
+        is left empty and the fine-to-coarse row map is returned third: the row of
+        point ``i`` is ``parent[index.point_cell[i]]`` (for a pass over the points
+        to apply on its way, :func:`distance_sums`).
 
     Returns
     -------
-    CellIndex, CellMoments
+    CellIndex, CellMoments[, parent]
         Of the coarse grid; equal to :func:`index_points` and :func:`cell_moments` on
-        ``make_grid(bounds, factor * g, origin)`` up to rounding.
+        ``make_grid(bounds, factor * g, origin)`` up to rounding (the moments are
+        regrouped sums: the cells, counts and rows are the same, the sums agree to
+        round-off); ``parent`` (M_fine,) int64 with ``gather=False``.
     """
     k = int(factor)
     if k < 1 or k != factor:
@@ -441,11 +449,10 @@ def coarsen(
             w = (moments.s2[:, a, b] + s1_f[:, a] * delta[:, b] + delta[:, a] * s1_f[:, b]
                  + n * delta[:, a] * delta[:, b])
             s2[:, a, b] = np.bincount(parent, weights=w, minlength=m_c)
-    point_cell = parent[index.point_cell]
-    return (
-        CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
-        CellMoments(counts=counts, s1=s1, s2=s2),
-    )
+    point_cell = parent[index.point_cell] if gather else np.empty(0, dtype=np.int64)
+    out = (CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
+           CellMoments(counts=counts, s1=s1, s2=s2))
+    return out if gather else (*out, parent)
 
 
 def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *,

@@ -105,9 +105,37 @@ class PreparedGrid:
     it to a nested coarser grid without a pass over the points."""
 
     index: CellIndex
-    """Cell membership."""
+    """Cell membership (``index.point_cell`` empty where :attr:`parent` is set)."""
     moments: CellMoments
     """Cell-local moment sums."""
+    fine_cell: np.ndarray | None = None
+    """(N,) int64 every point's row on the finer grid this one was coarsened from
+    (:func:`coarsen_prepared`), or None."""
+    parent: np.ndarray | None = None
+    """(M_fine,) int64 the row on this grid of every row of the finer one, or None:
+    the row of point ``i`` is ``parent[fine_cell[i]]``, which the distance pass of
+    :func:`grid_roughness` applies on its way (so coarsening makes no pass over the
+    points of its own)."""
+
+    @property
+    def n_points(self) -> int:
+        """Number of points."""
+        rows = self.index.point_cell if self.fine_cell is None else self.fine_cell
+        return int(rows.shape[0])
+
+    def point_cell(self) -> np.ndarray:
+        """(N,) int64 every point's row (a gather over the points where this grid
+        was coarsened: :attr:`parent`)."""
+        if self.parent is None or self.fine_cell is None:
+            return self.index.point_cell
+        return self.parent[self.fine_cell]
+
+    def pass_index(self) -> tuple[CellIndex, np.ndarray | None]:
+        """The index a pass over the points takes, and the row lookup it applies on
+        its way (None: ``point_cell`` holds the rows already)."""
+        if self.parent is None or self.fine_cell is None:
+            return self.index, None
+        return replace(self.index, point_cell=self.fine_cell), self.parent
 
     @property
     def cell_size(self) -> float:
@@ -214,9 +242,17 @@ def _from_fused(grid: GridSpec, got: fast.Fused) -> tuple[PreparedGrid, np.ndarr
 
 def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
     """The prepared grid ``factor`` (a positive integer) times coarser, same origin,
-    computed from the fine one without a pass over the coordinates."""
-    index, moments = coarsen(prepared.index, prepared.moments, factor)
-    return PreparedGrid(index=index, moments=moments)
+    computed from the fine one's cells without a pass over the points: the coarse
+    sums from the fine sums, and every point's coarse row left to the distance pass
+    of :func:`grid_roughness` (:attr:`PreparedGrid.parent`), so that pass is the
+    only one over the points; :meth:`PreparedGrid.point_cell` makes the rows on
+    demand."""
+    fine_index, lookup = prepared.pass_index()
+    index, moments, parent = coarsen(fine_index, prepared.moments, factor, gather=False)
+    if lookup is not None:  # coarsened twice: compose the row maps
+        parent = parent[lookup]
+    return PreparedGrid(index=index, moments=moments, fine_cell=fine_index.point_cell,
+                        parent=parent)
 
 
 def map_values(holder: Any, name: MapName) -> np.ndarray:
@@ -398,7 +434,7 @@ def grid_roughness(
     lookup = None
     if prepared is None:
         prepared, lookup = _prepare(x, y, z, cell_size, origin, engine)
-    elif prepared.index.point_cell.shape[0] != n_total:
+    elif prepared.n_points != n_total:
         raise ValueError("prepared grid was made for another cloud")
     tick(2, 5)
     whole = prepared.whole_plane()
@@ -406,10 +442,18 @@ def grid_roughness(
     planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t,
                          cell_size=prepared.cell_size)
     tick(3, 5)
-    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine,
-                         lookup=lookup)  # keys to rows on the way, in place
-    tick(4, 5)
     index = prepared.index
+    rows = None
+    if lookup is None:
+        pass_index, lookup = prepared.pass_index()
+        if lookup is not None:  # coarsened: the rows are made on the way
+            rows = np.empty(n_total, dtype=np.int64)
+            index = replace(index, point_cell=rows)
+    else:
+        pass_index = index  # keys, made rows in place on the way
+    sums = distance_sums(x, y, z, pass_index, planes.distance_vectors(), engine=engine,
+                         lookup=lookup, rows=rows)
+    tick(4, 5)
     result = assemble_roughness(
         index.grid, index.ijk, planes, sums, whole=whole, axis=used_axis,
         axis_requested=axis, min_points=int(min_points), residual=residual, models=models_t,
