@@ -59,6 +59,9 @@ THREAD_COUNT_CELLS = 1 << 22
 #: points. Once loaded in a process they are used for any size.
 AUTO_MIN_POINTS = 3_000_000
 
+#: The interpreter's switch interval, seconds, while :func:`preload` loads the kernels.
+PRELOAD_SWITCH_S = 2e-4
+
 _lock = threading.RLock()
 _loaded: dict[str, Any] = {}
 _failure: list[str] = []
@@ -220,8 +223,16 @@ def preload() -> None:
         return
 
     def load() -> None:
-        with contextlib.suppress(InputError):
-            _kernels()
+        # numba's loading holds the interpreter lock for long stretches: a reader on
+        # the main thread, which takes the lock back between its NumPy calls, would
+        # wait up to the switch interval (5 ms) each time; 0.2 ms while this runs
+        before = sys.getswitchinterval()
+        sys.setswitchinterval(min(before, PRELOAD_SWITCH_S))
+        try:
+            with contextlib.suppress(InputError):
+                _kernels()
+        finally:
+            sys.setswitchinterval(before)
 
     thread = threading.Thread(target=load, name="rough_viewer-kernels", daemon=True)
     _preloading.append(thread)
