@@ -359,14 +359,10 @@ def _put10(acc, c, s):
 
 
 @njit(**OPTS)
-def _fused_block(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, start, stop, key, acc,
-                 state):
-    """One block of :func:`fused`: keys into ``key``, sums into ``acc`` (zeroed here),
-    ``state[0]`` the number of points outside ``box``.
-
-    :data:`KEY_BLOCK` points at a time, the keys first (a loop that vectorises: the
-    divisions are most of the work), then their sums, in the points' order."""
-    acc[:, :] = 0.0
+def _box_keys(x, y, z, o, g, im, nx, ny, box, first, last, key):
+    """``key[i]`` for ``first <= i < last`` (the operations of :func:`keys`; -1 for a
+    point outside ``box``, NaN included); returns how many were outside. The loop
+    vectorises: the divisions are most of the work."""
     ox = o[0]
     oy = o[1]
     oz = o[2]
@@ -381,74 +377,75 @@ def _fused_block(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, start, stop,
     hiz = box[5]
     nxy = nx * ny
     outside = 0
+    for i in range(first, last):
+        a = x[i]
+        b = y[i]
+        c = z[i]
+        tz = np.floor((c - oz) / g) - mz
+        ty = np.floor((b - oy) / g) - my
+        tx = np.floor((a - ox) / g) - mx
+        k = np.int64(tz) * nxy + np.int64(ty * nx) + np.int64(tx)
+        inside = ((a >= lox) & (a <= hix) & (b >= loy) & (b <= hiy) & (c >= loz)
+                  & (c <= hiz))  # False for NaN
+        key[i] = k if inside else -1
+        outside += np.int64(not inside)
+    return outside
+
+
+@njit(**OPTS)
+def _key_sums(x, y, z, key, nx, nxy, cxa, cya, cza, first, last, acc):
+    """``acc[k] += (lx, ly, lz, lx lx, lx ly, lx lz, ly ly, ly lz, lz lz, 1)`` of the
+    points ``first <= i < last`` of key ``k >= 0``, in their order; a run of one key
+    adds in registers (the same operations)."""
     cur = -1
     ccx = ccy = ccz = 0.0
     s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = 0.0
-    for first in range(start, stop, KEY_BLOCK):
-        last = min(stop, first + KEY_BLOCK)
-        for i in range(first, last):  # keys, and the points against the box (vectorises)
-            a = x[i]
-            b = y[i]
-            c = z[i]
-            tz = np.floor((c - oz) / g) - mz
-            ty = np.floor((b - oy) / g) - my
-            tx = np.floor((a - ox) / g) - mx
-            k = np.int64(tz) * nxy + np.int64(ty * nx) + np.int64(tx)
-            inside = ((a >= lox) & (a <= hix) & (b >= loy) & (b <= hiy) & (c >= loz)
-                      & (c <= hiz))  # False for NaN
-            key[i] = k if inside else -1
-            outside += np.int64(not inside)
-        for i in range(first, last):  # then each cell's sums, in the points' order
-            k = key[i]
-            if k != cur:
-                if cur >= 0:
-                    acc[cur, 0] = s0
-                    acc[cur, 1] = s1
-                    acc[cur, 2] = s2
-                    acc[cur, 3] = s3
-                    acc[cur, 4] = s4
-                    acc[cur, 5] = s5
-                    acc[cur, 6] = s6
-                    acc[cur, 7] = s7
-                    acc[cur, 8] = s8
-                    acc[cur, 9] = s9
-                cur = k
-                if k < 0:  # outside the box: in no sum
-                    continue
-                s0 = acc[k, 0]
-                s1 = acc[k, 1]
-                s2 = acc[k, 2]
-                s3 = acc[k, 3]
-                s4 = acc[k, 4]
-                s5 = acc[k, 5]
-                s6 = acc[k, 6]
-                s7 = acc[k, 7]
-                s8 = acc[k, 8]
-                s9 = acc[k, 9]
-                kz = k // nxy
-                rem = k - kz * nxy
-                ky = rem // nx
-                ccx = cxa[rem - ky * nx]
-                ccy = cya[ky]
-                ccz = cza[kz]
-            elif k < 0:
+    for i in range(first, last):
+        k = key[i]
+        if k != cur:
+            if cur >= 0:
+                _put10(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8, s9))
+            cur = k
+            if k < 0:  # outside the box: in no sum
                 continue
-            lx = x[i] - ccx
-            ly = y[i] - ccy
-            lz = z[i] - ccz
-            s0 += lx
-            s1 += ly
-            s2 += lz
-            s3 += lx * lx
-            s4 += lx * ly
-            s5 += lx * lz
-            s6 += ly * ly
-            s7 += ly * lz
-            s8 += lz * lz
-            s9 += 1.0
+            s0, s1, s2, s3, s4, s5, s6, s7, s8, s9 = _row10(acc, k)
+            kz = k // nxy
+            rem = k - kz * nxy
+            ky = rem // nx
+            ccx = cxa[rem - ky * nx]
+            ccy = cya[ky]
+            ccz = cza[kz]
+        elif k < 0:
+            continue
+        lx = x[i] - ccx
+        ly = y[i] - ccy
+        lz = z[i] - ccz
+        s0 += lx
+        s1 += ly
+        s2 += lz
+        s3 += lx * lx
+        s4 += lx * ly
+        s5 += lx * lz
+        s6 += ly * ly
+        s7 += ly * lz
+        s8 += lz * lz
+        s9 += 1.0
     if cur >= 0:
         _put10(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8, s9))
-    state[0] = outside
+
+
+@njit(**OPTS)
+def _fused_block(x, y, z, o, g, im, nx, ny, cxa, cya, cza, box, start, stop, key, acc):
+    """One block of :func:`fused`: keys into ``key``, sums into ``acc`` (zeroed here),
+    :data:`KEY_BLOCK` points at a time, the keys first, then their sums (read back
+    from the first-level cache); returns the number of points outside ``box``."""
+    acc[:, :] = 0.0
+    outside = 0
+    for first in range(start, stop, KEY_BLOCK):
+        last = min(stop, first + KEY_BLOCK)
+        outside += _box_keys(x, y, z, o, g, im, nx, ny, box, first, last, key)
+        _key_sums(x, y, z, key, nx, nx * ny, cxa, cya, cza, first, last, acc)
+    return outside
 
 
 @njit(f"void({F1}, {F1}, {F1}, {F1}, float64, {F1}, int64, int64, int64, {F1}, {F1}, {F1}, "
@@ -473,8 +470,8 @@ def fused(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, chunk, key, total, 
         for t in prange(width):
             b = base + t
             if b < n_chunks:
-                _fused_block(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, b * chunk,
-                             min(n, (b + 1) * chunk), key, partial[t], state[b:b + 1])
+                state[b] = _fused_block(x, y, z, o, g, im, nx, ny, cxa, cya, cza, box,
+                                        b * chunk, min(n, (b + 1) * chunk), key, partial[t])
         used = min(width, n_chunks - base)
         for c in prange(cells):  # each cell's partial sums added in block order
             for t in range(used):

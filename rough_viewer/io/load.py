@@ -278,9 +278,12 @@ def check_coordinates(columns: tuple[np.ndarray, ...], p: Path | str, *,
     Traceback (most recent call last):
     rough_viewer.vocabulary.InputError: coordinates of a.xyz reach 1e+290 m in z; a scan lies within 1e+09 m of its origin: the file is damaged, or its coordinates are not in the unit given
     """
-    noted = known_bounds(*columns) if len(columns) == 3 else None  # a reader's, just now
-    if noted is not None and not on_faces(*columns, *noted):
-        noted = None
+    noted = None
+    if len(columns) == 3:  # the bounds a reader noted, just now
+        x, y, z = columns
+        noted = known_bounds(x, y, z)
+        if noted is not None and not on_faces(x, y, z, *noted):
+            noted = None
     for a, (axis, col) in enumerate(zip("xyz", columns, strict=True)):
         if col.size:
             low, high = (noted[0][a], noted[1][a]) if noted is not None else (np.min(col),
