@@ -211,13 +211,16 @@ def test_the_line_count_leaves_out_docstring_comments_and_blanks() -> None:
 #: host nothing of the UI, the UI nothing of the features, the features nothing of
 #: the build (server.py), which the command line uses.
 APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
+    # hooks: where the app reaches into viser (it imports nothing of the app); stage:
+    # the server's GUI and scene or one tab's, which the scene and the shell are built on
     ("core", frozenset({"limits", "markup", "sampling", "picking", "settings", "units", "cache",
                         "colouring", "store", "cloud", "files", "worker",
-                        "session", "scene"})),
+                        "session", "hooks", "stage", "scene"})),
     ("host", frozenset({"host", "detail"})),  # detail: the scene's level-of-detail jobs
-    ("ui", frozenset({"hooks", "controls", "gate", "uploads", "binding", "layout", "shell"})),
+    ("ui", frozenset({"controls", "gate", "uploads", "binding", "layout", "shell"})),
     ("features", frozenset({"features", "views"})),
-    ("build", frozenset({"server", "__init__"})),
+    # classroom: one app per tab (``serve --classroom``), built with server's mount_app
+    ("build", frozenset({"server", "classroom", "__init__"})),
 )
 
 

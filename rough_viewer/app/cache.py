@@ -1,13 +1,16 @@
 """Thread-safe least-recently-used caches bounded by the bytes of their values, alone
-or several sharing one budget (:class:`ByteBudget`)."""
+or several sharing one budget (:class:`ByteBudget`), and the slots that bound how
+many computations fill them at once (:class:`ComputeSlots`)."""
 
 from __future__ import annotations
 
 import itertools
+import os
 import threading
 import weakref
-from collections import OrderedDict
-from collections.abc import Callable
+from collections import OrderedDict, deque
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import fields, is_dataclass
 from typing import Any, Generic, TypeVar
 
@@ -42,6 +45,86 @@ K = TypeVar("K")
 V = TypeVar("V")
 
 
+def default_slots() -> int:
+    """Computations at once by default: the cores, at least 2 (so one long grid never
+    holds every slot) and at most 4 (each holds the memory of a grid computation)."""
+    return max(2, min(4, os.cpu_count() or 2))
+
+
+class ComputeSlots:
+    """At most :attr:`n` heavy computations at once, served first come, first served.
+
+    The analyses of ``serve --classroom`` (one per browser tab, each on its own worker
+    thread) share one set: thirty tabs asking for thirty grids at once compute at
+    most ``n`` of them together, so memory stays within ``n`` grid computations, and
+    a tab that asked first is served first, so one tab's fine grid takes one slot and
+    never starves the others. A waiting computation whose job is cancelled (its tab
+    moved on) leaves the queue at once.
+
+    Parameters
+    ----------
+    n
+        Slots (default :func:`default_slots`).
+
+    Examples
+    --------
+    >>> slots = ComputeSlots(2)
+    >>> with slots.held():
+    ...     slots.busy
+    1
+    >>> slots.busy
+    0
+    """
+
+    def __init__(self, n: int | None = None) -> None:
+        self.n = int(n) if n is not None else default_slots()
+        if self.n < 1:
+            raise ValueError(f"compute slots must be at least 1, got {self.n}")
+        self._cond = threading.Condition()
+        self._queue: deque[object] = deque()
+        self.busy = 0
+        """Slots held now."""
+        self.served = 0
+        """Computations that held a slot so far."""
+
+    @property
+    def waiting(self) -> int:
+        with self._cond:
+            return len(self._queue)
+
+    @contextmanager
+    def held(self, check: Callable[[], object] | None = None,
+             poll_s: float = 0.1) -> Iterator[None]:
+        """Hold a slot for the block (waiting in turn); ``check()`` is called while
+        waiting (it raises to give up: a cancelled job's progress callback)."""
+        ticket = object()
+        with self._cond:
+            self._queue.append(ticket)
+            try:
+                while self._queue[0] is not ticket or self.busy >= self.n:
+                    if check is not None:
+                        self._cond.release()
+                        try:
+                            check()
+                        finally:
+                            self._cond.acquire()
+                    self._cond.wait(poll_s)
+            except BaseException:
+                self._queue.remove(ticket)
+                self._cond.notify_all()
+                raise
+            self._queue.popleft()
+            self.busy += 1
+            self.served += 1
+            self._cond.notify_all()
+        try:
+            yield
+        finally:
+            with self._cond:
+                self.busy -= 1
+                self._cond.notify_all()
+
+
 class ByteBudget:
     """One memory budget several :class:`ByteCache` draw from: together they hold at
     most :attr:`total` bytes. A cache that needs room drops its own least recently
@@ -54,8 +137,11 @@ class ByteBudget:
         Most bytes (by :func:`nbytes`) of all the caches together.
     """
 
-    def __init__(self, total: int) -> None:
+    def __init__(self, total: int, *, slots: ComputeSlots | None = None) -> None:
         self.total = int(total)
+        self.slots = slots
+        """The computations that fill the caches of this budget wait for one of these
+        (None: no limit, the one analysis of an app computes one thing at a time)."""
         self.lock = threading.RLock()
         self._members: weakref.WeakSet[ByteCache[Any, Any]] = weakref.WeakSet()
         self._clock = itertools.count()

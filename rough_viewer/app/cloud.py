@@ -13,6 +13,8 @@ result plus the colouring settings into colours without touching the planes agai
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -310,31 +312,53 @@ class LoadedCloud:
         return np.asarray(xyz, dtype=np.float64) - self.origin
 
     # ------------------------------------------------------------------ the store's
+    @contextmanager
+    def _computing(self, key: object, progress: ProgressFn | None) -> Iterator[None]:
+        """Around a computation of the store: one thread at a time computes ``key``
+        (analyses sharing this cloud compute it once), and, where the cache budget
+        has compute slots (a classroom), it waits for one of them (``progress(0, 1)``
+        is called while it waits, so a cancelled job stops waiting)."""
+        with self.store.one_at_a_time(key):
+            slots = self.store.pool.slots
+            if slots is None:
+                yield
+                return
+            with slots.held(None if progress is None else (lambda: progress(0, 1))):
+                yield
+
     def is_cached(self, settings: MapSettings) -> bool:
         """The grid result of ``settings`` is at hand (no computing)."""
         return self.store.is_cached(settings)
 
-    def mark_shown(self, settings: MapSettings) -> None:
-        """The grid of ``settings`` is on screen: keep its result in the cache while
-        other grids come and go (it is pinned, like the finest preset's cells)."""
-        self.store.mark_shown(settings)
+    def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
+        """The grid of ``settings`` is on screen (in ``owner``'s analysis; None: the
+        app's one): keep its result in the cache while other grids come and go (it
+        is pinned, like the finest preset's cells)."""
+        self.store.mark_shown(settings, owner)
+
+    def forget_shown(self, owner: object) -> None:
+        """``owner``'s analysis has ended: its grid is no longer pinned for it."""
+        self.store.forget_shown(owner)
 
     def result(self, settings: MapSettings, *,
                progress: ProgressFn | None = None) -> GridRoughness:
         """Grid roughness for the settings' (cell size, axis, min points), cached
         (:meth:`rough_viewer.app.store.CloudStore.result`)."""
-        return self.store.result(settings, progress=progress)
+        with self._computing(("result", settings.grid_key), progress):
+            return self.store.result(settings, progress=progress)
 
     def cell_result(self, settings: MapSettings, *,
                     progress: ProgressFn | None = None) -> GridRoughness:
         """:meth:`result` without its point-to-cell map, cached apart
         (:meth:`rough_viewer.app.store.InMemoryStore.cell_result`)."""
-        return self.store.cell_result(settings, progress=progress)
+        with self._computing(("cells", settings.grid_key), progress):
+            return self.store.cell_result(settings, progress=progress)
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached;
         presets coarsened from the finest."""
-        return self.store.prepared(cell_size, progress=progress)
+        with self._computing(("prepared", round(float(cell_size), 9)), progress):
+            return self.store.prepared(cell_size, progress=progress)
 
     def trust(self, result: GridRoughness, *, progress: ProgressFn | None = None
               ) -> CellTrust | None:
@@ -342,7 +366,8 @@ class LoadedCloud:
         this cloud's grids), with :attr:`trust_settings`; cached per grid. None
         without scanner positions. The first call of a calibration simulates its
         bias curves (seconds)."""
-        return self.store.trust(result, self.trust_settings, progress=progress)
+        with self._computing(("trust", result.grid.cell_size, result.axis), progress):
+            return self.store.trust(result, self.trust_settings, progress=progress)
 
     def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
         """The level-of-detail octree of every point, nodes of at most

@@ -31,6 +31,7 @@ from viser import _messages
 
 from rough_viewer.app import hooks
 from rough_viewer.app.limits import MAX_REFUSALS, MAX_TEXT
+from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.vocabulary import InputError
 
 Rule = Callable[[Any], Any]
@@ -121,27 +122,28 @@ class ClientValues:
     Parameters
     ----------
     server
-        The viser server whose clients are checked.
+        The viser server whose clients are checked (its own GUI), or a stage (one
+        tab's GUI: :mod:`rough_viewer.app.stage`).
     notify
         ``notify(client_id, title, message)``: tell one browser why its value
         was put back.
     """
 
-    def __init__(self, server: viser.ViserServer,
+    def __init__(self, server: viser.ViserServer | Stage,
                  notify: Callable[[int, str, str], None]) -> None:
-        self._server = server
+        self._stage = stage = stage_of(server)
         self._notify = notify
         self._rules: dict[str, list[Rule]] = {}
         self._lock = threading.Lock()
         self.rejected: deque[Rejected] = deque(maxlen=MAX_REFUSALS)
         """The last refused values, oldest first."""
-        hooks.replace_handlers(server, _messages.GuiUpdateMessage, self._make_filter)
+        stage.replace_handlers(_messages.GuiUpdateMessage, self._make_filter)
         self.dropped_clicks = 0
         """Malformed scene clicks dropped (:func:`pointer_message_ok`)."""
-        hooks.replace_handlers(server, _messages.ScenePointerMessage, self._pointer_filter)
+        stage.replace_handlers(_messages.ScenePointerMessage, self._pointer_filter)
         # a connected page must not open a public tunnel to this server
-        hooks.replace_handlers(server, _messages.ShareUrlRequest, lambda _old: None)
-        hooks.replace_handlers(server, _messages.ShareUrlDisconnect, lambda _old: None)
+        hooks.replace_handlers(stage.server, _messages.ShareUrlRequest, lambda _old: None)
+        hooks.replace_handlers(stage.server, _messages.ShareUrlDisconnect, lambda _old: None)
 
     def _pointer_filter(self, viser_handlers: list[hooks.Handler[_messages.ScenePointerMessage]]
                         ) -> hooks.Handler[_messages.ScenePointerMessage]:
@@ -180,7 +182,7 @@ class ClientValues:
     def check(self, client_id: int, message: _messages.GuiUpdateMessage
               ) -> _messages.GuiUpdateMessage | None:
         """The message to pass on to viser, or None to drop it (see the module docstring)."""
-        handle = hooks.input_handles(self._server).get(message.uuid)
+        handle = self._stage.input_handles().get(message.uuid)
         with self._lock:
             rules = self._rules.get(message.uuid)
         updates = message.updates if isinstance(message.updates, dict) else {}
@@ -200,7 +202,7 @@ class ClientValues:
     def _put_back(self, client_id: int, handle: Any, reason: str) -> None:
         self.rejected.append(Rejected(str(handle.label), reason))
         if not isinstance(handle, viser.GuiButtonHandle):
-            hooks.broadcast(self._server, _messages.GuiUpdateMessage(
+            self._stage.send(client_id, _messages.GuiUpdateMessage(
                 hooks.uuid_of(handle), {"value": handle.value}))
         self._notify(client_id, "Value not accepted",
                      f"{reason}; the last good value is kept.")

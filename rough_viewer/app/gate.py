@@ -143,6 +143,9 @@ class Gate:
     token: str | None
     origins: frozenset[str]
     log: bool = False
+    teacher_token: str | None = None
+    """The teacher's token of ``serve --classroom`` (None: one token for everyone);
+    the page at ``/t/<teacher_token>/`` opens the teacher's tab."""
     refused: deque[Refusal] = field(default_factory=lambda: deque(maxlen=MAX_REFUSALS))
     max_connections: int = DEFAULT_MAX_CONNECTIONS
     """WebSocket connections open at once; more are refused."""
@@ -157,18 +160,46 @@ class Gate:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _backlog: weakref.WeakKeyDictionary[ServerConnection, tuple[int, float]] = field(
         default_factory=weakref.WeakKeyDictionary)
+    _teachers: weakref.WeakSet[ServerConnection] = field(default_factory=weakref.WeakSet)
 
     @property
     def path(self) -> str:
         """URL path of the app: ``/t/<token>/``, or ``/`` without a token."""
         return f"{TOKEN_PREFIX}{self.token}/" if self.token else "/"
 
-    def url(self, host: str, port: int) -> str:
-        """The address to open (loopback when listening on every interface)."""
+    @property
+    def teacher_path(self) -> str | None:
+        """URL path of the teacher's page (None without a teacher's token)."""
+        return f"{TOKEN_PREFIX}{self.teacher_token}/" if self.teacher_token else None
+
+    def url(self, host: str, port: int, *, teacher: bool = False) -> str:
+        """The address to open (loopback when listening on every interface);
+        ``teacher``: the teacher's address (ValueError without a teacher's token)."""
         shown = "127.0.0.1" if host in _WILDCARD_HOSTS else host
         if ":" in shown and not shown.startswith("["):
             shown = f"[{shown}]"
-        return f"http://{shown}:{port}{self.path}"
+        path = self.teacher_path if teacher else self.path
+        if path is None:
+            raise ValueError("this server has no teacher's token")
+        return f"http://{shown}:{port}{path}"
+
+    def is_teacher(self, connection: ServerConnection | None) -> bool:
+        """The WebSocket ``connection`` came with the teacher's token."""
+        if connection is None:
+            return False
+        with self._lock:
+            return connection in self._teachers
+
+    def _tokens(self) -> list[str]:
+        return [t for t in (self.token, self.teacher_token) if t]
+
+    def _given(self, path: str) -> str:
+        path = path.partition("?")[0].rstrip("/")
+        return path[len(TOKEN_PREFIX):] if path.startswith(TOKEN_PREFIX) else ""
+
+    def _teacher_given(self, request: Request) -> bool:
+        return self.teacher_token is not None and hmac.compare_digest(
+            self._given(request.path).encode(), self.teacher_token.encode())
 
     # ------------------------------------------------------------------ checks
     def websocket_refusal(self, request: Request) -> str | None:
@@ -179,9 +210,10 @@ class Gate:
         if origins and origins[0].strip().rstrip("/").lower() not in self.origins:
             return "origin not allowed"
         if self.token is not None:
-            path = request.path.partition("?")[0].rstrip("/")
-            given = path[len(TOKEN_PREFIX):] if path.startswith(TOKEN_PREFIX) else ""
-            if not hmac.compare_digest(given.encode(), self.token.encode()):
+            given = self._given(request.path).encode()
+            # every token compared (no early exit: the time taken tells nothing)
+            matches = [hmac.compare_digest(given, t.encode()) for t in self._tokens()]
+            if not any(matches):
                 return "missing or wrong token"
         return None
 
@@ -230,12 +262,17 @@ class Gate:
                         "close another tab)", request, status=503)
                 with self._lock:
                     self._admitted.add(connection)
+                    if self._teacher_given(request):
+                        self._teachers.add(connection)
                 return None
             with self._lock:
                 self._admitted.add(connection)
             path = request.path
             if self.token is not None:
                 prefix = self.path
+                teacher = self.teacher_path
+                if teacher is not None and path.startswith(teacher.rstrip("/")):
+                    prefix = teacher
                 if path.partition("?")[0] == prefix.rstrip("/"):
                     return _redirect(prefix)
                 if not path.startswith(prefix):
@@ -253,8 +290,9 @@ class Gate:
     def _refuse(self, reason: str, request: Request, *, status: int = 403) -> Response:
         origin = ", ".join(request.headers.get_all("Origin"))[:200] or None
         path = request.path.partition("?")[0]
-        if self.token is not None and self.token in path:
-            path = path.replace(self.token, "<token>")
+        for token in self._tokens():
+            if token in path:
+                path = path.replace(token, "<token>")
         self.refused.append(Refusal(reason, origin, path))
         if self.log:
             hint = (" (allow it with --allow-origin)" if reason.startswith("origin") else "")
@@ -278,6 +316,7 @@ def guard(
     host: str | None = None,
     log: bool = False,
     max_connections: int = DEFAULT_MAX_CONNECTIONS,
+    teacher_token: str | None = None,
 ) -> Gate:
     """Put the Origin check and the token in front of a running viser server.
 
@@ -296,6 +335,9 @@ def guard(
         stderr.
     max_connections
         WebSocket connections open at once; more are refused.
+    teacher_token
+        A second token, for the teacher's page of ``serve --classroom`` (needs
+        ``token``).
 
     Returns
     -------
@@ -306,8 +348,11 @@ def guard(
     extra = {normalise_origin(o) for o in allow_origins}
     if max_connections < 1:
         raise InputError(f"--max-connections must be positive, got {max_connections}")
+    if teacher_token is not None and (token is None or teacher_token == token):
+        raise InputError("the teacher's token needs a student token of its own")
     gate = Gate(token=token, origins=own_origins(host or server.get_host(), port) | extra, log=log,
-                max_connections=max_connections, count=lambda: hooks.open_connections(server))
+                max_connections=max_connections, count=lambda: hooks.open_connections(server),
+                teacher_token=teacher_token)
     hooks.set_process_request(server, gate.wrap, admitted=gate.admitted)
     hooks.watch_connections(server, gate.backlog_check)
     return gate
@@ -321,6 +366,7 @@ def open_server(
     allow_origins: Iterable[str] = (),
     log: bool = True,
     max_connections: int = DEFAULT_MAX_CONNECTIONS,
+    teacher_token: str | None = None,
 ) -> tuple[viser.ViserServer, Gate]:
     """Start a viser server with the gate in front of it (what ``serve`` does)."""
     extra = [normalise_origin(o) for o in allow_origins]  # bad values: before listening
@@ -329,7 +375,7 @@ def open_server(
     server = viser.ViserServer(host=host, port=port, verbose=False)
     try:
         gate = guard(server, token=token, allow_origins=extra, host=host, log=log,
-                     max_connections=max_connections)
+                     max_connections=max_connections, teacher_token=teacher_token)
     except BaseException:
         server.stop()
         raise

@@ -15,6 +15,11 @@ uses its internals, and nothing else in the app does:
   ``WebsockServer.register_handler`` / ``unregister_handler`` (public methods of
   the private ``ViserServer._websock_server``) let the app put a filter before
   viser's own handler of a message type, or drop a type altogether.
+- **One tab's own messages** (:func:`replace_client_handlers`,
+  :func:`connection_of`): a tab's client-scoped GUI and scene take its messages
+  on its connection (``ClientHandle._websock_connection``), so the same filters
+  go there for a tab of ``serve --classroom``; the tab's WebSocket connection
+  (``WebsockServer._live_connections``) tells which token it came with.
 - **Sending a raw message** (:func:`broadcast`): to put a control's value back in
   the one browser that sent a bad one, and to acknowledge upload parts.
 - **Watching connections** (:func:`watch_connections`, :func:`open_connections`):
@@ -152,6 +157,30 @@ def replace_handlers(
         ws.register_handler(message_cls, new)
 
 
+def replace_client_handlers(
+    client: viser.ClientHandle,
+    message_cls: type[M],
+    make: Callable[[list[Handler[M]]], Handler[M] | None],
+) -> None:
+    """:func:`replace_handlers` for the handlers of one tab's own GUI and scene
+    (viser's client-scoped ``client.gui`` and ``client.scene`` take that tab's
+    messages on its connection, beside the server's handlers)."""
+    conn = client._websock_connection
+    existing = cast(list[Handler[M]], list(conn._incoming_handlers.get(message_cls, [])))
+    if existing:
+        conn.unregister_handler(message_cls)
+    new = make(existing)
+    if new is not None:
+        conn.register_handler(message_cls, new)
+
+
+def connection_of(server: viser.ViserServer, client_id: int) -> ServerConnection | None:
+    """The WebSocket connection of a connected tab (None once it has left)."""
+    live = getattr(_websock(server), "_live_connections", {})
+    found = live.get(client_id)
+    return found if isinstance(found, ServerConnection) else None
+
+
 def broadcast(server: viser.ViserServer, message: _messages.Message) -> None:
     """Send ``message`` to every connected browser (and later ones)."""
     _websock(server).queue_message(message)
@@ -174,6 +203,11 @@ def uuid_of(handle: Any) -> str:
 def input_handles(server: viser.ViserServer) -> dict[str, Any]:
     """Every GUI input handle of the server's GUI, by uuid (tests, checks)."""
     return dict(server.gui._gui_input_handle_from_uuid)
+
+
+def gui_input_handles(gui: viser.GuiApi) -> dict[str, Any]:
+    """Every input handle of one GUI (the server's or a tab's own), by uuid."""
+    return dict(gui._gui_input_handle_from_uuid)
 
 
 def http_response(status: int, reason: str, body: bytes, content_type: str) -> Response:

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
-from rough_viewer.app.cache import ByteBudget
+from rough_viewer.app.cache import ByteBudget, ComputeSlots
 from rough_viewer.app.files import DataFolder
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MAX_UPLOAD_MB
 from rough_viewer.io.estimates import DEFAULT_MAX_POINTS
@@ -93,12 +93,18 @@ class AppOptions:
     trust: TrustSettings | None = None
     """Calibration of the scanner colour layers and cell report (``serve --noise``,
     ``--beam-radius``, ``--calibration``, ...; None: the bias paper's)."""
+    compute_slots: int | None = None
+    """Grid computations at once across the app's analyses (``serve --classroom``:
+    one analysis per tab, :class:`~rough_viewer.app.cache.ComputeSlots`); None: no
+    limit (one analysis, one worker)."""
 
     @cached_property
     def cache_pool(self) -> ByteBudget:
         """The one budget of :attr:`cache_bytes` every cache of the app draws from
-        (made on first use; a frozen dataclass may cache a property)."""
-        return ByteBudget(self.cache_bytes)
+        (made on first use; a frozen dataclass may cache a property), with the
+        compute slots of :attr:`compute_slots`."""
+        slots = ComputeSlots(self.compute_slots) if self.compute_slots else None
+        return ByteBudget(self.cache_bytes, slots=slots)
 
 
 @dataclass(frozen=True)
@@ -219,6 +225,12 @@ class MapService(Protocol):
 
     def last_render(self) -> dict[str, object]:
         """The timing record of the last map coloured (``{}`` before the first)."""
+        ...
+
+    def show_view(self, loaded: LoadedCloud, settings: MapSettings) -> int:
+        """Queue showing ``loaded`` with exactly ``settings`` in the map's controls
+        (a cloud already on screen is only recoloured; a classroom's teacher sends
+        a view)."""
         ...
 
 
@@ -356,3 +368,55 @@ def parts(host: Host) -> Iterator[SavedViewPart]:
     for f in host.features():
         if isinstance(f, SavedViewPart):
             yield f
+
+
+@dataclass(frozen=True)
+class Student:
+    """One student's tab of a classroom, as the teacher's Class tab lists it."""
+
+    name: str
+    """A short id (``S1``, ``S2``, ...: in the order they connected)."""
+    client_id: int
+    cell_size: float
+    """The grid on screen, metres."""
+    model: str
+    threshold: float
+    axis: str
+    following: bool
+    """The tab follows the teacher's settings."""
+    lesson: str = ""
+    """Where the student is in the lesson (``turned-wall 2/4``; "" without one)."""
+    answers: str = ""
+    """The student's answers so far (``2 of 3 right``; "" without any)."""
+
+
+class ClassService(Protocol):
+    """What the teacher's Class tab asks of the classroom (``serve --classroom``;
+    :class:`rough_viewer.app.classroom.Classroom` implements it)."""
+
+    def students(self) -> list[Student]:
+        """The students' tabs connected now, in the order they came."""
+        ...
+
+    def send_view(self, teacher: Host) -> int:
+        """Show the teacher's cloud, settings and camera in every student's tab; the
+        number of tabs it went to."""
+        ...
+
+    def follow(self, teacher: Host, on: bool) -> None:
+        """While ``on``, every map the teacher shows is shown in the students' tabs."""
+        ...
+
+    @property
+    def following(self) -> bool:
+        ...
+
+    def show_student(self, teacher: Host, name: str) -> bool:
+        """Show student ``name``'s cloud, settings and camera in the teacher's tab
+        (False: no such student now)."""
+        ...
+
+    def on_change(self, host: Host, listener: Callable[[], None]) -> None:
+        """Call ``listener()`` (on any thread: submit a job) when a student comes,
+        leaves or shows another map, while ``host``'s tab is connected."""
+        ...

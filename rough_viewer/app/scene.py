@@ -19,6 +19,7 @@ import viser
 
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import CellInfo, Colouring
+from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.lod.camera import ViewCamera, camera_moved
 from rough_viewer.lod.encode import encode_node, node_scale
 from rough_viewer.lod.octree import Octree
@@ -217,16 +218,18 @@ class Scene:
     Parameters
     ----------
     server
-        The viser server whose scene this writes.
+        The viser server whose scene this writes (shared by every tab), or a stage
+        (one tab's own scene: :mod:`rough_viewer.app.stage`).
     require_writer
         ``require_writer(what)`` raises unless the calling thread may write.
     budget
         Most points a tab shows at once.
     """
 
-    def __init__(self, server: viser.ViserServer, require_writer: Callable[[str], None], *,
+    def __init__(self, server: viser.ViserServer | Stage,
+                 require_writer: Callable[[str], None], *,
                  budget: int = DEFAULT_BUDGET) -> None:
-        self._server = server
+        self._server = stage_of(server)
         self._require = require_writer
         self.point_size = 0.01
         """The size of the points (metres); clouds added with a ``size_factor`` follow it."""
@@ -272,7 +275,7 @@ class Scene:
         self._colouring = lambda idx: np.broadcast_to(grey, (len(idx), 3))
         # every connected tab, not only those that chose nodes before: a tab whose
         # camera came while the file loaded (no octree yet) has no Tab so far
-        for client_id in set(self.tabs) | set(self._server.get_clients()):
+        for client_id in set(self.tabs) | set(self._server.clients()):
             self.refine(client_id)
 
     def colour_by(self, colouring: Colouring) -> None:
@@ -330,7 +333,7 @@ class Scene:
         twice the budget). False when the tab has no camera yet or it did not move
         enough (unless ``force``)."""
         self._check("refine")
-        client = self._server.get_clients().get(client_id)
+        client = self._server.clients().get(client_id)
         if client is None or self._tree is None or self._loaded is None:
             return False
         tab = self.tabs.get(client_id)
@@ -505,14 +508,14 @@ class Scene:
         init.up = _vec(pose.up)
         init.fov = DEFAULT_FOV
         init.near, init.far = pose.near, pose.far
-        for client in self._server.get_clients().values():
+        for client in self._server.clients().values():
             _place(client, camera_pose(loaded, "face-on", **_window(client)))
 
     def move_cameras(self, loaded: LoadedCloud, preset: str) -> None:
         """Move every connected browser's camera to a preset, framed in its window
         (:func:`camera_pose`)."""
         self._check("move_cameras")
-        for client in self._server.get_clients().values():
+        for client in self._server.clients().values():
             _place(client, camera_pose(loaded, preset, **_window(client)))
 
     def set_camera(self, position: Sequence[float], look_at: Sequence[float],
@@ -524,7 +527,7 @@ class Scene:
         init = self._server.initial_camera
         init.position, init.look_at, init.up, init.fov = p, t, u, float(fov_rad)
         init.near, init.far = float(near), float(far)
-        for client in self._server.get_clients().values():
+        for client in self._server.clients().values():
             client.camera.near, client.camera.far = float(near), float(far)
             client.camera.position = p
             client.camera.look_at = t

@@ -45,6 +45,7 @@ from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY, DEFAULT_MA
 from rough_viewer.app.session import Session, Shown
 from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.shell import Shell
+from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.io import PointCloud
 from rough_viewer.io.estimates import max_points_limit
@@ -52,7 +53,8 @@ from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import UNITS, InputError, Unit
 
-__all__ = ["App", "AppOptions", "FEATURES", "build_app"]
+__all__ = ["App", "AppOptions", "FEATURES", "app_options", "build_app", "mount_app",
+           "shared_cloud"]
 
 T = TypeVar("T")
 
@@ -209,28 +211,65 @@ def build_app(
     App
         ``app.wait_idle()`` blocks until the first map is shown.
     """
+    options = app_options(cloud, max_display=max_display, variogram=variogram,
+                          prefetch=prefetch, data_dir=data_dir, max_upload_mb=max_upload_mb,
+                          cache_bytes=cache_bytes, units=units, save_views=save_views,
+                          trust=trust, point_budget=point_budget, max_points=max_points)
+    loaded = shared_cloud(cloud, options, presets=presets)
+    return mount_app(server, loaded, settings or MapSettings(cell_size=loaded.default_cell_size),
+                     options)
+
+
+def app_options(
+    cloud: PointCloud,
+    *,
+    max_display: int = DEFAULT_MAX_DISPLAY,
+    variogram: bool = True,
+    prefetch: bool = True,
+    data_dir: str | os.PathLike[str] | None = None,
+    max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB,
+    cache_bytes: int = CACHE_BYTES,
+    units: Unit | None = None,
+    save_views: bool = False,
+    trust: TrustSettings | None = None,
+    point_budget: int = DEFAULT_BUDGET,
+    max_points: int | None = None,
+) -> AppOptions:
+    """The options of an app for ``cloud`` (:func:`build_app`'s parameters, checked)."""
     if units is not None and units not in UNITS:
         raise InputError(f"unknown unit {units!r}; choose one of {', '.join(UNITS)}")
     data = DataFolder.of(data_dir if data_dir is not None else _default_data_dir(cloud))
-    options = AppOptions(data=data, max_display=max_display, variogram=variogram,
-                         prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
-                         cache_bytes=int(cache_bytes), units=units, save_views=save_views,
-                         trust=trust, point_budget=int(point_budget),
-                         max_points=max_points_limit(max_points))
-    loaded = LoadedCloud(cloud, max_display=max_display, cache_bytes=options.cache_bytes,
-                         cache_pool=options.cache_pool,
-                         presets=tuple(presets) if presets is not None else None,
-                         trust_settings=trust)
-    settings = settings or MapSettings(cell_size=loaded.default_cell_size)
-    server.scene.set_up_direction("+z")
-    server.gui.configure_theme(control_width="large", show_share_button=False)
-    server.gui.main_panel.set_width(CONTROL_WIDTH)
-    shell = Shell(server, options, Shown(loaded, settings))
-    for mount in FEATURES:
+    return AppOptions(data=data, max_display=max_display, variogram=variogram,
+                      prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
+                      cache_bytes=int(cache_bytes), units=units, save_views=save_views,
+                      trust=trust, point_budget=int(point_budget),
+                      max_points=max_points_limit(max_points))
+
+
+def shared_cloud(cloud: PointCloud, options: AppOptions, *,
+                 presets: Sequence[float] | None = None) -> LoadedCloud:
+    """``cloud`` prepared for the app (overview sample, presets, store under the
+    options' one cache budget): what every analysis showing it shares."""
+    return LoadedCloud(cloud, max_display=options.max_display, cache_bytes=options.cache_bytes,
+                       cache_pool=options.cache_pool,
+                       presets=tuple(presets) if presets is not None else None,
+                       trust_settings=options.trust)
+
+
+def mount_app(stage: viser.ViserServer | Stage, loaded: LoadedCloud, settings: MapSettings,
+              options: AppOptions, *, extra: Sequence[Mount] = ()) -> App:
+    """Mount every feature (and ``extra`` ones after them) on ``stage`` (a server:
+    its shared GUI; a tab's stage: that tab's own) and start showing ``loaded``."""
+    stage = stage_of(stage)
+    stage.scene.set_up_direction("+z")
+    stage.gui.configure_theme(control_width="large", show_share_button=False)
+    stage.gui.main_panel.set_width(CONTROL_WIDTH)
+    shell = Shell(stage, options, Shown(loaded, settings))
+    for mount in (*FEATURES, *extra):
         feature = mount(shell)
         shell.add_feature(feature)
         if isinstance(feature, MapFeature):  # the other features' map calls go to it
             shell.use_map(feature)
-    app = App(server, shell, shell.feature(MapFeature), options)
+    app = App(stage.server, shell, shell.feature(MapFeature), options)
     app.submit(ShowJob(app.map, loaded, settings))
     return app

@@ -35,6 +35,7 @@ from rough_viewer.app.markup import md
 from rough_viewer.app.scene import Scene
 from rough_viewer.app.session import Session, Shown
 from rough_viewer.app.settings import MapSettings
+from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.app.uploads import Uploads
 from rough_viewer.app.worker import Job, QueueFull, Run, Worker
 from rough_viewer.io.load import SUPPORTED_SUFFIXES
@@ -72,15 +73,19 @@ class Shell:
     Parameters
     ----------
     server
-        A running viser server.
+        A running viser server (the app on its shared GUI), or a stage (one tab's
+        own: :mod:`rough_viewer.app.stage`).
     options
         The app's limits and switches.
     shown
         What the app shows before its first job (the cloud it was started on).
     """
 
-    def __init__(self, server: viser.ViserServer, options: AppOptions, shown: Shown) -> None:
-        self.server = server
+    def __init__(self, server: viser.ViserServer | Stage, options: AppOptions,
+                 shown: Shown) -> None:
+        self.stage = stage = stage_of(server)
+        """Where the app is shown: the server's shared GUI, or one tab's own."""
+        self.server = stage.server
         self._options = options
         self._features: list[object] = []
         self._map: MapService | None = None
@@ -98,14 +103,14 @@ class Shell:
                                             max_pending=MAX_PENDING_JOBS,
                                             max_records=MAX_JOB_RECORDS)
         self._session = Session(shown, self.worker.require_worker)
-        self._scene = Scene(server, self.worker.require_worker, budget=options.point_budget)
-        self.controls = ClientValues(server, self.notify_client)
+        self._scene = Scene(stage, self.worker.require_worker, budget=options.point_budget)
+        self.controls = ClientValues(stage, self.notify_client)
         """The checks of every value a browser sends."""
         self.uploads = Uploads(
-            server, max_bytes=options.max_upload_bytes, suffixes=SUPPORTED_SUFFIXES,
+            stage, max_bytes=options.max_upload_bytes, suffixes=SUPPORTED_SUFFIXES,
             refuse=lambda cid, msg: self.notify_client(cid, "Upload refused", msg))
         """Uploads streamed to disk."""
-        gui = server.gui
+        gui = stage.gui
         self.status = gui.add_markdown("Loading…")
         self.error = gui.add_markdown("", visible=False)
         self.note = gui.add_markdown("", visible=False)
@@ -123,7 +128,7 @@ class Shell:
         self._tabs: viser.GuiTabGroupHandle | None = None
         self._tab_by_label: dict[str, Any] = {}
 
-        @server.on_client_connect
+        @stage.on_client_connect
         def _(client: viser.ClientHandle) -> None:
             if self.pinned:
                 client.add_notification("Saved view", self.pinned, auto_close_seconds=15.0,
@@ -144,17 +149,17 @@ class Shell:
 
     @property
     def gui(self) -> viser.GuiApi:
-        return self.server.gui
+        return self.stage.gui
 
     def tab(self, label: str) -> contextlib.AbstractContextManager[object]:
         if self._tabs is None:
-            self._tabs = self.server.gui.add_tab_group()
+            self._tabs = self.stage.gui.add_tab_group()
         if label not in self._tab_by_label:  # a second call adds to the same tab
             self._tab_by_label[label] = self._tabs.add_tab(label)
         return self._tab_by_label[label]
 
     def folder(self, label: str) -> contextlib.AbstractContextManager[object]:
-        return self.server.gui.add_folder(label)
+        return self.stage.gui.add_folder(label)
 
     def allow(self, *handles: Any) -> None:
         self.controls.allow(*handles)
@@ -207,10 +212,10 @@ class Shell:
         self._click.append(handler)
 
     def on_connect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
-        self.server.on_client_connect(listener)
+        self.stage.on_client_connect(listener)
 
     def on_disconnect(self, listener: Callable[[viser.ClientHandle], None]) -> None:
-        self.server.on_client_disconnect(listener)
+        self.stage.on_client_disconnect(listener)
 
     def cloud_shown(self) -> None:
         self.worker.require_worker("the new-cloud event")
@@ -228,11 +233,11 @@ class Shell:
 
     # ------------------------------------------------------------------ Host: messages
     def notify(self, title: str, body: str, *, color: Any = None, seconds: float = 6.0) -> None:
-        for client in self.server.get_clients().values():
+        for client in self.stage.clients().values():
             client.add_notification(title, body, auto_close_seconds=seconds, color=color)
 
     def notify_client(self, client_id: int, title: str, body: str) -> None:
-        client = self.server.get_clients().get(client_id)
+        client = self.stage.clients().get(client_id)
         if client is not None:
             client.add_notification(title, body, auto_close_seconds=10.0, color="red")
 
@@ -278,7 +283,7 @@ class Shell:
             self.progress_bar.visible = True
 
     def clients(self) -> dict[int, viser.ClientHandle]:
-        return dict(self.server.get_clients())
+        return self.stage.clients()
 
     # ------------------------------------------------------------------ Host: the map
     def map(self) -> MapService:
@@ -319,6 +324,9 @@ class Shell:
 
     def last_render(self) -> dict[str, object]:
         return self.map().last_render()
+
+    def show_view(self, loaded: LoadedCloud, settings: MapSettings) -> int:
+        return self.map().show_view(loaded, settings)
 
     # ------------------------------------------------------------------ Host: features
     def add_feature(self, feature: object) -> None:

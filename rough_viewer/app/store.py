@@ -11,8 +11,10 @@ does not change.
 
 from __future__ import annotations
 
+import threading
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import replace
 from typing import Protocol
 
@@ -58,8 +60,17 @@ class CloudStore(Protocol):
         """The grid result of ``settings`` is at hand."""
         ...
 
-    def mark_shown(self, settings: MapSettings) -> None:
-        """The grid of ``settings`` is on screen (kept while others come and go)."""
+    def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
+        """The grid of ``settings`` is on screen in ``owner``'s analysis (kept while
+        others come and go)."""
+        ...
+
+    def forget_shown(self, owner: object) -> None:
+        """``owner``'s analysis has ended: its grid is no longer kept for it."""
+        ...
+
+    def one_at_a_time(self, key: object) -> AbstractContextManager[None]:
+        """Hold while computing ``key``: analyses sharing this store compute it once."""
         ...
 
     def result(self, settings: MapSettings, *,
@@ -124,7 +135,10 @@ class InMemoryStore:
         self._cache: ByteCache[Key, GridRoughness | PreparedGrid | CellTrust] = ByteCache(
             pool, pinned=_weak_pin(self), most=most)
         self._octree: Octree | None = None
-        self._shown_key: tuple[str, tuple[float, str, int]] | None = None
+        self._shown: dict[object, tuple[str, tuple[float, str, int]]] = {}
+        """The grid each analysis (session) shows, by owner (None: the app's one)."""
+        self._flights: dict[object, threading.Lock] = {}
+        self._flights_lock = threading.Lock()
 
     @property
     def presets(self) -> tuple[float, ...]:
@@ -146,14 +160,23 @@ class InMemoryStore:
         threshold if a big cloud's full grids pushed them out)."""
         if key == ("prepared", round(self.presets[-1], 9)):
             return True
-        shown = self._shown_key
-        if shown is None:
-            return False
-        if key == shown:
-            return True
-        grid, mine = key[1], shown[1]
-        return (key[0] == "cells" and isinstance(grid, tuple)
-                and grid[1:] == mine[1:])
+        for shown in list(self._shown.values()):
+            if key == shown:
+                return True
+            grid, mine = key[1], shown[1]
+            if key[0] == "cells" and isinstance(grid, tuple) and grid[1:] == mine[1:]:
+                return True
+        return False
+
+    @contextmanager
+    def one_at_a_time(self, key: object) -> Iterator[None]:
+        """Compute ``key`` in one thread at a time: the analyses of a classroom's tabs
+        share this store, and thirty tabs asking for the same grid compute it once
+        (the others wait, then find it in the cache)."""
+        with self._flights_lock:
+            lock = self._flights.setdefault(key, threading.Lock())
+        with lock:
+            yield
 
     def trust(self, result: GridRoughness, settings: TrustSettings | None, *,
               progress: ProgressFn | None = None) -> CellTrust | None:
@@ -179,19 +202,26 @@ class InMemoryStore:
         ``max_node_points`` points: built at the first call and again when another
         node size is asked for (the scene asks when it shows the cloud, before any
         tab holds a node)."""
-        tree = self._octree
-        if tree is None or tree.max_node_points != int(max_node_points):
-            self._octree = None  # the old one goes before the new one is built
-            tree = self._octree = build_octree(self.cloud, max_node_points=max_node_points)
-        return tree
+        with self.one_at_a_time("octree"):
+            tree = self._octree
+            if tree is None or tree.max_node_points != int(max_node_points):
+                self._octree = None  # the old one goes before the new one is built
+                tree = self._octree = build_octree(self.cloud, max_node_points=max_node_points)
+            return tree
 
     def is_cached(self, settings: MapSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
 
-    def mark_shown(self, settings: MapSettings) -> None:
-        """The grid of ``settings`` is on screen: keep its result in the cache while
-        other grids come and go (it is pinned, like the finest preset's cells)."""
-        self._shown_key = ("result", settings.grid_key)
+    def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
+        """The grid of ``settings`` is on screen in ``owner``'s analysis (None: the
+        app's one): keep its result in the cache while other grids come and go (it
+        is pinned, like the finest preset's cells)."""
+        self._shown[owner] = ("result", settings.grid_key)
+
+    def forget_shown(self, owner: object) -> None:
+        """``owner``'s analysis has ended (a classroom tab left): its grid is no longer
+        pinned for it."""
+        self._shown.pop(owner, None)
 
     def result(
         self,

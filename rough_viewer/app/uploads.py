@@ -40,6 +40,7 @@ from rough_viewer.app.limits import (
     MAX_UPLOAD_NAME,
     UPLOAD_DISK_MARGIN,
 )
+from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.memory import format_bytes
 
 __all__ = ["DEFAULT_MAX_UPLOAD_MB", "UploadedFile", "Uploads", "clean_name"]
@@ -64,7 +65,8 @@ class Uploads:
     Parameters
     ----------
     server
-        The viser server.
+        The viser server (its own upload buttons), or a stage (one tab's:
+        :mod:`rough_viewer.app.stage`).
     max_bytes
         Largest file accepted, bytes.
     suffixes
@@ -78,14 +80,15 @@ class Uploads:
 
     def __init__(
         self,
-        server: viser.ViserServer,
+        server: viser.ViserServer | Stage,
         *,
         max_bytes: int,
         suffixes: Iterable[str],
         refuse: Callable[[int, str], None],
         folder: Path | None = None,
     ) -> None:
-        self._server = server
+        stage = stage_of(server)
+        self._server = stage.server
         self.max_bytes = int(max_bytes)
         self._suffixes = tuple(s.lower() for s in suffixes)
         self._refuse = refuse
@@ -101,10 +104,9 @@ class Uploads:
         self._count = 0
         self.refused: deque[str] = deque(maxlen=MAX_REFUSALS)
         """Messages of refused uploads, oldest first (the last 100)."""
-        hooks.replace_handlers(server, _messages.FileTransferStartUpload,
-                               lambda _viser: self._on_start)
-        hooks.replace_handlers(server, _messages.FileTransferPart, lambda _viser: self._on_part)
-        server.on_client_disconnect(lambda client: self.drop_client(client.client_id))
+        stage.replace_handlers(_messages.FileTransferStartUpload, lambda _viser: self._on_start)
+        stage.replace_handlers(_messages.FileTransferPart, lambda _viser: self._on_part)
+        stage.on_client_disconnect(lambda client: self.drop_client(client.client_id))
 
     def register(self, handle: viser.GuiUploadButtonHandle,
                  on_file: Callable[[UploadedFile], object]) -> None:

@@ -7,6 +7,7 @@ Contract::
         [--min-points K] [--point-budget N] [--max-points N] [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
+        [--classroom]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
 
@@ -17,8 +18,9 @@ every length given or shown (``--grid``, grid presets, coordinates; roughness in
 for metric input, in the input's unit otherwise). Without ``--grid`` the first map
 uses the cloud's default grid (from its point spacing; the app's presets are it
 times 1, 2, 4 and 8).
-The server listens on 127.0.0.1 only unless ``--host`` says otherwise; the URL is
-printed once the first map is ready. It carries a random access token (``/t/<token>/``);
+The server listens on 127.0.0.1 only unless ``--host`` says otherwise; it says its
+address on stderr at once (``listening at URL``), before it reads the input, and
+prints ``N points, open URL`` on stdout once the first map is ready. It carries a random access token (``/t/<token>/``);
 WebSocket connections without it, or from pages of another origin, are refused
 (see :mod:`rough_viewer.app.gate`); at most ``--max-connections`` (default 32) are
 open at once, and one whose browser stops reading is closed. Ctrl-C stops it.
@@ -43,12 +45,20 @@ camera; the view's settings replace ``--grid``, ``--model``, ``--axis`` and
 default the view file's folder; bundled demos always open), or be given as INPUT. A
 view whose input moved or changed says so (stderr and the app). ``--save-views`` lets
 the Export folder also write views next to the input in the data folder.
+
+``--classroom`` gives every browser tab its own analysis of the one cloud (its own
+controls, map, panels, crop, profiles, zones, ...; the grids are computed once for
+all: :mod:`rough_viewer.app.classroom`) and prints two addresses, each on its own
+line with its own token: ``open URL`` for the students and ``teacher URL`` for the
+teacher, whose tab also has the Class tab (the students listed, their views, "Send
+my view to everyone", "Follow me").
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import io
 import math
 import sys
@@ -68,7 +78,10 @@ from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 if TYPE_CHECKING:
     import viser
 
+    from rough_viewer.app.classroom import Classroom
+    from rough_viewer.app.gate import Gate
     from rough_viewer.app.server import App
+    from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.views import OpenedView
 
 
@@ -116,6 +129,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save-views", action="store_true",
                    help="let the Export folder also save views next to the input in the data "
                    "folder (without it views are only downloaded)")
+    p.add_argument("--classroom", action="store_true",
+                   help="every browser tab its own analysis of the one cloud (grids computed "
+                   "once for all); prints the students' address (open ...) and the "
+                   "teacher's (teacher ...), whose tab has the Class tab")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     add_scanner_options(p)
     p.set_defaults(func=run)
@@ -182,9 +199,6 @@ def _check_options(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.io.sandbox import isolate
-
-    isolate.warm(keep=True)  # a reader process ready for every file a browser loads
     from rough_viewer.lod.select import DEFAULT_BUDGET
 
     if args.point_budget is None:
@@ -192,68 +206,127 @@ def run(args: argparse.Namespace) -> int:
     return _run(args)
 
 
-def _run(args: argparse.Namespace) -> int:
-    from rough_viewer.app.cloud import grid_presets
-    from rough_viewer.app.limits import DEFAULT_MAX_DISPLAY
-    from rough_viewer.app.settings import MapSettings, check_settings
+def _start_background() -> None:
+    """What the app needs soon but not for listening: a reader process ready for every
+    file a browser loads, and the grid kernels loaded (the app computes grids for as
+    long as it runs); both start once the address is printed."""
     from rough_viewer.grid import fast
-    from rough_viewer.vocabulary import UNIT_METRES
+    from rough_viewer.io.sandbox import isolate
 
-    fast.preload()  # the app computes grids for as long as it runs: load them while it starts
+    isolate.warm(keep=True)
+    fast.preload()
 
+
+def _run(args: argparse.Namespace) -> int:
     _check_grid_and_units(args)
     opened = _open_view(args)
-    settings: MapSettings | None = opened.settings if opened is not None else None
     data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
-    from rough_viewer.app.server import build_app
-
-    server, url = _open_server(args)
+    server, gate = _open_server(args)
+    url = gate.url(args.host, server.get_port())
     waiting = _say_listening(server, url, _what_loads(args, opened))
-    app = None
+    app: App | Classroom | None = None
     previous = _stop_on_terminate()
     try:
-        cloud = _read_cloud(args, opened)
-        if opened is None and args.grid is not None:
-            # --grid is in the input's unit (--units, else its CRS's, else m)
-            settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
-                                   model=args.model, axis=args.axis,
-                                   min_points=args.min_points)
-            check_settings(settings)
-        if not args.inputs and opened is None:  # files: load_inputs said them already, once
-            _say_warnings(cloud.warnings)
+        _start_background()
+        cloud, settings = _cloud_and_settings(args, opened)
         waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
-        presets = grid_presets(cloud)
-        if settings is None:  # the cloud's default grid (its finest preset)
-            settings = MapSettings(cell_size=presets[-1], model=args.model,
-                                    axis=args.axis, min_points=args.min_points)
-            check_settings(settings)
-        from rough_viewer.cli._scanner import trust_settings
-
-        waiting.remove()
-        app = build_app(server, cloud, settings=settings,
-                        max_display=min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
-                        point_budget=args.point_budget, max_points=args.file_max_points,
-                        data_dir=data_dir, max_upload_mb=args.max_upload_mb,
-                        units=args.units, presets=presets, save_views=args.save_views,
-                        trust=trust_settings(args, cloud.source_unit))
         n_points = cloud.n
-        del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
-        app.wait_idle(timeout=None if not args.no_block else 120.0)
-        if opened is not None:
-            _apply_opened_view(app, opened, args)
-        print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
-        _say_warnings(list(app.host.errors)[-1:])
+        if args.classroom:
+            app = _start_classroom(args, server, gate, cloud, settings, data_dir, opened)
+            del cloud
+            waiting.remove()
+            print(f"rough-viewer: {n_points:,} points, a classroom: every tab its own "
+                  "analysis", flush=True)
+            print(f"open {url}", flush=True)
+            print(f"teacher {gate.url(args.host, server.get_port(), teacher=True)}",
+                  flush=True)
+        else:
+            app = _start_app(args, server, cloud, settings, data_dir)
+            del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
+            waiting.remove()
+            app.wait_idle(timeout=None if not args.no_block else 120.0)
+            if opened is not None:
+                _apply_opened_view(app, opened, args)
+            print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
+            _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
     finally:
         if app is not None:
-            app.stop()  # removes the upload folder
+            app.stop()  # removes the upload folder(s)
         server.stop()
         _restore_signals(previous)
     return 0
+
+
+def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
+                        ) -> tuple[PointCloud, MapSettings]:
+    """The cloud to show and its first map's settings (the saved view's, ``--grid``
+    in the input's unit, else the cloud's default grid: its finest preset)."""
+    from rough_viewer.app.cloud import grid_presets
+    from rough_viewer.app.settings import MapSettings, check_settings
+    from rough_viewer.vocabulary import UNIT_METRES
+
+    settings: MapSettings | None = opened.settings if opened is not None else None
+    cloud = _read_cloud(args, opened)
+    if opened is None and args.grid is not None:
+        # --grid is in the input's unit (--units, else its CRS's, else m)
+        settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
+                               model=args.model, axis=args.axis, min_points=args.min_points)
+        check_settings(settings)
+    if not args.inputs and opened is None:  # files: load_inputs said them already, once
+        _say_warnings(cloud.warnings)
+    if settings is None:  # the cloud's default grid (its finest preset)
+        settings = MapSettings(cell_size=grid_presets(cloud)[-1], model=args.model,
+                               axis=args.axis, min_points=args.min_points)
+        check_settings(settings)
+    return cloud, settings
+
+
+def _app_options(args: argparse.Namespace, cloud: PointCloud, data_dir: Path) -> dict[str, object]:
+    from rough_viewer.app.limits import DEFAULT_MAX_DISPLAY
+    from rough_viewer.cli._scanner import trust_settings
+
+    return {"max_display": min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
+            "point_budget": args.point_budget, "max_points": args.file_max_points,
+            "data_dir": data_dir, "max_upload_mb": args.max_upload_mb, "units": args.units,
+            "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit)}
+
+
+def _start_app(args: argparse.Namespace, server: viser.ViserServer, cloud: PointCloud,
+               settings: MapSettings, data_dir: Path) -> App:
+    """One analysis shared by every tab (``serve`` without ``--classroom``)."""
+    from rough_viewer.app.cloud import grid_presets
+    from rough_viewer.app.server import build_app
+
+    return build_app(server, cloud, settings=settings, presets=grid_presets(cloud),
+                     **_app_options(args, cloud, data_dir))  # type: ignore[arg-type]
+
+
+def _start_classroom(args: argparse.Namespace, server: viser.ViserServer, gate: Gate,
+                     cloud: PointCloud, settings: MapSettings, data_dir: Path,
+                     opened: OpenedView | None) -> Classroom:
+    """Every tab its own analysis of the one cloud (``serve --classroom``); a saved
+    view (``--view``) is restored in every tab as it opens."""
+    from rough_viewer.app.cache import default_slots
+    from rough_viewer.app.classroom import Classroom
+    from rough_viewer.app.server import app_options, shared_cloud
+
+    kwargs = _app_options(args, cloud, data_dir)
+    options = app_options(cloud, **kwargs)  # type: ignore[arg-type]
+    options = dataclasses.replace(options, compute_slots=default_slots())
+    loaded = shared_cloud(cloud, options)
+    prepare = None
+    if opened is not None:
+        def prepare(app: App, role: str) -> None:
+            from rough_viewer.app.views import apply_view
+
+            apply_view(app.host, opened.view, source=Path(args.view).name, notice="")
+
+    return Classroom(server, gate, loaded, settings, options, prepare=prepare).start()
 
 
 def _check_grid_and_units(args: argparse.Namespace) -> None:
@@ -302,16 +375,21 @@ def _open_view(args: argparse.Namespace) -> OpenedView | None:
                      data_dir=args.data_dir)
 
 
-def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, str]:
-    """The viser server behind its gate (token, origins, connections) and its URL."""
+def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, Gate]:
+    """The viser server behind its gate (token, origins, connections; with
+    ``--classroom`` a teacher's token beside the students')."""
     from rough_viewer.app.gate import new_token, open_server
 
+    if args.classroom and args.no_token:
+        raise InputError("--classroom needs the tokens (the students' and the teacher's "
+                         "addresses differ by them): drop --no-token")
     with contextlib.redirect_stdout(io.StringIO()):  # viser's banner shows a URL without the token
         server, gate = open_server(args.host, args.port,
                                    token=None if args.no_token else new_token(),
                                    allow_origins=args.allow_origin,
-                                   max_connections=args.max_connections)
-    return server, gate.url(args.host, server.get_port())
+                                   max_connections=args.max_connections,
+                                   teacher_token=new_token() if args.classroom else None)
+    return server, gate
 
 
 def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointCloud:

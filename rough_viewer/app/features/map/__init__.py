@@ -93,6 +93,13 @@ class MapFeature(MapTab):
         """The timing record of the last map coloured (``{}`` before the first)."""
         return self.timings[-1] if self.timings else {}
 
+    def show_view(self, loaded: LoadedCloud, settings: MapSettings) -> int:
+        """Queue ``loaded`` with ``settings`` (only a recolouring when it is the cloud
+        on screen)."""
+        if loaded is self.host.session.shown.loaded:
+            return self.host.submit(RenderJob(self, settings=settings))
+        return self.host.submit(ShowJob(self, loaded, settings))
+
     def holds_overlay(self, owner: object) -> bool:
         """True while ``owner``'s colours are on the points."""
         return self.overlay is owner

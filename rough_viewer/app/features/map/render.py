@@ -175,7 +175,7 @@ def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
     if m.overlay is None:  # a feature that colours the points recolours them itself
         host.scene.colour_by(colouring)
     host.session.shown = Shown(loaded, settings, result, stats)
-    loaded.mark_shown(settings)
+    loaded.mark_shown(settings, host.session)
     t_colours = time.perf_counter() - t0
     # the colour bar and status always go with the colours (no stage in between)
     if not keep_error:
