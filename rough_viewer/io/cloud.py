@@ -4,6 +4,7 @@ index) and what a reader noticed on the way (warnings)."""
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -134,6 +135,7 @@ class PointCloud:
 _BOUNDS: dict[int, tuple[Any, Any, Any, np.ndarray, np.ndarray, np.ndarray]] = {}
 #: Most boxes kept (the oldest go first).
 BOUNDS_KEPT = 32
+_BOUNDS_LOCK = threading.Lock()
 
 
 def note_bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray,
@@ -160,11 +162,13 @@ def note_bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray,
         refs = (weakref.ref(x, forget), weakref.ref(y), weakref.ref(z))
     except TypeError:  # not weak-referenceable
         return
-    _BOUNDS.pop(key, None)
-    while len(_BOUNDS) >= BOUNDS_KEPT:
-        _BOUNDS.pop(next(iter(_BOUNDS)), None)
-    _BOUNDS[key] = (*refs, np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64),
-                    np.array(at, dtype=np.int64))
+    entry = (*refs, np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64),
+             np.array(at, dtype=np.int64))
+    with _BOUNDS_LOCK:  # the app's analyses compute on several threads
+        _BOUNDS.pop(key, None)
+        while len(_BOUNDS) >= BOUNDS_KEPT:
+            _BOUNDS.pop(next(iter(_BOUNDS)), None)
+        _BOUNDS[key] = entry
 
 
 def known_bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray
