@@ -431,7 +431,15 @@ def coarsen(
     hi = ijk_c.max(axis=0)
     shape = tuple(int(v) for v in (hi - lo + 1))
     key = ((ijk_c[:, 2] - lo[2]) * shape[1] + (ijk_c[:, 1] - lo[1])) * shape[0] + (ijk_c[:, 0] - lo[0])
-    keys_c, parent = np.unique(key, return_inverse=True)
+    total = shape[0] * shape[1] * shape[2]
+    if dense_bookkeeping(total, key.shape[0]):  # no sort: one int64 per coarse grid cell
+        occupied = np.bincount(key, minlength=total) > 0
+        keys_c = np.flatnonzero(occupied)
+        lookup = np.cumsum(occupied) - 1
+        parent = lookup[key]
+        del occupied, lookup
+    else:
+        keys_c, parent = np.unique(key, return_inverse=True)
     m_c = keys_c.shape[0]
     coarse_ijk = _decode_keys(keys_c, shape, lo)  # type: ignore[arg-type]
     grid = GridSpec(origin=fine.origin.copy(), cell_size=g, index_min=lo.astype(np.int64),
@@ -445,10 +453,11 @@ def coarsen(
     s2 = np.empty((m_c, 3, 3))
     for a in range(3):
         s1[:, a] = np.bincount(parent, weights=s1_f[:, a] + n * delta[:, a], minlength=m_c)
-        for b in range(3):
+        for b in range(a, 3):  # symmetric: each pair once
             w = (moments.s2[:, a, b] + s1_f[:, a] * delta[:, b] + delta[:, a] * s1_f[:, b]
                  + n * delta[:, a] * delta[:, b])
             s2[:, a, b] = np.bincount(parent, weights=w, minlength=m_c)
+            s2[:, b, a] = s2[:, a, b]
     point_cell = parent[index.point_cell] if gather else np.empty(0, dtype=np.int64)
     out = (CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
            CellMoments(counts=counts, s1=s1, s2=s2))
