@@ -1,5 +1,7 @@
 """Compiled (numba) kernels for the point passes of the grid: bounds, cell keys,
-cell-local moment sums, distance sums.
+cell-local moment sums (or, on a dense grid, keys, counts and moments in one fused
+pass: :func:`fused_index_and_moments`), distance sums (which turn keys, or a finer
+grid's rows, into rows on their way).
 
 The NumPy functions of :mod:`rough_viewer.grid.cells` are the reference; these
 kernels do the same arithmetic in the same order, point by point, without the
