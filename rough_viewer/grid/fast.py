@@ -264,14 +264,25 @@ def _threads() -> int:
     return int(numba.get_num_threads())
 
 
+#: Every block of a pass gets its own partial sums (one parallel step over all the
+#: blocks, then one over the cells, instead of a step and a wait per round of as
+#: many blocks as threads) while they take at most this many bytes or 4 bytes a
+#: point, whichever is larger: on a busy machine each wait costs a time slice.
+ALL_BLOCKS_BYTES = 64 << 20
+
+
 def _width(n: int, chunk: int, n_cells: int, row_bytes: int) -> int:
-    """How many blocks run at once: the thread count, bounded by the blocks there are
-    and by memory for the per-thread partial sums (at most one block's worth)."""
+    """How many blocks run at once: all of them where their partial sums fit in
+    :data:`ALL_BLOCKS_BYTES` (or 4 bytes a point), else the thread count, bounded by
+    the blocks there are and by memory for the per-thread partial sums. The partial
+    sums are added in block order either way, so the result does not change."""
     from rough_viewer.memory import require
 
     n_chunks = max(1, -(-n // chunk))
     width = max(1, min(_threads(), n_chunks))
-    require(width * n_cells * row_bytes, f"partial sums of {n_cells:,} cells on {width} threads",
+    if n_chunks * n_cells * row_bytes <= max(ALL_BLOCKS_BYTES, 4 * n):
+        width = n_chunks
+    require(width * n_cells * row_bytes, f"partial sums of {n_cells:,} cells in {width} blocks",
             hint="choose a larger grid size")
     return width
 
