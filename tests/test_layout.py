@@ -48,10 +48,11 @@ ALLOWED: dict[str, set[str]] = {
                "tin", "lod", "structure", "scanner", "directions"},
     "report": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
                "visual", "tin", "lod", "structure", "scanner", "directions"},
+    "lessons": {"lazy", "vocabulary", "memory", "io", "grid", "synthetic", "visual", "report"},
     "app": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "tin", "lod", "structure", "scanner", "directions"},
+            "visual", "report", "lessons", "tin", "lod", "structure", "scanner", "directions"},
     "cli": {"lazy", "vocabulary", "memory", "io", "grid", "profiles", "bias", "synthetic", "scale",
-            "visual", "report", "app", "tin", "lod", "structure", "scanner", "directions", "__init__"},
+            "visual", "report", "lessons", "app", "tin", "lod", "structure", "scanner", "directions", "__init__"},
     "__init__": {"_version", "lazy"},  # the flat API imports lazily (names only, for type checkers)
     "__main__": {"cli"},
     "_version": set(),

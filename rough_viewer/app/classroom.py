@@ -35,7 +35,7 @@ from rough_viewer.app import hooks
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.features import classroom as class_tab
 from rough_viewer.app.gate import Gate
-from rough_viewer.app.host import AppOptions, Host, Student
+from rough_viewer.app.host import AppOptions, Host, LessonReporter, Student
 from rough_viewer.app.server import App, Mount, mount_app
 from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.stage import TabStage
@@ -298,18 +298,20 @@ class Classroom:
 
 
 def lesson_line(app: App) -> tuple[str, str]:
-    """(where the tab is in its lesson, how its answers went), "" each without one."""
+    """(where the tab is in its lesson, how its answers went), "" each without one.
+
+    The Lesson tab reports both (:class:`~rough_viewer.app.host.LessonReporter`)."""
     for feature in app.features:
-        status = getattr(feature, "lesson_status", None)
-        if not callable(status):
+        if not isinstance(feature, LessonReporter):
             continue
-        st = status()
-        if st is None or not getattr(st, "lesson", ""):
+        st = feature.lesson_status()
+        if not st.lesson or not st.steps:
             return "", ""
-        step = int(getattr(st, "step", 0)) + 1
-        steps = int(getattr(st, "steps", getattr(st, "n_steps", 0)))
-        answers = tuple(getattr(st, "answers", ()))
-        right = sum(1 for a in answers if getattr(a, "correct", False))
-        told = f"{right} of {len(answers)} right" if answers else ""
-        return f"{st.lesson} {step}/{steps}", told
+        right = sum(1 for a in st.answers if a.correct)
+        told = ""
+        if st.answers:  # each answer (its step, the number given, right or not), then the count
+            each = ", ".join(f"step {a.step + 1}: {a.given:.3g} {'✓' if a.correct else '✗'}"
+                             for a in st.answers)
+            told = f"{each} ({right} of {len(st.answers)} right)"
+        return f"{st.lesson} {st.step + 1}/{st.steps}", told
     return "", ""

@@ -52,6 +52,11 @@ from rough_viewer.vocabulary import (
     ProgressFn,
 )
 
+#: From this many points the whole-cloud plane is combined from the cell moments of
+#: the coarsest preset (the coarse first map's grid, prepared anyway) instead of a
+#: pass of its own over the points.
+PLANE_FROM_GRID_POINTS = 2_000_000
+
 
 def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
     """The app's grid presets for ``cloud``, metres, coarsest first: the default
@@ -122,16 +127,15 @@ class LoadedCloud:
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
             raise InputError(f"{self.cloud.source or 'cloud'}: needs at least 3 points, has {self.cloud.n}")
-        xyz = self.cloud.xyz()
+        c = self.cloud
         lo, hi = self.cloud.bounds()  # per column: 5x faster than xyz.min(axis=0)
         # Local origin: the bounding-box centre rounded to whole metres, so the
         # float32 coordinates sent to the browser stay precise for UTM scans.
         self.origin = (np.asarray(self.frame_origin, dtype=np.float64)
                        if self.frame_origin is not None else np.round(0.5 * (lo + hi)))
-        self.display_index = display_subset(xyz, self.max_display, seed=self.seed)
-        self.display_points = (xyz[self.display_index] - self.origin).astype(np.float32)
-        self.plane = whole_cloud_plane(self.cloud)
-        self.auto_axis = dominant_axis(self.plane.normal)
+        idx = self.display_index = display_subset(c, self.max_display, seed=self.seed)
+        self.display_points = (np.column_stack([c.x[idx], c.y[idx], c.z[idx]])
+                               - self.origin).astype(np.float32)
         if self.presets is None:
             self.presets = grid_presets(self.cloud)
         self.presets = tuple(sorted((float(g) for g in self.presets), reverse=True))
@@ -142,6 +146,13 @@ class LoadedCloud:
                                    self.cache_pool or ByteBudget(self.cache_bytes),
                                    most=self.cache_bytes)
         self._layers = {}
+        if self.cloud.n >= PLANE_FROM_GRID_POINTS:
+            # the coarsest preset's moments give the plane (equal up to rounding), and
+            # its cells are the big cloud's first map: one pass over the points for both
+            self.plane = self.store.prepared(self.presets[0]).whole_plane()
+        else:
+            self.plane = whole_cloud_plane(self.cloud)
+        self.auto_axis = dominant_axis(self.plane.normal)
 
     def cropped(self, box: CropBox) -> LoadedCloud:
         """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``
@@ -351,8 +362,13 @@ class LoadedCloud:
                     progress: ProgressFn | None = None) -> GridRoughness:
         """:meth:`result` without its point-to-cell map, cached apart
         (:meth:`rough_viewer.app.store.InMemoryStore.cell_result`)."""
-        with self._computing(("cells", settings.grid_key), progress):
-            return self.store.cell_result(settings, progress=progress)
+        with self.store.one_at_a_time(("cells", settings.grid_key)):
+            if self.store.has_cells(settings):
+                return self.store.cell_result(settings, progress=progress)
+            # made from the full result: under its flight, so that a map and a panel
+            # asking for the same grid at once compute it once
+            with self._computing(("result", settings.grid_key), progress):
+                return self.store.cell_result(settings, progress=progress)
 
     def prepared(self, cell_size: float, *, progress: ProgressFn | None = None) -> PreparedGrid:
         """Cell membership and moments of the grid ``cell_size`` (metres), cached;

@@ -56,6 +56,7 @@ if TYPE_CHECKING:
     from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.worker import Job, Run
     from rough_viewer.io import PointCloud
+    from rough_viewer.lessons import Lesson
     from rough_viewer.report.view import View
 
 T = TypeVar("T")
@@ -97,6 +98,8 @@ class AppOptions:
     """Grid computations at once across the app's analyses (``serve --classroom``:
     one analysis per tab, :class:`~rough_viewer.app.cache.ComputeSlots`); None: no
     limit (one analysis, one worker)."""
+    lesson: Lesson | None = None
+    """The lesson the Lesson tab opens on (``serve --lesson``; None: none chosen)."""
 
     @cached_property
     def cache_pool(self) -> ByteBudget:
@@ -169,6 +172,48 @@ class FigureSource(Protocol):
     def figures(self) -> dict[str, viser.GuiPlotlyHandle]:
         """Name (a file-name part; :func:`rough_viewer.visual.export.figure_title`
         gives its title) -> the plotly panel."""
+        ...
+
+
+@dataclass(frozen=True)
+class LessonAnswer:
+    """One checked answer of a lesson's step (the last check of that step)."""
+
+    step: int
+    """0-based step index."""
+    question: str
+    """The question's text (the lesson file's: escape it before showing it)."""
+    given: float
+    """The number the student typed."""
+    expected: float
+    """The tool's number on the map the answer was checked on (same unit)."""
+    correct: bool
+    """``given`` was within the question's tolerance of ``expected``."""
+
+
+@dataclass(frozen=True)
+class LessonStatus:
+    """Where a tab stands in its lesson (the teacher's Class tab reads it)."""
+
+    lesson: str
+    """The lesson's name (its file's stem; "" when no lesson is open)."""
+    title: str
+    """The lesson's title (user text: escape it)."""
+    step: int
+    """The current step, 0-based."""
+    steps: int
+    """Number of steps (0 when no lesson is open)."""
+    answers: tuple[LessonAnswer, ...] = ()
+    """The steps answered so far, in step order (the last check of each)."""
+
+
+@runtime_checkable
+class LessonReporter(Protocol):
+    """A feature that reports its tab's lesson (the Lesson tab): the Class tab finds
+    it among a tab's features with ``isinstance(f, LessonReporter)``."""
+
+    def lesson_status(self) -> LessonStatus:
+        """A snapshot of the lesson, its step and the answers (any thread)."""
         ...
 
 

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from rough_viewer.io.cloud import PointCloud, as_columns
 from rough_viewer.memory import require
 
 #: Hash-table buckets per point of the sample (collisions merge ~1 / (2 x this)).
@@ -47,19 +48,32 @@ def priority(index: np.ndarray, seed: int) -> np.ndarray:
     return (z >> np.uint64(40)).astype(np.float32) / np.float32(2**24)
 
 
-def _keys(xyz: np.ndarray, lo: np.ndarray, size: float, dims: np.ndarray) -> np.ndarray:
-    ijk = np.floor((xyz - lo) / size).astype(np.int64)
-    np.clip(ijk, 0, dims - 1, out=ijk)
-    return (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+def _keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, size: float,
+          dims: np.ndarray) -> np.ndarray:
+    """The voxel key of each point (columns ``x, y, z``, metres): the voxel's index
+    ``floor((p - lo) / size)`` per axis, clipped to ``dims``, flattened."""
+    key = np.zeros(x.shape[0], dtype=np.int64)
+    for axis, col in enumerate((x, y, z)):
+        t = col - lo[axis]  # >= 0: lo is the minimum, so truncation is the floor
+        t /= size
+        i = t.astype(np.int64)
+        del t
+        np.minimum(i, dims[axis] - 1, out=i)
+        if axis:
+            key *= dims[axis]
+        key += i
+    return key
 
 
-def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.ndarray:
+def display_subset(points: PointCloud | np.ndarray, max_points: int, *,
+                   seed: int = 0) -> np.ndarray:
     """Sorted indices of at most ``max_points`` points, spread evenly over the surface.
 
     Parameters
     ----------
-    xyz
-        ``(N, 3)`` point positions in metres.
+    points
+        A :class:`~rough_viewer.io.PointCloud` (its columns are read, never copied)
+        or ``(N, 3)`` point positions, metres.
     max_points
         Sample size; if ``N <= max_points`` every index is returned.
     seed
@@ -68,17 +82,17 @@ def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.nda
     Returns
     -------
     np.ndarray
-        ``(K,)`` int64 indices into ``xyz``, ascending, ``K <= max_points``.
+        ``(K,)`` int64 indices into the points, ascending, ``K <= max_points``.
     """
-    n = len(xyz)
+    x, y, z = as_columns(points)
+    n = int(x.shape[0])
     if n <= max_points:
         return np.arange(n, dtype=np.int64)
     if max_points <= 0:
         return np.zeros(0, dtype=np.int64)
     rng = np.random.default_rng(seed)
-    # per column: a reduction over axis 0 of an (N, 3) array is several times slower
-    lo = np.array([xyz[:, a].min() for a in range(3)], dtype=np.float64)
-    hi = np.array([xyz[:, a].max() for a in range(3)], dtype=np.float64)
+    lo = np.array([col.min() for col in (x, y, z)], dtype=np.float64)
+    hi = np.array([col.max() for col in (x, y, z)], dtype=np.float64)
     extent = float(np.max(hi - lo)) or 1.0
     # Estimate the surface area from the coarse voxels a random subset occupies, then
     # size the fine voxels so about max_points of them are occupied (a surface:
@@ -86,7 +100,7 @@ def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.nda
     coarse = extent / 256.0
     few = np.sort(rng.choice(n, size=min(n, ESTIMATE_POINTS), replace=False))
     cdims = np.floor((hi - lo) / coarse).astype(np.int64) + 1
-    n_coarse = len(np.unique(_keys(xyz[few], lo, coarse, cdims)))
+    n_coarse = len(np.unique(_keys(x[few], y[few], z[few], lo, coarse, cdims)))
     size = coarse * float(np.sqrt(n_coarse / max_points))
     dims = np.floor((hi - lo) / size).astype(np.int64) + 1
     table_size = int(TABLE_PER_POINT * max_points) | 1
@@ -98,7 +112,8 @@ def display_subset(xyz: np.ndarray, max_points: int, *, seed: int = 0) -> np.nda
     prio = np.empty(n, dtype=np.float32)
     for start in range(0, n, CHUNK):
         stop = min(n, start + CHUNK)
-        buckets[start:stop] = _keys(xyz[start:stop], lo, size, dims) % table_size
+        buckets[start:stop] = _keys(x[start:stop], y[start:stop], z[start:stop], lo, size,
+                                    dims) % table_size
         prio[start:stop] = priority(np.arange(start, stop), seed)
         np.minimum.at(best, buckets[start:stop], prio[start:stop])
     taken = prio == best[buckets]

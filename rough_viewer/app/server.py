@@ -28,6 +28,7 @@ from rough_viewer.app.features import (
     crop,
     export,
     file,
+    lesson,
     measure,
     panels,
     profile,
@@ -49,6 +50,7 @@ from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.app.worker import Job, Worker
 from rough_viewer.io import PointCloud
 from rough_viewer.io.estimates import max_points_limit
+from rough_viewer.lessons import Lesson
 from rough_viewer.lod.select import DEFAULT_BUDGET
 from rough_viewer.scanner.trust import TrustSettings
 from rough_viewer.vocabulary import UNITS, InputError, Unit
@@ -70,6 +72,7 @@ FEATURES: tuple[Mount, ...] = (
     profile.mount,
     directions.mount,  # a folder in the Profile tab
     board.mount,
+    lesson.mount,  # the Lesson tab: guided steps (serve --lesson)
     bias.mount,
     zones.mount,
     sets.mount,
@@ -155,6 +158,7 @@ def build_app(
     trust: TrustSettings | None = None,
     point_budget: int = DEFAULT_BUDGET,
     max_points: int | None = None,
+    lesson: Lesson | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -179,6 +183,9 @@ def build_app(
         The decompression-bomb guard's limit for the files the File tab loads or
         uploads (``serve --max-points``; default
         :data:`rough_viewer.io.estimates.DEFAULT_MAX_POINTS`).
+    lesson
+        The lesson the Lesson tab opens on (``serve --lesson``): its first step's
+        scene is set up once the first map is shown.
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
     prefetch
@@ -214,7 +221,8 @@ def build_app(
     options = app_options(cloud, max_display=max_display, variogram=variogram,
                           prefetch=prefetch, data_dir=data_dir, max_upload_mb=max_upload_mb,
                           cache_bytes=cache_bytes, units=units, save_views=save_views,
-                          trust=trust, point_budget=point_budget, max_points=max_points)
+                          trust=trust, point_budget=point_budget, max_points=max_points,
+                          lesson=lesson)
     loaded = shared_cloud(cloud, options, presets=presets)
     return mount_app(server, loaded, settings or MapSettings(cell_size=loaded.default_cell_size),
                      options)
@@ -234,6 +242,7 @@ def app_options(
     trust: TrustSettings | None = None,
     point_budget: int = DEFAULT_BUDGET,
     max_points: int | None = None,
+    lesson: Lesson | None = None,
 ) -> AppOptions:
     """The options of an app for ``cloud`` (:func:`build_app`'s parameters, checked)."""
     if units is not None and units not in UNITS:
@@ -243,7 +252,7 @@ def app_options(
                       prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
                       cache_bytes=int(cache_bytes), units=units, save_views=save_views,
                       trust=trust, point_budget=int(point_budget),
-                      max_points=max_points_limit(max_points))
+                      max_points=max_points_limit(max_points), lesson=lesson)
 
 
 def shared_cloud(cloud: PointCloud, options: AppOptions, *,

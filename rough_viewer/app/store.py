@@ -60,6 +60,10 @@ class CloudStore(Protocol):
         """The grid result of ``settings`` is at hand."""
         ...
 
+    def has_cells(self, settings: MapSettings) -> bool:
+        """The per-cell figures of ``settings`` (:meth:`cell_result`) are at hand."""
+        ...
+
     def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
         """The grid of ``settings`` is on screen in ``owner``'s analysis (kept while
         others come and go)."""
@@ -212,6 +216,10 @@ class InMemoryStore:
     def is_cached(self, settings: MapSettings) -> bool:
         return ("result", settings.grid_key) in self._cache
 
+    def has_cells(self, settings: MapSettings) -> bool:
+        """:meth:`cell_result` of ``settings`` is at hand."""
+        return ("cells", settings.grid_key) in self._cache
+
     def mark_shown(self, settings: MapSettings, owner: object = None) -> None:
         """The grid of ``settings`` is on screen in ``owner``'s analysis (None: the
         app's one): keep its result in the cache while other grids come and go (it
@@ -269,7 +277,9 @@ class InMemoryStore:
 
         Sizes that are integer multiples of the finest preset
         are coarsened from the fine grid, which shares their origin (the
-        bounding-box minimum), instead of indexing the points again.
+        bounding-box minimum), instead of indexing the points again; the presets
+        coarser than the finest are indexed on their own while the fine grid is not
+        at hand (the coarse first map of a cloud needs no fine grid).
         ``progress(0, 1)`` is called before each pass over the points (so a
         cancelled job stops there).
         """
@@ -278,7 +288,10 @@ class InMemoryStore:
         if isinstance(hit, PreparedGrid):
             return hit
         factor = cell_size / self.presets[-1]
-        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1:
+        fine_key = ("prepared", round(float(self.presets[-1]), 9))
+        coarse_alone = key[1] in {round(float(g), 9) for g in self.presets} \
+            and fine_key not in self._cache
+        if abs(factor - round(factor)) < 1e-9 and round(factor) > 1 and not coarse_alone:
             fine = self.prepared(self.presets[-1], progress=progress)
             prep = coarsen_prepared(fine, int(round(factor)))
         else:

@@ -18,6 +18,7 @@ import fnmatch
 import glob
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from rough_viewer.io.cloud import PointCloud
@@ -172,10 +173,12 @@ def describe(paths: list[Path], *, shown: int = 4) -> str:
 
 
 def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = False,
-                max_points: int | None = None) -> PointCloud:
+                max_points: int | None = None,
+                also: Callable[[int, int, int], None] | None = None) -> PointCloud:
     """Read the files as one cloud in memory, with progress bars (unless ``quiet``)
     and the usual notes on stderr (dropped rows, warnings); ``max_points`` is the
-    decompression-bomb guard's limit (``--max-points``; None: the default)."""
+    decompression-bomb guard's limit (``--max-points``; None: the default). ``also(i,
+    done, total)`` is told the progress of file ``i`` too (``serve``'s waiting page)."""
     from rough_viewer.cli._progress import FileBars, ProgressBar
     from rough_viewer.scale.sources import load_merged
 
@@ -187,6 +190,11 @@ def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = Fa
                                            overall_unit="file")
         progress = None if bars is None else [_with_overall(bars, i, paths)
                                               for i in range(len(paths))]
+    if also is not None:
+        told: list[Callable[[int, int], None]] = [
+            _and_also(None if progress is None else progress[i], also, i)
+            for i in range(len(paths))]
+        progress = told  # type: ignore[assignment]
     try:
         cloud = load_merged(paths, units=units, progress=progress,  # type: ignore[arg-type]
                             max_points=max_points)
@@ -195,6 +203,16 @@ def load_inputs(paths: list[Path], *, units: str | None = None, quiet: bool = Fa
             bars.close()
     report_cloud(cloud, describe(paths))
     return cloud
+
+
+def _and_also(bar: Callable[[int, int], None] | None, also: Callable[[int, int, int], None],
+              i: int) -> Callable[[int, int], None]:
+    def tick(done: int, total: int) -> None:
+        if bar is not None:
+            bar(done, total)
+        also(i, done, total)
+
+    return tick
 
 
 def _with_overall(bars, i: int, paths: list[Path]):

@@ -10,6 +10,7 @@ Contract::
         [--classroom]
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
+        [--lesson NAME|FILE.toml]
 
 Several inputs (files or quoted globs) open as one merged cloud. With no INPUT the
 bundled demo outcrop opens (``--demo NAME`` picks another demo). ``--units`` (default:
@@ -52,6 +53,10 @@ all: :mod:`rough_viewer.app.classroom`) and prints two addresses, each on its ow
 line with its own token: ``open URL`` for the students and ``teacher URL`` for the
 teacher, whose tab also has the Class tab (the students listed, their views, "Send
 my view to everyone", "Follow me").
+
+``--lesson NAME`` (a bundled lesson or a lesson file, docs/lessons.md, checked before
+the server opens) opens the Lesson tab on it: once the first map is shown, its first
+step sets its scene up (with ``--classroom``, in every tab, each then on its own).
 """
 
 from __future__ import annotations
@@ -63,7 +68,7 @@ import io
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -75,6 +80,9 @@ from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io import PointCloud
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, InputError
 
+Progress = Callable[[int, int, int], None]
+"""``progress(file index, done, total)`` of the input's reading."""
+
 if TYPE_CHECKING:
     import viser
 
@@ -83,6 +91,7 @@ if TYPE_CHECKING:
     from rough_viewer.app.server import App
     from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.views import OpenedView
+    from rough_viewer.lessons import Lesson
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -133,20 +142,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="every browser tab its own analysis of the one cloud (grids computed "
                    "once for all); prints the students' address (open ...) and the "
                    "teacher's (teacher ...), whose tab has the Class tab")
+    p.add_argument("--lesson", metavar="NAME",
+                   help="open the Lesson tab on a lesson: a bundled one (tilted-board, "
+                   "turned-wall, scale; `rough-viewer lesson --list`) or a lesson file "
+                   "(.toml, docs/lessons.md)")
     p.add_argument("--no-block", action="store_true", help=argparse.SUPPRESS)
     add_scanner_options(p)
     p.set_defaults(func=run)
 
 
-def _load_cloud(args: argparse.Namespace) -> PointCloud:
+def _load_cloud(args: argparse.Namespace, also: Progress | None = None) -> PointCloud:
     if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
     if args.inputs:
         from rough_viewer.cli._inputs import input_paths, load_inputs
 
         paths = input_paths(args)
-        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=True,
-                                          max_points=args.file_max_points), paths, args)
+        return _with_scanners(load_inputs(paths, units=getattr(args, "units", None), quiet=False,
+                                          max_points=args.file_max_points, also=also),
+                              paths, args)
     try:
         from rough_viewer.synthetic import demos
     except ImportError:
@@ -222,6 +236,7 @@ def _run(args: argparse.Namespace) -> int:
     opened = _open_view(args)
     data_dir = _data_dir(args, opened)
     _check_source(args, opened)  # what can be refused at once is, before the server opens
+    args.lesson_data = _lesson(args)  # a bad lesson file is refused before the server opens
     server, gate = _open_server(args)
     url = gate.url(args.host, server.get_port())
     waiting = _say_listening(server, url, _what_loads(args, opened))
@@ -229,7 +244,8 @@ def _run(args: argparse.Namespace) -> int:
     previous = _stop_on_terminate()
     try:
         _start_background()
-        cloud, settings = _cloud_and_settings(args, opened)
+        cloud, settings = _cloud_and_settings(
+            args, opened, _page_progress(waiting, _what_loads(args, opened)))
         waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
         n_points = cloud.n
         if args.classroom:
@@ -245,9 +261,11 @@ def _run(args: argparse.Namespace) -> int:
             app = _start_app(args, server, cloud, settings, data_dir)
             del cloud  # the app holds it while a tab shows it: this frame must not (issue 36)
             waiting.remove()
-            app.wait_idle(timeout=None if not args.no_block else 120.0)
             if opened is not None:
+                app.wait_idle(timeout=None if not args.no_block else 120.0)
                 _apply_opened_view(app, opened, args)
+            else:  # the first map is ready: the panels and the rest come after
+                _wait_first_map(app, timeout=None if not args.no_block else 120.0)
             print(f"rough-viewer: {n_points:,} points, open {url}", flush=True)
             _say_warnings(list(app.host.errors)[-1:])
         while not args.no_block:
@@ -262,8 +280,44 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
-                        ) -> tuple[PointCloud, MapSettings]:
+def _lesson(args: argparse.Namespace) -> Lesson | None:
+    """The lesson of ``--lesson`` read and checked (None without it)."""
+    if not getattr(args, "lesson", None):
+        return None
+    from rough_viewer.lessons import find_lesson
+
+    return find_lesson(args.lesson)
+
+
+def _page_progress(waiting: viser.GuiMarkdownHandle, what: str) -> Progress:
+    """The waiting page's line told how far the reading is (at most twice a second)."""
+    last = [0.0]
+
+    def tell(i: int, done: int, total: int) -> None:
+        now = time.monotonic()
+        if total <= 0 or (now - last[0] < 0.5 and done < total):
+            return
+        last[0] = now
+        file = f" (file {i + 1})" if i else ""
+        waiting.content = (f"**Reading {_markdown_text(what)}{file}: "
+                           f"{min(100.0, 100.0 * done / total):.0f} %…** the map appears when "
+                           "the cloud is read and its first grid computed.")
+
+    return tell
+
+
+def _wait_first_map(app: App, timeout: float | None) -> None:
+    """Until the app has coloured its first map (or has nothing left to do: a map it
+    could not make is an error line), not for the panels that follow it."""
+    end = None if timeout is None else time.monotonic() + timeout
+    while not app.map.timings and app.worker.busy:
+        if end is not None and time.monotonic() > end:
+            return
+        time.sleep(0.05)
+
+
+def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
+                        also: Progress | None = None) -> tuple[PointCloud, MapSettings]:
     """The cloud to show and its first map's settings (the saved view's, ``--grid``
     in the input's unit, else the cloud's default grid: its finest preset)."""
     from rough_viewer.app.cloud import grid_presets
@@ -271,7 +325,7 @@ def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None
     from rough_viewer.vocabulary import UNIT_METRES
 
     settings: MapSettings | None = opened.settings if opened is not None else None
-    cloud = _read_cloud(args, opened)
+    cloud = _read_cloud(args, opened, also)
     if opened is None and args.grid is not None:
         # --grid is in the input's unit (--units, else its CRS's, else m)
         settings = MapSettings(cell_size=args.grid * UNIT_METRES[cloud.source_unit],
@@ -293,7 +347,8 @@ def _app_options(args: argparse.Namespace, cloud: PointCloud, data_dir: Path) ->
     return {"max_display": min(int(args.point_budget), DEFAULT_MAX_DISPLAY),
             "point_budget": args.point_budget, "max_points": args.file_max_points,
             "data_dir": data_dir, "max_upload_mb": args.max_upload_mb, "units": args.units,
-            "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit)}
+            "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit),
+            "lesson": getattr(args, "lesson_data", None)}
 
 
 def _start_app(args: argparse.Namespace, server: viser.ViserServer, cloud: PointCloud,
@@ -392,16 +447,17 @@ def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, Gate]:
     return server, gate
 
 
-def _read_cloud(args: argparse.Namespace, opened: OpenedView | None) -> PointCloud:
+def _read_cloud(args: argparse.Namespace, opened: OpenedView | None,
+                also: Progress | None = None) -> PointCloud:
     """The cloud to show: the saved view's input, else INPUT or the demo, with the
-    scanner options applied."""
+    scanner options applied (``also(i, done, total)``: the reading's progress)."""
     if opened is None:
-        return _load_cloud(args)
+        return _load_cloud(args, also)
     from rough_viewer.cli._inputs import load_inputs
 
     return _with_scanners(
-        load_inputs([opened.input_path], units=opened.view.units, quiet=True,
-                    max_points=args.file_max_points),
+        load_inputs([opened.input_path], units=opened.view.units, quiet=False,
+                    max_points=args.file_max_points, also=also),
         [opened.input_path], args)
 
 

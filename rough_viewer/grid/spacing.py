@@ -58,6 +58,10 @@ SPACING_QUERIES = 5000
 TREE_POINTS = 2_000_000
 #: Largest point set counted per cell when refining the grid.
 COUNT_POINTS = 5_000_000
+#: Cells of the grid's box per counted point up to which the cells are counted in
+#: one array over the box (a bincount: the same counts as sorting the keys, several
+#: times faster; 4 x 8 bytes per point at most, within the 64 the count asks for).
+DENSE_CELLS_PER_POINT = 4
 #: Refinement steps on the real grid.
 REFINE_STEPS = 4
 #: Readable mantissas the default grid is rounded up to.
@@ -74,7 +78,9 @@ def neighbour_distance(xyz: np.ndarray, *, k: int = SPACING_NEIGHBOUR) -> float:
     if xyz.shape[0] <= k:
         raise InputError(f"need more than {k} points to estimate the point spacing")
     require(xyz.shape[0] * 80.0, f"a neighbour search over {xyz.shape[0]:,} points")
-    tree = cKDTree(xyz)
+    # a sliding-midpoint tree without shrunk node boxes: 2.5x faster to build for the
+    # few thousand queries, the same (exact) neighbours
+    tree = cKDTree(xyz, balanced_tree=False, compact_nodes=False)
     step = max(1, xyz.shape[0] // SPACING_QUERIES)
     dist, _ = tree.query(xyz[::step], k=k + 1)
     value = float(np.median(dist[:, k]))
@@ -84,12 +90,17 @@ def neighbour_distance(xyz: np.ndarray, *, k: int = SPACING_NEIGHBOUR) -> float:
 
 
 def _subset(cloud: PointCloud | np.ndarray, most: int) -> tuple[np.ndarray, float]:
-    """(at most ``most`` points as (n, 3), the fraction of the cloud they are)."""
+    """(about ``most`` points as (n, 3), a uniform random subset of a larger cloud;
+    the fraction of the cloud they are)."""
     x, y, z = as_columns(cloud)
     n = int(x.shape[0])
     if n <= most:
         return np.column_stack([x, y, z]), 1.0
-    pick = np.sort(np.random.default_rng(0).choice(n, most, replace=False))
+    # each point kept with probability most / n (a uniform random subset, as a draw
+    # of exactly ``most`` without replacement, which shuffled every index: 1 s at 20 M)
+    pick = np.flatnonzero(np.random.default_rng(0).random(n, dtype=np.float32) < most / n)
+    # the fraction each point is kept with: a median count of 16 in the subset reads
+    # as exactly 64 at a quarter, as before (the realised share wobbles by 1e-4)
     return np.column_stack([x[pick], y[pick], z[pick]]), most / n
 
 
@@ -121,8 +132,14 @@ def _median_count(pts: np.ndarray, lo: np.ndarray, fraction: float, cell_size: f
     ``lo``, the share of the cloud they are)."""
     require(pts.shape[0] * 64.0, f"counting {pts.shape[0]:,} points per cell")
     keys = np.floor((pts - lo) / cell_size).astype(np.int64)
-    dims = keys.max(axis=0) + 1
-    if float(np.prod(dims.astype(np.float64))) < 2.0**62:  # one int64 key per cell
+    dims = np.array([keys[:, a].max() for a in range(3)]) + 1  # per column: faster
+    cells = float(np.prod(dims.astype(np.float64)))
+    if cells <= DENSE_CELLS_PER_POINT * pts.shape[0]:  # a count per cell of the box
+        flat = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
+        del keys
+        counts = np.bincount(flat, minlength=int(cells))
+        counts = counts[counts > 0]
+    elif cells < 2.0**62:  # one int64 key per cell
         flat = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
         _, counts = np.unique(flat, return_counts=True)
     else:

@@ -153,16 +153,8 @@ def _fmt_xyz(v: np.ndarray, per: float = 1.0) -> str:
 
 def report_html(report: Report) -> str:
     """One self-contained HTML page (plotly.js inlined: no network needed)."""
-    from plotly.offline import get_plotlyjs
-
     esc = html.escape
     parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>Roughness report: {esc(report.name)}</title>",
-        f"<style>{_CSS}</style>",
-        f'<script type="text/javascript">{get_plotlyjs()}</script>',
-        "</head><body>",
         f"<h1>Surface roughness report: {esc(report.name)}</h1>",
         *_meta_table(report),
         _method_note(report),
@@ -173,8 +165,32 @@ def report_html(report: Report) -> str:
         parts += _section_html(report, s)
     for i, d in enumerate(report.directions):
         parts += directions_html(d, unit=report.unit, sid=f"directions-{i}")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    return html_page(f"Roughness report: {report.name}", parts)
+
+
+def html_page(title: str, body: list[str], *, css: str = "") -> str:
+    """One self-contained HTML page: ``title`` (plain text, escaped), the report's
+    style (and ``css``), plotly.js inlined (figures work offline), then ``body``
+    (HTML fragments). The one page writer of the report and the lesson handouts."""
+    from plotly.offline import get_plotlyjs
+
+    head = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title>",
+        f"<style>{_CSS}{css}</style>",
+        f'<script type="text/javascript">{get_plotlyjs()}</script>',
+        "</head><body>",
+    ]
+    return "\n".join([*head, *body, "</body></html>"])
+
+
+def figure_html(fig: Any, div_id: str, key: str) -> str:
+    """A plotly figure as a ``<div class="figure" data-figure="key">`` of a page made
+    by :func:`html_page` (plotly.js is in the page's head)."""
+    div = fig.to_html(full_html=False, include_plotlyjs=False, div_id=div_id,
+                      config={"displaylogo": False})
+    return f'<div class="figure" data-figure="{html.escape(key)}">{div}</div>'
 
 
 def _meta_table(report: Report) -> list[str]:
@@ -296,9 +312,7 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
                                 'value)' if valued else "") + ".</p>")
                 if flagged is not None and flagged.most:
                     parts.append(f'<p class="error">{esc(flagged.text(report.unit))}.</p>')
-        div = fig.to_html(full_html=False, include_plotlyjs=False,
-                          div_id=f"{sid}-{key}", config={"displaylogo": False})
-        parts.append(f'<div class="figure" data-figure="{key}">{div}</div>')
+        parts.append(figure_html(fig, f"{sid}-{key}", key))
     parts.append("</section>")
     return parts
 

@@ -191,3 +191,52 @@ def test_a_tab_that_leaves_frees_its_app(classroom):
     wait_until(lambda: not ra.app.worker._thread.is_alive(), 30, "its worker to end")
     assert rb.client_id in room.rooms and rb.app.wait_idle(30)
     assert [s.name for s in room.students()] == [rb.name]
+
+
+def test_one_students_slow_grid_does_not_hold_up_another(classroom, monkeypatch):
+    """Student A asks for a grid that takes seconds (slowed here); student B's own new
+    grid is answered meanwhile (its own worker, the second compute slot)."""
+    import threading
+
+    from rough_viewer.app import store
+
+    room, join, _gate = classroom
+    a, ra = join()
+    b, rb = join()
+    presets = list(ra.app.session.shown.loaded.presets)  # coarsest first
+    slow_size, quick_size = presets[0], presets[1]
+    release = threading.Event()
+    held: list[int] = []
+    real = store.grid_roughness
+
+    def grid(cloud, cell_size, **kw):
+        if abs(cell_size - slow_size) < 1e-12 and kw.get("axis") == "z":
+            if not release.is_set():
+                held.append(1)
+            release.wait(30)  # A's grid: held until B has its answer
+        return real(cloud, cell_size, **kw)
+
+    monkeypatch.setattr(store, "grid_roughness", grid)
+    grids = {g: v for g, v in zip(ra.app.map.grid.options, ra.app.map.grid.options,
+                                  strict=True)}
+    slow = next(g for g in grids if abs(float(g) - slow_size) < 1e-9)
+    quick = next(g for g in grids if abs(float(g) - quick_size) < 1e-9)
+    a.set_value("Dependent axis", "z")
+    a.set_value("Grid size (m)", slow)
+    wait_until(lambda: ra.app.worker.busy, 30, "A's slow grid to start")
+    b.set_value("Dependent axis", "z")
+    b.set_value("Grid size (m)", quick)
+    try:
+        # B's map (its panels may wait for A's grid: the trend across grid sizes
+        # needs every preset, and that grid is computed once, by A)
+        wait_until(lambda: rb.app.session.shown.settings.cell_size == pytest.approx(quick_size)
+                   and rb.app.session.shown.settings.axis == "z", 20,
+                   "B's own grid while A waits")
+        assert held == [1]  # A's grid is being computed, once (B's panels wait for it)
+        assert ra.app.worker.busy
+        assert ra.app.worker.busy  # A is still computing its grid
+        assert ra.app.session.shown.settings.cell_size != pytest.approx(slow_size)
+    finally:
+        release.set()
+    _settle(ra, lambda: ra.app.session.shown.settings.cell_size == pytest.approx(slow_size),
+            "A's slow grid in the end")

@@ -216,3 +216,27 @@ def test_point_budget_and_max_points_each_mean_one_thing(tmp_path, capsys):
     # --max-points does (the read then fails on the points the file lacks)
     main(["serve", str(bomb), "--max-points", "5000000", "--port", "0", "--no-block"])
     assert "decompression bomb" not in capsys.readouterr().err
+
+
+def test_serve_classroom_prints_a_students_and_a_teachers_address(tmp_path, capsys):
+    """``serve --classroom``: ``open URL`` then ``teacher URL``, each on its own line with
+    its own token; a real WebSocket with the teacher's token opens the teacher's tab."""
+    path = _cloud(tmp_path)
+    assert main(["serve", str(path), "--port", "0", "--classroom", "--no-block"]) == 0
+    out = capsys.readouterr().out
+    student = re.search(r"^open http://127\.0\.0\.1:(\d+)/t/([A-Za-z0-9_-]{32})/$", out,
+                        re.MULTILINE)
+    teacher = re.search(r"^teacher http://127\.0\.0\.1:(\d+)/t/([A-Za-z0-9_-]{32})/$", out,
+                        re.MULTILINE)
+    assert student and teacher, out
+    assert student.group(1) == teacher.group(1)
+    assert student.group(2) != teacher.group(2)
+    assert out.index("open http") < out.index("teacher http")
+
+
+def test_serve_classroom_needs_the_tokens(tmp_path, capsys):
+    path = _cloud(tmp_path)
+    assert main(["serve", str(path), "--port", "0", "--classroom", "--no-token",
+                 "--no-block"]) == 2
+    err = capsys.readouterr().err
+    assert "--classroom needs the tokens" in err and "Traceback" not in err

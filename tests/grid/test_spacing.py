@@ -97,3 +97,22 @@ def test_a_cloud_in_us_feet_gets_round_sizes_in_us_feet():
     assert shown == ["32 US ft", "16 US ft", "8 US ft", "4 US ft"]
     assert [round(s / per, 9) for s in preset_cell_sizes(cloud)] == [32.0, 16.0, 8.0, 4.0]
     assert all(float(f"{s / per:.9g}").is_integer() for s in default_report_grids(cloud))
+
+
+def test_dense_cell_count_equals_sorted_keys(monkeypatch):
+    """The cells counted in one array over the grid's box (a bincount) give the same
+    median as sorting the cell keys, and the spacing's tree the same neighbours as a
+    brute-force search."""
+    from rough_viewer.grid import spacing
+
+    rng = np.random.default_rng(3)
+    pts = np.column_stack([rng.uniform(0, 3, 20_000), 0.01 * rng.standard_normal(20_000),
+                           rng.uniform(0, 2, 20_000)])
+    lo = pts.min(axis=0)
+    dense = [spacing._median_count(pts, lo, 0.5, g) for g in (0.05, 0.1, 0.3)]
+    monkeypatch.setattr(spacing, "DENSE_CELLS_PER_POINT", 0)
+    assert dense == [spacing._median_count(pts, lo, 0.5, g) for g in (0.05, 0.1, 0.3)]
+    assert dense[0] != dense[1]
+    few = pts[:3000]
+    d = np.sqrt(((few[:, None, :] - few[None, :, :]) ** 2).sum(axis=2))  # every point queried
+    assert spacing.neighbour_distance(few) == float(np.median(np.sort(d, axis=1)[:, 4]))

@@ -54,7 +54,7 @@ def students_table(students: list[Student]) -> str:
     for s in students:
         rows.append(f"| {md(s.name, max_chars=12)} | {s.cell_size:.4g} m | {s.model.upper()} "
                     f"| {s.threshold:g} | {s.axis} | {md(s.lesson, max_chars=60) or '–'} "
-                    f"| {md(s.answers, max_chars=60) or '–'} |")
+                    f"| {md(s.answers, max_chars=240) or '–'} |")
     return head + "\n\n" + "\n".join(rows)
 
 
@@ -162,6 +162,9 @@ def mount(host: Host, *, service: ClassService) -> ClassTab:
     b.on_change([tab.follow], lambda _h: host.submit(FollowJob(tab, bool(tab.follow.value))))
     b.on_change([tab.show], lambda _h: host.submit(ShowStudentJob(tab, str(tab.student.value)))
                 if tab.student.value != NOBODY else None)
-    service.on_change(host, lambda: host.submit(ClassTableJob(tab)))
+    def changed() -> None:
+        host.submit(ClassTableJob(tab))
+
+    service.on_change(host, changed)
     host.submit(ClassTableJob(tab))
     return tab

@@ -250,6 +250,10 @@ class MapTab:
     timings: deque[dict[str, object]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
     """One record per shown map: seconds to colours (``colours_s``) and to panels
     (``panels_s``), cached or not; the last :data:`MAX_TIMINGS`."""
+    previews: deque[dict[str, object]] = field(default_factory=lambda: deque(maxlen=MAX_TIMINGS))
+    """One record per coarse map shown while a slow first grid was computed
+    (:func:`~.render.render_stages`): its ``cell_size``, the grid it stood ``for`` and
+    when it was coloured (``at``, :func:`time.perf_counter`)."""
     pick_timings: deque[dict[str, object]] = field(
         default_factory=lambda: deque(maxlen=MAX_TIMINGS))
     """One record per reported click: seconds to the cell report and the

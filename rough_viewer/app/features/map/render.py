@@ -137,12 +137,23 @@ def reject(m: MapTab, message: str) -> None:
     m.binding.show(m.host.session.shown.settings)
 
 
+#: A grid not yet computed on at least this many points takes more than about 0.5 s
+#: (the grid core: about 0.25 us per point on 2 cores): the map shows a coarse map
+#: first (:func:`_coarse_first`) and says how far the chosen grid has come.
+PREVIEW_POINTS = 2_000_000
+
+
 def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
                   keep_error: bool = False) -> Iterator[str]:
     """Check the settings, compute (or fetch) the grid, colour the points (by the
     roughness map or a colour layer), update the colour bar, status and notices,
     then tell the features that follow the map. ``keep_error``: leave an error shown
-    by an earlier stage on screen."""
+    by an earlier stage on screen.
+
+    A grid that takes a while (not cached, :data:`PREVIEW_POINTS` or more points)
+    comes coarse first: the first map of a cloud is coloured from its coarsest preset
+    (stage ``preview``) while the chosen grid is computed; a grid change keeps the old
+    colours meanwhile. The status line says which, with the chosen grid's progress."""
     host = m.host
     loaded = host.session.shown.loaded
     try:
@@ -155,22 +166,25 @@ def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
         reject(m, str(exc))
         return
     yield "check"
-    t0 = time.perf_counter()
     cached = loaded.is_cached(settings)
-    result = _grid(m, run, loaded, settings, cached)
+    waiting = None
+    if not cached and loaded.n_total >= PREVIEW_POINTS:
+        waiting = _coarse_first(m, run, loaded, settings)
+        if waiting is not None and waiting.startswith(COARSE):
+            yield "preview"
+    t0 = time.perf_counter()
+    result = _grid(m, run, loaded, settings, cached, waiting)
     if result is None:
+        if waiting is not None:  # what is on the points stays the map shown
+            _say_shown(m, coarse=waiting.startswith(COARSE))
         return
     yield "grid"
     stats = map_stats(result, settings)
-    if settings.layer == "roughness":
-        colouring: Colouring = by_cell(
-            cell_colours(result, settings, colours_range=stats.colour_range), result.point_cell)
-    else:
-        try:
-            colouring = loaded.layer_colouring(settings.layer, result)
-        except InputError as exc:
-            reject(m, str(exc))
-            return
+    try:
+        colouring = _colouring(loaded, settings, result, stats)
+    except InputError as exc:
+        reject(m, str(exc))
+        return
     m.colouring = colouring
     if m.overlay is None:  # a feature that colours the points recolours them itself
         host.scene.colour_by(colouring)
@@ -190,12 +204,90 @@ def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
     yield "colours"
 
 
+#: How the status line starts while the coarse map is up.
+COARSE = "coarse preview"
+
+
+def _colouring(loaded: LoadedCloud, settings: MapSettings, result: GridRoughness,
+               stats: MapStats) -> Colouring:
+    """The colours of the points for ``settings`` on ``result`` (InputError: a colour
+    layer the cloud lacks)."""
+    if settings.layer == "roughness":
+        return by_cell(cell_colours(result, settings, colours_range=stats.colour_range),
+                       result.point_cell)
+    return loaded.layer_colouring(settings.layer, result)
+
+
+def _coarse_first(m: MapTab, run: Run, loaded: LoadedCloud,
+                  settings: MapSettings) -> str | None:
+    """Before a grid that takes a while: what the status line says is on the points
+    while it is computed. A grid change on a coloured cloud keeps its colours
+    (``"ODR, grid 0.32 m shown"``); the first map of a cloud is coloured from its
+    coarsest preset (with the chosen settings otherwise: ``"coarse preview, grid
+    0.64 m"``), whose grid is then cached as any other. None: nothing to show first
+    (the chosen grid is the coarsest, or the coarse map failed)."""
+    host = m.host
+    u = loaded.units
+    shown = host.session.shown
+    if shown.result is not None and shown.loaded is loaded:
+        return f"{MODEL_LABELS[shown.settings.model]}, grid {u.size_text(shown.settings.cell_size)} shown"
+    assert loaded.presets is not None
+    coarse = settings.with_(cell_size=loaded.presets[0])
+    if coarse.grid_key == settings.grid_key:
+        return None
+    try:
+        result = loaded.result(coarse, progress=run.progress())
+        stats = map_stats(result, coarse)
+        colouring = _colouring(loaded, coarse, result, stats)
+    except (InputError, MemoryError):
+        return None  # the chosen grid says what is wrong
+    m.colouring = colouring
+    if m.overlay is None:
+        host.scene.colour_by(colouring)
+    host.session.shown = Shown(loaded, coarse, result, stats)
+    loaded.mark_shown(coarse, host.session)
+    fig = colour_bar_of(loaded, result, stats, coarse)
+    m.binding.write(m.colour_bar, figure=fig, aspect=panel_aspect(fig))
+    m.previews.append({"cell_size": coarse.cell_size, "for": settings.cell_size,
+                       "at": time.perf_counter()})
+    return f"{COARSE}, grid {u.size_text(coarse.cell_size)}"
+
+
+def _say_shown(m: MapTab, *, coarse: bool) -> None:
+    """The status line of the map shown, once the grid computed after it failed; a
+    coarse first map becomes the map shown (the features that follow the map follow
+    it)."""
+    shown = m.host.session.shown
+    if shown.result is None or shown.stats is None:
+        return
+    m.host.say(status_text(shown.loaded, shown.result, shown.stats, shown.settings, 0.0,
+                           True, budget=m.host.scene.budget))
+    if coarse:
+        m.host.rendered()
+
+
+def pending_text(loaded: LoadedCloud, waiting: str, settings: MapSettings,
+                 percent: float, *, budget: int = DEFAULT_BUDGET) -> str:
+    """Markdown of the status line while a grid is computed: what the points show
+    meanwhile (``waiting``) and how far the grid has come."""
+    name = md(loaded.label or Path(loaded.cloud.source).name or "in-memory cloud",
+              max_chars=120)
+    return "\n".join([
+        f"**{name}**: {loaded.n_total:,} points, each tab draws up to {budget:,} where it "
+        "looks  ",
+        f"{waiting}; computing grid {loaded.units.size_text(settings.cell_size)}… "
+        f"{percent:.0f} %",
+    ])
+
+
 def _grid(m: MapTab, run: Run, loaded: LoadedCloud, settings: MapSettings,
-          cached: bool) -> GridRoughness | None:
+          cached: bool, waiting: str | None = None) -> GridRoughness | None:
     host = m.host
     notes = []
     if not cached:
         host.progress(0.0)
+        if waiting is not None:
+            host.say(pending_text(loaded, waiting, settings, 0.0, budget=host.scene.budget))
         if loaded.n_total > BIG_CLOUD:
             notes = [c.add_notification("Computing", f"grid {settings.cell_size:g} m on "
                                         f"{loaded.n_total:,} points", loading=True,
@@ -205,6 +297,9 @@ def _grid(m: MapTab, run: Run, loaded: LoadedCloud, settings: MapSettings,
     def report(done: int, total: int) -> None:
         if total > 0:
             host.progress(100.0 * done / total)
+            if waiting is not None:
+                host.say(pending_text(loaded, waiting, settings, 100.0 * done / total,
+                                      budget=host.scene.budget))
 
     try:
         return loaded.result(settings, progress=None if cached else run.progress(report))
