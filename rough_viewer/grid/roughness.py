@@ -240,19 +240,32 @@ def _from_fused(grid: GridSpec, got: fast.Fused) -> tuple[PreparedGrid, np.ndarr
                                                           s2=got.s2)), got.lookup)
 
 
-def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
+def coarsen_prepared(prepared: PreparedGrid, factor: int, *,
+                     defer_rows: bool = False) -> PreparedGrid:
     """The prepared grid ``factor`` (a positive integer) times coarser, same origin,
-    computed from the fine one's cells without a pass over the points: the coarse
-    sums from the fine sums, and every point's coarse row left to the distance pass
-    of :func:`grid_roughness` (:attr:`PreparedGrid.parent`), so that pass is the
-    only one over the points; :meth:`PreparedGrid.point_cell` makes the rows on
-    demand."""
+    computed from the fine one's cells without a pass over the coordinates: the
+    coarse sums from the fine sums.
+
+    ``defer_rows``: every point's coarse row is not gathered here but left to the
+    distance pass of :func:`grid_roughness` (:attr:`PreparedGrid.parent`; the
+    coarse ``index.point_cell`` is then empty and :meth:`PreparedGrid.point_cell`
+    makes the rows on demand), so that pass is the only one over the points (the
+    app's presets). Else the rows are gathered now (one pass over the rows, on all
+    threads where the kernels are loaded)."""
     fine_index, lookup = prepared.pass_index()
     index, moments, parent = coarsen(fine_index, prepared.moments, factor, gather=False)
     if lookup is not None:  # coarsened twice: compose the row maps
         parent = parent[lookup]
-    return PreparedGrid(index=index, moments=moments, fine_cell=fine_index.point_cell,
+    lazy = PreparedGrid(index=index, moments=moments, fine_cell=fine_index.point_cell,
                         parent=parent)
+    if defer_rows:
+        return lazy
+    if fast.loaded():
+        rows = np.empty(fine_index.point_cell.shape[0], dtype=np.int64)
+        fast.relabel_into(fine_index.point_cell, parent, rows)
+    else:
+        rows = lazy.point_cell()
+    return PreparedGrid(index=replace(index, point_cell=rows), moments=moments)
 
 
 def map_values(holder: Any, name: MapName) -> np.ndarray:

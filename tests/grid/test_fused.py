@@ -157,8 +157,10 @@ def test_coarsened_presets_make_their_rows_in_the_distance_pass(engine, spy):
     cloud = scan_face(40_000, seed=4)
     fine = prepare_grid(cloud, 0.125, engine=engine)
     fine_rows = fine.index.point_cell.copy()
-    two = coarsen_prepared(fine, 2)
-    eight = coarsen_prepared(two, 4)  # coarsened twice: 8 times the finest
+    two = coarsen_prepared(fine, 2, defer_rows=True)
+    eight = coarsen_prepared(two, 4, defer_rows=True)  # coarsened twice: 8 times the finest
+    now = coarsen_prepared(two, 4)  # the rows gathered at once
+    np.testing.assert_array_equal(now.index.point_cell, eight.point_cell())
     for prep, g in ((two, 0.25), (eight, 1.0)):
         assert prep.index.point_cell.shape == (0,) and prep.fine_cell is fine.index.point_cell
         direct = grid_roughness(cloud, g, engine=engine)
