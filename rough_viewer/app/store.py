@@ -34,6 +34,13 @@ from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS, Octree, build_octre
 from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
 from rough_viewer.vocabulary import ProgressFn
 
+#: From this many points a preset coarser than the finest may be indexed on its own
+#: (the coarse first map of a big cloud needs no fine grid). Below it every preset is
+#: coarsened from the finest, so a grid's numbers never depend on the order grids
+#: were asked for (a saved view reopened gives the same bits); above it the two ways
+#: agree to round-off.
+COARSE_ALONE_POINTS = 2_000_000
+
 Key = tuple[str, tuple[float, str, int] | float]
 """A cache key: (kind, grid key or cell size)."""
 
@@ -289,7 +296,8 @@ class InMemoryStore:
             return hit
         factor = cell_size / self.presets[-1]
         fine_key = ("prepared", round(float(self.presets[-1]), 9))
-        coarse_alone = key[1] in {round(float(g), 9) for g in self.presets} \
+        coarse_alone = self.cloud.n >= COARSE_ALONE_POINTS \
+            and key[1] in {round(float(g), 9) for g in self.presets} \
             and fine_key not in self._cache
         if abs(factor - round(factor)) < 1e-9 and round(factor) > 1 and not coarse_alone:
             fine = self.prepared(self.presets[-1], progress=progress)

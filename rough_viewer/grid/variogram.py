@@ -1,4 +1,6 @@
-"""Experimental semivariograms of per-cell maps, exact over all pairs of cells.
+"""Experimental semivariograms of per-cell maps: exact over all pairs of cells where
+that fits a time budget, else estimated from a random sample of pairs with a
+standard error per lag.
 
 Definition (2011 paper, Fig. 4; docs/science.md section 1)::
 
@@ -41,8 +43,17 @@ two patches far apart cost two small frames, not the box between them.
 
 Few cells spread far apart are cheaper counted directly: every ordered pair, a
 chunk of rows at a time (time ``O(M^2)``, memory :data:`PAIR_CHUNK_BYTES` plus
-``O(M)``), exact at any lag. A cost model (:data:`FRAME_SECONDS`,
-:data:`PAIR_SECONDS`) picks the cheaper method; ``method=`` forces one.
+``O(M)``), exact at any lag.
+
+Choice of method (``method="auto"``), by a cost estimate, never by a timing: the
+direct count costs ``PAIR_SECONDS x M^2`` (:data:`PAIR_SECONDS_COMPILED` where the
+compiled count runs), the tiled FFT its blocks' frame volumes
+(:data:`FRAME_SECONDS`, :data:`LAG_SECONDS`; only where its memory fits). The
+cheaper runs when its estimate for all the maps of the call fits ``time_budget``
+seconds (default :data:`TIME_BUDGET`); beyond, the semivariogram is estimated at the
+full lag from a random sample of cell pairs sized to that budget, with a standard
+error per bin (:mod:`rough_viewer.grid.variogram_sample`; ``method="sample"``).
+``method=`` forces one.
 
 Cost of the FFT: time ``O(blocks x F log F)``, memory ``O(F + W + M)`` with ``F`` the frame
 volume (about :data:`BYTES_PER_FRAME_CELL` bytes per frame cell at the peak), ``W =
@@ -50,11 +61,11 @@ prod(2 r_a + 1)`` the lag window (:data:`BYTES_PER_LAG` bytes each) and ``M`` th
 cells with a value. Both follow the occupied cells and the largest lag, never the
 distance between far-apart parts. The estimate is :func:`plan_semivariogram`'s
 ``bytes``; it is checked with :func:`rough_viewer.memory.require` before anything
-large is allocated. With the default ``max_lag`` the lag is shortened (halved until
-the estimate fits :data:`MEMORY_BUDGET`, the available memory and
-:data:`TIME_BUDGET` seconds, unless the direct count fits that time at full lag) and
-the result says so (``lag_limited``); a ``max_lag`` given explicitly is never shortened, and
-one that cannot fit is an InputError.
+large is allocated. With ``method="fft"`` forced and the default ``max_lag`` the
+lag is shortened (halved until the estimate fits :data:`MEMORY_BUDGET`, the
+available memory and the time budget) and the result says so (``lag_limited``); a
+``max_lag`` given explicitly is never shortened, and one that cannot fit is an
+InputError.
 
 The face-plane variant (:func:`face_semivariogram`) is the 2-D analogue: cell
 centres are projected onto the plane of the face, rasterised at the cell size (the
@@ -64,8 +75,9 @@ mean of the cells falling into one pixel), and the same estimator runs on that
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -73,8 +85,12 @@ from rough_viewer.grid.maps import Plane, face_raster
 from rough_viewer.memory import USABLE_SHARE, available_bytes, require
 from rough_viewer.vocabulary import InputError, ProgressFn
 
+if TYPE_CHECKING:
+    from rough_viewer.grid.variogram_sample import SampledSums
+
 Space = Literal["3d", "plane"]
-Method = Literal["auto", "fft", "pairs"]
+Method = Literal["auto", "fft", "pairs", "sample"]
+Exactness = Literal["fft", "pairs", "sample"]
 
 
 @dataclass(frozen=True)
@@ -105,6 +121,31 @@ class Semivariogram:
     lag_limited: bool = False
     """True when the default max lag (half the map's extent) was shortened to fit in
     memory: ``max_lag`` is then the lag actually reached."""
+    method: Exactness = "fft"
+    """How it was computed: ``"fft"`` (tiled FFT) and ``"pairs"`` (direct count) are
+    exact over every pair; ``"sample"`` is an estimate from a random sample of cell
+    pairs (:mod:`rough_viewer.grid.variogram_sample`), with ``gamma_se``."""
+    gamma_se: np.ndarray | None = None
+    """(K,) standard error of ``gamma`` (same unit) for a sampled estimate, NaN where
+    a bin has fewer than two sampled pairs; None when exact."""
+    sampled: np.ndarray | None = None
+    """(K,) int64, sampled pairs that entered each bin's estimate; None when exact
+    (``pairs`` is then the exact count; for a sample it is an estimate)."""
+
+    @property
+    def exact(self) -> bool:
+        """True when every pair entered (not a sampled estimate)."""
+        return self.method != "sample"
+
+    @property
+    def gamma_normalised_se(self) -> np.ndarray | None:
+        """(K,) standard error of ``gamma_normalised`` (the map's variance is taken
+        as exact: it is computed over every cell); None when exact."""
+        if self.gamma_se is None:
+            return None
+        if not self.variance > 0:
+            return np.full(self.gamma_se.shape, np.nan)
+        return self.gamma_se / self.variance
 
 
 #: Bytes per FFT frame cell at the peak of one block: the real frame, six half
@@ -119,13 +160,14 @@ BYTES_PER_CELL = 96
 MEMORY_BUDGET = 512 * 2**20
 #: Estimated seconds per FFT frame cell and block (eight real transforms), per lag
 #: vector and block (extracting and binning the window) and per ordered pair of the
-#: direct count (measured on the project's 2-core machine): the cost model that
-#: picks the method and, with the default lag, keeps a map's estimate under
-#: :data:`TIME_BUDGET` seconds.
-FRAME_SECONDS = 1.0e-7
+#: direct count (NumPy; compiled on all threads: 1.4-6e-9 measured), on the
+#: project's 2-core machine: the cost model that picks the method. ``TIME_BUDGET``:
+#: the default seconds of :func:`semivariogram` (``time_budget``).
+FRAME_SECONDS = 4.0e-7
 LAG_SECONDS = 1.5e-6
 PAIR_SECONDS = 1.2e-8
-TIME_BUDGET = 10.0
+PAIR_SECONDS_COMPILED = 3.0e-9
+TIME_BUDGET = 3.0
 #: Memory of one chunk of the direct pair count, bytes.
 PAIR_CHUNK_BYTES = 32 * 2**20
 #: Pairs the compiled direct count takes between two progress calls (a fraction of
@@ -155,11 +197,17 @@ class VariogramPlan:
     """Occupied blocks (FFT frames computed)."""
     bytes: float
     """Estimated peak memory, bytes."""
-    method: Literal["fft", "pairs"] = "fft"
+    method: Exactness = "fft"
     """``"fft"``: tiled FFT; ``"pairs"``: every pair counted directly, in chunks
-    (cheaper for few cells spread far apart)."""
+    (cheaper for few cells spread far apart); ``"sample"``: estimated from a random
+    sample of pairs (when neither exact method fits the time budget)."""
     seconds: float = 0.0
-    """Estimated time, seconds (cost model, not a promise)."""
+    """Estimated time, seconds (cost model, not a promise), for all the maps
+    of the call."""
+    samples: int = 0
+    """Sampled method: uniformly drawn cell pairs (stage 1)."""
+    proposals: int = 0
+    """Sampled method: most lag-vector proposals of the short lags (stage 2)."""
 
 
 @dataclass(frozen=True)
@@ -186,11 +234,15 @@ def semivariogram(
     space: Space = "3d",
     workers: int | None = None,
     method: Method = "auto",
+    time_budget: float | None = None,
+    seed: int = 0,
     progress: ProgressFn | None = None,
 ) -> Semivariogram:
-    """Experimental semivariogram of a map on a regular grid, exact over all pairs
-    up to the largest lag, with memory that follows the occupied cells (module
-    docstring: tiled FFT).
+    """Experimental semivariogram of a map on a regular grid: exact over all pairs
+    up to the largest lag where the cost model says that fits ``time_budget``
+    (tiled FFT or direct count, memory that follows the occupied cells), else
+    estimated from a random sample of pairs with a standard error per bin
+    (:mod:`rough_viewer.grid.variogram_sample`).
 
     Parameters
     ----------
@@ -207,25 +259,37 @@ def semivariogram(
         distances in ``[(k - 0.5) w, (k + 0.5) w)``.
     max_lag : float, optional
         Largest bin centre, metres; default half the longest side of the bounding
-        box of the cells with a value, shortened (``lag_limited``) when that cannot
-        fit in memory. Bins ``k = 1 .. floor(max_lag / w)``.
+        box of the cells with a value (with ``method="fft"`` or ``"pairs"``
+        shortened, ``lag_limited``, when that cannot fit in memory and time). Bins
+        ``k = 1 .. floor(max_lag / w)``.
     space : {"3d", "plane"}
         Label stored in the result (say ``"plane"`` when ``ijk`` are face-plane
         pixels); the computation is the same.
     workers : int, optional
         Threads for :mod:`scipy.fft` (default: all cores).
-    method : {"auto", "fft", "pairs"}
-        Tiled FFT, direct pair count, or the cheaper by the cost model (default).
+    method : {"auto", "fft", "pairs", "sample"}
+        ``"auto"`` (default): the cheaper exact method when its estimated time
+        (:data:`FRAME_SECONDS`, :data:`PAIR_SECONDS`; pair count and FFT frame
+        volumes, never a timing) fits ``time_budget``, else a sample sized to that
+        budget. The others force one.
+    time_budget : float, optional
+        Seconds of the cost model the computation may take (default
+        :data:`TIME_BUDGET`): the limit for an exact method under ``"auto"`` and
+        the size of a sample.
+    seed : int
+        Seed of a sample's random draws (the same seed, cells and budget give the
+        same estimate).
     progress : callable, optional
         ``progress(done, total)``, called before the first and after every FFT
-        block (or chunk of pair rows) and once at the end. An exception it raises
-        stops the computation and propagates (how a caller cancels: the app's
-        jobs raise from it).
+        block (chunk of pair rows, chunk of sampled pairs) and once at the end. An
+        exception it raises stops the computation and propagates (how a caller
+        cancels: the app's jobs raise from it).
 
     Returns
     -------
     Semivariogram
-        With no bins (K = 0) when fewer than two cells have a value.
+        With no bins (K = 0) when fewer than two cells have a value; ``method``
+        says how it was computed (``gamma_se`` for a sample).
 
     Raises
     ------
@@ -233,9 +297,73 @@ def semivariogram(
         Bad arguments, or an explicit ``max_lag`` whose computation cannot fit in
         the available memory.
     """
-    cells = _finite_cells(ijk, values)
+    return semivariograms(ijk, {"map": values}, cell_size, bin_width=bin_width,
+                          max_lag=max_lag, space=space, workers=workers, method=method,
+                          time_budget=time_budget, seed=seed, progress=progress)["map"]
+
+
+def semivariograms(
+    ijk: np.ndarray,
+    maps: Mapping[str, np.ndarray],
+    cell_size: float,
+    *,
+    bin_width: float | None = None,
+    max_lag: float | None = None,
+    space: Space = "3d",
+    workers: int | None = None,
+    method: Method = "auto",
+    time_budget: float | None = None,
+    seed: int = 0,
+    progress: ProgressFn | None = None,
+) -> dict[str, Semivariogram]:
+    """The semivariogram of several maps of one grid (same cells, values per map),
+    as :func:`semivariogram` for each, with one choice of method for all of them
+    (``time_budget`` covers them all) and, for a sample, the same drawn pairs."""
+    if not maps:
+        return {}
     g, w = _check_sizes(cell_size, bin_width)
-    plan = _plan(cells, g, w, max_lag, method)
+    union = _all_cells(ijk)
+    for v in maps.values():
+        if np.shape(v) != (union.idx.shape[0],):
+            raise ValueError(f"values must have shape ({union.idx.shape[0]},), "
+                             f"got {np.shape(v)}")
+    budget = TIME_BUDGET if time_budget is None else float(time_budget)
+    plan = _plan(union, g, w, max_lag, method, n_maps=len(maps), time_budget=budget)
+    if plan.method == "sample":
+        return _sampled(union, maps, plan, g, w, space, max_lag, seed, progress)
+    out: dict[str, Semivariogram] = {}
+    for name, v in maps.items():
+        cells = _finite_cells(ijk, v)
+        own = _plan(cells, g, w, max_lag, plan.method, time_budget=budget)
+        out[name] = _exact(cells, own, g, w, space, workers, progress)
+    return out
+
+
+def plan_semivariogram(
+    ijk: np.ndarray,
+    values: np.ndarray,
+    cell_size: float,
+    *,
+    bin_width: float | None = None,
+    max_lag: float | None = None,
+    method: Method = "auto",
+    time_budget: float | None = None,
+    n_maps: int = 1,
+) -> VariogramPlan:
+    """The plan :func:`semivariogram` would follow for these arguments (for
+    ``n_maps`` maps of these cells, as :func:`semivariograms`): the method, bins,
+    the (possibly shortened) max lag, blocks, FFT frame or sample sizes, and the
+    estimated peak memory (bytes) and time (seconds). Cheap: no transform is
+    computed, no pair drawn."""
+    g, w = _check_sizes(cell_size, bin_width)
+    cells = _finite_cells(ijk, values)
+    budget = TIME_BUDGET if time_budget is None else float(time_budget)
+    return _plan(cells, g, w, max_lag, method, n_maps=n_maps, time_budget=budget)
+
+
+def _exact(cells: _Cells, plan: VariogramPlan, g: float, w: float, space: Space,
+           workers: int | None, progress: ProgressFn | None) -> Semivariogram:
+    """One map's semivariogram by the plan's exact method."""
     if plan.n_bins <= 0:
         return _assemble(cells, plan, w, space, np.zeros(0), np.zeros(0))
     require(plan.bytes, f"the semivariogram of {cells.z.size:,} cells at {g:g} m up to "
@@ -247,21 +375,50 @@ def semivariogram(
     return _assemble(cells, plan, w, space, ordered, sums)
 
 
-def plan_semivariogram(
-    ijk: np.ndarray,
-    values: np.ndarray,
-    cell_size: float,
-    *,
-    bin_width: float | None = None,
-    max_lag: float | None = None,
-    method: Method = "auto",
-) -> VariogramPlan:
-    """The plan :func:`semivariogram` would follow for these arguments: bins, the
-    (possibly shortened) max lag, blocks, FFT frame and the estimated peak memory in
-    bytes. Cheap: no transform is computed."""
-    cells = _finite_cells(ijk, values)
-    g, w = _check_sizes(cell_size, bin_width)
-    return _plan(cells, g, w, max_lag, method)
+def _sampled(union: _Cells, maps: Mapping[str, np.ndarray], plan: VariogramPlan, g: float, w: float, space: Space,
+             max_lag: float | None, seed: int,
+             progress: ProgressFn | None) -> dict[str, Semivariogram]:
+    """Every map's semivariogram estimated from one sample of pairs of the grid's
+    cells (each map truncated to its own bins)."""
+    from rough_viewer.grid.variogram_sample import sampled_sums
+
+    require(plan.bytes, f"the sampled semivariogram of {union.z.size:,} cells",
+            hint="choose a larger grid size")
+    zs, stats = [], []
+    for v in maps.values():
+        z = np.asarray(v, dtype=np.float64)
+        ok = np.isfinite(z)
+        zs.append(np.where(ok, z, np.nan))
+        n = int(np.count_nonzero(ok))
+        extent = 1 if n == 0 else max(union.shape) if n == ok.size else max(
+            int(c.max(where=ok, initial=0)) - int(c.min(where=ok, initial=2**62)) + 1
+            for c in union.idx.T)
+        stats.append((n, float(np.var(z[ok])) if n else float("nan"), extent))
+    sums = sampled_sums(union.idx, union.shape, zs, plan.n_bins, g / w, plan.samples,
+                        plan.proposals, seed=seed, progress=progress)
+    out: dict[str, Semivariogram] = {}
+    for name, got, (n, variance, extent) in zip(maps, sums, stats, strict=True):
+        lag = float(max_lag) if max_lag is not None else 0.5 * extent * g
+        n_bins = min(plan.n_bins, int(np.floor(lag / w + 1e-9)) if n >= 2 else 0)
+        out[name] = _assemble_sample(n, variance, n_bins, lag, w, space, got)
+    return out
+
+
+def _assemble_sample(n_cells: int, variance: float, k: int, max_lag: float, w: float,
+                     space: Space, got: SampledSums) -> Semivariogram:
+    """gamma, its standard error, the estimated pair counts and the normalised
+    curve of a sampled estimate (first ``k`` bins)."""
+    n, s1, s2 = got.n[:k], got.s1[:k], got.s2[:k]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gamma = np.where(n > 0, s1 / n, np.nan)
+        var = np.maximum(s2 - s1 * gamma, 0.0) / (n - 1)
+        se = np.where(n > 1, np.sqrt(var / n), np.nan)
+        gamma_normalised = gamma / variance if variance > 0 else np.full(k, np.nan)
+    return Semivariogram(
+        lag=np.arange(1, k + 1) * w, gamma=gamma, gamma_normalised=gamma_normalised,
+        pairs=np.rint(got.pairs[:k]).astype(np.int64), variance=variance,
+        n_cells=n_cells, bin_width=w, max_lag=float(max_lag), space=space,
+        method="sample", gamma_se=se, sampled=n.astype(np.int64))
 
 
 # ----------------------------------------------------------------------------- stages
@@ -278,11 +435,13 @@ def _finite_cells(ijk: np.ndarray, values: np.ndarray) -> _Cells:
     if not np.issubdtype(ijk.dtype, np.integer):
         raise ValueError("ijk must be an integer array of cell indices")
     ok = np.isfinite(values)
-    idx = ijk[ok].astype(np.int64)
-    z = values[ok]
+    every = bool(ok.all())
+    idx = ijk.astype(np.int64) if every else ijk[ok].astype(np.int64)
+    z = values if every else values[ok]
     if z.size:
-        idx = idx - idx.min(axis=0)
-        shape = tuple(int(s) for s in idx.max(axis=0) + 1)
+        cols = [idx[:, a] for a in range(idx.shape[1])]
+        idx -= np.array([c.min() for c in cols])
+        shape = tuple(int(c.max()) + 1 for c in cols)
     else:
         shape = (1,) * ijk.shape[1]
     variance = float(np.var(z)) if z.size else float("nan")
@@ -299,33 +458,114 @@ def _check_sizes(cell_size: float, bin_width: float | None) -> tuple[float, floa
     return g, w
 
 
-def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
-          method: Method = "auto") -> VariogramPlan:
-    """Stage 2: bins, the cheaper method (tiled FFT or direct pairs) by the cost
-    model, and the memory estimate; the default max lag halved until the FFT plan
-    fits the memory and time budgets."""
-    explicit = max_lag is not None
-    lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
-    m = int(cells.z.size)
-    limited = False
+def _all_cells(ijk: np.ndarray) -> _Cells:
+    """Every row of ``ijk`` as a cell (the geometry several maps share)."""
+    ijk = np.asarray(ijk)
+    return _finite_cells(ijk, np.zeros(ijk.shape[0]) if ijk.ndim == 2 else np.zeros(0))
+
+
+def _memory_budget() -> float:
     budget = float(MEMORY_BUDGET)
     avail = available_bytes()
     if avail is not None:
         budget = min(budget, USABLE_SHARE * avail)
+    return budget
+
+
+def _plan(cells: _Cells, g: float, w: float, max_lag: float | None,
+          method: Method = "auto", *, n_maps: int = 1,
+          time_budget: float = 0.0) -> VariogramPlan:
+    """Stage 2: bins and the method, with its memory and time estimates.
+
+    ``"auto"``: the cheaper exact method (direct count: ``PAIR_SECONDS x M^2``;
+    tiled FFT: :func:`_blocks`' frame volumes, only where its memory fits) when
+    its estimate for ``n_maps`` maps is at most ``time_budget`` seconds, else a
+    sample sized to ``time_budget``; the lag is never shortened."""
+    if method in ("fft", "pairs"):
+        return _exact_plan(cells, g, w, max_lag, method, time_budget or TIME_BUDGET)
+    lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
+    m = int(cells.z.size)
+    n_bins = int(np.floor(lag / w + 1e-9)) if m >= 2 else 0
+    if n_bins <= 0:
+        return VariogramPlan(n_bins=0, max_lag=lag, lag_limited=False, reach=(),
+                             block=(), frame=(), n_blocks=0, bytes=0.0)
+    if method == "auto":
+        best = _cheapest_exact(cells, g, w, n_bins, lag, n_maps, time_budget)
+        if best is not None and best.seconds <= time_budget:
+            return best
+    from rough_viewer.grid.variogram_sample import sample_bytes, sample_seconds, sample_sizes
+
+    samples, proposals = sample_sizes(time_budget, n_maps, m)
+    return VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=False, reach=(), block=(),
+                         frame=(), n_blocks=0, bytes=sample_bytes(m, n_maps), method="sample",
+                         seconds=sample_seconds(samples, proposals, n_maps, m),
+                         samples=samples, proposals=proposals)
+
+
+def _pair_seconds(m: int, n_maps: int, time_budget: float) -> float:
+    """Cost-model seconds of the direct count of ``n_maps`` maps of ``m`` cells:
+    :data:`PAIR_SECONDS_COMPILED` a pair where the compiled count will run (asked
+    only when that rate could fit ``time_budget``: asking may load the kernels,
+    which the count would load anyway), else :data:`PAIR_SECONDS`."""
+    ordered = float(m) * max(m - 1, 0) * n_maps
+    if PAIR_SECONDS_COMPILED * ordered <= time_budget:
+        from rough_viewer.grid import fast
+
+        if fast.resolve_engine("auto", n_points=m * m) == "numba":
+            return PAIR_SECONDS_COMPILED * ordered
+    return PAIR_SECONDS * ordered
+
+
+def _cheapest_exact(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
+                    n_maps: int, time_budget: float) -> VariogramPlan | None:
+    """The cheaper exact plan at the full lag for ``n_maps`` maps (seconds for all
+    of them), or None when neither can fit ``time_budget``. The FFT's blocks are
+    only planned when a lower bound of its cost (its lag window once, every cell
+    in a frame) is below the direct count's and the budget."""
+    m = int(cells.z.size)
+    budget = _memory_budget()
+    pairs_s = _pair_seconds(m, n_maps, time_budget)
+    pairs = VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=False, reach=(),
+                          block=(), frame=(), n_blocks=0,
+                          bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m, method="pairs",
+                          seconds=pairs_s)
+    reach_all = int(np.floor((n_bins + 0.5) * w / g))
+    window = float(np.prod([2 * min(s - 1, reach_all) + 1 for s in cells.shape]))
+    floor_s = n_maps * (FRAME_SECONDS * m + LAG_SECONDS * window)
+    if floor_s >= pairs_s:
+        return pairs if pairs_s <= time_budget else None
+    if floor_s > time_budget:
+        return None
+    fft = _blocks(cells, g, w, n_bins, lag, False, budget)
+    fft = replace(fft, seconds=fft.seconds * n_maps)
+    if fft.bytes <= budget and fft.seconds < pairs_s:
+        return fft
+    return pairs
+
+
+def _exact_plan(cells: _Cells, g: float, w: float, max_lag: float | None,
+                method: Literal["fft", "pairs"], time_budget: float) -> VariogramPlan:
+    """Stage 2 of a forced exact method: bins and the memory estimate; with the
+    default max lag, the FFT's lag halved until it fits the memory budget and
+    ``time_budget`` (unless the direct count is asked for)."""
+    explicit = max_lag is not None
+    lag = float(max_lag) if max_lag is not None else 0.5 * max(cells.shape) * g
+    m = int(cells.z.size)
+    limited = False
+    budget = _memory_budget()
     pair_seconds = PAIR_SECONDS * m * max(m - 1, 0)
     while True:
         n_bins = int(np.floor(lag / w + 1e-9)) if m >= 2 else 0
         if n_bins <= 0:
             return VariogramPlan(n_bins=0, max_lag=lag, lag_limited=limited, reach=(),
                                  block=(), frame=(), n_blocks=0, bytes=0.0)
+        if method == "pairs":
+            return VariogramPlan(n_bins=n_bins, max_lag=lag, lag_limited=False, reach=(),
+                                 block=(), frame=(), n_blocks=0, method="pairs",
+                                 bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m,
+                                 seconds=pair_seconds)
         plan = _blocks(cells, g, w, n_bins, lag, limited, budget)
-        pairs = replace(plan, method="pairs", seconds=pair_seconds, n_blocks=0, frame=(),
-                        bytes=PAIR_CHUNK_BYTES + BYTES_PER_CELL * m)
-        cheaper = pair_seconds <= plan.seconds
-        if method == "pairs" or (method == "auto" and cheaper
-                                 and (explicit or pair_seconds <= TIME_BUDGET or n_bins == 1)):
-            return pairs
-        fits = plan.bytes <= budget and plan.seconds <= TIME_BUDGET
+        fits = plan.bytes <= budget and plan.seconds <= time_budget
         if explicit or fits or n_bins == 1:
             return plan
         lag = max(w, 0.5 * lag)
@@ -353,7 +593,7 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
             scipy.fft.next_fast_len(min(bl + 2 * r, s) + r, real=True)
             for bl, r, s in zip(block, reach, cells.shape, strict=True)
         )
-        n_blocks = int(np.unique(cells.idx // np.array(block), axis=0).shape[0])
+        n_blocks = _count_blocks(cells, block)
         volume = float(np.prod(frame))
         cost = n_blocks * (FRAME_SECONDS * volume + LAG_SECONDS * window)
         est = BYTES_PER_FRAME_CELL * volume + BYTES_PER_LAG * window + BYTES_PER_CELL * cells.z.size
@@ -365,6 +605,13 @@ def _blocks(cells: _Cells, g: float, w: float, n_bins: int, lag: float,
                                  seconds=cost)
     assert best is not None
     return best
+
+
+def _count_blocks(cells: _Cells, block: tuple[int, ...]) -> int:
+    """Occupied blocks of edge ``block`` (cells)."""
+    grid = tuple(-(-s // b) for s, b in zip(cells.shape, block, strict=True))
+    keys = np.ravel_multi_index((cells.idx // np.array(block)).T, grid)
+    return int(np.unique(keys).size)
 
 
 def _lag_sums(cells: _Cells, plan: VariogramPlan, g: float, w: float,
@@ -497,7 +744,20 @@ def _assemble(cells: _Cells, plan: VariogramPlan, w: float, space: Space,
         max_lag=float(plan.max_lag),
         space=space,
         lag_limited=plan.lag_limited,
+        method="pairs" if plan.method == "pairs" else "fft",
     )
+
+
+def sampling_note(variograms: Iterable[Semivariogram], *, prefix: str = "") -> str:
+    """How the semivariograms were computed, for a subtitle or a report: empty when
+    all are exact over every pair, else the sampled pairs and what the bars mean."""
+    sampled = [vg.sampled for vg in variograms if not vg.exact and vg.sampled is not None]
+    if not sampled:
+        return ""
+    least = min(int(n.min()) if n.size else 0 for n in sampled)
+    most = max(int(n.sum()) for n in sampled)
+    return (f"{prefix}estimated from a random sample of {most:,} cell pairs (at least "
+            f"{least:,} a lag), bars ±1 standard error")
 
 
 def face_semivariogram(
@@ -509,6 +769,8 @@ def face_semivariogram(
     bin_width: float | None = None,
     max_lag: float | None = None,
     workers: int | None = None,
+    time_budget: float | None = None,
+    seed: int = 0,
     progress: ProgressFn | None = None,
 ) -> Semivariogram:
     """Semivariogram in the plane of the face (the 2-D analogue of :func:`semivariogram`).
@@ -529,8 +791,8 @@ def face_semivariogram(
     plane : Plane
         Anything with ``centroid`` (3,) and unit ``normal`` (3,), e.g. the whole-cloud
         ODR plane (:class:`rough_viewer.grid.planes.PlaneFit`).
-    bin_width, max_lag, workers, progress
-        As for :func:`semivariogram`.
+    bin_width, max_lag, workers, time_budget, seed, progress
+        As for :func:`semivariogram` (exact or sampled by the same cost model).
     """
     values = np.asarray(values, dtype=np.float64)
     ok = np.isfinite(values)
@@ -542,5 +804,5 @@ def face_semivariogram(
     mean = total / np.maximum(count, 1)
     return semivariogram(
         pix, mean, cell_size, bin_width=bin_width, max_lag=max_lag, space="plane",
-        workers=workers, progress=progress,
+        workers=workers, time_budget=time_budget, seed=seed, progress=progress,
     )

@@ -23,7 +23,7 @@ from rough_viewer.grid.roughness import EXACT_FIT, GridRoughness, exact_fit_text
 from rough_viewer.grid.spacing import preset_cell_sizes
 from rough_viewer.grid.summary import Histogram, Summary, histogram, normalise, summarise
 from rough_viewer.grid.threshold import ThresholdAdvice, threshold_advice
-from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.grid.variogram import Semivariogram, semivariograms
 from rough_viewer.io.cloud import PointCloud
 from rough_viewer.scanner.positions import NO_POSITIONS, cloud_scanners
 from rough_viewer.scanner.trust import CellTrust, TrustSettings, cell_trust
@@ -55,6 +55,11 @@ FACE_MAP_ORDER = ("ols", "odr", "hybrid", "e_ols")
 ROUGHNESS_STAGES = 4
 """Progress stages reported by ``grid_roughness``."""
 STEPS_PER_GRID = ROUGHNESS_STAGES + len(MAPS) + 2
+VARIOGRAM_BUDGET = 10.0
+"""Cost-model seconds the semivariograms of one grid size may take (all maps):
+exact where that fits, else estimated from a sample of pairs sized to it
+(:func:`rough_viewer.grid.variogram.semivariograms`), so a fine grid's report does
+not take minutes."""
 ZONES_MAP: MapName = "odr"
 """The map whose normalised roughness makes the report's zones."""
 
@@ -177,8 +182,9 @@ def _section(
         advice[name] = threshold_advice(analysed[name], threshold,
                                         exact_fit=EXACT_FIT * result.grid.cell_size)
     figure_errors: dict[str, str] = {}
-    variograms = _figure(figure_errors, "variogram", g, lambda: {
-        str(name): semivariogram(result.ijk, analysed[name], g) for name in MAPS})
+    variograms = _figure(figure_errors, "variogram", g, lambda: semivariograms(
+        result.ijk, {str(name): analysed[name] for name in MAPS}, g,
+        time_budget=VARIOGRAM_BUDGET))
     for _ in MAPS:
         tick()
     maps = _figure(figure_errors, "maps", g,

@@ -4,14 +4,17 @@ its figures for PNG export."""
 from __future__ import annotations
 
 import html
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from rough_viewer.grid.maps import face_frame
 from rough_viewer.grid.outliers import outlier_mask
+from rough_viewer.grid.variogram import Semivariogram, sampling_note
 from rough_viewer.report.build import (
     FACE_MAP_ORDER,
+    VARIOGRAM_BUDGET,
     VARIOGRAM_FIGURE_MAPS,
     GridSection,
     Report,
@@ -238,10 +241,13 @@ def _method_note(report: Report) -> str:
         "point-to-plane distances per cell (ODR: orthogonal; OLS: along the dependent axis; "
         "hybrid: ODR plane, distance along the dependent axis); e_OLS = |OLS - ODR|. "
         "Face maps: cells projected onto the whole-cloud ODR plane, pixel = cell size, "
-        "max of the cells in a pixel. Semivariograms: all pairs of cells, 3-D distances "
-        "between cell centres, bins of one cell size up to half the largest extent "
-        "(shorter where noted, to fit in memory), "
-        "divided by the map's variance. Zones: connected cells (" + html.escape(report.connectivity)
+        "max of the cells in a pixel. Semivariograms: 3-D distances "
+        "between cell centres, bins of one cell size up to half the largest extent, "
+        "divided by the map's variance; exact over all pairs of cells (FFT or direct "
+        "count) where the cost model puts that within "
+        f"{VARIOGRAM_BUDGET:g} s for a grid's maps, else estimated from a random sample "
+        "of cell pairs (uniform pairs, and lag vectors for the short lags), drawn with "
+        "bars of ±1 standard error (each grid size says which). Zones: connected cells (" + html.escape(report.connectivity)
         + f" connectivity) whose normalised ODR roughness is at or above {report.threshold:g}, "
         f"groups of fewer than {report.min_cells} cells dropped, ids by size; area on the "
         "whole-cloud ODR plane; trace = long axis of the cell centres as azimuth/plunge, "
@@ -259,6 +265,16 @@ def _method_note(report: Report) -> str:
         "the roughness of each set from its cells and from profiles and triangles on its "
         "joints' own planes (docs/sets.md).</p>"
     )
+
+
+def _variogram_line(variograms: Mapping[str, Semivariogram]) -> str:
+    """How this grid's semivariograms were computed (exact or sampled, and how)."""
+    note = sampling_note(variograms.values())
+    if note:
+        return f"Semivariograms {note}."
+    methods = sorted({"FFT" if vg.method == "fft" else "direct count"
+                      for vg in variograms.values()})
+    return f"Semivariograms exact over every pair of cells ({', '.join(methods)})."
 
 
 def _section_html(report: Report, s: GridSection) -> list[str]:
@@ -295,6 +311,8 @@ def _section_html(report: Report, s: GridSection) -> list[str]:
     if limited:
         parts.append(f'<p class="note">Semivariogram lags shortened to {", ".join(limited)} '
                      "to fit in memory (default: half the largest extent).</p>")
+    if s.variograms:
+        parts.append(f'<p class="note">{esc(_variogram_line(s.variograms))}</p>')
     for key, fig in figures.items():
         if key == "sets_stereonet" and s.sets is not None:
             parts.append("<h3>Joint sets</h3>")

@@ -30,6 +30,13 @@ def variogram_dict(vg: Semivariogram, per: float = 1.0) -> dict[str, Any]:
         "max_lag": float(vg.max_lag / per),
         "lag_limited": bool(vg.lag_limited),
         "space": vg.space,
+        # "fft" / "pairs": exact over every pair; "sample": estimated from a random
+        # sample of pairs ("pairs" then estimated), with the standard error of gamma
+        "method": vg.method,
+        "gamma_se": None if vg.gamma_se is None else to_jsonable(vg.gamma_se / per**2),
+        "gamma_normalised_se": (None if vg.gamma_normalised_se is None
+                                else to_jsonable(vg.gamma_normalised_se)),
+        "sampled_pairs": None if vg.sampled is None else to_jsonable(vg.sampled),
     }
 
 

@@ -24,7 +24,7 @@ import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
 from rough_viewer.grid.maps import FaceMaps
-from rough_viewer.grid.variogram import Semivariogram
+from rough_viewer.grid.variogram import Semivariogram, sampling_note
 from rough_viewer.visual import colormaps
 from rough_viewer.vocabulary import (
     MAP_COLOURS,
@@ -280,16 +280,24 @@ def variogram_figure(
         vg = variograms[name]
         space = "in the face plane" if vg.space == "plane" else "3-D"
         y = vg.gamma_normalised if normalised else vg.gamma / f**2
+        se = vg.gamma_normalised_se if normalised else (
+            None if vg.gamma_se is None else vg.gamma_se / f**2)
         fig.add_trace(go.Scatter(
             x=vg.lag / f, y=y, mode="markers", name=label(name),
             marker={"symbol": MAP_MARKERS.get(name, "circle-open"), "color": MAP_COLOURS.get(name),
                     "size": 7},
-            customdata=vg.pairs,
+            error_y=(None if se is None else {"type": "data", "array": se, "visible": True,
+                                              "thickness": 1, "width": 0}),
+            customdata=(vg.pairs if se is None or vg.sampled is None
+                        else np.column_stack([vg.pairs, vg.sampled, se])),
             hovertemplate=(label(name) + f": lag %{{x:.3f}} {u}, γ %{{y:.4g}}, "
-                           "%{customdata:,} pairs<extra></extra>"),
+                           + ("%{customdata:,} pairs" if se is None else
+                              "± %{customdata[2]:.2g} (1 SE), %{customdata[1]:,} of "
+                              "≈%{customdata[0]:,} pairs sampled") + "<extra></extra>"),
         ))
     limited = sorted({vg.max_lag / f for vg in variograms.values() if vg.lag_limited})
     note = (f" · lags up to {limited[0]:g} {u} (memory)" if limited else "")
+    note += sampling_note(variograms.values(), prefix=" · ")
     title = _title(f"{'Normalised s' if normalised else 'S'}emivariograms ({space} lags)",
                    grid_size=grid_size, axis=axis, n_points=n_points, models=names,
                    unit=unit)

@@ -153,7 +153,10 @@ def test_a_big_clouds_plane_comes_from_its_coarse_first_grid(monkeypatch, cloud)
     from rough_viewer.grid.planes import whole_cloud_plane
 
     want = whole_cloud_plane(cloud)
+    from rough_viewer.app import store as store_mod
+
     monkeypatch.setattr(cloud_mod, "PLANE_FROM_GRID_POINTS", 1)
+    monkeypatch.setattr(store_mod, "COARSE_ALONE_POINTS", 1)
     loaded = LoadedCloud(cloud, max_display=1000, presets=PRESETS)
     assert ("prepared", 0.4) in loaded.store._cache and ("prepared", 0.1) not in loaded.store._cache
     np.testing.assert_allclose(loaded.plane.normal, want.normal, atol=1e-12)

@@ -176,13 +176,13 @@ def test_a_semivariogram_that_cannot_fit_leaves_the_map(server, cloud, monkeypat
     import rough_viewer.app.features.panels as panels
     from rough_viewer.memory import require
 
-    def too_big(ijk, values, g, **kw):
-        require(1e15, f"the semivariogram of {len(values):,} cells at {g:g} m")
+    def too_big(ijk, maps, g, **kw):
+        require(1e15, f"the semivariogram of {len(ijk):,} cells at {g:g} m")
         raise AssertionError("unreachable")
 
     app = build_app(server, cloud, prefetch=False, **FIXED)
     assert app.wait_idle(60)
-    monkeypatch.setattr(panels, "semivariogram", too_big)
+    monkeypatch.setattr(panels, "semivariograms", too_big)
     app.map.grid.value = "0.5"
     assert app.wait_idle(60)
     msg = app.host.errors[-1]

@@ -369,7 +369,7 @@ def test_a_newer_view_stops_the_semivariogram_inside_a_map(server, monkeypatch):
 
     app = build_app(server, face_cloud(20_000, seed=6), prefetch=False)
     assert app.wait_idle(60)
-    real = panels.semivariogram
+    real = panels.semivariograms
     runs: list[list[tuple[int, int]]] = []
 
     def spy(ijk, values, g, *, progress=None, **kw):
@@ -386,7 +386,7 @@ def test_a_newer_view_stops_the_semivariogram_inside_a_map(server, monkeypatch):
         # direct pairs in small chunks: many progress calls inside one map
         return real(ijk, values, g, progress=watched, method="pairs", **kw)
 
-    monkeypatch.setattr(panels, "semivariogram", spy)
+    monkeypatch.setattr(panels, "semivariograms", spy)
     monkeypatch.setattr(variogram, "PAIR_CHUNK_BYTES", 1 << 20)
     app.map.grid.value = app.map.grid.options[-3]  # the second finest preset
     assert app.wait_idle(120)

@@ -9,10 +9,20 @@ drawn by :func:`rough_viewer.visual.scales.face_scales_figure`.
 
 After every map the tab queues a :class:`PanelsJob` (lane ``panels``, cancelled by the
 next map), once the features that follow the map quickly have queued theirs, so a
-slow semivariogram never delays the map or the zones. It builds the trend across the
-preset grids (when the axis, minimum points or threshold changed), the histogram and
-Table 1 (fast), then the semivariogram (seconds, or refused for memory, on fine
-grids), and shows the grid's panels together.
+slow semivariogram never delays the map or the zones. It is progressive, every
+stage a place where a newer map stops it:
+
+1. the histogram and Table 1 (one pass over the cells), shown at once;
+2. a first semivariogram within :data:`FIRST_BUDGET` seconds of the cost model
+   (exact where that is cheap, else a sampled estimate with error bars, the same
+   pairs for all its maps: :func:`rough_viewer.grid.variogram.semivariograms`);
+3. the trend across the preset grids (when the axis, minimum points or threshold
+   changed), redrawn as each preset's grid arrives;
+4. when the first semivariogram was a sample, the refined one within
+   :data:`REFINE_BUDGET` seconds (exact if that fits, else a larger sample).
+
+The grid's panels count as shown (``session.panel_key``) once the last of them
+is; a job stopped before that is redone, quick stages included, by the next map.
 """
 
 from __future__ import annotations
@@ -36,10 +46,16 @@ from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.scales import face_scales
 from rough_viewer.grid.summary import histogram, normalise, summarise
 from rough_viewer.grid.threshold import map_threshold_advice
-from rough_viewer.grid.variogram import Semivariogram, semivariogram
+from rough_viewer.grid.variogram import Semivariogram, semivariograms
 from rough_viewer.visual.grid import histogram_figure, summary_table_figure, variogram_figure
 from rough_viewer.visual.scales import face_scales_figure
 from rough_viewer.vocabulary import HISTOGRAM_BIN, MAPS, InputError, MapName, ProgressFn
+
+#: Cost-model seconds (all maps of the panel together) of the first semivariogram
+#: and of its refinement (:func:`rough_viewer.grid.variogram.semivariograms`'s
+#: ``time_budget``): the first is exact only where that is cheap.
+FIRST_BUDGET = 0.3
+REFINE_BUDGET = 3.0
 
 #: Names of the analysis panels a saved view lists (the app draws all of them).
 PANEL_NAMES: tuple[str, ...] = ("histogram", "variogram", "summary")
@@ -104,20 +120,19 @@ def variograms(
     is_stale: Callable[[], bool] = lambda: False,
     progress: ProgressFn | None = None,
     keep_outliers: bool = False,
+    time_budget: float | None = None,
 ) -> dict[str, Semivariogram] | None:
-    """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell size),
-    or None if ``is_stale()`` turned True between maps (fine grids take seconds).
-    ``progress`` is passed to each :func:`~rough_viewer.grid.variogram.semivariogram`
-    (called between its blocks; an exception from it stops the computation inside a
-    map). Raises InputError when a semivariogram cannot fit in memory."""
-    g = result.grid.cell_size
-    out: dict[str, Semivariogram] = {}
-    for m in maps:
-        if is_stale():
-            return None
-        out[m] = semivariogram(result.ijk, analysed_values(result, m, keep_outliers=keep_outliers),
-                               g, progress=progress)
-    return out
+    """Semivariogram of each map of ``result`` (3-D cell lags, bin width = cell
+    size), all within ``time_budget`` seconds of the cost model (exact where that
+    fits, else one sample of pairs for all of them), or None if ``is_stale()``
+    turned True first. ``progress`` is passed on (called between FFT blocks and
+    sample chunks; an exception from it stops the computation). Raises InputError
+    when a semivariogram cannot fit in memory."""
+    values = {str(m): analysed_values(result, m, keep_outliers=keep_outliers) for m in maps}
+    if is_stale():
+        return None
+    return semivariograms(result.ijk, values, result.grid.cell_size, time_budget=time_budget,
+                          progress=progress)
 
 
 def variogram_figure_of(
@@ -127,11 +142,17 @@ def variogram_figure_of(
     is_stale: Callable[[], bool] = lambda: False,
     progress: ProgressFn | None = None,
     unit: str = "m",
-) -> go.Figure | None:
-    """The semivariogram panel, or None if ``is_stale()`` turned True on the way."""
+    time_budget: float | None = None,
+) -> tuple[go.Figure, bool] | None:
+    """The semivariogram panel and whether it is exact (False: a sampled estimate),
+    or None if ``is_stale()`` turned True on the way."""
     vgs = variograms(result, variogram_maps(settings.model), is_stale=is_stale,
-                     progress=progress, keep_outliers=settings.keep_outliers)
-    return None if vgs is None else variogram_figure(vgs, **_figure_kw(result, unit))
+                     progress=progress, keep_outliers=settings.keep_outliers,
+                     time_budget=time_budget)
+    if vgs is None:
+        return None
+    exact = all(vg.exact for vg in vgs.values())
+    return variogram_figure(vgs, **_figure_kw(result, unit)), exact
 
 
 def face_scales_figure_of(results: Sequence[GridRoughness], *, threshold: float,
@@ -212,47 +233,61 @@ class PanelsJob(Job[Host]):
         p, session, t0 = self.p, ctx.session, time.perf_counter()
         if session.shown.result is not self.result:
             return
+        s, key = self.settings, self.p.panel_key(self.settings)
+        exact = True
+        if key != session.panel_key:
+            dist = distribution_figures(self.result, s, unit=session.shown.loaded.units.unit)
+            p.binding.show_figure(p.histogram, dist.histogram)
+            p.binding.show_figure(p.summary, dist.summary)
+            yield "distribution"
+            if ctx.options.variogram:
+                exact = self._variogram(ctx, run, FIRST_BUDGET)
+                yield "variogram" if exact else "variogram estimate"
+        if face_key(s) != session.face_key and session.shown.loaded.presets:
+            yield from self._trend(ctx, run, key)
+        if not exact:
+            self._variogram(ctx, run, REFINE_BUDGET)
+            yield "variogram"
+        session.panel_key = key
+        self.record["panels_s"] = time.perf_counter() - t0
+
+    def _variogram(self, ctx: Host, run: Run, budget: float) -> bool:
+        """Compute and show the semivariogram panel within ``budget`` seconds of the
+        cost model; True when it is exact, or cannot be had (nothing to refine)."""
+        p, loaded = self.p, ctx.session.shown.loaded
+        try:
+            got = variogram_figure_of(self.result, self.settings, is_stale=lambda: run.cancelled,
+                                      progress=run.progress(), unit=loaded.units.unit,
+                                      time_budget=budget)
+        except (InputError, MemoryError) as exc:
+            what = "not enough memory" if isinstance(exc, MemoryError) else str(exc)
+            ctx.show_error(f"semivariogram of grid {loaded.units.size_text(self.settings.cell_size)}"
+                           f": {what}", kept="The map and the other panels are shown.")
+            return True
+        if got is None:  # cancelled before it started
+            run.check()
+            return True
+        p.binding.show_figure(p.variogram, got[0])
+        return got[1]
+
+    def _trend(self, ctx: Host, run: Run, key: tuple[object, ...]) -> Iterator[str]:
+        """The whole face against the preset grids, redrawn as each grid arrives
+        (cached after prefetching; each stops if cancelled)."""
+        p, session, s = self.p, ctx.session, self.settings
         loaded = session.shown.loaded
         unit = loaded.units.unit
-        s = self.settings
-        if face_key(s) != session.face_key and loaded.presets:
-            results = []
-            for g in loaded.presets:  # cached after prefetching; each stops if cancelled
-                results.append(loaded.cell_result(s.with_(cell_size=g), progress=run.progress()))
-                yield f"grid {g:g}"
-            trend = face_scales_figure_of(results, threshold=s.threshold, unit=unit,
-                                          keep_outliers=s.keep_outliers)
-            p.binding.show_figure(p.face_scales, trend)
-            session.face_key = face_key(s)
-            yield "grid sizes"
-            if p.panel_key(s) == session.panel_key:  # the threshold's line moved
-                p.binding.show_figure(p.histogram, histogram_of(self.result, s, unit=unit))
-                yield "histogram"
-        if p.panel_key(s) == session.panel_key:
-            return  # only the trend changed (the binary threshold)
-        dist = distribution_figures(self.result, s, unit=unit)
-        yield "distribution"
-        fig = None
-        if ctx.options.variogram:
-            try:
-                fig = variogram_figure_of(self.result, s, is_stale=lambda: run.cancelled,
-                                          progress=run.progress(), unit=unit)
-            except (InputError, MemoryError) as exc:
-                what = "not enough memory" if isinstance(exc, MemoryError) else str(exc)
-                ctx.show_error(f"semivariogram of grid {loaded.units.size_text(s.cell_size)}: "
-                               f"{what}", kept="The map and the other panels are shown.")
-            else:
-                if fig is None:  # cancelled between maps
-                    run.check()
-                    return
-            yield "variogram"
-        # the grid's panels change together, as the grid they describe
-        p.binding.show_figure(p.histogram, dist.histogram)
-        p.binding.show_figure(p.summary, dist.summary)
-        if fig is not None:
-            p.binding.show_figure(p.variogram, fig)
-        session.panel_key = p.panel_key(s)
-        self.record["panels_s"] = time.perf_counter() - t0
+        results, presets = [], loaded.presets or ()
+        for g in presets:
+            results.append(loaded.cell_result(s.with_(cell_size=g), progress=run.progress()))
+            if len(results) > 1 or len(presets) == 1:  # a line once it has two
+                p.binding.show_figure(p.face_scales, face_scales_figure_of(
+                    results, threshold=s.threshold, unit=unit, keep_outliers=s.keep_outliers))
+            yield f"grid {g:g}"
+        session.face_key = face_key(s)
+        yield "grid sizes"
+        if key == session.panel_key:  # the threshold's line moved
+            p.binding.show_figure(p.histogram, histogram_of(self.result, s, unit=unit))
+            yield "histogram"
 
 
 def mount(host: Host) -> PanelsFeature:

@@ -31,6 +31,7 @@ from rough_viewer.app.settings import (
     MapSettings,
     check_settings,
 )
+from rough_viewer.app.store import COARSE_ALONE_POINTS
 from rough_viewer.app.worker import Job, Run
 from rough_viewer.grid.outliers import outlier_text
 from rough_viewer.grid.roughness import GridRoughness, exact_fit_text
@@ -140,7 +141,7 @@ def reject(m: MapTab, message: str) -> None:
 #: A grid not yet computed on at least this many points takes more than about 0.5 s
 #: (the grid core: about 0.25 us per point on 2 cores): the map shows a coarse map
 #: first (:func:`_coarse_first`) and says how far the chosen grid has come.
-PREVIEW_POINTS = 2_000_000
+PREVIEW_POINTS = COARSE_ALONE_POINTS
 
 
 def render_stages(m: MapTab, run: Run, settings: MapSettings, *,
