@@ -1,6 +1,6 @@
 """A class on one ``rough-viewer serve --classroom``: every tab its own analysis.
 
-    PYTHONPATH=. python benchmarks/bench_classroom.py [--tabs 12 30] [--repeat 3]
+    PYTHONPATH=. python benchmarks/bench_classroom.py [INPUT] [--tabs 12 30] [--repeat 3]
 
 A real ``serve --classroom`` process on the demo outcrop (2 M points) and raw
 WebSocket tabs (tests/app/protocol.py, viser's own protocol: what a browser sends
@@ -42,11 +42,11 @@ STATUS = re.compile(r"(ODR|OLS|hybrid|e_OLS), grid ([0-9.]+) m")
 
 
 class Server:
-    """``rough-viewer serve --classroom`` (demo) in a child process."""
+    """``rough-viewer serve --classroom`` (the demo, or ``inputs``) in a child process."""
 
-    def __init__(self) -> None:
-        cmd = [sys.executable, "-m", "rough_viewer", "serve", "--classroom", "--port", "0",
-               "--max-connections", "64"]
+    def __init__(self, inputs: list[str] | None = None) -> None:
+        cmd = [sys.executable, "-m", "rough_viewer", "serve", *(inputs or []), "--classroom",
+               "--port", "0", "--max-connections", "64"]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, bufsize=1)
         threading.Thread(target=lambda: [None for _ in self.proc.stderr or ()],
@@ -135,8 +135,8 @@ def quiet(tabs: list[ProtocolClient], still_s: float, timeout: float) -> None:
             counts, since = now, time.perf_counter()
 
 
-def one_class(n: int) -> dict[str, float]:
-    server = Server()
+def one_class(n: int, inputs: list[str] | None = None) -> dict[str, float]:
+    server = Server(inputs)
     tabs: list[ProtocolClient] = []
     try:
         time.sleep(2.0)
@@ -216,10 +216,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tabs", type=int, nargs="+", default=[12, 30])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("inputs", nargs="*", help="a point-cloud file instead of the demo")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores; load {os.getloadavg()[0]:.1f}", flush=True)
     for n in args.tabs:
-        runs = [one_class(n) for _ in range(args.repeat)]
+        runs = [one_class(n, args.inputs) for _ in range(args.repeat)]
         for r in runs:
             print("  run: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
                                         for k, v in r.items()), flush=True)

@@ -6,10 +6,11 @@ Prints, for each engine (numba, the NumPy reference), N and grid size, the media
 over ``--repeat`` runs of each stage (cell keys + moments, plane fits, distances,
 assembly), points per second, and the peak memory allocated during the computation
 beyond the input coordinates (numpy allocations, measured with tracemalloc in a
-separate run so timings are not slowed). Then, for ``--whole-points`` points saved
-as .npy, the median wall time of whole processes: ``rough-viewer compute`` with each
-engine and :func:`plain_pipeline` (the same numbers with nothing but NumPy
-bincounts), and their ratio.
+separate run so timings are not slowed). Then coarser presets from a fine grid's
+sums against the same grids from the points, ``load_points`` of a ``--whole-points``
+.npy in-process, and for that .npy the median wall time of whole processes:
+``rough-viewer compute`` with each engine and :func:`plain_pipeline` (the same
+numbers with nothing but NumPy bincounts), and their ratio.
 
     flock /tmp/rough_viewer_heavy.lock python benchmarks/bench_compute.py --sizes 2e7 --grids 0.25 --no-io
     python benchmarks/bench_compute.py                     # 1M, 5M, 20M points, 4 grids
@@ -27,13 +28,18 @@ import sys
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
+from rough_viewer.grid.roughness import (  # noqa: E402
+    coarsen_prepared,
+    grid_roughness,
+    prepare_grid,
+)
 from rough_viewer.io import PointCloud, load_points, write_las  # noqa: E402
 
 STAGES = ("keys+moments", "plane fits", "distances", "assembly")
@@ -107,6 +113,43 @@ def bench_grid(sizes: list[int], grids: list[float], repeat: int, order: str,
         del cloud
 
 
+def bench_presets(n: int, fine: float, factors: list[int], repeat: int) -> None:
+    """A coarser preset from the finest one's partial sums (:func:`coarsen_prepared`,
+    the distance pass the only one over the points) against the same grid computed
+    from the points, in-process, numba, warm."""
+    print(f"\npresets from a {fine:g} m grid's sums, {n:,} points, all models; median of "
+          f"{repeat} runs")
+    cloud = synthetic_outcrop(n)
+    prep = prepare_grid(cloud, fine)
+    grid_roughness(cloud, fine * factors[0], prepared=coarsen_prepared(prep, factors[0]))
+    for k in factors:
+        g = fine * k
+        coarse = [_timed(lambda k=k, g=g: grid_roughness(cloud, g,
+                                                         prepared=coarsen_prepared(prep, k)))
+                  for _ in range(repeat)]
+        direct = [_timed(lambda g=g: grid_roughness(cloud, g)) for _ in range(repeat)]
+        print(f"  {g:g} m: from the {fine:g} m sums {statistics.median(coarse):.3f} s, from the "
+              f"points {statistics.median(direct):.3f} s")
+
+
+def _timed(run: Callable[[], object]) -> float:
+    t = time.perf_counter()
+    run()
+    return time.perf_counter() - t
+
+
+def bench_load(n: int, repeat: int) -> None:
+    """``load_points`` of an .npy in this process (page cache warm): the file read
+    once, split into columns, checked and its bounds noted on the way."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "cloud.npy"
+        np.save(path, synthetic_outcrop(n).xyz())
+        load_points(path)
+        times = [_timed(lambda: load_points(path)) for _ in range(repeat)]
+    print(f"\nload_points of a {n:,}-point .npy (in-process, warm page cache): median "
+          f"{statistics.median(times):.3f} s of {repeat} (min {min(times):.3f} s)")
+
+
 def plain_pipeline(path: str, g: float, out: str) -> None:
     """The same per-cell roughness (ODR, OLS along the auto axis, hybrid) with nothing
     but NumPy: keys, ``np.unique``, weighted ``np.bincount`` sums, batched ``eigh``,
@@ -157,7 +200,13 @@ def plain_pipeline(path: str, g: float, out: str) -> None:
                                                       theta["hybrid"])), strict=True))
 
 
-def _wall(argv: list[str], env: dict[str, str]) -> float:
+def _wall(argv: list[str], env: dict[str, str], warm: str | None = None) -> float:
+    """Wall time of one process; ``warm``: a file read first (untimed), so every row
+    finds it in the page cache (the plain pipeline's temporaries evict it)."""
+    if warm is not None:
+        with open(warm, "rb") as fh:
+            while fh.read(1 << 24):
+                pass
     t = time.perf_counter()
     subprocess.run(argv, env=env, check=True, stdout=subprocess.DEVNULL)
     return time.perf_counter() - t
@@ -185,7 +234,7 @@ def bench_whole_process(n: int, g: float, repeat: int) -> None:
             _wall(argv, dict(clean, **extra))  # warm the page cache and numba's disk cache
         for _ in range(repeat):  # alternating, so a busy spell falls on every row alike
             for label, argv, extra in rows:
-                walls[label].append(_wall(argv, dict(clean, **extra)))
+                walls[label].append(_wall(argv, dict(clean, **extra), warm=path))
         medians = {label: statistics.median(w) for label, w in walls.items()}
         base = medians["plain NumPy bincount pipeline"]
         for label, t in medians.items():
@@ -277,6 +326,9 @@ def main() -> None:
     ap.add_argument("--whole-points", type=float, default=2e7)
     ap.add_argument("--whole-grid", type=float, default=0.25)
     ap.add_argument("--no-whole", action="store_true")
+    ap.add_argument("--preset-fine", type=float, default=0.0625,
+                    help="finest preset grid the coarser ones are derived from (m)")
+    ap.add_argument("--no-presets", action="store_true")
     ap.add_argument("--no-first", action="store_true",
                     help="skip the first-call and load_points timings")
     ap.add_argument("--plain-pipeline", nargs=3, metavar=("NPY", "G", "OUT"),
@@ -288,6 +340,9 @@ def main() -> None:
         return
     print(f"load average: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     bench_grid([int(s) for s in args.sizes], args.grids, args.repeat, args.order, args.engines)
+    if not args.no_presets:
+        bench_presets(int(args.whole_points), args.preset_fine, [2, 4, 8], args.repeat)
+    bench_load(int(args.whole_points), args.repeat)
     if not args.no_first:
         bench_first_call(int(args.whole_points), args.whole_grid, args.repeat)
     if not args.no_whole:

@@ -245,3 +245,45 @@ class ByteCache(Generic[K, V]):
         with self._lock:
             return len(self._items)
 
+
+
+class Memo(Generic[K, V]):
+    """The last :attr:`most` values made by key, each made once however many threads
+    ask for it at once (the others wait for it): what the analyses of a classroom's
+    tabs derive alike from a shared grid (its panels' figures).
+
+    A ``make`` that raises (a cancelled job) or returns None leaves nothing behind:
+    the next caller makes it again.
+
+    >>> memo: Memo[str, int] = Memo(2)
+    >>> memo.get_or_make("a", lambda: 1), memo.get_or_make("a", lambda: 2)
+    (1, 1)
+    """
+
+    def __init__(self, most: int = 64) -> None:
+        self.most = int(most)
+        self._items: OrderedDict[K, V] = OrderedDict()
+        self._lock = threading.Lock()
+        self._flights: dict[K, threading.Lock] = {}
+        self.made = 0
+        """Values made so far (a test counts them)."""
+
+    def get_or_make(self, key: K, make: Callable[[], V | None]) -> V | None:
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+            flight = self._flights.setdefault(key, threading.Lock())
+        with flight:
+            with self._lock:
+                if key in self._items:
+                    return self._items[key]
+            value = make()
+            with self._lock:
+                self._flights.pop(key, None)
+                if value is not None:
+                    self.made += 1
+                    self._items[key] = value
+                    while len(self._items) > self.most:
+                        self._items.popitem(last=False)
+            return value

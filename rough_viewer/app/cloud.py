@@ -13,13 +13,14 @@ result plus the colouring settings into colours without touching the planes agai
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
-from rough_viewer.app.cache import ByteBudget
+from rough_viewer.app.cache import ByteBudget, Memo
 from rough_viewer.app.colouring import Colouring, by_cell
 from rough_viewer.app.limits import CACHE_BYTES, DEFAULT_MAX_DISPLAY
 from rough_viewer.app.sampling import display_subset
@@ -56,6 +57,12 @@ from rough_viewer.vocabulary import (
 #: the coarsest preset (the coarse first map's grid, prepared anyway) instead of a
 #: pass of its own over the points.
 PLANE_FROM_GRID_POINTS = 2_000_000
+
+#: Values derived from a cloud's grids (panel figures) a cloud keeps for the analyses
+#: that show it (:meth:`LoadedCloud.derived`).
+DERIVED_KEPT = 48
+
+T = TypeVar("T")
 
 
 def grid_presets(cloud: PointCloud) -> tuple[float, ...]:
@@ -123,6 +130,7 @@ class LoadedCloud:
     """What is computed from every point, cached (:mod:`rough_viewer.app.store`: the
     points in memory today; a store on disk implements the same protocol)."""
     _layers: dict[str, ColourLayer] = field(init=False, repr=False)
+    _derived: Memo[object, object] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.cloud.n < 3:
@@ -146,6 +154,7 @@ class LoadedCloud:
                                    self.cache_pool or ByteBudget(self.cache_bytes),
                                    most=self.cache_bytes)
         self._layers = {}
+        self._derived = Memo(DERIVED_KEPT)
         if self.cloud.n >= PLANE_FROM_GRID_POINTS:
             # the coarsest preset's moments give the plane (equal up to rounding), and
             # its cells are the big cloud's first map: one pass over the points for both
@@ -321,6 +330,14 @@ class LoadedCloud:
     def to_local(self, xyz: np.ndarray) -> np.ndarray:
         """File-frame coordinates (metres) -> the display frame (float64)."""
         return np.asarray(xyz, dtype=np.float64) - self.origin
+
+    def derived(self, key: object, make: Callable[[], T | None]) -> T | None:
+        """What ``make()`` derives from this cloud's grids under ``key`` (a panel's
+        figure), kept for the last :data:`DERIVED_KEPT` keys and made once however
+        many analyses ask at once (the tabs of a classroom: thirty students on one
+        grid get its semivariogram computed once). None (a cancelled making) is
+        not kept."""
+        return self._derived.get_or_make(key, make)  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ the store's
     @contextmanager

@@ -301,7 +301,7 @@ class InMemoryStore:
             and fine_key not in self._cache
         if abs(factor - round(factor)) < 1e-9 and round(factor) > 1 and not coarse_alone:
             fine = self.prepared(self.presets[-1], progress=progress)
-            prep = coarsen_prepared(fine, int(round(factor)))
+            prep = coarsen_prepared(fine, int(round(factor)), defer_rows=True)
         else:
             if progress is not None:
                 progress(0, 1)

@@ -185,7 +185,9 @@ def run(args: argparse.Namespace) -> int:
     source = describe(paths)
     models = MODELS if args.method == "all" else (args.method,)
     residual: Residual = "signed" if args.signed else "absolute"
-    trust = trust_settings(args, unit)  # checked before any work
+    # checked before any work where an option asks for them; else the defaults, made
+    # (with the bias modules' imports) only for a cloud that has scanner positions
+    trust = trust_settings(args, unit) if _trust_options(args) else None
     results: Iterable[GridRoughness]
     cloud: PointCloud | None = None
     keep: np.ndarray | None = None
@@ -236,7 +238,7 @@ def _refuse_point_outputs_with_chunks(args: argparse.Namespace) -> None:
 
 def _one_grid(results: Iterator[GridRoughness], *, first: bool, g: float,
               args: argparse.Namespace, unit: str, cloud: PointCloud | None, source: str,
-              trust: TrustSettings, outputs: dict[str, dict[float, Path]],
+              trust: TrustSettings | None, outputs: dict[str, dict[float, Path]],
               dropped: int, keep: np.ndarray | None) -> list[str]:
     """One grid size ``g`` (in ``unit``) of the run: its result (the next of
     ``results``) computed and checked, its table printed, its outputs written;
@@ -249,7 +251,7 @@ def _one_grid(results: Iterator[GridRoughness], *, first: bool, g: float,
     if not first:
         print()
     print(format_table(result, source=source, unit=unit, keep_outliers=args.keep_outliers))
-    cells = _trust(cloud, result, trust, args.quiet, unit)
+    cells = _trust(cloud, result, trust, args, unit)
     return _write_outputs(outputs, g, result, cloud, dropped, source, args, unit, cells,
                           keep=keep)
 
@@ -319,18 +321,31 @@ def _outputs(args: argparse.Namespace, grids: list[float], several: bool,
     return outputs
 
 
-def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSettings,
-           quiet: bool, unit: str) -> CellTrust | None:
+def _trust_options(args: argparse.Namespace) -> bool:
+    """Whether any option of the per-cell scanner figures was given."""
+    return any(getattr(args, name, None) not in (None, [], ())
+               for name in ("noise", "beam_radius", "asperity_radius", "angular_step",
+                            "calibration"))
+
+
+def _trust(cloud: PointCloud | None, result: GridRoughness, settings: TrustSettings | None,
+           args: argparse.Namespace, unit: str) -> CellTrust | None:
     """The per-cell scanner figures of one grid (printed as a few lines), or None
-    when the cloud has no scanner positions (said once, in one line)."""
+    when the cloud has no scanner positions (said once, in one line). ``settings``
+    None: the options' (the defaults), made here."""
     from rough_viewer.cli._progress import ProgressBar
     from rough_viewer.scanner.positions import NO_POSITIONS
-    from rough_viewer.scanner.trust import cell_trust
 
     if cloud is None:  # streamed: no points kept
         return None
-    cells = cell_trust(cloud, result, settings,
-                       progress=None if quiet else ProgressBar("scanner", unit="step"))
+    if cloud.scanner_positions is None or np.size(cloud.scanner_positions) == 0:
+        print(f"{NO_POSITIONS}; the scanner columns are empty")
+        return None
+    from rough_viewer.cli._scanner import trust_settings
+    from rough_viewer.scanner.trust import cell_trust
+
+    cells = cell_trust(cloud, result, settings or trust_settings(args, unit),
+                       progress=None if args.quiet else ProgressBar("scanner", unit="step"))
     if cells is None:
         print(f"{NO_POSITIONS}; the scanner columns are empty")
     else:

@@ -29,29 +29,40 @@ OPTS = {"cache": True, "nogil": True}
 
 @njit(f"void({F1}, {F1}, {F1}, {F2})", parallel=True, **OPTS)
 def bounds(x, y, z, out):
-    """``out[t] = (min x, min y, min z, max x, max y, max z, NaN count)`` of task
-    ``t``'s share of the points (one pass over the coordinates)."""
+    """``out[t] = (min x, min y, min z, max x, max y, max z, NaN count, and the index
+    of the first point of each of the six)`` of task ``t``'s share of the points (one
+    pass over the coordinates; the extremes rarely change, so the branches are
+    predicted)."""
     n = x.shape[0]
     tasks = out.shape[0]
     step = (n + tasks - 1) // tasks
     for t in prange(tasks):
-        lx = np.inf
-        ly = np.inf
-        lz = np.inf
-        hx = -np.inf
-        hy = -np.inf
-        hz = -np.inf
+        lx = ly = lz = np.inf
+        hx = hy = hz = -np.inf
+        ilx = ily = ilz = ihx = ihy = ihz = -1
         nans = 0
         for i in range(t * step, min(n, (t + 1) * step)):
             a = x[i]
             b = y[i]
             c = z[i]
-            lx = min(lx, a)
-            hx = max(hx, a)
-            ly = min(ly, b)
-            hy = max(hy, b)
-            lz = min(lz, c)
-            hz = max(hz, c)
+            if a < lx:
+                lx = a
+                ilx = i
+            if a > hx:
+                hx = a
+                ihx = i
+            if b < ly:
+                ly = b
+                ily = i
+            if b > hy:
+                hy = b
+                ihy = i
+            if c < lz:
+                lz = c
+                ilz = i
+            if c > hz:
+                hz = c
+                ihz = i
             nans += np.int64(a != a) + np.int64(b != b) + np.int64(c != c)  # no branch
         out[t, 0] = lx
         out[t, 1] = ly
@@ -60,6 +71,12 @@ def bounds(x, y, z, out):
         out[t, 4] = hy
         out[t, 5] = hz
         out[t, 6] = nans
+        out[t, 7] = ilx
+        out[t, 8] = ily
+        out[t, 9] = ilz
+        out[t, 10] = ihx
+        out[t, 11] = ihy
+        out[t, 12] = ihz
 
 
 @njit(f"void({F1}, {F1}, {F1}, {F1}, float64, {F1}, int64, int64, {I1})", parallel=True, **OPTS)
@@ -207,17 +224,21 @@ def _distance(lx, ly, lz, vx, vy, vz, offset):
 
 
 @njit(**OPTS)
-def _distances_block(x, y, z, pc, cx, cy, cz, v, two, start, stop, acc):
+def _distances_block(x, y, z, pc, lookup, rows, cx, cy, cz, v, two, start, stop, acc):
     acc[:, :] = 0.0
     if start >= stop:
         return
-    cur = pc[start]
+    relabel = lookup.shape[0] > 0
+    cur = lookup[pc[start]] if relabel else pc[start]
     a0 = q0 = a1 = q1 = 0.0
     ccx, ccy, ccz = cx[cur], cy[cur], cz[cur]
     v0, v1, v2, v3, v4, v5, v6, v7 = (v[cur, 0], v[cur, 1], v[cur, 2], v[cur, 3],
                                       v[cur, 4], v[cur, 5], v[cur, 6], v[cur, 7])
     for i in range(start, stop):
         c = pc[i]
+        if relabel:
+            c = lookup[c]
+            rows[i] = c
         if c != cur:
             acc[cur, 0] = a0
             acc[cur, 1] = q0
@@ -247,12 +268,14 @@ def _distances_block(x, y, z, pc, cx, cy, cz, v, two, start, stop, acc):
     acc[cur, 3] = q1
 
 
-@njit(f"void({F1}, {F1}, {F1}, {I1}, {F1}, {F1}, {F1}, {F2}, boolean, int64, {F2}, {F3})",
-      parallel=True, **OPTS)
-def distances(x, y, z, pc, cx, cy, cz, v, two, chunk, total, partial):
+@njit(f"void({F1}, {F1}, {F1}, {I1}, {I1}, {I1}, {F1}, {F1}, {F1}, {F2}, boolean, int64, {F2}, "
+      f"{F3})", parallel=True, **OPTS)
+def distances(x, y, z, pc, lookup, rows, cx, cy, cz, v, two, chunk, total, partial):
     """Per-cell sums of ``|D|`` and ``D^2`` of one or two (``two``) distance kinds,
     ``D = v[c, 4q:4q+3] . local - v[c, 4q+3]``, into ``total[c] = (|D0|, D0^2, |D1|,
-    D1^2)``, block by block as :func:`moments`."""
+    D1^2)``, block by block as :func:`moments`. With a non-empty ``lookup``, ``pc``
+    holds keys (or a finer grid's rows) and ``rows[i] = lookup[pc[i]]`` is written on
+    the way (``rows`` may be ``pc``: in place)."""
     n = x.shape[0]
     n_chunks = (n + chunk - 1) // chunk
     width = partial.shape[0]
@@ -260,7 +283,7 @@ def distances(x, y, z, pc, cx, cy, cz, v, two, chunk, total, partial):
         for t in prange(width):
             k = base + t
             if k < n_chunks:
-                _distances_block(x, y, z, pc, cx, cy, cz, v, two, k * chunk,
+                _distances_block(x, y, z, pc, lookup, rows, cx, cy, cz, v, two, k * chunk,
                                  min(n, (k + 1) * chunk), partial[t])
         for t in range(width):
             if base + t < n_chunks:
@@ -321,3 +344,136 @@ def pair_sums(px, py, pz, z, scale, n_bins, rows, first, last, ordered, sums):
             if cur != 0:
                 own_n[cur] = cn
                 own_s[cur] = cs
+
+
+@njit(inline="always", **OPTS)
+def _row10(acc, c):
+    return (acc[c, 0], acc[c, 1], acc[c, 2], acc[c, 3], acc[c, 4], acc[c, 5], acc[c, 6],
+            acc[c, 7], acc[c, 8], acc[c, 9])
+
+
+@njit(inline="always", **OPTS)
+def _put10(acc, c, s):
+    for j in range(10):
+        acc[c, j] = s[j]
+
+
+@njit(**OPTS)
+def _box_keys(x, y, z, o, g, im, nx, ny, box, first, last, key):
+    """``key[i]`` for ``first <= i < last`` (the operations of :func:`keys`; -1 for a
+    point outside ``box``, NaN included); returns how many were outside. The loop
+    vectorises: the divisions are most of the work."""
+    ox = o[0]
+    oy = o[1]
+    oz = o[2]
+    mx = im[0]
+    my = im[1]
+    mz = im[2]
+    lox = box[0]
+    loy = box[1]
+    loz = box[2]
+    hix = box[3]
+    hiy = box[4]
+    hiz = box[5]
+    nxy = nx * ny
+    outside = 0
+    for i in range(first, last):
+        a = x[i]
+        b = y[i]
+        c = z[i]
+        tz = np.floor((c - oz) / g) - mz
+        ty = np.floor((b - oy) / g) - my
+        tx = np.floor((a - ox) / g) - mx
+        k = np.int64(tz) * nxy + np.int64(ty * nx) + np.int64(tx)
+        inside = ((a >= lox) & (a <= hix) & (b >= loy) & (b <= hiy) & (c >= loz)
+                  & (c <= hiz))  # False for NaN
+        key[i] = k if inside else -1
+        outside += np.int64(not inside)
+    return outside
+
+
+@njit(**OPTS)
+def _key_sums(x, y, z, key, nx, nxy, cxa, cya, cza, first, last, acc):
+    """``acc[k] += (lx, ly, lz, lx lx, lx ly, lx lz, ly ly, ly lz, lz lz, 1)`` of the
+    points ``first <= i < last`` of key ``k >= 0``, in their order; a run of one key
+    adds in registers (the same operations)."""
+    cur = -1
+    ccx = ccy = ccz = 0.0
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = s8 = s9 = 0.0
+    for i in range(first, last):
+        k = key[i]
+        if k != cur:
+            if cur >= 0:
+                _put10(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8, s9))
+            cur = k
+            if k < 0:  # outside the box: in no sum
+                continue
+            s0, s1, s2, s3, s4, s5, s6, s7, s8, s9 = _row10(acc, k)
+            kz = k // nxy
+            rem = k - kz * nxy
+            ky = rem // nx
+            ccx = cxa[rem - ky * nx]
+            ccy = cya[ky]
+            ccz = cza[kz]
+        elif k < 0:
+            continue
+        lx = x[i] - ccx
+        ly = y[i] - ccy
+        lz = z[i] - ccz
+        s0 += lx
+        s1 += ly
+        s2 += lz
+        s3 += lx * lx
+        s4 += lx * ly
+        s5 += lx * lz
+        s6 += ly * ly
+        s7 += ly * lz
+        s8 += lz * lz
+        s9 += 1.0
+    if cur >= 0:
+        _put10(acc, cur, (s0, s1, s2, s3, s4, s5, s6, s7, s8, s9))
+
+
+@njit(**OPTS)
+def _fused_block(x, y, z, o, g, im, nx, ny, cxa, cya, cza, box, start, stop, key, acc):
+    """One block of :func:`fused`: keys into ``key``, sums into ``acc`` (zeroed here),
+    :data:`KEY_BLOCK` points at a time, the keys first, then their sums (read back
+    from the first-level cache); returns the number of points outside ``box``."""
+    acc[:, :] = 0.0
+    outside = 0
+    for first in range(start, stop, KEY_BLOCK):
+        last = min(stop, first + KEY_BLOCK)
+        outside += _box_keys(x, y, z, o, g, im, nx, ny, box, first, last, key)
+        _key_sums(x, y, z, key, nx, nx * ny, cxa, cya, cza, first, last, acc)
+    return outside
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, {F1}, int64, int64, int64, {F1}, {F1}, {F1}, "
+      f"{F1}, int64, {I1}, {F2}, {F3}, {F1})", parallel=True, **OPTS)
+def fused(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, chunk, key, total, partial,
+          state):
+    """Cell keys, counts and moment sums in one pass over the points, on a dense grid.
+
+    ``key[i]`` the linear key of point ``i`` (the operations of :func:`keys`; -1 for
+    a point outside ``box = (min x, y, z, max x, y, z)``, NaN included, which is
+    left out of the sums); ``total[k] += (sum lx, ly, lz, lx lx, lx ly, lx lz, ly ly,
+    ly lz, lz lz, count)`` of the points of key ``k``, local coordinates relative to
+    the cell centre ``(cxa[i], cya[j], cza[k])``, block by block (``chunk`` points),
+    ``partial.shape[0]`` blocks at a time, the blocks' sums added to ``total`` in
+    block order (on all threads, each cell's in block order); ``state[b]`` the
+    number of block ``b``'s points outside the box."""
+    n = x.shape[0]
+    n_chunks = (n + chunk - 1) // chunk
+    width = partial.shape[0]
+    cells = total.shape[0]
+    for base in range(0, n_chunks, width):
+        for t in prange(width):
+            b = base + t
+            if b < n_chunks:
+                state[b] = _fused_block(x, y, z, o, g, im, nx, ny, cxa, cya, cza, box,
+                                        b * chunk, min(n, (b + 1) * chunk), key, partial[t])
+        used = min(width, n_chunks - base)
+        for c in prange(cells):  # each cell's partial sums added in block order
+            for t in range(used):
+                for j in range(10):
+                    total[c, j] += partial[t, c, j]

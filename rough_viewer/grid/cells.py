@@ -12,6 +12,7 @@ that UTM-sized coordinates lose no precision.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -326,6 +327,8 @@ def distance_sums(
     vectors: dict[str, tuple[np.ndarray, np.ndarray]],
     *,
     engine: Engine = "numpy",
+    lookup: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per-cell sums of ``|D|`` and ``D^2`` with ``D = v . (p - c)``, per named vector.
 
@@ -340,6 +343,11 @@ def distance_sums(
         reference point relative to the cell centre, metres.
     engine : {"numpy", "numba", "auto"}
         As :func:`index_points`.
+    lookup : (K,) int64, optional
+        ``index.point_cell`` holds keys (or a finer grid's rows) rather than rows:
+        the row of point ``i`` is ``lookup[index.point_cell[i]]``, written to
+        ``rows`` on the way (``rows`` may be ``index.point_cell``: in place; the
+        compiled engine does it within its pass over the points).
 
     Returns
     -------
@@ -353,13 +361,21 @@ def distance_sums(
     offsets = {
         name: (v, np.einsum("ij,ij->i", v, c_local)) for name, (v, c_local) in vectors.items()
     }
-    if fast.resolve_engine(engine) == "numba" and offsets:
+    if fast.resolve_engine(engine) == "numba" and (offsets or lookup is not None):
         names = list(offsets)
+        q = len(names)
         sums = fast.distance_sums(
             x, y, z, index.point_cell, index.grid.centres(index.ijk),
-            np.stack([offsets[k][0] for k in names]), np.stack([offsets[k][1] for k in names]),
-            _chunk_size(m_cells))
+            np.stack([offsets[k][0] for k in names]) if q else np.empty((0, m_cells, 3)),
+            np.stack([offsets[k][1] for k in names]) if q else np.empty((0, m_cells)),
+            _chunk_size(m_cells), lookup=lookup, rows=rows)
         return {k: (sums[q, 0], sums[q, 1]) for q, k in enumerate(names)}
+    if lookup is not None:
+        target = index.point_cell if rows is None else rows
+        for s in _chunks(int(x.shape[0]), 1 << 21):
+            target[s] = lookup[index.point_cell[s]]
+        index = CellIndex(grid=index.grid, ijk=index.ijk, counts=index.counts,
+                          point_cell=target)
     out = {name: (np.zeros(m_cells), np.zeros(m_cells)) for name in vectors}
     for pc, local in _local_chunks(x, y, z, index):
         for name, (v, off) in offsets.items():
@@ -375,8 +391,8 @@ def distance_sums(
 
 
 def coarsen(
-    index: CellIndex, moments: CellMoments, factor: int
-) -> tuple[CellIndex, CellMoments]:
+    index: CellIndex, moments: CellMoments, factor: int, *, gather: bool = True
+) -> Any:
     """The cell index and moments of the grid ``factor`` times coarser, from a finer
     grid's, without touching the point coordinates.
 
@@ -391,12 +407,19 @@ def coarsen(
         Of the fine grid (edge ``g``).
     factor : int
         Positive integer; the coarse edge is ``factor * g``.
+    gather : bool
+        Make the coarse ``point_cell`` (one gather over the points). With False it
+        is left empty and the fine-to-coarse row map is returned third: the row of
+        point ``i`` is ``parent[index.point_cell[i]]`` (for a pass over the points
+        to apply on its way, :func:`distance_sums`).
 
     Returns
     -------
-    CellIndex, CellMoments
+    CellIndex, CellMoments[, parent]
         Of the coarse grid; equal to :func:`index_points` and :func:`cell_moments` on
-        ``make_grid(bounds, factor * g, origin)`` up to rounding.
+        ``make_grid(bounds, factor * g, origin)`` up to rounding (the moments are
+        regrouped sums: the cells, counts and rows are the same, the sums agree to
+        round-off); ``parent`` (M_fine,) int64 with ``gather=False``.
     """
     k = int(factor)
     if k < 1 or k != factor:
@@ -408,7 +431,15 @@ def coarsen(
     hi = ijk_c.max(axis=0)
     shape = tuple(int(v) for v in (hi - lo + 1))
     key = ((ijk_c[:, 2] - lo[2]) * shape[1] + (ijk_c[:, 1] - lo[1])) * shape[0] + (ijk_c[:, 0] - lo[0])
-    keys_c, parent = np.unique(key, return_inverse=True)
+    total = shape[0] * shape[1] * shape[2]
+    if dense_bookkeeping(total, key.shape[0]):  # no sort: one int64 per coarse grid cell
+        occupied = np.bincount(key, minlength=total) > 0
+        keys_c = np.flatnonzero(occupied)
+        lookup = np.cumsum(occupied) - 1
+        parent = lookup[key]
+        del occupied, lookup
+    else:
+        keys_c, parent = np.unique(key, return_inverse=True)
     m_c = keys_c.shape[0]
     coarse_ijk = _decode_keys(keys_c, shape, lo)  # type: ignore[arg-type]
     grid = GridSpec(origin=fine.origin.copy(), cell_size=g, index_min=lo.astype(np.int64),
@@ -422,15 +453,15 @@ def coarsen(
     s2 = np.empty((m_c, 3, 3))
     for a in range(3):
         s1[:, a] = np.bincount(parent, weights=s1_f[:, a] + n * delta[:, a], minlength=m_c)
-        for b in range(3):
+        for b in range(a, 3):  # symmetric: each pair once
             w = (moments.s2[:, a, b] + s1_f[:, a] * delta[:, b] + delta[:, a] * s1_f[:, b]
                  + n * delta[:, a] * delta[:, b])
             s2[:, a, b] = np.bincount(parent, weights=w, minlength=m_c)
-    point_cell = parent[index.point_cell]
-    return (
-        CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
-        CellMoments(counts=counts, s1=s1, s2=s2),
-    )
+            s2[:, b, a] = s2[:, a, b]
+    point_cell = parent[index.point_cell] if gather else np.empty(0, dtype=np.int64)
+    out = (CellIndex(grid=grid, ijk=coarse_ijk, counts=counts, point_cell=point_cell),
+           CellMoments(counts=counts, s1=s1, s2=s2))
+    return out if gather else (*out, parent)
 
 
 def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec, *,

@@ -1,5 +1,7 @@
 """Compiled (numba) kernels for the point passes of the grid: bounds, cell keys,
-cell-local moment sums, distance sums.
+cell-local moment sums (or, on a dense grid, keys, counts and moments in one fused
+pass: :func:`fused_index_and_moments`), distance sums (which turn keys, or a finer
+grid's rows, into rows on their way).
 
 The NumPy functions of :mod:`rough_viewer.grid.cells` are the reference; these
 kernels do the same arithmetic in the same order, point by point, without the
@@ -37,6 +39,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +60,9 @@ THREAD_COUNT_CELLS = 1 << 22
 #: back (~15 ns a point against the reference's ~60) on clouds of a few million
 #: points. Once loaded in a process they are used for any size.
 AUTO_MIN_POINTS = 3_000_000
+
+#: The interpreter's switch interval, seconds, while :func:`preload` loads the kernels.
+PRELOAD_SWITCH_S = 2e-4
 
 _lock = threading.RLock()
 _loaded: dict[str, Any] = {}
@@ -203,7 +209,7 @@ def _kernels() -> dict[str, Any]:
                 sys.meta_path.remove(guard)
         _loaded.update(bounds=k.bounds, keys=k.keys, keys_count=k.keys_count, count=k.count,
                        relabel=k.relabel, moments=k.moments, distances=k.distances,
-                       pair_sums=k.pair_sums)
+                       pair_sums=k.pair_sums, fused=k.fused)
     return _loaded
 
 
@@ -219,8 +225,16 @@ def preload() -> None:
         return
 
     def load() -> None:
-        with contextlib.suppress(InputError):
-            _kernels()
+        # numba's loading holds the interpreter lock for long stretches: a reader on
+        # the main thread, which takes the lock back between its NumPy calls, would
+        # wait up to the switch interval (5 ms) each time; 0.2 ms while this runs
+        before = sys.getswitchinterval()
+        sys.setswitchinterval(min(before, PRELOAD_SWITCH_S))
+        try:
+            with contextlib.suppress(InputError):
+                _kernels()
+        finally:
+            sys.setswitchinterval(before)
 
     thread = threading.Thread(target=load, name="rough_viewer-kernels", daemon=True)
     _preloading.append(thread)
@@ -250,14 +264,25 @@ def _threads() -> int:
     return int(numba.get_num_threads())
 
 
+#: Every block of a pass gets its own partial sums (one parallel step over all the
+#: blocks, then one over the cells, instead of a step and a wait per round of as
+#: many blocks as threads) while they take at most this many bytes or 4 bytes a
+#: point, whichever is larger: on a busy machine each wait costs a time slice.
+ALL_BLOCKS_BYTES = 64 << 20
+
+
 def _width(n: int, chunk: int, n_cells: int, row_bytes: int) -> int:
-    """How many blocks run at once: the thread count, bounded by the blocks there are
-    and by memory for the per-thread partial sums (at most one block's worth)."""
+    """How many blocks run at once: all of them where their partial sums fit in
+    :data:`ALL_BLOCKS_BYTES` (or 4 bytes a point), else the thread count, bounded by
+    the blocks there are and by memory for the per-thread partial sums. The partial
+    sums are added in block order either way, so the result does not change."""
     from rough_viewer.memory import require
 
     n_chunks = max(1, -(-n // chunk))
     width = max(1, min(_threads(), n_chunks))
-    require(width * n_cells * row_bytes, f"partial sums of {n_cells:,} cells on {width} threads",
+    if n_chunks * n_cells * row_bytes <= max(ALL_BLOCKS_BYTES, 4 * n):
+        width = n_chunks
+    require(width * n_cells * row_bytes, f"partial sums of {n_cells:,} cells in {width} blocks",
             hint="choose a larger grid size")
     return width
 
@@ -274,11 +299,24 @@ def _i8(a: np.ndarray) -> np.ndarray:
 def bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bounding box ``(min, max)`` of the points, each (3,), metres, in one pass over
     the coordinates on all threads; NaN when any coordinate is NaN (as ``x.min()``)."""
-    out = np.empty((max(1, 4 * _threads()), 7))
+    lo, hi, _ = bounds_at(x, y, z)
+    return lo, hi
+
+
+def bounds_at(x: np.ndarray, y: np.ndarray,
+              z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`bounds` and (6,) int64 the index of a point on each face of the box
+    (min x, y, z, max x, y, z; -1 where a coordinate is NaN)."""
+    out = np.empty((max(1, 4 * _threads()), 13))
     _kernels()["bounds"](_f8(x), _f8(y), _f8(z), out)
     if out[:, 6].sum() > 0:
-        return np.full(3, np.nan), np.full(3, np.nan)
-    return out[:, :3].min(axis=0), out[:, 3:6].max(axis=0)
+        return np.full(3, np.nan), np.full(3, np.nan), np.full(6, -1, dtype=np.int64)
+    live = out[:, 7] >= 0  # tasks with points
+    part = out[live]
+    lo_t = np.argmin(part[:, :3], axis=0)  # first task of the smallest: the first point
+    hi_t = np.argmax(part[:, 3:6], axis=0)
+    at = np.concatenate([part[lo_t, [7, 8, 9]], part[hi_t, [10, 11, 12]]]).astype(np.int64)
+    return part[:, :3].min(axis=0), part[:, 3:6].max(axis=0), at
 
 
 def cell_keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray, cell_size: float,
@@ -299,6 +337,13 @@ def dense_counts(key: np.ndarray, total: int) -> np.ndarray:
 def relabel(key: np.ndarray, lookup: np.ndarray) -> None:
     """``key[:] = lookup[key]`` in place, on all threads (``key`` int64, C order)."""
     _kernels()["relabel"](key, _i8(lookup))
+
+
+def relabel_into(key: np.ndarray, lookup: np.ndarray, rows: np.ndarray) -> None:
+    """``rows[:] = lookup[key]`` (``rows`` may be ``key``), on all threads."""
+    if rows is not key:
+        rows[:] = key
+    relabel(rows, lookup)
 
 
 _NO_LOOKUP = np.empty(0, dtype=np.int64)
@@ -346,7 +391,8 @@ def moment_sums(x: np.ndarray, y: np.ndarray, z: np.ndarray, point_cell: np.ndar
 
 def distance_sums(x: np.ndarray, y: np.ndarray, z: np.ndarray, point_cell: np.ndarray,
                   centre: np.ndarray, vectors: np.ndarray, offsets: np.ndarray,
-                  chunk: int) -> np.ndarray:
+                  chunk: int, *, lookup: np.ndarray | None = None,
+                  rows: np.ndarray | None = None) -> np.ndarray:
     """Per-cell sums of ``|D|`` and ``D^2``, ``D = v . local - offset``.
 
     Parameters
@@ -357,6 +403,10 @@ def distance_sums(x: np.ndarray, y: np.ndarray, z: np.ndarray, point_cell: np.nd
         Per-cell vector of each of Q distance kinds.
     offsets : (Q, M) float64
         ``v . c_local`` per cell (metres times the unit of ``v``).
+    lookup : (K,) int64, optional
+        When given, ``point_cell`` holds keys (or a finer grid's rows) and the row of
+        point ``i`` is ``lookup[point_cell[i]]``, written to ``rows`` during the
+        first pass (``rows`` may be ``point_cell`` itself, C-order int64).
 
     Returns
     -------
@@ -365,9 +415,16 @@ def distance_sums(x: np.ndarray, y: np.ndarray, z: np.ndarray, point_cell: np.nd
     """
     q_all, m = int(vectors.shape[0]), int(centre.shape[0])
     out = np.empty((q_all, 2, m))
-    cols = (_f8(x), _f8(y), _f8(z), _i8(point_cell), *_centre_columns(centre))
+    pc = _i8(point_cell)
+    table = _NO_LOOKUP if lookup is None else _i8(lookup)
+    written = pc if rows is None else rows
+    if lookup is not None and q_all == 0:
+        relabel_into(pc, table, written)
+    centres = _centre_columns(centre)
     partial = np.empty((_width(x.shape[0], chunk, m, 32), m, 4))
     for first in range(0, q_all, 2):  # two kinds per pass over the points
+        cols = (_f8(x), _f8(y), _f8(z), pc, table, written, *centres)
+        pc, table = written, _NO_LOOKUP  # rows are written by the first pass
         two = first + 1 < q_all
         v = np.zeros((m, 8))
         for j in range(2 if two else 1):
@@ -442,6 +499,115 @@ def index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Any, *,
         s2[:, a, b] = total_sums[:, col]
         s2[:, b, a] = total_sums[:, col]
     return ijk, counts, key, np.ascontiguousarray(total_sums[:, :3]), s2
+
+
+#: The fused pass (:func:`fused_index_and_moments`) keeps the sums of every cell of
+#: the bounding grid, occupied or not, per thread (80 bytes a cell): it is used up
+#: to this many grid cells (no more than one reference chunk, so the chunk length is
+#: known before the cells are counted) ...
+FUSED_MAX_CELLS = 1 << 20
+#: ... and while those per-thread sums take at most this many bytes or 8 bytes a
+#: point (the size of the keys), whichever is larger.
+FUSED_MIN_BYTES = 64 << 20
+#: Bytes per grid cell and thread of the fused pass's partial sums (10 float64).
+FUSED_CELL_BYTES = 80
+
+
+def fused_fits(n_cells: int, n_points: int) -> bool:
+    """Whether a grid of ``n_cells`` bounding cells is dense enough for the fused
+    pass over ``n_points`` points (:data:`FUSED_MAX_CELLS`, :data:`FUSED_MIN_BYTES`)."""
+    if n_cells > FUSED_MAX_CELLS or n_points < 1:
+        return False
+    chunk = _chunk_size(n_cells)
+    width = max(1, min(_threads(), -(-n_points // chunk)))
+    return (width + 1) * n_cells * FUSED_CELL_BYTES <= max(FUSED_MIN_BYTES, 8 * n_points)
+
+
+@dataclass(frozen=True)
+class Fused:
+    """What :func:`fused_index_and_moments` found."""
+
+    ijk: np.ndarray
+    """(M, 3) int64 indices of the occupied cells, in key order."""
+    counts: np.ndarray
+    """(M,) int64 points per occupied cell."""
+    key: np.ndarray
+    """(N,) int64 key of every point's cell (its row is ``lookup[key]``)."""
+    lookup: np.ndarray
+    """(K,) int64 row of every key of the bounding grid (-1 where unoccupied)."""
+    s1: np.ndarray
+    """(M, 3) sums of cell-local coordinates, metres."""
+    s2: np.ndarray
+    """(M, 3, 3) sums of their products, square metres."""
+    inside: bool
+    """Every point lay inside the bounds given (none NaN); where False, the fields
+    above must not be used. (With a point on each face of the box, the bounds were
+    the points'.)"""
+
+
+def fused_index_and_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Any,
+                            lo: np.ndarray, hi: np.ndarray) -> Fused:
+    """Cell keys, counts and moment sums in one pass over the points, on a dense grid
+    (:func:`fused_fits`), the points checked on the way against the bounds ``lo, hi``
+    the grid was made over (:attr:`Fused.inside`).
+
+    The same operations in the same order as the reference (:func:`rough_viewer.grid.
+    cells.index_points` and :func:`~rough_viewer.grid.cells.cell_moments`): the keys
+    ``floor((p - o) / g) - index_min``, each cell's sums point by point in the points'
+    order within a block of the reference's chunk length (2^21 points: every grid
+    the pass takes has fewer cells), from 0.0, and the blocks' sums added in block
+    order. Cell centres come per axis (``o + (i + 0.5) g``, as
+    :meth:`~rough_viewer.grid.cells.GridSpec.centres` computes them), so no key
+    has to be decoded on the way. Sums are kept for every cell of the bounding grid,
+    per thread; the occupied ones are picked out after.
+
+    Memory: the keys (8 bytes a point) and ``(threads + 1) * 80`` bytes a grid cell.
+
+    Parameters
+    ----------
+    x, y, z : (N,) float64
+        Coordinates, metres.
+    grid : rough_viewer.grid.cells.GridSpec
+        The grid made over ``lo, hi``.
+    lo, hi : (3,) float64
+        The bounds, metres, which may be a hint (:func:`rough_viewer.io.cloud.
+        known_bounds`): where :attr:`Fused.inside` is False they were not these
+        points' and nothing else of the result may be used.
+    """
+    k = _kernels()
+    x, y, z = _f8(x), _f8(y), _f8(z)
+    n = int(x.shape[0])
+    total_cells = grid.n_cells
+    chunk = _chunk_size(total_cells)
+    assert total_cells <= FUSED_MAX_CELLS <= chunk
+    n_chunks = max(1, -(-n // chunk))
+    nx, ny, nz = (int(v) for v in grid.shape)
+    g = float(grid.cell_size)
+    axes = [grid.origin[a] + ((np.arange(m, dtype=np.int64) + grid.index_min[a])
+                              .astype(np.float64) + 0.5) * g
+            for a, m in enumerate((nx, ny, nz))]
+    key = np.empty(n, dtype=np.int64)
+    total = np.zeros((total_cells, 10))
+    partial = np.empty((_width(n, chunk, total_cells, FUSED_CELL_BYTES), total_cells, 10))
+    state = np.zeros(n_chunks)
+    box = np.concatenate([np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)])
+    k["fused"](x, y, z, _f8(grid.origin), g, _f8(grid.index_min), nx, ny, nz,
+               *(_f8(a) for a in axes), box, int(chunk), key, total, partial, state)
+    del partial
+    counts_dense = total[:, 9]
+    occupied = np.flatnonzero(counts_dense)
+    lookup = np.full(total_cells, -1, dtype=np.int64)
+    lookup[occupied] = np.arange(occupied.shape[0], dtype=np.int64)
+    rows = total[occupied]
+    del total
+    s2 = np.empty((rows.shape[0], 3, 3))
+    for col, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)), start=3):
+        s2[:, a, b] = rows[:, col]
+        s2[:, b, a] = rows[:, col]
+    return Fused(ijk=_decode_keys(occupied.astype(np.int64), grid.shape, grid.index_min),
+                 counts=rows[:, 9].astype(np.int64), key=key, lookup=lookup,
+                 s1=np.ascontiguousarray(rows[:, :3]), s2=s2,
+                 inside=bool(state.sum() == 0))
 
 
 def pair_sums(pos: np.ndarray, z: np.ndarray, scale: float, n_bins: int, rows: int,

@@ -56,7 +56,7 @@ from rough_viewer.grid.planes import (
     plane_from_scatter,
     whole_cloud_plane,
 )
-from rough_viewer.io.cloud import PointCloud, as_columns
+from rough_viewer.io.cloud import PointCloud, as_columns, known_bounds, note_bounds, on_faces
 from rough_viewer.vocabulary import (
     AXES,
     DEFAULT_MIN_POINTS,
@@ -105,9 +105,37 @@ class PreparedGrid:
     it to a nested coarser grid without a pass over the points."""
 
     index: CellIndex
-    """Cell membership."""
+    """Cell membership (``index.point_cell`` empty where :attr:`parent` is set)."""
     moments: CellMoments
     """Cell-local moment sums."""
+    fine_cell: np.ndarray | None = None
+    """(N,) int64 every point's row on the finer grid this one was coarsened from
+    (:func:`coarsen_prepared`), or None."""
+    parent: np.ndarray | None = None
+    """(M_fine,) int64 the row on this grid of every row of the finer one, or None:
+    the row of point ``i`` is ``parent[fine_cell[i]]``, which the distance pass of
+    :func:`grid_roughness` applies on its way (so coarsening makes no pass over the
+    points of its own)."""
+
+    @property
+    def n_points(self) -> int:
+        """Number of points."""
+        rows = self.index.point_cell if self.fine_cell is None else self.fine_cell
+        return int(rows.shape[0])
+
+    def point_cell(self) -> np.ndarray:
+        """(N,) int64 every point's row (a gather over the points where this grid
+        was coarsened: :attr:`parent`)."""
+        if self.parent is None or self.fine_cell is None:
+            return self.index.point_cell
+        return self.parent[self.fine_cell]
+
+    def pass_index(self) -> tuple[CellIndex, np.ndarray | None]:
+        """The index a pass over the points takes, and the row lookup it applies on
+        its way (None: ``point_cell`` holds the rows already)."""
+        if self.parent is None or self.fine_cell is None:
+            return self.index, None
+        return replace(self.index, point_cell=self.fine_cell), self.parent
 
     @property
     def cell_size(self) -> float:
@@ -154,27 +182,90 @@ def prepare_grid(
     """Index the points on the grid of edge ``cell_size`` (metres) and sum their moments
     (``engine``: see :func:`~rough_viewer.grid.cells.index_points`)."""
     x, y, z = as_columns(cloud)
+    prepared, lookup = _prepare(x, y, z, cell_size, origin, engine)
+    if lookup is not None:  # the fused pass left keys: rows now
+        fast.relabel(prepared.index.point_cell, lookup)
+    return prepared
+
+
+def _prepare(x: np.ndarray, y: np.ndarray, z: np.ndarray, cell_size: float,
+             origin: np.ndarray | None, engine: Engine
+             ) -> tuple[PreparedGrid, np.ndarray | None]:
+    """:func:`prepare_grid`, but where the compiled engine's fused pass ran, the
+    prepared grid's ``point_cell`` still holds every point's key and the second value
+    is the lookup of their rows (:func:`~rough_viewer.grid.cells.distance_sums`
+    applies it on its pass); else None.
+
+    The bounds come from :func:`~rough_viewer.io.cloud.known_bounds` where a reader
+    or an earlier grid noted them, checked: the six points noted on the box's faces
+    must still lie there and the fused pass must find every point inside (the box
+    is then the points' bounds exactly); else they are taken again
+    (:func:`~rough_viewer.grid.fast.bounds_at`), so a noted box never changes a
+    result, and the bounds pass is saved for every grid after the first."""
     if x.shape[0] < 3:
         raise InputError(f"need at least 3 points, got {x.shape[0]}")
-    engine = resolve_engine(engine, n_points=int(x.shape[0]))
-    if engine == "numba":
-        lo, hi = fast.bounds(x, y, z)
-    else:
+    n = int(x.shape[0])
+    engine = resolve_engine(engine, n_points=n)
+    if engine != "numba":
         lo = np.array([x.min(), y.min(), z.min()])
         hi = np.array([x.max(), y.max(), z.max()])
-    grid = make_grid(lo, hi, cell_size, origin, n_points=int(x.shape[0]))
-    if engine == "numba":
-        index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
-        return PreparedGrid(index=index, moments=moments)
-    index = index_points(x, y, z, grid, engine=engine)
-    return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine))
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+        index = index_points(x, y, z, grid, engine=engine)
+        return PreparedGrid(index=index, moments=cell_moments(x, y, z, index, engine=engine)), None
+    hint = known_bounds(x, y, z)
+    if hint is not None and not on_faces(x, y, z, *hint):
+        hint = None  # changed in place since
+    if hint is not None:
+        lo, hi, at = hint
+        grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+        if fast.fused_fits(grid.n_cells, n):
+            got = fast.fused_index_and_moments(x, y, z, grid, lo, hi)
+            if got.inside:  # and a point on each face: these points' bounds
+                return _from_fused(grid, got)
+    lo, hi, at = fast.bounds_at(x, y, z)
+    grid = make_grid(lo, hi, cell_size, origin, n_points=n)
+    note_bounds(x, y, z, lo, hi, at)
+    if fast.fused_fits(grid.n_cells, n):
+        got = fast.fused_index_and_moments(x, y, z, grid, lo, hi)
+        if not got.inside:  # cannot happen: bounds_at saw these very points
+            raise AssertionError("the fused pass found points outside their bounds")
+        return _from_fused(grid, got)
+    index, moments = cells_index_and_moments(x, y, z, grid, dense_limit=DENSE_LIMIT)
+    return PreparedGrid(index=index, moments=moments), None
 
 
-def coarsen_prepared(prepared: PreparedGrid, factor: int) -> PreparedGrid:
+def _from_fused(grid: GridSpec, got: fast.Fused) -> tuple[PreparedGrid, np.ndarray]:
+    index = CellIndex(grid=grid, ijk=got.ijk, counts=got.counts, point_cell=got.key)
+    return (PreparedGrid(index=index, moments=CellMoments(counts=got.counts, s1=got.s1,
+                                                          s2=got.s2)), got.lookup)
+
+
+def coarsen_prepared(prepared: PreparedGrid, factor: int, *,
+                     defer_rows: bool = False) -> PreparedGrid:
     """The prepared grid ``factor`` (a positive integer) times coarser, same origin,
-    computed from the fine one without a pass over the coordinates."""
-    index, moments = coarsen(prepared.index, prepared.moments, factor)
-    return PreparedGrid(index=index, moments=moments)
+    computed from the fine one's cells without a pass over the coordinates: the
+    coarse sums from the fine sums.
+
+    ``defer_rows``: every point's coarse row is not gathered here but left to the
+    distance pass of :func:`grid_roughness` (:attr:`PreparedGrid.parent`; the
+    coarse ``index.point_cell`` is then empty and :meth:`PreparedGrid.point_cell`
+    makes the rows on demand), so that pass is the only one over the points (the
+    app's presets). Else the rows are gathered now (one pass over the rows, on all
+    threads where the kernels are loaded)."""
+    fine_index, lookup = prepared.pass_index()
+    index, moments, parent = coarsen(fine_index, prepared.moments, factor, gather=False)
+    if lookup is not None:  # coarsened twice: compose the row maps
+        parent = parent[lookup]
+    lazy = PreparedGrid(index=index, moments=moments, fine_cell=fine_index.point_cell,
+                        parent=parent)
+    if defer_rows:
+        return lazy
+    if fast.loaded():
+        rows = np.empty(fine_index.point_cell.shape[0], dtype=np.int64)
+        fast.relabel_into(fine_index.point_cell, parent, rows)
+    else:
+        rows = lazy.point_cell()
+    return PreparedGrid(index=replace(index, point_cell=rows), moments=moments)
 
 
 def map_values(holder: Any, name: MapName) -> np.ndarray:
@@ -353,9 +444,10 @@ def grid_roughness(
     engine = resolve_engine(engine, n_points=n_total)
 
     tick(0, 5)
+    lookup = None
     if prepared is None:
-        prepared = prepare_grid(cloud, cell_size, origin=origin, engine=engine)
-    elif prepared.index.point_cell.shape[0] != n_total:
+        prepared, lookup = _prepare(x, y, z, cell_size, origin, engine)
+    elif prepared.n_points != n_total:
         raise ValueError("prepared grid was made for another cloud")
     tick(2, 5)
     whole = prepared.whole_plane()
@@ -363,9 +455,18 @@ def grid_roughness(
     planes = cell_planes(prepared.moments, whole.normal, used_axis, int(min_points), models_t,
                          cell_size=prepared.cell_size)
     tick(3, 5)
-    sums = distance_sums(x, y, z, prepared.index, planes.distance_vectors(), engine=engine)
-    tick(4, 5)
     index = prepared.index
+    rows = None
+    if lookup is None:
+        pass_index, lookup = prepared.pass_index()
+        if lookup is not None:  # coarsened: the rows are made on the way
+            rows = np.empty(n_total, dtype=np.int64)
+            index = replace(index, point_cell=rows)
+    else:
+        pass_index = index  # keys, made rows in place on the way
+    sums = distance_sums(x, y, z, pass_index, planes.distance_vectors(), engine=engine,
+                         lookup=lookup, rows=rows)
+    tick(4, 5)
     result = assemble_roughness(
         index.grid, index.ijk, planes, sums, whole=whole, axis=used_axis,
         axis_requested=axis, min_points=int(min_points), residual=residual, models=models_t,

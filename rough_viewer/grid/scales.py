@@ -197,10 +197,12 @@ def point_scales_from_prepared(
     ordered = sorted(grids, key=lambda g: g.cell_size)
     rows: list[tuple[int, int, float, float, float]] = []
     for prep in ordered:
-        if prep.index.point_cell.shape[0] != n:
+        if prep.n_points != n:
             raise ValueError("a prepared grid was made for another cloud")
-        c = int(prep.index.point_cell[p])
-        members = np.flatnonzero(prep.index.point_cell == c)
+        point_cell = prep.point_cell()
+        c = int(point_cell[p])
+        members = np.flatnonzero(point_cell == c)
+        del point_cell
         count = int(members.shape[0])
         if count < max(3, int(min_points)):
             rows.append((c, count, np.nan, np.nan, np.nan))

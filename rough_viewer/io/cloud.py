@@ -4,6 +4,7 @@ index) and what a reader noticed on the way (warnings)."""
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,70 @@ class PointCloud:
     def with_warnings(self, *lines: str) -> PointCloud:
         """The same cloud with more warnings."""
         return replace(self, warnings=self.warnings + tuple(lines))
+
+
+#: Bounding boxes of coordinate columns noted by whoever computed them (a reader
+#: while the file's blocks were in the cache, a grid pass), keyed by the x column's
+#: id and held through weak references to the three columns: see :func:`note_bounds`.
+_BOUNDS: dict[int, tuple[Any, Any, Any, np.ndarray, np.ndarray, np.ndarray]] = {}
+#: Most boxes kept (the oldest go first).
+BOUNDS_KEPT = 32
+_BOUNDS_LOCK = threading.Lock()
+
+
+def note_bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray,
+                hi: np.ndarray, at: np.ndarray) -> None:
+    """Remember the bounding box ``(lo, hi)``, each (3,) metres, of the columns ``x,
+    y, z`` (these very arrays), and ``at`` (6,) the index of a point on each face
+    (min x, y, z, max x, y, z), so that a later pass over them can start from it.
+
+    A hint, not a fact: the arrays may be changed in place afterwards. Whoever uses
+    :func:`known_bounds` checks the box against the points it passes over (the
+    grid's fused pass: every point inside, and the six points still on the faces)
+    or knows the columns are unchanged since (a reader's own checks, right after the
+    read)."""
+    import weakref
+
+    key = id(x)
+
+    def forget(_ref: Any, key: int = key) -> None:
+        entry = _BOUNDS.get(key)
+        if entry is not None and entry[0]() is None:
+            _BOUNDS.pop(key, None)
+
+    try:
+        refs = (weakref.ref(x, forget), weakref.ref(y), weakref.ref(z))
+    except TypeError:  # not weak-referenceable
+        return
+    entry = (*refs, np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64),
+             np.array(at, dtype=np.int64))
+    with _BOUNDS_LOCK:  # the app's analyses compute on several threads
+        _BOUNDS.pop(key, None)
+        while len(_BOUNDS) >= BOUNDS_KEPT:
+            _BOUNDS.pop(next(iter(_BOUNDS)), None)
+        _BOUNDS[key] = entry
+
+
+def known_bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(lo, hi, at)`` as :func:`note_bounds` noted them for these three columns, or
+    None (copies; see there for what they may be trusted with)."""
+    entry = _BOUNDS.get(id(x))
+    if entry is None or entry[0]() is not x or entry[1]() is not y or entry[2]() is not z:
+        return None
+    return entry[3].copy(), entry[4].copy(), entry[5].copy()
+
+
+def on_faces(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+             at: np.ndarray) -> bool:
+    """Whether the points ``at`` (indices, as :func:`note_bounds` takes them) still
+    lie on the six faces of the box ``lo, hi``."""
+    n = int(x.shape[0])
+    if at.shape != (6,) or not ((at >= 0) & (at < n)).all():
+        return False
+    cols = (x, y, z, x, y, z)
+    values = np.concatenate([lo, hi])
+    return all(bool(cols[f][at[f]] == values[f]) for f in range(6))
 
 
 def as_columns(points: PointCloud | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -48,7 +48,13 @@ import numpy as np
 
 from rough_viewer.io import estimates
 from rough_viewer.io.cache import cache_lookup, cache_write
-from rough_viewer.io.cloud import MAX_COORDINATE_M, PointCloud, check_input_file
+from rough_viewer.io.cloud import (
+    MAX_COORDINATE_M,
+    PointCloud,
+    check_input_file,
+    known_bounds,
+    on_faces,
+)
 from rough_viewer.io.formats.crs import read_crs
 from rough_viewer.io.formats.dem import DEM_SUFFIXES, read_dem
 from rough_viewer.io.formats.e57 import read_e57
@@ -272,9 +278,17 @@ def check_coordinates(columns: tuple[np.ndarray, ...], p: Path | str, *,
     Traceback (most recent call last):
     rough_viewer.vocabulary.InputError: coordinates of a.xyz reach 1e+290 m in z; a scan lies within 1e+09 m of its origin: the file is damaged, or its coordinates are not in the unit given
     """
-    for axis, col in zip("xyz", columns, strict=True):
+    noted = None
+    if len(columns) == 3:  # the bounds a reader noted, just now
+        x, y, z = columns
+        noted = known_bounds(x, y, z)
+        if noted is not None and not on_faces(x, y, z, *noted):
+            noted = None
+    for a, (axis, col) in enumerate(zip("xyz", columns, strict=True)):
         if col.size:
-            top = max(abs(float(np.min(col))), abs(float(np.max(col)))) * factor
+            low, high = (noted[0][a], noted[1][a]) if noted is not None else (np.min(col),
+                                                                             np.max(col))
+            top = max(abs(float(low)), abs(float(high))) * factor
             if top > MAX_COORDINATE_M:
                 raise InputError(
                     f"coordinates of {p} reach {top:.3g} m in {axis}; a scan lies within "

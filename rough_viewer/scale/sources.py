@@ -592,5 +592,17 @@ def load_merged(paths: Sequence[str | os.PathLike[str]], *, units: Unit | None =
     notes = check_compatible(paths, units=units)
     clouds = [load_points(p, units=units, progress=None if progress is None else progress[i],
                           max_points=max_points) for i, p in enumerate(paths)]
-    notes += overlap_warnings([(str(p), *c.bounds()) for p, c in zip(paths, clouds, strict=True)])
+    if len(clouds) > 1:  # one file overlaps nothing: no pass over its points for it
+        notes += overlap_warnings([(str(p), *_bounds(c)) for p, c in zip(paths, clouds,
+                                                                         strict=True)])
     return merge_clouds(clouds).with_warnings(*notes)
+
+
+def _bounds(cloud: PointCloud) -> tuple[np.ndarray, np.ndarray]:
+    """The cloud's bounds: as its reader noted them, just now, else a pass."""
+    from rough_viewer.io.cloud import known_bounds, on_faces
+
+    noted = known_bounds(cloud.x, cloud.y, cloud.z)
+    if noted is not None and on_faces(cloud.x, cloud.y, cloud.z, *noted):
+        return noted[0], noted[1]
+    return cloud.bounds()

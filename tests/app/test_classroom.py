@@ -240,3 +240,24 @@ def test_one_students_slow_grid_does_not_hold_up_another(classroom, monkeypatch)
         release.set()
     _settle(ra, lambda: ra.app.session.shown.settings.cell_size == pytest.approx(slow_size),
             "A's slow grid in the end")
+
+
+def test_tabs_on_one_grid_share_its_panels(classroom):
+    """Two tabs on the same grid: its histogram and semivariogram are made once and
+    both tabs show the same figures."""
+    from rough_viewer.app.features.panels import PanelsFeature
+
+    room, join, _gate = classroom
+    _a, ra = join()
+    _b, rb = join()
+    for r in (ra, rb):
+        wait_until(lambda r=r: r.app.session.panel_key is not None, 60, "the panels")
+        assert r.app.wait_idle(60)
+    loaded = ra.app.session.shown.loaded
+    assert loaded is rb.app.session.shown.loaded
+    keys = list(loaded._derived._items)  # type: ignore[attr-defined]
+    assert loaded._derived.made == len(keys)  # type: ignore[attr-defined]
+    assert sum(1 for k in keys if k[0] == "variogram") >= 1
+    pa, pb = ra.app.feature(PanelsFeature), rb.app.feature(PanelsFeature)
+    assert pa.variogram.figure is pb.variogram.figure
+    assert pa.histogram.figure is pb.histogram.figure

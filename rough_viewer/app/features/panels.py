@@ -235,8 +235,12 @@ class PanelsJob(Job[Host]):
             return
         s, key = self.settings, self.p.panel_key(self.settings)
         exact = True
+        loaded = session.shown.loaded
         if key != session.panel_key:
-            dist = distribution_figures(self.result, s, unit=session.shown.loaded.units.unit)
+            unit = loaded.units.unit  # made once for every analysis showing this grid
+            dist = loaded.derived(("distribution", s, unit),
+                                  lambda: distribution_figures(self.result, s, unit=unit))
+            assert dist is not None
             p.binding.show_figure(p.histogram, dist.histogram)
             p.binding.show_figure(p.summary, dist.summary)
             yield "distribution"
@@ -254,11 +258,14 @@ class PanelsJob(Job[Host]):
     def _variogram(self, ctx: Host, run: Run, budget: float) -> bool:
         """Compute and show the semivariogram panel within ``budget`` seconds of the
         cost model; True when it is exact, or cannot be had (nothing to refine)."""
-        p, loaded = self.p, ctx.session.shown.loaded
-        try:
-            got = variogram_figure_of(self.result, self.settings, is_stale=lambda: run.cancelled,
-                                      progress=run.progress(), unit=loaded.units.unit,
-                                      time_budget=budget)
+        p, loaded, s = self.p, ctx.session.shown.loaded, self.settings
+        unit = loaded.units.unit
+        try:  # made once for every analysis showing this grid (a classroom's tabs)
+            got = loaded.derived(
+                ("variogram", s.grid_key, s.model, s.keep_outliers, unit, budget),
+                lambda: variogram_figure_of(self.result, s, is_stale=lambda: run.cancelled,
+                                            progress=run.progress(), unit=unit,
+                                            time_budget=budget))
         except (InputError, MemoryError) as exc:
             what = "not enough memory" if isinstance(exc, MemoryError) else str(exc)
             ctx.show_error(f"semivariogram of grid {loaded.units.size_text(self.settings.cell_size)}"
