@@ -3,8 +3,8 @@ tab chooses the nodes it draws for its camera.
 
 :class:`CameraWatch` debounces the cameras (viser's threads) into a
 :class:`RefineJob`; a tab that leaves is a :class:`DropTabJob`, a new point budget a
-:class:`BudgetJob`. The Map tab's controls submit them; the jobs only call the
-scene's level-of-detail methods.
+:class:`BudgetJob`, a preset view a :class:`CameraJob` (the Map tab's camera
+control, a lesson's step). The features submit them; the jobs only call the scene.
 """
 
 from __future__ import annotations
@@ -22,6 +22,19 @@ from rough_viewer.app.worker import Job, Run
 #: moves, the longest wait between two choices).
 CAMERA_REST_S = 0.15
 CAMERA_MOVING_S = 0.5
+
+
+@dataclass(frozen=True)
+class CameraJob(Job[Host]):
+    """Move every browser's camera (of this app) to a preset view of the cloud shown."""
+
+    preset: str
+    """``"face-on"``, ``"top"`` or ``"side"`` (:func:`rough_viewer.app.scene.camera_pose`)."""
+    lane: ClassVar[str] = "camera"
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.scene.move_cameras(ctx.session.shown.loaded, self.preset)
+        yield "camera"
 
 
 @dataclass(frozen=True)

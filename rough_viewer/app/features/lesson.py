@@ -27,6 +27,7 @@ from typing import ClassVar
 import viser
 
 from rough_viewer.app.binding import Binding
+from rough_viewer.app.detail import CameraJob
 from rough_viewer.app.host import Host, LessonAnswer, LessonStatus
 from rough_viewer.app.markup import md
 from rough_viewer.app.settings import MODEL_LABELS, MapSettings, grid_options
@@ -266,7 +267,7 @@ def set_scene(f: LessonFeature, scene: Scene) -> None:
     if changes:
         host.request(**changes)
     if scene.camera is not None:
-        host.submit(LessonCameraJob(scene.camera))
+        host.submit(CameraJob(scene.camera))
 
 
 def cloud_shown(f: LessonFeature) -> None:
@@ -285,22 +286,10 @@ def cloud_shown(f: LessonFeature) -> None:
     if changes:
         f.host.request(**changes)
     if scene.camera is not None:
-        f.host.submit(LessonCameraJob(scene.camera))
+        f.host.submit(CameraJob(scene.camera))
 
 
 # ----------------------------------------------------------------------------- jobs
-
-
-@dataclass(frozen=True)
-class LessonCameraJob(Job[Host]):
-    """Move every camera of this app to a preset view of the cloud shown."""
-
-    preset: str
-    lane: ClassVar[str] = "camera"
-
-    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        ctx.scene.move_cameras(ctx.session.shown.loaded, self.preset)
-        yield "camera"
 
 
 @dataclass(frozen=True)

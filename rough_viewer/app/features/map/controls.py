@@ -9,7 +9,7 @@ from typing import Any, ClassVar, TypeVar
 import viser
 
 from rough_viewer.app import scene as scene_mod
-from rough_viewer.app.detail import BudgetJob, CameraWatch
+from rough_viewer.app.detail import BudgetJob, CameraJob, CameraWatch
 from rough_viewer.app.features.map.binding import (
     CAMERA_PRESETS,
     COLORMAP_OPTIONS,
@@ -71,19 +71,6 @@ from rough_viewer.vocabulary import (
 )
 
 # ----------------------------------------------------------------------------- scene
-
-
-@dataclass(frozen=True)
-class CameraJob(Job[Host]):
-    """Move every browser's camera to a preset view of the cloud."""
-
-    preset: str
-    """``"face-on"``, ``"top"`` or ``"side"`` (:func:`rough_viewer.app.scene.camera_pose`)."""
-    lane: ClassVar[str] = "camera"
-
-    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        ctx.scene.move_cameras(ctx.session.shown.loaded, self.preset)
-        yield "camera"
 
 
 @dataclass(frozen=True)
