@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import ClassVar, Literal
 
-import numpy as np
 import viser
 
 from rough_viewer.app import hooks
@@ -39,36 +38,11 @@ from rough_viewer.app.host import AppOptions, Host, LessonReporter, Student
 from rough_viewer.app.server import App, Mount, mount_app
 from rough_viewer.app.settings import MapSettings
 from rough_viewer.app.stage import TabStage
+from rough_viewer.app.views import camera_of
 from rough_viewer.app.worker import Job, Run
+from rough_viewer.report.view import Camera
 
 Role = Literal["teacher", "student"]
-
-
-@dataclass(frozen=True)
-class Camera:
-    """A tab's camera (display frame, metres; ``fov`` radians)."""
-
-    position: tuple[float, float, float]
-    look_at: tuple[float, float, float]
-    up: tuple[float, float, float]
-    fov: float
-    near: float
-    far: float
-
-    @staticmethod
-    def of(client: viser.ClientHandle) -> Camera | None:
-        """The camera ``client`` reported last (None before it reported one)."""
-        cam = client.camera
-        try:
-            values = [np.asarray(v, dtype=np.float64).reshape(3)
-                      for v in (cam.position, cam.look_at, cam.up_direction)]
-            fov, near, far = float(cam.fov), float(cam.near), float(cam.far)
-        except (AttributeError, TypeError, ValueError):
-            return None
-        if not all(np.isfinite(v).all() for v in values) or not np.isfinite([fov, near, far]).all():
-            return None
-        p, t, u = (tuple(float(x) for x in v) for v in values)
-        return Camera(p, t, u, fov, near, far)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -76,11 +50,11 @@ class PlaceCameraJob(Job[Host]):
     """Put this tab's camera where another tab's is (a teacher's view sent)."""
 
     camera: Camera
+    """File frame, metres (:func:`rough_viewer.app.views.camera_of`)."""
     lane: ClassVar[str] = "class-camera"
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
-        c = self.camera
-        ctx.scene.set_camera(c.position, c.look_at, c.up, c.fov, near=c.near, far=c.far)
+        ctx.scene.place_camera(ctx.session.shown.loaded, self.camera)
         yield "camera"
 
 
@@ -174,8 +148,6 @@ class Classroom:
         finally:
             with self._lock:
                 self._building.discard(cid)
-        if room is None:
-            return
         with self._lock:
             if self._closed or cid not in self.server.get_clients():
                 gone = True
@@ -191,7 +163,7 @@ class Classroom:
             self._send(leader, [room])
         self._changed()
 
-    def _build(self, client: viser.ClientHandle, role: Role, name: str) -> Room | None:
+    def _build(self, client: viser.ClientHandle, role: Role, name: str) -> Room:
         stage = TabStage(self.server, client)
         extra: tuple[Mount, ...] = tuple(self.extra)
         if role == "teacher":
@@ -258,7 +230,7 @@ class Classroom:
     def _send(self, source: Room, targets: Sequence[Room]) -> None:
         """``source``'s cloud, settings and camera to each of ``targets``."""
         shown = source.app.session.shown
-        camera = Camera.of(source.stage.client)
+        camera = camera_of(source.app.host, source.stage.client)
         for room in targets:
             room.app.host.show_view(shown.loaded, shown.settings)
             if camera is not None:

@@ -25,6 +25,7 @@ from rough_viewer.lod.encode import encode_node, node_scale
 from rough_viewer.lod.octree import Octree
 from rough_viewer.lod.residency import Residency
 from rough_viewer.lod.select import DEFAULT_BUDGET, node_points_for, select_nodes
+from rough_viewer.report.view import Camera
 from rough_viewer.visual.app import CONTROL_WIDTH
 from rough_viewer.vocabulary import InputError
 
@@ -517,6 +518,17 @@ class Scene:
         self._check("move_cameras")
         for client in self._server.clients().values():
             _place(client, camera_pose(loaded, preset, **_window(client)))
+
+    def place_camera(self, loaded: LoadedCloud, camera: Camera) -> None:
+        """Put every browser at ``camera`` (a saved view's: file frame, metres), with
+        clipping planes for ``loaded``'s extent and the camera's distance."""
+        self._check("place_camera")
+        eye = np.asarray(camera.position) - loaded.origin
+        look = np.asarray(camera.look_at) - loaded.origin
+        framed = camera_pose(loaded)
+        far = max(framed.far, 100.0 * float(np.linalg.norm(eye - look)))
+        self.set_camera(eye, look, camera.up, float(np.radians(camera.fov_deg)),
+                        near=framed.near, far=far)
 
     def set_camera(self, position: Sequence[float], look_at: Sequence[float],
                    up: Sequence[float], fov_rad: float, *, near: float, far: float) -> None:

@@ -12,7 +12,6 @@ from typing import ClassVar
 import numpy as np
 import plotly.graph_objects as go
 
-from rough_viewer.app import scene as scene_mod
 from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import Colouring, MapStats, by_cell, cell_colours, map_stats
 from rough_viewer.app.features.map.binding import (
@@ -484,13 +483,7 @@ class RestoreMapJob(Job[Host]):
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         if self.camera is not None:
-            loaded = ctx.session.shown.loaded
-            c = self.camera
-            eye, look = np.asarray(c.position) - loaded.origin, np.asarray(c.look_at) - loaded.origin
-            framed = scene_mod.camera_pose(loaded)  # clipping planes for the cloud's extent
-            far = max(framed.far, 100.0 * float(np.linalg.norm(eye - look)))
-            ctx.scene.set_camera(eye, look, c.up, float(np.radians(c.fov_deg)),
-                                 near=framed.near, far=far)
+            ctx.scene.place_camera(ctx.session.shown.loaded, self.camera)
         self.m.binding.show(self.settings)
         yield "camera"
         yield from render_stages(self.m, run, self.settings)
