@@ -148,13 +148,7 @@ def replace_handlers(
 ) -> None:
     """Put ``make(viser's handlers)`` in place of viser's handlers of ``message_cls``
     (None: drop messages of that type)."""
-    ws = _websock(server)
-    existing = cast(list[Handler[M]], list(ws._incoming_handlers.get(message_cls, [])))
-    if existing:
-        ws.unregister_handler(message_cls)
-    new = make(existing)
-    if new is not None:
-        ws.register_handler(message_cls, new)
+    _replace_on(_websock(server), message_cls, make)
 
 
 def replace_client_handlers(
@@ -165,13 +159,18 @@ def replace_client_handlers(
     """:func:`replace_handlers` for the handlers of one tab's own GUI and scene
     (viser's client-scoped ``client.gui`` and ``client.scene`` take that tab's
     messages on its connection, beside the server's handlers)."""
-    conn = client._websock_connection
-    existing = cast(list[Handler[M]], list(conn._incoming_handlers.get(message_cls, [])))
+    _replace_on(client._websock_connection, message_cls, make)
+
+
+def _replace_on(target: viser.infra.WebsockMessageHandler, message_cls: type[M],
+                make: Callable[[list[Handler[M]]], Handler[M] | None]) -> None:
+    """``make(handlers)`` in place of ``target``'s handlers of ``message_cls``."""
+    existing = cast(list[Handler[M]], list(target._incoming_handlers.get(message_cls, [])))
     if existing:
-        conn.unregister_handler(message_cls)
+        target.unregister_handler(message_cls)
     new = make(existing)
     if new is not None:
-        conn.register_handler(message_cls, new)
+        target.register_handler(message_cls, new)
 
 
 def connection_of(server: viser.ViserServer, client_id: int) -> ServerConnection | None:
@@ -202,7 +201,7 @@ def uuid_of(handle: Any) -> str:
 
 def input_handles(server: viser.ViserServer) -> dict[str, Any]:
     """Every GUI input handle of the server's GUI, by uuid (tests, checks)."""
-    return dict(server.gui._gui_input_handle_from_uuid)
+    return gui_input_handles(server.gui)
 
 
 def gui_input_handles(gui: viser.GuiApi) -> dict[str, Any]:
