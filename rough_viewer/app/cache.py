@@ -247,6 +247,44 @@ class ByteCache(Generic[K, V]):
 
 
 
+class KeyedLocks:
+    """One lock per key, held by one thread at a time: what makes a value once however
+    many threads ask for it together (the others wait, then find it made). A key's
+    lock is dropped once no thread holds or waits for it.
+
+    >>> locks = KeyedLocks()
+    >>> with locks.held("grid 0.25"):
+    ...     len(locks)
+    1
+    >>> len(locks)
+    0
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._locks: dict[object, tuple[threading.Lock, int]] = {}
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._locks)
+
+    @contextmanager
+    def held(self, key: object) -> Iterator[None]:
+        with self._lock:
+            lock, users = self._locks.get(key, (threading.Lock(), 0))
+            self._locks[key] = (lock, users + 1)
+        try:
+            with lock:
+                yield
+        finally:
+            with self._lock:
+                lock, users = self._locks[key]
+                if users > 1:
+                    self._locks[key] = (lock, users - 1)
+                else:
+                    del self._locks[key]
+
+
 class Memo(Generic[K, V]):
     """The last :attr:`most` values made by key, each made once however many threads
     ask for it at once (the others wait for it): what the analyses of a classroom's
@@ -264,7 +302,7 @@ class Memo(Generic[K, V]):
         self.most = int(most)
         self._items: OrderedDict[K, V] = OrderedDict()
         self._lock = threading.Lock()
-        self._flights: dict[K, threading.Lock] = {}
+        self._making = KeyedLocks()
         self.made = 0
         """Values made so far (a test counts them)."""
 
@@ -273,14 +311,12 @@ class Memo(Generic[K, V]):
             if key in self._items:
                 self._items.move_to_end(key)
                 return self._items[key]
-            flight = self._flights.setdefault(key, threading.Lock())
-        with flight:
+        with self._making.held(key):
             with self._lock:
                 if key in self._items:
                     return self._items[key]
             value = make()
             with self._lock:
-                self._flights.pop(key, None)
                 if value is not None:
                     self.made += 1
                     self._items[key] = value

@@ -11,16 +11,15 @@ does not change.
 
 from __future__ import annotations
 
-import threading
 import weakref
-from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import replace
 from typing import Protocol
 
 import numpy as np
 
-from rough_viewer.app.cache import ByteBudget, ByteCache
+from rough_viewer.app.cache import ByteBudget, ByteCache, KeyedLocks
 from rough_viewer.app.settings import MapSettings, check_settings
 from rough_viewer.grid.roughness import (
     GridRoughness,
@@ -148,8 +147,7 @@ class InMemoryStore:
         self._octree: Octree | None = None
         self._shown: dict[object, tuple[str, tuple[float, str, int]]] = {}
         """The grid each analysis (session) shows, by owner (None: the app's one)."""
-        self._flights: dict[object, threading.Lock] = {}
-        self._flights_lock = threading.Lock()
+        self._computing = KeyedLocks()
 
     @property
     def presets(self) -> tuple[float, ...]:
@@ -179,15 +177,11 @@ class InMemoryStore:
                 return True
         return False
 
-    @contextmanager
-    def one_at_a_time(self, key: object) -> Iterator[None]:
+    def one_at_a_time(self, key: object) -> AbstractContextManager[None]:
         """Compute ``key`` in one thread at a time: the analyses of a classroom's tabs
         share this store, and thirty tabs asking for the same grid compute it once
         (the others wait, then find it in the cache)."""
-        with self._flights_lock:
-            lock = self._flights.setdefault(key, threading.Lock())
-        with lock:
-            yield
+        return self._computing.held(key)
 
     def trust(self, result: GridRoughness, settings: TrustSettings | None, *,
               progress: ProgressFn | None = None) -> CellTrust | None:
