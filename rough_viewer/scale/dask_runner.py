@@ -295,7 +295,8 @@ class DaskRunner:
                 client.cancel(futures)
                 raise
             return
-        from concurrent.futures import ThreadPoolExecutor, as_completed as done_first
+        from concurrent.futures import ThreadPoolExecutor
+        from concurrent.futures import as_completed as done_first
         from concurrent.futures.process import BrokenProcessPool
 
         threads = self.scheduler == "threads"

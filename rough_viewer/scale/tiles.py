@@ -574,7 +574,8 @@ def _decoded_tiles(copc: CopcFile, source: Source, groups: Sequence[np.ndarray]
         limits = isolate.limits_for(need, biggest * 8)
         items = isolate.stream_isolated(
             "rough_viewer.io.copc.reader:decode_tiles", source.path, label=reader.label,
-            limits=limits, names=frozenset({"x", "y", "z"}), options={"plan": plan})
+            limits=limits, names=frozenset({"x", "y", "z"}), options={"plan": plan},
+            ahead=True)
     try:
         for item in items:
             yield _checked(source, item)
