@@ -9,7 +9,9 @@ what ``serve`` does without a browser: reads it (``load_inputs``: the LAZ decode
 the isolated child), builds the app (``build_app`` with serve's defaults: panels and
 idle prefetch of the preset grids on) and waits until it is idle (first map, panels,
 presets cached). The process reports its resident memory (``VmRSS``) and its peak
-(``VmHWM``) before the read and once idle. The figure is the slope between the two
+(``VmHWM``) once idle, and while reading its own peak plus the isolated reader's
+(``RUSAGE_CHILDREN``); beside them, the need ``serve --memory`` counts for the file
+(:func:`rough_viewer.app.files.serve_need`, from its header). The figure is the slope between the two
 largest sizes (the interpreter, viser and the libraries, the same for every size,
 drop out), of the resident memory once idle ("held") and of the peak ("peak");
 prints the median over ``--repeat`` runs.
@@ -43,6 +45,9 @@ from rough_viewer.app.server import build_app
 from rough_viewer.cli._inputs import load_inputs
 before = status()
 cloud = load_inputs([Path(sys.argv[1])], quiet=True, max_points=10**9)
+import resource
+read = {"parent": status()["VmHWM"],
+        "reader": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024}
 n = cloud.n
 server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
 app = build_app(server, cloud, presets=grid_presets(cloud), data_dir=Path(sys.argv[1]).parent,
@@ -51,7 +56,7 @@ del cloud
 app.wait_idle(None)
 after = status()
 app.stop(); server.stop()
-print(json.dumps({"n": n, "before": before, "after": after}))
+print(json.dumps({"n": n, "before": before, "after": after, "read": read}))
 """
 
 
@@ -71,6 +76,7 @@ def main() -> None:
                         help="idle prefetch of the presets off (serve has it on)")
     args = parser.parse_args()
     from benchmarks.bench_app import synthetic_face
+    from rough_viewer.app.files import serve_need
     from rough_viewer.app.limits import APP_BYTES_PER_POINT
     from rough_viewer.io.formats.las import write_las
 
@@ -82,9 +88,13 @@ def main() -> None:
             runs = [measure(path, not args.no_prefetch) for _ in range(args.repeat)]
             held = statistics.median(r["after"]["VmRSS"] for r in runs)
             peak = statistics.median(r["after"]["VmHWM"] for r in runs)
+            reading = statistics.median(r["read"]["parent"] + r["read"]["reader"] for r in runs)
             rows.append((n, held, peak))
+            need = serve_need([path]).total
             print(f"{n:>11,} points: held once idle {held / 2**20:8.0f} MiB, "
-                  f"peak {peak / 2**20:8.0f} MiB", flush=True)
+                  f"peak {peak / 2**20:8.0f} MiB, while reading (server + reader) "
+                  f"{reading / 2**20:8.0f} MiB; serve --memory counts "
+                  f"{need / 2**20:8.0f} MiB", flush=True)
     if len(rows) >= 2:
         (n0, h0, p0), (n1, h1, p1) = rows[-2], rows[-1]
         print(f"per point: held {(h1 - h0) / (n1 - n0):.0f} B, peak {(p1 - p0) / (n1 - n0):.0f} B "

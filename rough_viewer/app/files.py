@@ -24,7 +24,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from rough_viewer.app.limits import APP_BYTES_PER_POINT, APP_FIXED_BYTES, CACHE_BYTES
+from rough_viewer.app.limits import (
+    APP_BYTES_PER_POINT,
+    APP_CACHE_BYTES_PER_POINT,
+    APP_FIXED_BYTES,
+    CACHE_BYTES,
+)
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
 from rough_viewer.io.formats.las import check_las_layout
@@ -116,10 +121,10 @@ class ServeNeed:
     @property
     def app_bytes(self) -> float:
         """Bytes the prepared app holds: :data:`APP_FIXED_BYTES`, plus
-        :data:`APP_BYTES_PER_POINT` a point, plus its grid cache (one grid's cells,
-        8 bytes a point, for each of the four presets, at most :data:`CACHE_BYTES`)."""
+        :data:`APP_BYTES_PER_POINT` a point, plus its grid cache
+        (:data:`APP_CACHE_BYTES_PER_POINT` a point, at most :data:`CACHE_BYTES`)."""
         return (APP_FIXED_BYTES + APP_BYTES_PER_POINT * self.points
-                + min(float(CACHE_BYTES), 32.0 * self.points))
+                + min(float(CACHE_BYTES), APP_CACHE_BYTES_PER_POINT * self.points))
 
     @property
     def total(self) -> float:
@@ -175,7 +180,7 @@ def check_app_room(path: Path, shown: str, memory: float | None,
     if need.total > memory:
         raise InputError(
             f"{shown}: {need.points:,} points need about {format_bytes(need.total)} in the "
-            f"app, more than the server's {format_bytes(memory)} allows (serve --memory): "
+            f"server, more than the server's {format_bytes(memory)} allows (serve --memory): "
             "index the survey with 'rough-viewer index' and compute its map out of core "
             "with 'rough-viewer compute --memory'")
 
