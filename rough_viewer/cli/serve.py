@@ -221,6 +221,7 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
 
     from rough_viewer.app.files import serve_need
     from rough_viewer.cli._inputs import describe
+    from rough_viewer.io.copc.reader import is_copc
     from rough_viewer.memory import format_bytes
 
     budget = _memory_budget(args)
@@ -236,7 +237,7 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
     size = given or f"{max(1, int(budget / 1e9))}GB"
     head = (f"{describe(paths)}: {need.points:,} points need about "
             f"{format_bytes(need.total)} in the server, {allowed}")
-    copc = [_is_copc(p) for p in paths]
+    copc = [is_copc(p) for p in paths]
     if all(copc):
         raise InputError(
             f"{head}; serving a COPC campaign larger than memory is not built yet: compute "
@@ -249,26 +250,6 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
         f"{head}; index the survey once with 'rough-viewer index {inputs} --out "
         f"campaign.copc.laz'{first} and compute its map out of core with 'rough-viewer "
         f"compute campaign.copc.laz --memory {size} --grid G --out cells.csv'")
-
-
-def _is_copc(path: Path) -> bool:
-    """Whether ``path`` is a COPC file: LAS 1.4 whose first VLR is user ``copc``,
-    record 1 (the COPC 1.0 specification), from its first bytes."""
-    import struct
-
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(375 + 54)
-    except OSError:
-        return False
-    if len(head) < 375 + 54 or head[:4] != b"LASF" or tuple(head[24:26]) != (1, 4):
-        return False
-    header_size = struct.unpack_from("<H", head, 94)[0]
-    if header_size + 54 > len(head):
-        return False
-    user = head[header_size + 2:header_size + 18].rstrip(b"\0")
-    record = struct.unpack_from("<H", head, header_size + 18)[0]
-    return user == b"copc" and record == 1
 
 
 def _check_options(args: argparse.Namespace) -> Path:

@@ -175,9 +175,9 @@ def test_a_copc_input_is_told_to_compute_not_to_index(tmp_path, capsys):
     assert err.count("\n") == 1 and "rough-viewer index" not in err
     assert "serving a COPC campaign larger than memory is not built yet" in err
     assert f"'rough-viewer compute {copc} --memory 100MB --grid G --out cells.csv'" in err
-    from rough_viewer.cli.serve import _is_copc
+    from rough_viewer.io.copc.reader import is_copc
 
-    assert _is_copc(copc) and not _is_copc(src)
+    assert is_copc(copc) and not is_copc(src)
 
 
 def test_the_file_tab_refuses_a_file_too_big_for_the_budget(tmp_path):
