@@ -150,9 +150,7 @@ class LoadedCloud:
         if not self.presets or self.presets[-1] < MIN_CELL_SIZE:
             raise InputError("grid presets must be at least "
                              f"{MIN_CELL_SIZE:g} m, got {self.presets}")
-        self.store = InMemoryStore(self.cloud, self.presets,
-                                   self.cache_pool or ByteBudget(self.cache_bytes),
-                                   most=self.cache_bytes)
+        self.store = self._make_store()
         self._layers = {}
         self._derived = Memo(DERIVED_KEPT)
         if self.cloud.n >= PLANE_FROM_GRID_POINTS:
@@ -162,6 +160,14 @@ class LoadedCloud:
         else:
             self.plane = whole_cloud_plane(self.cloud)
         self.auto_axis = dominant_axis(self.plane.normal)
+
+    def _make_store(self) -> CloudStore:
+        """The store of what is computed from every point (the points in memory; a
+        campaign's overview: :class:`rough_viewer.app.campaign.CampaignCloud`)."""
+        assert self.presets is not None
+        return InMemoryStore(self.cloud, self.presets,
+                             self.cache_pool or ByteBudget(self.cache_bytes),
+                             most=self.cache_bytes)
 
     def cropped(self, box: CropBox) -> LoadedCloud:
         """The whole cloud (:attr:`uncropped`, else this one) cropped by ``box``

@@ -5,6 +5,7 @@ Contract::
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
         [--min-points K] [--point-budget N] [--max-points N] [--memory SIZE]
+        [--overview-points N]
         [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
@@ -43,6 +44,17 @@ headers give their points and the server's peak is estimated (the read's peak,
 inputs that need more are refused in one line that suggests ``rough-viewer index``
 and ``rough-viewer compute --memory`` (a COPC input: ``compute --memory`` only), and
 a file the File tab loads or uploads is refused with a notice.
+
+A single COPC file (``rough-viewer index``) too big for ``--memory`` (or of more points
+than ``--overview-points N``) is served as a *campaign*
+(:mod:`rough_viewer.app.campaign`, docs/campaign.md "Serving a campaign"): its
+hierarchy is read and checked before the server opens (a damaged one is one line),
+the top levels of its hierarchy (whole levels, at most ``--overview-points``, default
+4,000,000, or what ``--memory`` leaves room for) are the cloud the tabs draw and
+clicks read, said on stderr (``overview of 3.9 M of its 100 M points``), and every
+map is computed from every point of the file by tiles (each node decoded once, in
+the reader sandbox), its cells cached on disk for the next open. Crops and scanner
+options are refused for a campaign.
 
 The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
 opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
@@ -96,8 +108,11 @@ Progress = Callable[[int, int, int], None]
 if TYPE_CHECKING:
     import viser
 
+    from rough_viewer.app.campaign import Campaign
     from rough_viewer.app.classroom import Classroom
+    from rough_viewer.app.cloud import LoadedCloud
     from rough_viewer.app.gate import Gate
+    from rough_viewer.app.host import AppOptions
     from rough_viewer.app.server import App
     from rough_viewer.app.settings import MapSettings
     from rough_viewer.app.views import OpenedView
@@ -130,6 +145,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="most memory the server may use, e.g. 2GB or 512MB (default: 80%% "
                    "of the memory available at start); inputs whose points need more are "
                    "refused before they are read")
+    p.add_argument("--overview-points", dest="overview_points", type=int, default=None,
+                   metavar="N", help="serve a COPC file of more than N points as a campaign: "
+                   "the top levels of its hierarchy (at most N points) drawn, the map from "
+                   "every point (default: a COPC file too big for --memory, with an overview "
+                   "of at most 4000000 points)")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
                    "folder of the first INPUT, or the current folder); paths outside are "
@@ -225,10 +245,21 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
     from rough_viewer.memory import format_bytes
 
     budget = _memory_budget(args)
-    if budget is None or not paths:
+    args.campaign = None
+    if not paths:
+        return
+    if budget is None and getattr(args, "overview_points", None) is None:
         return
     need = serve_need(paths, args.file_max_points)
-    if need.total <= budget:
+    asked = getattr(args, "overview_points", None)
+    if asked is not None and asked < 1:
+        raise InputError(f"--overview-points must be positive, got {asked}")
+    big = (budget is not None and need.total > budget) or (asked is not None
+                                                           and need.points > asked)
+    if big and len(paths) == 1 and is_copc(paths[0]):
+        args.campaign = _open_campaign(args, paths[0], budget)
+        return
+    if budget is None or need.total <= budget:
         return
     given = getattr(args, "memory", None)
     allowed = (f"more than --memory {given} allows" if given else
@@ -240,8 +271,9 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
     copc = [is_copc(p) for p in paths]
     if all(copc):
         raise InputError(
-            f"{head}; serving a COPC campaign larger than memory is not built yet: compute "
-            f"its map out of core with 'rough-viewer compute {shlex.quote(str(paths[0]))} "
+            f"{head}; serve one COPC campaign at a time (one larger than memory is served "
+            "as an overview, its map from every point), or compute their map out of core "
+            f"with 'rough-viewer compute {' '.join(shlex.quote(str(p)) for p in paths)} "
             f"--memory {size} --grid G --out cells.csv'")
     inputs = " ".join(shlex.quote(t) for t in typed)
     las = all(p.suffix.lower() in (".las", ".laz") for p in paths)
@@ -312,8 +344,12 @@ def _run(args: argparse.Namespace) -> int:
         _start_background()
         cloud, settings = _cloud_and_settings(
             args, opened, _page_progress(waiting, _what_loads(args, opened)))
-        waiting.content = (f"**{cloud.n:,} points read: computing the first map…**")
-        n_points = cloud.n
+        campaign = getattr(args, "campaign", None)
+        n_points = cloud.n if campaign is None else campaign.n_points
+        waiting.content = (f"**{cloud.n:,} points read: computing the first map…**"
+                           if campaign is None else
+                           f"**An overview of {cloud.n:,} points read: computing the map "
+                           f"from all {n_points:,} points…**")
         if args.classroom:
             app = _start_classroom(args, server, gate, cloud, settings, data_dir, opened)
             del cloud
@@ -386,7 +422,6 @@ def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
                         also: Progress | None = None) -> tuple[PointCloud, MapSettings]:
     """The cloud to show and its first map's settings (the saved view's, ``--grid``
     in the input's unit, else the cloud's default grid: its finest preset)."""
-    from rough_viewer.app.cloud import grid_presets
     from rough_viewer.app.settings import MapSettings, check_settings
     from rough_viewer.vocabulary import UNIT_METRES
 
@@ -400,7 +435,7 @@ def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
     if not args.inputs and opened is None:  # files: load_inputs said them already, once
         _say_warnings(cloud.warnings)
     if settings is None:  # the cloud's default grid (its finest preset)
-        settings = MapSettings(cell_size=grid_presets(cloud)[-1], model=args.model,
+        settings = MapSettings(cell_size=_presets(args, cloud)[-1], model=args.model,
                                axis=args.axis, min_points=args.min_points)
         check_settings(settings)
     return cloud, settings
@@ -421,11 +456,14 @@ def _app_options(args: argparse.Namespace, cloud: PointCloud, data_dir: Path) ->
 def _start_app(args: argparse.Namespace, server: viser.ViserServer, cloud: PointCloud,
                settings: MapSettings, data_dir: Path) -> App:
     """One analysis shared by every tab (``serve`` without ``--classroom``)."""
-    from rough_viewer.app.cloud import grid_presets
-    from rough_viewer.app.server import build_app
+    from rough_viewer.app.server import app_options, build_app, mount_app
 
-    return build_app(server, cloud, settings=settings, presets=grid_presets(cloud),
-                     **_app_options(args, cloud, data_dir))  # type: ignore[arg-type]
+    kwargs = _app_options(args, cloud, data_dir)
+    if getattr(args, "campaign", None) is None:
+        return build_app(server, cloud, settings=settings, presets=_presets(args, cloud),
+                         **kwargs)  # type: ignore[arg-type]
+    options = app_options(cloud, **kwargs)  # type: ignore[arg-type]
+    return mount_app(server, _campaign_loaded(args, cloud, options), settings, options)
 
 
 def _start_classroom(args: argparse.Namespace, server: viser.ViserServer, gate: Gate,
@@ -440,7 +478,8 @@ def _start_classroom(args: argparse.Namespace, server: viser.ViserServer, gate: 
     kwargs = _app_options(args, cloud, data_dir)
     options = app_options(cloud, **kwargs)  # type: ignore[arg-type]
     options = dataclasses.replace(options, compute_slots=default_slots())
-    loaded = shared_cloud(cloud, options)
+    loaded = (shared_cloud(cloud, options) if getattr(args, "campaign", None) is None
+              else _campaign_loaded(args, cloud, options))
     prepare = None
     if opened is not None:
         def prepare(app: App, role: str) -> None:
@@ -517,7 +556,10 @@ def _open_server(args: argparse.Namespace) -> tuple[viser.ViserServer, Gate]:
 def _read_cloud(args: argparse.Namespace, opened: OpenedView | None,
                 also: Progress | None = None) -> PointCloud:
     """The cloud to show: the saved view's input, else INPUT or the demo, with the
-    scanner options applied (``also(i, done, total)``: the reading's progress)."""
+    scanner options applied (``also(i, done, total)``: the reading's progress); a
+    campaign (:func:`_open_campaign`): its overview."""
+    if getattr(args, "campaign", None) is not None:
+        return _read_overview(args, also)
     if opened is None:
         return _load_cloud(args, also)
     from rough_viewer.cli._inputs import load_inputs
@@ -526,6 +568,66 @@ def _read_cloud(args: argparse.Namespace, opened: OpenedView | None,
         load_inputs([opened.input_path], units=opened.view.units, quiet=False,
                     max_points=args.file_max_points, also=also),
         [opened.input_path], args)
+
+
+def _open_campaign(args: argparse.Namespace, path: Path, budget: float | None) -> Campaign:
+    """The COPC file ``path`` opened as a campaign (:mod:`rough_viewer.app.campaign`):
+    its hierarchy read and checked (a damaged one is one line, before the server
+    opens), the overview's cap checked against the budget."""
+    from rough_viewer.app.campaign import open_campaign, overview_cap
+
+    if getattr(args, "scanner", None) or getattr(args, "scanners", None):
+        raise InputError(f"{path}: a campaign larger than the server holds is served as an "
+                         "overview, and its scanner figures are not built yet: drop "
+                         "--scanner/--scanners, or compute 'rough-viewer bias' on the file")
+    overview_cap(budget, getattr(args, "overview_points", None))
+    return open_campaign(path, units=getattr(args, "units", None),
+                         max_points=args.file_max_points)
+
+
+def _read_overview(args: argparse.Namespace, also: Progress | None = None) -> PointCloud:
+    """The overview of ``args.campaign`` (the top levels of its hierarchy), said on
+    stderr; ``args.campaign`` gets the memory its map's pass may take and
+    ``args.campaign_presets`` the grid presets of its density."""
+    from rough_viewer.app.campaign import (
+        campaign_presets,
+        compute_memory,
+        describe_overview,
+        overview_cap,
+        read_overview,
+    )
+
+    campaign = args.campaign
+    budget = getattr(args, "memory_bytes", None)
+    cap = overview_cap(budget, getattr(args, "overview_points", None))
+    overview = read_overview(campaign, cap, progress=None if also is None else
+                             (lambda done, total: also(0, done, total)))
+    args.campaign = dataclasses.replace(campaign,
+                                        memory_bytes=compute_memory(budget, overview.n))
+    args.campaign_presets = campaign_presets(overview, campaign.n_points)
+    print(f"rough-viewer: {describe_overview(campaign, overview)}", file=sys.stderr,
+          flush=True)
+    _say_warnings(overview.warnings)
+    return overview
+
+
+def _presets(args: argparse.Namespace, cloud: PointCloud) -> tuple[float, ...]:
+    """The app's grid presets: a campaign's (of its density), else the cloud's."""
+    from rough_viewer.app.cloud import grid_presets
+
+    if getattr(args, "campaign", None) is not None:
+        return tuple(args.campaign_presets)
+    return grid_presets(cloud)
+
+
+def _campaign_loaded(args: argparse.Namespace, cloud: PointCloud,
+                     options: AppOptions) -> LoadedCloud:
+    """The campaign's overview prepared for the app, its map from every point."""
+    from rough_viewer.app.campaign import campaign_cloud
+
+    return campaign_cloud(args.campaign, cloud, presets=_presets(args, cloud),
+                          max_display=options.max_display, cache_bytes=options.cache_bytes,
+                          cache_pool=options.cache_pool, trust_settings=options.trust)
 
 
 def _apply_opened_view(app: App, opened: OpenedView, args: argparse.Namespace) -> None:

@@ -1,0 +1,524 @@
+"""Serving a COPC campaign larger than memory: an overview drawn, the map from every point.
+
+``rough-viewer serve CAMPAIGN.copc.laz`` on a file whose points do not fit the
+server's memory (``serve --memory``; or more than ``--overview-points``) opens it
+from its hierarchy (:func:`rough_viewer.io.copc.reader.open_copc`: no point read)
+and reads only an *overview*: the nodes of the hierarchy's top levels, whole levels,
+shallowest first, while their points stay under a cap (:func:`overview_rows`;
+:data:`OVERVIEW_POINTS`, or what the memory budget allows). The overview is the
+app's cloud: it is what the browser tabs draw (its own octree, level of detail within
+each tab's point budget), what clicks, profiles, selections and the distance colour
+layer read.
+
+Every grid result the app shows (colours, histogram, Table 1, semivariogram, zones,
+sets, the trend across the presets) comes from **every point of the file**:
+:class:`CampaignStore` computes it with :func:`rough_viewer.scale.tiles.copc_roughness`
+(by spatial tiles, each node decoded once in the reader sandbox, memory under the
+server's budget), the app's presets of one axis and minimum points in one pass, and
+then gives each overview point the row of its cell (the overview's points are points
+of the file, so each one's cell is among the result's). The cells are cached on disk
+(:func:`cells_path`, under :func:`rough_viewer.io.cache.cache_dir`), so the next open
+of the same file shows its map without reading a point beyond the overview.
+
+Left out: deeper nodes streamed on demand where a camera looks (a tab draws the
+overview only); clicks, profiles, the cell report and crops on every point (they use
+the overview's points; a crop is refused); the map coloured tile by tile while it is
+computed (the status line shows the pass's progress).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import math
+import os
+import tempfile
+import threading
+import zipfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from rough_viewer.app.cache import ByteBudget
+from rough_viewer.app.cloud import LoadedCloud
+from rough_viewer.app.limits import APP_BYTES_PER_POINT, APP_CACHE_BYTES_PER_POINT, APP_FIXED_BYTES
+from rough_viewer.app.settings import MapSettings, check_settings
+from rough_viewer.app.store import CloudStore, InMemoryStore
+from rough_viewer.grid.cells import GridSpec, index_points
+from rough_viewer.grid.planes import PlaneFit
+from rough_viewer.grid.roughness import GridRoughness
+from rough_viewer.grid.spacing import default_cell_size, median_cell_count, nice_ceil
+from rough_viewer.io import PointCloud
+from rough_viewer.io.copc.reader import CopcFile
+from rough_viewer.io.crop import CropBox
+from rough_viewer.memory import format_bytes
+from rough_viewer.scale.sources import Source
+from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn
+
+#: Most points of the overview (the app's cloud) unless ``serve --overview-points``
+#: or ``$ROUGH_VIEWER_OVERVIEW_POINTS`` says otherwise (and the memory budget allows).
+OVERVIEW_POINTS = 4_000_000
+#: The environment variable that overrides :data:`OVERVIEW_POINTS`.
+OVERVIEW_ENV = "ROUGH_VIEWER_OVERVIEW_POINTS"
+#: Points decoded per piece of the overview's read (its progress steps).
+OVERVIEW_PIECE_POINTS = 1_000_000
+#: Share of the memory left beside :data:`APP_FIXED_BYTES` that the overview may hold
+#: (the rest: the map's pass over the tiles and its cells).
+OVERVIEW_SHARE = 0.5
+#: Smallest memory the campaign's map is computed in (the tiles and the cells).
+MIN_COMPUTE_BYTES = 128 << 20
+#: Format of a cells file on disk (changed whenever what it holds changes).
+CELLS_VERSION = "campaign-cells-v1"
+#: Folder, under the cache folder, of the campaign cells (a dot name: the decode
+#: cache's eviction leaves it alone; :data:`CELLS_KEPT` bounds it).
+CELLS_FOLDER = ".campaign-cells"
+#: Cells files kept (the least recently used go first).
+CELLS_KEPT = 64
+
+_MODELS = ("odr", "ols", "hybrid")
+
+
+def overview_cap(memory: float | None, asked: int | None = None) -> int:
+    """Most points of a campaign's overview: ``asked`` (``--overview-points``), else
+    ``$ROUGH_VIEWER_OVERVIEW_POINTS``, else :data:`OVERVIEW_POINTS`; at most what
+    :data:`OVERVIEW_SHARE` of the budget ``memory`` (bytes, None: none) beside
+    :data:`APP_FIXED_BYTES` holds at :data:`APP_BYTES_PER_POINT` +
+    :data:`APP_CACHE_BYTES_PER_POINT` a point.
+
+    Raises InputError when the budget leaves no room for a map's pass."""
+    cap = asked
+    if cap is None:
+        text = os.environ.get(OVERVIEW_ENV, "").strip()
+        cap = int(text) if text.isdigit() and int(text) > 0 else OVERVIEW_POINTS
+    if memory is None:
+        return cap
+    room = memory - APP_FIXED_BYTES
+    if room < 2 * MIN_COMPUTE_BYTES:
+        raise InputError(f"--memory {format_bytes(memory)} is too small to serve a COPC "
+                         f"campaign: give at least {format_bytes(APP_FIXED_BYTES + 2 * MIN_COMPUTE_BYTES)}")
+    return max(1, min(cap, int(OVERVIEW_SHARE * room
+                                / (APP_BYTES_PER_POINT + APP_CACHE_BYTES_PER_POINT))))
+
+
+def compute_memory(memory: float | None, overview_points: int) -> int | None:
+    """Bytes the campaign's map may take (the tiles in flight and the cells): the
+    budget less :data:`APP_FIXED_BYTES` and what the overview holds (None: no
+    budget, the tiles' default size); at least :data:`MIN_COMPUTE_BYTES`."""
+    if memory is None:
+        return None
+    held = APP_FIXED_BYTES + (APP_BYTES_PER_POINT + APP_CACHE_BYTES_PER_POINT) * overview_points
+    return int(max(MIN_COMPUTE_BYTES, memory - held))
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A COPC file served as a campaign: its hierarchy and its header, no point."""
+
+    path: Path
+    copc: CopcFile
+    source: Source
+    memory_bytes: int | None = None
+    """What its map's pass may take, bytes (:func:`compute_memory`; None: no budget)."""
+
+    @property
+    def n_points(self) -> int:
+        return int(self.copc.n_points)
+
+
+def open_campaign(path: str | os.PathLike[str], *, units: str | None = None,
+                  max_points: int | None = None) -> Campaign:
+    """The hierarchy and header of the COPC file ``path`` (every offset and page
+    checked against the file; no point decoded). Raises InputError (one line naming
+    the file) for a damaged file: a node past the end, a hierarchy loop, ..."""
+    from rough_viewer.io.copc.reader import open_copc
+    from rough_viewer.scale.sources import open_sources
+
+    p = Path(path)
+    copc = open_copc(p)
+    source = open_sources([p], units=units, max_points=max_points)[0]  # type: ignore[arg-type]
+    if copc.n_points < 3 or copc.nodes.shape[0] == 0:
+        raise InputError(f"{p}: needs at least 3 points, has {copc.n_points}")
+    return Campaign(path=p, copc=copc, source=source)
+
+
+def overview_rows(copc: CopcFile, cap: int) -> np.ndarray:
+    """Rows of ``copc.nodes`` of the overview: whole levels of the hierarchy,
+    shallowest first, while their points stay at most ``cap`` (the shallowest level
+    always, whatever it holds).
+
+    >>> from rough_viewer.io.copc.reader import ENTRY_DTYPE
+    >>> nodes = np.array([(0, 0, 0, 0, 0, 1, 10), (1, 0, 0, 0, 0, 1, 30),
+    ...                   (1, 1, 0, 0, 0, 1, 5), (2, 0, 0, 0, 0, 1, 90)], dtype=ENTRY_DTYPE)
+    >>> c = CopcFile("f", 135, 6, 30, np.ones(3), np.zeros(3), np.zeros(3), np.ones(3),
+    ...              np.full(3, 0.5), 0.5, b"", nodes)
+    >>> overview_rows(c, 50).tolist(), overview_rows(c, 44).tolist(), overview_rows(c, 5).tolist()
+    ([0, 1, 2], [0], [0])
+    """
+    depth = copc.nodes["depth"].astype(np.int64)
+    counts = copc.nodes["count"].astype(np.int64)
+    levels = np.unique(depth)
+    per_level = np.array([int(counts[depth == d].sum()) for d in levels], dtype=np.int64)
+    total = np.cumsum(per_level)
+    keep = max(1, int(np.searchsorted(total, cap, side="right")))
+    return np.flatnonzero(depth <= levels[keep - 1])
+
+
+def read_overview(campaign: Campaign, cap: int, *,
+                  progress: Callable[[int, int], None] | None = None) -> PointCloud:
+    """The overview's points (:func:`overview_rows`), metres, decoded in the reader
+    sandbox (:func:`rough_viewer.scale.tiles._decoded_tiles`: a node that crashes its
+    decoder is one InputError line), as the app's cloud (``source``: the file).
+    ``progress(done, total)`` in points."""
+    from rough_viewer.scale.tiles import _decoded_tiles
+
+    copc = campaign.copc
+    rows = overview_rows(copc, cap)
+    counts = copc.nodes["count"][rows].astype(np.int64)
+    n = int(counts.sum())
+    pieces = np.split(rows, np.flatnonzero(np.diff(np.cumsum(counts) // OVERVIEW_PIECE_POINTS)) + 1)
+    cols = [np.empty(n, dtype=np.float64) for _ in range(3)]
+    done = 0
+    if progress is not None:
+        progress(0, n)
+    for x, y, z in _decoded_tiles(copc, campaign.source, [p for p in pieces if p.size]):
+        m = int(x.shape[0])
+        if done + m > n:
+            raise InputError(f"{campaign.path}: its nodes hold more points than its "
+                             "hierarchy says; the file is damaged")
+        for col, part in zip(cols, (x, y, z), strict=True):
+            col[done:done + m] = part
+        done += m
+        if progress is not None:
+            progress(done, n)
+    if done != n:
+        raise InputError(f"{campaign.path}: its nodes hold {done:,} points where its "
+                         f"hierarchy says {n:,}; the file is damaged")
+    return PointCloud(x=cols[0], y=cols[1], z=cols[2], source=str(campaign.path),
+                      source_unit=campaign.source.unit, warnings=campaign.source.warnings)
+
+
+def campaign_presets(overview: PointCloud, n_total: int) -> tuple[float, ...]:
+    """The app's grid presets (metres, coarsest first) for the whole campaign: the
+    default grid of its density (a typical occupied cell of about 16 points of the
+    file, not of the overview), estimated from the overview (the hierarchy's levels
+    thin the points evenly): the overview's default grid shrunk by the square root of
+    its share of the points (a face: points per cell grow with the cell's area), a
+    readable size in the cloud's unit, grown until the overview's median occupied
+    cell scaled to the file holds 16 points."""
+    from rough_viewer.app.settings import MIN_CELL_SIZE
+    from rough_viewer.grid.spacing import TARGET_POINTS, cell_sizes_from
+
+    per = UNIT_METRES[overview.source_unit]
+    share = overview.n / max(n_total, 1)
+
+    def nice(size: float) -> float:
+        return nice_ceil(size) if per == 1.0 else round(nice_ceil(size / per) * per, 12)
+
+    g = default_cell_size(overview)
+    if share < 1.0:
+        g = nice(g * math.sqrt(share))
+        lo, hi = overview.bounds()
+        extent = float(np.max(hi - lo))
+        while g <= extent and median_cell_count(overview, g) / share < TARGET_POINTS:
+            g = nice(g * 1.01)
+    return cell_sizes_from(max(g, MIN_CELL_SIZE))
+
+
+# ----------------------------------------------------------------------------- disk
+
+
+def cells_path(path: Path, settings: MapSettings) -> Path:
+    """Where the cells of ``settings``' grid of the campaign ``path`` are kept on
+    disk: a name from the file's identity (resolved path, size, modification time,
+    first and last bytes: :func:`rough_viewer.io.cache.cache_key`), the cell size,
+    axis, minimum points and :data:`CELLS_VERSION`."""
+    from rough_viewer.io.cache import cache_dir, cache_key
+
+    size, axis, k = settings.grid_key
+    ident = f"{cache_key(path)}|{size!r}|{axis}|{k}|{CELLS_VERSION}"
+    return cache_dir() / CELLS_FOLDER / (hashlib.sha1(ident.encode()).hexdigest()[:24] + ".npz")
+
+
+_ARRAYS = ("ijk", "centre", "n_points", "centroid", "normal", "theta_odr", "theta_ols",
+           "theta_hybrid", "e_ols")
+
+
+def save_cells(where: Path, res: GridRoughness) -> bool:
+    """Write ``res``'s cells to ``where`` atomically (a temporary file in the same
+    folder, flushed to disk, renamed into place); keeps the folder at
+    :data:`CELLS_KEPT` files. False (nothing left behind) when it cannot."""
+    arrays: dict[str, np.ndarray] = {name: np.asarray(getattr(res, name)) for name in _ARRAYS}
+    w = res.whole_plane
+    arrays.update(
+        origin=res.grid.origin, cell_size=np.asarray(res.grid.cell_size, dtype=np.float64),
+        index_min=res.grid.index_min, shape=np.asarray(res.grid.shape, dtype=np.int64),
+        plane_centroid=w.centroid, plane_normal=w.normal, plane_eigenvalues=w.eigenvalues,
+        plane_axes=w.axes, text=np.array([res.axis, res.axis_requested, res.residual,
+                                          ",".join(res.models), CELLS_VERSION]),
+        numbers=np.array([res.min_points, res.n_points_total], dtype=np.int64))
+    tmp: str | None = None
+    try:
+        where.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=where.parent, prefix=".part-", suffix=".npz")
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)  # type: ignore[arg-type]
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, where)
+        tmp = None
+        _keep_newest(where.parent, CELLS_KEPT)
+        return True
+    except OSError:
+        return False
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def _keep_newest(folder: Path, most: int) -> None:
+    files = sorted(folder.glob("*.npz"), key=lambda p: p.stat().st_mtime, reverse=True)
+    for old in files[most:]:
+        with contextlib.suppress(OSError):
+            old.unlink()
+
+
+def load_cells(where: Path, settings: MapSettings, n_total: int) -> GridRoughness | None:
+    """The cells :func:`save_cells` wrote at ``where`` for ``settings``' grid of a
+    campaign of ``n_total`` points, with an empty ``point_cell``; None when there are
+    none, or when the file is damaged or not of this grid (then it is removed, and
+    written again once computed)."""
+    if not where.is_file():
+        return None
+    try:
+        with np.load(where, allow_pickle=False) as z:
+            got = {name: np.array(z[name]) for name in z.files}
+        res = _cells_from(got, settings, n_total)
+    except (OSError, ValueError, KeyError, IndexError, TypeError, EOFError,
+            zipfile.BadZipFile):
+        res = None
+    if res is None:
+        with contextlib.suppress(OSError):
+            where.unlink()
+        return None
+    with contextlib.suppress(OSError):
+        os.utime(where)  # recently used: the last to go
+    return res
+
+
+def _cells_from(got: dict[str, np.ndarray], settings: MapSettings,
+                n_total: int) -> GridRoughness | None:
+    axis, requested, residual, models, version = (str(t) for t in got["text"])
+    min_points, total = (int(v) for v in got["numbers"])
+    size = float(got["cell_size"])
+    if (version != CELLS_VERSION or requested != settings.axis or axis not in "xyz"
+            or min_points != settings.min_points or total != n_total
+            or round(size, 9) != settings.grid_key[0] or residual not in ("absolute", "signed")):
+        return None
+    m = got["n_points"].shape
+    if len(m) != 1 or got["ijk"].shape != (m[0], 3) or got["centre"].shape != (m[0], 3) \
+            or got["centroid"].shape != (m[0], 3) or got["normal"].shape != (m[0], 3) \
+            or any(got[name].shape != m for name in ("theta_odr", "theta_ols",
+                                                     "theta_hybrid", "e_ols")) \
+            or got["shape"].shape != (3,) or got["origin"].shape != (3,):
+        return None
+    if int(got["n_points"].sum()) != n_total:
+        return None
+    grid = GridSpec(origin=got["origin"].astype(np.float64), cell_size=size,
+                    index_min=got["index_min"].astype(np.int64),
+                    shape=(int(got["shape"][0]), int(got["shape"][1]), int(got["shape"][2])))
+    plane = PlaneFit(centroid=got["plane_centroid"], normal=got["plane_normal"],
+                     eigenvalues=got["plane_eigenvalues"], axes=got["plane_axes"])
+    return GridRoughness(
+        grid=grid, axis=axis, axis_requested=requested,  # type: ignore[arg-type]
+        whole_plane=plane, min_points=min_points, residual=residual,  # type: ignore[arg-type]
+        models=tuple(models.split(",")),  # type: ignore[arg-type]
+        point_cell=np.empty(0, dtype=np.int64), n_points_total=total,
+        **{name: got[name] for name in _ARRAYS})
+
+
+# ----------------------------------------------------------------------------- store
+
+
+def overview_cells(cloud: PointCloud, res: GridRoughness) -> np.ndarray:
+    """(N,) int64 row of ``res``'s cells for every point of ``cloud`` (points of the
+    campaign ``res`` was computed from, on its grid: each one's cell is among them).
+
+    Raises InputError when a point's cell is not (the file's nodes hold points the
+    map did not count: a damaged file)."""
+    from rough_viewer.scale.passes import OutsideGrid, global_keys
+
+    try:
+        index = index_points(cloud.x, cloud.y, cloud.z, res.grid)
+        mine = global_keys(index.ijk, res.grid)
+    except OutsideGrid:
+        mine = None
+    theirs = global_keys(res.ijk, res.grid)
+    if mine is not None:
+        pos = np.minimum(np.searchsorted(theirs, mine), max(theirs.size - 1, 0))
+        if theirs.size and np.array_equal(theirs[pos], mine):
+            return pos[index.point_cell]
+    raise InputError(f"{cloud.source}: points of its overview lie in cells its map "
+                     "lacks; the file is damaged")
+
+
+class CampaignStore(InMemoryStore):
+    """The store of a campaign: the overview's points in memory (octree, the
+    nested grids that clicks read, scanner figures), every grid *result* from every
+    point of the file (:func:`rough_viewer.scale.tiles.copc_roughness`), cached in
+    memory and on disk (:func:`cells_path`).
+
+    Attributes
+    ----------
+    computed : list of float
+        Cell sizes (metres) computed from the file's points, in order (tests and the
+        status: a second open of the same file computes none).
+    from_disk : list of float
+        Cell sizes read from the disk cache.
+    """
+
+    def __init__(self, campaign: Campaign, cloud: PointCloud, presets: tuple[float, ...],
+                 pool: ByteBudget, *, most: int) -> None:
+        super().__init__(cloud, presets, pool, most=most)
+        self.campaign = campaign
+        self.computed: list[float] = []
+        self.from_disk: list[float] = []
+        self._pass = threading.Lock()
+
+    def result(self, settings: MapSettings, *,
+               progress: ProgressFn | None = None) -> GridRoughness:
+        """The grid of ``settings`` from every point of the file, with ``point_cell``
+        for the overview's points; cached."""
+        key = ("result", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
+        light = self.cell_result(settings, progress=progress)
+        full = replace(light, point_cell=overview_cells(self.cloud, light))
+        self._cache.put(key, full)
+        return full
+
+    def cell_result(self, settings: MapSettings, *,
+                    progress: ProgressFn | None = None) -> GridRoughness:
+        """The cells of ``settings``' grid from every point of the file (no
+        ``point_cell``): the memory cache, else the disk's, else a pass over the
+        file's tiles that computes the app's presets not at hand together (one
+        decode for them all) when ``settings``' grid is a preset."""
+        key = ("cells", settings.grid_key)
+        hit = self._cache.get(key)
+        if isinstance(hit, GridRoughness):
+            return hit
+        check_settings(settings)
+        with self._pass:  # one pass over the file at a time
+            hit = self._cache.get(key)
+            if isinstance(hit, GridRoughness):
+                return hit
+            got = self._from_disk(settings)
+            if got is not None:
+                return got
+            self._compute(settings, progress)
+            made = self._cache.get(key)
+            assert isinstance(made, GridRoughness)
+            return made
+
+    def _from_disk(self, settings: MapSettings) -> GridRoughness | None:
+        got = load_cells(cells_path(self.campaign.path, settings), settings,
+                         self.campaign.n_points)
+        if got is not None:
+            self.from_disk.append(float(settings.cell_size))
+            self._cache.put(("cells", settings.grid_key), got)
+        return got
+
+    def _compute(self, settings: MapSettings, progress: ProgressFn | None) -> None:
+        from rough_viewer.scale.tiles import copc_roughness
+
+        mine = settings.grid_key[0]
+        if mine in {round(float(g), 9) for g in self.presets}:
+            wanted: Sequence[float] = [g for g in self.presets
+                                       if not self._at_hand(settings.with_(cell_size=g))]
+            wanted = sorted(set(wanted) | {settings.cell_size}, reverse=True)
+        else:
+            wanted = [settings.cell_size]
+        c = self.campaign
+        results = copc_roughness(c.copc, c.source, list(wanted), min_points=settings.min_points,
+                                 axis=settings.axis, models=_MODELS,  # type: ignore[arg-type]
+                                 memory_bytes=c.memory_bytes, progress=progress)
+        for g, res in zip(wanted, results, strict=True):
+            s = settings.with_(cell_size=g)
+            self.computed.append(float(g))
+            self._cache.put(("cells", s.grid_key), res)
+            save_cells(cells_path(c.path, s), res)
+
+    def _at_hand(self, settings: MapSettings) -> bool:
+        """The cells of ``settings`` are in memory, or on disk (then read in)."""
+        if ("cells", settings.grid_key) in self._cache:
+            return True
+        return self._from_disk(settings) is not None
+
+
+@dataclass(eq=False)
+class CampaignCloud(LoadedCloud):
+    """A :class:`~rough_viewer.app.cloud.LoadedCloud` whose ``cloud`` is the overview
+    of :attr:`campaign` and whose grid results come from every point of the file
+    (:class:`CampaignStore`)."""
+
+    campaign: Campaign | None = field(default=None, repr=False)
+
+    def _make_store(self) -> CloudStore:
+        assert self.campaign is not None and self.presets is not None
+        return CampaignStore(self.campaign, self.cloud, self.presets,
+                             self.cache_pool or ByteBudget(self.cache_bytes),
+                             most=self.cache_bytes)
+
+    @property
+    def n_total(self) -> int:
+        """Points the roughness is computed from: every point of the file."""
+        assert self.campaign is not None
+        return self.campaign.n_points
+
+    def cropped(self, box: CropBox) -> LoadedCloud:
+        raise InputError(self._no_crop())
+
+    def cropped_exact(self, mask: np.ndarray) -> LoadedCloud:
+        raise InputError(self._no_crop())
+
+    def _no_crop(self) -> str:
+        name = Path(self.cloud.source).name
+        return (f"{name} is served as an overview of a campaign: cropping it is not built "
+                f"yet; crop the file with 'rough-viewer compute {name} --crop ...' or write "
+                "the part as LAS and serve that")
+
+
+def overview_label(campaign: Campaign, overview: PointCloud) -> str:
+    """What the status line calls a campaign: its file and how much of it is drawn."""
+    return (f"{campaign.path.name} (campaign: {overview.n:,} of its points drawn, "
+            "clicks on them; the map from every point)")
+
+
+def campaign_cloud(campaign: Campaign, overview: PointCloud, *, presets: Sequence[float],
+                   max_display: int, cache_bytes: int, cache_pool: ByteBudget | None,
+                   trust_settings: object = None) -> CampaignCloud:
+    """The campaign prepared for the app (the overview as its cloud)."""
+    return CampaignCloud(overview, max_display=max_display, cache_bytes=cache_bytes,
+                         cache_pool=cache_pool, presets=tuple(presets),
+                         label=overview_label(campaign, overview),
+                         trust_settings=trust_settings,  # type: ignore[arg-type]
+                         campaign=campaign)
+
+
+def describe_overview(campaign: Campaign, overview: PointCloud) -> str:
+    """One line: ``overview: 3.9 M of 100 M points; roughness from every point``."""
+    def short(n: int) -> str:
+        return f"{n / 1e6:.3g} M" if n >= 100_000 else f"{n:,}"
+
+    return (f"{campaign.path.name}: served as a campaign: drawn from an "
+            f"overview of {short(overview.n)} of its {short(campaign.n_points)} points (the "
+            "top levels of its hierarchy); roughness from every point")
+
+
+__all__ = ["CELLS_VERSION", "Campaign", "CampaignCloud", "CampaignStore", "OVERVIEW_POINTS",
+           "campaign_cloud", "campaign_presets", "cells_path", "compute_memory",
+           "describe_overview", "load_cells", "open_campaign", "overview_cap",
+           "overview_cells", "overview_rows", "read_overview", "save_cells"]
