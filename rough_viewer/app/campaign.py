@@ -386,6 +386,8 @@ class CampaignStore(InMemoryStore):
         self.computed: list[float] = []
         self.from_disk: list[float] = []
         self._pass = threading.Lock()
+        self._too_many: set[tuple[str, int]] = set()
+        """(axis, minimum points) whose presets' cells do not fit one pass's budget."""
 
     def result(self, settings: MapSettings, *,
                progress: ProgressFn | None = None) -> GridRoughness:
@@ -405,7 +407,8 @@ class CampaignStore(InMemoryStore):
         """The cells of ``settings``' grid from every point of the file (no
         ``point_cell``): the memory cache, else the disk's, else a pass over the
         file's tiles that computes the app's presets not at hand together (one
-        decode for them all) when ``settings``' grid is a preset."""
+        decode for them all) when ``settings``' grid is a preset and their cells fit
+        the budget together (else this grid alone)."""
         key = ("cells", settings.grid_key)
         hit = self._cache.get(key)
         if isinstance(hit, GridRoughness):
@@ -441,10 +444,25 @@ class CampaignStore(InMemoryStore):
             wanted = sorted(set(wanted) | {settings.cell_size}, reverse=True)
         else:
             wanted = [settings.cell_size]
+        group = (settings.axis, settings.min_points)
+        if group in self._too_many:
+            wanted = [settings.cell_size]
         c = self.campaign
-        results = copc_roughness(c.copc, c.source, list(wanted), min_points=settings.min_points,
-                                 axis=settings.axis, models=_MODELS,  # type: ignore[arg-type]
-                                 memory_bytes=c.memory_bytes, progress=progress)
+
+        def run(sizes: Sequence[float]) -> list[GridRoughness]:
+            return copc_roughness(c.copc, c.source, list(sizes), min_points=settings.min_points,
+                                  axis=settings.axis, models=_MODELS,  # type: ignore[arg-type]
+                                  memory_bytes=c.memory_bytes, progress=progress)
+
+        try:
+            results = run(wanted)
+        except InputError as exc:
+            if len(wanted) == 1 or "the cells" not in str(exc):
+                raise
+            # the presets' cells together do not fit the budget: this grid alone
+            self._too_many.add(group)
+            wanted = [settings.cell_size]
+            results = run(wanted)
         for g, res in zip(wanted, results, strict=True):
             s = settings.with_(cell_size=g)
             self.computed.append(float(g))

@@ -580,7 +580,10 @@ def _open_campaign(args: argparse.Namespace, path: Path, budget: float | None) -
         raise InputError(f"{path}: a campaign larger than the server holds is served as an "
                          "overview, and its scanner figures are not built yet: drop "
                          "--scanner/--scanners, or compute 'rough-viewer bias' on the file")
-    overview_cap(budget, getattr(args, "overview_points", None))
+    try:
+        overview_cap(budget, getattr(args, "overview_points", None))
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
     return open_campaign(path, units=getattr(args, "units", None),
                          max_points=args.file_max_points)
 

@@ -163,18 +163,30 @@ def test_several_inputs_and_a_glob_count_together(tmp_path, capsys):
     assert serve_need([truncated]).points == 1000
 
 
-def test_a_copc_input_is_told_to_compute_not_to_index(tmp_path, capsys):
-    """A COPC file (written by rough-viewer index) too big for --memory: serving a
-    COPC campaign larger than memory is not built yet; compute --memory is."""
+def test_a_copc_input_is_served_as_a_campaign_not_refused(tmp_path, capsys):
+    """A COPC file (written by rough-viewer index) too big for --memory is no longer
+    refused as too big: it is served as a campaign (tests/app/test_campaign_serve.py),
+    so a budget too small even for that says so, naming the file; several COPC files
+    too big together are told to serve one at a time or compute --memory (never to
+    index again)."""
     src = _laz(tmp_path / "face.laz")
     copc = tmp_path / "campaign.copc.laz"
+    other = tmp_path / "other.copc.laz"
     assert main(["index", str(src), "--out", str(copc)]) == 0
+    assert main(["index", str(src), "--out", str(other)]) == 0
     capsys.readouterr()
     assert main(["serve", str(copc), "--memory", "100MB", "--port", "0", "--no-block"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "rough-viewer index" not in err
-    assert "serving a COPC campaign larger than memory is not built yet" in err
-    assert f"'rough-viewer compute {copc} --memory 100MB --grid G --out cells.csv'" in err
+    assert f"{copc}: --memory {format_bytes(100e6)} is too small to serve a COPC campaign: " \
+        f"give at least {format_bytes(APP_FIXED_BYTES + 2 * (128 << 20))}" in err
+    assert "listening" not in err
+    assert main(["serve", str(copc), str(other), "--memory", "100MB", "--port", "0",
+                 "--no-block"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "rough-viewer index" not in err
+    assert "serve one COPC campaign at a time" in err
+    assert f"'rough-viewer compute {copc} {other} --memory 100MB --grid G --out cells.csv'" in err
     from rough_viewer.io.copc.reader import is_copc
 
     assert is_copc(copc) and not is_copc(src)
