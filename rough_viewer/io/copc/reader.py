@@ -272,7 +272,7 @@ def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
     with open(copc.path, "rb") as fh:
         for e, a, b in zip(sel, starts[:-1], starts[1:], strict=True):
             fh.seek(int(e["offset"]))
-            if fh.readinto(memoryview(packed)[a:b]) != b - a:
+            if fh.readinto(packed[a:b].data) != b - a:
                 raise _fail(copc.path, "it ends inside a node's chunk")
     out = np.empty(n * copc.record_size, dtype=np.uint8)
     table = [(int(e["count"]), int(e["size"])) for e in sel]
