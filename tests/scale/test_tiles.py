@@ -288,3 +288,21 @@ def test_a_header_box_that_lies_costs_a_second_read_not_wrong_cells(survey, tmp_
     res = _run(bad, (0.4,), tile_points=TILE, progress=lambda d, t: seen.append((d, t)))[0]
     assert_same_cells(res, grid_roughness(xyz, 0.4, engine="numpy"), rtol=1e-12)
     assert seen[-1][1] == 2 * xyz.shape[0]
+
+
+def test_zones_by_tiles_equal_zones_in_memory(survey, tmp_path):
+    """zones --memory on the COPC (cells by tiles) gives the zones of the scans in
+    memory."""
+    paths, out, _ = survey
+    a, b = tmp_path / "tiles.csv", tmp_path / "memory.csv"
+    ca, cb = tmp_path / "tiles-cells.csv", tmp_path / "memory-cells.csv"
+    opts = ["--grid", "0.4", "--threshold", "0.02", "--quiet"]
+    assert main(["zones", str(out), *opts, "--memory", "256MB", "--out", str(a),
+                 "--cells-out", str(ca)]) == 0
+    assert main(["zones", *map(str, paths), *opts, "--out", str(b), "--cells-out", str(cb)]) == 0
+    for x, y in ((a, b), (ca, cb)):
+        hx, rx = _numbers(x)
+        hy, ry = _numbers(y)
+        assert hx == hy and len(rx) == len(ry) > 0
+        np.testing.assert_allclose(np.array(rx, dtype=float), np.array(ry, dtype=float),
+                                   rtol=1e-9, atol=1e-12)
