@@ -661,6 +661,11 @@ def copc_roughness(
     if tile_points is None:
         tile_points = tile_points_for(memory_bytes, parallel=parallel)
     plan = plan_tiles(copc, tile_points)
+    biggest = int(plan.points.max()) if plan.n_tiles else 0
+    if memory_bytes is not None and biggest > 1.25 * tile_points:
+        raise InputError(f"{source.path} has a node column of {biggest:,} points at every "
+                         f"depth of its octree, more than --memory "
+                         f"{format_bytes(memory_bytes)} can hold at once; give more memory")
     top_n = int(copc.nodes["count"][plan.top].sum())
     if memory_bytes is not None and top_n * HELD_BYTES_PER_POINT > 0.25 * memory_bytes:
         raise InputError(f"the upper levels of {source.path} hold {top_n:,} points, more than "
