@@ -1,11 +1,13 @@
 """Grid roughness of a COPC file by spatial tiles: every point decoded once.
 
 A COPC file (:mod:`rough_viewer.io.copc`) lists its octree's nodes and where each
-node's points lie. The tiles are a cut of that tree (:func:`plan_tiles`): from the
-root down, a node whose subtree holds at most ``tile_points`` points is a tile (its
-subtree's nodes are decoded together); a larger one is split into its children and
-its own points join the *top*, decoded first and held. Tiles are taken in Morton
-order, so neighbours are near in time.
+node's points lie. The tiles are columns of that tree (:func:`plan_tiles`): at the
+shallowest depth where every column fits ``tile_points``, the nodes at that depth
+and below whose keys agree along two axes form one tile, whatever their key along
+the third, the cloud's thinnest axis (a face is a thin slab: the octree's cubes cut
+it across its thickness at its middle, which would put most of its cells on a seam).
+The nodes above that depth are the *top*, decoded first and held. Tiles are taken in
+Morton order, so neighbours are near in time.
 
 Every cell (of every grid asked for) is computed once, from all of its points at
 once, by the in-memory code (moments, planes, distances of
@@ -19,8 +21,8 @@ boundary):
 - a cell on a seam between tiles (or in no tile: only top points) is *held*: its
   points wait until the last tile it touches is done, then the cell is computed
   from all of them. On Dask the seam points travel back to the client with the
-  tile's per-cell rows (a few per cent of the points: about six cell edges over a
-  tile's edge).
+  tile's per-cell rows (a few per cent of the points: about four cell edges over a
+  tile's edge; 6.6 % of a 20 M-point face in 8 tiles at grid 0.25 m).
 
 The cells' planes are found before the whole cloud's plane is known, so every tile
 keeps the moments and, where OLS is asked for with ``axis="auto"``, the OLS
@@ -51,7 +53,7 @@ from rough_viewer.grid.roughness import (
     check_options,
     whole_plane_from_moments,
 )
-from rough_viewer.io.copc.reader import CopcFile, pack_key
+from rough_viewer.io.copc.reader import CopcFile
 from rough_viewer.memory import format_bytes
 from rough_viewer.scale.partials import Partial
 from rough_viewer.scale.passes import (
@@ -99,23 +101,31 @@ DEFAULT_TILE_POINTS = 4_000_000
 class TilePlan:
     """The tiles of a COPC file and the top nodes above them.
 
+    A tile is a *column* of the octree at one depth: every node at ``depth`` (and
+    below) whose key agrees on the two ``axes``, whatever its key along the third,
+    the cloud's thinnest axis. A face is a thin slab: cutting it across its thickness
+    (as the octree's cubes do at its middle) would put most of its cells on a seam.
+
     Attributes
     ----------
     top : (K,) int64
-        Rows of ``copc.nodes`` above the tiles (decoded first, held).
+        Rows of ``copc.nodes`` above ``depth`` (decoded first, held).
     tiles : tuple of (n_i,) int64
         Rows of ``copc.nodes`` of each tile, in tile (Morton) order.
-    depth : (T,) int64
-        Depth of each tile's root node.
-    key : (T, 3) int64
-        Key of each tile's root node.
+    depth : int
+        Depth of the columns.
+    axes : tuple of int
+        The two axes a column's key is along (the third runs the cube's whole edge).
+    key : (T, 2) int64
+        Each tile's column key along ``axes``, at ``depth``.
     points : (T,) int64
         Points of each tile's nodes.
     """
 
     top: np.ndarray
     tiles: tuple[np.ndarray, ...]
-    depth: np.ndarray
+    depth: int
+    axes: tuple[int, int]
     key: np.ndarray
     points: np.ndarray
 
@@ -125,83 +135,67 @@ class TilePlan:
 
 
 def _interleave(q: np.ndarray) -> np.ndarray:
-    """Morton codes of (N, 3) non-negative integers below 2**19."""
+    """Morton codes of (N, 2) non-negative integers below 2**30."""
     out = np.zeros(q.shape[0], dtype=np.int64)
-    for b in range(19):
-        for a in range(3):
-            out |= ((q[:, a] >> b) & 1) << (3 * b + a)
+    for b in range(30):
+        for a in range(2):
+            out |= ((q[:, a] >> b) & 1) << (2 * b + a)
     return out
 
 
-def plan_tiles(copc: CopcFile, tile_points: int) -> TilePlan:
-    """Cut the octree into tiles of at most ``tile_points`` points (a node deeper
-    than which nothing lies is a tile however many points it holds).
+def plan_tiles(copc: CopcFile, tile_points: int, *, thin: int | None = None) -> TilePlan:
+    """Cut the octree into columns along its thinnest axis (``thin``; default the
+    header box's thinnest) at the shallowest depth where every column holds at most
+    ``tile_points`` points (else the depth of the smallest largest column).
 
     >>> import numpy as np
     >>> from rough_viewer.io.copc.reader import ENTRY_DTYPE
     >>> nodes = np.array([(0, 0, 0, 0, 0, 1, 10), (1, 0, 0, 0, 0, 1, 30),
-    ...                   (1, 1, 0, 0, 0, 1, 5)], dtype=ENTRY_DTYPE)
-    >>> c = CopcFile("f", 45, 6, 30, np.ones(3), np.zeros(3), np.zeros(3), np.ones(3),
+    ...                   (1, 0, 1, 0, 0, 1, 5), (1, 1, 0, 0, 0, 1, 7)], dtype=ENTRY_DTYPE)
+    >>> c = CopcFile("f", 52, 6, 30, np.ones(3), np.zeros(3), np.zeros(3), np.ones(3),
     ...              np.full(3, 0.5), 0.5, b"", nodes)
-    >>> p = plan_tiles(c, 45)
-    >>> [t.tolist() for t in p.tiles], p.top.tolist()
-    ([[0, 1, 2]], [])
-    >>> p = plan_tiles(c, 40)
-    >>> [t.tolist() for t in p.tiles], p.top.tolist(), p.points.tolist()
-    ([[1], [2]], [0], [30, 5])
+    >>> p = plan_tiles(c, 52, thin=1)
+    >>> p.depth, [t.tolist() for t in p.tiles], p.top.tolist()
+    (0, [[0, 1, 2, 3]], [])
+    >>> p = plan_tiles(c, 40, thin=1)    # columns along y: nodes 1 and 2 share one
+    >>> p.depth, [t.tolist() for t in p.tiles], p.top.tolist(), p.points.tolist()
+    (1, [[1, 2], [3]], [0], [35, 7])
     """
     nodes = copc.nodes
+    if thin is None:
+        thin = int(np.argmin(copc.maxs - copc.mins))
+    axes = (0, 1, 2)[:thin] + (0, 1, 2)[thin + 1:]
     d = nodes["depth"].astype(np.int64)
     keys = np.stack([nodes["x"], nodes["y"], nodes["z"]], axis=1).astype(np.int64)
     counts = nodes["count"].astype(np.int64)
     max_d = int(d.max()) if d.size else 0
-    # points under every key that has a node at or below it
-    sub: dict[int, int] = {}
-    deepest: dict[int, int] = {}
+    best: tuple[int, int] | None = None
     for level in range(max_d + 1):
         below = d >= level
-        anc = keys[below] >> (d[below] - level)[:, None]
-        codes = pack_key(np.full(anc.shape[0], level), anc[:, 0], anc[:, 1], anc[:, 2])
-        u, inv = np.unique(codes, return_inverse=True)
-        tot = np.bincount(inv, weights=counts[below]).astype(np.int64)
-        deep = np.zeros(u.size, dtype=np.int64)
-        np.maximum.at(deep, inv, d[below])
-        sub.update(zip(u.tolist(), tot.tolist(), strict=True))
-        deepest.update(zip(u.tolist(), deep.tolist(), strict=True))
-    frontier: list[tuple[int, int, int, int]] = []
-    stack = [(0, 0, 0, 0)]
-    while stack:
-        lv, kx, ky, kz = stack.pop()
-        code = lv << 57 | kx << 38 | ky << 19 | kz  # pack_key of one key
-        if code not in sub:
-            continue
-        if sub[code] <= tile_points or deepest[code] == lv:
-            frontier.append((lv, kx, ky, kz))
-            continue
-        for c in range(8):
-            stack.append((lv + 1, 2 * kx + (c & 1), 2 * ky + (c >> 1 & 1), 2 * kz + (c >> 2 & 1)))
-    f = np.array(frontier, dtype=np.int64).reshape(-1, 4)
-    order = np.argsort(_interleave(f[:, 1:] << (MAX_PLAN_DEPTH - f[:, :1])), kind="stable")
-    f = f[order]
-    owner = np.full(nodes.shape[0], -1, dtype=np.int64)
-    for lv in np.unique(f[:, 0]):
-        at = np.flatnonzero(f[:, 0] == lv)
-        fcodes = pack_key(f[at, 0], f[at, 1], f[at, 2], f[at, 3])
-        srt = np.argsort(fcodes)
-        free = np.flatnonzero((d >= lv) & (owner < 0))
-        anc = keys[free] >> (d[free] - lv)[:, None]
-        codes = pack_key(np.full(free.size, lv), anc[:, 0], anc[:, 1], anc[:, 2])
-        pos = np.clip(np.searchsorted(fcodes[srt], codes), 0, max(fcodes.size - 1, 0))
-        hit = fcodes[srt][pos] == codes
-        owner[free[hit]] = at[srt[pos[hit]]]
-    tiles = tuple(np.flatnonzero(owner == t) for t in range(f.shape[0]))
-    return TilePlan(top=np.flatnonzero(owner < 0), tiles=tiles, depth=f[:, 0].copy(),
-                    key=f[:, 1:].copy(),
+        if not below.any():
+            break
+        col = keys[below][:, axes] >> (d[below] - level)[:, None]
+        _, inv = np.unique(col[:, 0] << 31 | col[:, 1], return_inverse=True)
+        biggest = int(np.bincount(inv, weights=counts[below]).max())
+        if best is None or biggest < best[1]:
+            best = (level, biggest)
+        if biggest <= tile_points:
+            break
+    level = best[0] if best is not None else 0
+    rows = np.flatnonzero(d >= level)
+    col = keys[rows][:, axes] >> (d[rows] - level)[:, None]
+    u, inv = np.unique(col[:, 0] << 31 | col[:, 1], return_inverse=True)
+    ukeys = np.stack([u >> 31, u & ((1 << 31) - 1)], axis=1)
+    order = np.argsort(_interleave(ukeys), kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    tile_of = rank[inv]
+    srt = np.argsort(tile_of, kind="stable")
+    cuts = np.searchsorted(tile_of[srt], np.arange(u.size + 1))
+    tiles = tuple(np.sort(rows[srt[cuts[t]:cuts[t + 1]]]) for t in range(u.size))
+    return TilePlan(top=np.flatnonzero(d < level), tiles=tiles, depth=level,
+                    axes=(int(axes[0]), int(axes[1])), key=ukeys[order],
                     points=np.array([int(counts[t].sum()) for t in tiles], dtype=np.int64))
-
-
-#: Depth the tiles' Morton order is taken at (the reader's deepest level).
-MAX_PLAN_DEPTH = 19
 
 
 @dataclass(frozen=True)
@@ -218,12 +212,14 @@ class TileContext:
     margin : (3,) float64
         A cell's box is widened by this, metres (one coordinate step), so a point on a
         cube's face counts on both sides.
-    depths : tuple of int
-        Depths of the tiles' roots.
-    codes : tuple of (n,) int64
-        Per depth, the sorted packed keys of its tiles.
-    numbers : tuple of (n,) int64
-        Per depth, the tile number of each code.
+    depth : int
+        Depth of the tiles' columns.
+    axes : tuple of int
+        The two axes of a column's key.
+    codes : (T,) int64
+        The sorted codes ``key0 << 31 | key1`` of the tiles' columns.
+    numbers : (T,) int64
+        The tile number of each code.
     ols_axes : tuple of str
         Axes whose OLS sums each cell keeps (all three under ``axis="auto"``).
     min_points : int
@@ -237,9 +233,10 @@ class TileContext:
     cube_min: np.ndarray
     edge: np.ndarray
     margin: np.ndarray
-    depths: tuple[int, ...]
-    codes: tuple[np.ndarray, ...]
-    numbers: tuple[np.ndarray, ...]
+    depth: int
+    axes: tuple[int, int]
+    codes: np.ndarray
+    numbers: np.ndarray
     ols_axes: tuple[Axis, ...]
     min_points: int
     models: tuple[Model, ...]
@@ -261,25 +258,26 @@ class TileContext:
         return MOMENT_COLUMNS + 2 * len(self.names)
 
     def tiles_of(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """First and last tile number whose cube meets each box (``lo``, ``hi``:
+        """First and last tile number whose column meets each box (``lo``, ``hi``:
         (M, 3) metres); -1, -1 where none does."""
         m = lo.shape[0]
         first = np.full(m, np.iinfo(np.int64).max)
         last = np.full(m, -1, dtype=np.int64)
-        for lv, codes, numbers in zip(self.depths, self.codes, self.numbers, strict=True):
-            n = 1 << lv
-            step = self.edge / n
-            a = np.clip(np.floor((lo - self.margin - self.cube_min) / step), 0, n - 1)
-            b = np.clip(np.floor((hi + self.margin - self.cube_min) / step), 0, n - 1)
-            a, b = a.astype(np.int64), b.astype(np.int64)
-            for c in range(8):
-                pick = [b[:, ax] if c >> ax & 1 else a[:, ax] for ax in range(3)]
-                code = pack_key(np.full(m, lv), pick[0], pick[1], pick[2])
-                pos = np.clip(np.searchsorted(codes, code), 0, codes.size - 1)
-                hit = codes[pos] == code
-                num = np.where(hit, numbers[pos], -1)
-                last = np.maximum(last, num)
-                first = np.where(hit, np.minimum(first, num), first)
+        n = 1 << self.depth
+        ax = list(self.axes)
+        step = self.edge[ax] / n
+        a = np.clip(np.floor((lo[:, ax] - self.margin[ax] - self.cube_min[ax]) / step), 0, n - 1)
+        b = np.clip(np.floor((hi[:, ax] + self.margin[ax] - self.cube_min[ax]) / step), 0, n - 1)
+        a, b = a.astype(np.int64), b.astype(np.int64)
+        for c in range(4):
+            k0 = b[:, 0] if c & 1 else a[:, 0]
+            k1 = b[:, 1] if c & 2 else a[:, 1]
+            code = k0 << 31 | k1
+            pos = np.clip(np.searchsorted(self.codes, code), 0, self.codes.size - 1)
+            hit = self.codes[pos] == code
+            num = np.where(hit, self.numbers[pos], -1)
+            last = np.maximum(last, num)
+            first = np.where(hit, np.minimum(first, num), first)
         first[last < 0] = -1
         return first, last
 
@@ -289,21 +287,15 @@ def make_context(copc: CopcFile, source: Source, plan: TilePlan, grids: tuple[Gr
                  engine: Engine, threads: int = 0) -> TileContext:
     """The :class:`TileContext` of a plan (cube and margins in metres)."""
     factor = np.array([source.factor, source.factor, source.z_factor])
-    depths, codes, numbers = [], [], []
-    for lv in np.unique(plan.depth):
-        at = np.flatnonzero(plan.depth == lv)
-        c = pack_key(np.full(at.size, lv), plan.key[at, 0], plan.key[at, 1], plan.key[at, 2])
-        srt = np.argsort(c)
-        depths.append(int(lv))
-        codes.append(c[srt])
-        numbers.append(at[srt])
+    codes = plan.key[:, 0] << 31 | plan.key[:, 1]
+    srt = np.argsort(codes)
     ols_axes: tuple[Axis, ...] = ()
     if "ols" in models or "hybrid" in models:
         ols_axes = ("x", "y", "z") if axis == "auto" else (axis,)
     return TileContext(
         grids=grids, cube_min=copc.cube_min * factor, edge=np.full(3, 2 * copc.halfsize) * factor,
-        margin=copc.scales * factor, depths=tuple(depths), codes=tuple(codes),
-        numbers=tuple(numbers), ols_axes=ols_axes, min_points=int(min_points), models=models,
+        margin=copc.scales * factor, depth=plan.depth, axes=plan.axes, codes=codes[srt],
+        numbers=srt.astype(np.int64), ols_axes=ols_axes, min_points=int(min_points), models=models,
         engine=engine, threads=threads)
 
 
@@ -439,7 +431,7 @@ def split_top(x: np.ndarray, y: np.ndarray, z: np.ndarray, ctx: TileContext
               ) -> tuple[TileOut, list[list[Columns]]]:
     """The top points, grid by grid: those of a cell inside one tile go with that tile
     (``per_tile[t][g]``); the others are held (the :class:`TileOut` of no tile)."""
-    n_tiles = sum(int(c.size) for c in ctx.codes)
+    n_tiles = int(ctx.codes.size)
     per_tile: list[list[Columns]] = [[] for _ in range(n_tiles)]
     held = []
     for grid in ctx.grids:
@@ -669,6 +661,11 @@ def copc_roughness(
     if tile_points is None:
         tile_points = tile_points_for(memory_bytes, parallel=parallel)
     plan = plan_tiles(copc, tile_points)
+    biggest = int(plan.points.max()) if plan.n_tiles else 0
+    if memory_bytes is not None and biggest > 1.25 * tile_points:
+        raise InputError(f"{source.path} has a node column of {biggest:,} points at every "
+                         f"depth of its octree, more than --memory "
+                         f"{format_bytes(memory_bytes)} can hold at once; give more memory")
     top_n = int(copc.nodes["count"][plan.top].sum())
     if memory_bytes is not None and top_n * HELD_BYTES_PER_POINT > 0.25 * memory_bytes:
         raise InputError(f"the upper levels of {source.path} hold {top_n:,} points, more than "

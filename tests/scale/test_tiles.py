@@ -270,3 +270,39 @@ def test_other_commands_read_the_copc_as_the_scans(survey, tmp_path, command):
             np.testing.assert_allclose(np.take(x, keep), np.take(y, keep), rtol=1e-9, atol=1e-9)
         else:
             assert x == y
+
+
+@pytest.mark.parametrize("field,shift", [(187, -1.0), (179, -1.0)])
+def test_a_header_box_that_lies_costs_a_second_read_not_wrong_cells(survey, tmp_path, field,
+                                                                     shift):
+    """The header's minimum x 1 m below the points' (the grid's origin follows the
+    minimum), or its maximum x 1 m inside them (points outside the grid): the first
+    read finds the box off, the second gives the cells of the in-memory path."""
+    _, out, xyz = survey
+    data = bytearray(out.read_bytes())
+    value = struct.unpack_from("<d", data, field)[0]  # LAS header: max x at 179, min x at 187
+    struct.pack_into("<d", data, field, value + shift)
+    bad = tmp_path / "bad-box.copc.laz"
+    bad.write_bytes(bytes(data))
+    seen = []
+    res = _run(bad, (0.4,), tile_points=TILE, progress=lambda d, t: seen.append((d, t)))[0]
+    assert_same_cells(res, grid_roughness(xyz, 0.4, engine="numpy"), rtol=1e-12)
+    assert seen[-1][1] == 2 * xyz.shape[0]
+
+
+def test_zones_by_tiles_equal_zones_in_memory(survey, tmp_path):
+    """zones --memory on the COPC (cells by tiles) gives the zones of the scans in
+    memory."""
+    paths, out, _ = survey
+    a, b = tmp_path / "tiles.csv", tmp_path / "memory.csv"
+    ca, cb = tmp_path / "tiles-cells.csv", tmp_path / "memory-cells.csv"
+    opts = ["--grid", "0.4", "--threshold", "0.02", "--quiet"]
+    assert main(["zones", str(out), *opts, "--memory", "256MB", "--out", str(a),
+                 "--cells-out", str(ca)]) == 0
+    assert main(["zones", *map(str, paths), *opts, "--out", str(b), "--cells-out", str(cb)]) == 0
+    for x, y in ((a, b), (ca, cb)):
+        hx, rx = _numbers(x)
+        hy, ry = _numbers(y)
+        assert hx == hy and len(rx) == len(ry) > 0
+        np.testing.assert_allclose(np.array(rx, dtype=float), np.array(ry, dtype=float),
+                                   rtol=1e-9, atol=1e-12)

@@ -266,24 +266,23 @@ def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
     if n == 0:
         empty = np.empty(0)
         return empty, empty.copy(), empty.copy()
-    out = bytearray(n * copc.record_size)
+    sizes = sel["size"].astype(np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    packed = np.empty(int(starts[-1]), dtype=np.uint8)  # the nodes' chunks, back to back
     with open(copc.path, "rb") as fh:
-        blobs = []
-        for e in sel:
+        for e, a, b in zip(sel, starts[:-1], starts[1:], strict=True):
             fh.seek(int(e["offset"]))
-            blob = fh.read(int(e["size"]))
-            if len(blob) != int(e["size"]):
+            if fh.readinto(packed[a:b].data) != b - a:
                 raise _fail(copc.path, "it ends inside a node's chunk")
-            blobs.append(blob)
+    out = np.empty(n * copc.record_size, dtype=np.uint8)
     table = [(int(e["count"]), int(e["size"])) for e in sel]
     selection = lazrs.DecompressionSelection(lazrs.SELECTIVE_DECOMPRESS_XY_RETURNS_CHANNEL
                                              | lazrs.SELECTIVE_DECOMPRESS_Z)
     try:
-        lazrs.decompress_points_with_chunk_table(b"".join(blobs), copc.laz_vlr, out, table,
-                                                 selection)
+        lazrs.decompress_points_with_chunk_table(packed, copc.laz_vlr, out, table, selection)
     except lazrs.LazrsError as exc:
         raise _fail(copc.path, f"a node's chunk does not decode ({exc})") from None
-    del blobs
+    del packed
     rec = np.frombuffer(out, dtype=np.dtype({"names": ["X", "Y", "Z"],
                                              "formats": ["<i4", "<i4", "<i4"],
                                              "offsets": [0, 4, 8],
