@@ -46,6 +46,7 @@ from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.limits import APP_BYTES_PER_POINT, APP_CACHE_BYTES_PER_POINT, APP_FIXED_BYTES
 from rough_viewer.app.settings import MapSettings, check_settings
 from rough_viewer.app.store import CloudStore, InMemoryStore
+from rough_viewer.app.units import Units
 from rough_viewer.grid.cells import GridSpec, index_points
 from rough_viewer.grid.planes import PlaneFit
 from rough_viewer.grid.roughness import GridRoughness
@@ -69,6 +70,12 @@ OVERVIEW_PIECE_POINTS = 1_000_000
 OVERVIEW_SHARE = 0.5
 #: Smallest memory the campaign's map is computed in (the tiles and the cells).
 MIN_COMPUTE_BYTES = 128 << 20
+#: Share of what a pass keeps for cells (``copc_roughness``: the half of its memory
+#: beside the tile) that the presets computed together (and the first map) may be
+#: expected to take: the rest for the points held on seams and the estimate's error
+#: (:func:`expected_cells` fell 15-30 % short at the finest presets of 20 M- and
+#: 100 M-point faces).
+CELLS_SHARE = 0.5
 #: Format of a cells file on disk (changed whenever what it holds changes).
 CELLS_VERSION = "campaign-cells-v1"
 #: Folder, under the cache folder, of the campaign cells (a dot name: the decode
@@ -226,6 +233,28 @@ def campaign_presets(overview: PointCloud, n_total: int) -> tuple[float, ...]:
     return cell_sizes_from(max(g, MIN_CELL_SIZE))
 
 
+def cells_room(memory_bytes: int | None) -> float:
+    """Cells one pass of :func:`rough_viewer.scale.tiles.copc_roughness` in
+    ``memory_bytes`` (None: no budget) is expected to hold: :data:`CELLS_SHARE` of
+    the half it keeps beside its tile, at its bytes a cell."""
+    from rough_viewer.scale.tiles import BYTES_PER_CELL, TILE_SHARE
+
+    if memory_bytes is None:
+        return math.inf
+    return CELLS_SHARE * (1 - TILE_SHARE) * memory_bytes / BYTES_PER_CELL
+
+
+def first_grid(campaign: Campaign, overview: PointCloud, presets: Sequence[float]) -> float:
+    """The first map's grid of a campaign (metres): the finest preset whose cells
+    (:func:`expected_cells`) one pass in :attr:`Campaign.memory_bytes` holds, else
+    the coarsest."""
+    room = cells_room(campaign.memory_bytes)
+    for g in sorted(presets):
+        if expected_cells(overview, g, campaign.n_points) <= room:
+            return float(g)
+    return float(max(presets))
+
+
 # ----------------------------------------------------------------------------- disk
 
 
@@ -364,6 +393,37 @@ def overview_cells(cloud: PointCloud, res: GridRoughness) -> np.ndarray:
                      "lacks; the file is damaged")
 
 
+def expected_cells(overview: PointCloud, cell_size: float, n_total: int) -> float:
+    """Occupied cells of the grid ``cell_size`` (metres) expected over a campaign of
+    ``n_total`` points from its overview (an even thinning of them): the overview's
+    ``C`` occupied cells of its ``n`` points are what ``K`` cells of Poisson counts
+    leave occupied, ``C = K (1 - exp(-n / K))``, solved for ``K`` (at most
+    ``n_total``; an overview too thin to tell gives ``n_total``).
+
+    >>> pts = PointCloud.from_xyz(np.column_stack([np.arange(100.0) + 0.5,
+    ...                                            np.zeros(100), np.zeros(100)]))
+    >>> round(expected_cells(pts, 10.0, 1000))
+    10
+    """
+    lo, hi = overview.bounds()
+    from rough_viewer.grid.cells import make_grid
+
+    grid = make_grid(lo, hi, cell_size)
+    seen = float(index_points(overview.x, overview.y, overview.z, grid).n_cells)
+    n = float(overview.n)
+    cap = float(min(n_total, grid.n_cells))
+    if seen >= cap or cap * (1.0 - math.exp(-n / cap)) <= seen:
+        return cap
+    a, b = seen, cap  # f(K) = K (1 - exp(-n / K)) grows with K
+    for _ in range(60):
+        k = math.sqrt(a * b)
+        if k * (1.0 - math.exp(-n / k)) < seen:
+            a = k
+        else:
+            b = k
+    return b
+
+
 class CampaignStore(InMemoryStore):
     """The store of a campaign: the overview's points in memory (octree, the
     nested grids that clicks read, scanner figures), every grid *result* from every
@@ -387,6 +447,9 @@ class CampaignStore(InMemoryStore):
         self.from_disk: list[float] = []
         self._pass = threading.Lock()
         self._too_many: set[tuple[str, int]] = set()
+        self._expected_cells: dict[float, float] = {}
+        self._failed: dict[tuple[float, str, int], str] = {}
+        """Grids whose pass did not fit the memory, and what it said."""
         """(axis, minimum points) whose presets' cells do not fit one pass's budget."""
 
     def result(self, settings: MapSettings, *,
@@ -421,7 +484,16 @@ class CampaignStore(InMemoryStore):
             got = self._from_disk(settings)
             if got is not None:
                 return got
-            self._compute(settings, progress)
+            failed = self._failed.get(settings.grid_key)
+            if failed is not None:  # the same pass would fail the same way
+                raise InputError(failed)
+            self._surely_too_many(settings)
+            try:
+                self._compute(settings, progress)
+            except InputError as exc:
+                if "memory" in str(exc):
+                    self._failed[settings.grid_key] = str(exc)
+                raise
             made = self._cache.get(key)
             assert isinstance(made, GridRoughness)
             return made
@@ -437,16 +509,8 @@ class CampaignStore(InMemoryStore):
     def _compute(self, settings: MapSettings, progress: ProgressFn | None) -> None:
         from rough_viewer.scale.tiles import copc_roughness
 
-        mine = settings.grid_key[0]
-        if mine in {round(float(g), 9) for g in self.presets}:
-            wanted: Sequence[float] = [g for g in self.presets
-                                       if not self._at_hand(settings.with_(cell_size=g))]
-            wanted = sorted(set(wanted) | {settings.cell_size}, reverse=True)
-        else:
-            wanted = [settings.cell_size]
+        wanted = self._together(settings)
         group = (settings.axis, settings.min_points)
-        if group in self._too_many:
-            wanted = [settings.cell_size]
         c = self.campaign
 
         def run(sizes: Sequence[float]) -> list[GridRoughness]:
@@ -468,6 +532,51 @@ class CampaignStore(InMemoryStore):
             self.computed.append(float(g))
             self._cache.put(("cells", s.grid_key), res)
             save_cells(cells_path(c.path, s), res)
+
+    def _surely_too_many(self, settings: MapSettings) -> None:
+        """Refuse, before a pass, a grid whose cells expected from the overview (an
+        underestimate) alone exceed all that the pass keeps for cells."""
+        from rough_viewer.scale.tiles import BYTES_PER_CELL
+
+        room = cells_room(self.campaign.memory_bytes) / CELLS_SHARE
+        expected = self._expected(settings.cell_size)
+        if expected > room:
+            u = Units(self.cloud.source_unit)
+            raise InputError(
+                f"grid {u.size_text(settings.cell_size)} has about {expected:,.0f} cells "
+                f"(expected from the overview), which need about "
+                f"{format_bytes(expected * BYTES_PER_CELL)} in the map's pass, more than "
+                f"the {format_bytes(room * BYTES_PER_CELL)} --memory leaves it: give more "
+                "memory or a larger grid")
+
+    def _together(self, settings: MapSettings) -> list[float]:
+        """The cell sizes one pass computes for ``settings``: its own, and where it is
+        a preset the other presets not at hand (coarsest first) while their cells
+        expected from the overview (:func:`expected_cells`) fit
+        :data:`CELLS_SHARE` of what the pass keeps for cells, coarsest first."""
+        mine = settings.grid_key[0]
+        if mine not in {round(float(g), 9) for g in self.presets} \
+                or (settings.axis, settings.min_points) in self._too_many:
+            return [settings.cell_size]
+        others = [g for g in self.presets if round(float(g), 9) != mine
+                  and not self._at_hand(settings.with_(cell_size=g))]
+        room = cells_room(self.campaign.memory_bytes)
+        used = self._expected(settings.cell_size)
+        out = [settings.cell_size]
+        for g in sorted(others, reverse=True):
+            more = self._expected(g)
+            if used + more <= room:
+                out.append(g)
+                used += more
+        return sorted(out, reverse=True)
+
+    def _expected(self, cell_size: float) -> float:
+        key = round(float(cell_size), 9)
+        hit = self._expected_cells.get(key)
+        if hit is None:
+            hit = self._expected_cells[key] = expected_cells(self.cloud, cell_size,
+                                                             self.campaign.n_points)
+        return hit
 
     def _at_hand(self, settings: MapSettings) -> bool:
         """The cells of ``settings`` are in memory, or on disk (then read in)."""
@@ -538,5 +647,5 @@ def describe_overview(campaign: Campaign, overview: PointCloud) -> str:
 
 __all__ = ["CELLS_VERSION", "Campaign", "CampaignCloud", "CampaignStore", "OVERVIEW_POINTS",
            "campaign_cloud", "campaign_presets", "cells_path", "compute_memory",
-           "describe_overview", "load_cells", "open_campaign", "overview_cap",
+           "describe_overview", "expected_cells", "first_grid", "load_cells", "open_campaign", "overview_cap",
            "overview_cells", "overview_rows", "read_overview", "save_cells"]

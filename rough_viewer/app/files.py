@@ -178,11 +178,18 @@ def check_app_room(path: Path, shown: str, memory: float | None,
     with _shown_errors(path, shown, shown):
         need = serve_need([path], max_points)
     if need.total > memory:
+        from rough_viewer.io.copc.reader import is_copc
+
+        head = (f"{shown}: {need.points:,} points need about {format_bytes(need.total)} in "
+                f"the server, more than the server's {format_bytes(memory)} allows (serve "
+                "--memory)")
+        if is_copc(path):  # a campaign: served as one (an overview), not loaded whole
+            raise InputError(f"{head}: serve the campaign itself ('rough-viewer serve "
+                             f"{Path(shown).name}' shows an overview, its map from every "
+                             "point) or compute its map with 'rough-viewer compute --memory'")
         raise InputError(
-            f"{shown}: {need.points:,} points need about {format_bytes(need.total)} in the "
-            f"server, more than the server's {format_bytes(memory)} allows (serve --memory): "
-            "index the survey with 'rough-viewer index' and compute its map out of core "
-            "with 'rough-viewer compute --memory'")
+            f"{head}: index the survey with 'rough-viewer index' and compute its map out "
+            "of core with 'rough-viewer compute --memory'")
 
 
 def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None = None,

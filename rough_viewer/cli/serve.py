@@ -434,8 +434,8 @@ def _cloud_and_settings(args: argparse.Namespace, opened: OpenedView | None,
         check_settings(settings)
     if not args.inputs and opened is None:  # files: load_inputs said them already, once
         _say_warnings(cloud.warnings)
-    if settings is None:  # the cloud's default grid (its finest preset)
-        settings = MapSettings(cell_size=_presets(args, cloud)[-1], model=args.model,
+    if settings is None:  # the default grid: the finest preset (a campaign: that fits)
+        settings = MapSettings(cell_size=_first_grid(args, cloud), model=args.model,
                                axis=args.axis, min_points=args.min_points)
         check_settings(settings)
     return cloud, settings
@@ -621,6 +621,26 @@ def _presets(args: argparse.Namespace, cloud: PointCloud) -> tuple[float, ...]:
     if getattr(args, "campaign", None) is not None:
         return tuple(args.campaign_presets)
     return grid_presets(cloud)
+
+
+def _first_grid(args: argparse.Namespace, cloud: PointCloud) -> float:
+    """The first map's grid without ``--grid``: the finest preset; a campaign's
+    finest whose cells fit its pass's memory (said on stderr when that is not the
+    finest)."""
+    presets = _presets(args, cloud)
+    if getattr(args, "campaign", None) is None:
+        return presets[-1]
+    from rough_viewer.app.campaign import first_grid
+    from rough_viewer.app.units import Units
+
+    g = first_grid(args.campaign, cloud, presets)
+    if g != presets[-1]:
+        u = Units(cloud.source_unit)
+        print(f"rough-viewer: note: the cells of the finest grid, {u.size_text(presets[-1])}, "
+              f"would not fit --memory beside the pass: the first map is grid "
+              f"{u.size_text(g)} (finer ones are tried when asked for)", file=sys.stderr,
+              flush=True)
+    return g
 
 
 def _campaign_loaded(args: argparse.Namespace, cloud: PointCloud,

@@ -21,6 +21,7 @@ from rough_viewer.app.campaign import (  # noqa: E402
     campaign_cloud,
     campaign_presets,
     cells_path,
+    expected_cells,
     load_cells,
     open_campaign,
     overview_rows,
@@ -30,6 +31,7 @@ from rough_viewer.app.server import app_options, mount_app  # noqa: E402
 from rough_viewer.app.settings import MapSettings  # noqa: E402
 from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
 from rough_viewer.grid.spacing import median_cell_count  # noqa: E402
+from rough_viewer.io import PointCloud  # noqa: E402
 from rough_viewer.io.copc.reader import decode_nodes, open_copc  # noqa: E402
 from rough_viewer.io.sandbox import isolate  # noqa: E402
 from rough_viewer.vocabulary import InputError  # noqa: E402
@@ -223,3 +225,40 @@ def test_a_damaged_node_is_one_error_line_from_the_reader_sandbox(survey, tmp_pa
     errors = [line for line in err.splitlines() if "error" in line]
     assert len(errors) == 1 and p.name in errors[0], err
     assert "Traceback" not in err
+
+
+def test_the_cells_expected_from_an_overview(survey):
+    """The occupied cells of the whole survey, estimated from an even thinning of it
+    (a 5 % random subset, as the hierarchy's levels thin the points): within 15 % of
+    the cells counted on every point (brute force: the distinct floor((p - lo) / g)),
+    never more than the points."""
+    _, _, xyz = survey
+    sub = xyz[np.random.default_rng(1).random(xyz.shape[0]) < 0.05]
+    lo = xyz.min(axis=0)
+    for g in (0.8, 0.4, 0.2, 0.1):
+        truth = np.unique(np.floor((xyz - lo) / g).astype(np.int64), axis=0).shape[0]
+        seen = np.unique(np.floor((sub - sub.min(axis=0)) / g).astype(np.int64), axis=0).shape[0]
+        est = expected_cells(PointCloud.from_xyz(sub), g, N)
+        assert abs(est - truth) <= 0.15 * truth, (g, est, truth, seen)
+        assert est <= N
+        if g <= 0.1:
+            assert seen < 0.7 * truth  # the thinning's own count is far off
+
+
+def test_a_grid_whose_cells_cannot_fit_the_pass_is_refused_before_it(survey, cache):
+    """With 16 MB for the map's pass (8 MB for its cells, at 400 bytes a cell), a
+    2 cm grid (tens of thousands of cells expected from the overview) is one line
+    at once, no pass run; a grid that fits still comes from every point."""
+    import dataclasses
+
+    _, out, xyz = survey
+    campaign = dataclasses.replace(open_campaign(out), memory_bytes=16 << 20)
+    overview = read_overview(campaign, CAP)
+    loaded = campaign_cloud(campaign, overview, presets=campaign_presets(overview, N),
+                            max_display=10_000, cache_bytes=1 << 28, cache_pool=None)
+    assert expected_cells(overview, 0.02, N) > 0.5 * (16 << 20) / 400
+    with pytest.raises(InputError, match="give more memory or a larger grid"):
+        loaded.result(MapSettings(cell_size=0.02))
+    assert loaded.store.computed == []
+    res = loaded.result(MapSettings(cell_size=0.5))
+    assert_same_cells(res, grid_roughness(xyz, 0.5, engine="numpy"), rtol=1e-12)
