@@ -47,7 +47,7 @@ from rough_viewer.app.limits import APP_BYTES_PER_POINT, APP_CACHE_BYTES_PER_POI
 from rough_viewer.app.settings import MapSettings, check_settings
 from rough_viewer.app.store import CloudStore, InMemoryStore
 from rough_viewer.app.units import Units
-from rough_viewer.grid.cells import GridSpec, index_points
+from rough_viewer.grid.cells import GridSpec, index_points, make_grid
 from rough_viewer.grid.planes import PlaneFit
 from rough_viewer.grid.roughness import GridRoughness
 from rough_viewer.grid.spacing import default_cell_size, median_cell_count, nice_ceil
@@ -308,10 +308,58 @@ def save_cells(where: Path, res: GridRoughness) -> bool:
 
 
 def _keep_newest(folder: Path, most: int) -> None:
-    files = sorted(folder.glob("*.npz"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for old in files[most:]:
+    for pattern in ("*.npz", "*.nofit"):
+        files = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime, reverse=True)
+        for old in files[most:]:
+            with contextlib.suppress(OSError):
+                old.unlink()
+
+
+def save_no_fit(where: Path, memory_bytes: int, message: str) -> None:
+    """Remember beside ``where`` (the grid's cells file) that its pass ran out of
+    room in ``memory_bytes`` (and what it said), so that the next open does not run
+    it again with no more memory (written atomically; a failure to write is
+    ignored)."""
+    import json
+
+    marker = where.with_suffix(".nofit")
+    tmp: str | None = None
+    try:
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=marker.parent, prefix=".part-", suffix=".nofit")
+        with os.fdopen(fd, "w") as fh:
+            json.dump({"version": CELLS_VERSION, "memory_bytes": int(memory_bytes),
+                       "message": message}, fh)
+        os.replace(tmp, marker)
+        tmp = None
+        _keep_newest(marker.parent, CELLS_KEPT)
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def load_no_fit(where: Path, memory_bytes: int) -> str | None:
+    """What :func:`save_no_fit` kept beside ``where`` when that pass had at least
+    ``memory_bytes``; None otherwise (a damaged marker is removed)."""
+    import json
+
+    marker = where.with_suffix(".nofit")
+    if not marker.is_file():
+        return None
+    try:
+        got = json.loads(marker.read_text())
+        ok = got["version"] == CELLS_VERSION and isinstance(got["message"], str)
+        had = int(got["memory_bytes"])
+    except (OSError, ValueError, KeyError, TypeError):
+        ok, had = False, 0
+    if not ok:
         with contextlib.suppress(OSError):
-            old.unlink()
+            marker.unlink()
+        return None
+    return str(got["message"]) if had >= memory_bytes else None
 
 
 def load_cells(where: Path, settings: MapSettings, n_total: int) -> GridRoughness | None:
@@ -406,8 +454,6 @@ def expected_cells(overview: PointCloud, cell_size: float, n_total: int) -> floa
     10
     """
     lo, hi = overview.bounds()
-    from rough_viewer.grid.cells import make_grid
-
     grid = make_grid(lo, hi, cell_size)
     seen = float(index_points(overview.x, overview.y, overview.z, grid).n_cells)
     n = float(overview.n)
@@ -447,10 +493,10 @@ class CampaignStore(InMemoryStore):
         self.from_disk: list[float] = []
         self._pass = threading.Lock()
         self._too_many: set[tuple[str, int]] = set()
+        """(axis, minimum points) whose presets' cells did not fit one pass together."""
         self._expected_cells: dict[float, float] = {}
         self._failed: dict[tuple[float, str, int], str] = {}
         """Grids whose pass did not fit the memory, and what it said."""
-        """(axis, minimum points) whose presets' cells do not fit one pass's budget."""
 
     def result(self, settings: MapSettings, *,
                progress: ProgressFn | None = None) -> GridRoughness:
@@ -484,7 +530,7 @@ class CampaignStore(InMemoryStore):
             got = self._from_disk(settings)
             if got is not None:
                 return got
-            failed = self._failed.get(settings.grid_key)
+            failed = self._failed.get(settings.grid_key) or self._failed_before(settings)
             if failed is not None:  # the same pass would fail the same way
                 raise InputError(failed)
             self._surely_too_many(settings)
@@ -493,6 +539,9 @@ class CampaignStore(InMemoryStore):
             except InputError as exc:
                 if "memory" in str(exc):
                     self._failed[settings.grid_key] = str(exc)
+                    if self.campaign.memory_bytes is not None:
+                        save_no_fit(cells_path(self.campaign.path, settings),
+                                    self.campaign.memory_bytes, str(exc))
                 raise
             made = self._cache.get(key)
             assert isinstance(made, GridRoughness)
@@ -532,6 +581,17 @@ class CampaignStore(InMemoryStore):
             self.computed.append(float(g))
             self._cache.put(("cells", s.grid_key), res)
             save_cells(cells_path(c.path, s), res)
+
+    def _failed_before(self, settings: MapSettings) -> str | None:
+        """What a pass of an earlier open said when it ran out of memory on this grid
+        with no less memory than this one has (:func:`save_no_fit`), or None."""
+        memory = self.campaign.memory_bytes
+        if memory is None:
+            return None
+        said = load_no_fit(cells_path(self.campaign.path, settings), memory)
+        if said is not None:
+            self._failed[settings.grid_key] = said
+        return said
 
     def _surely_too_many(self, settings: MapSettings) -> None:
         """Refuse, before a pass, a grid whose cells expected from the overview (an

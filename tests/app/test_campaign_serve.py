@@ -23,9 +23,11 @@ from rough_viewer.app.campaign import (  # noqa: E402
     cells_path,
     expected_cells,
     load_cells,
+    load_no_fit,
     open_campaign,
     overview_rows,
     read_overview,
+    save_no_fit,
 )
 from rough_viewer.app.server import app_options, mount_app  # noqa: E402
 from rough_viewer.app.settings import MapSettings  # noqa: E402
@@ -262,3 +264,34 @@ def test_a_grid_whose_cells_cannot_fit_the_pass_is_refused_before_it(survey, cac
     assert loaded.store.computed == []
     res = loaded.result(MapSettings(cell_size=0.5))
     assert_same_cells(res, grid_roughness(xyz, 0.5, engine="numpy"), rtol=1e-12)
+
+
+def test_a_pass_that_ran_out_of_memory_is_not_run_again_with_no_more(survey, cache):
+    """What a pass said when its cells did not fit is kept beside the grid's cells
+    file: the next open with no more memory says it at once (no pass); with more
+    memory the grid is computed; a damaged marker is ignored and removed."""
+    import dataclasses
+
+    _, out, xyz = survey
+    base = open_campaign(out)
+    overview = read_overview(base, CAP)
+    s = MapSettings(cell_size=0.5)
+    where = cells_path(out, s)
+    said = "the cells and the points held on tile seams need about 9 MiB, more memory"
+    save_no_fit(where, 64 << 20, said)
+    assert load_no_fit(where, 64 << 20) == said and load_no_fit(where, 65 << 20) is None
+
+    def opened(memory):
+        return campaign_cloud(dataclasses.replace(base, memory_bytes=memory), overview,
+                              presets=campaign_presets(overview, N), max_display=10_000,
+                              cache_bytes=1 << 28, cache_pool=None)
+
+    small = opened(32 << 20)
+    with pytest.raises(InputError, match="need about 9 MiB"):
+        small.result(s)
+    assert small.store.computed == []
+    big = opened(128 << 20)
+    assert_same_cells(big.result(s), grid_roughness(xyz, 0.5, engine="numpy"), rtol=1e-12)
+    assert 0.5 in big.store.computed  # (with the other presets: they fit together)
+    where.with_suffix(".nofit").write_text("{not json")
+    assert load_no_fit(where, 1) is None and not where.with_suffix(".nofit").exists()

@@ -502,7 +502,10 @@ def prefetch_presets(host: Host, run: Run) -> bool:
         if not shown.loaded.is_cached(candidate):
             if run.cancelled:
                 return False
-            shown.loaded.result(candidate, progress=run.progress())
+            try:
+                shown.loaded.result(candidate, progress=run.progress())
+            except (InputError, MemoryError):  # it says so when asked for; not again now
+                return False
             # a grid that does not fit the cache budget is not prefetched again
             return shown.loaded.is_cached(candidate)
     return False
