@@ -21,6 +21,7 @@ import numpy as np
 
 from rough_viewer.app.cache import ByteBudget, ByteCache, KeyedLocks
 from rough_viewer.app.settings import MapSettings, check_settings
+from rough_viewer.grid import fast
 from rough_viewer.grid.roughness import (
     GridRoughness,
     PreparedGrid,
@@ -107,6 +108,19 @@ class CloudStore(Protocol):
         """The level-of-detail octree of every point, nodes of at most
         ``max_node_points`` points."""
         ...
+
+
+def _point_rows(prepared: PreparedGrid) -> np.ndarray:
+    """(N,) int64 every point's row on ``prepared``'s grid: its own index, or for a grid
+    coarsened from a finer one the finer rows looked up in :attr:`PreparedGrid.parent`
+    (on all threads where the kernels are loaded)."""
+    if prepared.parent is None or prepared.fine_cell is None:
+        return prepared.index.point_cell
+    if fast.loaded():
+        rows = np.empty(prepared.fine_cell.shape[0], dtype=np.int64)
+        fast.relabel_into(prepared.fine_cell, prepared.parent, rows)
+        return rows
+    return prepared.point_cell()
 
 
 def _weak_pin(store: InMemoryStore) -> Callable[[Key], bool]:
@@ -244,6 +258,15 @@ class InMemoryStore:
         if isinstance(hit, GridRoughness):
             return hit
         check_settings(settings)
+        cells = self._cache.get(("cells", settings.grid_key))
+        if isinstance(cells, GridRoughness):
+            # every per-cell figure is at hand (the panels' trend keeps them): only the
+            # points' rows are missing, a gather per point from the grid's cells (the
+            # same rows the distance pass wrote), not the grid's passes again
+            rows = _point_rows(self.prepared(settings.cell_size, progress=progress))
+            res = replace(cells, point_cell=rows)
+            self._cache.put(key, res)
+            return res
         res = grid_roughness(
             self.cloud,
             settings.cell_size,
