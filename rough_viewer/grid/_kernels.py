@@ -747,3 +747,55 @@ def count_runs(codes, n, shift):
         if (codes[p] >> shift) != (codes[p - 1] >> shift):
             runs += 1
     return runs
+
+
+# ----------------------------------------------------------------------------- overview sample
+# rough_viewer.app.sampling.display_subset's voxel pass: the same voxel keys (``t = p -
+# lo; t /= size``, truncated, clipped to the box), buckets (``key % table``) and
+# priorities (splitmix64 of the index) as its NumPy chunks.
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+@njit(inline="always", **OPTS)
+def _priority(i, seed_term):
+    z = np.uint64(i) + seed_term
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    z ^= z >> np.uint64(31)
+    return np.float32(z >> np.uint64(40)) / np.float32(2**24)
+
+
+@njit(inline="always", **OPTS)
+def _voxel_bucket(xi, yi, zi, lo, size, d0, d1, d2, table):
+    a = min(np.int64((xi - lo[0]) / size), d0 - 1)
+    b = min(np.int64((yi - lo[1]) / size), d1 - 1)
+    c = min(np.int64((zi - lo[2]) / size), d2 - 1)
+    return ((a * d1 + b) * d2 + c) % table
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, int64[::1], uint64, int64, float32[::1], "
+      "boolean[::1])", parallel=True, **OPTS)
+def voxel_sample(x, y, z, lo, size, dims, seed_term, tasks, best, taken):
+    """``best[b]`` = the smallest priority of the points in bucket ``b`` (its voxels
+    hashed), each of ``tasks`` tasks reading every point and keeping the buckets of
+    its share of the table (a minimum: the order does not matter), then ``taken[i]``
+    = point ``i`` holds its bucket's smallest."""
+    n = x.shape[0]
+    table = best.shape[0]
+    d0, d1, d2 = dims[0], dims[1], dims[2]
+    share = (table + tasks - 1) // tasks
+    for t in prange(tasks):
+        first = t * share
+        last = min(table, first + share)
+        for i in range(n):
+            b = _voxel_bucket(x[i], y[i], z[i], lo, size, d0, d1, d2, table)
+            if b >= first and b < last:
+                p = _priority(i, seed_term)
+                if p < best[b]:
+                    best[b] = p
+    for i in prange(n):
+        b = _voxel_bucket(x[i], y[i], z[i], lo, size, d0, d1, d2, table)
+        taken[i] = _priority(i, seed_term) == best[b]

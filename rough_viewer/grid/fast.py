@@ -212,7 +212,8 @@ def _kernels() -> dict[str, Any]:
                        pair_sums=k.pair_sums, fused=k.fused,
                        morton_buckets=k.morton_buckets, morton_scatter=k.morton_scatter,
                        sort_buckets=k.sort_buckets, rows_and_boxes=k.rows_and_boxes,
-                       octree_level=k.octree_level, count_runs=k.count_runs)
+                       octree_level=k.octree_level, count_runs=k.count_runs,
+                       voxel_sample=k.voxel_sample)
     return _loaded
 
 
