@@ -24,10 +24,18 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from rough_viewer.app.limits import (
+    APP_BYTES_PER_POINT,
+    APP_CACHE_BYTES_PER_POINT,
+    APP_FIXED_BYTES,
+    CACHE_BYTES,
+)
 from rough_viewer.app.markup import public_message
 from rough_viewer.io import PointCloud, load_points
+from rough_viewer.io.formats.las import check_las_layout
 from rough_viewer.io.formats.mesh import TriangleMesh, load_mesh
 from rough_viewer.io.load import SUPPORTED_SUFFIXES, reader_for
+from rough_viewer.memory import USABLE_SHARE, available_bytes, format_bytes
 from rough_viewer.vocabulary import InputError, ProgressFn, Unit
 
 
@@ -101,9 +109,85 @@ def read_estimate(path: Path, max_points: int | None = None) -> float:
     return reader.estimate(path, max_points).typical
 
 
+@dataclass(frozen=True)
+class ServeNeed:
+    """What showing some files in the app is expected to need, from their headers."""
+
+    points: int
+    """Points the headers declare (or expected from the sizes)."""
+    read_peak: float
+    """Peak bytes of the largest file's read (:mod:`rough_viewer.io.estimates`)."""
+
+    @property
+    def app_bytes(self) -> float:
+        """Bytes the prepared app holds: :data:`APP_FIXED_BYTES`, plus
+        :data:`APP_BYTES_PER_POINT` a point, plus its grid cache
+        (:data:`APP_CACHE_BYTES_PER_POINT` a point, at most :data:`CACHE_BYTES`)."""
+        return (APP_FIXED_BYTES + APP_BYTES_PER_POINT * self.points
+                + min(float(CACHE_BYTES), APP_CACHE_BYTES_PER_POINT * self.points))
+
+    @property
+    def total(self) -> float:
+        """The server's peak, bytes: the read's peak on top of what the app holds
+        (an upper bound: the two do not peak at the same time)."""
+        return self.read_peak + self.app_bytes
+
+
+def serve_need(paths: list[Path], max_points: int | None = None) -> ServeNeed:
+    """What showing ``paths`` (one merged cloud) needs, from their headers only: no
+    point is read (an uncompressed LAS counts at most the points its data can hold).
+    Files of an unknown type, or that are not regular files, count
+    nothing (their read says what is wrong). ``max_points``: the decompression-bomb
+    guard's limit (a bomb is refused here, as its read would).
+
+    Raises InputError for a damaged header or a decompression bomb.
+    """
+    points, peak = 0, 0.0
+    for p in paths:
+        reader = reader_for(p)
+        if reader is None or not p.is_file():
+            continue
+        est = reader.estimate(p, max_points)
+        n, typical = est.points, est.typical
+        if p.suffix.lower() == ".las":  # what its data can hold: more is a truncated
+            layout = check_las_layout(p)  # file, which its read refuses as such
+            if not layout.compressed and layout.record_length:
+                held = max(0, layout.size - layout.data_offset) // layout.record_length
+                if held < n:
+                    n, typical = held, typical * held / max(n, 1)
+        points += n
+        peak = max(peak, typical)
+    return ServeNeed(points=points, read_peak=peak)
+
+
+def default_memory() -> float | None:
+    """``serve``'s memory budget without ``--memory``: the usable share
+    (:data:`~rough_viewer.memory.USABLE_SHARE`, 80 %) of the memory available now
+    (``MemAvailable``, or the room under a cgroup limit); None when unknown."""
+    avail = available_bytes()
+    return None if avail is None else USABLE_SHARE * avail
+
+
+def check_app_room(path: Path, shown: str, memory: float | None,
+                   max_points: int | None = None) -> None:
+    """Refuse, before reading, a file the File tab loads or uploads whose points
+    cannot fit in the server's budget ``memory`` (``serve --memory``, bytes; None:
+    no budget), naming it as ``shown``."""
+    if memory is None:
+        return
+    with _shown_errors(path, shown, shown):
+        need = serve_need([path], max_points)
+    if need.total > memory:
+        raise InputError(
+            f"{shown}: {need.points:,} points need about {format_bytes(need.total)} in the "
+            f"server, more than the server's {format_bytes(memory)} allows (serve --memory): "
+            "index the survey with 'rough-viewer index' and compute its map out of core "
+            "with 'rough-viewer compute --memory'")
+
+
 def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None = None,
-               progress: ProgressFn | None = None, max_points: int | None = None
-               ) -> PointCloud:
+               progress: ProgressFn | None = None, max_points: int | None = None,
+               memory: float | None = None) -> PointCloud:
     """Read ``path`` (its memory checked first, decoded in a child process); errors
     and the reader's warnings mention ``shown`` (the name the user knows), never the
     server path or the file's content.
@@ -111,9 +195,12 @@ def read_cloud(path: Path, shown: str, *, cache: bool = True, units: Unit | None
     ``units``: the unit of the file's coordinates (None: the CRS's, else metres;
     see :func:`rough_viewer.io.load.load_points`). ``max_points``: the
     decompression-bomb guard's limit (``serve --max-points``; None: the default).
+    ``memory``: the server's budget (``serve --memory``, bytes; None: none), checked
+    from the header before any point is read (:func:`check_app_room`).
 
     Raises InputError.
     """
+    check_app_room(path, shown, memory, max_points)
     with _shown_errors(path, shown, shown):
         cloud = load_points(path, units=units, cache=cache, progress=progress,
                             max_points=max_points)

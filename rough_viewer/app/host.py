@@ -100,6 +100,10 @@ class AppOptions:
     limit (one analysis, one worker)."""
     lesson: Lesson | None = None
     """The lesson the Lesson tab opens on (``serve --lesson``; None: none chosen)."""
+    memory: float | None = None
+    """The server's memory budget, bytes (``serve --memory``; None: none): a file the
+    File tab loads or uploads whose points need more is refused before it is read
+    (:func:`rough_viewer.app.files.check_app_room`)."""
 
     @cached_property
     def cache_pool(self) -> ByteBudget:

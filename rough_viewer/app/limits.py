@@ -40,3 +40,20 @@ MAX_MESSAGE = 300
 #: Default display budget (points drawn in the browser).
 DEFAULT_MAX_DISPLAY = 2_000_000
 
+
+#: Bytes the app holds per point of its cloud once prepared (the cloud's columns, the
+#: overview sample, the octree, the shown grid's cells, the layers), beside
+#: :data:`APP_FIXED_BYTES` and its grid cache (:data:`APP_CACHE_BYTES_PER_POINT`, at
+#: most :data:`CACHE_BYTES`). Measured with
+#: ``benchmarks/bench_serve_memory.py`` (a synthetic face in a LAZ read as ``serve``
+#: does, ``build_app`` until idle, resident memory of the process): 8 M - 4 M points
+#: 79 B a point without the idle prefetch, 98 B with it; rounded up to 100.
+APP_BYTES_PER_POINT = 100.0
+#: Bytes of a ``serve`` process before any cloud: the interpreter, numpy, viser, the
+#: app's modules (measured as above: 242 MiB with 500,000 points, less their
+#: 50 MB; rounded up to 256 MiB).
+APP_FIXED_BYTES = 256 << 20
+#: Bytes a point of the grid cache ``serve --memory`` counts, up to :data:`CACHE_BYTES`:
+#: the cells of the four preset grids the app computes while idle (a grid's
+#: point-to-cell map is 8 bytes a point: 160 MB at 20 M points).
+APP_CACHE_BYTES_PER_POINT = 32.0

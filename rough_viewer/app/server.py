@@ -159,6 +159,7 @@ def build_app(
     point_budget: int = DEFAULT_BUDGET,
     max_points: int | None = None,
     lesson: Lesson | None = None,
+    memory: float | None = None,
 ) -> App:
     """Put the app for ``cloud`` on ``server`` and start showing its first map.
 
@@ -186,6 +187,9 @@ def build_app(
     lesson
         The lesson the Lesson tab opens on (``serve --lesson``): its first step's
         scene is set up once the first map is shown.
+    memory
+        The server's memory budget, bytes (``serve --memory``; None: none): files
+        the File tab loads or uploads that need more are refused before reading.
     variogram
         Compute the semivariogram panel (can be slow on very fine grids).
     prefetch
@@ -222,7 +226,7 @@ def build_app(
                           prefetch=prefetch, data_dir=data_dir, max_upload_mb=max_upload_mb,
                           cache_bytes=cache_bytes, units=units, save_views=save_views,
                           trust=trust, point_budget=point_budget, max_points=max_points,
-                          lesson=lesson)
+                          lesson=lesson, memory=memory)
     loaded = shared_cloud(cloud, options, presets=presets)
     return mount_app(server, loaded, settings or MapSettings(cell_size=loaded.default_cell_size),
                      options)
@@ -243,6 +247,7 @@ def app_options(
     point_budget: int = DEFAULT_BUDGET,
     max_points: int | None = None,
     lesson: Lesson | None = None,
+    memory: float | None = None,
 ) -> AppOptions:
     """The options of an app for ``cloud`` (:func:`build_app`'s parameters, checked)."""
     if units is not None and units not in UNITS:
@@ -252,7 +257,8 @@ def app_options(
                       prefetch=prefetch, max_upload_bytes=int(max_upload_mb * (1 << 20)),
                       cache_bytes=int(cache_bytes), units=units, save_views=save_views,
                       trust=trust, point_budget=int(point_budget),
-                      max_points=max_points_limit(max_points), lesson=lesson)
+                      max_points=max_points_limit(max_points), lesson=lesson,
+                      memory=memory)
 
 
 def shared_cloud(cloud: PointCloud, options: AppOptions, *,

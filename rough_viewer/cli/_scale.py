@@ -51,6 +51,7 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
     from rough_viewer.cli._inputs import report_cloud
     from rough_viewer.cli._progress import FileBars, ProgressBar
     from rough_viewer.io.cloud import PointCloud
+    from rough_viewer.io.copc.reader import is_copc
     from rough_viewer.scale.chunked import SequentialRunner, chunked_roughness, parse_bytes
     from rough_viewer.scale.sources import open_sources
 
@@ -63,6 +64,14 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
                             dropped_nonfinite=dropped, warnings=notes), "the inputs")
     runner = SequentialRunner() if not args.scheduler else _dask_runner(args)
     quiet = args.quiet
+    if len(sources) == 1 and sources[0].streamed and is_copc(sources[0].path):
+        try:
+            return _copc_results(args, sources[0], grids, origin=origin, models=models,
+                                 residual=residual, memory=memory, runner=runner), dropped
+        finally:
+            close = getattr(runner, "close", None)
+            if close is not None:
+                close()
     try:
         bars: FileBars | None = None
         overall: ProgressBar | None = None
@@ -85,6 +94,27 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
         if close is not None:
             close()
     return results, dropped
+
+
+def _copc_results(args: argparse.Namespace, source, grids: Sequence[float], *,
+                  origin: np.ndarray | None, models: Sequence[Model], residual: Residual,
+                  memory: int | None, runner) -> list[GridRoughness]:
+    """A COPC file by its index: spatial tiles, each point decoded once
+    (:func:`rough_viewer.scale.tiles.copc_roughness`)."""
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.io.copc.reader import open_copc
+    from rough_viewer.scale.tiles import copc_roughness
+
+    copc = open_copc(source.path)
+    bar = None if args.quiet else ProgressBar("tiles", unit="pt")
+    try:
+        return copc_roughness(
+            copc, source, grids, origin=origin, min_points=args.min_points, axis=args.axis,
+            models=models, residual=residual, memory_bytes=memory,
+            runner=runner if args.scheduler else None, progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _dask_runner(args: argparse.Namespace):

@@ -4,7 +4,7 @@ the inputs, built out of core.
 Contract::
 
     rough-viewer index INPUT [INPUT ...] --out CAMPAIGN.copc.laz
-        [--memory SIZE] [--workers N] [--force] [--quiet]
+        [--memory SIZE] [--workers N] [--max-points N] [--force] [--quiet]
 
 Several inputs (LAS/LAZ files or quoted globs) are one cloud (same CRS and units, as
 every command). Every point is kept, in point format 6, 7 or 8 (0-5 converted,
@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from rough_viewer.cli._inputs import input_paths
+from rough_viewer.cli._inputs import add_max_points, input_paths
 from rough_viewer.cli._options import positive_int
 from rough_viewer.vocabulary import InputError
 
@@ -44,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=positive_int, metavar="N", default=1,
                    help="processes compressing the buckets of pass 2 (default 1; each holds "
                    "a bucket, so the bucket size is divided by N)")
+    add_max_points(p)
     p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -63,9 +64,12 @@ def run(args: argparse.Namespace) -> int:
     out = check_output_path(args.out, force=args.force, inputs=paths)
     if not out.name.lower().endswith(".laz"):
         raise InputError(f"--out must end in .copc.laz (or .laz): {out}")
+    from rough_viewer.io.estimates import estimate_las
+
     for p in paths:
         if not Path(p).is_file():
             raise InputError(f"no such file: {p}")
+        estimate_las(Path(p), getattr(args, "file_max_points", None))  # the bomb guard
     for w in check_compatible(paths):
         print(f"rough-viewer: warning: {w}", file=__import__("sys").stderr)
     plan = plan_index(paths, memory_bytes=memory, workers=args.workers)

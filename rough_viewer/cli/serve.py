@@ -4,7 +4,8 @@ Contract::
 
     rough-viewer serve [INPUT ...] [--demo NAME] [--port 8080] [--host 127.0.0.1]
         [--grid G] [--model odr|ols|hybrid|e_ols] [--axis auto|x|y|z]
-        [--min-points K] [--point-budget N] [--max-points N] [--units m|mm|ft|us-ft]
+        [--min-points K] [--point-budget N] [--max-points N] [--memory SIZE]
+        [--units m|mm|ft|us-ft]
         [--data-dir DIR] [--max-upload-mb MB] [--max-connections N]
         [--allow-origin ORIGIN ...] [--no-token] [--view VIEW.json] [--save-views]
         [--classroom]
@@ -33,6 +34,15 @@ once (level of detail: every point where its camera looks, up to that many);
 ``--max-points``, as in every command that reads a cloud, is the decompression-bomb
 guard only: the most points a compressed file (INPUT, or one the browser loads or
 uploads) may declare when its size cannot hold them.
+
+``--memory SIZE`` (``2GB``, ``512MB``; default 80 % of the memory available when
+serve starts) is what the server may use: before any point is read, the inputs'
+headers give their points and the server's peak is estimated (the read's peak,
+:mod:`rough_viewer.io.estimates`, plus what the app holds once prepared,
+:data:`rough_viewer.app.limits.APP_BYTES_PER_POINT`: :func:`rough_viewer.app.files.serve_need`);
+inputs that need more are refused in one line that suggests ``rough-viewer index``
+and ``rough-viewer compute --memory`` (a COPC input: ``compute --memory`` only), and
+a file the File tab loads or uploads is refused with a notice.
 
 The scanner options (docs/scanner.md) put the scanner positions into the cloud the app
 opens (``PointCloud.scanner_positions``, ``scan_index``; E57 poses and the demos carry
@@ -116,6 +126,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--point-budget", dest="point_budget", type=int, default=None,
                    metavar="N", help="most points a browser tab draws at once, where its "
                    "camera looks (default 3000000; roughness always uses every point)")
+    p.add_argument("--memory", metavar="SIZE", default=None,
+                   help="most memory the server may use, e.g. 2GB or 512MB (default: 80%% "
+                   "of the memory available at start); inputs whose points need more are "
+                   "refused before they are read")
     p.add_argument("--data-dir", metavar="DIR",
                    help="folder the File tab's 'Load file' may read from (default: the "
                    "folder of the first INPUT, or the current folder); paths outside are "
@@ -184,6 +198,58 @@ def _with_scanners(cloud: PointCloud, paths: list[Path], args: argparse.Namespac
         raise InputError("--scanners needs INPUT files (their point source ids); the demos "
                          "carry their scanner's position")
     return apply_scanner_options(cloud, paths, args, cloud.source_unit)
+
+
+def _memory_budget(args: argparse.Namespace) -> float | None:
+    """The server's memory budget, bytes: ``--memory``, else 80 % of the memory
+    available now (:func:`rough_viewer.app.files.default_memory`; None when unknown).
+    Sets ``args.memory_bytes``."""
+    from rough_viewer.app.files import default_memory
+    from rough_viewer.scale.chunked import parse_bytes
+
+    budget = (float(parse_bytes(args.memory)) if getattr(args, "memory", None)
+              else default_memory())
+    args.memory_bytes = budget
+    return budget
+
+
+def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[str]) -> None:
+    """Refuse, from the headers only (no point read), inputs whose server peak
+    (:func:`rough_viewer.app.files.serve_need`) is above the memory budget, in one
+    line that names them, the need and the budget and says what to run instead."""
+    import shlex
+
+    from rough_viewer.app.files import serve_need
+    from rough_viewer.cli._inputs import describe
+    from rough_viewer.io.copc.reader import is_copc
+    from rough_viewer.memory import format_bytes
+
+    budget = _memory_budget(args)
+    if budget is None or not paths:
+        return
+    need = serve_need(paths, args.file_max_points)
+    if need.total <= budget:
+        return
+    given = getattr(args, "memory", None)
+    allowed = (f"more than --memory {given} allows" if given else
+               f"more than the {format_bytes(budget)} this machine can give (80 % of the "
+               "memory available; --memory sets it)")
+    size = given or f"{max(1, int(budget / 1e9))}GB"
+    head = (f"{describe(paths)}: {need.points:,} points need about "
+            f"{format_bytes(need.total)} in the server, {allowed}")
+    copc = [is_copc(p) for p in paths]
+    if all(copc):
+        raise InputError(
+            f"{head}; serving a COPC campaign larger than memory is not built yet: compute "
+            f"its map out of core with 'rough-viewer compute {shlex.quote(str(paths[0]))} "
+            f"--memory {size} --grid G --out cells.csv'")
+    inputs = " ".join(shlex.quote(t) for t in typed)
+    las = all(p.suffix.lower() in (".las", ".laz") for p in paths)
+    first = "" if las else " (index reads LAS/LAZ: write the others as LAS/LAZ first)"
+    raise InputError(
+        f"{head}; index the survey once with 'rough-viewer index {inputs} --out "
+        f"campaign.copc.laz'{first} and compute its map out of core with 'rough-viewer "
+        f"compute campaign.copc.laz --memory {size} --grid G --out cells.csv'")
 
 
 def _check_options(args: argparse.Namespace) -> Path:
@@ -348,6 +414,7 @@ def _app_options(args: argparse.Namespace, cloud: PointCloud, data_dir: Path) ->
             "point_budget": args.point_budget, "max_points": args.file_max_points,
             "data_dir": data_dir, "max_upload_mb": args.max_upload_mb, "units": args.units,
             "save_views": args.save_views, "trust": trust_settings(args, cloud.source_unit),
+            "memory": getattr(args, "memory_bytes", None),
             "lesson": getattr(args, "lesson_data", None)}
 
 
@@ -478,16 +545,20 @@ def _apply_opened_view(app: App, opened: OpenedView, args: argparse.Namespace) -
 
 def _check_source(args: argparse.Namespace, opened: object) -> None:
     """Refuse at once what :func:`_load_cloud` would refuse without reading: INPUT with
-    --demo, a missing input file, an unknown demo."""
+    --demo, a missing input file, an unknown demo, inputs too big for ``--memory``
+    (:func:`_check_memory`, from their headers)."""
     if opened is not None:
+        path = Path(str(getattr(opened, "input_path", "")))
+        _check_memory(args, [path], [str(path)])
         return
     if args.inputs and args.demo:
         raise InputError("give either INPUT or --demo, not both")
     if args.inputs:
         from rough_viewer.cli._inputs import input_paths
 
-        input_paths(args)
+        _check_memory(args, input_paths(args), list(args.inputs))
         return
+    _memory_budget(args)  # a bad --memory is refused with the demos too
     try:
         from rough_viewer.synthetic import demos
     except ImportError:

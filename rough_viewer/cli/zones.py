@@ -7,6 +7,7 @@ Contract (other tools script against it)::
         [--min-points K] --out ZONES.csv [--cells-out CELLS.csv] [--units m|mm|ft|us-ft]
         [--keep-outliers]
         [--crop XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [--crop-mode keep|remove] | --crop-file VIEW.json]
+        [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
         [--force] [--quiet]
 
 ZONES.csv: one row per zone, ids 1..Z by cell count (largest first), columns
@@ -30,6 +31,11 @@ roughness is larger than the cell (outliers of the definition) take no part unle
 ``--grid`` values every output name gets ``_g<G>`` before its extension, as in
 ``compute`` (``zones.csv`` -> ``zones_g0.5.csv``). The outputs appear only when the
 whole run succeeds (:func:`rough_viewer.io.output.all_or_nothing`).
+
+``--memory`` and ``--scheduler`` stream the points as ``compute`` does
+(docs/scale.md): the zones need only the cells. A COPC file is read by its tiles, each
+point decoded once (docs/campaign.md). A crop needs every point and is refused with
+them.
 """
 
 from __future__ import annotations
@@ -52,6 +58,7 @@ from rough_viewer.cli._options import (
     per_unit,
     positive_int,
 )
+from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.io.output import all_or_nothing, check_outputs
 from rough_viewer.vocabulary import (
     CONNECTIVITIES,
@@ -64,6 +71,7 @@ from rough_viewer.vocabulary import (
 )
 
 if TYPE_CHECKING:
+    from collections.abc import Iterator
     from pathlib import Path
 
     from rough_viewer.grid.roughness import GridRoughness
@@ -108,6 +116,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "as compute writes them")
     add_keep_outliers(p)
     add_crop_options(p)
+    add_scale_options(p)
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
@@ -182,10 +191,8 @@ def zones_threshold(result: GridRoughness, method: MapName, given: float | None,
 
 
 def run(args: argparse.Namespace) -> int:
-    from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
-    from rough_viewer.cli._inputs import describe, input_paths, load_inputs
-    from rough_viewer.cli._progress import ProgressBar
-    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.cli._crop import adopt_view_units, crop_from_args
+    from rough_viewer.cli._inputs import describe, input_paths
     from rough_viewer.grid.threshold import map_threshold_advice
     from rough_viewer.io.load import resolve_units
     from rough_viewer.io.table import check_table_output
@@ -210,18 +217,12 @@ def run(args: argparse.Namespace) -> int:
         check_table_output(path)
     check_outputs(paths, force=args.force, inputs=inputs)
     box = crop_from_args(args, unit)
-    quiet = args.quiet
-    cloud, _ = apply_crop(load_inputs(inputs, units=args.units, quiet=quiet,
-                                       max_points=args.file_max_points), box, unit)
-    per, u = per_unit(unit), UNIT_LABELS[unit]
-    options = {} if args.min_points is None else {"min_points": args.min_points}
+    results = _results(args, inputs, grids, unit, box)
     written: list[str] = []
     with all_or_nothing():  # a failed grid or write leaves none of the run's outputs
         for i, g in enumerate(grids):
             with at_grid(g, unit):
-                result = grid_roughness(
-                    cloud, g * per, axis=args.axis,
-                    progress=None if quiet else ProgressBar(f"grid {g:g} {u}"), **options)
+                result = next(results)
             labeller = ZoneLabeller.build(result, args.method,
                                           keep_outliers=args.keep_outliers)
             threshold, chose = zones_threshold(result, args.method, args.threshold,
@@ -241,6 +242,36 @@ def run(args: argparse.Namespace) -> int:
     for line in written:
         print(line)
     return 0
+
+
+def _results(args: argparse.Namespace, inputs: list[Path], grids: list[float], unit: str,
+             box) -> Iterator[GridRoughness]:
+    """The grid roughness of each grid size (in ``unit``), in order: from the cloud in
+    memory (cropped), or from one streamed run for every grid with ``--memory`` or
+    ``--scheduler`` (a COPC file by its tiles)."""
+    from rough_viewer.cli._crop import apply_crop, refuse_with_chunks
+    from rough_viewer.cli._inputs import load_inputs
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import chunked_results, wants_chunks
+    from rough_viewer.grid.roughness import grid_roughness
+    from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, MODELS
+
+    per, u = per_unit(unit), UNIT_LABELS[unit]
+    if wants_chunks(args):
+        refuse_with_chunks(args)
+        if args.min_points is None:
+            args.min_points = DEFAULT_MIN_POINTS
+        streamed, _ = chunked_results(args, inputs, [g * per for g in grids], origin=None,
+                                      models=MODELS, residual="absolute")
+        yield from streamed
+        return
+    cloud, _ = apply_crop(load_inputs(inputs, units=args.units, quiet=args.quiet,
+                                       max_points=args.file_max_points), box, unit)
+    options = {} if args.min_points is None else {"min_points": args.min_points}
+    for g in grids:
+        yield grid_roughness(cloud, g * per, axis=args.axis,
+                             progress=None if args.quiet else ProgressBar(f"grid {g:g} {u}"),
+                             **options)
 
 
 def _write_tables(outputs: dict[str, dict[float, Path]], g: float, zones: Zones,

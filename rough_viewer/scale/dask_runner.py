@@ -24,7 +24,8 @@ Schedulers:
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Sequence
+import os
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from rough_viewer.scale.chunked import ChunkDone, ChunkTask
@@ -56,6 +57,7 @@ def _one_thread() -> None:
     import os
 
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")  # lazrs's decoding of a COPC tile
 
 
 #: Largest first message of a Dask scheduler's handshake :func:`probe_scheduler` takes.
@@ -264,6 +266,59 @@ class DaskRunner:
         with _Progress():
             out = dask.compute(*finals, **kwargs)
         return list(out)
+
+    def run_tiles(self, copc: Any, source: Source, plan: Any, ctx: Any, tops: list,
+                  on_points: Callable[[int], None]) -> Iterator[tuple[int, Any]]:
+        """The tiles of a COPC file as tasks (:mod:`rough_viewer.scale.tiles`), one per
+        tile: each reads and decodes its own nodes and gives back its cells' rows and
+        its seam points; yielded as they finish."""
+        from dataclasses import replace
+
+        from rough_viewer.scale.tiles import tile_task
+
+        ctx = replace(ctx, threads=self.inner_threads)
+        jobs = [(source.path, source, plan.tiles[t], t, tops[t]) for t in range(plan.n_tiles)]
+        if self._client is not None:
+            from distributed import as_completed
+
+            client = self._client
+            ctx_f = client.scatter(ctx, broadcast=True)
+            futures = [client.submit(tile_task, *job[:4], ctx_f, job[4], False, pure=False,
+                                     key=f"rv-tile-{next(_RUN)}-{job[3]}") for job in jobs]
+            number = {f.key: job[3] for f, job in zip(futures, jobs, strict=True)}
+            try:
+                for f in as_completed(futures):
+                    out = f.result()
+                    on_points(out.n_points)
+                    yield number[f.key], out
+            except BaseException:
+                client.cancel(futures)
+                raise
+            return
+        from concurrent.futures import ThreadPoolExecutor
+        from concurrent.futures import as_completed as done_first
+        from concurrent.futures.process import BrokenProcessPool
+
+        threads = self.scheduler == "threads"
+        pool = ThreadPoolExecutor(max_workers=int(self.workers or os.cpu_count() or 1)) \
+            if threads else self._process_pool()
+        try:
+            pending = {pool.submit(tile_task, *job[:4], ctx, job[4], threads): job[3]
+                       for job in jobs}
+            try:
+                for f in done_first(pending):
+                    out = f.result()
+                    on_points(out.n_points)
+                    yield pending[f], out
+            except BrokenProcessPool:
+                raise InputError(f"a worker process died reading {source.path} (its memory "
+                                 "or a crash in the LAZ decoder); the file may be damaged") from None
+            finally:
+                for f in pending:
+                    f.cancel()
+        finally:
+            if threads:
+                pool.shutdown(wait=True, cancel_futures=True)
 
     def _run_distributed(self, maps: list, finals: list, chunks: list[Chunk],
                          on_chunk: ChunkDone) -> list[Partial]:

@@ -333,3 +333,26 @@ def test_disk_too_small_refused(campaign, tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "disk" in err[0] and "0.0 GB free" in err[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_decompression_bomb_refused_before_decoding(tmp_path, capsys):
+    """A LAZ declaring 50 M points in a few hundred kB: refused from its header by the
+    guard every command applies; with --max-points raised, one line when its data end."""
+    import struct
+
+    src = tmp_path / "small.laz"
+    _make(src, 6, 3_000, 0.0, 4, extra=False)
+    data = bytearray(src.read_bytes())
+    struct.pack_into("<Q", data, 247, 50_000_000)  # LAS 1.4 point count
+    bomb = tmp_path / "bomb.laz"
+    bomb.write_bytes(bytes(data))
+    out = tmp_path / "out.copc.laz"
+    assert main(["index", str(bomb), "--out", str(out), "--quiet"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "decompression bomb" in err and str(bomb) in err
+    assert not out.exists()
+    assert main(["index", str(bomb), "--out", str(out), "--max-points", "60000000",
+                 "--quiet"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(bomb) in err and "Traceback" not in err
+    assert not out.exists() and not list(tmp_path.glob("*.tmp*"))

@@ -48,7 +48,7 @@ class TypedPath:
     def read(self, host: Host, run: Run) -> PointCloud:
         path = host.options.data.resolve(self.typed)
         return read_cloud(path, self.typed.strip(), units=self.units, progress=run.progress(),
-                          max_points=host.options.max_points)
+                          max_points=host.options.max_points, memory=host.options.memory)
 
     def release(self) -> None:
         pass
@@ -67,7 +67,8 @@ class Upload:
 
     def read(self, host: Host, run: Run) -> PointCloud:
         cloud = read_cloud(self.upload.path, self.upload.name, cache=False, units=self.units,
-                           progress=run.progress(), max_points=host.options.max_points)
+                           progress=run.progress(), max_points=host.options.max_points,
+                           memory=host.options.memory)
         # an STL or PLY mesh keeps its own triangles, as serve FILE.stl does (the
         # file is deleted once read)
         unit = next((u for u in UNITS if u == cloud.source_unit), None)

@@ -665,12 +665,14 @@ def read_isolated(reader: str, path: str | os.PathLike[str], *, label: str, limi
 
 def stream_isolated(reader: str, path: str | os.PathLike[str], *, label: str,
                     limits: Limits, names: frozenset[str],
-                    options: Mapping[str, Any] | None = None
+                    options: Mapping[str, Any] | None = None, ahead: bool = False
                     ) -> Generator[dict[str, np.ndarray], None, None]:
     """Run the generator ``reader`` (``"module:function"``, called in the child as
     ``function(path, progress=..., **options)`` and yielding mappings of arrays) in a
     child process and yield its items, one at a time: the child makes the next item
-    only when the caller asks for it, so one item is held at a time.
+    only when the caller asks for it, so one item is held at a time; with ``ahead``
+    the child makes the next while the caller works on this one (two at a time, the
+    child's decoding beside the caller's work).
 
     ``limits.seconds`` bounds the wait for each item; ``names`` are the array names
     an item may hold. Closing the iterator early stops the child.
@@ -699,15 +701,22 @@ def stream_isolated(reader: str, path: str | os.PathLike[str], *, label: str,
             except (ValueError, TypeError) as exc:
                 raise session.fail(f"the {label} reader gave damaged points for {p} ({exc})") \
                     from None
+            if ahead:
+                _ask_next(session, limits)
             yield item
             del item
-            session.deadline = time.monotonic() + limits.seconds
-            try:
-                send(session.child.sock, {"t": "next"})
-            except OSError:
-                pass  # it died: the next wait says how
+            if not ahead:
+                _ask_next(session, limits)
     finally:
         session.close()
+
+
+def _ask_next(session: _Session, limits: Limits) -> None:
+    session.deadline = time.monotonic() + limits.seconds
+    try:
+        send(session.child.sock, {"t": "next"})
+    except OSError:
+        pass  # it died: the next wait says how
 
 
 def call_isolated(function: str, path: str | os.PathLike[str], *, label: str,
