@@ -369,4 +369,36 @@ class InMemoryStore:
                 progress(0, 1)
             prep = prepare_grid(self.cloud, cell_size)
         self._cache.put(key, prep)
+        if key == fine_key:
+            self._lean_presets(prep)
         return prep
+
+    def _lean_presets(self, fine: PreparedGrid) -> None:
+        """Once the finest grid is indexed: each coarser preset indexed on its own
+        before it (a big cloud's coarse first map) is coarsened from it, and where
+        every point falls in the same cell both ways (so far always), the coarsened
+        grid's own cells take its place (160 MB less at 20 M points, pinned) and the
+        results made from the old grid count as made from the new for their rows
+        (:meth:`result` from their cells)."""
+        for g in self.presets[:-1]:
+            key = ("prepared", round(float(g), 9))
+            own = self._cache.get(key)
+            if not isinstance(own, PreparedGrid) or own.parent is not None:
+                continue
+            factor = int(round(g / self.presets[-1]))
+            lean = coarsen_prepared(fine, factor, defer_rows=True)
+            if lean.parent is None or lean.fine_cell is not fine.index.point_cell:
+                continue
+            same = (lean.index.ijk.shape == own.index.ijk.shape
+                    and np.array_equal(lean.index.ijk, own.index.ijk)
+                    and np.array_equal(_point_rows(lean), own.index.point_cell))
+            if not same:
+                continue
+            self._lean.add(key)
+            if self._cache.put(key, _Coarsened(lean.index, lean.moments, lean.parent)):
+                for made_by in (self._cells_from, self._made_from):
+                    for grid_key, made in list(made_by.items()):
+                        if made == "own" and round(grid_key[0], 9) == key[1]:
+                            made_by[grid_key] = "coarsened"
+            else:
+                self._lean.discard(key)
