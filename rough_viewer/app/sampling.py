@@ -8,7 +8,8 @@ evenly over the surface: the cloud is cut into small cubes (voxels) sized so abo
 with the smallest fixed pseudo-random priority); dense areas near the scanner are
 thinned most.
 
-Linear in the points, without a sort: the voxels are hashed into a table about
+Linear in the points, without a sort (compiled where the kernels run: the same
+keys, buckets and priorities in two passes): the voxels are hashed into a table about
 :data:`TABLE_PER_POINT` times the sample's size and each bucket keeps its smallest
 priority (``np.minimum.at``), a few million points at a time; two voxels that share a
 bucket (a few per cent) give one point, and the sample is topped up at random to its
@@ -65,6 +66,28 @@ def _keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, size: flo
     return key
 
 
+def _taken_compiled(x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, size: float,
+                    dims: np.ndarray, seed: int, best: np.ndarray) -> np.ndarray | None:
+    """Which points hold their bucket's smallest priority, by the compiled kernel (the
+    same keys, buckets and priorities as the NumPy chunks, two passes over the
+    coordinates and no per-point arrays but the answer); None where the kernels do
+    not run (numba missing, or a small cloud before they are loaded)."""
+    from rough_viewer.grid import fast
+
+    n = int(x.shape[0])
+    if fast.resolve_engine("auto", n_points=n) != "numba" or np.prod(dims.astype(float)) >= 2**62:
+        return None
+    taken = np.empty(n, dtype=bool)
+    cols = [np.ascontiguousarray(c, dtype=np.float64) for c in (x, y, z)]
+    seed_term = np.uint64((int(seed) * 0x9E3779B97F4A7C15) % 2**64)
+    import numba
+
+    fast._kernels()["voxel_sample"](*cols, np.ascontiguousarray(lo, dtype=np.float64),
+                                    float(size), np.ascontiguousarray(dims, dtype=np.int64),
+                                    seed_term, int(numba.get_num_threads()), best, taken)
+    return taken
+
+
 def display_subset(points: PointCloud | np.ndarray, max_points: int, *,
                    seed: int = 0) -> np.ndarray:
     """Sorted indices of at most ``max_points`` points, spread evenly over the surface.
@@ -107,17 +130,19 @@ def display_subset(points: PointCloud | np.ndarray, max_points: int, *,
     require(4.0 * table_size + 9.0 * n + 40.0 * min(n, CHUNK),
             f"an overview sample of {n:,} points")
     best = np.full(table_size, np.inf, dtype=np.float32)
-    buckets: np.ndarray[Any, np.dtype[np.signedinteger[Any]]] = np.empty(
-        n, dtype=np.int32 if table_size < 2**31 else np.int64)
-    prio = np.empty(n, dtype=np.float32)
-    for start in range(0, n, CHUNK):
-        stop = min(n, start + CHUNK)
-        buckets[start:stop] = _keys(x[start:stop], y[start:stop], z[start:stop], lo, size,
-                                    dims) % table_size
-        prio[start:stop] = priority(np.arange(start, stop), seed)
-        np.minimum.at(best, buckets[start:stop], prio[start:stop])
-    taken = prio == best[buckets]
-    del buckets, prio
+    taken = _taken_compiled(x, y, z, lo, size, dims, seed, best)
+    if taken is None:
+        buckets: np.ndarray[Any, np.dtype[np.signedinteger[Any]]] = np.empty(
+            n, dtype=np.int32 if table_size < 2**31 else np.int64)
+        prio = np.empty(n, dtype=np.float32)
+        for start in range(0, n, CHUNK):
+            stop = min(n, start + CHUNK)
+            buckets[start:stop] = _keys(x[start:stop], y[start:stop], z[start:stop], lo,
+                                        size, dims) % table_size
+            prio[start:stop] = priority(np.arange(start, stop), seed)
+            np.minimum.at(best, buckets[start:stop], prio[start:stop])
+        taken = prio == best[buckets]
+        del buckets, prio
     chosen = np.flatnonzero(taken)
     if len(chosen) > max_points:
         chosen = rng.choice(chosen, size=max_points, replace=False)

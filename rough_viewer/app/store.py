@@ -14,13 +14,15 @@ from __future__ import annotations
 import weakref
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
 
 from rough_viewer.app.cache import ByteBudget, ByteCache, KeyedLocks
 from rough_viewer.app.settings import MapSettings, check_settings
+from rough_viewer.grid import fast
+from rough_viewer.grid.cells import CellIndex, CellMoments
 from rough_viewer.grid.roughness import (
     GridRoughness,
     PreparedGrid,
@@ -109,6 +111,41 @@ class CloudStore(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class _Coarsened:
+    """What the cache keeps of a grid coarsened from the finest preset: its own cells,
+    moments and fine-to-coarse row map, not the finest grid's per-point rows it
+    shares (160 MB at 20 M points, which counted against the cache again for every
+    coarser preset pushed them out, and each preset change coarsened again)."""
+
+    index: CellIndex
+    moments: CellMoments
+    parent: np.ndarray
+
+    def on(self, fine: PreparedGrid) -> PreparedGrid:
+        """The coarsened grid over ``fine``'s rows (the grid it was coarsened from)."""
+        return PreparedGrid(index=self.index, moments=self.moments,
+                            fine_cell=fine.index.point_cell, parent=self.parent)
+
+
+def _made(prepared: PreparedGrid) -> str:
+    """How a grid was made: coarsened from a finer one, or indexed on its own."""
+    return "coarsened" if prepared.parent is not None else "own"
+
+
+def _point_rows(prepared: PreparedGrid) -> np.ndarray:
+    """(N,) int64 every point's row on ``prepared``'s grid: its own index, or for a grid
+    coarsened from a finer one the finer rows looked up in :attr:`PreparedGrid.parent`
+    (on all threads where the kernels are loaded)."""
+    if prepared.parent is None or prepared.fine_cell is None:
+        return prepared.index.point_cell
+    if fast.loaded():
+        rows = np.empty(prepared.fine_cell.shape[0], dtype=np.int64)
+        fast.relabel_into(prepared.fine_cell, prepared.parent, rows)
+        return rows
+    return prepared.point_cell()
+
+
 def _weak_pin(store: InMemoryStore) -> Callable[[Key], bool]:
     """The store's pin rule through a weak reference: the cache it gives it to must
     not hold the store (a cycle store -> cache -> bound method -> store kept every
@@ -142,12 +179,19 @@ class InMemoryStore:
                  *, most: int) -> None:
         self.cloud = cloud
         self._presets = tuple(presets)
-        self._cache: ByteCache[Key, GridRoughness | PreparedGrid | CellTrust] = ByteCache(
+        self._cache: ByteCache[Key, GridRoughness | PreparedGrid | _Coarsened | CellTrust] = ByteCache(
             pool, pinned=_weak_pin(self), most=most)
         self._octree: Octree | None = None
         self._shown: dict[object, tuple[str, tuple[float, str, int]]] = {}
         """The grid each analysis (session) shows, by owner (None: the app's one)."""
         self._computing = KeyedLocks()
+        self._made_from: dict[tuple[float, str, int], str] = {}
+        """How the grid of each result was made (:func:`_made`)."""
+        self._cells_from: dict[tuple[float, str, int], str] = {}
+        """How the grid of each cell-only result was made."""
+        self._lean: set[Key] = set()
+        """The presets coarsened from the finest, kept as their own cells
+        (:class:`_Coarsened`: a few bytes a cell, so pinned)."""
 
     @property
     def presets(self) -> tuple[float, ...]:
@@ -163,11 +207,13 @@ class InMemoryStore:
 
     def _pinned(self, key: Key) -> bool:
         """What the grid cache never evicts: the fine grid's cells (every preset is
-        coarsened from them), the grid on screen (the panels' preset grids must not
+        coarsened from them) and the presets' coarsened from them (their own cells
+        only, without the per-point rows, so a preset change does not coarsen
+        again), the grid on screen (the panels' preset grids must not
         push it out), and the cells of every grid with its axis and minimum points
         (the panels' trend across the presets: small, and computed again for every
         threshold if a big cloud's full grids pushed them out)."""
-        if key == ("prepared", round(self.presets[-1], 9)):
+        if key == ("prepared", round(self.presets[-1], 9)) or key in self._lean:
             return True
         for shown in list(self._shown.values()):
             if key == shown:
@@ -244,6 +290,19 @@ class InMemoryStore:
         if isinstance(hit, GridRoughness):
             return hit
         check_settings(settings)
+        cells = self._cache.get(("cells", settings.grid_key))
+        if isinstance(cells, GridRoughness):
+            # every per-cell figure is at hand (the panels' trend keeps them): only the
+            # points' rows are missing, a gather per point from the grid's cells (the
+            # same rows the distance pass wrote), not the grid's passes again -- where
+            # the grid is made the way the cells' was (a preset indexed on its own and
+            # the same preset coarsened may differ by a point on a cell's edge)
+            prep = self.prepared(settings.cell_size, progress=progress)
+            if self._cells_from.get(settings.grid_key) == _made(prep):
+                res = replace(cells, point_cell=_point_rows(prep))
+                self._cache.put(key, res)
+                return res
+        prep = self.prepared(settings.cell_size, progress=progress)
         res = grid_roughness(
             self.cloud,
             settings.cell_size,
@@ -251,8 +310,9 @@ class InMemoryStore:
             axis=settings.axis,
             models=("odr", "ols", "hybrid"),
             progress=progress,
-            prepared=self.prepared(settings.cell_size, progress=progress),
+            prepared=prep,
         )
+        self._made_from[settings.grid_key] = _made(prep)
         self._cache.put(key, res)
         return res
 
@@ -269,6 +329,7 @@ class InMemoryStore:
         if isinstance(hit, GridRoughness):
             return hit
         full = self.result(settings, progress=progress)
+        self._cells_from[settings.grid_key] = self._made_from.get(settings.grid_key, "")
         light = replace(full, point_cell=np.empty(0, dtype=full.point_cell.dtype))
         self._cache.put(key, light)  # pinned while its axis and minimum points are shown
         return light
@@ -288,6 +349,8 @@ class InMemoryStore:
         hit = self._cache.get(key)
         if isinstance(hit, PreparedGrid):
             return hit
+        if isinstance(hit, _Coarsened):
+            return hit.on(self.prepared(self.presets[-1], progress=progress))
         factor = cell_size / self.presets[-1]
         fine_key = ("prepared", round(float(self.presets[-1]), 9))
         coarse_alone = self.cloud.n >= COARSE_ALONE_POINTS \
@@ -296,9 +359,46 @@ class InMemoryStore:
         if abs(factor - round(factor)) < 1e-9 and round(factor) > 1 and not coarse_alone:
             fine = self.prepared(self.presets[-1], progress=progress)
             prep = coarsen_prepared(fine, int(round(factor)), defer_rows=True)
+            if prep.parent is not None and prep.fine_cell is fine.index.point_cell:
+                self._lean.add(key)
+                if not self._cache.put(key, _Coarsened(prep.index, prep.moments, prep.parent)):
+                    self._lean.discard(key)
+                return prep
         else:
             if progress is not None:
                 progress(0, 1)
             prep = prepare_grid(self.cloud, cell_size)
         self._cache.put(key, prep)
+        if key == fine_key:
+            self._lean_presets(prep)
         return prep
+
+    def _lean_presets(self, fine: PreparedGrid) -> None:
+        """Once the finest grid is indexed: each coarser preset indexed on its own
+        before it (a big cloud's coarse first map) is coarsened from it, and where
+        every point falls in the same cell both ways (so far always), the coarsened
+        grid's own cells take its place (160 MB less at 20 M points, pinned) and the
+        results made from the old grid count as made from the new for their rows
+        (:meth:`result` from their cells)."""
+        for g in self.presets[:-1]:
+            key = ("prepared", round(float(g), 9))
+            own = self._cache.get(key)
+            if not isinstance(own, PreparedGrid) or own.parent is not None:
+                continue
+            factor = int(round(g / self.presets[-1]))
+            lean = coarsen_prepared(fine, factor, defer_rows=True)
+            if lean.parent is None or lean.fine_cell is not fine.index.point_cell:
+                continue
+            same = (lean.index.ijk.shape == own.index.ijk.shape
+                    and np.array_equal(lean.index.ijk, own.index.ijk)
+                    and np.array_equal(_point_rows(lean), own.index.point_cell))
+            if not same:
+                continue
+            self._lean.add(key)
+            if self._cache.put(key, _Coarsened(lean.index, lean.moments, lean.parent)):
+                for made_by in (self._cells_from, self._made_from):
+                    for grid_key, made in list(made_by.items()):
+                        if made == "own" and round(grid_key[0], 9) == key[1]:
+                            made_by[grid_key] = "coarsened"
+            else:
+                self._lean.discard(key)

@@ -477,3 +477,325 @@ def fused(x, y, z, o, g, im, nx, ny, nz, cxa, cya, cza, box, chunk, key, total, 
             for t in range(used):
                 for j in range(10):
                     total[c, j] += partial[t, c, j]
+
+
+# ----------------------------------------------------------------------------- octree
+# The level-of-detail octree's Morton sort (rough_viewer.lod.octree): the same codes as
+# its NumPy reference (`_morton_chunk`: ``floor((p - o) * scale)`` clipped to [0, 2**21
+# - 1] per axis, bits interleaved x, y, z from the lowest), sorted stably (equal codes
+# keep the points' order).
+
+TOP_SHIFT = np.uint64(54)  # 63 - 9: the level-3 cell of a code (512 buckets)
+DIGIT_BITS = 9
+_SPREAD_MASKS = (np.uint64(0x1F00000000FFFF), np.uint64(0x1F0000FF0000FF),
+                 np.uint64(0x100F00F00F00F00F), np.uint64(0x10C30C30C30C30C3),
+                 np.uint64(0x1249249249249249))
+_M0, _M1, _M2, _M3, _M4 = _SPREAD_MASKS
+_TOP21 = 2**21 - 1
+_INDEX_KINDS = ("int32[::1]", "int64[::1]")
+
+
+@njit(inline="always", **OPTS)
+def _spread21(q):
+    v = np.uint64(q)
+    v = (v | (v << np.uint64(32))) & _M0
+    v = (v | (v << np.uint64(16))) & _M1
+    v = (v | (v << np.uint64(8))) & _M2
+    v = (v | (v << np.uint64(4))) & _M3
+    v = (v | (v << np.uint64(2))) & _M4
+    return v
+
+
+@njit(inline="always", **OPTS)
+def _cell21(p, o, scale):
+    f = (p - o) * scale
+    if f < 0.0:
+        f = 0.0
+    q = np.int64(f)  # floor of a non-negative value
+    if q > _TOP21:
+        q = _TOP21
+    return q
+
+
+@njit(inline="always", **OPTS)
+def _morton(xi, yi, zi, o, scale):
+    return (_spread21(_cell21(xi, o[0], scale))
+            | (_spread21(_cell21(yi, o[1], scale)) << np.uint64(1))
+            | (_spread21(_cell21(zi, o[2], scale)) << np.uint64(2)))
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, int64, uint16[::1], int64[:, ::1])",
+      parallel=True, **OPTS)
+def morton_buckets(x, y, z, o, scale, chunk, bucket, hist):
+    """``bucket[i]`` = the top 9 bits of point ``i``'s Morton code, and ``hist[t]`` the
+    bucket sizes of chunk ``t`` (``chunk`` points each)."""
+    n = x.shape[0]
+    for t in prange(hist.shape[0]):
+        h = hist[t]
+        h[:] = 0
+        for i in range(t * chunk, min(n, (t + 1) * chunk)):
+            b = np.int64(_morton(x[i], y[i], z[i], o, scale) >> TOP_SHIFT)
+            bucket[i] = b
+            h[b] += 1
+
+
+@njit([f"void({F1}, {F1}, {F1}, {F1}, float64, int64, uint16[::1], int64[:, ::1], "
+       f"uint64[::1], {kind})" for kind in _INDEX_KINDS], parallel=True, **OPTS)
+def morton_scatter(x, y, z, o, scale, chunk, bucket, offset, codes, rest):
+    """Each point's code and index to its bucket's place: chunk ``t``'s points of
+    bucket ``b`` from ``offset[t, b]`` on, in the points' order (a stable counting
+    sort by the top bits)."""
+    n = x.shape[0]
+    for t in prange(offset.shape[0]):
+        at = offset[t].copy()
+        for i in range(t * chunk, min(n, (t + 1) * chunk)):
+            b = bucket[i]
+            j = at[b]
+            at[b] = j + 1
+            codes[j] = _morton(x[i], y[i], z[i], o, scale)
+            rest[j] = i
+
+
+@njit(**OPTS)
+def _radix_run(codes, rest, a, b, bits, tmp_c, tmp_r):
+    """Sort ``codes[a:b]`` (and ``rest`` with them) stably by their low ``bits`` bits,
+    least significant digit first; a digit every value shares is skipped."""
+    n = b - a
+    if n < 2:
+        return
+    if n <= 24:  # insertion sort: stable, no buffers
+        for i in range(a + 1, b):
+            c = codes[i]
+            r = rest[i]
+            j = i - 1
+            while j >= a and codes[j] > c:
+                codes[j + 1] = codes[j]
+                rest[j + 1] = rest[j]
+                j -= 1
+            codes[j + 1] = c
+            rest[j + 1] = r
+        return
+    src_c = codes[a:b]
+    src_r = rest[a:b]
+    dst_c = tmp_c[:n]
+    dst_r = tmp_r[:n]
+    hist = np.zeros(1 << DIGIT_BITS, dtype=np.int64)
+    mask = np.uint64((1 << DIGIT_BITS) - 1)
+    swapped = False
+    for shift in range(0, bits, DIGIT_BITS):
+        s = np.uint64(shift)
+        hist[:] = 0
+        for i in range(n):
+            hist[np.int64((src_c[i] >> s) & mask)] += 1
+        if hist.max() == n:
+            continue
+        total = 0
+        for d in range(hist.shape[0]):
+            c = hist[d]
+            hist[d] = total
+            total += c
+        for i in range(n):
+            d = np.int64((src_c[i] >> s) & mask)
+            j = hist[d]
+            hist[d] = j + 1
+            dst_c[j] = src_c[i]
+            dst_r[j] = src_r[i]
+        src_c, dst_c = dst_c, src_c
+        src_r, dst_r = dst_r, src_r
+        swapped = not swapped
+    if swapped:  # the sorted values are in the buffers
+        codes[a:b] = src_c
+        rest[a:b] = src_r
+
+
+@njit([f"void(uint64[::1], {kind}, int64[::1], int64[::1], int64[::1], int64)"
+       for kind in _INDEX_KINDS], parallel=True, **OPTS)
+def sort_buckets(codes, rest, start, plan, plan_start, bits):
+    """Each bucket ``codes[start[k]:start[k + 1]]`` sorted stably by its low ``bits``
+    bits, the buckets of task ``t`` (``plan[plan_start[t]:plan_start[t + 1]]``) on
+    one thread."""
+    for t in prange(plan_start.shape[0] - 1):
+        most = 0
+        for p in range(plan_start[t], plan_start[t + 1]):
+            k = plan[p]
+            most = max(most, start[k + 1] - start[k])
+        tmp_c = np.empty(most, dtype=np.uint64)
+        tmp_r = np.empty(most, dtype=rest.dtype)
+        for p in range(plan_start[t], plan_start[t + 1]):
+            k = plan[p]
+            _radix_run(codes, rest, start[k], start[k + 1], bits, tmp_c, tmp_r)
+
+
+@njit([f"void({kind}, int64[::1], {F1}, {F1}, {F1}, int32[::1], int64[:, ::1], {F3}, {F2}, {F2})"
+       for kind in _INDEX_KINDS], parallel=True, **OPTS)
+def rows_and_boxes(order, start, x, y, z, run_of, hist, partial, lo, hi):
+    """Each run ``order[start[k]:start[k + 1]]`` (a node's points) put in ascending
+    order, and ``lo[k]``, ``hi[k]`` the (x, y, z) minimum and maximum of its points:
+    every point's run noted (``run_of``), then the points visited in order, chunk by
+    chunk (``hist.shape[0]`` chunks; ``hist`` and ``partial`` their counts and boxes
+    per run), each chunk's points of run ``k`` written after the earlier chunks'
+    (a counting sort by run: the same rows as sorting each run)."""
+    n = order.shape[0]
+    m = start.shape[0] - 1
+    tasks = hist.shape[0]
+    step = (n + tasks - 1) // tasks
+    for k in prange(m):
+        for p in range(start[k], start[k + 1]):
+            run_of[order[p]] = k
+    for t in prange(tasks):
+        h = hist[t]
+        box = partial[t]
+        h[:] = 0
+        for k in range(m):
+            box[k, 0] = box[k, 1] = box[k, 2] = np.inf
+            box[k, 3] = box[k, 4] = box[k, 5] = -np.inf
+        for i in range(t * step, min(n, (t + 1) * step)):
+            k = run_of[i]
+            h[k] += 1
+            a = x[i]
+            b = y[i]
+            c = z[i]
+            box[k, 0] = min(box[k, 0], a)
+            box[k, 1] = min(box[k, 1], b)
+            box[k, 2] = min(box[k, 2], c)
+            box[k, 3] = max(box[k, 3], a)
+            box[k, 4] = max(box[k, 4], b)
+            box[k, 5] = max(box[k, 5], c)
+    for k in prange(m):
+        at = start[k]
+        for j in range(3):
+            lo[k, j] = np.inf
+            hi[k, j] = -np.inf
+        for t in range(tasks):
+            c = hist[t, k]
+            hist[t, k] = at
+            at += c
+            for j in range(3):
+                lo[k, j] = min(lo[k, j], partial[t, k, j])
+                hi[k, j] = max(hi[k, j], partial[t, k, 3 + j])
+    for t in prange(tasks):
+        h = hist[t]
+        for i in range(t * step, min(n, (t + 1) * step)):
+            k = run_of[i]
+            order[h[k]] = i
+            h[k] += 1
+
+
+@njit([f"UniTuple(int64, 3)(uint64[::1], {kind}, int64, uint64, uint64, int64, boolean, {kind}, "
+       f"int64, uint64[::1], int64[::1])" for kind in _INDEX_KINDS], **OPTS)
+def octree_level(codes, rest, n_rest, sample_shift, node_shift, cap, last, order, placed,
+                 node_key, node_count):
+    """One level of the octree over the sorted ``codes[:n_rest]`` (their points in
+    ``rest``), node by node (a run of equal ``code >> node_shift``): the middle point
+    of each sample cell (a run of equal ``code >> sample_shift``), at most ``cap`` a
+    node kept evenly (rank ``r`` of ``c > cap`` cells is kept where ``(r + 1) cap // c
+    > r cap // c``), every point on the ``last`` level, appended to ``order`` from
+    ``placed``; each node's key and count to ``node_key``, ``node_count``; the points
+    not taken moved down in place, in order. Returns (points placed in all, points
+    left, nodes of the level)."""
+    write = 0
+    nodes = 0
+    i = 0
+    while i < n_rest:
+        node = codes[i] >> node_shift
+        j = i + 1
+        while j < n_rest and (codes[j] >> node_shift) == node:
+            j += 1
+        before = placed
+        if last:
+            for p in range(i, j):
+                order[placed] = rest[p]
+                placed += 1
+        else:
+            cells = 1
+            for p in range(i + 1, j):
+                if (codes[p] >> sample_shift) != (codes[p - 1] >> sample_shift):
+                    cells += 1
+            s = i
+            r = 0
+            while s < j:
+                cell = codes[s] >> sample_shift
+                e = s + 1
+                while e < j and (codes[e] >> sample_shift) == cell:
+                    e += 1
+                mid = s + (e - s) // 2
+                keep = cells <= cap or ((r + 1) * cap) // cells > (r * cap) // cells
+                if keep:
+                    order[placed] = rest[mid]
+                    placed += 1
+                for p in range(s, e):
+                    if not (keep and p == mid):
+                        codes[write] = codes[p]
+                        rest[write] = rest[p]
+                        write += 1
+                r += 1
+                s = e
+        node_key[nodes] = node
+        node_count[nodes] = placed - before
+        nodes += 1
+        i = j
+    return placed, write, nodes
+
+
+@njit("int64(uint64[::1], int64, uint64)", **OPTS)
+def count_runs(codes, n, shift):
+    """Runs of equal ``code >> shift`` in ``codes[:n]`` (the nodes of an octree level)."""
+    if n == 0:
+        return 0
+    runs = 1
+    for p in range(1, n):
+        if (codes[p] >> shift) != (codes[p - 1] >> shift):
+            runs += 1
+    return runs
+
+
+# ----------------------------------------------------------------------------- overview sample
+# rough_viewer.app.sampling.display_subset's voxel pass: the same voxel keys (``t = p -
+# lo; t /= size``, truncated, clipped to the box), buckets (``key % table``) and
+# priorities (splitmix64 of the index) as its NumPy chunks.
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+@njit(inline="always", **OPTS)
+def _priority(i, seed_term):
+    z = np.uint64(i) + seed_term
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    z ^= z >> np.uint64(31)
+    return np.float32(z >> np.uint64(40)) / np.float32(2**24)
+
+
+@njit(inline="always", **OPTS)
+def _voxel_bucket(xi, yi, zi, lo, size, d0, d1, d2, table):
+    a = min(np.int64((xi - lo[0]) / size), d0 - 1)
+    b = min(np.int64((yi - lo[1]) / size), d1 - 1)
+    c = min(np.int64((zi - lo[2]) / size), d2 - 1)
+    return ((a * d1 + b) * d2 + c) % table
+
+
+@njit(f"void({F1}, {F1}, {F1}, {F1}, float64, int64[::1], uint64, int64, float32[::1], "
+      "boolean[::1])", parallel=True, **OPTS)
+def voxel_sample(x, y, z, lo, size, dims, seed_term, tasks, best, taken):
+    """``best[b]`` = the smallest priority of the points in bucket ``b`` (its voxels
+    hashed), each of ``tasks`` tasks reading every point and keeping the buckets of
+    its share of the table (a minimum: the order does not matter), then ``taken[i]``
+    = point ``i`` holds its bucket's smallest."""
+    n = x.shape[0]
+    table = best.shape[0]
+    d0, d1, d2 = dims[0], dims[1], dims[2]
+    share = (table + tasks - 1) // tasks
+    for t in prange(tasks):
+        first = t * share
+        last = min(table, first + share)
+        for i in range(n):
+            b = _voxel_bucket(x[i], y[i], z[i], lo, size, d0, d1, d2, table)
+            if b >= first and b < last:
+                p = _priority(i, seed_term)
+                if p < best[b]:
+                    best[b] = p
+    for i in prange(n):
+        b = _voxel_bucket(x[i], y[i], z[i], lo, size, d0, d1, d2, table)
+        taken[i] = _priority(i, seed_term) == best[b]

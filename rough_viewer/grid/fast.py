@@ -209,7 +209,11 @@ def _kernels() -> dict[str, Any]:
                 sys.meta_path.remove(guard)
         _loaded.update(bounds=k.bounds, keys=k.keys, keys_count=k.keys_count, count=k.count,
                        relabel=k.relabel, moments=k.moments, distances=k.distances,
-                       pair_sums=k.pair_sums, fused=k.fused)
+                       pair_sums=k.pair_sums, fused=k.fused,
+                       morton_buckets=k.morton_buckets, morton_scatter=k.morton_scatter,
+                       sort_buckets=k.sort_buckets, rows_and_boxes=k.rows_and_boxes,
+                       octree_level=k.octree_level, count_runs=k.count_runs,
+                       voxel_sample=k.voxel_sample)
     return _loaded
 
 

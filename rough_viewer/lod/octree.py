@@ -18,9 +18,13 @@ Layout (Potree's and COPC's idea; docs/lod.md "Definitions"):
   level (points closer than ``side / 2**21``: duplicates) can hold more.
 
 Built without a Python loop over points: 63-bit Morton codes (21 bits per axis)
-from the coordinates, sorted (a counting sort by the level-3 cell, then each of its
-512 buckets on its own, on a thread pool), then one vectorised pass per level over
-the points not yet placed (a run-length scan of the sorted codes). Memory: the octree keeps an
+from the coordinates, sorted stably (a counting sort by the level-3 cell, then each
+of its 512 buckets on its own, on a thread pool), then one vectorised pass per level
+over the points not yet placed (a run-length scan of the sorted codes). Where the
+compiled kernels run (:mod:`rough_viewer.grid.fast`: numba, clouds of millions of
+points) the same steps are compiled: the buckets by a radix sort of their codes, each
+level one pass, the nodes' rows and boxes one counting sort by node; the octree is
+the same to the bit (tests). Memory: the octree keeps an
 index permutation (4 bytes per point, 8 beyond 2**31 points) and small per-node
 arrays, never a copy of the points; the build peaks at about
 :data:`BUILD_BYTES_PER_POINT` bytes per point (:func:`build_bytes`).
@@ -41,7 +45,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -358,18 +362,89 @@ def _sorted_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarra
     A counting sort by the top :data:`TOP_BITS` bits (the level-3 cell,
     :func:`_bucketed`), then each bucket sorted on its own, buckets in parallel: no
     full argsort, and at most 14 bytes per point besides the buckets being sorted."""
+    if _compiled(int(x.shape[0])):
+        return _sorted_codes_compiled(x, y, z, origin, side, index_dtype, what)
     codes, rest, bucket_start, sizes = _bucketed(x, y, z, origin, side, index_dtype, workers,
                                                  what)
 
     def sort_bucket(k: int) -> None:
         a, b = int(bucket_start[k]), int(bucket_start[k + 1])
         if b - a > 1:
-            local = np.argsort(codes[a:b])
+            local = np.argsort(codes[a:b], kind="stable")  # equal codes keep their order
             rest[a:b] = rest[a:b][local]
             codes[a:b] = codes[a:b][local]
 
     busy = [int(k) for k in np.argsort(-sizes, kind="stable") if sizes[k] > 1]  # largest first
     _parallel(sort_bucket, busy, workers)
+    return codes, rest
+
+
+def _compiled(n_points: int) -> bool:
+    """Whether the build runs the compiled kernels (:mod:`rough_viewer.grid.fast`: numba
+    installed and working, for clouds of millions of points or where the kernels are
+    loaded; ``$ROUGH_VIEWER_ENGINE=numpy`` keeps the NumPy code). Both give the same
+    octree."""
+    from rough_viewer.grid import fast
+
+    return fast.resolve_engine("auto", n_points=n_points) == "numba"
+
+
+def _kernel(name: str) -> Callable[..., Any]:
+    from rough_viewer.grid import fast
+
+    return fast._kernels()[name]
+
+
+def _tasks(sizes: np.ndarray, workers: int) -> tuple[np.ndarray, np.ndarray]:
+    """The non-trivial buckets shared out among ``workers`` tasks, largest first to the
+    least loaded task: (bucket ids task after task, each task's first place)."""
+    busy = [int(k) for k in np.argsort(-sizes, kind="stable") if sizes[k] > 1]
+    load = [0] * workers
+    owned: list[list[int]] = [[] for _ in range(workers)]
+    for k in busy:
+        t = load.index(min(load))
+        owned[t].append(k)
+        load[t] += int(sizes[k])
+    plan = np.array([k for own in owned for k in own], dtype=np.int64)
+    plan_start = np.concatenate(([0], np.cumsum([len(own) for own in owned]))).astype(np.int64)
+    return plan, plan_start
+
+
+def _sorted_codes_compiled(x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: np.ndarray,
+                           side: float, index_dtype: type, what: str
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_sorted_codes` by the compiled kernels: the codes computed twice (the
+    bucket of each point, then its code on the way to its bucket), the buckets
+    counting-sorted by chunk, then each bucket by a least-significant-digit radix
+    sort of the remaining 54 bits (9 at a time, a digit every code shares skipped),
+    buckets in parallel. Stable, so equal codes keep the points' order: the points
+    come out as ``np.argsort(codes, kind="stable")``. Peak: 14 bytes a point and 12
+    of each thread's largest bucket."""
+    import numba
+
+    n = int(x.shape[0])
+    scale = float(2**DEPTH_BITS) / side
+    workers = max(1, int(numba.get_num_threads()))
+    n_chunks = max(1, -(-n // SORT_CHUNK))
+    o = np.ascontiguousarray(origin, dtype=np.float64)
+    cols = [np.ascontiguousarray(c, dtype=np.float64) for c in (x, y, z)]
+    require(14.0 * n, f"sorting the {n:,} points of {what}")
+    bucket = np.empty(n, dtype=np.uint16)
+    hist = np.empty((n_chunks, 1 << TOP_BITS), dtype=np.int64)
+    _kernel("morton_buckets")(*cols, o, scale, SORT_CHUNK, bucket, hist)
+    sizes = hist.sum(axis=0)
+    plan, plan_start = _tasks(sizes, workers)
+    most = [max((int(sizes[k]) for k in plan[a:b]), default=0)
+            for a, b in zip(plan_start[:-1], plan_start[1:], strict=True)]
+    require(14.0 * n + 12.0 * float(sum(most)), f"sorting the {n:,} points of {what}")
+    bucket_start = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
+    offset = np.ascontiguousarray(bucket_start[:-1] + np.cumsum(hist, axis=0) - hist)
+    codes = np.empty(n, dtype=np.uint64)
+    rest: np.ndarray = np.empty(n, dtype=index_dtype)
+    _kernel("morton_scatter")(*cols, o, scale, SORT_CHUNK, bucket, offset, codes, rest)
+    del bucket
+    _kernel("sort_buckets")(codes, rest, bucket_start, plan, plan_start,
+                            3 * DEPTH_BITS - TOP_BITS)
     return codes, rest
 
 
@@ -527,6 +602,10 @@ def build_octree(
 
     keys: list[np.ndarray] = []
     counts: list[np.ndarray] = []
+    if _compiled(n):
+        _levels_compiled(codes, rest, order, g_bits, cap, keys, counts, progress)
+        del codes, rest
+        return _assemble(order, keys, counts, lo, side, g, cap, x, y, z, workers)
     placed = 0
     n_rest = n
     for level in range(DEPTH_BITS + 1):
@@ -560,6 +639,36 @@ def build_octree(
             progress(placed, n)
     del codes, rest
     return _assemble(order, keys, counts, lo, side, g, cap, x, y, z, workers)
+
+
+def _levels_compiled(codes: np.ndarray, rest: np.ndarray, order: np.ndarray, g_bits: int,
+                     cap: int, keys: list[np.ndarray], counts: list[np.ndarray],
+                     progress: ProgressFn | None) -> None:
+    """The levels of :func:`build_octree` by a compiled pass each over the points not yet
+    placed (the same points taken, nodes and order as the NumPy passes): each level's
+    node keys and counts appended to ``keys`` and ``counts``, ``order`` filled."""
+    level_pass = _kernel("octree_level")
+    count_runs = _kernel("count_runs")
+    n = int(codes.shape[0])
+    placed = 0
+    n_rest = n
+    for level in range(DEPTH_BITS + 1):
+        if n_rest == 0:
+            break
+        node_shift = np.uint64(3 * (DEPTH_BITS - level))
+        sample_shift = np.uint64(3 * max(DEPTH_BITS - level - g_bits, 0))
+        m = int(count_runs(codes, n_rest, node_shift))
+        level_keys = np.empty(m, dtype=np.uint64)
+        level_counts = np.empty(m, dtype=np.int64)
+        placed, n_rest, made = level_pass(codes, rest, n_rest, sample_shift, node_shift, cap,
+                                          level == DEPTH_BITS, order, placed, level_keys,
+                                          level_counts)
+        if made != m:
+            raise AssertionError("octree: nodes miscounted")  # cannot happen
+        keys.append(level_keys)
+        counts.append(level_counts)
+        if progress:
+            progress(placed, n)
 
 
 def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray],
@@ -598,8 +707,11 @@ def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray
             idx[sl] = _compact_bits(key[sl], axis, lv)
         cube_lo[:, axis] = origin[axis] + idx * cell
 
-    _sort_rows_within_nodes(order, start, workers)
-    box_lo, box_hi = _node_boxes(order, start, x, y, z, workers)
+    if _compiled(int(order.shape[0])):
+        box_lo, box_hi = _rows_and_boxes_compiled(order, start, x, y, z)
+    else:
+        _sort_rows_within_nodes(order, start, workers)
+        box_lo, box_hi = _node_boxes(order, start, x, y, z, workers)
     for lv in range(last, 0, -1):  # a subtree's box holds its children's boxes
         sl = slice(offsets[lv], offsets[lv + 1])
         np.minimum.at(box_lo, parent[sl], box_lo[sl])
@@ -608,6 +720,30 @@ def _assemble(order: np.ndarray, keys: list[np.ndarray], counts: list[np.ndarray
                   order=order, start=start, level=level, key=key, parent=parent,
                   child_start=child_start, child_stop=child_stop, cube_lo=cube_lo,
                   box_lo=box_lo, box_hi=box_hi)
+
+
+def _rows_and_boxes_compiled(order: np.ndarray, start: np.ndarray, x: np.ndarray,
+                             y: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_sort_rows_within_nodes` and :func:`_node_boxes` by one compiled kernel:
+    every point's node noted (4 bytes a point, in the room the sort's codes left),
+    then the points visited in file order, so each node's rows come out ascending
+    (a counting sort by node, the same rows) and its box is taken from the
+    coordinates read in order (the same minima and maxima)."""
+    import numba
+
+    n = int(order.shape[0])
+    m = int(start.shape[0] - 1)
+    tasks = max(1, min(int(numba.get_num_threads()), -(-n // SORT_CHUNK)))
+    require(4.0 * n + tasks * m * 56.0, f"the nodes of the octree of {n:,} points")
+    run_of = np.empty(n, dtype=np.int32)
+    hist = np.empty((tasks, m), dtype=np.int64)
+    partial = np.empty((tasks, m, 6))
+    box_lo = np.empty((m, 3))
+    box_hi = np.empty((m, 3))
+    cols = [np.ascontiguousarray(c, dtype=np.float64) for c in (x, y, z)]
+    _kernel("rows_and_boxes")(order, np.ascontiguousarray(start, dtype=np.int64), *cols, run_of,
+                              hist, partial, box_lo, box_hi)
+    return box_lo, box_hi
 
 
 def _node_chunks(start: np.ndarray) -> list[tuple[int, int]]:

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rough_viewer.grid.cells import GridSpec, make_grid
+from rough_viewer.grid.cells import CellIndex, GridSpec, cell_moments, distance_sums, make_grid
 from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.fast import threads as kernel_threads
 from rough_viewer.grid.planes import dominant_axis
@@ -58,12 +58,11 @@ from rough_viewer.memory import format_bytes
 from rough_viewer.scale.partials import Partial
 from rough_viewer.scale.passes import (
     MOMENT_COLUMNS,
+    MOMENT_PAIRS,
     OutsideGrid,
-    PlaneTable,
     _chunk_index,
-    chunk_distances,
-    chunk_moments,
     decode_keys,
+    global_keys,
     moments_of,
 )
 from rough_viewer.scale.sources import Columns, Source
@@ -349,29 +348,51 @@ def complete_rows(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec,
     moments, the cells' planes (per OLS axis of ``ctx``) and their distance sums."""
     if x.shape[0] == 0:
         return Rows.empty(ctx.n_values)
-    part = chunk_moments(x, y, z, grid, ctx.engine)
-    order = np.argsort(part.keys)
-    keys, mvals = part.keys[order], part.values[order]
-    mom = moments_of(Partial(keys, mvals, part.n_points))
+    index = _chunk_index(x, y, z, grid, ctx.engine)
+    return _rows_of(x, y, z, index, np.ones(index.n_cells, dtype=bool), grid, ctx)
+
+
+def _rows_of(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex, keep: np.ndarray,
+             grid: GridSpec, ctx: TileContext) -> Rows:
+    """Rows of the cells ``keep`` (a mask over ``index``'s cells, each of which has all
+    of its points here) from the points' one index: the other points go to a spare
+    cell whose sums are dropped, so nothing is copied or indexed again."""
+    m = int(np.count_nonzero(keep))
+    if m == 0:
+        return Rows.empty(ctx.n_values)
+    remap = np.full(index.n_cells, m, dtype=np.int64)
+    remap[keep] = np.arange(m)
+    point_cell = remap[index.point_cell]
+    ijk = index.ijk[keep]
+    counts = index.counts[keep]
+    sub = CellIndex(grid=index.grid, ijk=np.vstack([ijk, ijk[:1]]),
+                    counts=np.append(counts, index.point_cell.shape[0] - int(counts.sum())),
+                    point_cell=point_cell)
+    keys = global_keys(ijk, grid)  # sorted: the index's cells are in linear key order
+    mom = cell_moments(x, y, z, sub, engine=ctx.engine)
+    values = np.empty((m, ctx.n_values))
+    values[:, 0] = counts
+    values[:, 1:4] = mom.s1[:m]
+    for c, (i, j) in enumerate(MOMENT_PAIRS, start=4):
+        values[:, c] = mom.s2[:m, i, j]
+    moments = moments_of(Partial(keys, values[:, :MOMENT_COLUMNS], int(counts.sum())))
     up = np.array([0.0, 0.0, 1.0])
     vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if "odr" in ctx.names:
-        planes = cell_planes(mom, up, "z", ctx.min_points, ("odr",), cell_size=grid.cell_size)
+        planes = cell_planes(moments, up, "z", ctx.min_points, ("odr",),
+                             cell_size=grid.cell_size)
         vectors["odr"] = planes.distance_vectors()["odr"]
     for a in ctx.ols_axes:
-        planes = cell_planes(mom, up, a, ctx.min_points, ("ols",), cell_size=grid.cell_size)
+        planes = cell_planes(moments, up, a, ctx.min_points, ("ols",), cell_size=grid.cell_size)
         vectors[f"ols-{a}"] = planes.distance_vectors()["ols"]
-    names = tuple(vectors)
-    values = np.empty((keys.shape[0], ctx.n_values))
-    values[:, :MOMENT_COLUMNS] = mvals
-    if names:
-        table = PlaneTable(keys=keys, names=names,
-                           vectors=np.stack([vectors[k][0] for k in names]),
-                           points=np.stack([vectors[k][1] for k in names]))
-        dist = chunk_distances(x, y, z, grid, table, ctx.engine)
-        sums = np.zeros((keys.shape[0], 2 * len(names)))
-        sums[dist.keys] = dist.values
-        values[:, MOMENT_COLUMNS:] = sums
+    if vectors:
+        spare = np.zeros((1, 3))
+        sums = distance_sums(x, y, z, sub, {k: (np.vstack([v, spare]), np.vstack([c, spare]))
+                                            for k, (v, c) in vectors.items()},
+                             engine=ctx.engine)
+        for q, name in enumerate(vectors):
+            values[:, MOMENT_COLUMNS + 2 * q] = sums[name][0][:m]
+            values[:, MOMENT_COLUMNS + 2 * q + 1] = sums[name][1][:m]
     return Rows(keys, values)
 
 
@@ -384,7 +405,7 @@ def tile_cells(x: np.ndarray, y: np.ndarray, z: np.ndarray, number: int, ctx: Ti
     Raises
     ------
     InputError
-        If a point's cell does not touch its tile's cube (a damaged file).
+        If a point's cell does not touch its tile's column (a damaged file).
     """
     rows, held = [], []
     los, his = [np.full(3, np.inf)], [np.full(3, -np.inf)]
@@ -398,17 +419,19 @@ def tile_cells(x: np.ndarray, y: np.ndarray, z: np.ndarray, number: int, ctx: Ti
                 rows.append(Rows.empty(ctx.n_values))
                 held.append(_held_none())
                 continue
-            if g == 0:
+            index = _chunk_index(gx, gy, gz, grid, ctx.engine)
+            if g == 0:  # the index's grid spans the points' box
                 los.append(np.array([gx.min(), gy.min(), gz.min()]))
                 his.append(np.array([gx.max(), gy.max(), gz.max()]))
-            first, last = _point_tiles(gx, gy, gz, grid, ctx)
+            lo = grid.origin + index.ijk * grid.cell_size
+            first, last = ctx.tiles_of(lo, lo + grid.cell_size)
             if np.any((last < number) | (first > number)):
                 raise InputError("a node of the COPC file holds points outside its cube; "
                                  "the file is damaged")
             inner = (first == last) & (last == number)
-            rows.append(complete_rows(gx[inner], gy[inner], gz[inner], grid, ctx))
-            out = ~inner
-            held.append(Held(gx[out], gy[out], gz[out], last[out]))
+            rows.append(_rows_of(gx, gy, gz, index, inner, grid, ctx))
+            out = ~inner[index.point_cell]
+            held.append(Held(gx[out], gy[out], gz[out], last[index.point_cell[out]]))
     return TileOut(tuple(rows), tuple(held), int(x.shape[0]), np.min(los, axis=0),
                    np.max(his, axis=0))
 

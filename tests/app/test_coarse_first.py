@@ -166,12 +166,18 @@ def test_a_big_clouds_plane_comes_from_its_coarse_first_grid(monkeypatch, cloud)
     # the cells and points that coarsening the fine one gives
     from rough_viewer.grid.roughness import coarsen_prepared
 
+    alone = loaded.prepared(0.4)
     fine = loaded.prepared(0.1)
-    alone, made = loaded.prepared(0.4), coarsen_prepared(fine, 4)
-    assert alone is not made
+    made = coarsen_prepared(fine, 4)
+    assert alone is not made and alone.parent is None
     np.testing.assert_array_equal(alone.index.ijk, made.index.ijk)
     np.testing.assert_array_equal(alone.index.point_cell, made.index.point_cell)
     np.testing.assert_allclose(alone.moments.s2, made.moments.s2, rtol=1e-7)  # round-off
+    # so once the finest grid is there, the store keeps the coarse preset coarsened
+    # from it (its own cells only: no second copy of every point's row)
+    lean = loaded.prepared(0.4)
+    assert lean.parent is not None and lean.fine_cell is fine.index.point_cell
+    np.testing.assert_array_equal(lean.point_cell(), alone.index.point_cell)
 
 
 def test_a_failed_chosen_grid_leaves_the_coarse_map_shown(recorded, cloud, monkeypatch):

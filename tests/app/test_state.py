@@ -305,3 +305,82 @@ def test_the_octree_has_the_node_size_asked_for(cloud):
     assert int(small.counts.max()) <= 1_000 < int(big.counts.max())
     want = build_octree(cloud, max_node_points=1_000)  # the reference: built directly
     np.testing.assert_array_equal(small.counts, want.counts)
+
+
+def test_a_result_whose_cells_are_cached_is_the_same_without_the_grid_passes(cloud, monkeypatch):
+    """A preset whose full result left the cache but whose cells stayed (the panels'
+    trend) comes back from its cells and every point's row, with no grid pass: the
+    same bits in every field as the result the passes made."""
+    presets = (1.0, 0.5, 0.25)
+    roomy = LoadedCloud(cloud, max_display=15_000, presets=presets)
+    s = MapSettings(cell_size=0.25)
+    want = {g: roomy.result(s.with_(cell_size=g)) for g in presets}
+    per_point = nbytes(want[0.25].point_cell)
+    small = LoadedCloud(cloud, max_display=15_000, presets=presets)
+    budget = nbytes(small.prepared(0.25)) + sum(nbytes(r) - nbytes(r.point_cell)
+                                                for r in want.values()) + per_point // 2
+    small = LoadedCloud(cloud, max_display=15_000, presets=presets, cache_bytes=budget)
+    small.mark_shown(s)
+    for g in presets:
+        small.cell_result(s.with_(cell_size=g))
+    assert not any(small.is_cached(s.with_(cell_size=g)) for g in presets)
+    calls = []
+    monkeypatch.setattr(store_mod, "grid_roughness", lambda *a, **k: calls.append(a[1]))
+    for g in presets:
+        got = small.result(s.with_(cell_size=g))
+        ref = want[g]
+        assert got.point_cell.shape == (cloud.n,)
+        assert _same_bits(got, ref)
+        # each point's row is the cell holding it, checked from the coordinates
+        ijk = np.floor((cloud.xyz() - got.grid.origin) / got.grid.cell_size).astype(np.int64)
+        assert np.array_equal(got.ijk[got.point_cell], ijk)
+    assert calls == []
+    # the coarsened presets stay cached as their own cells (no per-point rows), so a
+    # preset change does not coarsen again
+    for g in (1.0, 0.5):
+        assert ("prepared", g) in small.store._cache
+        assert small.prepared(g).fine_cell is small.prepared(0.25).index.point_cell
+
+
+def _same_bits(a, b) -> bool:
+    """Whether two results (dataclasses of arrays and plain values) hold the same bits."""
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.tobytes() == b.tobytes() and a.shape == b.shape
+    if hasattr(a, "__dataclass_fields__"):
+        return type(a) is type(b) and all(_same_bits(getattr(a, f), getattr(b, f))
+                                          for f in a.__dataclass_fields__)
+    return bool(a == b)
+
+
+def test_cells_of_a_preset_indexed_alone_are_not_mixed_with_its_coarsened_rows(cloud,
+                                                                              monkeypatch):
+    """A big cloud's coarsest preset is indexed on its own first (coarse first); once
+    that grid left the cache, the same preset comes coarsened from the finest, which
+    may put a point on a cell's edge in the other cell: its full result is then
+    computed again, never its old cells with the new rows."""
+    monkeypatch.setattr(store_mod, "COARSE_ALONE_POINTS", 0)
+    presets = (1.0, 0.5, 0.25)
+    probe = LoadedCloud(cloud, max_display=15_000, presets=presets)
+    s = MapSettings(cell_size=0.25)
+    sizes = {g: probe.result(s.with_(cell_size=g)) for g in presets}
+    per_point = nbytes(sizes[0.25].point_cell)
+    budget = nbytes(probe.prepared(0.25)) + sum(nbytes(r) - nbytes(r.point_cell)
+                                                for r in sizes.values()) + per_point // 2
+    small = LoadedCloud(cloud, max_display=15_000, presets=presets, cache_bytes=budget)
+    assert small.prepared(1.0).parent is None  # indexed on its own (no finest grid yet)
+    small.mark_shown(s)
+    small.cell_result(s.with_(cell_size=1.0))
+    small.cell_result(s)  # the finest grid: the presets are coarsened from it now
+    assert ("prepared", 1.0) not in small.store._cache
+    assert small.prepared(1.0).parent is not None
+    calls = []
+    real = store_mod.grid_roughness
+
+    def counting(*a, **k):
+        calls.append(a[1])
+        return real(*a, **k)
+
+    monkeypatch.setattr(store_mod, "grid_roughness", counting)
+    got = small.result(s.with_(cell_size=1.0))
+    assert calls == [1.0]
+    assert np.array_equal(np.bincount(got.point_cell, minlength=got.n_cells), got.n_points)

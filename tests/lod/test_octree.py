@@ -218,3 +218,69 @@ def test_the_octree_does_not_depend_on_chunks_or_threads(monkeypatch, cloud):
         got = build_octree(cloud, root_grid=16, max_node_points=1_500, workers=workers)
         for f in fields:
             assert np.array_equal(getattr(got, f), getattr(ref, f)), (workers, f)
+
+
+FIELDS = ("order", "start", "level", "key", "parent", "child_start", "child_stop",
+          "cube_lo", "box_lo", "box_hi")
+
+
+def _degenerate_clouds(cloud):
+    rng = np.random.default_rng(11)
+    cube = rng.uniform(0.0, 1.0, (40_000, 3))
+    dup = np.tile([0.25, 0.5, 0.75], (3_000, 1))  # one spot, 3 000 times
+    near = np.repeat(rng.uniform(0.0, 1.0, (500, 3)), 7, axis=0)  # equal codes in runs
+    return {
+        "outcrop": np.asarray(cloud),
+        "cube and duplicates": rng.permutation(np.vstack([cube, dup, near])),
+        "a line": np.column_stack([np.linspace(0.0, 1.0, 5_000), np.zeros(5_000),
+                                   np.zeros(5_000)]),
+        "one spot": np.tile([5.0, 5.0, 5.0], (50, 1)),
+        "one point": np.array([[1.0, 2.0, 3.0]]),
+    }
+
+
+@pytest.mark.parametrize("root_grid, cap", [(16, 1_500), (128, 200)])
+def test_the_compiled_build_is_the_numpy_build(monkeypatch, cloud, root_grid, cap):
+    """The compiled kernels (Morton radix sort, one pass per level, nodes' rows and
+    boxes by a counting sort) give the NumPy build's octree to the bit, on a scan, a
+    volume with coincident points and runs of equal codes, a line, one spot."""
+    import rough_viewer.lod.octree as octree
+    from rough_viewer.grid import fast
+
+    for name, xyz in _degenerate_clouds(cloud).items():
+        monkeypatch.setenv(fast.ENGINE_ENV, "numpy")
+        assert not octree._compiled(xyz.shape[0])
+        want = build_octree(xyz, root_grid=root_grid, max_node_points=cap)
+        monkeypatch.setenv(fast.ENGINE_ENV, "numba")
+        assert octree._compiled(xyz.shape[0])
+        for chunk in (octree.SORT_CHUNK, 1_009):
+            monkeypatch.setattr(octree, "SORT_CHUNK", chunk)
+            got = build_octree(xyz, root_grid=root_grid, max_node_points=cap)
+            for f in FIELDS:
+                a, b = getattr(got, f), getattr(want, f)
+                assert a.dtype == b.dtype and np.array_equal(a, b), (name, chunk, f)
+
+
+def test_the_compiled_sort_is_a_stable_argsort_of_the_codes(monkeypatch):
+    """Morton codes sorted by the compiled radix sort, with each point's index: as
+    ``np.argsort(codes, kind="stable")`` (equal codes keep the points' order) on
+    random, clustered and coincident points, one or several chunks."""
+    import rough_viewer.lod.octree as octree
+    from rough_viewer.grid import fast
+
+    monkeypatch.setenv(fast.ENGINE_ENV, "numba")
+    rng = np.random.default_rng(5)
+    clouds = [rng.uniform(-3.0, 4.0, (30_000, 3)),
+              np.repeat(rng.normal(0.0, 1e-3, (900, 3)), 11, axis=0)[rng.permutation(9_900)],
+              np.tile([1.0, 1.0, 1.0], (2_000, 1)),
+              rng.integers(0, 4, (20_000, 3)).astype(np.float64)]  # 64 spots, many ties
+    for xyz in clouds:
+        lo, side = octree._root_cube(xyz[:, 0], xyz[:, 1], xyz[:, 2])
+        want_codes = octree.morton_codes(xyz[:, 0], xyz[:, 1], xyz[:, 2], lo, side)
+        want = np.argsort(want_codes, kind="stable")
+        for chunk in (octree.SORT_CHUNK, 777):
+            monkeypatch.setattr(octree, "SORT_CHUNK", chunk)
+            codes, rest = octree._sorted_codes_compiled(xyz[:, 0], xyz[:, 1], xyz[:, 2], lo,
+                                                        side, np.int32, "a test")
+            assert np.array_equal(rest, want) and rest.dtype == np.int32
+            assert np.array_equal(codes, want_codes[want])
