@@ -175,10 +175,10 @@ def overview_rows(copc: CopcFile, cap: int) -> np.ndarray:
 def read_overview(campaign: Campaign, cap: int, *,
                   progress: Callable[[int, int], None] | None = None) -> PointCloud:
     """The overview's points (:func:`overview_rows`), metres, decoded in the reader
-    sandbox (:func:`rough_viewer.scale.tiles._decoded_tiles`: a node that crashes its
+    sandbox (:func:`rough_viewer.scale.tiles.decoded_tiles`: a node that crashes its
     decoder is one InputError line), as the app's cloud (``source``: the file).
     ``progress(done, total)`` in points."""
-    from rough_viewer.scale.tiles import _decoded_tiles
+    from rough_viewer.scale.tiles import decoded_tiles
 
     copc = campaign.copc
     rows = overview_rows(copc, cap)
@@ -189,7 +189,7 @@ def read_overview(campaign: Campaign, cap: int, *,
     done = 0
     if progress is not None:
         progress(0, n)
-    for x, y, z in _decoded_tiles(copc, campaign.source, [p for p in pieces if p.size]):
+    for x, y, z in decoded_tiles(copc, campaign.source, [p for p in pieces if p.size]):
         m = int(x.shape[0])
         if done + m > n:
             raise InputError(f"{campaign.path}: its nodes hold more points than its "

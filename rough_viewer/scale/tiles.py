@@ -563,12 +563,12 @@ class TileRunner:
                   ) -> Iterator[tuple[int, TileOut]]:
         """Yield ``(tile number, TileOut)`` for every tile (any order); ``tops[t]``:
         per grid, the top points of tile ``t``'s inner cells."""
-        for number, (x, y, z) in enumerate(_decoded_tiles(copc, source, plan.tiles)):
+        for number, (x, y, z) in enumerate(decoded_tiles(copc, source, plan.tiles)):
             on_points(int(x.shape[0]))
             yield number, tile_cells(x, y, z, number, ctx, tops[number])
 
 
-def _decoded_tiles(copc: CopcFile, source: Source, groups: Sequence[np.ndarray]
+def decoded_tiles(copc: CopcFile, source: Source, groups: Sequence[np.ndarray]
                    ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """x, y, z (metres) of each group of nodes, decoded in a child process where
     reads are isolated."""
@@ -610,7 +610,7 @@ def tile_task(path: str, source: Source, rows: np.ndarray, number: int, ctx: Til
 
     copc = open_copc(path)
     if sandbox:
-        x, y, z = next(iter(_decoded_tiles(copc, source, [rows])))
+        x, y, z = next(iter(decoded_tiles(copc, source, [rows])))
     else:
         dx, dy, dz = decode_nodes(copc, rows)
         x, y, z = _checked(source, {"x": dx, "y": dy, "z": dz})
@@ -729,7 +729,7 @@ def _run(copc: CopcFile, source: Source, plan: TilePlan, ctx: TileContext, runne
     if progress:
         progress(done0, total)
     gather = _Gather(ctx, memory_bytes)
-    tx, ty, tz = next(_decoded_tiles(copc, source, [plan.top])) if plan.top.size else \
+    tx, ty, tz = next(decoded_tiles(copc, source, [plan.top])) if plan.top.size else \
         (np.empty(0), np.empty(0), np.empty(0))
     on_points(int(tx.shape[0]))
     first, tops = split_top(tx, ty, tz, ctx)
@@ -747,7 +747,7 @@ def _exact_box(copc: CopcFile, source: Source, plan: TilePlan) -> tuple[np.ndarr
     """The points' bounding box, metres, from a read of every node."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     groups = [plan.top, *plan.tiles] if plan.top.size else list(plan.tiles)
-    for x, y, z in _decoded_tiles(copc, source, groups):
+    for x, y, z in decoded_tiles(copc, source, groups):
         if x.size:
             lo = np.minimum(lo, [x.min(), y.min(), z.min()])
             hi = np.maximum(hi, [x.max(), y.max(), z.max()])
@@ -787,5 +787,5 @@ def _assemble(size: float, grid: GridSpec, parts: list[Rows], ctx: TileContext,
 
 
 __all__ = ["DEFAULT_TILE_POINTS", "Held", "Rows", "TileContext", "TileOut", "TilePlan",
-           "TileRunner", "complete_rows", "copc_roughness", "make_context", "plan_tiles",
-           "split_top", "tile_cells", "tile_points_for", "tile_task"]
+           "TileRunner", "complete_rows", "copc_roughness", "decoded_tiles", "make_context",
+           "plan_tiles", "split_top", "tile_cells", "tile_points_for", "tile_task"]
