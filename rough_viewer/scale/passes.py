@@ -64,9 +64,15 @@ def decode_keys(keys: np.ndarray, grid: GridSpec) -> np.ndarray:
 
 
 def _chunk_index(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec,
-                 engine: Engine) -> CellIndex:
-    lo = np.array([x.min(), y.min(), z.min()])
-    hi = np.array([x.max(), y.max(), z.max()])
+                 engine: Engine, box: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> CellIndex:
+    """The chunk's points on the sub-grid of ``grid`` over their box (``box``: the
+    box, where known already)."""
+    if box is None:
+        lo = np.array([x.min(), y.min(), z.min()])
+        hi = np.array([x.max(), y.max(), z.max()])
+    else:
+        lo, hi = box
     sub = make_grid(lo, hi, grid.cell_size, grid.origin)
     return index_points(x, y, z, sub, engine=engine, dense_limit=CHUNK_DENSE_LIMIT)
 

@@ -53,7 +53,7 @@ from rough_viewer.grid.roughness import (
     check_options,
     whole_plane_from_moments,
 )
-from rough_viewer.io.copc.reader import CopcFile
+from rough_viewer.io.copc.reader import CopcFile, scaled
 from rough_viewer.memory import format_bytes
 from rough_viewer.scale.partials import Partial
 from rough_viewer.scale.passes import (
@@ -419,10 +419,11 @@ def tile_cells(x: np.ndarray, y: np.ndarray, z: np.ndarray, number: int, ctx: Ti
                 rows.append(Rows.empty(ctx.n_values))
                 held.append(_held_none())
                 continue
-            index = _chunk_index(gx, gy, gz, grid, ctx.engine)
-            if g == 0:  # the index's grid spans the points' box
-                los.append(np.array([gx.min(), gy.min(), gz.min()]))
-                his.append(np.array([gx.max(), gy.max(), gz.max()]))
+            box = _bounds(gx, gy, gz, ctx.engine)
+            index = _chunk_index(gx, gy, gz, grid, ctx.engine, box)
+            if g == 0:
+                los.append(box[0])
+                his.append(box[1])
             lo = grid.origin + index.ijk * grid.cell_size
             first, last = ctx.tiles_of(lo, lo + grid.cell_size)
             if np.any((last < number) | (first > number)):
@@ -434,6 +435,16 @@ def tile_cells(x: np.ndarray, y: np.ndarray, z: np.ndarray, number: int, ctx: Ti
             held.append(Held(gx[out], gy[out], gz[out], last[index.point_cell[out]]))
     return TileOut(tuple(rows), tuple(held), int(x.shape[0]), np.min(los, axis=0),
                    np.max(his, axis=0))
+
+
+def _bounds(x: np.ndarray, y: np.ndarray, z: np.ndarray, engine: Engine
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """The points' box, metres: one compiled pass where the kernels run."""
+    if engine == "numba":
+        from rough_viewer.grid import fast
+
+        return fast.bounds(x, y, z)
+    return (np.array([x.min(), y.min(), z.min()]), np.array([x.max(), y.max(), z.max()]))
 
 
 def _held_none() -> Held:
@@ -585,15 +596,17 @@ def decoded_tiles(copc: CopcFile, source: Source, groups: Sequence[np.ndarray]
     else:
         biggest = max((int(copc.nodes["count"][g].sum()) for g in groups), default=0)
         size = max((int(copc.nodes["size"][g].astype(np.int64).sum()) for g in groups), default=0)
-        need = biggest * (copc.record_size + 48) + size
+        need = biggest * (copc.record_size + 24) + size
         limits = isolate.limits_for(need, biggest * 8)
         items = isolate.stream_isolated(
             "rough_viewer.io.copc.reader:decode_tiles", source.path, label=reader.label,
-            limits=limits, names=frozenset({"x", "y", "z"}), options={"plan": plan},
+            limits=limits, names=frozenset({"X", "Y", "Z"}), options={"plan": plan},
             ahead=True)
     try:
         for item in items:
-            yield _checked(source, item)
+            x, y, z = scaled(copc, item["X"], item["Y"], item["Z"])
+            del item
+            yield _checked(source, {"x": x, "y": y, "z": z})
     finally:
         close = getattr(items, "close", None)
         if close is not None:

@@ -88,13 +88,13 @@ def test_each_point_decoded_once(survey, monkeypatch):
     _, out, xyz = survey
     monkeypatch.setenv("ROUGH_VIEWER_ISOLATE", "0")  # decode in this process, to count
     seen: list[np.ndarray] = []
-    real = reader.decode_nodes
+    real = reader.decode_integers
 
     def counting(copc, rows):
         seen.append(np.asarray(rows))
         return real(copc, rows)
 
-    monkeypatch.setattr(reader, "decode_nodes", counting)
+    monkeypatch.setattr(reader, "decode_integers", counting)
     progress = []
     _run(out, tile_points=TILE, progress=lambda d, t: progress.append((d, t)))
     rows = np.concatenate(seen)

@@ -249,10 +249,10 @@ def pack_key(d: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.n
         | (np.asarray(y, dtype=np.int64) << 19) | np.asarray(z, dtype=np.int64)
 
 
-def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """x, y, z (file units, float64) of the points of ``copc.nodes[rows]``, node
-    after node in the order given.
+def decode_integers(copc: CopcFile, rows: Sequence[int] | np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The stored integers X, Y, Z (int32 views of the records) of the points of
+    ``copc.nodes[rows]``, node after node in the order given.
 
     Raises
     ------
@@ -287,9 +287,29 @@ def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
                                              "formats": ["<i4", "<i4", "<i4"],
                                              "offsets": [0, 4, 8],
                                              "itemsize": copc.record_size}))
+    return rec["X"], rec["Y"], rec["Z"]
+
+
+def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, z (file units, float64) of the points of ``copc.nodes[rows]``, node
+    after node in the order given (:func:`decode_integers` scaled).
+
+    Raises
+    ------
+    InputError
+        If a chunk does not decode to its count of points.
+    """
+    return scaled(copc, *decode_integers(copc, rows))
+
+
+def scaled(copc: CopcFile, ix: np.ndarray, iy: np.ndarray, iz: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, z (file units, float64) of stored integers: ``X * scale + offset``, the
+    arithmetic laspy uses, so the same bits."""
     cols = []
-    for k, name in enumerate(("X", "Y", "Z")):
-        col = np.multiply(rec[name], copc.scales[k])
+    for k, col_int in enumerate((ix, iy, iz)):
+        col = np.multiply(col_int, copc.scales[k])
         col += copc.offsets[k]
         cols.append(col)
     return cols[0], cols[1], cols[2]
@@ -297,14 +317,16 @@ def decode_nodes(copc: CopcFile, rows: Sequence[int] | np.ndarray
 
 def decode_tiles(path: str, *, progress: ProgressFn | None = None,
                  plan: Sequence[Sequence[int]] = ()) -> Iterator[dict[str, np.ndarray]]:
-    """For each entry of ``plan`` (rows of :attr:`CopcFile.nodes`), the decoded x, y,
-    z of those nodes: the generator a child process runs
+    """For each entry of ``plan`` (rows of :attr:`CopcFile.nodes`), the stored integers
+    X, Y, Z of those nodes (:func:`scaled` makes them x, y, z): the generator a child
+    process runs
     (:func:`rough_viewer.io.sandbox.isolate.stream_isolated`)."""
     copc = open_copc(path)
     for rows in plan:
-        x, y, z = decode_nodes(copc, rows)
-        yield {"x": x, "y": y, "z": z}
+        ix, iy, iz = decode_integers(copc, rows)
+        yield {"X": ix, "Y": iy, "Z": iz}  # scaled by the caller: half the bytes to send
 
 
-__all__ = ["ENTRY_DTYPE", "CopcFile", "decode_nodes", "decode_tiles", "is_copc", "node_codes",
-           "open_copc", "pack_key"]
+__all__ = ["ENTRY_DTYPE", "CopcFile", "decode_integers", "decode_nodes", "decode_tiles", "is_copc",
+           "node_codes",
+           "open_copc", "pack_key", "scaled"]
