@@ -55,6 +55,7 @@ from rough_viewer.grid.roughness import (
 )
 from rough_viewer.io.copc.reader import CopcFile, scaled
 from rough_viewer.memory import format_bytes
+from rough_viewer.scale.chunked import BYTES_PER_CELL, BYTES_PER_POINT, CHUNK_SHARE
 from rough_viewer.scale.partials import Partial
 from rough_viewer.scale.passes import (
     MOMENT_COLUMNS,
@@ -78,16 +79,13 @@ from rough_viewer.vocabulary import (
     Residual,
 )
 
-#: Bytes a tile holds per point while it is decoded and worked on: the record buffer
-#: and compressed bytes (~40), x, y, z (24), cell keys and bookkeeping per grid
-#: (~60) and slack.
-BYTES_PER_POINT = 160
+#: Share of the memory budget for the tile in flight. A tile's bytes a point while it
+#: is decoded and worked on, and a computed cell's, are a streamed chunk's
+#: (:data:`~rough_viewer.scale.chunked.BYTES_PER_POINT`, ``BYTES_PER_CELL``: the same
+#: arrays).
+TILE_SHARE = CHUNK_SHARE
 #: Bytes a held (top or seam) point costs: x, y, z and its tile number.
 HELD_BYTES_PER_POINT = 32
-#: Bytes per computed cell row at the end (keys, moments, sums, planes, result).
-BYTES_PER_CELL = 400
-#: Share of the memory budget for the tile in flight.
-TILE_SHARE = 0.5
 #: Points of a tile without a memory budget.
 DEFAULT_TILE_POINTS = 4_000_000
 
