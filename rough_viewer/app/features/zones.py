@@ -179,6 +179,18 @@ class ZoneBasis:
     """(M,) bool: the cell has a value (a plane and the map)."""
 
 
+def _same_result(a: GridRoughness, b: GridRoughness) -> bool:
+    """Whether two results of one grid key hold the same cells, values and points'
+    rows: the store may hand out the same grid as a new object (rebuilt from its
+    cached cells after the full result left the cache, the same bits)."""
+    if a is b:
+        return True
+    return (a.grid == b.grid and a.ijk.shape == b.ijk.shape
+            and all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+                    for f in ("ijk", "theta_odr", "theta_ols", "theta_hybrid", "e_ols",
+                              "point_cell")))
+
+
 def zone_basis(result: GridRoughness, map_name: MapName, display_index: np.ndarray, *,
                keep_outliers: bool = False) -> ZoneBasis:
     """Build the labeller of ``result``'s map (outlier cells left out unless kept) and
@@ -515,7 +527,7 @@ class ZonesFeature:
         self._own(loaded)
         key = ("basis", grid_key, map_name, keep_outliers)
         hit = self.cache.get(key)
-        if isinstance(hit, ZoneBasis) and hit.labeller.result is result:
+        if isinstance(hit, ZoneBasis) and _same_result(hit.labeller.result, result):
             return hit, True
         basis = zone_basis(result, map_name, loaded.display_index, keep_outliers=keep_outliers)
         self.cache.put(key, basis)
