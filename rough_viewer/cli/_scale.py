@@ -64,15 +64,10 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
                             dropped_nonfinite=dropped, warnings=notes), "the inputs")
     runner = SequentialRunner() if not args.scheduler else _dask_runner(args)
     quiet = args.quiet
-    if len(sources) == 1 and sources[0].streamed and is_copc(sources[0].path):
-        try:
+    try:
+        if len(sources) == 1 and sources[0].streamed and is_copc(sources[0].path):
             return _copc_results(args, sources[0], grids, origin=origin, models=models,
                                  residual=residual, memory=memory, runner=runner), dropped
-        finally:
-            close = getattr(runner, "close", None)
-            if close is not None:
-                close()
-    try:
         bars: FileBars | None = None
         overall: ProgressBar | None = None
         per_file: list[ProgressBar] | None = None

@@ -31,7 +31,7 @@ from rough_viewer.vocabulary import Engine
 #: Value columns of a moments table: count, sums of x, y, z, then of xx, xy, xz, yy,
 #: yz, zz (cell-local coordinates, metres and square metres).
 MOMENT_COLUMNS = 10
-MOMENT_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 #: Dense cell bookkeeping of a chunk is allowed up to this many cells of its
 #: bounding grid, or 4 per point (beyond: the sort-based path), so a chunk's memory
@@ -102,23 +102,29 @@ def chunk_moments(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec,
     """
     lo = np.array([x.min(), y.min(), z.min()])
     hi = np.array([x.max(), y.max(), z.max()])
-    index = _chunk_index(x, y, z, grid, engine)
+    index = _chunk_index(x, y, z, grid, engine, (lo, hi))
     keys = global_keys(index.ijk, grid)
-    mom = cell_moments(x, y, z, index, engine=engine)
-    values = np.empty((index.n_cells, MOMENT_COLUMNS))
-    values[:, 0] = index.counts
-    values[:, 1:4] = mom.s1
-    for c, (a, b) in enumerate(MOMENT_PAIRS, start=4):
-        values[:, c] = mom.s2[:, a, b]
+    values = moment_columns(cell_moments(x, y, z, index, engine=engine))
     return Partial(keys=keys, values=values, n_points=int(x.shape[0]), bounds_min=lo,
                    bounds_max=hi)
+
+
+def moment_columns(mom: CellMoments) -> np.ndarray:
+    """(M, :data:`MOMENT_COLUMNS`) the table columns of cells' moments: count, the
+    sums of x, y, z, then the six distinct products (inverse of :func:`moments_of`)."""
+    values = np.empty((mom.counts.shape[0], MOMENT_COLUMNS))
+    values[:, 0] = mom.counts
+    values[:, 1:4] = mom.s1
+    for c, (a, b) in enumerate(_PAIRS, start=4):
+        values[:, c] = mom.s2[:, a, b]
+    return values
 
 
 def moments_of(table: Partial) -> CellMoments:
     """The :class:`~rough_viewer.grid.cells.CellMoments` of a reduced moments table."""
     v = table.values
     s2 = np.empty((table.n_cells, 3, 3))
-    for c, (a, b) in enumerate(MOMENT_PAIRS, start=4):
+    for c, (a, b) in enumerate(_PAIRS, start=4):
         s2[:, a, b] = v[:, c]
         s2[:, b, a] = v[:, c]
     return CellMoments(counts=np.rint(v[:, 0]).astype(np.int64), s1=np.ascontiguousarray(v[:, 1:4]),

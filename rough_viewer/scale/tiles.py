@@ -42,7 +42,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rough_viewer.grid.cells import CellIndex, GridSpec, cell_moments, distance_sums, make_grid
+from rough_viewer.grid.cells import (
+    CellIndex,
+    CellMoments,
+    GridSpec,
+    cell_moments,
+    distance_sums,
+    make_grid,
+)
 from rough_viewer.grid.fast import resolve_engine
 from rough_viewer.grid.fast import threads as kernel_threads
 from rough_viewer.grid.planes import dominant_axis
@@ -59,11 +66,11 @@ from rough_viewer.scale.chunked import BYTES_PER_CELL, BYTES_PER_POINT, CHUNK_SH
 from rough_viewer.scale.partials import Partial
 from rough_viewer.scale.passes import (
     MOMENT_COLUMNS,
-    MOMENT_PAIRS,
     OutsideGrid,
     _chunk_index,
     decode_keys,
     global_keys,
+    moment_columns,
     moments_of,
 )
 from rough_viewer.scale.sources import Columns, Source
@@ -367,13 +374,11 @@ def _rows_of(x: np.ndarray, y: np.ndarray, z: np.ndarray, index: CellIndex, keep
                     counts=np.append(counts, index.point_cell.shape[0] - int(counts.sum())),
                     point_cell=point_cell)
     keys = global_keys(ijk, grid)  # sorted: the index's cells are in linear key order
-    mom = cell_moments(x, y, z, sub, engine=ctx.engine)
+    summed = cell_moments(x, y, z, sub, engine=ctx.engine)
+    moments = CellMoments(counts=counts, s1=np.ascontiguousarray(summed.s1[:m]),
+                          s2=summed.s2[:m])  # the spare cell dropped
     values = np.empty((m, ctx.n_values))
-    values[:, 0] = counts
-    values[:, 1:4] = mom.s1[:m]
-    for c, (i, j) in enumerate(MOMENT_PAIRS, start=4):
-        values[:, c] = mom.s2[:m, i, j]
-    moments = moments_of(Partial(keys, values[:, :MOMENT_COLUMNS], int(counts.sum())))
+    values[:, :MOMENT_COLUMNS] = moment_columns(moments)
     up = np.array([0.0, 0.0, 1.0])
     vectors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if "odr" in ctx.names:
