@@ -32,7 +32,6 @@ import contextlib
 import hashlib
 import math
 import os
-import tempfile
 import threading
 import zipfile
 from collections.abc import Callable, Sequence
@@ -287,24 +286,15 @@ def save_cells(where: Path, res: GridRoughness) -> bool:
         plane_axes=w.axes, text=np.array([res.axis, res.axis_requested, res.residual,
                                           ",".join(res.models), CELLS_VERSION]),
         numbers=np.array([res.min_points, res.n_points_total], dtype=np.int64))
-    tmp: str | None = None
+    from rough_viewer.io.output import write_path_atomic
+
     try:
         where.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=where.parent, prefix=".part-", suffix=".npz")
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)  # type: ignore[arg-type]
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, where)
-        tmp = None
-        _keep_newest(where.parent, CELLS_KEPT)
-        return True
-    except OSError:
+        write_path_atomic(where, lambda tmp: np.savez(tmp, **arrays))  # type: ignore[arg-type]
+    except (OSError, InputError):
         return False
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    _keep_newest(where.parent, CELLS_KEPT)
+    return True
 
 
 def _keep_newest(folder: Path, most: int) -> None:
@@ -322,23 +312,20 @@ def save_no_fit(where: Path, memory_bytes: int, message: str) -> None:
     ignored)."""
     import json
 
+    from rough_viewer.io.output import write_path_atomic
+
     marker = where.with_suffix(".nofit")
-    tmp: str | None = None
+    text = json.dumps({"version": CELLS_VERSION, "memory_bytes": int(memory_bytes),
+                       "message": message})
+    def write(tmp: Path) -> None:
+        tmp.write_text(text)
+
     try:
         marker.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=marker.parent, prefix=".part-", suffix=".nofit")
-        with os.fdopen(fd, "w") as fh:
-            json.dump({"version": CELLS_VERSION, "memory_bytes": int(memory_bytes),
-                       "message": message}, fh)
-        os.replace(tmp, marker)
-        tmp = None
-        _keep_newest(marker.parent, CELLS_KEPT)
-    except OSError:
-        pass
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        write_path_atomic(marker, write)
+    except (OSError, InputError):
+        return
+    _keep_newest(marker.parent, CELLS_KEPT)
 
 
 def load_no_fit(where: Path, memory_bytes: int) -> str | None:
