@@ -37,6 +37,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +57,9 @@ from rough_viewer.io.crop import CropBox
 from rough_viewer.memory import format_bytes
 from rough_viewer.scale.sources import Source
 from rough_viewer.vocabulary import UNIT_METRES, InputError, ProgressFn
+
+if TYPE_CHECKING:
+    from rough_viewer.app.campaign_nodes import CopcNodes
 
 #: Most points of the overview (the app's cloud) unless ``serve --overview-points``
 #: or ``$ROUGH_VIEWER_OVERVIEW_POINTS`` says otherwise (and the memory budget allows).
@@ -110,11 +114,16 @@ def overview_cap(memory: float | None, asked: int | None = None) -> int:
 
 def compute_memory(memory: float | None, overview_points: int) -> int | None:
     """Bytes the campaign's map may take (the tiles in flight and the cells): the
-    budget less :data:`APP_FIXED_BYTES` and what the overview holds (None: no
+    budget less :data:`APP_FIXED_BYTES`, what the overview holds and the bound of the
+    decoded nodes the tabs draw
+    (:data:`rough_viewer.app.campaign_nodes.NODE_CACHE_BYTES`) (None: no
     budget, the tiles' default size); at least :data:`MIN_COMPUTE_BYTES`."""
     if memory is None:
         return None
-    held = APP_FIXED_BYTES + (APP_BYTES_PER_POINT + APP_CACHE_BYTES_PER_POINT) * overview_points
+    from rough_viewer.app.campaign_nodes import NODE_CACHE_BYTES
+
+    held = (APP_FIXED_BYTES + (APP_BYTES_PER_POINT + APP_CACHE_BYTES_PER_POINT) * overview_points
+            + NODE_CACHE_BYTES)
     return int(max(MIN_COMPUTE_BYTES, memory - held))
 
 
@@ -412,20 +421,13 @@ def overview_cells(cloud: PointCloud, res: GridRoughness) -> np.ndarray:
 
     Raises InputError when a point's cell is not (the file's nodes hold points the
     map did not count: a damaged file)."""
-    from rough_viewer.scale.passes import OutsideGrid, global_keys
+    from rough_viewer.grid.cells import cell_keys_of, cell_rows
 
-    try:
-        index = index_points(cloud.x, cloud.y, cloud.z, res.grid)
-        mine = global_keys(index.ijk, res.grid)
-    except OutsideGrid:
-        mine = None
-    theirs = global_keys(res.ijk, res.grid)
-    if mine is not None:
-        pos = np.minimum(np.searchsorted(theirs, mine), max(theirs.size - 1, 0))
-        if theirs.size and np.array_equal(theirs[pos], mine):
-            return pos[index.point_cell]
-    raise InputError(f"{cloud.source}: points of its overview lie in cells its map "
-                     "lacks; the file is damaged")
+    rows = cell_rows(cloud.x, cloud.y, cloud.z, res.grid, cell_keys_of(res.ijk, res.grid))
+    if rows.size and int(rows.min()) < 0:
+        raise InputError(f"{cloud.source}: points of its overview lie in cells its map "
+                         "lacks; the file is damaged")
+    return rows
 
 
 def expected_cells(overview: PointCloud, cell_size: float, n_total: int) -> float:
@@ -639,6 +641,19 @@ class CampaignCloud(LoadedCloud):
     (:class:`CampaignStore`)."""
 
     campaign: Campaign | None = field(default=None, repr=False)
+    _nodes: CopcNodes | None = field(default=None, init=False, repr=False)
+
+    def lod_nodes(self) -> CopcNodes:
+        """The level-of-detail tree of the file's hierarchy and its nodes' points for
+        the browser tabs: the overview's nodes from this cloud's rows, the deeper ones
+        decoded on demand in the reader sandbox (:mod:`rough_viewer.app.campaign_nodes`);
+        made once."""
+        if self._nodes is None:
+            from rough_viewer.app.campaign_nodes import campaign_nodes
+
+            assert self.campaign is not None
+            self._nodes = campaign_nodes(self.campaign.copc, self.campaign.source, self.cloud.n)
+        return self._nodes
 
     def _make_store(self) -> CloudStore:
         assert self.campaign is not None and self.presets is not None

@@ -262,7 +262,7 @@ class LoadedCloud:
             assert trust is not None
             cells = trust.layer(name)
             rng = self.cell_layer(name, result).colour_range
-            return by_cell(trust_layer(name, cells, colour_range=rng).colours, result.point_cell)
+            return by_cell(trust_layer(name, cells, colour_range=rng).colours, result)
         shown = self.layer(name)  # InputError when the cloud lacks it
         cloud = self.cloud
         if name == "rgb":

@@ -52,15 +52,70 @@ def shown_outliers(result: GridRoughness, settings: MapSettings) -> np.ndarray |
 Colouring = Callable[[np.ndarray], np.ndarray]
 """What colours the points: ``colouring(idx)`` gives the (K, 3) uint8 colours of cloud
 points ``idx`` (indices into the loaded cloud), for any subset (the nodes a browser
-tab shows)."""
+tab shows). A :class:`CellColouring` (every colouring by cell) also colours points
+that are not rows of the cloud, by position (:meth:`CellColouring.at`)."""
+
+#: The colour of a point whose cell the map lacks (by position: a point of no cell).
+NO_CELL_RGB = (190, 190, 190)
 
 
-def by_cell(cell_rgb: np.ndarray, point_cell: np.ndarray) -> Colouring:
-    """The colouring that gives each point its cell's colour ((M, 3) ``cell_rgb``)."""
-    def colouring(idx: np.ndarray) -> np.ndarray:
-        return cell_rgb[point_cell[idx]]
+@dataclass(eq=False)
+class CellColouring:
+    """The colouring that gives each point its cell's colour: rows of the cloud by
+    ``point_cell``, any point by position (its cell on the result's grid looked up
+    among the result's cells: :func:`rough_viewer.grid.cells.cell_rows`)."""
 
-    return colouring
+    cell_rgb: np.ndarray
+    """(M, 3) uint8 colour of every cell of the result."""
+    point_cell: np.ndarray
+    """(N,) the result's cell of every point of the cloud."""
+    result: GridRoughness | None = None
+    """The result whose cells ``cell_rgb`` colours (None: no colours by position)."""
+    _keys: np.ndarray | None = None
+    _order: np.ndarray | None = None
+
+    def __call__(self, idx: np.ndarray) -> np.ndarray:
+        return self.cell_rgb[self.point_cell[idx]]
+
+    def rows_at(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray | None:
+        """(K,) the result's cell row of points at x, y, z (metres, the cloud's frame;
+        -1: no cell of the map), or None without a result."""
+        from rough_viewer.grid.cells import cell_keys_of, cell_rows
+
+        res = self.result
+        if res is None:
+            return None
+        if self._keys is None:
+            keys = cell_keys_of(res.ijk, res.grid)
+            if keys.size > 1 and not bool(np.all(keys[1:] > keys[:-1])):
+                self._order = np.argsort(keys, kind="stable")  # (results are in key order)
+                keys = keys[self._order]
+            self._keys = keys
+        rows = cell_rows(x, y, z, res.grid, self._keys)
+        if self._order is not None:
+            rows = np.where(rows >= 0, self._order[np.maximum(rows, 0)], -1)
+        return rows
+
+    def at(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray | None:
+        """(K, 3) uint8 colours of points at x, y, z (metres): their cells' colours,
+        :data:`NO_CELL_RGB` where the map has no cell; None without a result."""
+        rows = self.rows_at(x, y, z)
+        if rows is None:
+            return None
+        out = np.empty((rows.shape[0], 3), dtype=np.uint8)
+        out[:] = NO_CELL_RGB
+        hit = rows >= 0
+        out[hit] = self.cell_rgb[rows[hit]]
+        return out
+
+
+def by_cell(cell_rgb: np.ndarray, cells: GridRoughness | np.ndarray) -> CellColouring:
+    """The colouring that gives each point its cell's colour ((M, 3) ``cell_rgb``):
+    ``cells`` is the result whose cells these are (its ``point_cell`` for the
+    cloud's rows, its grid for points by position), or a bare point-to-cell map."""
+    if isinstance(cells, GridRoughness):
+        return CellColouring(cell_rgb, cells.point_cell, cells)
+    return CellColouring(cell_rgb, cells)
 
 
 def cell_colours(

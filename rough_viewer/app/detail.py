@@ -39,9 +39,12 @@ class CameraJob(Job[Host]):
 
 @dataclass(frozen=True)
 class RefineJob(Job[Host]):
-    """Browser tabs choose their nodes for their cameras (level of detail)."""
+    """Browser tabs choose their nodes for their cameras (level of detail); with
+    ``force``, whether their cameras moved or not (a campaign's nodes they waited for
+    were decoded)."""
 
     clients: frozenset[int]
+    force: bool = False
     lane: ClassVar[str] = "lod"
 
     @property
@@ -50,13 +53,27 @@ class RefineJob(Job[Host]):
 
     def absorb(self, newer: Job[Host]) -> Job[Host] | None:
         if isinstance(newer, RefineJob):
-            return RefineJob(self.clients | newer.clients)
+            return RefineJob(self.clients | newer.clients, self.force or newer.force)
         return None
 
     def stages(self, ctx: Host, run: Run) -> Iterator[str]:
         for cid in sorted(self.clients):
-            ctx.scene.refine(cid)
+            ctx.scene.refine(cid, force=self.force)
         yield "refine"
+
+
+@dataclass(frozen=True)
+class NodeErrorJob(Job[Host]):
+    """A campaign's node could not be decoded or held: one line in the app's error
+    line (the other nodes are drawn)."""
+
+    message: str
+    lane: ClassVar[str] = "lod-error"
+    keep_all: ClassVar[bool] = True
+
+    def stages(self, ctx: Host, run: Run) -> Iterator[str]:
+        ctx.show_error(self.message, kept="The other nodes are drawn.")
+        yield "error"
 
 
 #: Seconds after a tab left when the heap is trimmed a second time (its connection's
@@ -101,13 +118,29 @@ class BudgetJob(Job[Host]):
 class CameraWatch:
     """Debounces the cameras of the browser tabs: a tab chooses its nodes again once
     its camera has rested :data:`CAMERA_REST_S` (and every :data:`CAMERA_MOVING_S`
-    while it moves), as a :class:`RefineJob` on the worker."""
+    while it moves), as a :class:`RefineJob` on the worker. A campaign's tabs also
+    refine when nodes they wait for were decoded, and a node that cannot be is a
+    :class:`NodeErrorJob` (:meth:`rough_viewer.app.scene.Scene.on_nodes`)."""
 
     def __init__(self, host: Host) -> None:
         self._host = host
         self._lock = threading.Lock()
         self._timers: dict[int, threading.Timer] = {}
         self._last: dict[int, float] = {}
+        self._errors: set[str] = set()
+        host.scene.on_nodes(self.arrived, self.failed)
+
+    def arrived(self, client_ids: frozenset[int]) -> None:
+        """Nodes those tabs waited for were decoded (a campaign's decoding thread)."""
+        self._host.submit(RefineJob(frozenset(client_ids), force=True))
+
+    def failed(self, message: str) -> None:
+        """A node cannot be drawn: said once (a campaign's decoding thread)."""
+        with self._lock:
+            if message in self._errors:
+                return
+            self._errors.add(message)
+        self._host.submit(NodeErrorJob(message))
 
     def moved(self, client_id: int) -> None:
         """A tab's camera changed (viser's thread pool)."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
@@ -21,13 +21,17 @@ from rough_viewer.app.cloud import LoadedCloud
 from rough_viewer.app.colouring import CellInfo, Colouring
 from rough_viewer.app.stage import Stage, stage_of
 from rough_viewer.lod.camera import ViewCamera, camera_moved
-from rough_viewer.lod.encode import encode_node, node_scale
+from rough_viewer.lod.copc import CopcTree
+from rough_viewer.lod.encode import EncodedNode, encode_node, encode_points, node_scale
 from rough_viewer.lod.octree import Octree
 from rough_viewer.lod.residency import Residency
-from rough_viewer.lod.select import DEFAULT_BUDGET, node_points_for, select_nodes
+from rough_viewer.lod.select import DEFAULT_BUDGET, LodTree, node_points_for, select_nodes
 from rough_viewer.report.view import Camera
 from rough_viewer.visual.app import CONTROL_WIDTH
 from rough_viewer.vocabulary import InputError
+
+if TYPE_CHECKING:
+    from rough_viewer.app.campaign_nodes import CopcNodes, DecodedNode
 
 AXIS_VECTORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 AXIS_COLOUR = (230, 60, 40)
@@ -205,6 +209,12 @@ class Tab:
     """Distance to the nearest node shown (how far a camera move shifts the view)."""
     sent_points: int = 0
     """Points sent to the tab so far (every node once; a colour change resends none)."""
+    missing: list[int] = field(default_factory=list)
+    """Nodes its last selection chose that were not at hand (a campaign's nodes being
+    decoded), largest on its screen first."""
+    stale: set[int] = field(default_factory=set)
+    """Decoded nodes it holds whose colours are out of date because their points left
+    the cache: recoloured when they are decoded again."""
 
 
 class Scene:
@@ -238,8 +248,16 @@ class Scene:
         """Most points a browser tab shows at once."""
         self._followers: dict[str, tuple[viser.PointCloudHandle, float]] = {}
         self._loaded: LoadedCloud | None = None
-        self._tree: Octree | None = None
+        self._tree: LodTree | None = None
+        self._nodes: CopcNodes | None = None
+        """A campaign's node points (the COPC file's nodes decoded on demand), or None
+        (the cloud's own octree: every node's points are rows of the cloud)."""
         self._colouring: Colouring | None = None
+        self._by_position: Colouring | None = None
+        """The last colouring by cell given (its ``at`` colours a decoded node's points
+        by position): what a decoded node shows under a colouring of rows only."""
+        self._arrived: Callable[[frozenset[int]], None] | None = None
+        self._node_failed: Callable[[str], None] | None = None
         self.tabs: dict[int, Tab] = {}
         """Each connected browser's nodes, by client id."""
 
@@ -264,38 +282,124 @@ class Scene:
     def show_cloud(self, loaded: LoadedCloud, point_size: float) -> None:
         """Show ``loaded`` (grey until it is coloured) in every tab, replacing the cloud
         before: its octree is built here (once per cloud, memory checked), with nodes
-        sized for the point budget (:func:`rough_viewer.lod.select.node_points_for`)."""
+        sized for the point budget (:func:`rough_viewer.lod.select.node_points_for`);
+        a campaign's tree is its COPC file's hierarchy
+        (:meth:`rough_viewer.app.campaign.CampaignCloud.lod_nodes`)."""
+        from rough_viewer.app.campaign import CampaignCloud
+
         self._check("show_cloud")
         self.point_size = float(point_size)
-        tree = loaded.octree(node_points_for(self.budget))
-        self._loaded, self._tree = loaded, tree
+        old = self._nodes
+        nodes = loaded.lod_nodes() if isinstance(loaded, CampaignCloud) else None
+        if old is not None and old is not nodes:
+            old.listen(None, None)
+            for cid in self.tabs:
+                old.forget(cid)
+        tree: LodTree = nodes.tree if nodes is not None else loaded.octree(
+            node_points_for(self.budget))
+        self._loaded, self._tree, self._nodes = loaded, tree, nodes
+        if nodes is not None:
+            nodes.listen(self._arrived, self._node_failed)
         for tab in self.tabs.values():
             self._drop_nodes(tab)
             tab.residency = Residency(tree.counts, self._tab_budget())
         grey = np.array([GREY, GREY, GREY], dtype=np.uint8)
         self._colouring = lambda idx: np.broadcast_to(grey, (len(idx), 3))
+        self._by_position = None
         # every connected tab, not only those that chose nodes before: a tab whose
         # camera came while the file loaded (no octree yet) has no Tab so far
         for client_id in set(self.tabs) | set(self._server.clients()):
             self.refine(client_id)
 
+    def on_nodes(self, arrived: Callable[[frozenset[int]], None],
+                 failed: Callable[[str], None]) -> None:
+        """A campaign's decoding thread calls ``arrived(client_ids)`` when nodes those
+        tabs wait for were decoded (submit their refinement) and ``failed(line)`` for
+        a node that cannot be drawn (show the line); neither on the worker."""
+        self._arrived, self._node_failed = arrived, failed
+        if self._nodes is not None:
+            self._nodes.listen(arrived, failed)
+
+    @property
+    def nodes(self) -> CopcNodes | None:
+        """A campaign's node points (None: the cloud's own octree)."""
+        return self._nodes
+
     def colour_by(self, colouring: Colouring) -> None:
         """Colour the cloud's points by ``colouring`` in every tab (the nodes it shows
-        now; hidden ones when shown again)."""
+        now; hidden ones when shown again). A campaign's decoded nodes take their
+        colours by position (:meth:`rough_viewer.app.colouring.CellColouring.at`);
+        under a colouring of the cloud's rows only (a crop's selection, the distance
+        layer) they keep the last colouring by cell's."""
         self._check("colour_by")
         self._colouring = colouring
+        if getattr(colouring, "result", None) is not None:
+            self._by_position = colouring
         if self._tree is None:
             return
-        for tab in self.tabs.values():
+        for cid, tab in self.tabs.items():
             ids = tab.residency.colours_changed()
-            for k, colours in zip(ids, nodes_colours_of(self._tree, ids, colouring), strict=True):
+            for k, colours in self._node_colours(tab, ids).items():
                 tab.handles[k].colors = colours
+            self._want(cid, tab)
 
     def colours(self, idx: np.ndarray) -> np.ndarray:
         """(K, 3) uint8: the colours points ``idx`` of the cloud show now."""
         if self._colouring is None:
             return np.full((len(idx), 3), GREY, dtype=np.uint8)
         return np.asarray(self._colouring(np.asarray(idx)))
+
+    def colours_at(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(K, 3) uint8: the colours points at x, y, z (metres, the cloud's frame; a
+        campaign's decoded points) show now: their cells' under the colouring shown,
+        or under the last colouring by cell where the one shown colours rows only,
+        grey where there is none."""
+        for colouring in (self._colouring, self._by_position):
+            at = getattr(colouring, "at", None)
+            got = at(x, y, z) if at is not None else None
+            if got is not None:
+                return np.asarray(got)
+        return np.full((len(x), 3), GREY, dtype=np.uint8)
+
+    def _rows(self, k: int) -> np.ndarray | None:
+        """Rows of the cloud holding node ``k``'s points (None: a decoded node)."""
+        if self._nodes is not None:
+            return self._nodes.rows(k)
+        assert isinstance(self._tree, Octree)
+        return self._tree.rows(k)
+
+    def _node_colours(self, tab: Tab, ids: Sequence[int]) -> dict[int, np.ndarray]:
+        """The colours of nodes ``ids`` under the colouring shown: those of rows in
+        one call; a decoded node's by position, or, its points out of the cache, none
+        (it goes stale in ``tab``, to be decoded again)."""
+        out: dict[int, np.ndarray] = {}
+        by_rows: list[tuple[int, np.ndarray]] = []
+        for k in ids:
+            rows = self._rows(k)
+            if rows is not None:
+                by_rows.append((k, rows))
+                continue
+            pts = self._nodes.points(k) if self._nodes is not None else None
+            if pts is None:
+                tab.stale.add(k)
+            else:
+                tab.stale.discard(k)
+                out[k] = self.colours_at(pts.x, pts.y, pts.z)
+        if by_rows and self._colouring is not None:
+            colours = self._colouring(np.concatenate([r for _, r in by_rows]))
+            at = 0
+            for k, r in by_rows:
+                out[k] = colours[at:at + len(r)]
+                at += len(r)
+        return out
+
+    def _want(self, client_id: int, tab: Tab) -> None:
+        """A campaign's tab wishes for the nodes it lacks: its selection's and the
+        stale ones it shows."""
+        if self._nodes is None:
+            return
+        stale = [k for k in tab.residency.shown if k in tab.stale]
+        self._nodes.want(client_id, list(dict.fromkeys(tab.missing + stale)))
 
     def set_point_size(self, size: float) -> None:
         """The points' size (metres); clouds that follow it scale with it."""
@@ -348,29 +452,70 @@ class Scene:
                 or camera_moved(tab.camera, camera, distance_m=tab.nearest_m)):
             return False
         sel = select_nodes(self._tree, camera, tab.residency.budget)
-        plan = tab.residency.plan(sel.nodes)
+        chosen, decoded = self._at_hand(tab, sel.nodes.tolist())
+        plan = tab.residency.plan(chosen)
         tab.camera, tab.nearest_m = camera, sel.nearest_m
         for k in plan.evict:
             handle = tab.handles.pop(k, None)
+            tab.stale.discard(k)
             if handle is not None:
                 handle.remove()
         for k in plan.hide:
             tab.handles[k].visible = False
-        recolour = set(plan.recolour)
+        recolour = set(plan.recolour) | (tab.stale & set(tab.residency.shown))
+        for k, colours in self._node_colours(tab, sorted(recolour)).items():
+            tab.handles[k].colors = colours
         for k in plan.show:
-            if k in recolour and self._colouring is not None:
-                tab.handles[k].colors = self._colouring(self._tree.node(k).rows)
             tab.handles[k].visible = True
         for k in plan.send:
-            tab.handles[k] = self._send(client, k)
+            tab.handles[k] = self._send(client, k, decoded.get(k))
             tab.sent_points += int(self._tree.counts[k])
+        self._want(client_id, tab)
         return True
 
-    def _send(self, client: viser.ClientHandle, k: int) -> viser.PointCloudHandle:
+    def _at_hand(self, tab: Tab, chosen: list[int]) -> tuple[list[int], dict[int, DecodedNode]]:
+        """Of the nodes chosen, those whose points are at hand (all, but in a campaign:
+        the overview's, those the tab holds and those decoded so far, with their
+        points); the rest, but those that cannot be decoded, become ``tab.missing``."""
+        decoded: dict[int, DecodedNode] = {}
+        if self._nodes is None:
+            return chosen, decoded
+        at_hand = []
+        tab.missing = []
+        for k in chosen:
+            if self._nodes.in_overview(k) or k in tab.handles:  # the tab holds it already
+                at_hand.append(k)
+                continue
+            pts = self._nodes.points(k)
+            if pts is not None:
+                decoded[k] = pts
+                at_hand.append(k)
+            elif not self._nodes.failed(k):
+                tab.missing.append(k)
+        return at_hand, decoded
+
+    def _send(self, client: viser.ClientHandle, k: int,
+              decoded: DecodedNode | None = None) -> viser.PointCloudHandle:
         assert self._tree is not None and self._loaded is not None
-        node = self._tree.node(k)
-        enc = encode_node(self._loaded.cloud, node)
-        colours = self.colours(node.rows)
+        enc: EncodedNode
+        if isinstance(self._tree, Octree):
+            node = self._tree.node(k)
+            enc = encode_node(self._loaded.cloud, node)
+            colours = self.colours(node.rows)
+        else:
+            assert isinstance(self._tree, CopcTree)
+            size = float(self._tree.size[k])
+            centre = self._tree.centre(k)
+            rows = self._rows(k)
+            if rows is not None:
+                cloud = self._loaded.cloud
+                enc = encode_points((cloud.x, cloud.y, cloud.z), rows, centre, size, node=k)
+                colours = self.colours(rows)
+            else:
+                assert decoded is not None
+                enc = encode_points((decoded.x, decoded.y, decoded.z), None, centre, size,
+                                    node=k)
+                colours = self.colours_at(decoded.x, decoded.y, decoded.z)
         return client.scene.add_point_cloud(
             f"/lod/{k}", points=enc.points, colors=colours, point_size=self._node_size(k),
             point_shape="square", point_shading="flat", precision="float16",
@@ -380,22 +525,26 @@ class Scene:
         """A browser left: forget its nodes."""
         self._check("drop_tab")
         self.tabs.pop(client_id, None)
+        if self._nodes is not None:
+            self._nodes.forget(client_id)
 
     def _drop_nodes(self, tab: Tab) -> None:
         for handle in tab.handles.values():
             handle.remove()
         tab.handles.clear()
         tab.camera = None
+        tab.missing, tab.stale = [], set()
 
     def shown_points(self, client_id: int) -> np.ndarray:
-        """Indices of the cloud's points tab ``client_id`` shows now."""
+        """Indices of the cloud's points tab ``client_id`` shows now (a campaign: of
+        its overview's nodes; its decoded nodes' points are no rows of the cloud)."""
         tab = self.tabs.get(client_id)
         if tab is None or self._tree is None:
             return np.empty(0, dtype=np.int64)
-        ids = tab.residency.shown
-        if not ids:
+        rows = [r for r in (self._rows(k) for k in tab.residency.shown) if r is not None]
+        if not rows:
             return np.empty(0, dtype=np.int64)
-        return np.concatenate([self._tree.node(k).rows for k in ids])
+        return np.concatenate(rows)
 
 
     # ------------------------------------------------------------------ nodes

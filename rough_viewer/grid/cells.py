@@ -228,6 +228,57 @@ def index_points(
     return CellIndex(grid=grid, ijk=ijk, counts=counts.astype(np.int64), point_cell=point_cell)
 
 
+def cell_keys_of(ijk: np.ndarray, grid: GridSpec) -> np.ndarray:
+    """(M,) int64 linear keys ``i + nx (j + ny k)`` (relative to ``grid.index_min``) of
+    cell indices ``ijk`` ((M, 3) int64; -1 for a cell outside the grid)."""
+    rel = np.asarray(ijk, dtype=np.int64) - grid.index_min
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    inside = np.all((rel >= 0) & (rel < shape), axis=1)
+    keys = (rel[:, 2] * shape[1] + rel[:, 1]) * shape[0] + rel[:, 0]
+    keys[~inside] = -1
+    return keys
+
+
+def cell_rows(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec,
+              cell_keys: np.ndarray) -> np.ndarray:
+    """(N,) int64 row, among cells of linear keys ``cell_keys`` ((M,) ascending:
+    :func:`cell_keys_of` of a result's ``ijk``), of the cell of every point, -1 where
+    the point's cell is not among them (or lies outside the grid). A point's cell is
+    ``floor((p - origin) / cell_size)``, the arithmetic of :func:`index_points`, so a
+    point of the cloud a result was computed from gets the row of its own cell.
+
+    >>> g = GridSpec(origin=np.zeros(3), cell_size=1.0, index_min=np.zeros(3, np.int64),
+    ...              shape=(4, 4, 1))
+    >>> keys = cell_keys_of(np.array([[0, 0, 0], [2, 1, 0]]), g)
+    >>> cell_rows(np.array([0.5, 2.5, 3.5, -1.0]), np.array([0.5, 1.2, 0.0, 0.0]),
+    ...           np.zeros(4), g, keys).tolist()
+    [0, 1, -1, -1]
+    """
+    n = int(np.asarray(x).shape[0])
+    out = np.full(n, -1, dtype=np.int64)
+    m = int(cell_keys.shape[0])
+    if m == 0 or n == 0:
+        return out
+    for s in _chunks(n, 1 << 20):  # the temporaries: ~40 bytes a point of a chunk
+        key = np.zeros(s.stop - s.start, dtype=np.int64)
+        inside = np.ones(s.stop - s.start, dtype=bool)
+        stride = 1
+        for axis, col in enumerate((x, y, z)):
+            t = np.asarray(col[s], dtype=np.float64) - grid.origin[axis]
+            t /= grid.cell_size
+            np.floor(t, out=t)
+            t -= grid.index_min[axis]
+            size = int(grid.shape[axis])
+            ok = (t >= 0) & (t < size)
+            inside &= ok
+            key += np.where(ok, t, 0).astype(np.int64) * stride
+            stride *= size
+        pos = np.minimum(np.searchsorted(cell_keys, key), m - 1)
+        found = inside & (cell_keys[pos] == key)
+        out[s][found] = pos[found]
+    return out
+
+
 def _cell_keys(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: GridSpec) -> np.ndarray:
     """(N,) int64 linear keys ``i + nx (j + ny k)`` (relative to ``index_min``) of every
     point's cell: the reference computation."""

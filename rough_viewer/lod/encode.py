@@ -93,15 +93,29 @@ def encode_node(points: Points, node: Node) -> EncodedNode:
     if rows.shape[0] and int(rows.max()) >= x.shape[0]:
         raise ValueError(f"node {node.id} refers to point {int(rows.max())} of a cloud of "
                          f"{x.shape[0]} points: not the cloud the octree was built from")
-    centre = node.centre
-    scale = node_scale(node.size)
-    out = np.empty((rows.shape[0], 3), dtype=np.float16)
-    for axis, col in enumerate((x, y, z)):
-        local = col[rows] - centre[axis]
+    return encode_points((x, y, z), rows, node.centre, node.size, node=node.id)
+
+
+def encode_points(columns: tuple[np.ndarray, np.ndarray, np.ndarray], rows: np.ndarray | None,
+                  centre: np.ndarray, size: float, *, node: int) -> EncodedNode:
+    """Points of a node's cube (centre ``centre``, edge ``size``, metres) in node-local
+    float16 coordinates: ``columns`` x, y, z, metres, at ``rows`` (None: all of
+    them; the points of a COPC node decoded on their own).
+
+    >>> p = np.array([0.25, 0.5]), np.array([0.0, 0.75]), np.array([0.5, 0.5])
+    >>> encode_points(p, None, np.full(3, 0.5), 1.0, node=3).decode().tolist()
+    [[0.25, 0.0, 0.5], [0.5, 0.75, 0.5]]
+    """
+    centre = np.asarray(centre, dtype=np.float64)
+    scale = node_scale(float(size))
+    n = int(columns[0].shape[0] if rows is None else rows.shape[0])
+    out = np.empty((n, 3), dtype=np.float16)
+    for axis, col in enumerate(columns):
+        local = (col if rows is None else col[rows]) - centre[axis]
         if scale != 1.0:
             local /= scale  # a power of two: exact
         out[:, axis] = local
-    return EncodedNode(node=node.id, points=out, centre=centre, scale=scale)
+    return EncodedNode(node=node, points=out, centre=centre, scale=scale)
 
 
 def node_colours(point_colours: np.ndarray, node: Node) -> np.ndarray:

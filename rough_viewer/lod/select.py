@@ -42,11 +42,11 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from rough_viewer.lod.camera import ViewCamera
-from rough_viewer.lod.octree import Octree
 from rough_viewer.vocabulary import InputError
 
 #: Default point budget of a tab (the issue's ``serve --point-budget``).
@@ -72,6 +72,50 @@ def node_points_for(budget: int) -> int:
     from rough_viewer.lod.octree import DEFAULT_MAX_NODE_POINTS
 
     return int(min(DEFAULT_MAX_NODE_POINTS, max(MIN_NODE_POINTS, int(budget) // NODES_PER_BUDGET)))
+
+
+class LodTree(Protocol):
+    """What :func:`select_nodes` reads of a tree of additive nodes: the in-memory
+    :class:`~rough_viewer.lod.octree.Octree` of a cloud, or the
+    :class:`~rough_viewer.lod.copc.CopcTree` of a COPC file's hierarchy. Nodes are
+    rows ordered by level (the root is row 0); the children of node ``k`` are the
+    contiguous rows ``child_start[k]:child_stop[k]``; every node holds its own
+    points, its children add detail."""
+
+    @property
+    def n_nodes(self) -> int: ...
+    @property
+    def side(self) -> float:
+        """Edge of the root cube, metres."""
+    @property
+    def root_grid(self) -> int:
+        """Sample cells per axis of a node's cube (the root's spacing is
+        ``side / root_grid``)."""
+    @property
+    def level(self) -> np.ndarray:
+        """(M,) depth of each node."""
+    @property
+    def cube_lo(self) -> np.ndarray:
+        """(M, 3) corner of each node's cube, metres."""
+    @property
+    def box_lo(self) -> np.ndarray:
+        """(M, 3) a lower bound of the points of each node's subtree, metres."""
+    @property
+    def box_hi(self) -> np.ndarray:
+        """(M, 3) an upper bound of them."""
+    @property
+    def child_start(self) -> np.ndarray: ...
+    @property
+    def child_stop(self) -> np.ndarray: ...
+    @property
+    def counts(self) -> np.ndarray:
+        """(M,) points of each node."""
+    @property
+    def spacing(self) -> np.ndarray:
+        """(M,) distance between each node's sample cells, metres."""
+    @property
+    def size(self) -> np.ndarray:
+        """(M,) edge of each node's cube, metres."""
 
 
 @dataclass(frozen=True)
@@ -143,14 +187,14 @@ def projected_radius(camera: ViewCamera, centre: np.ndarray, radius: np.ndarray)
     return out
 
 
-def points_per_edge(tree: Octree) -> np.ndarray:
+def points_per_edge(tree: LodTree) -> np.ndarray:
     """(M,) about how many points of each node lie along its cube's edge (their
     spacing is ``edge / g``): its sample grid ``root_grid``, or ``sqrt(count)`` where
     that is less (the points of a surface spread over its cube)."""
     return np.minimum(float(tree.root_grid), np.sqrt(np.maximum(tree.counts, 1).astype(np.float64)))
 
 
-def node_screen(tree: Octree, camera: ViewCamera, min_spacing_px: float = 0.0
+def node_screen(tree: LodTree, camera: ViewCamera, min_spacing_px: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Visibility (bool (M,)) and projected radius (pixels, (M,)) of the nodes the
     traversal can reach: level by level, the children of nodes in view whose points
@@ -174,13 +218,15 @@ def node_screen(tree: Octree, camera: ViewCamera, min_spacing_px: float = 0.0
     return visible, radius
 
 
-def select_nodes(tree: Octree, camera: ViewCamera, budget: int = DEFAULT_BUDGET, *,
+def select_nodes(tree: LodTree, camera: ViewCamera, budget: int = DEFAULT_BUDGET, *,
                  min_spacing_px: float = DEFAULT_MIN_SPACING_PX) -> Selection:
     """The nodes ``camera`` should see, within ``budget`` points.
 
     Parameters
     ----------
-    tree : Octree
+    tree : LodTree
+        An :class:`~rough_viewer.lod.octree.Octree` or a
+        :class:`~rough_viewer.lod.copc.CopcTree`.
     camera : ViewCamera
         In the cloud's frame (metres).
     budget : int
@@ -223,7 +269,7 @@ def select_nodes(tree: Octree, camera: ViewCamera, budget: int = DEFAULT_BUDGET,
                      complete=complete, nearest_m=_nearest(tree, camera, nodes))
 
 
-def _nearest(tree: Octree, camera: ViewCamera, nodes: np.ndarray) -> float:
+def _nearest(tree: LodTree, camera: ViewCamera, nodes: np.ndarray) -> float:
     """Distance from the camera to the nearest box of ``nodes``, at least the finest
     spacing among them (inf when none)."""
     if nodes.shape[0] == 0:

@@ -324,7 +324,7 @@ class SetsFeature:
         assert self.sets is not None and self.result is not None
         by = COLOUR_LABELS.get(self.colour_by.value, "set")
         labels = cell_labels(self.sets, by)  # type: ignore[arg-type]
-        return by_cell(colormaps.zone_colours(labels), self.result.point_cell)
+        return by_cell(colormaps.zone_colours(labels), self.result)
 
     def show_colours(self) -> None:
         """Colour the points by set, joint or patch (the map's colours and colour bar

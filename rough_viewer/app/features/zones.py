@@ -707,7 +707,7 @@ class ZonesJob(Job[Host]):
         yield "label"
         lab = Labelling(shown.loaded, shown.result, shown.settings.grid_key, basis, params,
                         labels)
-        z.colouring = by_cell(zone_cell_colours(labels, basis.valid), shown.result.point_cell)
+        z.colouring = by_cell(zone_cell_colours(labels, basis.valid), shown.result)
         z.show_colours()
         z.labelling, z.zones = lab, None
         if z.pending_selection is not None:

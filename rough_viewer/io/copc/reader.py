@@ -22,6 +22,7 @@ reads the other layers' bytes but not their arithmetic).
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 from collections.abc import Iterator, Sequence
@@ -72,6 +73,8 @@ class CopcFile:
         The laszip VLR's data (what lazrs decodes with).
     nodes : structured array of :data:`ENTRY_DTYPE`
         Every node that holds points (count > 0), in file order.
+    spacing : float
+        The root node's spacing the info VLR declares, file units (0: not given).
     """
 
     path: str
@@ -86,6 +89,7 @@ class CopcFile:
     halfsize: float
     laz_vlr: bytes
     nodes: np.ndarray
+    spacing: float = 0.0
 
     @property
     def cube_min(self) -> np.ndarray:
@@ -173,7 +177,7 @@ def _parse(p: str, fh, size: int, max_entries: int) -> CopcFile:
         raise _fail(p, "no COPC info VLR")
     if laz is None:
         raise _fail(p, "no laszip VLR")
-    cx, cy, cz, halfsize, _spacing, root_at, root_size, _, _ = _INFO.unpack_from(info)
+    cx, cy, cz, halfsize, spacing, root_at, root_size, _, _ = _INFO.unpack_from(info)
     center = np.array([cx, cy, cz], dtype=np.float64)
     if not (np.all(np.isfinite(center)) and np.isfinite(halfsize) and halfsize > 0):
         raise _fail(p, "its octree cube is not finite")
@@ -183,7 +187,8 @@ def _parse(p: str, fh, size: int, max_entries: int) -> CopcFile:
         raise _fail(p, f"its nodes hold {total:,} points, its header declares {n_points:,}")
     return CopcFile(path=p, n_points=int(n_points), point_format=fmt, record_size=int(record_size),
                     scales=scales, offsets=offsets, mins=mins, maxs=maxs, center=center,
-                    halfsize=float(halfsize), laz_vlr=bytes(laz), nodes=nodes)
+                    halfsize=float(halfsize), laz_vlr=bytes(laz), nodes=nodes,
+                    spacing=float(spacing) if math.isfinite(spacing) and spacing > 0 else 0.0)
 
 
 def _hierarchy(p: str, fh, size: int, point_start: int, root_at: int, root_size: int,

@@ -214,7 +214,7 @@ def _colouring(loaded: LoadedCloud, settings: MapSettings, result: GridRoughness
     layer the cloud lacks)."""
     if settings.layer == "roughness":
         return by_cell(cell_colours(result, settings, colours_range=stats.colour_range),
-                       result.point_cell)
+                       result)
     return loaded.layer_colouring(settings.layer, result)
 
 
