@@ -6,9 +6,11 @@ from its hierarchy (:func:`rough_viewer.io.copc.reader.open_copc`: no point read
 and reads only an *overview*: the nodes of the hierarchy's top levels, whole levels,
 shallowest first, while their points stay under a cap (:func:`overview_rows`;
 :data:`OVERVIEW_POINTS`, or what the memory budget allows). The overview is the
-app's cloud: it is what the browser tabs draw (its own octree, level of detail within
-each tab's point budget), what clicks, profiles, selections and the distance colour
-layer read.
+app's cloud: what clicks, profiles, selections and the distance colour layer read.
+The browser tabs draw the file's own octree (:meth:`CampaignCloud.lod_nodes`, level
+of detail within each tab's point budget): the overview's nodes from its rows, the
+deeper ones decoded on demand in the reader sandbox
+(:mod:`rough_viewer.app.campaign_nodes`).
 
 Every grid result the app shows (colours, histogram, Table 1, semivariogram, zones,
 sets, the trend across the presets) comes from **every point of the file**:
@@ -20,8 +22,7 @@ of the file, so each one's cell is among the result's). The cells are cached on 
 (:func:`cells_path`, under :func:`rough_viewer.io.cache.cache_dir`), so the next open
 of the same file shows its map without reading a point beyond the overview.
 
-Left out: deeper nodes streamed on demand where a camera looks (a tab draws the
-overview only); clicks, profiles, the cell report and crops on every point (they use
+Left out: clicks, profiles, the cell report and crops on every point (they use
 the overview's points; a crop is refused); the map coloured tile by tile while it is
 computed (the status line shows the pass's progress).
 """
