@@ -635,6 +635,9 @@ class CampaignStore(InMemoryStore):
         return self._from_disk(settings) is not None
 
 
+_NODES_LOCK = threading.Lock()
+
+
 @dataclass(eq=False)
 class CampaignCloud(LoadedCloud):
     """A :class:`~rough_viewer.app.cloud.LoadedCloud` whose ``cloud`` is the overview
@@ -649,12 +652,14 @@ class CampaignCloud(LoadedCloud):
         the browser tabs: the overview's nodes from this cloud's rows, the deeper ones
         decoded on demand in the reader sandbox (:mod:`rough_viewer.app.campaign_nodes`);
         made once."""
-        if self._nodes is None:
-            from rough_viewer.app.campaign_nodes import campaign_nodes
+        with _NODES_LOCK:  # one per cloud, whichever thread asks first
+            if self._nodes is None:
+                from rough_viewer.app.campaign_nodes import campaign_nodes
 
-            assert self.campaign is not None
-            self._nodes = campaign_nodes(self.campaign.copc, self.campaign.source, self.cloud.n)
-        return self._nodes
+                assert self.campaign is not None
+                self._nodes = campaign_nodes(self.campaign.copc, self.campaign.source,
+                                             self.cloud.n)
+            return self._nodes
 
     def _make_store(self) -> CloudStore:
         assert self.campaign is not None and self.presets is not None

@@ -28,7 +28,7 @@ from rough_viewer.app.campaign_nodes import (  # noqa: E402
     campaign_nodes,
     overview_starts,
 )
-from rough_viewer.app.colouring import cell_colours  # noqa: E402
+from rough_viewer.app.colouring import by_cell, cell_colours  # noqa: E402
 from rough_viewer.app.server import app_options, mount_app  # noqa: E402
 from rough_viewer.app.settings import MapSettings  # noqa: E402
 from rough_viewer.io.copc.reader import decode_nodes, open_copc  # noqa: E402
@@ -37,7 +37,7 @@ from rough_viewer.lod.camera import ViewCamera  # noqa: E402
 from rough_viewer.lod.copc import copc_tree  # noqa: E402
 from rough_viewer.lod.select import boxes_in_view, select_nodes  # noqa: E402
 from tests.app.browser import wait_until  # noqa: E402
-from tests.app.protocol import ProtocolClient, join  # noqa: E402
+from tests.app.protocol import ProtocolClient, join, on_worker  # noqa: E402
 from tests.app.serve_process import ServeProcess  # noqa: E402
 from tests.app.test_lod_app import _received_points  # noqa: E402
 from tests.scale.test_tiles import _survey  # noqa: E402
@@ -230,14 +230,16 @@ def _decoded_shown(app, cid) -> list[int]:
     return [k for k in tab.residency.shown if not scene.nodes.in_overview(k)]
 
 
-def _check_colours(app, cid, copc) -> int:
+def _check_colours(app, cid, copc, rgb=None, res=None) -> int:
     """Every decoded node the tab shows is coloured point by point with its cell's
-    colour in the map shown (independent: floor((p - o) / g) looked up among the
-    result's cell indices). Returns the points checked."""
+    colour ``rgb`` of ``res`` (default: the map shown) (independent: floor((p - o) /
+    g) looked up among the result's cell indices). Returns the points checked."""
     scene = app.host.scene
     shown = app.session.shown
-    rgb = cell_colours(shown.result, shown.settings, colours_range=shown.stats.colour_range)
-    res = shown.result
+    if rgb is None:
+        rgb = cell_colours(shown.result, shown.settings,
+                           colours_range=shown.stats.colour_range)
+    res = shown.result if res is None else res
     index = {tuple(v): i for i, v in enumerate(res.ijk.tolist())}
     checked = 0
     for k in _decoded_shown(app, cid):
@@ -254,8 +256,10 @@ def _check_colours(app, cid, copc) -> int:
 def test_a_tab_close_to_a_patch_gets_its_decoded_nodes_in_their_cells_colours(survey):
     """A websocket tab 1.5 m in front of a patch: the nodes it lacks are decoded off
     the worker and sent as they come; each decoded point shows its cell's colour in
-    the map; a model change recolours the decoded nodes too; the tab holds at most
-    its budget; the server's decoded nodes stay within the cache's bound."""
+    the map; a model change, a grid change, a feature's colouring by cell recolour
+    the decoded nodes too (a colouring of the cloud's rows only leaves them in the
+    last by cell); the tab holds at most its budget; the server's decoded nodes stay
+    within the cache's bound."""
     _, out, _ = survey
     xyz = _file_points(out)
     server, app, loaded = _app(out)
@@ -282,7 +286,68 @@ def test_a_tab_close_to_a_patch_gets_its_decoded_nodes_in_their_cells_colours(su
         assert app.wait_idle(120)
         assert _check_colours(app, cid, loaded.campaign.copc) > 1000
         assert any(not np.array_equal(before[k], tab.handles[k].colors) for k in before)
+        # another grid: the decoded points take their cells of that grid
+        coarse = next(o for o in app.map.grid.options
+                      if o != "free" and float(o) == loaded.presets[0])
+        app.map.grid.value = coarse
+        wait_until(lambda: app.session.shown.settings.cell_size == loaded.presets[0], 120,
+                   "the coarse map")
+        assert app.wait_idle(120)
+        assert _check_colours(app, cid, loaded.campaign.copc) > 1000
+        # a feature's colouring by cell (as the zones and the sets make theirs): every
+        # cell its own colour; then one of the cloud's rows only (a crop's selection):
+        # the decoded nodes keep the last colouring by cell
+        res = app.session.shown.result
+        labels = np.random.default_rng(3).integers(0, 255, (res.ijk.shape[0], 3)).astype(np.uint8)
+        on_worker(app, lambda: app.host.scene.colour_by(by_cell(labels, res)))
+        assert _check_colours(app, cid, loaded.campaign.copc, labels, res) > 1000
+        on_worker(app, lambda: app.host.scene.colour_by(
+            lambda idx: np.zeros((len(idx), 3), dtype=np.uint8)))
+        assert _check_colours(app, cid, loaded.campaign.copc, labels, res) > 1000
         assert not app.host.errors, app.host.errors
+    finally:
+        client.close()
+        app.stop()
+        server.stop()
+
+
+@sandboxed
+def test_a_node_that_left_the_cache_is_decoded_again_for_its_new_colours(survey):
+    """With room for the largest node in the decoded nodes' cache, the tab still gets its
+    nodes (it keeps what it was sent); a model change then finds their points gone:
+    they are decoded again, off the worker, and recoloured as they come, each point
+    in its cell's colour; the cache never held more than its bound."""
+    _, out, _ = survey
+    xyz = _file_points(out)
+    server, app, loaded = _app(out)
+    nodes = loaded.lod_nodes()
+    tree = nodes.tree
+    deep = [k for k in range(tree.n_nodes) if not nodes.in_overview(k)]
+    nodes.cache.max_bytes = int(tree.counts[deep].max()) * BYTES_PER_POINT  # the largest
+    client = join(server)
+    try:
+        assert app.wait_idle(300)
+        cid = client.client_id
+        centre, normal = _patches(xyz)[0]
+        o = loaded.origin
+        client.look_from(centre + 1.5 * normal - o, centre - o, fov=0.5)
+
+        def settled() -> bool:
+            tab = app.host.scene.tabs.get(cid)
+            return bool(tab is not None and tab.camera is not None and not tab.missing
+                        and not tab.stale and len(_decoded_shown(app, cid)) >= 3
+                        and nodes.idle and not app.worker.busy)
+
+        wait_until(settled, 120, "the decoded nodes")
+        decoded = nodes.decoded_nodes
+        app.map.model.value = "OLS"
+        wait_until(lambda: app.session.shown.settings.model == "ols", 60, "the OLS map")
+        wait_until(settled, 120, "the nodes decoded again")
+        assert app.wait_idle(60)
+        assert nodes.cache.evicted > 0
+        assert nodes.decoded_nodes > decoded  # those whose points had gone
+        assert _check_colours(app, cid, loaded.campaign.copc) > 1000
+        assert nodes.cache.peak_bytes <= nodes.cache.max_bytes
     finally:
         client.close()
         app.stop()
