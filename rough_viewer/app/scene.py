@@ -482,7 +482,10 @@ class Scene:
             return chosen, decoded
         at_hand = []
         tab.missing = []
+        counts = self._nodes.tree.node_counts
         for k in chosen:
+            if counts[k] == 0:
+                continue  # an empty node the hierarchy lacks: nothing to draw
             if self._nodes.in_overview(k) or k in tab.handles:  # the tab holds it already
                 at_hand.append(k)
                 continue
