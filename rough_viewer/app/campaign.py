@@ -205,6 +205,75 @@ def read_overview(campaign: Campaign, cap: int, *,
                       source_unit=campaign.source.unit, warnings=campaign.source.warnings)
 
 
+#: Most points of the nodes one spatial query of a campaign decodes (a profile's
+#: patch: a few seconds of decoding in the reader sandbox).
+QUERY_DECODE_POINTS = 25_000_000
+#: Most points a query keeps (those inside its box), and the share of the map's pass
+#: memory they may take at :data:`QUERY_BYTES_PER_POINT` (a query may run beside a
+#: pass): the decoded pieces are cut to the box one at a time.
+QUERY_POINTS = 10_000_000
+QUERY_SHARE = 0.25
+#: Bytes a kept point holds: its (3,) float64 row, and its copy when the pieces are
+#: put together.
+QUERY_BYTES_PER_POINT = 48
+#: Points decoded per piece of a query.
+QUERY_PIECE_POINTS = 500_000
+
+
+def query_cap(campaign: Campaign) -> int:
+    """Most points a spatial query of ``campaign`` keeps: :data:`QUERY_POINTS`, at
+    most :data:`QUERY_SHARE` of its pass's memory at :data:`QUERY_BYTES_PER_POINT`."""
+    if campaign.memory_bytes is None:
+        return QUERY_POINTS
+    return max(OVERVIEW_PIECE_POINTS,
+               min(QUERY_POINTS, int(QUERY_SHARE * campaign.memory_bytes / QUERY_BYTES_PER_POINT)))
+
+
+def points_in_box(campaign: Campaign, lo: np.ndarray, hi: np.ndarray, *,
+                  most: int | None = None, decode_most: int = QUERY_DECODE_POINTS,
+                  what: str = "this") -> np.ndarray:
+    """(K, 3) metres: every point of the campaign's file inside the box ``[lo, hi]``
+    (metres), from the nodes of its hierarchy that meet the box
+    (:func:`rough_viewer.io.copc.reader.nodes_in_box`), decoded in the reader
+    sandbox in pieces, node after node in file order, each piece cut to the box.
+
+    Raises InputError (one line; ``what`` names what asked, ``"the profile"``) when
+    those nodes hold more than ``decode_most`` points (before any is decoded), or the
+    box more than ``most`` (default :func:`query_cap`; said once the pieces so far
+    pass it)."""
+    from rough_viewer.io.copc.reader import nodes_in_box
+    from rough_viewer.scale.tiles import decoded_tiles
+
+    copc, source = campaign.copc, campaign.source
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    factor = np.array([source.factor, source.factor, source.z_factor])
+    rows = nodes_in_box(copc, lo / factor, hi / factor)
+    counts = copc.nodes["count"][rows].astype(np.int64)
+    n = int(counts.sum())
+    cap = query_cap(campaign) if most is None else int(most)
+    shorter = "choose a shorter line or a narrower band"
+    if n > decode_most:
+        raise InputError(f"{what} needs the nodes of {n:,} points of {campaign.path.name}, "
+                         f"more than the {decode_most:,} the app decodes for one query: "
+                         f"{shorter}")
+    if n == 0:
+        return np.empty((0, 3))
+    pieces = np.split(rows, np.flatnonzero(np.diff(np.cumsum(counts) // QUERY_PIECE_POINTS)) + 1)
+    kept: list[np.ndarray] = []
+    held = 0
+    for x, y, z in decoded_tiles(copc, source, [p for p in pieces if p.size]):
+        inside = (x >= lo[0]) & (x <= hi[0])
+        inside &= (y >= lo[1]) & (y <= hi[1])
+        inside &= (z >= lo[2]) & (z <= hi[2])
+        held += int(np.count_nonzero(inside))
+        if held > cap:
+            raise InputError(f"{what} needs more than {cap:,} points of "
+                             f"{campaign.path.name} at once, more than the app holds for "
+                             f"one query: {shorter}")
+        kept.append(np.column_stack([x[inside], y[inside], z[inside]]))
+    return np.concatenate(kept)
+
+
 def campaign_presets(overview: PointCloud, n_total: int) -> tuple[float, ...]:
     """The app's grid presets (metres, coarsest first) for the whole campaign: the
     default grid of its density (a typical occupied cell of about 16 points of the
@@ -652,6 +721,12 @@ class CampaignCloud(LoadedCloud):
         assert self.campaign is not None
         return self.campaign.n_points
 
+    def points_covering(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Every point of the file inside ``[lo, hi]`` (metres), not the overview's
+        (:func:`points_in_box`): a profile on a campaign uses every point."""
+        assert self.campaign is not None
+        return points_in_box(self.campaign, lo, hi, what="the profile")
+
     def cropped(self, box: CropBox) -> LoadedCloud:
         raise InputError(self._no_crop())
 
@@ -695,4 +770,5 @@ def describe_overview(campaign: Campaign, overview: PointCloud) -> str:
 __all__ = ["CELLS_VERSION", "Campaign", "CampaignCloud", "CampaignStore", "OVERVIEW_POINTS",
            "campaign_cloud", "campaign_presets", "cells_path", "compute_memory",
            "describe_overview", "expected_cells", "first_grid", "load_cells", "open_campaign", "overview_cap",
-           "overview_cells", "overview_rows", "read_overview", "save_cells"]
+           "overview_cells", "overview_rows", "points_in_box", "query_cap", "read_overview",
+           "save_cells"]
