@@ -320,6 +320,13 @@ class LoadedCloud:
         return self.cloud.n
 
     @property
+    def file_rows(self) -> bool:
+        """Whether :attr:`cloud` is the rows of its file (or, cropped, those of
+        :attr:`crop_mask` of the uncropped cloud's): a LAS export can then copy the
+        file's records with every dimension. A campaign's overview and crops are not."""
+        return self.n_total == self.cloud.n
+
+    @property
     def n_display(self) -> int:
         """Points drawn."""
         return len(self.display_index)

@@ -1,7 +1,8 @@
 """Spatial queries of a served campaign (issue 33 item 3): a profile picked on a COPC
 campaign reads every point of the file near its line (the nodes of the index that
 meet its patch, decoded in the reader sandbox), not the overview's; the result is
-the profile of every point."""
+the profile of every point. A crop of a campaign holds every point of the file in
+its box, and every analysis runs on them."""
 
 from __future__ import annotations
 
@@ -11,19 +12,24 @@ import pytest
 pytest.importorskip("lazrs")
 
 from rough_viewer.app.campaign import (  # noqa: E402
+    CampaignCrop,
     campaign_presets,
     open_campaign,
     points_in_box,
     read_overview,
 )
+from rough_viewer.app.features.crop import CropJob  # noqa: E402
 from rough_viewer.app.features.profile import ProfileFeature, ProfileSettings, analyse  # noqa: E402
 from rough_viewer.app.settings import MapSettings  # noqa: E402
+from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
 from rough_viewer.io import load_points  # noqa: E402
 from rough_viewer.io.copc.reader import decode_nodes, node_boxes, nodes_in_box, open_copc  # noqa: E402
+from rough_viewer.io.crop import CropBox  # noqa: E402
 from rough_viewer.profiles.extraction import extract_profile, patch_box  # noqa: E402
 from rough_viewer.vocabulary import InputError  # noqa: E402
 from tests.app.protocol import on_worker, pick  # noqa: E402
 from tests.app.test_campaign_serve import CAP, N, _app  # noqa: E402
+from tests.scale.helpers_scale import assert_same_cells  # noqa: E402
 from tests.scale.test_tiles import _survey  # noqa: E402
 
 
@@ -152,6 +158,63 @@ def test_two_clicks_on_a_campaign_make_the_profile_of_every_point(survey, tmp_pa
         np.testing.assert_allclose(a.source.start, ends[0], atol=1e-6)
         assert a.source.n_points == ref.n_points
         np.testing.assert_array_equal(a.source.heights, ref.heights)
+    finally:
+        app.stop()
+        server.stop()
+
+
+def test_a_crop_of_a_campaign_holds_every_point_of_the_file_in_its_box(survey, tmp_path,
+                                                                        monkeypatch):
+    """The Select tab's crop (a CropJob on a real viser server) of a campaign: the
+    cloud shown is every point of the file in the box (brute force), its map is
+    grid_roughness of those points, the status counts them against the file's;
+    a selection inside the crop keeps exactly its points; undoing the crop gives the
+    campaign back; a box of too many points is one line and the campaign stays."""
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    _, out, _ = survey
+    xyz = load_points(out, cache=False).xyz()
+    campaign = open_campaign(out)
+    overview = read_overview(campaign, CAP)
+    presets = campaign_presets(overview, N)
+    settings = MapSettings(cell_size=presets[-1])
+    server, app, loaded = _app(campaign, overview, settings)
+    try:
+        assert app.wait_idle(300)
+        from rough_viewer.app.features.crop import CropFeature, crop_text
+
+        feature = app.feature(CropFeature)
+        lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+        box = CropBox(tuple(lo + 0.2 * (hi - lo)), tuple(lo + [0.6, 0.7, 1.0] * (hi - lo)))
+        app.submit(CropJob(feature, box))
+        assert app.wait_idle(300)
+        assert not app.host.errors, app.host.errors
+        shown = app.session.shown.loaded
+        assert isinstance(shown, CampaignCrop) and shown.uncropped is loaded
+        assert not shown.file_rows  # a LAS export writes its points, not the file's rows
+        want = xyz[np.all((xyz >= box.lo) & (xyz <= box.hi), axis=1)]
+        assert overview.n < want.shape[0] < N
+        np.testing.assert_array_equal(_sorted_rows(shown.cloud.xyz()), _sorted_rows(want))
+        assert f"{want.shape[0]:,} of {N:,} points" in crop_text(shown)
+        assert_same_cells(app.session.shown.result,
+                          grid_roughness(shown.cloud, settings.cell_size, engine="numpy"),
+                          rtol=1e-12)
+        assert app.session.shown.result.n_points.sum() == want.shape[0]
+        # a selection inside the crop keeps exactly its points
+        inner = shown.cloud.x < np.median(shown.cloud.x)
+        exact = shown.cropped_exact(inner)
+        assert isinstance(exact, CampaignCrop) and exact.uncropped is loaded
+        assert exact.cloud.n == int(inner.sum()) and exact.crop_exact
+        # undo: the campaign again
+        app.submit(CropJob(feature, None))
+        assert app.wait_idle(300)
+        assert app.session.shown.loaded is loaded
+        # too many points: one line, the campaign stays shown
+        monkeypatch.setattr("rough_viewer.app.campaign.CROP_POINTS", 1_000)
+        app.submit(CropJob(feature, box))
+        assert app.wait_idle(300)
+        assert app.session.shown.loaded is loaded
+        said = [str(e) for e in app.host.errors]
+        assert said and "the crop needs more than 1,000 points" in said[-1], said
     finally:
         app.stop()
         server.stop()
