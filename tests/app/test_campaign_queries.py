@@ -218,3 +218,26 @@ def test_a_crop_of_a_campaign_holds_every_point_of_the_file_in_its_box(survey, t
     finally:
         app.stop()
         server.stop()
+
+
+def test_sets_on_a_campaign_say_their_planes_are_the_overviews(survey, tmp_path, monkeypatch):
+    """Show sets on a campaign: the status says the planes, joints, spacing and
+    joint roughness are fitted to the overview's points, with the counts."""
+    from rough_viewer.app.features.sets import SetsFeature
+
+    monkeypatch.setenv("ROUGH_VIEWER_CACHE", str(tmp_path / "cache"))
+    _, out, _ = survey
+    campaign = open_campaign(out)
+    overview = read_overview(campaign, CAP)
+    presets = campaign_presets(overview, N)
+    server, app, _ = _app(campaign, overview, MapSettings(cell_size=presets[0]))
+    try:
+        assert app.wait_idle(300)
+        f = app.feature(SetsFeature)
+        f.on.value = True
+        assert app.wait_idle(300)
+        text = f.status.content
+        assert f"fitted to the overview's {overview.n:,} of the file's {N:,} points" in text
+    finally:
+        app.stop()
+        server.stop()
