@@ -215,6 +215,81 @@ def read_overview(campaign: Campaign, cap: int, *,
                       source_unit=campaign.source.unit, warnings=campaign.source.warnings)
 
 
+#: Most points of the nodes one spatial query of a campaign decodes (a profile's
+#: patch: a few seconds of decoding in the reader sandbox).
+QUERY_DECODE_POINTS = 25_000_000
+#: Most points a query keeps (those inside its box), and the share of the map's pass
+#: memory they may take at :data:`QUERY_BYTES_PER_POINT` (a query may run beside a
+#: pass): the decoded pieces are cut to the box one at a time.
+QUERY_POINTS = 10_000_000
+QUERY_SHARE = 0.25
+#: Bytes a kept point holds: its (3,) float64 row, and its copy when the pieces are
+#: put together.
+QUERY_BYTES_PER_POINT = 48
+#: Points decoded per piece of a query.
+QUERY_PIECE_POINTS = 500_000
+
+
+def query_cap(campaign: Campaign) -> int:
+    """Most points a spatial query of ``campaign`` keeps: :data:`QUERY_POINTS`, at
+    most :data:`QUERY_SHARE` of its pass's memory at :data:`QUERY_BYTES_PER_POINT`."""
+    if campaign.memory_bytes is None:
+        return QUERY_POINTS
+    return max(OVERVIEW_PIECE_POINTS,
+               min(QUERY_POINTS, int(QUERY_SHARE * campaign.memory_bytes / QUERY_BYTES_PER_POINT)))
+
+
+def points_in_box(campaign: Campaign, lo: np.ndarray, hi: np.ndarray, *,
+                  most: int | None = None, decode_most: int = QUERY_DECODE_POINTS,
+                  what: str = "this", hint: str = "choose a shorter line or a narrower band"
+                  ) -> np.ndarray:
+    """(K, 3) metres: every point of the campaign's file inside the box ``[lo, hi]``
+    (metres), from the nodes of its hierarchy that meet the box
+    (:func:`rough_viewer.io.copc.reader.nodes_in_box`), decoded in the reader
+    sandbox in pieces, node after node in file order, each piece cut to the box.
+
+    Raises InputError (one line; ``what`` names what asked, ``"the profile"``, and
+    ``hint`` what to do) when those nodes hold more than ``decode_most`` points, or
+    the box more than ``most`` (default :func:`query_cap`): before any is decoded
+    where the nodes wholly inside the box already hold more, else once the pieces so
+    far pass it."""
+    from rough_viewer.io.copc.reader import node_boxes, nodes_in_box
+    from rough_viewer.scale.tiles import decoded_tiles
+
+    copc, source = campaign.copc, campaign.source
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    factor = np.array([source.factor, source.factor, source.z_factor])
+    rows = nodes_in_box(copc, lo / factor, hi / factor)
+    counts = copc.nodes["count"][rows].astype(np.int64)
+    n = int(counts.sum())
+    cap = query_cap(campaign) if most is None else int(most)
+    if n > decode_most:
+        raise InputError(f"{what} needs the nodes of {n:,} points of {campaign.path.name}, "
+                         f"more than the {decode_most:,} the app decodes for one query: "
+                         f"{hint}")
+    nlo, nhi = node_boxes(copc)
+    inner = np.all((nlo[rows] * factor >= lo) & (nhi[rows] * factor <= hi), axis=1)
+    surely = int(counts[inner].sum())  # points of nodes wholly inside: all in the box
+    too_many = (f"{what} needs more than {cap:,} points of {campaign.path.name} at once, "
+                f"more than the app holds for one query: {hint}")
+    if surely > cap:
+        raise InputError(too_many)
+    if n == 0:
+        return np.empty((0, 3))
+    pieces = np.split(rows, np.flatnonzero(np.diff(np.cumsum(counts) // QUERY_PIECE_POINTS)) + 1)
+    kept: list[np.ndarray] = []
+    held = 0
+    for x, y, z in decoded_tiles(copc, source, [p for p in pieces if p.size]):
+        inside = (x >= lo[0]) & (x <= hi[0])
+        inside &= (y >= lo[1]) & (y <= hi[1])
+        inside &= (z >= lo[2]) & (z <= hi[2])
+        held += int(np.count_nonzero(inside))
+        if held > cap:
+            raise InputError(too_many)
+        kept.append(np.column_stack([x[inside], y[inside], z[inside]]))
+    return np.concatenate(kept)
+
+
 def campaign_presets(overview: PointCloud, n_total: int) -> tuple[float, ...]:
     """The app's grid presets (metres, coarsest first) for the whole campaign: the
     default grid of its density (a typical occupied cell of about 16 points of the
@@ -673,17 +748,105 @@ class CampaignCloud(LoadedCloud):
         assert self.campaign is not None
         return self.campaign.n_points
 
+    def points_covering(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Every point of the file inside ``[lo, hi]`` (metres), not the overview's
+        (:func:`points_in_box`): a profile on a campaign uses every point."""
+        assert self.campaign is not None
+        return points_in_box(self.campaign, lo, hi, what="the profile")
+
+    @property
+    def file_rows(self) -> bool:
+        return False
+
     def cropped(self, box: CropBox) -> LoadedCloud:
-        raise InputError(self._no_crop())
+        """Every point of the file inside ``box`` (a spatial query of its index,
+        :func:`points_in_box`), held in memory as a cloud of its own: every analysis
+        of the app then runs on every point there (its grid presets are the
+        campaign's). Only ``keep`` boxes: removing a box keeps most of the file.
+
+        Raises InputError (one line) for a remove box, a box of fewer than 3 points
+        or more than :func:`crop_cap`."""
+        assert self.campaign is not None
+        name = self.campaign.path.name
+        if box.mode != "keep":
+            raise InputError(f"{name} is served as a campaign: a crop keeps the points "
+                             "inside a box (removing one would keep most of the file)")
+        cap = crop_cap(self.campaign)
+        xyz = points_in_box(self.campaign, np.asarray(box.lo), np.asarray(box.hi), most=cap,
+                            decode_most=max(QUERY_DECODE_POINTS, 4 * cap), what="the crop",
+                            hint="choose a smaller box, or give serve more --memory")
+        if xyz.shape[0] < 3:
+            raise InputError(f"{box.describe(self.units.per, self.units.label)} keeps "
+                             f"{xyz.shape[0]} of {self.n_total:,} points; a map needs at "
+                             "least 3")
+        c = self.cloud
+        cloud = PointCloud(x=np.ascontiguousarray(xyz[:, 0]), y=np.ascontiguousarray(xyz[:, 1]),
+                           z=np.ascontiguousarray(xyz[:, 2]), source=c.source,
+                           source_unit=c.source_unit, warnings=c.warnings)
+        del xyz
+        return CampaignCrop(cloud, max_display=self.max_display, cache_bytes=self.cache_bytes,
+                            cache_pool=self.store.pool, seed=self.seed, presets=self.presets,
+                            trust_settings=self.trust_settings, crop=box,
+                            uncropped=self, frame_origin=_frame(self))
 
     def cropped_exact(self, mask: np.ndarray) -> LoadedCloud:
-        raise InputError(self._no_crop())
+        """A selection of the overview's points: every point of the file in their
+        bounding box (:meth:`cropped`; the overview holds only some of the points
+        there, so the crop is of the box, not of the points selected)."""
+        keep = np.asarray(mask)
+        if keep.dtype != np.bool_ or keep.shape != (self.cloud.n,):
+            raise InputError(f"a selection of this cloud has one flag per point "
+                             f"({self.cloud.n:,}), got {keep.shape}")
+        return self.cropped(CropBox.around(self.cloud, keep))
 
-    def _no_crop(self) -> str:
-        name = Path(self.cloud.source).name
-        return (f"{name} is served as an overview of a campaign: cropping it is not built "
-                f"yet; crop the file with 'rough-viewer compute {name} --crop ...' or write "
-                "the part as LAS and serve that")
+
+def _frame(loaded: LoadedCloud) -> tuple[float, float, float]:
+    return (float(loaded.origin[0]), float(loaded.origin[1]), float(loaded.origin[2]))
+
+
+#: Most points of a campaign's crop without a memory budget.
+CROP_POINTS = 20_000_000
+#: Share of a campaign's pass memory its crop may hold (at the app's bytes a point):
+#: while a crop is shown its grids are computed in memory, not by the pass.
+CROP_SHARE = 0.5
+
+
+def crop_cap(campaign: Campaign) -> int:
+    """Most points a crop of ``campaign`` keeps: :data:`CROP_SHARE` of its pass's
+    memory at the app's bytes a point (:data:`CROP_POINTS` without a budget)."""
+    if campaign.memory_bytes is None:
+        return CROP_POINTS
+    return max(QUERY_PIECE_POINTS, int(CROP_SHARE * campaign.memory_bytes
+                                       / (APP_BYTES_PER_POINT + APP_CACHE_BYTES_PER_POINT)))
+
+
+@dataclass(eq=False)
+class CampaignCrop(LoadedCloud):
+    """Every point of a campaign's file inside a box (:meth:`CampaignCloud.cropped`),
+    in memory: a cloud like any other, whose :attr:`uncropped` is the campaign."""
+
+    @property
+    def file_rows(self) -> bool:
+        return False
+
+    def cropped_exact(self, mask: np.ndarray) -> LoadedCloud:
+        """Exactly the points ``mask`` selects of this crop (they are all in
+        memory); :attr:`uncropped` stays the campaign."""
+        keep = np.asarray(mask)
+        if keep.dtype != np.bool_ or keep.shape != (self.cloud.n,):
+            raise InputError(f"a selection of this cloud has one flag per point "
+                             f"({self.cloud.n:,}), got {keep.shape}")
+        kept = int(np.count_nonzero(keep))
+        if kept < 3:
+            raise InputError(f"the selection keeps {kept} points; a map needs at least 3")
+        whole = self.uncropped
+        assert whole is not None
+        return CampaignCrop(self.cloud.subset(keep), max_display=self.max_display,
+                            cache_bytes=self.cache_bytes, cache_pool=self.store.pool,
+                            seed=self.seed, presets=self.presets, label=self.label,
+                            trust_settings=self.trust_settings,
+                            crop=CropBox.around(self.cloud, keep), uncropped=whole,
+                            crop_exact=True, frame_origin=_frame(whole))
 
 
 def overview_label(campaign: Campaign, overview: PointCloud) -> str:
@@ -713,7 +876,8 @@ def describe_overview(campaign: Campaign, overview: PointCloud) -> str:
             "top levels of its hierarchy); roughness from every point")
 
 
-__all__ = ["CELLS_VERSION", "Campaign", "CampaignCloud", "CampaignStore", "OVERVIEW_POINTS",
+__all__ = ["CELLS_VERSION", "Campaign", "CampaignCloud", "CampaignCrop", "crop_cap", "CampaignStore", "OVERVIEW_POINTS",
            "campaign_cloud", "campaign_presets", "cells_path", "compute_memory",
            "describe_overview", "expected_cells", "first_grid", "load_cells", "open_campaign", "overview_cap",
-           "overview_cells", "overview_rows", "read_overview", "save_cells"]
+           "overview_cells", "overview_rows", "points_in_box", "query_cap", "read_overview",
+           "save_cells"]

@@ -320,6 +320,13 @@ class LoadedCloud:
         return self.cloud.n
 
     @property
+    def file_rows(self) -> bool:
+        """Whether :attr:`cloud` is the rows of its file (or, cropped, those of
+        :attr:`crop_mask` of the uncropped cloud's): a LAS export can then copy the
+        file's records with every dimension. A campaign's overview and crops are not."""
+        return self.n_total == self.cloud.n
+
+    @property
     def n_display(self) -> int:
         """Points drawn."""
         return len(self.display_index)
@@ -407,6 +414,19 @@ class LoadedCloud:
         bias curves (seconds)."""
         with self._computing(("trust", result.grid.cell_size, result.axis), progress):
             return self.store.trust(result, self.trust_settings, progress=progress)
+
+    def points_covering(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """(K, 3) metres, file frame: every point of the cloud inside the box
+        ``[lo, hi]`` (metres), in the cloud's order (a campaign:
+        :meth:`rough_viewer.app.campaign.CampaignCloud.points_covering`, every point
+        of its file there). A profile's patch is cut so, not copied whole (an
+        (N, 3) copy of 20 M points is 480 MB)."""
+        c = self.cloud
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        inside = (c.x >= lo[0]) & (c.x <= hi[0])
+        inside &= (c.y >= lo[1]) & (c.y <= hi[1])
+        inside &= (c.z >= lo[2]) & (c.z <= hi[2])
+        return np.column_stack([c.x[inside], c.y[inside], c.z[inside]])
 
     def octree(self, max_node_points: int = DEFAULT_MAX_NODE_POINTS) -> Octree:
         """The level-of-detail octree of every point, nodes of at most

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,11 +44,33 @@ def wants_chunks(args: argparse.Namespace) -> bool:
     return bool(getattr(args, "memory", None) or getattr(args, "scheduler", None))
 
 
+@dataclass(frozen=True)
+class ChunkedRun:
+    """What a streamed (or tiled, or Dask) run of several grid sizes gives."""
+
+    results: list[GridRoughness]
+    """One per grid size, in the order asked."""
+    dropped: int
+    """Rows dropped for NaN or infinite coordinates."""
+    bounds: tuple[np.ndarray, np.ndarray]
+    """The inputs' extent from their headers (or their first pass), metres."""
+    warnings: tuple[str, ...]
+    """What the readers noticed."""
+
+
 def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequence[float], *,
                     origin: np.ndarray | None, models: Sequence[Model], residual: Residual
                     ) -> tuple[list[GridRoughness], int]:
     """Grid roughness of the merged files at every grid size, streamed; and the number
     of rows dropped for NaN or infinite coordinates."""
+    run = chunked_run(args, paths, grids, origin=origin, models=models, residual=residual)
+    return run.results, run.dropped
+
+
+def chunked_run(args: argparse.Namespace, paths: Sequence[Path], grids: Sequence[float], *,
+                origin: np.ndarray | None, models: Sequence[Model], residual: Residual
+                ) -> ChunkedRun:
+    """:func:`chunked_results` with the inputs' extent and readers' warnings."""
     from rough_viewer.cli._inputs import report_cloud
     from rough_viewer.cli._progress import FileBars, ProgressBar
     from rough_viewer.io.cloud import PointCloud
@@ -62,12 +85,18 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
     notes = tuple(w for s in sources for w in s.warnings)
     report_cloud(PointCloud(x=np.empty(0), y=np.empty(0), z=np.empty(0),
                             dropped_nonfinite=dropped, warnings=notes), "the inputs")
+    bounds = (np.min([s.bounds_min for s in sources], axis=0),
+              np.max([s.bounds_max for s in sources], axis=0))
+
+    def done(results: list[GridRoughness]) -> ChunkedRun:
+        return ChunkedRun(results=results, dropped=dropped, bounds=bounds, warnings=notes)
+
     runner = SequentialRunner() if not args.scheduler else _dask_runner(args)
     quiet = args.quiet
     try:
         if len(sources) == 1 and sources[0].streamed and is_copc(sources[0].path):
-            return _copc_results(args, sources[0], grids, origin=origin, models=models,
-                                 residual=residual, memory=memory, runner=runner), dropped
+            return done(_copc_results(args, sources[0], grids, origin=origin, models=models,
+                                      residual=residual, memory=memory, runner=runner))
         bars: FileBars | None = None
         overall: ProgressBar | None = None
         per_file: list[ProgressBar] | None = None
@@ -88,7 +117,7 @@ def chunked_results(args: argparse.Namespace, paths: Sequence[Path], grids: Sequ
         close = getattr(runner, "close", None)
         if close is not None:
             close()
-    return results, dropped
+    return done(results)
 
 
 def _copc_results(args: argparse.Namespace, source, grids: Sequence[float], *,

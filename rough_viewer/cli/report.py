@@ -8,6 +8,7 @@ Contract::
         [--scanner X,Y,Z | --scanners FILE] [--noise M] [--beam-radius M]
         [--calibration FILE ...] [--asperity-radius M] [--angular-step DEG]
         [--crop XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX [--crop-mode keep|remove] | --crop-file VIEW.json]
+        [--memory SIZE] [--scheduler threads|processes|tcp://HOST:PORT] [--workers N]
         [--force] [--quiet]
 
 With scanner positions (E57 poses, ``--scanner``, ``--scanners``) every grid size
@@ -20,7 +21,11 @@ the numbers alone. ``--png DIR`` also writes every figure as ``DIR/g<G>_<figure>
 quoted globs) are one merged cloud. ``--directions DEG`` adds a section per input
 file: its roughness by direction (``rough-viewer directions`` with its defaults).
 ``--crop`` / ``--crop-file`` report on the points inside (or outside) a box; the
-report's warnings say so (docs/lod.md).
+report's warnings say so (docs/lod.md). ``--memory`` / ``--scheduler`` compute the
+cells out of core (streamed chunks, Dask, or a COPC file's tiles, each point decoded
+once) and make every figure from them, the joint sets excepted (they need every point;
+the page says so); they need ``--grid`` and refuse ``--directions``, the scanner
+options and a crop.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ from rough_viewer.cli._options import (
     positive,
     warn,
 )
+from rough_viewer.cli._scale import add_scale_options
 from rough_viewer.cli._scanner import add_scanner_options
 from rough_viewer.io.output import all_or_nothing, check_output_path, path_in_folder
 from rough_viewer.vocabulary import DEFAULT_MIN_POINTS, UNIT_LABELS, InputError
@@ -82,6 +88,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_units(p)
     add_scanner_options(p)
+    add_scale_options(p)
     p.set_defaults(func=run)
 
 
@@ -111,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from rough_viewer.cli._crop import adopt_view_units, apply_crop, crop_from_args
     from rough_viewer.cli._inputs import input_paths, load_inputs
     from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import wants_chunks
     from rough_viewer.cli._scanner import apply_scanner_options
     from rough_viewer.io.load import resolve_units
     from rough_viewer.report import check_png_export
@@ -129,20 +137,25 @@ def run(args: argparse.Namespace) -> int:
     box = crop_from_args(args, resolve_units(paths[0], args.units)[0])
 
     quiet = args.quiet
-    cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet,
-                                              max_points=args.file_max_points), paths,
-                                  args, unit_in)  # prints its warnings
-    cloud, _ = apply_crop(cloud, box, cloud.source_unit)
-    per = per_unit(cloud.source_unit)
-    u = UNIT_LABELS[cloud.source_unit]
-    if given is not None:  # lengths given in the input's unit
-        settings = replace(settings, grid_sizes=tuple(g * per for g in given))
-    png_dir = None
-    if args.png and given is not None:
-        png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()), force=args.force,
-                                  unit=cloud.source_unit)
-    report = compute_report(cloud, settings, progress=None if quiet else ProgressBar("report"))
-    warn(report.warnings[len(cloud.warnings):])
+    if wants_chunks(args):
+        report, png_dir = _report_by_chunks(args, paths, given, settings, unit_in)
+        per, u = per_unit(unit_in), UNIT_LABELS[unit_in]
+    else:
+        cloud = apply_scanner_options(load_inputs(paths, units=args.units, quiet=quiet,
+                                                  max_points=args.file_max_points), paths,
+                                      args, unit_in)  # prints its warnings
+        cloud, _ = apply_crop(cloud, box, cloud.source_unit)
+        per = per_unit(cloud.source_unit)
+        u = UNIT_LABELS[cloud.source_unit]
+        if given is not None:  # lengths given in the input's unit
+            settings = replace(settings, grid_sizes=tuple(g * per for g in given))
+        png_dir = None
+        if args.png and given is not None:
+            png_dir, _ = _png_targets(args.png, list(settings.grid_sizes or ()),
+                                      force=args.force, unit=cloud.source_unit)
+        report = compute_report(cloud, settings,
+                                progress=None if quiet else ProgressBar("report"))
+        warn(report.warnings[len(cloud.warnings):])
     if args.directions is not None:
         report = _with_directions(report, paths, args)
     if given is None:
@@ -157,6 +170,46 @@ def run(args: argparse.Namespace) -> int:
     if png_dir is not None:
         print(f"wrote {n_figures} PNG figures to {png_dir}")
     return 0
+
+
+def _report_by_chunks(args: argparse.Namespace, paths: list[Path],
+                      given: tuple[float, ...] | None, settings: ReportSettings, unit: str
+                      ) -> tuple[Report, Path | None]:
+    """The report of the inputs streamed in chunks (``--memory``), on Dask
+    (``--scheduler``) or, for one COPC file, by its tiles: every figure from the
+    cells (:func:`rough_viewer.report.build.report_from_results`), the same numbers
+    as in memory, without the joint sets; the PNG folder checked."""
+    from rough_viewer.cli._crop import refuse_with_chunks
+    from rough_viewer.cli._inputs import describe
+    from rough_viewer.cli._progress import ProgressBar
+    from rough_viewer.cli._scale import chunked_run
+    from rough_viewer.report.build import report_from_results
+    from rough_viewer.vocabulary import MODELS
+
+    refuse_with_chunks(args)
+    if given is None:
+        raise InputError("give --grid with --memory or --scheduler: the default grid sizes "
+                         "come from the point spacing of the whole cloud in memory")
+    if args.scanner or args.scanners:
+        raise InputError("the scanner section needs every point, which --memory and "
+                         "--scheduler do not keep; run without them for --scanner and "
+                         "--scanners")
+    if args.directions is not None:
+        raise InputError("--directions measures profiles of every point, which --memory and "
+                         "--scheduler do not keep; run 'rough-viewer directions' on the "
+                         "input, or the report without those options")
+    per = per_unit(unit)
+    sizes = list(dict.fromkeys(g * per for g in given))
+    png_dir = None
+    if args.png:
+        png_dir, _ = _png_targets(args.png, sizes, force=args.force, unit=unit)
+    run = chunked_run(args, paths, sizes, origin=None, models=MODELS, residual="absolute")
+    report = report_from_results(
+        run.results, source=describe(paths), bounds=run.bounds, dropped_nonfinite=run.dropped,
+        threshold=settings.threshold, unit=unit, keep_outliers=settings.keep_outliers,
+        warnings=run.warnings, progress=None if args.quiet else ProgressBar("report"))
+    warn([w for w in report.warnings if w not in run.warnings])
+    return report, png_dir
 
 
 def _report_settings(args: argparse.Namespace, unit_in: str

@@ -278,6 +278,38 @@ def resample_band(
 # ----------------------------------------------------------------------------- public
 
 
+def patch_radius(length: float, band_half_width: float | None = None,
+                 frame_radius: float | None = None) -> float:
+    """Radius (metres) around a line of ``length`` metres of the patch
+    :func:`extract_profile` reads: ``frame_radius``, by default ``max(L / 4, 3
+    band_half_width)``.
+
+    >>> patch_radius(8.0), patch_radius(8.0, 1.0), patch_radius(8.0, 1.0, 0.5)
+    (2.0, 3.0, 0.5)
+    """
+    if frame_radius is not None:
+        return float(frame_radius)
+    return max(0.25 * float(length), 3.0 * band_half_width if band_half_width is not None else 0.0)
+
+
+def patch_box(start: Any, end: Any, *, band_half_width: float | None = None,
+              frame_radius: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The box (lowest and highest corners, metres) that holds every point
+    :func:`extract_profile` may use for the line from ``start`` to ``end``: the
+    line's box grown by :func:`patch_radius` (a cloud too big to hold gives only
+    these points; the profile is the same).
+
+    >>> lo, hi = patch_box([0, 0, 0], [4, 0, 0])
+    >>> lo.tolist(), hi.tolist()
+    ([-1.0, -1.0, -1.0], [5.0, 1.0, 1.0])
+    """
+    p0, p1 = _as_point(start, "start"), _as_point(end, "end")
+    radius = patch_radius(float(np.linalg.norm(p1 - p0)),
+                          positive_length(band_half_width, "band_half_width"),
+                          positive_length(frame_radius, "frame_radius"))
+    return np.minimum(p0, p1) - radius, np.maximum(p0, p1) + radius
+
+
 def extract_profile(
     points: Any,
     start: Any,
@@ -341,9 +373,7 @@ def extract_profile(
     band = positive_length(band_half_width, "band_half_width")
     step = positive_length(spacing, "spacing")
     gap = positive_length(max_gap, "max_gap")
-    radius = positive_length(frame_radius, "frame_radius")
-    if radius is None:
-        radius = max(0.25 * length3, 3.0 * band if band is not None else 0.0)
+    radius = patch_radius(length3, band, positive_length(frame_radius, "frame_radius"))
 
     # Patch: cheap bounding-box cut, then exact distance to the segment.
     lo = np.minimum(p0, p1) - radius

@@ -160,13 +160,46 @@ def _section(
                                 progress=stage)
     except InputError as exc:
         return GridSection(grid_size=g, error=str(exc))
+    return section_of(
+        result, threshold=threshold, plane=plane, min_cells=min_cells,
+        connectivity=connectivity, keep_outliers=keep_outliers, tick=tick,
+        sets=lambda: joint_sets(result, cloud),
+        trust=None if trust is None else (lambda: cell_trust(cloud, result, trust)))
+
+
+def section_of(
+    result: GridRoughness,
+    *,
+    threshold: float,
+    plane: PlaneFit,
+    min_cells: int,
+    connectivity: Connectivity,
+    keep_outliers: bool,
+    tick: Callable[[], None] = lambda: None,
+    sets: Callable[[], JointSets] | str,
+    trust: Callable[[], CellTrust | None] | None = None,
+) -> GridSection:
+    """One grid size's section from its grid result: everything but the joint sets
+    and the scanner figures comes from the cells alone.
+
+    Parameters
+    ----------
+    result : GridRoughness
+        The grid (in memory, or out of core: :mod:`rough_viewer.scale`).
+    sets : callable or str
+        Makes the joint sets (they need every point); a string says why there are
+        none (an out-of-core result), recorded as the ``"sets"`` figure's error.
+    trust : callable, optional
+        Makes the scanner figures; None: no scanner section.
+    """
+    g = float(result.grid.cell_size)
     n_valid = int(np.count_nonzero(np.isfinite(result.theta_odr)))
     if n_valid < MIN_CELLS:
         return GridSection(
             grid_size=g,
             error=(f"too few cells: {n_valid} cell{'s' if n_valid != 1 else ''} with a "
-                   f"roughness value, at least {MIN_CELLS} needed (cells need {min_points} "
-                   "points); use a smaller grid size"),
+                   f"roughness value, at least {MIN_CELLS} needed (cells need "
+                   f"{result.min_points} points); use a smaller grid size"),
             result=result,
         )
     summaries: dict[str, Summary] = {}
@@ -193,14 +226,17 @@ def _section(
         result, ZONES_MAP, keep_outliers=keep_outliers).zones(
             threshold, connectivity=connectivity, min_cells=min_cells))
     net = _figure(figure_errors, "stereonet", g, lambda: cell_stereonet(result))
-    sets = _figure(figure_errors, "sets", g, lambda: joint_sets(result, cloud))
+    if isinstance(sets, str):
+        figure_errors["sets"] = sets
+        found = None
+    else:
+        found = _figure(figure_errors, "sets", g, sets)
     tick()
-    cells = None if trust is None else _figure(figure_errors, "scanner", g,
-                                               lambda: cell_trust(cloud, result, trust))
+    cells = None if trust is None else _figure(figure_errors, "scanner", g, trust)
     tick()
     return GridSection(grid_size=g, result=result, summaries=summaries, histograms=histograms,
                        variograms=variograms or {}, maps=maps or {}, zones=zones,
-                       advice=advice, stereonet=net, trust=cells, sets=sets,
+                       advice=advice, stereonet=net, trust=cells, sets=found,
                        figure_errors=figure_errors)
 
 
@@ -359,29 +395,97 @@ def build_report(
         done = STEPS_PER_GRID * (i + 1)
         show(done)
     lo, hi = cloud.bounds()
-    display_unit = unit or cloud.source_unit
+    return _report(
+        sections, name=Path(cloud.source).name if cloud.source else "in-memory cloud",
+        source=cloud.source, n_points=cloud.n, dropped_nonfinite=cloud.dropped_nonfinite,
+        bounds=(lo, hi), axis=used_axis, axis_requested=axis, threshold=threshold,
+        min_points=min_points, plane=plane, min_cells=min_cells, connectivity=connectivity,
+        unit=unit or cloud.source_unit, grids_chosen=chosen, warnings=cloud.warnings,
+        scanner_note=None if has_scanners else NO_POSITIONS, keep_outliers=keep_outliers)
+
+
+def _report(sections: list[GridSection], *, name: str, source: str, n_points: int,
+            dropped_nonfinite: int, bounds: tuple[np.ndarray, np.ndarray], axis: str,
+            axis_requested: str, threshold: float, min_points: int, plane: PlaneFit,
+            min_cells: int, connectivity: Connectivity, unit: str, grids_chosen: str,
+            warnings: tuple[str, ...], scanner_note: str | None,
+            keep_outliers: bool) -> Report:
     return Report(
-        name=Path(cloud.source).name if cloud.source else "in-memory cloud",
-        source=cloud.source,
-        n_points=cloud.n,
-        dropped_nonfinite=cloud.dropped_nonfinite,
-        bounds_min=lo,
-        bounds_max=hi,
-        axis=used_axis,
-        axis_requested=axis,
-        threshold=float(threshold),
-        min_points=int(min_points),
-        plane=plane,
+        name=name, source=source, n_points=int(n_points),
+        dropped_nonfinite=int(dropped_nonfinite), bounds_min=np.asarray(bounds[0], float),
+        bounds_max=np.asarray(bounds[1], float), axis=axis, axis_requested=axis_requested,
+        threshold=float(threshold), min_points=int(min_points), plane=plane,
         sections=tuple(sections),
         created=_dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
-        min_cells=int(min_cells),
-        connectivity=connectivity,
-        unit=display_unit,
-        grids_chosen=chosen,
-        warnings=cloud.warnings + _coverage_warnings(sections, display_unit, keep_outliers),
-        scanner_note=None if has_scanners else NO_POSITIONS,
-        keep_outliers=bool(keep_outliers),
-    )
+        min_cells=int(min_cells), connectivity=connectivity, unit=unit,
+        grids_chosen=grids_chosen,
+        warnings=tuple(warnings) + _coverage_warnings(sections, unit, keep_outliers),
+        scanner_note=scanner_note, keep_outliers=bool(keep_outliers))
+
+
+#: Why an out-of-core report has no joint sets.
+NO_SETS_OUT_OF_CORE = ("the joint sets fit their planes to every point, which --memory and "
+                       "--scheduler do not keep in memory; run 'rough-viewer sets' on the "
+                       "input (or this report without those options) for them")
+
+
+def report_from_results(
+    results: Sequence[GridRoughness],
+    *,
+    source: str,
+    bounds: tuple[np.ndarray, np.ndarray],
+    dropped_nonfinite: int = 0,
+    threshold: float = 0.05,
+    min_cells: int = DEFAULT_MIN_CELLS,
+    connectivity: Connectivity = "vertex",
+    unit: str = "m",
+    keep_outliers: bool = False,
+    warnings: Sequence[str] = (),
+    progress: ProgressFn | None = None,
+) -> Report:
+    """The report of grid results computed out of core (:mod:`rough_viewer.scale`:
+    streamed chunks, or a COPC file's tiles): every figure of :func:`build_report`
+    from the cells alone, the same numbers for the same cells; the joint sets are left
+    out (:data:`NO_SETS_OUT_OF_CORE`) and so is the scanner section.
+
+    Parameters
+    ----------
+    results : sequence of GridRoughness
+        One per grid size, in the order to show, of one cloud (the same whole plane,
+        point count and dependent axis).
+    source : str
+        The input as given (a path, or several joined).
+    bounds : (lo, hi) of (3,) arrays
+        The cloud's extent, metres (the files' headers).
+    dropped_nonfinite : int
+        Rows the reader dropped for NaN or infinite coordinates.
+    threshold, min_cells, connectivity, unit, keep_outliers
+        As :func:`build_report`.
+    warnings : sequence of str
+        What the reader noticed.
+    progress : callable, optional
+        ``progress(done, total)`` over the sections.
+    """
+    if not results:
+        raise InputError("a report needs at least one grid size")
+    if connectivity not in CONNECTIVITIES:
+        raise InputError(f"unknown connectivity {connectivity!r}; expected vertex, edge or face")
+    first = results[0]
+    plane = first.whole_plane
+    sections = []
+    for i, res in enumerate(results):
+        sections.append(section_of(res, threshold=threshold, plane=plane, min_cells=min_cells,
+                                   connectivity=connectivity, keep_outliers=keep_outliers,
+                                   sets=NO_SETS_OUT_OF_CORE))
+        if progress is not None:
+            progress(i + 1, len(results))
+    return _report(
+        sections, name=Path(source).name if source else "in-memory cloud", source=source, n_points=first.n_points_total,
+        dropped_nonfinite=dropped_nonfinite, bounds=bounds, axis=first.axis,
+        axis_requested=first.axis_requested, threshold=threshold,
+        min_points=first.min_points, plane=plane, min_cells=min_cells,
+        connectivity=connectivity, unit=unit, grids_chosen="given", warnings=tuple(warnings),
+        scanner_note=NO_POSITIONS, keep_outliers=keep_outliers)
 
 
 #: Share of occupied cells with an ODR value below which a grid is called sparse.

@@ -35,6 +35,7 @@ from rough_viewer.grid.roughness import grid_roughness  # noqa: E402
 from rough_viewer.grid.spacing import median_cell_count  # noqa: E402
 from rough_viewer.io import PointCloud  # noqa: E402
 from rough_viewer.io.copc.reader import decode_nodes, open_copc  # noqa: E402
+from rough_viewer.io.crop import CropBox  # noqa: E402
 from rough_viewer.io.sandbox import isolate  # noqa: E402
 from rough_viewer.vocabulary import InputError  # noqa: E402
 from tests.app.protocol import ProtocolClient  # noqa: E402
@@ -126,8 +127,8 @@ def test_the_map_is_every_point_of_the_file_and_the_next_open_reads_the_cache(su
             cells = loaded.cell_result(settings.with_(cell_size=g))
             assert_same_cells(cells, grid_roughness(xyz, g, engine="numpy"), rtol=1e-12)
         assert sorted(store.computed) == sorted(presets)  # all four from the one pass
-        with pytest.raises(InputError, match="cropping it is not built"):
-            loaded.cropped_exact(np.ones(overview.n, dtype=bool))
+        with pytest.raises(InputError, match="a crop keeps the points inside a box"):
+            loaded.cropped(CropBox((0, 0, 0), (1, 1, 1), mode="remove"))
     finally:
         app.stop()
         server.stop()

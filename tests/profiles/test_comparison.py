@@ -56,10 +56,13 @@ def test_comparison_memory_estimate_covers_the_measured_peak() -> None:
     n = 50_000
     h = np.cumsum(np.random.default_rng(3).normal(0.0, 1e-5, n))
     h[1000:1200] = np.nan
-    tracemalloc.start()
-    try:
-        compare_denoising(h, 1e-4)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    peaks = []
+    for _ in range(3):  # tracemalloc counts every thread's allocations: an app's
+        tracemalloc.start()  # threads left by an earlier test add to one run's peak
+        try:
+            compare_denoising(h, 1e-4)
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+    peak = min(peaks)
     assert 0.5 * COMPARISON_BYTES_PER_SAMPLE * n < peak <= COMPARISON_BYTES_PER_SAMPLE * n

@@ -83,11 +83,11 @@ def crop_text(loaded: LoadedCloud) -> str:
     u = loaded.units
     if loaded.crop_exact:
         return (f"**Cropped to the selection's {loaded.cloud.n:,} points** (exactly; of "
-                f"{loaded.uncropped.cloud.n:,}) used by every analysis. A saved view "
+                f"{loaded.uncropped.n_total:,}) used by every analysis. A saved view "
                 f"holds their bounding box ({md(box_text(loaded.crop, u))} {u.label}), "
                 "which keeps every point in it. A new crop replaces this one.")
     return (f"**{md(loaded.crop.describe(u.per, u.label).capitalize())}**: "
-            f"{loaded.cloud.n:,} of {loaded.uncropped.cloud.n:,} points are used by every "
+            f"{loaded.cloud.n:,} of {loaded.uncropped.n_total:,} points are used by every "
             "analysis. A new crop replaces this one.")
 
 

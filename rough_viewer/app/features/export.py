@@ -305,7 +305,7 @@ def _points_plan(e: ExportFeature, shown: Shown, fmt: str) -> Plan:
                 f"axis {result.axis}, coordinates and roughness in {UNIT_LABELS[unit]}"],
                 unit=unit, lengths=POINT_LENGTH_FIELDS)
         elif source is not None and source.suffix.lower() in LAS_SUFFIXES \
-                and shown.loaded.n_total == cloud.n:  # a campaign's overview: its points
+                and shown.loaded.file_rows:  # a campaign's overview or crop: its points
             # a crop: the file's rows it kept, every dimension of them
             copy_las_with_fields(source, path, cloud, pf, progress=progress,
                                  keep=shown.loaded.crop_mask)

@@ -121,10 +121,27 @@ def set_of_option(value: str) -> int | None:
     return None
 
 
-def status_markdown(sets: JointSets, cell_size_text: str) -> str:
-    """The tab's status line (escaped)."""
+def overview_note(n_drawn: int, n_total: int) -> str:
+    """The warning of sets found on a campaign's overview (issue 33): the cells are
+    every point's, the planes' fits are not; '' when every point is in memory.
+
+    >>> overview_note(5, 5)
+    ''
+    >>> overview_note(1_000, 60_000)[:60]
+    "the cells are every point's, but the planes, joints, spacing"
+    """
+    if n_drawn >= n_total:
+        return ""
+    return (f"the cells are every point's, but the planes, joints, spacing and joint "
+            f"roughness are fitted to the overview's {n_drawn:,} of the file's "
+            f"{n_total:,} points: crop to a region (Select tab) to use every point there")
+
+
+def status_markdown(sets: JointSets, cell_size_text: str, overview: str = "") -> str:
+    """The tab's status line (escaped); ``overview``: :func:`overview_note`."""
+    warn = f"\n\n**⚠ {md(overview)}**" if overview else ""
     if not sets.n_sets:
-        return f"**No joint set** at grid {md(cell_size_text)}: {md(sets.note)}"
+        return f"**No joint set** at grid {md(cell_size_text)}: {md(sets.note)}{warn}"
     planar = int(np.count_nonzero(sets.planar))
     n = sets.curved_groups
     curved = (f"; {n:,} curved group{' is' if n == 1 else 's are'} no plane" if n else "")
@@ -135,7 +152,7 @@ def status_markdown(sets: JointSets, cell_size_text: str) -> str:
             f"patch{'es' if n_p != 1 else ''} (planes){md(curved)}")
     if sets.face_note:  # a set parallel to the exposure face (issue 31 item 2)
         line += f"\n\n**⚠ {md(sets.face_note)}**"
-    return line
+    return line + warn
 
 
 def rock_mass_markdown(sets: JointSets, unit: str) -> str:
@@ -429,8 +446,9 @@ class SetsJob(Job[Host]):
             f.selected_set = 0
         f.sets, f.result = sets, shown.result
         f.show_colours()
-        f.binding.write(f.status, content=status_markdown(sets, shown.loaded.units.size_text(
-            shown.result.grid.cell_size)))
+        f.binding.write(f.status, content=status_markdown(
+            sets, shown.loaded.units.size_text(shown.result.grid.cell_size),
+            overview_note(shown.loaded.cloud.n, shown.loaded.n_total)))
         yield "colours"
         ctx.submit(SetFiguresJob(f))
 

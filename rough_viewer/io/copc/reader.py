@@ -254,6 +254,37 @@ def pack_key(d: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.n
         | (np.asarray(y, dtype=np.int64) << 19) | np.asarray(z, dtype=np.int64)
 
 
+def node_boxes(copc: CopcFile) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3) lowest and highest corners of the cube of every node of
+    :attr:`CopcFile.nodes`, file units: the root cube halved ``depth`` times, at the
+    node's key.
+
+    >>> nodes = np.array([(0, 0, 0, 0, 0, 1, 10), (1, 1, 0, 1, 0, 1, 5)], dtype=ENTRY_DTYPE)
+    >>> c = CopcFile("f", 15, 6, 30, np.ones(3), np.zeros(3), np.zeros(3), np.ones(3),
+    ...              np.full(3, 2.0), 2.0, b"", nodes)
+    >>> lo, hi = node_boxes(c)
+    >>> lo.tolist(), hi.tolist()
+    ([[0.0, 0.0, 0.0], [2.0, 0.0, 2.0]], [[4.0, 4.0, 4.0], [4.0, 2.0, 4.0]])
+    """
+    nodes = copc.nodes
+    side = 2.0 * float(copc.halfsize) / np.exp2(nodes["depth"].astype(np.float64))
+    key = np.column_stack([nodes["x"], nodes["y"], nodes["z"]]).astype(np.float64)
+    lo = copc.cube_min + key * side[:, None]
+    return lo, lo + side[:, None]
+
+
+def nodes_in_box(copc: CopcFile, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Rows of :attr:`CopcFile.nodes` whose cubes meet the box ``[lo, hi]`` (file
+    units; a point may sit one stored step outside its node's cube, so the cubes are
+    taken that much larger), in file order: the nodes that hold every point of the
+    file inside the box (a spatial query of the index)."""
+    nlo, nhi = node_boxes(copc)
+    step = np.asarray(copc.scales, dtype=np.float64)
+    meets = np.all((nhi + step >= np.asarray(lo, float)) & (nlo - step <= np.asarray(hi, float)),
+                   axis=1)
+    return np.flatnonzero(meets)
+
+
 def decode_integers(copc: CopcFile, rows: Sequence[int] | np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The stored integers X, Y, Z (int32 views of the records) of the points of
@@ -333,5 +364,6 @@ def decode_tiles(path: str, *, progress: ProgressFn | None = None,
 
 
 __all__ = ["ENTRY_DTYPE", "CopcFile", "decode_integers", "decode_nodes", "decode_tiles", "is_copc",
+           "node_boxes", "nodes_in_box",
            "node_codes",
            "open_copc", "pack_key", "scaled"]

@@ -30,7 +30,7 @@ from rough_viewer.app.markup import md
 from rough_viewer.app.scene import MARKER
 from rough_viewer.app.units import Units
 from rough_viewer.app.worker import Job, Run
-from rough_viewer.profiles.extraction import Profile, extract_profile
+from rough_viewer.profiles.extraction import Profile, extract_profile, patch_box
 from rough_viewer.profiles.fractal import (
     RoughnessLength,
     Windows,
@@ -144,12 +144,18 @@ class ProfileAnalysis:
         return tuple(dict.fromkeys(self.raw_fit.warnings + self.denoised_fit.warnings))
 
 
-def analyse(points: np.ndarray, start: np.ndarray, end: np.ndarray,
+def analyse(points: np.ndarray | LoadedCloud, start: np.ndarray, end: np.ndarray,
             settings: ProfileSettings) -> ProfileAnalysis:
     """Extract the profile between ``start`` and ``end`` (file frame, metres) and
-    de-noise it; raises InputError/ValueError from the core for bad picks."""
-    prof = extract_profile(points, np.asarray(start, float), np.asarray(end, float),
-                           band_half_width=settings.band_half_width)
+    de-noise it; raises InputError/ValueError from the core for bad picks.
+    ``points``: (N, 3) metres, or a loaded cloud, which gives the points of the
+    line's patch (:meth:`~rough_viewer.app.cloud.LoadedCloud.points_covering`: of
+    a campaign, every point of its file there)."""
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    if isinstance(points, LoadedCloud):
+        points = points.points_covering(*patch_box(start, end,
+                                                   band_half_width=settings.band_half_width))
+    prof = extract_profile(points, start, end, band_half_width=settings.band_half_width)
     return redo(prof, settings)
 
 
@@ -344,7 +350,7 @@ class ProfileFeature:
             return True
         (p0, _l0), self.start = self.start, None
         try:
-            a = analyse(host.session.shown.loaded.cloud.xyz(), p0, pick.xyz,
+            a = analyse(host.session.shown.loaded, p0, pick.xyz,
                         self.binding.read())
         except InputError as exc:
             host.scene.remove(self.nodes.pop())
@@ -391,7 +397,7 @@ class ProfileFeature:
 
         Raises InputError from the core (e.g. no points near the line).
         """
-        a = analyse(self.host.session.shown.loaded.cloud.xyz(), start, end, settings)
+        a = analyse(self.host.session.shown.loaded, start, end, settings)
         self._show(a)
         return a
 
@@ -478,7 +484,7 @@ class DenoiseJob(Job[Host]):
         redone = []
         try:
             settings = p.binding.read()
-            points = ctx.session.shown.loaded.cloud.xyz()
+            points = ctx.session.shown.loaded
             for a in p.items:
                 run.check()
                 if settings.band_half_width != a.settings.band_half_width:
