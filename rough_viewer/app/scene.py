@@ -291,10 +291,11 @@ class Scene:
         self.point_size = float(point_size)
         old = self._nodes
         nodes = loaded.lod_nodes() if isinstance(loaded, CampaignCloud) else None
-        if old is not None and old is not nodes:
+        if old is not None and old is not nodes:  # a crop of the campaign, another cloud
             old.listen(None, None)
             for cid in self.tabs:
                 old.forget(cid)
+            old.cache.clear()
         tree: LodTree = nodes.tree if nodes is not None else loaded.octree(
             node_points_for(self.budget))
         self._loaded, self._tree, self._nodes = loaded, tree, nodes
