@@ -215,8 +215,8 @@ APP_LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     # hooks: where the app reaches into viser (it imports nothing of the app); stage:
     # the server's GUI and scene or one tab's, which the scene and the shell are built on
     ("core", frozenset({"limits", "markup", "sampling", "picking", "settings", "units", "cache",
-                        "colouring", "store", "cloud", "campaign", "files", "worker",
-                        "session", "hooks", "stage", "scene"})),
+                        "colouring", "store", "cloud", "campaign", "campaign_nodes", "files",
+                        "worker", "session", "hooks", "stage", "scene"})),
     ("host", frozenset({"host", "detail"})),  # detail: the scene's level-of-detail jobs
     ("ui", frozenset({"controls", "gate", "uploads", "binding", "layout", "shell"})),
     ("features", frozenset({"features", "views"})),
