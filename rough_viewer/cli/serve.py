@@ -286,10 +286,13 @@ def _check_memory(args: argparse.Namespace, paths: list[Path], typed: Sequence[s
 
 def _check_options(args: argparse.Namespace) -> Path:
     """Validate the options that need no file; returns the data folder."""
+    from rough_viewer.app.features.map.binding import MAX_BUDGET, MIN_BUDGET
     from rough_viewer.app.gate import normalise_origin
 
-    if args.point_budget is not None and args.point_budget < 1:
-        raise InputError(f"--point-budget must be positive, got {args.point_budget}")
+    if args.point_budget is not None and not MIN_BUDGET <= args.point_budget <= MAX_BUDGET:
+        # the Map tab's budget control spans this range: a budget outside it cannot be shown
+        raise InputError(f"--point-budget must be {MIN_BUDGET:,}-{MAX_BUDGET:,} points a tab, "
+                         f"got {args.point_budget:,}")
     if not 0 <= args.port < 65536:
         raise InputError(f"--port must be 0-65535, got {args.port}")
     if args.max_connections < 1:

@@ -218,6 +218,18 @@ def test_point_budget_and_max_points_each_mean_one_thing(tmp_path, capsys):
     assert "decompression bomb" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("budget", ["5000", "0", "-3", "60000000"])
+def test_a_point_budget_the_map_control_cannot_show_is_one_line(tmp_path, capsys, budget):
+    """A budget outside the Map tab's control (10,000-50,000,000) was a traceback from the
+    GUI's slider; it is refused before the server starts, naming the option and its range."""
+    path = _cloud(tmp_path)
+    assert main(["serve", str(path), "--point-budget", budget, "--port", "0",
+                 "--no-block"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.count("\n") == 1 and "--point-budget must be 10,000-50,000,000" in err, err
+
+
 def test_serve_classroom_prints_a_students_and_a_teachers_address(tmp_path, capsys):
     """``serve --classroom``: ``open URL`` then ``teacher URL``, each on its own line with
     its own token; a real WebSocket with the teacher's token opens the teacher's tab."""
